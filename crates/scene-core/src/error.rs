@@ -1,0 +1,207 @@
+//! Typed errors. Each names the file, mesh, triangle, material or light at fault.
+
+use std::path::PathBuf;
+
+/// A scene that breaks an invariant diffuse transport relies on.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum SceneError {
+    /// A vertex position is NaN or infinite.
+    #[error("{mesh}: vertex {vertex} has a non-finite position")]
+    NonFinitePosition {
+        /// The mesh at fault.
+        mesh: String,
+        /// The vertex index.
+        vertex: usize,
+    },
+    /// A vertex attribute is NaN or infinite.
+    #[error("{mesh}: vertex {vertex} has non-finite {attribute}")]
+    NonFiniteAttribute {
+        /// The mesh at fault.
+        mesh: String,
+        /// Which attribute.
+        attribute: &'static str,
+        /// The vertex index.
+        vertex: usize,
+    },
+    /// An attribute array does not have one entry per vertex.
+    #[error("{mesh}: {found} {attribute} for {expected} vertices")]
+    AttributeCountMismatch {
+        /// The mesh at fault.
+        mesh: String,
+        /// Which attribute.
+        attribute: &'static str,
+        /// Vertex count.
+        expected: usize,
+        /// Attribute count.
+        found: usize,
+    },
+    /// A triangle index points past the vertex array.
+    #[error("{mesh}: triangle {triangle} uses vertex {index} but the mesh has {vertex_count} vertices")]
+    IndexOutOfRange {
+        /// The mesh at fault.
+        mesh: String,
+        /// The triangle index.
+        triangle: usize,
+        /// The bad index.
+        index: u32,
+        /// Number of vertices in the mesh.
+        vertex_count: usize,
+    },
+    /// The per-triangle material array has the wrong length.
+    #[error("{mesh}: {material_ids} material ids for {triangles} triangles")]
+    MaterialCountMismatch {
+        /// The mesh at fault.
+        mesh: String,
+        /// Triangle count.
+        triangles: usize,
+        /// Material id count.
+        material_ids: usize,
+    },
+    /// A triangle names a material that does not exist.
+    #[error("{mesh}: triangle {triangle} uses material {material} but the scene has {material_count}")]
+    MaterialOutOfRange {
+        /// The mesh at fault.
+        mesh: String,
+        /// The triangle index.
+        triangle: usize,
+        /// The bad material id.
+        material: u32,
+        /// Number of materials.
+        material_count: usize,
+    },
+    /// Albedo must lie in [0, 1): radiosity diverges at 1.
+    #[error("{material}: albedo {albedo:?} is outside [0, 1) (radiosity diverges at albedo 1)")]
+    AlbedoOutOfRange {
+        /// The material at fault.
+        material: String,
+        /// Its albedo.
+        albedo: [f32; 3],
+    },
+    /// Emission must be finite and non-negative.
+    #[error("{material}: emission {emission:?} is negative or not finite")]
+    InvalidEmission {
+        /// The material at fault.
+        material: String,
+        /// Its emission.
+        emission: [f32; 3],
+    },
+    /// A material names a texture that does not exist.
+    #[error("{material}: texture {texture} does not exist (the scene has {texture_count})")]
+    TextureOutOfRange {
+        /// The material at fault.
+        material: String,
+        /// The bad texture index.
+        texture: u32,
+        /// Number of textures.
+        texture_count: usize,
+    },
+    /// A texture is malformed.
+    #[error("{texture}: {reason}")]
+    InvalidTexture {
+        /// The texture at fault.
+        texture: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A light has invalid data.
+    #[error("{light}: {reason}")]
+    InvalidLight {
+        /// The light at fault.
+        light: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A camera is degenerate (zero view direction, up parallel to it, bad fov or planes).
+    #[error("{camera}: degenerate camera (check position/target/up, fov in (0, pi), 0 < near < far)")]
+    InvalidCamera {
+        /// The camera at fault.
+        camera: String,
+    },
+    /// A name given to `builtin` is unknown or its parameter is out of range.
+    #[error("unknown built-in scene '{0}' (known: cornell, cornell-point, primitives, corridor, many-boxes N)")]
+    UnknownBuiltin(String),
+}
+
+/// Reading or writing a glTF file failed.
+#[derive(Debug, thiserror::Error)]
+pub enum GltfError {
+    /// The file could not be parsed or its buffers could not be loaded.
+    #[error("{path}: cannot read glTF: {message}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What the parser said.
+        message: String,
+    },
+    /// The file parsed but its content is unusable.
+    #[error("{path}: {message}")]
+    Content {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, naming the mesh/primitive/material.
+        message: String,
+    },
+    /// The imported scene failed validation.
+    #[error("{path}: {source}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// The validation error.
+        source: SceneError,
+    },
+    /// Writing failed.
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+}
+
+/// Reading or writing an image failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    /// Decoding failed (unreadable, truncated or unsupported file).
+    #[error("{path}: cannot read image: {message}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What the decoder said.
+        message: String,
+    },
+    /// Encoding or writing failed.
+    #[error("{path}: cannot write image: {message}")]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// The image has a zero dimension.
+    #[error("image has zero size ({width}x{height})")]
+    ZeroSize {
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+    },
+    /// Two images that must match do not.
+    #[error("image sizes differ: {a:?} vs {b:?}")]
+    SizeMismatch {
+        /// First size.
+        a: (u32, u32),
+        /// Second size.
+        b: (u32, u32),
+    },
+    /// The pixel buffer does not match the dimensions.
+    #[error("{found} pixels for a {width}x{height} image")]
+    BadLength {
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+        /// Pixels supplied.
+        found: usize,
+    },
+}

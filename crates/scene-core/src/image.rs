@@ -1,0 +1,269 @@
+//! Linear RGB f32 images, EXR and PNG input/output, and luminance (thesis eq. 17).
+//!
+//! Everything inside the toolkit is linear RGB. sRGB appears only at the 8-bit boundary:
+//! [`Image::write_png`] applies an exposure and the sRGB transfer curve, [`Image::read_png`]
+//! undoes it. Files are written to a temporary name and renamed, so a failed write leaves
+//! nothing half-written.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use crate::error::ImageError;
+
+/// A linear RGB image, row-major, top row first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width * height` pixels.
+    pub pixels: Vec<Vec3>,
+}
+
+/// Luminance of a linear RGB colour with the thesis' weights (eq. 17):
+/// `0.27 R + 0.67 G + 0.06 B`.
+pub fn luminance(c: Vec3) -> f32 {
+    0.27 * c.x + 0.67 * c.y + 0.06 * c.z
+}
+
+/// sRGB transfer function (linear to encoded), for one channel in [0, 1].
+pub fn linear_to_srgb(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Inverse sRGB transfer function (encoded to linear), for one channel in [0, 1].
+pub fn srgb_to_linear(x: f32) -> f32 {
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+impl Image {
+    /// A black image. Zero sizes are allowed here (they fail at write time).
+    pub fn new(width: u32, height: u32) -> Self {
+        Self::filled(width, height, Vec3::ZERO)
+    }
+
+    /// An image filled with one colour.
+    pub fn filled(width: u32, height: u32, c: Vec3) -> Self {
+        Self {
+            width,
+            height,
+            pixels: vec![c; width as usize * height as usize],
+        }
+    }
+
+    /// An image from pixels; errors when the count does not match the size.
+    pub fn from_pixels(width: u32, height: u32, pixels: Vec<Vec3>) -> Result<Self, ImageError> {
+        if pixels.len() != width as usize * height as usize {
+            return Err(ImageError::BadLength {
+                width,
+                height,
+                found: pixels.len(),
+            });
+        }
+        Ok(Self {
+            width,
+            height,
+            pixels,
+        })
+    }
+
+    /// Pixel at `(x, y)`.
+    pub fn get(&self, x: u32, y: u32) -> Vec3 {
+        self.pixels[(y * self.width + x) as usize]
+    }
+
+    /// Sets the pixel at `(x, y)`.
+    pub fn set(&mut self, x: u32, y: u32, c: Vec3) {
+        self.pixels[(y * self.width + x) as usize] = c;
+    }
+
+    /// Per-pixel luminance (eq. 17).
+    pub fn luminance(&self) -> Vec<f32> {
+        self.pixels.iter().map(|&c| luminance(c)).collect()
+    }
+
+    /// Mean colour over all pixels (zero for an empty image).
+    pub fn mean(&self) -> Vec3 {
+        if self.pixels.is_empty() {
+            return Vec3::ZERO;
+        }
+        let sum: glam::DVec3 = self.pixels.iter().map(|p| p.as_dvec3()).sum();
+        (sum / self.pixels.len() as f64).as_vec3()
+    }
+
+    /// Number of pixels with a NaN or infinite channel.
+    pub fn non_finite_count(&self) -> usize {
+        self.pixels.iter().filter(|p| !p.is_finite()).count()
+    }
+
+    fn check_size(&self) -> Result<(), ImageError> {
+        if self.width == 0 || self.height == 0 {
+            return Err(ImageError::ZeroSize {
+                width: self.width,
+                height: self.height,
+            });
+        }
+        if self.pixels.len() != self.width as usize * self.height as usize {
+            return Err(ImageError::BadLength {
+                width: self.width,
+                height: self.height,
+                found: self.pixels.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Writes a 32-bit float RGB OpenEXR file (linear values as they are).
+    pub fn write_exr(&self, path: &Path) -> Result<(), ImageError> {
+        self.check_size()?;
+        let w = self.width as usize;
+        write_atomically(path, |tmp| {
+            exr::prelude::write_rgb_file(tmp, w, self.height as usize, |x, y| {
+                let p = self.pixels[y * w + x];
+                (p.x, p.y, p.z)
+            })
+            .map_err(|e| e.to_string())
+        })
+    }
+
+    /// Reads the RGB channels of the first layer of an OpenEXR file (alpha ignored).
+    pub fn read_exr(path: &Path) -> Result<Self, ImageError> {
+        use exr::prelude::*;
+        let read_err = |message: String| ImageError::Read {
+            path: path.to_path_buf(),
+            message,
+        };
+        let img = read_first_rgba_layer_from_file(
+            path,
+            |res, _| {
+                let (w, h) = (res.width(), res.height());
+                (w, vec![Vec3::ZERO; w * h])
+            },
+            |(w, px): &mut (usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
+            },
+        )
+        .map_err(|e| read_err(e.to_string()))?;
+        let size = img.layer_data.size;
+        let (_, pixels) = img.layer_data.channel_data.pixels;
+        if size.width() == 0 || size.height() == 0 {
+            return Err(read_err("image has zero size".into()));
+        }
+        Ok(Self {
+            width: size.width() as u32,
+            height: size.height() as u32,
+            pixels,
+        })
+    }
+
+    /// Writes an 8-bit sRGB PNG: each channel multiplied by `2^exposure`, clamped to [0, 1]
+    /// and sRGB-encoded. NaN pixels are written black.
+    pub fn write_png(&self, path: &Path, exposure: f32) -> Result<(), ImageError> {
+        self.check_size()?;
+        let scale = exposure.exp2();
+        let bytes: Vec<u8> = self
+            .pixels
+            .iter()
+            .flat_map(|p| {
+                p.to_array().map(|c| {
+                    let c = if c.is_nan() { 0.0 } else { c * scale };
+                    (linear_to_srgb(c) * 255.0 + 0.5) as u8
+                })
+            })
+            .collect();
+        let buf = image::RgbImage::from_raw(self.width, self.height, bytes).ok_or(
+            ImageError::BadLength {
+                width: self.width,
+                height: self.height,
+                found: self.pixels.len(),
+            },
+        )?;
+        write_atomically(path, |tmp| {
+            buf.save_with_format(tmp, image::ImageFormat::Png)
+                .map_err(|e| e.to_string())
+        })
+    }
+
+    /// Reads an 8- or 16-bit PNG and converts it from sRGB to linear RGB (alpha ignored).
+    pub fn read_png(path: &Path) -> Result<Image, ImageError> {
+        let read_err = |message: String| ImageError::Read {
+            path: path.to_path_buf(),
+            message,
+        };
+        let bytes = std::fs::read(path).map_err(|e| read_err(e.to_string()))?;
+        let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
+            .map_err(|e| read_err(e.to_string()))?;
+        let rgb = img.to_rgb32f();
+        let (width, height) = rgb.dimensions();
+        if width == 0 || height == 0 {
+            return Err(read_err("image has zero size".into()));
+        }
+        let pixels = rgb
+            .pixels()
+            .map(|p| Vec3::new(srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2])))
+            .collect();
+        Ok(Image {
+            width,
+            height,
+            pixels,
+        })
+    }
+
+    /// Reads an image by extension: `.exr` or `.png`.
+    pub fn read(path: &Path) -> Result<Image, ImageError> {
+        match extension(path).as_deref() {
+            Some("exr") => Self::read_exr(path),
+            Some("png") => Self::read_png(path),
+            _ => Err(ImageError::Read {
+                path: path.to_path_buf(),
+                message: "unknown extension (expected .exr or .png)".into(),
+            }),
+        }
+    }
+}
+
+fn extension(path: &Path) -> Option<String> {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+}
+
+/// Writes through `write` to a temporary file beside `path`, then renames it into place, so
+/// that a failed write never leaves a half-written `path`.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), String>,
+) -> Result<(), ImageError> {
+    let tmp = temp_path(path);
+    let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| e.to_string()));
+    if let Err(message) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(ImageError::Write {
+            path: path.to_path_buf(),
+            message,
+        });
+    }
+    Ok(())
+}
+
+/// `dir/.name.tmp.ext`: hidden, in the same directory (so the rename is atomic), keeping the
+/// extension (encoders pick the format from it).
+pub fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let ext = extension(path).unwrap_or_default();
+    path.with_file_name(format!(".{name}.{}.tmp.{ext}", std::process::id()))
+}

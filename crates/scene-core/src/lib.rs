@@ -1,0 +1,64 @@
+//! # scene-core
+//!
+//! The vocabulary every crate of the diffuse-GI toolkit speaks: the [`Scene`] model, [`View`]s
+//! (cameras, hemicube faces, shadow maps), the [`GBuffer`], the [`Technique`] and [`Metric`]
+//! traits, ray queries over a CWBVH, sampling, linear-RGB images, a headless GPU context and
+//! the ground-truth [`reference`] path tracer.
+//!
+//! ```
+//! use scene_core::{builtin, reference::{self, Bounces, ReferenceSettings}, View};
+//!
+//! let scene = builtin::scene("cornell").unwrap();
+//! let camera = scene.cameras[0].clone();
+//! let settings = ReferenceSettings { width: 16, height: 16, spp: 4, bounces: Bounces::Limited(1), seed: 7 };
+//! let out = reference::render(&scene, &View::from_camera(&camera), &settings, None);
+//! assert_eq!(out.image.pixels.len(), 256);
+//! assert!(out.image.pixels.iter().all(|p| p.is_finite()));
+//! ```
+
+pub mod builtin;
+pub mod error;
+pub mod gbuffer;
+pub mod gltf_io;
+#[cfg(feature = "gpu")]
+pub mod gpu;
+pub mod image;
+pub mod ray;
+pub mod reference;
+pub mod sampling;
+pub mod scene;
+pub mod technique;
+pub mod view;
+
+pub use error::{GltfError, ImageError, SceneError};
+pub use gbuffer::{BACKGROUND_ID, GBuffer, GBufferRenderer};
+pub use image::{Image, luminance};
+pub use scene::{Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture};
+pub use technique::{Metric, MetricValue, Technique};
+pub use view::{FrustumCorners, HemicubeFace, Projection, View};
+
+pub use glam;
+
+/// Any error of the toolkit's shared layer.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The scene is invalid.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// A glTF file could not be read or written.
+    #[error(transparent)]
+    Gltf(#[from] GltfError),
+    /// An image could not be read or written, or sizes do not match.
+    #[error(transparent)]
+    Image(#[from] ImageError),
+    /// The GPU is missing or failed.
+    #[cfg(feature = "gpu")]
+    #[error(transparent)]
+    Gpu(#[from] gpu::GpuError),
+    /// A budget (memory, element count) would be exceeded.
+    #[error("budget exceeded: {0}")]
+    Budget(String),
+    /// An argument is out of range.
+    #[error("invalid argument: {0}")]
+    InvalidArgument(String),
+}

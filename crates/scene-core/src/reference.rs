@@ -1,0 +1,545 @@
+//! The reference path tracer: the project's ground truth.
+//!
+//! Lambertian surfaces only (two-sided reflection; emission one-sided, from the side the
+//! triangle's winding faces). Next-event estimation for point lights (inverse-square or the
+//! windowed falloff of thesis eq. 16), directional lights and emissive triangles; emissive
+//! triangles are sampled by area (triangle chosen in proportion to its power) and combined
+//! with emitter hits of cosine-sampled bounce rays by multiple importance sampling (power
+//! heuristic). Russian roulette only from [`RR_START_DEPTH`] surface vertices on.
+//!
+//! Bounce limit `Limited(0)` is direct light only, `Limited(1)` is direct light plus one
+//! indirect bounce (ISR's scope, the thesis' POV-Ray `recursion_limit 2`), `Unlimited`
+//! converges to the full solution.
+//!
+//! Every sample of every pixel draws from its own generator seeded by
+//! `(seed, pixel, sample index)`, so an image is the same bit for bit whatever the thread
+//! count and however the samples are split into progressive passes.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
+
+use crate::image::{Image, luminance};
+use crate::ray::RayScene;
+use crate::sampling::{Rng, cosine_hemisphere, hash_seed, uniform_triangle};
+use crate::scene::Scene;
+use crate::view::View;
+
+/// Surface vertices before Russian roulette may end a path.
+pub const RR_START_DEPTH: u32 = 4;
+
+/// How many indirect bounces to follow.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bounces {
+    /// At most this many indirect bounces (0 = direct light only).
+    Limited(u32),
+    /// Follow paths until Russian roulette ends them.
+    Unlimited,
+}
+
+impl std::str::FromStr for Bounces {
+    type Err = String;
+    /// Parses `0`, `1`, any `N`, or `inf`/`unlimited`.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim() {
+            "inf" | "unlimited" | "infinite" => Ok(Bounces::Unlimited),
+            n => n
+                .parse::<u32>()
+                .map(Bounces::Limited)
+                .map_err(|_| format!("bounces must be a number or 'inf', got '{s}'")),
+        }
+    }
+}
+
+impl std::fmt::Display for Bounces {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Bounces::Limited(n) => write!(f, "{n}"),
+            Bounces::Unlimited => write!(f, "inf"),
+        }
+    }
+}
+
+/// Settings of a reference render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReferenceSettings {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Bounce limit.
+    pub bounces: Bounces,
+    /// Seed of all random decisions.
+    pub seed: u64,
+}
+
+impl Default for ReferenceSettings {
+    fn default() -> Self {
+        Self {
+            width: 256,
+            height: 256,
+            spp: 256,
+            bounces: Bounces::Limited(1),
+            seed: 1,
+        }
+    }
+}
+
+/// Ray counts and time of a render pass.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RayStats {
+    /// Camera rays.
+    pub primary: u64,
+    /// Shadow (occlusion) rays of next-event estimation.
+    pub shadow: u64,
+    /// Bounce rays (closest-hit queries after the first vertex).
+    pub bounce: u64,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+impl RayStats {
+    /// All rays.
+    pub fn total(&self) -> u64 {
+        self.primary + self.shadow + self.bounce
+    }
+
+    /// Rays per second.
+    pub fn rays_per_second(&self) -> f64 {
+        if self.seconds > 0.0 {
+            self.total() as f64 / self.seconds
+        } else {
+            0.0
+        }
+    }
+
+    fn add(&mut self, o: &RayStats) {
+        self.primary += o.primary;
+        self.shadow += o.shadow;
+        self.bounce += o.bounce;
+        self.seconds += o.seconds;
+    }
+}
+
+/// The result of [`render`].
+#[derive(Clone, Debug)]
+pub struct ReferenceOutput {
+    /// The mean radiance per pixel.
+    pub image: Image,
+    /// Per-pixel, per-channel sample variance (of one sample, unbiased); divide by `spp` for
+    /// the variance of the mean.
+    pub variance: Image,
+    /// Samples per pixel accumulated.
+    pub spp: u32,
+    /// Ray counts and time.
+    pub stats: RayStats,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct TriData {
+    p: [Vec3; 3],
+    n: [Vec3; 3],
+    /// Unit geometric normal from the winding (the emitting side).
+    ng: Vec3,
+    area: f32,
+    material: u32,
+}
+
+/// Emissive triangles with a power-proportional selection table.
+struct Emitters {
+    /// Global triangle ids.
+    ids: Vec<u32>,
+    /// Cumulative distribution over `ids` (last = 1).
+    cdf: Vec<f32>,
+    /// Selection probability indexed by global triangle id (0 for non-emitters).
+    select_pdf: Vec<f32>,
+}
+
+/// A scene prepared for path tracing: BVH, flattened triangles and emitter table.
+pub struct PathTracer<'a> {
+    scene: &'a Scene,
+    rays: RayScene,
+    tris: Vec<TriData>,
+    uvs: Vec<Option<[Vec2; 3]>>,
+    emitters: Emitters,
+    /// Offset of secondary ray origins, relative to the scene's extent.
+    eps: f32,
+    /// A distance longer than any ray inside the scene.
+    far: f32,
+}
+
+impl<'a> PathTracer<'a> {
+    /// Prepares `scene` (which should be validated).
+    pub fn new(scene: &'a Scene) -> Self {
+        let rays = RayScene::build(scene);
+        let mut tris = Vec::with_capacity(scene.triangle_count());
+        let mut uvs = Vec::with_capacity(scene.triangle_count());
+        for mesh in &scene.meshes {
+            for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
+                let p = t.map(|i| mesh.positions[i as usize]);
+                let c = (p[1] - p[0]).cross(p[2] - p[0]);
+                let n = t.map(|i| mesh.normals.get(i as usize).copied().unwrap_or(Vec3::ZERO));
+                tris.push(TriData {
+                    p,
+                    n,
+                    ng: c.normalize_or_zero(),
+                    area: 0.5 * c.length(),
+                    material: m,
+                });
+                uvs.push(mesh.uvs.as_ref().map(|uv| t.map(|i| uv[i as usize])));
+            }
+        }
+        let mut ids = Vec::new();
+        let mut weights = Vec::new();
+        for (i, t) in tris.iter().enumerate() {
+            let e = scene.materials[t.material as usize].emission;
+            let w = luminance(e).max(e.max_element() * 1e-3) * t.area;
+            if w > 0.0 {
+                ids.push(i as u32);
+                weights.push(w as f64);
+            }
+        }
+        let total: f64 = weights.iter().sum();
+        let mut cdf = Vec::with_capacity(weights.len());
+        let mut acc = 0.0f64;
+        let mut select_pdf = vec![0.0f32; tris.len()];
+        for (k, w) in weights.iter().enumerate() {
+            acc += w;
+            cdf.push((acc / total) as f32);
+            select_pdf[ids[k] as usize] = (w / total) as f32;
+        }
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
+        let extent = scene.extent();
+        Self {
+            scene,
+            rays,
+            tris,
+            uvs,
+            emitters: Emitters {
+                ids,
+                cdf,
+                select_pdf,
+            },
+            eps: extent * 2e-5,
+            far: extent * 4.0,
+        }
+    }
+
+    /// The BVH, for reuse by callers.
+    pub fn ray_scene(&self) -> &RayScene {
+        &self.rays
+    }
+
+    /// One radiance sample along a ray from `origin` in unit direction `dir`.
+    pub fn radiance(&self, origin: Vec3, dir: Vec3, bounces: Bounces, rng: &mut Rng, stats: &mut RayStats) -> Vec3 {
+        let max_vertex = match bounces {
+            Bounces::Limited(n) => n,
+            Bounces::Unlimited => u32::MAX - 1,
+        };
+        let mut l = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let (mut o, mut d) = (origin, dir);
+        // Solid-angle pdf of the bounce that produced `d` (None for the camera ray).
+        let mut prev_pdf: Option<f32> = None;
+        let mut t_min = 0.0;
+        for k in 0..=max_vertex.saturating_add(1) {
+            if k == 0 {
+                stats.primary += 1;
+            } else {
+                stats.bounce += 1;
+            }
+            let Some(hit) = self.rays.closest_hit(o, d, t_min, f32::INFINITY) else {
+                break;
+            };
+            let tri = &self.tris[hit.triangle as usize];
+            let (b1, b2) = (hit.barycentric.x, hit.barycentric.y);
+            let b0 = 1.0 - b1 - b2;
+            let x = o + d * hit.t;
+            let mat = &self.scene.materials[tri.material as usize];
+            // Emission, one-sided.
+            let cos_l = tri.ng.dot(-d);
+            if mat.is_emissive() && cos_l > 0.0 {
+                let w = match prev_pdf {
+                    None => 1.0,
+                    Some(pb) => {
+                        let pl = self.emitters.select_pdf[hit.triangle as usize] / tri.area
+                            * hit.t
+                            * hit.t
+                            / cos_l;
+                        power_heuristic(pb, pl)
+                    }
+                };
+                l += beta * mat.emission * w;
+            }
+            if k > max_vertex {
+                break;
+            }
+            // Surface frame, flipped towards the incoming ray (two-sided reflection).
+            let ng = if tri.ng.dot(d) < 0.0 { tri.ng } else { -tri.ng };
+            let ns = (tri.n[0] * b0 + tri.n[1] * b1 + tri.n[2] * b2).normalize_or_zero();
+            let ns = if ns == Vec3::ZERO {
+                ng
+            } else if ns.dot(ng) < 0.0 {
+                -ns
+            } else {
+                ns
+            };
+            let uv = self.uvs[hit.triangle as usize].map(|uv| uv[0] * b0 + uv[1] * b1 + uv[2] * b2);
+            let albedo = self.scene.albedo_at(tri.material, uv);
+            let p = x + ng * self.eps;
+            l += beta * albedo * std::f32::consts::FRAC_1_PI * self.direct(p, ns, rng, stats);
+            // Bounce.
+            let nd = cosine_hemisphere(ns, rng.next_vec2());
+            let cos = nd.dot(ns);
+            if nd.dot(ng) <= 0.0 || cos <= 0.0 {
+                break;
+            }
+            beta *= albedo;
+            if k + 1 >= RR_START_DEPTH {
+                let q = beta.max_element().min(0.95);
+                if q <= 0.0 || rng.next_f32() >= q {
+                    break;
+                }
+                beta /= q;
+            }
+            prev_pdf = Some(cos * std::f32::consts::FRAC_1_PI);
+            o = p;
+            d = nd;
+            t_min = 0.0;
+        }
+        l
+    }
+
+    /// Irradiance at `p` with normal `n` from all lights by next-event estimation (area
+    /// lights MIS-weighted): multiply by albedo/pi for the reflected radiance.
+    fn direct(&self, p: Vec3, n: Vec3, rng: &mut Rng, stats: &mut RayStats) -> Vec3 {
+        let mut e = Vec3::ZERO;
+        for light in &self.scene.point_lights {
+            let to = light.position - p;
+            let dist = to.length();
+            if dist <= 0.0 {
+                continue;
+            }
+            let w = to / dist;
+            let cos = n.dot(w);
+            let f = light.falloff(dist);
+            if cos <= 0.0 || f <= 0.0 {
+                continue;
+            }
+            stats.shadow += 1;
+            if !self.rays.occluded(p, w, 0.0, dist * (1.0 - 1e-5)) {
+                e += light.intensity * (f * cos);
+            }
+        }
+        for light in &self.scene.directional_lights {
+            let w = -light.direction.normalize();
+            let cos = n.dot(w);
+            if cos <= 0.0 {
+                continue;
+            }
+            stats.shadow += 1;
+            if !self.rays.occluded(p, w, 0.0, self.far) {
+                e += light.irradiance * cos;
+            }
+        }
+        if !self.emitters.ids.is_empty() {
+            let u = rng.next_f32();
+            let k = self
+                .emitters
+                .cdf
+                .partition_point(|&c| c <= u)
+                .min(self.emitters.ids.len() - 1);
+            let id = self.emitters.ids[k];
+            let tri = &self.tris[id as usize];
+            let b = uniform_triangle(rng.next_vec2());
+            let q = tri.p[0] * (1.0 - b.x - b.y) + tri.p[1] * b.x + tri.p[2] * b.y;
+            let to = q - p;
+            let d2 = to.length_squared();
+            if d2 > 0.0 {
+                let dist = d2.sqrt();
+                let w = to / dist;
+                let cos = n.dot(w);
+                let cos_l = tri.ng.dot(-w);
+                if cos > 0.0 && cos_l > 0.0 {
+                    stats.shadow += 1;
+                    if !self.rays.occluded(p, w, 0.0, dist * (1.0 - 1e-4)) {
+                        let pdf_area = self.emitters.select_pdf[id as usize] / tri.area;
+                        let pl = pdf_area * d2 / cos_l;
+                        let pb = cos * std::f32::consts::FRAC_1_PI;
+                        let le = self.scene.materials[tri.material as usize].emission;
+                        // Irradiance estimate Le cos / pdf (solid angle), MIS-weighted.
+                        e += le * (cos / pl * power_heuristic(pl, pb));
+                    }
+                }
+            }
+        }
+        e
+    }
+}
+
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
+        a2 / (a2 + b2)
+    } else if a.is_infinite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// Progressive accumulation of samples: the image after `n` passes is the same whatever the
+/// pass sizes were.
+#[derive(Clone, Debug)]
+pub struct Accumulator {
+    width: u32,
+    height: u32,
+    sum: Vec<DVec3>,
+    sum_sq: Vec<DVec3>,
+    spp: u32,
+    stats: RayStats,
+}
+
+impl Accumulator {
+    /// An empty accumulator for `width x height` pixels.
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        Self {
+            width,
+            height,
+            sum: vec![DVec3::ZERO; n],
+            sum_sq: vec![DVec3::ZERO; n],
+            spp: 0,
+            stats: RayStats::default(),
+        }
+    }
+
+    /// Samples per pixel so far.
+    pub fn spp(&self) -> u32 {
+        self.spp
+    }
+
+    /// Ray counts and time so far.
+    pub fn stats(&self) -> RayStats {
+        self.stats
+    }
+
+    /// Adds `samples` samples per pixel. `progress(rows_done, rows_total)` is called as rows
+    /// finish (from worker threads).
+    pub fn add_pass(
+        &mut self,
+        tracer: &PathTracer<'_>,
+        view: &View,
+        bounces: Bounces,
+        seed: u64,
+        samples: u32,
+        progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+    ) -> RayStats {
+        let start = Instant::now();
+        let (w, h) = (self.width, self.height);
+        let first = self.spp;
+        let done = AtomicU64::new(0);
+        let row_stats: Vec<RayStats> = self
+            .sum
+            .par_chunks_mut(w.max(1) as usize)
+            .zip(self.sum_sq.par_chunks_mut(w.max(1) as usize))
+            .enumerate()
+            .map(|(y, (sum, sum_sq))| {
+                let mut stats = RayStats::default();
+                for x in 0..w {
+                    let pixel = y as u64 * w as u64 + x as u64;
+                    for s in first..first + samples {
+                        let mut rng = Rng::new(hash_seed(seed, pixel, s as u64), 0);
+                        let jitter = rng.next_vec2();
+                        let uv = Vec2::new(
+                            (x as f32 + jitter.x) / w as f32,
+                            (y as f32 + jitter.y) / h as f32,
+                        );
+                        let (o, d) = view.ray(uv);
+                        let l = tracer.radiance(o, d, bounces, &mut rng, &mut stats);
+                        // A non-finite sample would poison the pixel: drop it (counted as 0).
+                        let l = if l.is_finite() { l.as_dvec3() } else { DVec3::ZERO };
+                        sum[x as usize] += l;
+                        sum_sq[x as usize] += l * l;
+                    }
+                }
+                if let Some(p) = progress {
+                    p(done.fetch_add(1, Ordering::Relaxed) + 1, h as u64);
+                }
+                stats
+            })
+            .collect();
+        let mut pass = RayStats::default();
+        for s in &row_stats {
+            pass.add(s);
+        }
+        pass.seconds = start.elapsed().as_secs_f64();
+        self.spp += samples;
+        self.stats.add(&pass);
+        pass
+    }
+
+    /// The mean image.
+    pub fn image(&self) -> Image {
+        let n = self.spp.max(1) as f64;
+        Image {
+            width: self.width,
+            height: self.height,
+            pixels: self.sum.iter().map(|s| (*s / n).as_vec3()).collect(),
+        }
+    }
+
+    /// Per-pixel sample variance (unbiased; zero with fewer than two samples).
+    pub fn variance(&self) -> Image {
+        let n = self.spp as f64;
+        let pixels = self
+            .sum
+            .iter()
+            .zip(&self.sum_sq)
+            .map(|(s, q)| {
+                if n < 2.0 {
+                    Vec3::ZERO
+                } else {
+                    ((*q - *s * *s / n) / (n - 1.0)).max(DVec3::ZERO).as_vec3()
+                }
+            })
+            .collect();
+        Image {
+            width: self.width,
+            height: self.height,
+            pixels,
+        }
+    }
+}
+
+/// Renders `scene` from `view` with `settings` in one call. `progress(rows_done,
+/// rows_total)` reports progress. Zero-size settings give an empty image.
+pub fn render(
+    scene: &Scene,
+    view: &View,
+    settings: &ReferenceSettings,
+    progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+) -> ReferenceOutput {
+    let tracer = PathTracer::new(scene);
+    let mut acc = Accumulator::new(settings.width, settings.height);
+    acc.add_pass(
+        &tracer,
+        view,
+        settings.bounces,
+        settings.seed,
+        settings.spp,
+        progress,
+    );
+    ReferenceOutput {
+        image: acc.image(),
+        variance: acc.variance(),
+        spp: acc.spp(),
+        stats: acc.stats(),
+    }
+}

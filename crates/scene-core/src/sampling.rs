@@ -1,0 +1,271 @@
+//! Sampling: a seeded RNG, hashing for per-pixel seeds, scrambled Halton, R2, the
+//! cosine-weighted hemisphere and uniform points on triangles.
+//!
+//! Everything is a pure function of explicit seeds, so results do not depend on the thread
+//! that draws them.
+
+use glam::{Vec2, Vec3};
+
+use crate::view::orthonormal_basis;
+
+/// Mixes a 64-bit value (SplitMix64 finaliser). Good avalanche; used to derive seeds.
+pub fn mix64(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// Combines a seed with up to three stream indices into a new well-mixed seed.
+pub fn hash_seed(seed: u64, a: u64, b: u64) -> u64 {
+    mix64(mix64(mix64(seed ^ 0x9e37_79b9_7f4a_7c15).wrapping_add(a)).wrapping_add(b))
+}
+
+/// A small, fast, seeded generator (PCG-XSH-RR 64/32).
+#[derive(Clone, Debug)]
+pub struct Rng {
+    state: u64,
+    inc: u64,
+}
+
+impl Rng {
+    /// A generator for `seed` on stream `stream`.
+    pub fn new(seed: u64, stream: u64) -> Self {
+        let mut rng = Rng {
+            state: 0,
+            inc: (mix64(stream) << 1) | 1,
+        };
+        rng.next_u32();
+        rng.state = rng.state.wrapping_add(mix64(seed));
+        rng.next_u32();
+        rng
+    }
+
+    /// The next 32 random bits.
+    pub fn next_u32(&mut self) -> u32 {
+        let old = self.state;
+        self.state = old
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(self.inc);
+        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
+        let rot = (old >> 59) as u32;
+        xorshifted.rotate_right(rot)
+    }
+
+    /// A uniform float in [0, 1).
+    pub fn next_f32(&mut self) -> f32 {
+        (self.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+    }
+
+    /// Two uniform floats in [0, 1).
+    pub fn next_vec2(&mut self) -> Vec2 {
+        Vec2::new(self.next_f32(), self.next_f32())
+    }
+
+    /// A uniform integer in `0..n` (n > 0), by Lemire's multiply-shift.
+    pub fn below(&mut self, n: u32) -> u32 {
+        ((self.next_u32() as u64 * n as u64) >> 32) as u32
+    }
+}
+
+/// The first primes, bases of the Halton dimensions.
+const PRIMES: [u32; 16] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53];
+
+/// Scrambled Halton sequence: dimension `dim` (< 16) uses the radical inverse in the
+/// `dim`-th prime base with random digit scrambling (each digit position gets its own
+/// seeded shift modulo the base, applied to all digit positions down to f32 precision so the
+/// implied trailing zeros are scrambled too). The unscrambled sequence is `seed = None`.
+pub fn halton(index: u64, dim: usize, seed: Option<u64>) -> f32 {
+    let base = PRIMES[dim % PRIMES.len()] as u64;
+    let inv_base = 1.0 / base as f64;
+    let mut n = index;
+    let mut inv = inv_base;
+    let mut value = 0.0f64;
+    let mut level = 0u64;
+    // Digits until the contribution falls below f32 resolution.
+    while inv > 1e-9 {
+        let digit = n % base;
+        let d = match seed {
+            Some(s) => (digit + hash_seed(s, dim as u64, level) % base) % base,
+            None => digit,
+        };
+        value += d as f64 * inv;
+        n /= base;
+        inv *= inv_base;
+        level += 1;
+        if seed.is_none() && n == 0 {
+            break;
+        }
+    }
+    (value as f32).min(1.0 - f32::EPSILON / 2.0)
+}
+
+/// The R2 sequence (Roberts' additive recurrence from the plastic number): point `index`
+/// in [0, 1)², offset by `offset`.
+pub fn r2(index: u64, offset: Vec2) -> Vec2 {
+    const G: f64 = 1.324_717_957_244_746;
+    const A1: f64 = 1.0 / G;
+    const A2: f64 = 1.0 / (G * G);
+    let i = index as f64;
+    let x = (offset.x as f64 + 0.5 + A1 * i).fract();
+    let y = (offset.y as f64 + 0.5 + A2 * i).fract();
+    Vec2::new(x as f32, y as f32)
+}
+
+/// Maps a point of the unit square to the unit disk (Shirley-Chiu concentric map, which
+/// keeps strata compact).
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let o = u * 2.0 - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, std::f32::consts::FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (
+            o.y,
+            std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (o.x / o.y),
+        )
+    };
+    Vec2::new(r * theta.cos(), r * theta.sin())
+}
+
+/// A cosine-weighted direction on the hemisphere around unit `normal`
+/// (pdf = cos(theta) / pi), by projecting the concentric disk up (Malley's method).
+pub fn cosine_hemisphere(normal: Vec3, u: Vec2) -> Vec3 {
+    let d = concentric_disk(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    let (t, b) = orthonormal_basis(normal);
+    (t * d.x + b * d.y + normal * z).normalize()
+}
+
+/// A uniform direction on the unit sphere.
+pub fn uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = std::f32::consts::TAU * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Barycentric coordinates `(b1, b2)` of a point uniform on a triangle (`b0 = 1 - b1 - b2`),
+/// by the square-root warp.
+pub fn uniform_triangle(u: Vec2) -> Vec2 {
+    let su = u.x.sqrt();
+    Vec2::new(su * (1.0 - u.y), su * u.y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rng_is_uniform_and_deterministic() {
+        let mut a = Rng::new(42, 3);
+        let mut b = Rng::new(42, 3);
+        let mut c = Rng::new(42, 4);
+        let xs: Vec<f32> = (0..100_000).map(|_| a.next_f32()).collect();
+        assert!(xs.iter().all(|&x| (0.0..1.0).contains(&x)));
+        let ys: Vec<f32> = (0..100_000).map(|_| b.next_f32()).collect();
+        assert_eq!(xs, ys);
+        let zs: Vec<f32> = (0..100).map(|_| c.next_f32()).collect();
+        assert_ne!(&xs[..100], &zs[..]);
+        let mean = xs.iter().map(|&x| x as f64).sum::<f64>() / xs.len() as f64;
+        // Standard error of the mean of U(0,1) over 1e5 draws is 0.0009.
+        assert!((mean - 0.5).abs() < 0.004, "mean {mean}");
+        // Ten equal bins each within 5 sigma of 10000.
+        let mut bins = [0u32; 10];
+        for &x in &xs {
+            bins[(x * 10.0) as usize] += 1;
+        }
+        for b in bins {
+            assert!((b as f64 - 10_000.0).abs() < 5.0 * 94.9, "{bins:?}");
+        }
+    }
+
+    #[test]
+    fn halton_unscrambled_matches_radical_inverse() {
+        // Base 2: 1/2, 1/4, 3/4, 1/8; base 3: 1/3, 2/3, 1/9.
+        let b2: Vec<f32> = (1..5).map(|i| halton(i, 0, None)).collect();
+        assert_eq!(b2, vec![0.5, 0.25, 0.75, 0.125]);
+        assert!((halton(1, 1, None) - 1.0 / 3.0).abs() < 1e-7);
+        assert!((halton(2, 1, None) - 2.0 / 3.0).abs() < 1e-7);
+        assert!((halton(3, 1, None) - 1.0 / 9.0).abs() < 1e-7);
+    }
+
+    #[test]
+    fn scrambled_halton_stays_stratified() {
+        // Any 2^k consecutive-from-zero points of the base-2 dimension put exactly one point
+        // in each interval of width 2^-k, with or without digit scrambling.
+        for seed in [1u64, 99, 12345] {
+            let mut hits = [0u32; 64];
+            for i in 0..64 {
+                let x = halton(i, 0, Some(seed));
+                assert!((0.0..1.0).contains(&x));
+                hits[(x * 64.0) as usize] += 1;
+            }
+            assert!(hits.iter().all(|&h| h == 1), "seed {seed}: {hits:?}");
+            // Base 3 likewise over 27 points.
+            let mut hits3 = [0u32; 27];
+            for i in 0..27 {
+                hits3[(halton(i, 1, Some(seed)) * 27.0) as usize] += 1;
+            }
+            assert!(hits3.iter().all(|&h| h == 1));
+        }
+        assert_ne!(halton(5, 0, Some(1)), halton(5, 0, Some(2)));
+    }
+
+    #[test]
+    fn r2_is_low_discrepancy() {
+        // 4096 R2 points over a 16x16 grid: every cell gets 16 +- 3 (random points would
+        // deviate by ~4 sigma = 16 somewhere).
+        let mut cells = [0u32; 256];
+        for i in 0..4096 {
+            let p = r2(i, Vec2::ZERO);
+            cells[(p.y * 16.0) as usize * 16 + (p.x * 16.0) as usize] += 1;
+        }
+        assert!(cells.iter().all(|&c| (13..=19).contains(&c)), "{cells:?}");
+    }
+
+    #[test]
+    fn cosine_hemisphere_has_cosine_density() {
+        let n = Vec3::new(0.3, -0.5, 0.8).normalize();
+        let mut rng = Rng::new(7, 0);
+        let count = 200_000;
+        let mut mean_cos = 0.0f64;
+        let mut mean_cos2 = 0.0f64;
+        for _ in 0..count {
+            let d = cosine_hemisphere(n, rng.next_vec2());
+            assert!((d.length() - 1.0).abs() < 1e-5);
+            let c = d.dot(n) as f64;
+            assert!(c >= -1e-6);
+            mean_cos += c;
+            mean_cos2 += c * c;
+        }
+        mean_cos /= count as f64;
+        mean_cos2 /= count as f64;
+        // For pdf cos/pi: E[cos] = 2/3, E[cos^2] = 1/2.
+        assert!((mean_cos - 2.0 / 3.0).abs() < 3e-3, "{mean_cos}");
+        assert!((mean_cos2 - 0.5).abs() < 3e-3, "{mean_cos2}");
+    }
+
+    #[test]
+    fn uniform_triangle_is_uniform() {
+        let mut rng = Rng::new(11, 0);
+        let count = 100_000;
+        let mut mean = Vec2::ZERO;
+        let mut in_sub = 0;
+        for _ in 0..count {
+            let b = uniform_triangle(rng.next_vec2());
+            assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6);
+            mean += b;
+            // The sub-triangle b1 + b2 < 1/2 has a quarter of the area.
+            if b.x + b.y < 0.5 {
+                in_sub += 1;
+            }
+        }
+        mean /= count as f32;
+        // The centroid has barycentrics (1/3, 1/3).
+        assert!((mean - Vec2::splat(1.0 / 3.0)).abs().max_element() < 4e-3);
+        let frac = in_sub as f64 / count as f64;
+        assert!((frac - 0.25).abs() < 6e-3, "{frac}");
+    }
+}

@@ -1,0 +1,630 @@
+//! The scene model: only what diffuse light transport needs.
+//!
+//! A [`Scene`] holds world-space triangle meshes, diffuse materials, point and directional
+//! lights and cameras. Units are metres, the frame is right-handed with +Y up (as glTF), and
+//! colours are linear RGB. [`Scene::validate`] checks the invariants every technique relies on
+//! and repairs what can be repaired without guessing (degenerate triangles are dropped,
+//! zero-length normals are recomputed).
+
+use glam::{Vec2, Vec3};
+
+use crate::error::SceneError;
+
+/// A world-space triangle mesh. Every triangle carries its own material index.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Name, used in error messages.
+    pub name: String,
+    /// Vertex positions in world space (metres).
+    pub positions: Vec<Vec3>,
+    /// Vertex normals in world space, one per position (unit length after validation).
+    pub normals: Vec<Vec3>,
+    /// Optional texture coordinates, one per position.
+    pub uvs: Option<Vec<Vec2>>,
+    /// Triangles as indices into `positions`.
+    pub indices: Vec<[u32; 3]>,
+    /// Material index per triangle (into [`Scene::materials`]).
+    pub material_ids: Vec<u32>,
+}
+
+impl Mesh {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len()
+    }
+
+    /// Appends a planar quad `a, b, c, d` (counter-clockwise seen from the side its normal
+    /// faces) with one material, as two triangles with flat normals.
+    pub fn push_quad(&mut self, corners: [Vec3; 4], material: u32) {
+        let n = (corners[1] - corners[0])
+            .cross(corners[2] - corners[0])
+            .normalize_or_zero();
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&corners);
+        self.normals.extend_from_slice(&[n; 4]);
+        if let Some(uvs) = &mut self.uvs {
+            uvs.extend_from_slice(&[
+                Vec2::new(0.0, 0.0),
+                Vec2::new(1.0, 0.0),
+                Vec2::new(1.0, 1.0),
+                Vec2::new(0.0, 1.0),
+            ]);
+        }
+        self.indices.push([base, base + 1, base + 2]);
+        self.indices.push([base, base + 2, base + 3]);
+        self.material_ids.extend_from_slice(&[material, material]);
+    }
+
+    /// Appends a single triangle with flat normal.
+    pub fn push_triangle(&mut self, p: [Vec3; 3], material: u32) {
+        let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&p);
+        self.normals.extend_from_slice(&[n; 3]);
+        if let Some(uvs) = &mut self.uvs {
+            uvs.extend_from_slice(&[Vec2::ZERO, Vec2::X, Vec2::Y]);
+        }
+        self.indices.push([base, base + 1, base + 2]);
+        self.material_ids.push(material);
+    }
+}
+
+/// A linear-RGB texture (already converted from sRGB where the source was sRGB).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    /// Name, used in error messages.
+    pub name: String,
+    /// Width in texels.
+    pub width: u32,
+    /// Height in texels.
+    pub height: u32,
+    /// Row-major texels, top row first, linear RGB.
+    pub texels: Vec<Vec3>,
+}
+
+impl Texture {
+    /// Bilinear lookup with repeat wrapping; `uv` (0, 0) is the top-left corner of the image,
+    /// as in glTF.
+    pub fn sample_bilinear(&self, uv: Vec2) -> Vec3 {
+        if self.width == 0 || self.height == 0 || !uv.is_finite() {
+            return Vec3::ZERO;
+        }
+        let w = self.width as i64;
+        let h = self.height as i64;
+        let x = uv.x * self.width as f32 - 0.5;
+        let y = uv.y * self.height as f32 - 0.5;
+        let x0 = x.floor();
+        let y0 = y.floor();
+        let fx = x - x0;
+        let fy = y - y0;
+        let at = |xi: i64, yi: i64| -> Vec3 {
+            let xi = xi.rem_euclid(w) as usize;
+            let yi = yi.rem_euclid(h) as usize;
+            self.texels[yi * self.width as usize + xi]
+        };
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let top = at(x0, y0).lerp(at(x0 + 1, y0), fx);
+        let bottom = at(x0, y0 + 1).lerp(at(x0 + 1, y0 + 1), fx);
+        top.lerp(bottom, fy)
+    }
+}
+
+/// A diffuse (Lambertian) material: albedo = `albedo` x texture, plus emitted radiance.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// Name, used in error messages.
+    pub name: String,
+    /// Linear RGB albedo factor, each channel in [0, 1).
+    pub albedo: Vec3,
+    /// Optional base-colour texture (index into [`Scene::textures`]) multiplied with `albedo`.
+    pub albedo_texture: Option<u32>,
+    /// Emitted radiance (linear RGB, the scene's emission units), non-negative.
+    pub emission: Vec3,
+}
+
+impl Material {
+    /// A non-emissive diffuse material.
+    pub fn diffuse(name: &str, albedo: Vec3) -> Self {
+        Self {
+            name: name.to_string(),
+            albedo,
+            albedo_texture: None,
+            emission: Vec3::ZERO,
+        }
+    }
+
+    /// An emitter with the given albedo and emitted radiance.
+    pub fn emissive(name: &str, albedo: Vec3, emission: Vec3) -> Self {
+        Self {
+            name: name.to_string(),
+            albedo,
+            albedo_texture: None,
+            emission,
+        }
+    }
+
+    /// True when the material emits light.
+    pub fn is_emissive(&self) -> bool {
+        self.emission.max_element() > 0.0
+    }
+}
+
+/// A point light.
+///
+/// The irradiance it gives a surface at distance `d` facing it is `intensity * falloff(d)`.
+/// The falloff is the physical inverse square `1 / d^2` unless `radius` is set, in which case
+/// it is the thesis' windowed falloff (eq. 16): `saturate(1 - (d / radius)^2)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointLight {
+    /// Name, used in error messages.
+    pub name: String,
+    /// Position in world space.
+    pub position: Vec3,
+    /// Radiant intensity, linear RGB (W/sr in the scene's units).
+    pub intensity: Vec3,
+    /// Optional radius of the windowed falloff of eq. 16.
+    pub radius: Option<f32>,
+}
+
+impl PointLight {
+    /// The distance falloff: `1/d^2`, or eq. 16's `saturate(1 - (d/r)^2)` when a radius is set.
+    /// Returns 0 for a zero distance with inverse-square falloff rather than infinity.
+    pub fn falloff(&self, distance: f32) -> f32 {
+        match self.radius {
+            Some(r) if r > 0.0 => (1.0 - (distance / r).powi(2)).clamp(0.0, 1.0),
+            Some(_) => 0.0,
+            None => {
+                let d2 = distance * distance;
+                if d2 > 0.0 { 1.0 / d2 } else { 0.0 }
+            }
+        }
+    }
+}
+
+/// A directional light (the sun): parallel rays along `direction`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DirectionalLight {
+    /// Name, used in error messages.
+    pub name: String,
+    /// Unit direction the light travels in (from the light towards the scene).
+    pub direction: Vec3,
+    /// Irradiance on a surface perpendicular to `direction`, linear RGB.
+    pub irradiance: Vec3,
+}
+
+/// A perspective camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    /// Name, used in error messages and output files.
+    pub name: String,
+    /// Eye position.
+    pub position: Vec3,
+    /// Point looked at.
+    pub target: Vec3,
+    /// Up hint (need not be orthogonal to the view direction).
+    pub up: Vec3,
+    /// Vertical field of view in radians.
+    pub fov_y: f32,
+    /// Width / height.
+    pub aspect: f32,
+    /// Near plane distance (> 0).
+    pub near: f32,
+    /// Far plane distance (> near).
+    pub far: f32,
+}
+
+impl Camera {
+    /// The same camera with another aspect ratio (for rendering at a given resolution).
+    pub fn with_aspect(&self, aspect: f32) -> Self {
+        Self {
+            aspect,
+            ..self.clone()
+        }
+    }
+}
+
+/// A scene: meshes, materials, textures, lights and cameras.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Scene {
+    /// Name of the scene (built-in name or file stem).
+    pub name: String,
+    /// Triangle meshes in world space.
+    pub meshes: Vec<Mesh>,
+    /// Materials referenced by the meshes' `material_ids`.
+    pub materials: Vec<Material>,
+    /// Textures referenced by materials.
+    pub textures: Vec<Texture>,
+    /// Point lights.
+    pub point_lights: Vec<PointLight>,
+    /// Directional lights.
+    pub directional_lights: Vec<DirectionalLight>,
+    /// Cameras; the first is the default view.
+    pub cameras: Vec<Camera>,
+}
+
+/// What [`Scene::validate`] repaired.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ValidationReport {
+    /// Degenerate (zero-area) triangles dropped, per mesh: (mesh name, count).
+    pub degenerate_dropped: Vec<(String, usize)>,
+    /// Normals recomputed from faces because they were missing, zero or not finite.
+    pub normals_recomputed: usize,
+}
+
+impl ValidationReport {
+    /// Total number of degenerate triangles dropped.
+    pub fn total_degenerate(&self) -> usize {
+        self.degenerate_dropped.iter().map(|(_, n)| n).sum()
+    }
+}
+
+/// Identifies one triangle of a scene by mesh and local index, and by global id.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TriangleRef {
+    /// Index of the mesh.
+    pub mesh: u32,
+    /// Index of the triangle in its mesh.
+    pub local: u32,
+}
+
+/// Axis-aligned bounding box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+impl Bounds {
+    /// The empty box (min = +inf, max = -inf).
+    pub const EMPTY: Bounds = Bounds {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    /// Grows the box to contain `p`.
+    pub fn grow(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    /// True when nothing was added.
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x
+    }
+
+    /// Length of the diagonal (0 for an empty box).
+    pub fn diagonal(&self) -> f32 {
+        if self.is_empty() {
+            0.0
+        } else {
+            (self.max - self.min).length()
+        }
+    }
+
+    /// Centre of the box.
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+}
+
+/// Triangles whose area is below this fraction of the squared scene extent are degenerate.
+const DEGENERATE_REL_AREA: f32 = 1e-14;
+
+impl Scene {
+    /// An empty scene with a name.
+    pub fn new(name: &str) -> Self {
+        Self {
+            name: name.to_string(),
+            ..Default::default()
+        }
+    }
+
+    /// Total number of triangles over all meshes.
+    pub fn triangle_count(&self) -> usize {
+        self.meshes.iter().map(|m| m.indices.len()).sum()
+    }
+
+    /// Prefix sums of triangle counts: global id of the first triangle of each mesh, plus the
+    /// total at the end. Global triangle ids number the triangles mesh by mesh.
+    pub fn mesh_offsets(&self) -> Vec<u32> {
+        let mut offsets = Vec::with_capacity(self.meshes.len() + 1);
+        let mut acc = 0u32;
+        for m in &self.meshes {
+            offsets.push(acc);
+            acc += m.indices.len() as u32;
+        }
+        offsets.push(acc);
+        offsets
+    }
+
+    /// The bounding box of all mesh vertices.
+    pub fn bounds(&self) -> Bounds {
+        let mut b = Bounds::EMPTY;
+        for m in &self.meshes {
+            for &p in &m.positions {
+                b.grow(p);
+            }
+        }
+        b
+    }
+
+    /// A characteristic length of the scene: the diagonal of its bounds (1 when empty), used
+    /// to size epsilons and sample radii relative to the scene.
+    pub fn extent(&self) -> f32 {
+        let d = self.bounds().diagonal();
+        if d > 0.0 && d.is_finite() { d } else { 1.0 }
+    }
+
+    /// Albedo of a material at texture coordinates `uv` (factor x bilinear texture sample).
+    pub fn albedo_at(&self, material: u32, uv: Option<Vec2>) -> Vec3 {
+        let m = &self.materials[material as usize];
+        match (m.albedo_texture, uv) {
+            (Some(t), Some(uv)) => m.albedo * self.textures[t as usize].sample_bilinear(uv),
+            _ => m.albedo,
+        }
+    }
+
+    /// Checks the scene and repairs what can be repaired.
+    ///
+    /// Errors (each names the mesh, triangle, material or light at fault): non-finite
+    /// positions, normals or UVs counts that do not match positions, indices out of range,
+    /// material ids out of range, albedo outside [0, 1) (radiosity diverges at 1), negative or
+    /// non-finite emission, non-finite or negative light data, invalid cameras.
+    /// Repairs: degenerate triangles are dropped and counted; missing, zero-length or
+    /// non-finite normals are recomputed from the faces.
+    pub fn validate(&mut self) -> Result<ValidationReport, SceneError> {
+        let mut report = ValidationReport::default();
+        self.validate_materials()?;
+        self.validate_lights()?;
+        self.validate_cameras()?;
+        // Extent from finite positions only: non-finite ones are reported below.
+        let mut bounds = Bounds::EMPTY;
+        for (mi, mesh) in self.meshes.iter().enumerate() {
+            for (vi, p) in mesh.positions.iter().enumerate() {
+                if !p.is_finite() {
+                    return Err(SceneError::NonFinitePosition {
+                        mesh: mesh_label(mesh, mi),
+                        vertex: vi,
+                    });
+                }
+                bounds.grow(*p);
+            }
+        }
+        let extent = bounds.diagonal().max(f32::MIN_POSITIVE);
+        let min_area = DEGENERATE_REL_AREA * extent * extent;
+        let material_count = self.materials.len();
+        for (mi, mesh) in self.meshes.iter_mut().enumerate() {
+            let label = mesh_label(mesh, mi);
+            let nverts = mesh.positions.len();
+            if mesh.material_ids.len() != mesh.indices.len() {
+                return Err(SceneError::MaterialCountMismatch {
+                    mesh: label,
+                    triangles: mesh.indices.len(),
+                    material_ids: mesh.material_ids.len(),
+                });
+            }
+            if let Some(uvs) = &mesh.uvs {
+                if uvs.len() != nverts {
+                    return Err(SceneError::AttributeCountMismatch {
+                        mesh: label,
+                        attribute: "uvs",
+                        expected: nverts,
+                        found: uvs.len(),
+                    });
+                }
+                if let Some(v) = uvs.iter().position(|uv| !uv.is_finite()) {
+                    return Err(SceneError::NonFiniteAttribute {
+                        mesh: label,
+                        attribute: "uvs",
+                        vertex: v,
+                    });
+                }
+            }
+            for (ti, (tri, &mat)) in mesh.indices.iter().zip(&mesh.material_ids).enumerate() {
+                if let Some(&bad) = tri.iter().find(|&&i| i as usize >= nverts) {
+                    return Err(SceneError::IndexOutOfRange {
+                        mesh: label,
+                        triangle: ti,
+                        index: bad,
+                        vertex_count: nverts,
+                    });
+                }
+                if mat as usize >= material_count {
+                    return Err(SceneError::MaterialOutOfRange {
+                        mesh: label,
+                        triangle: ti,
+                        material: mat,
+                        material_count,
+                    });
+                }
+            }
+            // Drop degenerate triangles.
+            let before = mesh.indices.len();
+            let positions = &mesh.positions;
+            let keep: Vec<bool> = mesh
+                .indices
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|i| positions[i as usize]);
+                    0.5 * (b - a).cross(c - a).length() > min_area
+                })
+                .collect();
+            let mut k = keep.iter();
+            mesh.indices.retain(|_| *k.next().unwrap_or(&true));
+            let mut k = keep.iter();
+            mesh.material_ids.retain(|_| *k.next().unwrap_or(&true));
+            let dropped = before - mesh.indices.len();
+            if dropped > 0 {
+                report.degenerate_dropped.push((label.clone(), dropped));
+            }
+            // Repair normals.
+            if mesh.normals.len() != nverts {
+                mesh.normals = vec![Vec3::ZERO; nverts];
+            }
+            let needs: Vec<bool> = mesh
+                .normals
+                .iter()
+                .map(|n| !n.is_finite() || n.length_squared() < 1e-24)
+                .collect();
+            let count = needs.iter().filter(|&&b| b).count();
+            if count > 0 {
+                let face = face_normal_sums(mesh);
+                for (v, need) in needs.iter().enumerate() {
+                    if *need {
+                        // A vertex used by no triangle, or whose face normals cancel, gets +Y:
+                        // it is never shaded by a triangle that reads a cancelled sum.
+                        mesh.normals[v] = face[v].try_normalize().unwrap_or(Vec3::Y);
+                    }
+                }
+                report.normals_recomputed += count;
+            }
+            for n in &mut mesh.normals {
+                *n = n.normalize();
+            }
+        }
+        Ok(report)
+    }
+
+    fn validate_materials(&self) -> Result<(), SceneError> {
+        for (i, m) in self.materials.iter().enumerate() {
+            let name = label_or_index(&m.name, "material", i);
+            if !m.albedo.is_finite() || m.albedo.min_element() < 0.0 || m.albedo.max_element() >= 1.0 {
+                return Err(SceneError::AlbedoOutOfRange {
+                    material: name,
+                    albedo: m.albedo.to_array(),
+                });
+            }
+            if !m.emission.is_finite() || m.emission.min_element() < 0.0 {
+                return Err(SceneError::InvalidEmission {
+                    material: name,
+                    emission: m.emission.to_array(),
+                });
+            }
+            if let Some(t) = m.albedo_texture {
+                let Some(tex) = self.textures.get(t as usize) else {
+                    return Err(SceneError::TextureOutOfRange {
+                        material: name,
+                        texture: t,
+                        texture_count: self.textures.len(),
+                    });
+                };
+                if tex.texels.len() != tex.width as usize * tex.height as usize
+                    || tex.texels.is_empty()
+                {
+                    return Err(SceneError::InvalidTexture {
+                        texture: label_or_index(&tex.name, "texture", t as usize),
+                        reason: format!(
+                            "{} texels for {}x{}",
+                            tex.texels.len(),
+                            tex.width,
+                            tex.height
+                        ),
+                    });
+                }
+                if tex
+                    .texels
+                    .iter()
+                    .any(|c| !c.is_finite() || c.min_element() < 0.0 || c.max_element() > 1.0)
+                {
+                    return Err(SceneError::InvalidTexture {
+                        texture: label_or_index(&tex.name, "texture", t as usize),
+                        reason: "texel outside [0, 1] or not finite".into(),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_lights(&self) -> Result<(), SceneError> {
+        for (i, l) in self.point_lights.iter().enumerate() {
+            let bad = !l.position.is_finite()
+                || !l.intensity.is_finite()
+                || l.intensity.min_element() < 0.0
+                || l.radius.is_some_and(|r| !(r.is_finite() && r > 0.0));
+            if bad {
+                return Err(SceneError::InvalidLight {
+                    light: label_or_index(&l.name, "point light", i),
+                    reason: "position, intensity or radius not finite, or negative".into(),
+                });
+            }
+        }
+        for (i, l) in self.directional_lights.iter().enumerate() {
+            let bad = !l.direction.is_finite()
+                || l.direction.length_squared() < 1e-12
+                || !l.irradiance.is_finite()
+                || l.irradiance.min_element() < 0.0;
+            if bad {
+                return Err(SceneError::InvalidLight {
+                    light: label_or_index(&l.name, "directional light", i),
+                    reason: "direction zero or not finite, or irradiance negative or not finite"
+                        .into(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_cameras(&self) -> Result<(), SceneError> {
+        for (i, c) in self.cameras.iter().enumerate() {
+            let dir = c.target - c.position;
+            let ok = c.position.is_finite()
+                && c.target.is_finite()
+                && c.up.is_finite()
+                && dir.length_squared() > 0.0
+                && dir.normalize().cross(c.up).length_squared() > 1e-12
+                && c.fov_y > 0.0
+                && c.fov_y < std::f32::consts::PI
+                && c.aspect > 0.0
+                && c.aspect.is_finite()
+                && c.near > 0.0
+                && c.far > c.near
+                && c.far.is_finite();
+            if !ok {
+                return Err(SceneError::InvalidCamera {
+                    camera: label_or_index(&c.name, "camera", i),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Maps a global triangle id to its mesh and local index (binary search over offsets).
+    pub fn triangle_ref(&self, offsets: &[u32], global: u32) -> Option<TriangleRef> {
+        if offsets.is_empty() || global >= *offsets.last()? {
+            return None;
+        }
+        let mesh = offsets.partition_point(|&o| o <= global) - 1;
+        Some(TriangleRef {
+            mesh: mesh as u32,
+            local: global - offsets[mesh],
+        })
+    }
+}
+
+fn face_normal_sums(mesh: &Mesh) -> Vec<Vec3> {
+    let mut sums = vec![Vec3::ZERO; mesh.positions.len()];
+    for t in &mesh.indices {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        // Area-weighted face normal.
+        let n = (b - a).cross(c - a);
+        for &i in t {
+            sums[i as usize] += n;
+        }
+    }
+    sums
+}
+
+pub(crate) fn mesh_label(mesh: &Mesh, index: usize) -> String {
+    label_or_index(&mesh.name, "mesh", index)
+}
+
+pub(crate) fn label_or_index(name: &str, kind: &str, index: usize) -> String {
+    if name.is_empty() {
+        format!("{kind} #{index}")
+    } else {
+        format!("{kind} #{index} '{name}'")
+    }
+}

@@ -1,0 +1,356 @@
+//! Views: cameras, hemicube faces and shadow-map views, with their matrices and the
+//! far-plane frustum-corner vectors of the thesis' section 4.3 (eqs. 23-24).
+//!
+//! View space is right-handed: +X right, +Y up, the view looks down -Z. Clip space follows
+//! wgpu: depth in [0, 1]. "Linear depth" is the distance along the view direction divided by
+//! `far` (the thesis' stored depth), so it lies in [near/far, 1] for visible points.
+//! Image coordinates `(u, v)` are in [0, 1]², `(0, 0)` the top-left corner.
+
+use glam::{Mat4, Vec2, Vec3};
+
+use crate::scene::Camera;
+
+/// The projection of a view.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Projection {
+    /// Perspective; the frustum's side planes at view-space `x/(-z)` in `[left, right]` and
+    /// `y/(-z)` in `[bottom, top]` (tangents of the half-angles; symmetric for cameras,
+    /// off-axis for the half faces of a hemicube).
+    Perspective {
+        /// Tangent of the left half-angle (negative for a frustum containing the axis).
+        left: f32,
+        /// Tangent of the right half-angle.
+        right: f32,
+        /// Tangent of the bottom half-angle.
+        bottom: f32,
+        /// Tangent of the top half-angle.
+        top: f32,
+    },
+    /// Orthographic: view-space x in `[left, right]`, y in `[bottom, top]` (metres).
+    Orthographic {
+        /// Left edge.
+        left: f32,
+        /// Right edge.
+        right: f32,
+        /// Bottom edge.
+        bottom: f32,
+        /// Top edge.
+        top: f32,
+    },
+}
+
+/// A view: an eye with an orthonormal frame, a projection and near/far planes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    /// Eye position in world space.
+    pub eye: Vec3,
+    /// Unit view direction.
+    pub forward: Vec3,
+    /// Unit up vector, orthogonal to `forward`.
+    pub up: Vec3,
+    /// The projection.
+    pub projection: Projection,
+    /// Near plane distance.
+    pub near: f32,
+    /// Far plane distance.
+    pub far: f32,
+}
+
+/// Far-plane frustum vectors of eq. 24: world-space position of the point seen at image
+/// coordinates `(u, v)` with linear depth `d` is `eye + (o + u * du + v * dv) * d`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrustumCorners {
+    /// `f_o`: from the eye to the far plane's top-left corner.
+    pub origin: Vec3,
+    /// `f_u`: across the far plane, left to right.
+    pub du: Vec3,
+    /// `f_v`: down the far plane, top to bottom.
+    pub dv: Vec3,
+}
+
+/// Which face of a hemicube a [`View`] from [`View::hemicube`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HemicubeFace {
+    /// Looking along the normal; a full square face.
+    Front,
+    /// Looking along +tangent; the half face above the surface.
+    Right,
+    /// Looking along -tangent.
+    Left,
+    /// Looking along +bitangent.
+    Up,
+    /// Looking along -bitangent.
+    Down,
+}
+
+impl HemicubeFace {
+    /// The five faces in a fixed order.
+    pub const ALL: [HemicubeFace; 5] = [
+        HemicubeFace::Front,
+        HemicubeFace::Right,
+        HemicubeFace::Left,
+        HemicubeFace::Up,
+        HemicubeFace::Down,
+    ];
+
+    /// Image size of this face for a hemicube of `resolution` (full face `res x res`, side
+    /// faces `res x res/2`, rounded up).
+    pub fn size(self, resolution: u32) -> (u32, u32) {
+        match self {
+            HemicubeFace::Front => (resolution, resolution),
+            _ => (resolution, resolution.div_ceil(2)),
+        }
+    }
+}
+
+/// Two unit vectors `(t, b)` completing unit `n` to a right-handed orthonormal frame
+/// (`t x b = n`; Duff et al.'s branchless construction).
+pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let t = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let bt = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+    (t, bt)
+}
+
+impl View {
+    /// A perspective view from a camera (its aspect ratio is the camera's).
+    pub fn from_camera(camera: &Camera) -> View {
+        let forward = (camera.target - camera.position).normalize();
+        let right = forward.cross(camera.up).normalize();
+        let up = right.cross(forward);
+        let ty = (camera.fov_y * 0.5).tan();
+        let tx = ty * camera.aspect;
+        View {
+            eye: camera.position,
+            forward,
+            up,
+            projection: Projection::Perspective {
+                left: -tx,
+                right: tx,
+                bottom: -ty,
+                top: ty,
+            },
+            near: camera.near,
+            far: camera.far,
+        }
+    }
+
+    /// An orthographic view looking along `direction` at a box of half-size `half_extent`
+    /// around `center` (a shadow-map view for a directional light).
+    pub fn orthographic_fit(center: Vec3, direction: Vec3, half_extent: f32) -> View {
+        let forward = direction.normalize();
+        let (_, up) = orthonormal_basis(forward);
+        View {
+            eye: center - forward * (2.0 * half_extent),
+            forward,
+            up,
+            projection: Projection::Orthographic {
+                left: -half_extent,
+                right: half_extent,
+                bottom: -half_extent,
+                top: half_extent,
+            },
+            near: half_extent * 1e-3,
+            far: 4.0 * half_extent,
+        }
+    }
+
+    /// One face of a hemicube at `point` with unit `normal` (90 degree faces). Side faces look
+    /// along the tangent directions and cover only the half above the surface, their image up
+    /// being the normal. `near`/`far` bound the depth range.
+    pub fn hemicube(point: Vec3, normal: Vec3, face: HemicubeFace, near: f32, far: f32) -> View {
+        let n = normal.normalize();
+        let (t, b) = orthonormal_basis(n);
+        let (forward, up) = match face {
+            HemicubeFace::Front => (n, b),
+            HemicubeFace::Right => (t, n),
+            HemicubeFace::Left => (-t, n),
+            HemicubeFace::Up => (b, n),
+            HemicubeFace::Down => (-b, n),
+        };
+        let projection = match face {
+            HemicubeFace::Front => Projection::Perspective {
+                left: -1.0,
+                right: 1.0,
+                bottom: -1.0,
+                top: 1.0,
+            },
+            _ => Projection::Perspective {
+                left: -1.0,
+                right: 1.0,
+                bottom: 0.0,
+                top: 1.0,
+            },
+        };
+        View {
+            eye: point,
+            forward,
+            up,
+            projection,
+            near,
+            far,
+        }
+    }
+
+    /// The unit right vector (`forward x up`).
+    pub fn right(&self) -> Vec3 {
+        self.forward.cross(self.up)
+    }
+
+    /// World-to-view matrix.
+    pub fn view_matrix(&self) -> Mat4 {
+        // Rows: right, up, -forward (right-handed, looking down -Z).
+        let (r, u, f) = (self.right(), self.up, self.forward);
+        Mat4::from_cols(
+            glam::Vec4::new(r.x, u.x, -f.x, 0.0),
+            glam::Vec4::new(r.y, u.y, -f.y, 0.0),
+            glam::Vec4::new(r.z, u.z, -f.z, 0.0),
+            glam::Vec4::new(-r.dot(self.eye), -u.dot(self.eye), f.dot(self.eye), 1.0),
+        )
+    }
+
+    /// View-to-clip matrix (wgpu convention, depth in [0, 1]).
+    pub fn projection_matrix(&self) -> Mat4 {
+        let (n, f) = (self.near, self.far);
+        match self.projection {
+            Projection::Perspective {
+                left,
+                right,
+                bottom,
+                top,
+            } => Mat4::from_cols_array(&[
+                2.0 / (right - left),
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                2.0 / (top - bottom),
+                0.0,
+                0.0,
+                (right + left) / (right - left),
+                (top + bottom) / (top - bottom),
+                f / (n - f),
+                -1.0,
+                0.0,
+                0.0,
+                n * f / (n - f),
+                0.0,
+            ]),
+            Projection::Orthographic {
+                left,
+                right,
+                bottom,
+                top,
+            } => Mat4::from_cols_array(&[
+                2.0 / (right - left),
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                2.0 / (top - bottom),
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                1.0 / (n - f),
+                0.0,
+                -(right + left) / (right - left),
+                -(top + bottom) / (top - bottom),
+                n / (n - f),
+                1.0,
+            ]),
+        }
+    }
+
+    /// World-to-clip matrix.
+    pub fn view_projection(&self) -> Mat4 {
+        self.projection_matrix() * self.view_matrix()
+    }
+
+    /// The far-plane frustum vectors of eqs. 23-24 in world space, for perspective views.
+    ///
+    /// The thesis writes `f_x = z_f tan(theta/2)` and `f_y = aspect * f_x` with `theta` the
+    /// vertical field of view; the physically sound reading, used here, is
+    /// `f_y = z_f tan(theta/2)` and `f_x = aspect * f_y` (the general off-axis form takes the
+    /// frustum's four tangents).
+    pub fn frustum_corners(&self) -> Option<FrustumCorners> {
+        let Projection::Perspective {
+            left,
+            right,
+            bottom,
+            top,
+        } = self.projection
+        else {
+            return None;
+        };
+        let (r, u, f) = (self.right(), self.up, self.forward);
+        let far = self.far;
+        Some(FrustumCorners {
+            origin: (r * left + u * top + f) * far,
+            du: r * ((right - left) * far),
+            dv: -u * ((top - bottom) * far),
+        })
+    }
+
+    /// World-space position of the point at image coordinates `uv` with linear depth
+    /// `depth` (distance along `forward` / far), by the frustum vectors (eq. 24) for
+    /// perspective views and by the view frame for orthographic ones.
+    pub fn reconstruct_world(&self, uv: Vec2, depth: f32) -> Vec3 {
+        match self.projection {
+            Projection::Perspective { .. } => {
+                let c = self.frustum_corners().unwrap_or(FrustumCorners {
+                    origin: Vec3::ZERO,
+                    du: Vec3::ZERO,
+                    dv: Vec3::ZERO,
+                });
+                self.eye + (c.origin + c.du * uv.x + c.dv * uv.y) * depth
+            }
+            Projection::Orthographic {
+                left,
+                right,
+                bottom,
+                top,
+            } => {
+                let x = left + (right - left) * uv.x;
+                let y = top + (bottom - top) * uv.y;
+                self.eye + self.right() * x + self.up * y + self.forward * (depth * self.far)
+            }
+        }
+    }
+
+    /// The primary ray through image coordinates `uv`: origin and unit direction.
+    pub fn ray(&self, uv: Vec2) -> (Vec3, Vec3) {
+        match self.projection {
+            Projection::Perspective {
+                left,
+                right,
+                bottom,
+                top,
+            } => {
+                let x = left + (right - left) * uv.x;
+                let y = top + (bottom - top) * uv.y;
+                let d = (self.right() * x + self.up * y + self.forward).normalize();
+                (self.eye, d)
+            }
+            Projection::Orthographic { .. } => (self.reconstruct_world(uv, 0.0), self.forward),
+        }
+    }
+
+    /// Linear depth (distance along the view direction / far) of a world-space point.
+    pub fn linear_depth(&self, p: Vec3) -> f32 {
+        (p - self.eye).dot(self.forward) / self.far
+    }
+
+    /// Image coordinates `(u, v)` of a world-space point (may fall outside [0, 1]); `None`
+    /// behind a perspective eye.
+    pub fn project_uv(&self, p: Vec3) -> Option<Vec2> {
+        let clip = self.view_projection() * p.extend(1.0);
+        if clip.w <= 0.0 {
+            return None;
+        }
+        let ndc = clip.truncate() / clip.w;
+        Some(Vec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5))
+    }
+}
