@@ -1,1 +1,256 @@
-fn main() {}
+//! Project automation: `cargo xtask <command>`.
+//!
+//! - `ci`: formatting, clippy (warnings denied), the dependency rule, shader validation and
+//!   the workspace tests.
+//! - `shaders`: parse and validate every `shaders/**/*.wgsl` with naga and translate it to
+//!   SPIR-V, MSL and HLSL.
+//! - `reference`: render a scene with the reference path tracer to EXR + PNG.
+//! - `export-gltf`: write a built-in scene as glTF.
+//! - `bench reference`: rays per second of the reference path tracer.
+
+mod bench;
+mod checks;
+mod shaders;
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use scene_core::reference::{Accumulator, Bounces, PathTracer};
+use scene_core::{Scene, View, builtin, gltf_io};
+
+#[derive(Parser)]
+#[command(name = "xtask", about = "Automation for the diffuse-GI toolkit")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Everything CI checks: fmt, clippy -D warnings, dependency rule, shaders, tests.
+    Ci {
+        /// Skip `cargo test --workspace` (the README's test command runs it separately).
+        #[arg(long)]
+        no_test: bool,
+    },
+    /// Validate every shaders/**/*.wgsl with naga and translate to SPIR-V, MSL and HLSL.
+    Shaders {
+        /// Also write the translations to this directory.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Check only the dependency rule (spokes depend on scene-core, never on a sibling).
+    DepRule,
+    /// Render a scene with the reference path tracer: writes DIR/<scene>.exr, a PNG preview
+    /// and DIR/<scene>.variance.exr.
+    Reference {
+        /// Built-in scene name (cornell, cornell-point, primitives, corridor, "many-boxes N")
+        /// or a .gltf/.glb path.
+        #[arg(long, default_value = "cornell")]
+        scene: String,
+        /// Index of the scene camera to render.
+        #[arg(long, default_value_t = 0)]
+        camera: usize,
+        /// Image width.
+        #[arg(long, default_value_t = 256)]
+        width: u32,
+        /// Image height.
+        #[arg(long, default_value_t = 256)]
+        height: u32,
+        /// Samples per pixel.
+        #[arg(long, default_value_t = 256)]
+        spp: u32,
+        /// Indirect bounces: 0 (direct only), 1 (ISR's scope), N, or inf.
+        #[arg(long, default_value = "1")]
+        bounces: Bounces,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// PNG exposure in stops.
+        #[arg(long, default_value_t = 0.0)]
+        exposure: f32,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
+    /// Export a scene (built-in name or glTF path) as .gltf or .glb.
+    ExportGltf {
+        /// Built-in scene name or a .gltf/.glb path.
+        #[arg(long)]
+        scene: String,
+        /// Output file (.gltf or .glb).
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Benchmarks (figures printed, nothing asserted).
+    Bench {
+        /// What to benchmark: `reference`.
+        what: String,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Timed repeats after one warm-up.
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+    },
+}
+
+/// Loads a built-in scene by name, or a glTF file when the name ends in .gltf/.glb, printing
+/// what the import ignored.
+pub fn load_scene(spec: &str) -> Result<Scene, String> {
+    let lower = spec.to_ascii_lowercase();
+    if lower.ends_with(".gltf") || lower.ends_with(".glb") {
+        let imported = gltf_io::import(Path::new(spec)).map_err(|e| e.to_string())?;
+        let summary = imported.summary();
+        if !summary.is_empty() {
+            eprintln!("{summary}");
+        }
+        for w in &imported.warnings {
+            eprintln!("warning: {w}");
+        }
+        Ok(imported.scene)
+    } else {
+        builtin::scene(spec).map_err(|e| e.to_string())
+    }
+}
+
+fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let bar = if std::env::var_os("CI").is_some() {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(len)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} rows, eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+#[allow(clippy::too_many_arguments)]
+fn reference(
+    scene_spec: &str,
+    camera: usize,
+    width: u32,
+    height: u32,
+    spp: u32,
+    bounces: Bounces,
+    seed: u64,
+    exposure: f32,
+    out: &Path,
+) -> Result<(), String> {
+    if width == 0 || height == 0 || spp == 0 {
+        return Err(format!(
+            "width, height and spp must be positive (got {width}x{height}, {spp} spp)"
+        ));
+    }
+    let scene = load_scene(scene_spec)?;
+    let cam = scene.cameras.get(camera).ok_or_else(|| {
+        format!(
+            "scene '{}' has {} camera(s); --camera {camera} does not exist",
+            scene.name,
+            scene.cameras.len()
+        )
+    })?;
+    let cam = cam.with_aspect(width as f32 / height as f32);
+    let view = View::from_camera(&cam);
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let stem = Path::new(&scene.name)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    eprintln!(
+        "{}: {} triangles, camera '{}', {width}x{height}, {spp} spp, bounces {bounces}",
+        scene.name,
+        scene.triangle_count(),
+        cam.name
+    );
+    let t0 = Instant::now();
+    let tracer = PathTracer::new(&scene);
+    eprintln!("BVH built in {:.1} ms", t0.elapsed().as_secs_f64() * 1e3);
+    let mut acc = Accumulator::new(width, height);
+    // Progressive passes of up to 64 spp so the bar moves on long renders.
+    let passes = spp.div_ceil(64);
+    let bar = progress_bar(height as u64 * passes as u64, "rendering");
+    let mut done = 0u32;
+    for pass in 0..passes {
+        let n = (spp - done).min(64);
+        let base = pass as u64 * height as u64;
+        let report = |rows: u64, _total: u64| bar.set_position(base + rows);
+        acc.add_pass(&tracer, &view, bounces, seed, n, Some(&report));
+        done += n;
+    }
+    bar.finish_and_clear();
+    let stats = acc.stats();
+    let exr = out.join(format!("{stem}.exr"));
+    let png = out.join(format!("{stem}.png"));
+    let var = out.join(format!("{stem}.variance.exr"));
+    let image = acc.image();
+    image.write_exr(&exr).map_err(|e| e.to_string())?;
+    image.write_png(&png, exposure).map_err(|e| e.to_string())?;
+    acc.variance().write_exr(&var).map_err(|e| e.to_string())?;
+    eprintln!(
+        "{:.2} s, {:.2} Mrays/s ({} primary, {} shadow, {} bounce)",
+        stats.seconds,
+        stats.rays_per_second() / 1e6,
+        stats.primary,
+        stats.shadow,
+        stats.bounce
+    );
+    println!("{}", exr.display());
+    println!("{}", png.display());
+    println!("{}", var.display());
+    Ok(())
+}
+
+fn run(cli: Cli) -> Result<(), String> {
+    match cli.command {
+        Command::Ci { no_test } => checks::ci(!no_test),
+        Command::Shaders { out } => shaders::validate_all(out.as_deref()).map(|n| {
+            println!("{n} shader(s) valid and translated to SPIR-V, MSL and HLSL");
+        }),
+        Command::DepRule => checks::dependency_rule(),
+        Command::Reference {
+            scene,
+            camera,
+            width,
+            height,
+            spp,
+            bounces,
+            seed,
+            exposure,
+            out,
+        } => reference(
+            &scene, camera, width, height, spp, bounces, seed, exposure, &out,
+        ),
+        Command::ExportGltf { scene, out } => {
+            let s = load_scene(&scene)?;
+            gltf_io::export(&s, &out).map_err(|e| e.to_string())?;
+            println!("{}", out.display());
+            Ok(())
+        }
+        Command::Bench {
+            what,
+            threads,
+            repeats,
+        } => match what.as_str() {
+            "reference" => bench::reference(threads, repeats),
+            other => Err(format!("unknown benchmark '{other}' (known: reference)")),
+        },
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

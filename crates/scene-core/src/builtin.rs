@@ -13,7 +13,13 @@ use crate::sampling::Rng;
 use crate::scene::{Camera, DirectionalLight, Material, Mesh, PointLight, Scene};
 
 /// Names of the built-in scenes (`many-boxes` takes a box count: `many-boxes 1000`).
-pub const NAMES: [&str; 5] = ["cornell", "cornell-point", "primitives", "corridor", "many-boxes"];
+pub const NAMES: [&str; 5] = [
+    "cornell",
+    "cornell-point",
+    "primitives",
+    "corridor",
+    "many-boxes",
+];
 
 /// Largest box count of `many-boxes` (12 N + 2 <= 10^6 triangles).
 pub const MAX_BOXES: u32 = 83_333;
@@ -57,7 +63,14 @@ fn mm(x: f32, y: f32, z: f32) -> Vec3 {
 }
 
 /// A camera whose near/far planes are sized from the scene bounds seen from `position`.
-fn camera(name: &str, position: Vec3, target: Vec3, fov_y_deg: f32, aspect: f32, scene: &Scene) -> Camera {
+fn camera(
+    name: &str,
+    position: Vec3,
+    target: Vec3,
+    fov_y_deg: f32,
+    aspect: f32,
+    scene: &Scene,
+) -> Camera {
     let b = scene.bounds();
     let mut far = 0.0f32;
     for i in 0..8 {
@@ -110,27 +123,52 @@ fn cornell_geometry(s: &mut Scene) -> (u32, u32, u32) {
     let walls: [([Vec3; 4], u32); 5] = [
         // floor
         (
-            [mm(552.8, 0.0, 0.0), mm(0.0, 0.0, 0.0), mm(0.0, 0.0, 559.2), mm(549.6, 0.0, 559.2)],
+            [
+                mm(552.8, 0.0, 0.0),
+                mm(0.0, 0.0, 0.0),
+                mm(0.0, 0.0, 559.2),
+                mm(549.6, 0.0, 559.2),
+            ],
             white,
         ),
         // ceiling
         (
-            [mm(556.0, 548.8, 0.0), mm(556.0, 548.8, 559.2), mm(0.0, 548.8, 559.2), mm(0.0, 548.8, 0.0)],
+            [
+                mm(556.0, 548.8, 0.0),
+                mm(556.0, 548.8, 559.2),
+                mm(0.0, 548.8, 559.2),
+                mm(0.0, 548.8, 0.0),
+            ],
             white,
         ),
         // back wall
         (
-            [mm(549.6, 0.0, 559.2), mm(0.0, 0.0, 559.2), mm(0.0, 548.8, 559.2), mm(556.0, 548.8, 559.2)],
+            [
+                mm(549.6, 0.0, 559.2),
+                mm(0.0, 0.0, 559.2),
+                mm(0.0, 548.8, 559.2),
+                mm(556.0, 548.8, 559.2),
+            ],
             white,
         ),
         // right wall (green, at x = 0)
         (
-            [mm(0.0, 0.0, 559.2), mm(0.0, 0.0, 0.0), mm(0.0, 548.8, 0.0), mm(0.0, 548.8, 559.2)],
+            [
+                mm(0.0, 0.0, 559.2),
+                mm(0.0, 0.0, 0.0),
+                mm(0.0, 548.8, 0.0),
+                mm(0.0, 548.8, 559.2),
+            ],
             green,
         ),
         // left wall (red, at x = 556)
         (
-            [mm(552.8, 0.0, 0.0), mm(549.6, 0.0, 559.2), mm(556.0, 548.8, 559.2), mm(556.0, 548.8, 0.0)],
+            [
+                mm(552.8, 0.0, 0.0),
+                mm(549.6, 0.0, 559.2),
+                mm(556.0, 548.8, 559.2),
+                mm(556.0, 548.8, 0.0),
+            ],
             red,
         ),
     ];
@@ -140,18 +178,68 @@ fn cornell_geometry(s: &mut Scene) -> (u32, u32, u32) {
     s.meshes.push(room);
 
     let short: [[Vec3; 4]; 5] = [
-        [mm(130.0, 165.0, 65.0), mm(82.0, 165.0, 225.0), mm(240.0, 165.0, 272.0), mm(290.0, 165.0, 114.0)],
-        [mm(290.0, 0.0, 114.0), mm(290.0, 165.0, 114.0), mm(240.0, 165.0, 272.0), mm(240.0, 0.0, 272.0)],
-        [mm(130.0, 0.0, 65.0), mm(130.0, 165.0, 65.0), mm(290.0, 165.0, 114.0), mm(290.0, 0.0, 114.0)],
-        [mm(82.0, 0.0, 225.0), mm(82.0, 165.0, 225.0), mm(130.0, 165.0, 65.0), mm(130.0, 0.0, 65.0)],
-        [mm(240.0, 0.0, 272.0), mm(240.0, 165.0, 272.0), mm(82.0, 165.0, 225.0), mm(82.0, 0.0, 225.0)],
+        [
+            mm(130.0, 165.0, 65.0),
+            mm(82.0, 165.0, 225.0),
+            mm(240.0, 165.0, 272.0),
+            mm(290.0, 165.0, 114.0),
+        ],
+        [
+            mm(290.0, 0.0, 114.0),
+            mm(290.0, 165.0, 114.0),
+            mm(240.0, 165.0, 272.0),
+            mm(240.0, 0.0, 272.0),
+        ],
+        [
+            mm(130.0, 0.0, 65.0),
+            mm(130.0, 165.0, 65.0),
+            mm(290.0, 165.0, 114.0),
+            mm(290.0, 0.0, 114.0),
+        ],
+        [
+            mm(82.0, 0.0, 225.0),
+            mm(82.0, 165.0, 225.0),
+            mm(130.0, 165.0, 65.0),
+            mm(130.0, 0.0, 65.0),
+        ],
+        [
+            mm(240.0, 0.0, 272.0),
+            mm(240.0, 165.0, 272.0),
+            mm(82.0, 165.0, 225.0),
+            mm(82.0, 0.0, 225.0),
+        ],
     ];
     let tall: [[Vec3; 4]; 5] = [
-        [mm(423.0, 330.0, 247.0), mm(265.0, 330.0, 296.0), mm(314.0, 330.0, 456.0), mm(472.0, 330.0, 406.0)],
-        [mm(423.0, 0.0, 247.0), mm(423.0, 330.0, 247.0), mm(472.0, 330.0, 406.0), mm(472.0, 0.0, 406.0)],
-        [mm(472.0, 0.0, 406.0), mm(472.0, 330.0, 406.0), mm(314.0, 330.0, 456.0), mm(314.0, 0.0, 456.0)],
-        [mm(314.0, 0.0, 456.0), mm(314.0, 330.0, 456.0), mm(265.0, 330.0, 296.0), mm(265.0, 0.0, 296.0)],
-        [mm(265.0, 0.0, 296.0), mm(265.0, 330.0, 296.0), mm(423.0, 330.0, 247.0), mm(423.0, 0.0, 247.0)],
+        [
+            mm(423.0, 330.0, 247.0),
+            mm(265.0, 330.0, 296.0),
+            mm(314.0, 330.0, 456.0),
+            mm(472.0, 330.0, 406.0),
+        ],
+        [
+            mm(423.0, 0.0, 247.0),
+            mm(423.0, 330.0, 247.0),
+            mm(472.0, 330.0, 406.0),
+            mm(472.0, 0.0, 406.0),
+        ],
+        [
+            mm(472.0, 0.0, 406.0),
+            mm(472.0, 330.0, 406.0),
+            mm(314.0, 330.0, 456.0),
+            mm(314.0, 0.0, 456.0),
+        ],
+        [
+            mm(314.0, 0.0, 456.0),
+            mm(314.0, 330.0, 456.0),
+            mm(265.0, 330.0, 296.0),
+            mm(265.0, 0.0, 296.0),
+        ],
+        [
+            mm(265.0, 0.0, 296.0),
+            mm(265.0, 330.0, 296.0),
+            mm(423.0, 330.0, 247.0),
+            mm(423.0, 0.0, 247.0),
+        ],
     ];
     for (name, faces) in [("short block", short), ("tall block", tall)] {
         let mut mesh = Mesh {
@@ -177,9 +265,30 @@ pub const CORNELL_LIGHT_RADIANCE: Vec3 = Vec3::new(17.0, 12.0, 4.0);
 fn cornell_cameras(s: &Scene) -> Vec<Camera> {
     let fov = (2.0 * (12.5f32 / 35.0).atan()).to_degrees();
     vec![
-        camera("front", mm(278.0, 273.0, -800.0), mm(278.0, 273.0, 0.0), fov, 1.0, s),
-        camera("corner", mm(60.0, 480.0, 40.0), mm(330.0, 120.0, 420.0), 60.0, 1.0, s),
-        camera("low", mm(400.0, 60.0, 30.0), mm(250.0, 200.0, 559.0), 55.0, 1.0, s),
+        camera(
+            "front",
+            mm(278.0, 273.0, -800.0),
+            mm(278.0, 273.0, 0.0),
+            fov,
+            1.0,
+            s,
+        ),
+        camera(
+            "corner",
+            mm(60.0, 480.0, 40.0),
+            mm(330.0, 120.0, 420.0),
+            60.0,
+            1.0,
+            s,
+        ),
+        camera(
+            "low",
+            mm(400.0, 60.0, 30.0),
+            mm(250.0, 200.0, 559.0),
+            55.0,
+            1.0,
+            s,
+        ),
     ]
 }
 
@@ -237,12 +346,42 @@ fn push_box(mesh: &mut Mesh, centre: Vec3, half: Vec3, yaw: f32, material: u32) 
     let rot = glam::Quat::from_rotation_y(yaw);
     let corner = |sx: f32, sy: f32, sz: f32| centre + rot * (half * Vec3::new(sx, sy, sz));
     let faces = [
-        [corner(1., -1., -1.), corner(1., 1., -1.), corner(1., 1., 1.), corner(1., -1., 1.)],
-        [corner(-1., -1., 1.), corner(-1., 1., 1.), corner(-1., 1., -1.), corner(-1., -1., -1.)],
-        [corner(-1., 1., -1.), corner(-1., 1., 1.), corner(1., 1., 1.), corner(1., 1., -1.)],
-        [corner(-1., -1., 1.), corner(-1., -1., -1.), corner(1., -1., -1.), corner(1., -1., 1.)],
-        [corner(-1., -1., 1.), corner(1., -1., 1.), corner(1., 1., 1.), corner(-1., 1., 1.)],
-        [corner(1., -1., -1.), corner(-1., -1., -1.), corner(-1., 1., -1.), corner(1., 1., -1.)],
+        [
+            corner(1., -1., -1.),
+            corner(1., 1., -1.),
+            corner(1., 1., 1.),
+            corner(1., -1., 1.),
+        ],
+        [
+            corner(-1., -1., 1.),
+            corner(-1., 1., 1.),
+            corner(-1., 1., -1.),
+            corner(-1., -1., -1.),
+        ],
+        [
+            corner(-1., 1., -1.),
+            corner(-1., 1., 1.),
+            corner(1., 1., 1.),
+            corner(1., 1., -1.),
+        ],
+        [
+            corner(-1., -1., 1.),
+            corner(-1., -1., -1.),
+            corner(1., -1., -1.),
+            corner(1., -1., 1.),
+        ],
+        [
+            corner(-1., -1., 1.),
+            corner(1., -1., 1.),
+            corner(1., 1., 1.),
+            corner(-1., 1., 1.),
+        ],
+        [
+            corner(1., -1., -1.),
+            corner(-1., -1., -1.),
+            corner(-1., 1., -1.),
+            corner(1., 1., -1.),
+        ],
     ];
     for f in faces {
         let fc = (f[0] + f[1] + f[2] + f[3]) * 0.25;
@@ -251,17 +390,31 @@ fn push_box(mesh: &mut Mesh, centre: Vec3, half: Vec3, yaw: f32, material: u32) 
 }
 
 /// Appends a UV sphere with smooth normals.
-fn push_sphere(mesh: &mut Mesh, centre: Vec3, radius: f32, material: u32, rings: u32, segments: u32) {
+fn push_sphere(
+    mesh: &mut Mesh,
+    centre: Vec3,
+    radius: f32,
+    material: u32,
+    rings: u32,
+    segments: u32,
+) {
     let base = mesh.positions.len() as u32;
     for r in 0..=rings {
         let theta = std::f32::consts::PI * r as f32 / rings as f32;
         for sgm in 0..=segments {
             let phi = std::f32::consts::TAU * sgm as f32 / segments as f32;
-            let n = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+            let n = Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            );
             mesh.positions.push(centre + n * radius);
             mesh.normals.push(n);
             if let Some(uvs) = &mut mesh.uvs {
-                uvs.push(Vec2::new(sgm as f32 / segments as f32, r as f32 / rings as f32));
+                uvs.push(Vec2::new(
+                    sgm as f32 / segments as f32,
+                    r as f32 / rings as f32,
+                ));
             }
         }
     }
@@ -304,7 +457,12 @@ pub fn primitives() -> Scene {
     };
     let g = 6.0;
     ground.push_quad(
-        [Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g), Vec3::new(-g, 0.0, -g)],
+        [
+            Vec3::new(-g, 0.0, g),
+            Vec3::new(g, 0.0, g),
+            Vec3::new(g, 0.0, -g),
+            Vec3::new(-g, 0.0, -g),
+        ],
         0,
     );
     s.meshes.push(ground);
@@ -312,9 +470,27 @@ pub fn primitives() -> Scene {
         name: "boxes".into(),
         ..Default::default()
     };
-    push_box(&mut boxes, Vec3::new(-1.2, 0.5, -0.5), Vec3::splat(0.5), 0.4, 1);
-    push_box(&mut boxes, Vec3::new(1.3, 0.75, -1.0), Vec3::new(0.4, 0.75, 0.4), -0.3, 3);
-    push_box(&mut boxes, Vec3::new(0.2, 0.25, 1.2), Vec3::new(0.8, 0.25, 0.3), 0.1, 5);
+    push_box(
+        &mut boxes,
+        Vec3::new(-1.2, 0.5, -0.5),
+        Vec3::splat(0.5),
+        0.4,
+        1,
+    );
+    push_box(
+        &mut boxes,
+        Vec3::new(1.3, 0.75, -1.0),
+        Vec3::new(0.4, 0.75, 0.4),
+        -0.3,
+        3,
+    );
+    push_box(
+        &mut boxes,
+        Vec3::new(0.2, 0.25, 1.2),
+        Vec3::new(0.8, 0.25, 0.3),
+        0.1,
+        5,
+    );
     s.meshes.push(boxes);
     let mut spheres = Mesh {
         name: "spheres".into(),
@@ -329,9 +505,30 @@ pub fn primitives() -> Scene {
         irradiance: Vec3::new(3.0, 2.85, 2.6),
     });
     s.cameras = vec![
-        camera("front", Vec3::new(0.0, 2.2, 5.5), Vec3::new(0.0, 0.4, 0.0), 45.0, 4.0 / 3.0, &s),
-        camera("side", Vec3::new(4.5, 1.5, 2.5), Vec3::new(0.0, 0.5, 0.0), 50.0, 4.0 / 3.0, &s),
-        camera("top", Vec3::new(0.5, 6.0, 2.0), Vec3::new(0.0, 0.0, 0.0), 50.0, 4.0 / 3.0, &s),
+        camera(
+            "front",
+            Vec3::new(0.0, 2.2, 5.5),
+            Vec3::new(0.0, 0.4, 0.0),
+            45.0,
+            4.0 / 3.0,
+            &s,
+        ),
+        camera(
+            "side",
+            Vec3::new(4.5, 1.5, 2.5),
+            Vec3::new(0.0, 0.5, 0.0),
+            50.0,
+            4.0 / 3.0,
+            &s,
+        ),
+        camera(
+            "top",
+            Vec3::new(0.5, 6.0, 2.0),
+            Vec3::new(0.0, 0.0, 0.0),
+            50.0,
+            4.0 / 3.0,
+            &s,
+        ),
     ];
     s
 }
@@ -357,12 +554,42 @@ pub fn corridor() -> Scene {
         ..Default::default()
     };
     let p = Vec3::new;
-    quad_facing(&mut room, [p(-w, 0., 0.), p(w, 0., 0.), p(w, 0., -l), p(-w, 0., -l)], 0, inside);
-    quad_facing(&mut room, [p(-w, h, 0.), p(w, h, 0.), p(w, h, -l), p(-w, h, -l)], 1, inside);
-    quad_facing(&mut room, [p(-w, 0., 0.), p(-w, h, 0.), p(-w, h, -l), p(-w, 0., -l)], 2, inside);
-    quad_facing(&mut room, [p(w, 0., 0.), p(w, h, 0.), p(w, h, -l), p(w, 0., -l)], 3, inside);
-    quad_facing(&mut room, [p(-w, 0., -l), p(w, 0., -l), p(w, h, -l), p(-w, h, -l)], 4, inside);
-    quad_facing(&mut room, [p(-w, 0., 0.), p(w, 0., 0.), p(w, h, 0.), p(-w, h, 0.)], 4, inside);
+    quad_facing(
+        &mut room,
+        [p(-w, 0., 0.), p(w, 0., 0.), p(w, 0., -l), p(-w, 0., -l)],
+        0,
+        inside,
+    );
+    quad_facing(
+        &mut room,
+        [p(-w, h, 0.), p(w, h, 0.), p(w, h, -l), p(-w, h, -l)],
+        1,
+        inside,
+    );
+    quad_facing(
+        &mut room,
+        [p(-w, 0., 0.), p(-w, h, 0.), p(-w, h, -l), p(-w, 0., -l)],
+        2,
+        inside,
+    );
+    quad_facing(
+        &mut room,
+        [p(w, 0., 0.), p(w, h, 0.), p(w, h, -l), p(w, 0., -l)],
+        3,
+        inside,
+    );
+    quad_facing(
+        &mut room,
+        [p(-w, 0., -l), p(w, 0., -l), p(w, h, -l), p(-w, h, -l)],
+        4,
+        inside,
+    );
+    quad_facing(
+        &mut room,
+        [p(-w, 0., 0.), p(w, 0., 0.), p(w, h, 0.), p(-w, h, 0.)],
+        4,
+        inside,
+    );
     s.meshes.push(room);
     let mut pillars = Mesh {
         name: "pillars".into(),
@@ -390,9 +617,30 @@ pub fn corridor() -> Scene {
         });
     }
     s.cameras = vec![
-        camera("entrance", p(0.0, 1.6, -0.3), p(0.0, 1.4, -10.0), 60.0, 4.0 / 3.0, &s),
-        camera("middle", p(1.6, 2.4, -8.0), p(-1.0, 0.8, -13.0), 65.0, 4.0 / 3.0, &s),
-        camera("back", p(-1.0, 1.2, -19.5), p(0.5, 1.5, -5.0), 60.0, 4.0 / 3.0, &s),
+        camera(
+            "entrance",
+            p(0.0, 1.6, -0.3),
+            p(0.0, 1.4, -10.0),
+            60.0,
+            4.0 / 3.0,
+            &s,
+        ),
+        camera(
+            "middle",
+            p(1.6, 2.4, -8.0),
+            p(-1.0, 0.8, -13.0),
+            65.0,
+            4.0 / 3.0,
+            &s,
+        ),
+        camera(
+            "back",
+            p(-1.0, 1.2, -19.5),
+            p(0.5, 1.5, -5.0),
+            60.0,
+            4.0 / 3.0,
+            &s,
+        ),
     ];
     s
 }
@@ -402,7 +650,8 @@ pub fn corridor() -> Scene {
 pub fn many_boxes(n: u32, seed: u64) -> Scene {
     let mut s = Scene::new(&format!("many-boxes-{n}"));
     let mut rng = Rng::new(seed, 0xb0c5);
-    s.materials.push(Material::diffuse("ground", Vec3::splat(0.5)));
+    s.materials
+        .push(Material::diffuse("ground", Vec3::splat(0.5)));
     for i in 0..8 {
         let c = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.8 + 0.1;
         s.materials.push(Material::diffuse(&format!("box {i}"), c));
@@ -414,7 +663,12 @@ pub fn many_boxes(n: u32, seed: u64) -> Scene {
     };
     let g = half + 1.0;
     ground.push_quad(
-        [Vec3::new(-g, 0.0, g), Vec3::new(g, 0.0, g), Vec3::new(g, 0.0, -g), Vec3::new(-g, 0.0, -g)],
+        [
+            Vec3::new(-g, 0.0, g),
+            Vec3::new(g, 0.0, g),
+            Vec3::new(g, 0.0, -g),
+            Vec3::new(-g, 0.0, -g),
+        ],
         0,
     );
     s.meshes.push(ground);
@@ -454,7 +708,14 @@ pub fn many_boxes(n: u32, seed: u64) -> Scene {
             4.0 / 3.0,
             &s,
         ),
-        camera("street", Vec3::new(0.3, 1.2, half * 0.5), Vec3::new(0.0, 1.0, 0.0), 60.0, 4.0 / 3.0, &s),
+        camera(
+            "street",
+            Vec3::new(0.3, 1.2, half * 0.5),
+            Vec3::new(0.0, 1.0, 0.0),
+            60.0,
+            4.0 / 3.0,
+            &s,
+        ),
     ];
     s
 }
@@ -465,7 +726,13 @@ mod tests {
 
     #[test]
     fn every_builtin_builds_and_validates() {
-        for name in ["cornell", "cornell-point", "primitives", "corridor", "many-boxes 50"] {
+        for name in [
+            "cornell",
+            "cornell-point",
+            "primitives",
+            "corridor",
+            "many-boxes 50",
+        ] {
             let s = scene(name).unwrap();
             assert!(s.triangle_count() > 0, "{name}");
             assert!(!s.cameras.is_empty(), "{name}");
@@ -491,7 +758,12 @@ mod tests {
             assert_eq!(p.y, 0.5478);
             assert!((0.213..=0.343).contains(&p.x) && (0.227..=0.332).contains(&p.z));
         }
-        assert!(light.normals.iter().all(|n| (*n - Vec3::NEG_Y).length() < 1e-6));
+        assert!(
+            light
+                .normals
+                .iter()
+                .all(|n| (*n - Vec3::NEG_Y).length() < 1e-6)
+        );
         let m = &s.materials[light.material_ids[0] as usize];
         assert_eq!(m.emission, Vec3::new(17.0, 12.0, 4.0));
         let white = s.materials.iter().find(|m| m.name == "white").unwrap();
@@ -518,8 +790,14 @@ mod tests {
         assert_eq!(s.triangle_count(), 12 * 100 + 2);
         assert_eq!(s, scene("many-boxes:100").unwrap());
         assert_ne!(many_boxes(100, 1), many_boxes(100, 2));
-        assert!(matches!(scene("many-boxes 0"), Err(SceneError::UnknownBuiltin(_))));
-        assert!(matches!(scene("many-boxes 99999999"), Err(SceneError::UnknownBuiltin(_))));
+        assert!(matches!(
+            scene("many-boxes 0"),
+            Err(SceneError::UnknownBuiltin(_))
+        ));
+        assert!(matches!(
+            scene("many-boxes 99999999"),
+            Err(SceneError::UnknownBuiltin(_))
+        ));
         assert!(matches!(scene("nope"), Err(SceneError::UnknownBuiltin(_))));
     }
 }

@@ -36,7 +36,9 @@ pub enum SceneError {
         found: usize,
     },
     /// A triangle index points past the vertex array.
-    #[error("{mesh}: triangle {triangle} uses vertex {index} but the mesh has {vertex_count} vertices")]
+    #[error(
+        "{mesh}: triangle {triangle} uses vertex {index} but the mesh has {vertex_count} vertices"
+    )]
     IndexOutOfRange {
         /// The mesh at fault.
         mesh: String,
@@ -58,7 +60,9 @@ pub enum SceneError {
         material_ids: usize,
     },
     /// A triangle names a material that does not exist.
-    #[error("{mesh}: triangle {triangle} uses material {material} but the scene has {material_count}")]
+    #[error(
+        "{mesh}: triangle {triangle} uses material {material} but the scene has {material_count}"
+    )]
     MaterialOutOfRange {
         /// The mesh at fault.
         mesh: String,
@@ -112,13 +116,17 @@ pub enum SceneError {
         reason: String,
     },
     /// A camera is degenerate (zero view direction, up parallel to it, bad fov or planes).
-    #[error("{camera}: degenerate camera (check position/target/up, fov in (0, pi), 0 < near < far)")]
+    #[error(
+        "{camera}: degenerate camera (check position/target/up, fov in (0, pi), 0 < near < far)"
+    )]
     InvalidCamera {
         /// The camera at fault.
         camera: String,
     },
     /// A name given to `builtin` is unknown or its parameter is out of range.
-    #[error("unknown built-in scene '{0}' (known: cornell, cornell-point, primitives, corridor, many-boxes N)")]
+    #[error(
+        "unknown built-in scene '{0}' (known: cornell, cornell-point, primitives, corridor, many-boxes N)"
+    )]
     UnknownBuiltin(String),
 }
 

@@ -61,7 +61,10 @@ impl GBuffer {
 
     /// The background mask for all pixels.
     pub fn background_mask(&self) -> Vec<bool> {
-        self.triangle_id.iter().map(|&t| t == BACKGROUND_ID).collect()
+        self.triangle_id
+            .iter()
+            .map(|&t| t == BACKGROUND_ID)
+            .collect()
     }
 }
 

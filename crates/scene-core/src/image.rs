@@ -211,7 +211,13 @@ impl Image {
         }
         let pixels = rgb
             .pixels()
-            .map(|p| Vec3::new(srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2])))
+            .map(|p| {
+                Vec3::new(
+                    srgb_to_linear(p[0]),
+                    srgb_to_linear(p[1]),
+                    srgb_to_linear(p[2]),
+                )
+            })
             .collect();
         Ok(Image {
             width,

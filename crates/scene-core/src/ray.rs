@@ -49,7 +49,13 @@ struct PreparedTriangle {
 impl PreparedTriangle {
     /// Moeller-Trumbore; returns `(t, u, v)` or `None`. Two-sided.
     #[inline(always)]
-    fn intersect(&self, origin: Vec3A, dir: Vec3A, t_min: f32, t_max: f32) -> Option<(f32, f32, f32)> {
+    fn intersect(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(f32, f32, f32)> {
         let p = dir.cross(self.e2);
         let det = self.e1.dot(p);
         if det == 0.0 || !det.is_finite() {
@@ -90,7 +96,11 @@ impl RayScene {
         for mesh in &scene.meshes {
             for t in &mesh.indices {
                 let [a, b, c] = t.map(|i| Vec3A::from(mesh.positions[i as usize]));
-                tris.push(BvhTriangle { v0: a, v1: b, v2: c });
+                tris.push(BvhTriangle {
+                    v0: a,
+                    v1: b,
+                    v2: c,
+                });
             }
         }
         if tris.is_empty() {
@@ -129,7 +139,13 @@ impl RayScene {
     }
 
     /// The closest hit along `origin + t * direction` for `t` in `[t_min, t_max]`.
-    pub fn closest_hit(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
+    pub fn closest_hit(
+        &self,
+        origin: Vec3,
+        direction: Vec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
         if !origin.is_finite() || !direction.is_finite() || direction == Vec3::ZERO {
             return None;
@@ -197,14 +213,24 @@ impl RayScene {
 }
 
 /// Brute-force closest hit over all triangles of `scene` (the test oracle for the BVH).
-pub fn brute_force_closest(scene: &Scene, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
+pub fn brute_force_closest(
+    scene: &Scene,
+    origin: Vec3,
+    direction: Vec3,
+    t_min: f32,
+    t_max: f32,
+) -> Option<Hit> {
     let (o, d) = (Vec3A::from(origin), Vec3A::from(direction));
     let mut best: Option<Hit> = None;
     let mut global = 0u32;
     for mesh in &scene.meshes {
         for t in &mesh.indices {
             let [a, b, c] = t.map(|i| Vec3A::from(mesh.positions[i as usize]));
-            let tri = PreparedTriangle { v0: a, e1: b - a, e2: c - a };
+            let tri = PreparedTriangle {
+                v0: a,
+                e1: b - a,
+                e2: c - a,
+            };
             let limit = best.map_or(t_max, |h| h.t);
             if let Some((t, u, v)) = tri.intersect(o, d, t_min, limit)
                 && best.is_none_or(|h| t < h.t)
@@ -239,7 +265,8 @@ mod tests {
             mesh.push_triangle(p, 0);
         }
         let mut s = Scene::new("random");
-        s.materials.push(Material::diffuse("grey", Vec3::splat(0.5)));
+        s.materials
+            .push(Material::diffuse("grey", Vec3::splat(0.5)));
         s.meshes.push(mesh);
         s
     }
@@ -294,7 +321,10 @@ mod tests {
         let batch = rs.closest_hits(&rays);
         let occ = rs.occluded_batch(&rays);
         for (i, r) in rays.iter().enumerate() {
-            assert_eq!(batch[i], rs.closest_hit(r.origin, r.direction, r.t_min, r.t_max));
+            assert_eq!(
+                batch[i],
+                rs.closest_hit(r.origin, r.direction, r.t_min, r.t_max)
+            );
             assert_eq!(occ[i], batch[i].is_some());
         }
     }

@@ -237,7 +237,14 @@ impl<'a> PathTracer<'a> {
     }
 
     /// One radiance sample along a ray from `origin` in unit direction `dir`.
-    pub fn radiance(&self, origin: Vec3, dir: Vec3, bounces: Bounces, rng: &mut Rng, stats: &mut RayStats) -> Vec3 {
+    pub fn radiance(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        bounces: Bounces,
+        rng: &mut Rng,
+        stats: &mut RayStats,
+    ) -> Vec3 {
         let max_vertex = match bounces {
             Bounces::Limited(n) => n,
             Bounces::Unlimited => u32::MAX - 1,
@@ -464,7 +471,11 @@ impl Accumulator {
                         let (o, d) = view.ray(uv);
                         let l = tracer.radiance(o, d, bounces, &mut rng, &mut stats);
                         // A non-finite sample would poison the pixel: drop it (counted as 0).
-                        let l = if l.is_finite() { l.as_dvec3() } else { DVec3::ZERO };
+                        let l = if l.is_finite() {
+                            l.as_dvec3()
+                        } else {
+                            DVec3::ZERO
+                        };
                         sum[x as usize] += l;
                         sum_sq[x as usize] += l * l;
                     }

@@ -490,7 +490,10 @@ impl Scene {
     fn validate_materials(&self) -> Result<(), SceneError> {
         for (i, m) in self.materials.iter().enumerate() {
             let name = label_or_index(&m.name, "material", i);
-            if !m.albedo.is_finite() || m.albedo.min_element() < 0.0 || m.albedo.max_element() >= 1.0 {
+            if !m.albedo.is_finite()
+                || m.albedo.min_element() < 0.0
+                || m.albedo.max_element() >= 1.0
+            {
                 return Err(SceneError::AlbedoOutOfRange {
                     material: name,
                     albedo: m.albedo.to_array(),

@@ -10,23 +10,67 @@ use scene_core::{Image, builtin};
 /// A closed cube [-1, 1]^3 with inward-facing walls of one emissive material.
 fn furnace(albedo: f32, emission: f32) -> Scene {
     let mut s = Scene::new("furnace");
-    s.materials.push(Material::emissive("wall", Vec3::splat(albedo), Vec3::splat(emission)));
-    let mut m = Mesh { name: "cube".into(), ..Default::default() };
+    s.materials.push(Material::emissive(
+        "wall",
+        Vec3::splat(albedo),
+        Vec3::splat(emission),
+    ));
+    let mut m = Mesh {
+        name: "cube".into(),
+        ..Default::default()
+    };
     let c = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
     // Each face counter-clockwise seen from inside (normal towards the centre).
     let faces = [
-        [c(-1., -1., -1.), c(1., -1., -1.), c(1., -1., 1.), c(-1., -1., 1.)], // floor, +y
-        [c(-1., 1., -1.), c(-1., 1., 1.), c(1., 1., 1.), c(1., 1., -1.)],     // ceiling, -y
-        [c(-1., -1., -1.), c(-1., -1., 1.), c(-1., 1., 1.), c(-1., 1., -1.)], // x = -1, +x
-        [c(1., -1., -1.), c(1., 1., -1.), c(1., 1., 1.), c(1., -1., 1.)],     // x = 1, -x
-        [c(-1., -1., -1.), c(-1., 1., -1.), c(1., 1., -1.), c(1., -1., -1.)], // z = -1, +z
-        [c(-1., -1., 1.), c(1., -1., 1.), c(1., 1., 1.), c(-1., 1., 1.)],     // z = 1, -z
+        [
+            c(-1., -1., -1.),
+            c(1., -1., -1.),
+            c(1., -1., 1.),
+            c(-1., -1., 1.),
+        ], // floor, +y
+        [
+            c(-1., 1., -1.),
+            c(-1., 1., 1.),
+            c(1., 1., 1.),
+            c(1., 1., -1.),
+        ], // ceiling, -y
+        [
+            c(-1., -1., -1.),
+            c(-1., -1., 1.),
+            c(-1., 1., 1.),
+            c(-1., 1., -1.),
+        ], // x = -1, +x
+        [
+            c(1., -1., -1.),
+            c(1., 1., -1.),
+            c(1., 1., 1.),
+            c(1., -1., 1.),
+        ], // x = 1, -x
+        [
+            c(-1., -1., -1.),
+            c(-1., 1., -1.),
+            c(1., 1., -1.),
+            c(1., -1., -1.),
+        ], // z = -1, +z
+        [
+            c(-1., -1., 1.),
+            c(1., -1., 1.),
+            c(1., 1., 1.),
+            c(-1., 1., 1.),
+        ], // z = 1, -z
     ];
     for f in faces {
         let centre = (f[0] + f[2]) * 0.5;
         let n = (f[1] - f[0]).cross(f[2] - f[0]);
         // Emission is one-sided: wind every face to look inward.
-        m.push_quad(if n.dot(-centre) > 0.0 { f } else { [f[3], f[2], f[1], f[0]] }, 0);
+        m.push_quad(
+            if n.dot(-centre) > 0.0 {
+                f
+            } else {
+                [f[3], f[2], f[1], f[0]]
+            },
+            0,
+        );
     }
     s.meshes.push(m);
     s.cameras.push(Camera {
@@ -46,8 +90,18 @@ fn furnace(albedo: f32, emission: f32) -> Scene {
 /// Mean over all pixel-channels and its standard error from the per-pixel variances.
 fn mean_and_standard_error(img: &Image, var: &Image, spp: u32) -> (f64, f64) {
     let n = (img.pixels.len() * 3) as f64;
-    let mean = img.pixels.iter().map(|p| (p.x + p.y + p.z) as f64).sum::<f64>() / n;
-    let var_mean: f64 = var.pixels.iter().map(|v| (v.x + v.y + v.z) as f64).sum::<f64>() / n;
+    let mean = img
+        .pixels
+        .iter()
+        .map(|p| (p.x + p.y + p.z) as f64)
+        .sum::<f64>()
+        / n;
+    let var_mean: f64 = var
+        .pixels
+        .iter()
+        .map(|v| (v.x + v.y + v.z) as f64)
+        .sum::<f64>()
+        / n;
     (mean, (var_mean / (spp as f64 * n)).sqrt())
 }
 
@@ -56,12 +110,24 @@ fn furnace_converges_to_e_over_one_minus_rho() {
     let (rho, e) = (0.6f32, 0.5f32);
     let s = furnace(rho, e);
     let view = View::from_camera(&s.cameras[0]);
-    let settings = ReferenceSettings { width: 24, height: 24, spp: 64, bounces: Bounces::Unlimited, seed: 3 };
+    let settings = ReferenceSettings {
+        width: 24,
+        height: 24,
+        spp: 64,
+        bounces: Bounces::Unlimited,
+        seed: 3,
+    };
     let out = render(&s, &view, &settings, None);
     let (mean, se) = mean_and_standard_error(&out.image, &out.variance, out.spp);
     let expected = (e / (1.0 - rho)) as f64;
-    assert!(se > 0.0 && se < 0.02 * expected, "standard error {se} too large to test");
-    assert!((mean - expected).abs() < 3.0 * se, "furnace mean {mean}, expected {expected} +- 3 x {se}");
+    assert!(
+        se > 0.0 && se < 0.02 * expected,
+        "standard error {se} too large to test"
+    );
+    assert!(
+        (mean - expected).abs() < 3.0 * se,
+        "furnace mean {mean}, expected {expected} +- 3 x {se}"
+    );
 }
 
 #[test]
@@ -71,22 +137,51 @@ fn bounce_limits_truncate_the_neumann_series() {
     let s = furnace(rho, e);
     let view = View::from_camera(&s.cameras[0]);
     for n in [0u32, 1, 3] {
-        let settings = ReferenceSettings { width: 16, height: 16, spp: 64, bounces: Bounces::Limited(n), seed: 5 };
+        let settings = ReferenceSettings {
+            width: 16,
+            height: 16,
+            spp: 64,
+            bounces: Bounces::Limited(n),
+            seed: 5,
+        };
         let out = render(&s, &view, &settings, None);
         let (mean, se) = mean_and_standard_error(&out.image, &out.variance, out.spp);
-        let expected: f64 = (0..=n + 1).map(|i| (rho as f64).powi(i as i32)).sum::<f64>() * e as f64;
-        assert!((mean - expected).abs() < 3.0 * se + 1e-6, "N = {n}: {mean} vs {expected} (se {se})");
+        let expected: f64 = (0..=n + 1)
+            .map(|i| (rho as f64).powi(i as i32))
+            .sum::<f64>()
+            * e as f64;
+        assert!(
+            (mean - expected).abs() < 3.0 * se + 1e-6,
+            "N = {n}: {mean} vs {expected} (se {se})"
+        );
     }
 }
 
 fn plane_under_point_light(radius: Option<f32>) -> (Scene, PointLight) {
     let mut s = Scene::new("plane");
-    s.materials.push(Material::diffuse("grey", Vec3::splat(0.5)));
-    let mut m = Mesh { name: "plane".into(), ..Default::default() };
+    s.materials
+        .push(Material::diffuse("grey", Vec3::splat(0.5)));
+    let mut m = Mesh {
+        name: "plane".into(),
+        ..Default::default()
+    };
     let g = 3.0;
-    m.push_quad([Vec3::new(-g, 0., g), Vec3::new(g, 0., g), Vec3::new(g, 0., -g), Vec3::new(-g, 0., -g)], 0);
+    m.push_quad(
+        [
+            Vec3::new(-g, 0., g),
+            Vec3::new(g, 0., g),
+            Vec3::new(g, 0., -g),
+            Vec3::new(-g, 0., -g),
+        ],
+        0,
+    );
     s.meshes.push(m);
-    let light = PointLight { name: "bulb".into(), position: Vec3::new(0.3, 1.0, -0.2), intensity: Vec3::new(2.0, 1.0, 0.5), radius };
+    let light = PointLight {
+        name: "bulb".into(),
+        position: Vec3::new(0.3, 1.0, -0.2),
+        intensity: Vec3::new(2.0, 1.0, 0.5),
+        radius,
+    };
     s.point_lights.push(light.clone());
     s.cameras.push(Camera {
         name: "above".into(),
@@ -108,7 +203,13 @@ fn point_light_over_plane_matches_closed_form() {
         let (s, light) = plane_under_point_light(radius);
         let view = View::from_camera(&s.cameras[0]);
         let (w, h) = (48u32, 48u32);
-        let settings = ReferenceSettings { width: w, height: h, spp: 16, bounces: Bounces::Unlimited, seed: 9 };
+        let settings = ReferenceSettings {
+            width: w,
+            height: h,
+            spp: 16,
+            bounces: Bounces::Unlimited,
+            seed: 9,
+        };
         let out = render(&s, &view, &settings, None);
         let mut checked = 0;
         for y in 0..h {
@@ -120,7 +221,10 @@ fn point_light_over_plane_matches_closed_form() {
                 let mut on_plane = true;
                 for sy in 0..16 {
                     for sx in 0..16 {
-                        let uv = Vec2::new((x as f32 + (sx as f32 + 0.5) / 16.0) / w as f32, (y as f32 + (sy as f32 + 0.5) / 16.0) / h as f32);
+                        let uv = Vec2::new(
+                            (x as f32 + (sx as f32 + 0.5) / 16.0) / w as f32,
+                            (y as f32 + (sy as f32 + 0.5) / 16.0) / h as f32,
+                        );
                         let (o, d) = view.ray(uv);
                         let p = o + d * (-o.y / d.y);
                         on_plane &= d.y < 0.0 && p.x.abs() < 2.9 && p.z.abs() < 2.9;
@@ -129,7 +233,11 @@ fn point_light_over_plane_matches_closed_form() {
                         on_plane &= light.falloff((light.position - p).length()) > 0.0;
                         let to = light.position - p;
                         let dist = to.length();
-                        expected += Vec3::splat(0.5 / std::f32::consts::PI) * light.intensity * (to.y / dist) * light.falloff(dist) / 256.0;
+                        expected += Vec3::splat(0.5 / std::f32::consts::PI)
+                            * light.intensity
+                            * (to.y / dist)
+                            * light.falloff(dist)
+                            / 256.0;
                     }
                 }
                 if !on_plane {
@@ -140,7 +248,10 @@ fn point_light_over_plane_matches_closed_form() {
                 // variance estimate, plus the grid's quadrature error.
                 let se = (out.variance.get(x, y) / out.spp as f32).powf(0.5);
                 let tol = se * 5.0 + Vec3::splat(2e-3 * expected.max_element() + 1e-6);
-                assert!((got - expected).abs().cmplt(tol).all(), "radius {radius:?} pixel ({x},{y}): {got} vs {expected} (tol {tol})");
+                assert!(
+                    (got - expected).abs().cmplt(tol).all(),
+                    "radius {radius:?} pixel ({x},{y}): {got} vs {expected} (tol {tol})"
+                );
                 checked += 1;
             }
         }
@@ -149,7 +260,12 @@ fn point_light_over_plane_matches_closed_form() {
 }
 
 fn rmse(a: &Image, b: &Image) -> f64 {
-    let s: f64 = a.pixels.iter().zip(&b.pixels).map(|(p, q)| (*p - *q).length_squared() as f64).sum();
+    let s: f64 = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| (*p - *q).length_squared() as f64)
+        .sum();
     (s / (3 * a.pixels.len()) as f64).sqrt()
 }
 
@@ -160,27 +276,67 @@ fn error_falls_as_one_over_sqrt_spp() {
     // a few samples would miss. Mean squared errors are averaged over four seeds.
     let s = builtin::scene("primitives").unwrap();
     let view = View::from_camera(&s.cameras[0]);
-    let base = ReferenceSettings { width: 20, height: 20, spp: 4096, bounces: Bounces::Limited(1), seed: 100 };
+    let base = ReferenceSettings {
+        width: 20,
+        height: 20,
+        spp: 4096,
+        bounces: Bounces::Limited(1),
+        seed: 100,
+    };
     let reference = render(&s, &view, &base, None).image;
     let avg_rmse = |spp: u32| {
         let mse: f64 = (0..4u64)
-            .map(|seed| rmse(&render(&s, &view, &ReferenceSettings { spp, seed: seed + spp as u64 * 10, ..base }, None).image, &reference).powi(2))
-            .sum::<f64>() / 4.0;
+            .map(|seed| {
+                rmse(
+                    &render(
+                        &s,
+                        &view,
+                        &ReferenceSettings {
+                            spp,
+                            seed: seed + spp as u64 * 10,
+                            ..base
+                        },
+                        None,
+                    )
+                    .image,
+                    &reference,
+                )
+                .powi(2)
+            })
+            .sum::<f64>()
+            / 4.0;
         mse.sqrt()
     };
     let (e4, e64) = (avg_rmse(4), avg_rmse(64));
     // 16x the samples: 4x less error in expectation. Allow the estimate's own noise.
     let ratio = e4 / e64;
-    assert!((2.8..5.5).contains(&ratio), "rmse ratio {ratio} (e4 {e4}, e64 {e64})");
+    assert!(
+        (2.8..5.5).contains(&ratio),
+        "rmse ratio {ratio} (e4 {e4}, e64 {e64})"
+    );
 }
 
 #[test]
 fn identical_for_any_thread_count_and_pass_split() {
     let s = builtin::scene("cornell").unwrap();
     let view = View::from_camera(&s.cameras[0]);
-    let settings = ReferenceSettings { width: 17, height: 13, spp: 6, bounces: Bounces::Unlimited, seed: 42 };
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| render(&s, &view, &settings, None));
-    let three = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap().install(|| render(&s, &view, &settings, None));
+    let settings = ReferenceSettings {
+        width: 17,
+        height: 13,
+        spp: 6,
+        bounces: Bounces::Unlimited,
+        seed: 42,
+    };
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| render(&s, &view, &settings, None));
+    let three = rayon::ThreadPoolBuilder::new()
+        .num_threads(3)
+        .build()
+        .unwrap()
+        .install(|| render(&s, &view, &settings, None));
     assert_eq!(one.image, three.image);
     assert_eq!(one.variance, three.variance);
     // Two passes of 2 and 4 samples equal one pass of 6.
@@ -194,17 +350,54 @@ fn identical_for_any_thread_count_and_pass_split() {
         assert!((*p - *q).abs().max_element() <= 1e-6 * q.max_element().max(1.0));
     }
     // A different seed gives a different image.
-    let other = render(&s, &view, &ReferenceSettings { seed: 43, ..settings }, None);
+    let other = render(
+        &s,
+        &view,
+        &ReferenceSettings {
+            seed: 43,
+            ..settings
+        },
+        None,
+    );
     assert_ne!(other.image, one.image);
 }
 
 #[test]
 fn empty_scene_and_zero_size_give_black_not_nan() {
     let s = Scene::new("empty");
-    let cam = Camera { name: "c".into(), position: Vec3::ZERO, target: Vec3::Z, up: Vec3::Y, fov_y: 1.0, aspect: 1.0, near: 0.1, far: 10.0 };
-    let out = render(&s, &View::from_camera(&cam), &ReferenceSettings { width: 4, height: 4, spp: 2, ..Default::default() }, None);
+    let cam = Camera {
+        name: "c".into(),
+        position: Vec3::ZERO,
+        target: Vec3::Z,
+        up: Vec3::Y,
+        fov_y: 1.0,
+        aspect: 1.0,
+        near: 0.1,
+        far: 10.0,
+    };
+    let out = render(
+        &s,
+        &View::from_camera(&cam),
+        &ReferenceSettings {
+            width: 4,
+            height: 4,
+            spp: 2,
+            ..Default::default()
+        },
+        None,
+    );
     assert!(out.image.pixels.iter().all(|p| *p == Vec3::ZERO));
-    let out = render(&s, &View::from_camera(&cam), &ReferenceSettings { width: 0, height: 0, spp: 2, ..Default::default() }, None);
+    let out = render(
+        &s,
+        &View::from_camera(&cam),
+        &ReferenceSettings {
+            width: 0,
+            height: 0,
+            spp: 2,
+            ..Default::default()
+        },
+        None,
+    );
     assert!(out.image.pixels.is_empty());
 }
 

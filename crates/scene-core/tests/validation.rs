@@ -1,13 +1,17 @@
 //! Scene validation: one test per fault, each error names the thing at fault.
 
+use scene_core::SceneError;
 use scene_core::glam::Vec3;
 use scene_core::scene::{Camera, Material, Mesh, PointLight, Scene};
-use scene_core::SceneError;
 
 fn one_quad() -> Scene {
     let mut s = Scene::new("t");
-    s.materials.push(Material::diffuse("grey", Vec3::splat(0.5)));
-    let mut m = Mesh { name: "floor".into(), ..Default::default() };
+    s.materials
+        .push(Material::diffuse("grey", Vec3::splat(0.5)));
+    let mut m = Mesh {
+        name: "floor".into(),
+        ..Default::default()
+    };
     m.push_quad([Vec3::ZERO, Vec3::X, Vec3::new(1., 1., 0.), Vec3::Y], 0);
     s.meshes.push(m);
     s
@@ -29,7 +33,13 @@ fn nan_and_inf_positions_are_errors_naming_the_mesh() {
         let mut s = one_quad();
         s.meshes[0].positions[2].y = bad;
         let e = s.validate().unwrap_err();
-        assert_eq!(e, SceneError::NonFinitePosition { mesh: "mesh #0 'floor'".into(), vertex: 2 });
+        assert_eq!(
+            e,
+            SceneError::NonFinitePosition {
+                mesh: "mesh #0 'floor'".into(),
+                vertex: 2
+            }
+        );
         assert!(e.to_string().contains("floor"));
     }
 }
@@ -39,7 +49,12 @@ fn index_out_of_range_names_mesh_and_triangle() {
     let mut s = one_quad();
     s.meshes[0].indices[1][2] = 99;
     match s.validate().unwrap_err() {
-        SceneError::IndexOutOfRange { mesh, triangle, index, vertex_count } => {
+        SceneError::IndexOutOfRange {
+            mesh,
+            triangle,
+            index,
+            vertex_count,
+        } => {
             assert!(mesh.contains("floor"));
             assert_eq!((triangle, index, vertex_count), (1, 99, 4));
         }
@@ -51,7 +66,14 @@ fn index_out_of_range_names_mesh_and_triangle() {
 fn material_id_out_of_range_is_an_error() {
     let mut s = one_quad();
     s.meshes[0].material_ids[0] = 5;
-    assert!(matches!(s.validate(), Err(SceneError::MaterialOutOfRange { triangle: 0, material: 5, .. })));
+    assert!(matches!(
+        s.validate(),
+        Err(SceneError::MaterialOutOfRange {
+            triangle: 0,
+            material: 5,
+            ..
+        })
+    ));
 }
 
 #[test]
@@ -90,26 +112,44 @@ fn zero_and_nan_normals_are_recomputed_from_faces() {
     let mut s = one_quad();
     s.meshes[0].normals.clear();
     assert_eq!(s.validate().unwrap().normals_recomputed, 4);
-    assert!(s.meshes[0].normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
+    assert!(
+        s.meshes[0]
+            .normals
+            .iter()
+            .all(|n| (*n - Vec3::Z).length() < 1e-6)
+    );
 }
 
 #[test]
 fn normals_that_cancel_get_a_unit_fallback_not_nan() {
     // Two coincident triangles of opposite winding: face normals cancel at shared vertices.
     let mut s = Scene::new("cancel");
-    s.materials.push(Material::diffuse("grey", Vec3::splat(0.5)));
-    let mut m = Mesh { name: "pair".into(), ..Default::default() };
+    s.materials
+        .push(Material::diffuse("grey", Vec3::splat(0.5)));
+    let mut m = Mesh {
+        name: "pair".into(),
+        ..Default::default()
+    };
     m.positions = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
     m.indices = vec![[0, 1, 2], [0, 2, 1]];
     m.material_ids = vec![0, 0];
     s.meshes.push(m);
     s.validate().unwrap();
-    assert!(s.meshes[0].normals.iter().all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-6));
+    assert!(
+        s.meshes[0]
+            .normals
+            .iter()
+            .all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-6)
+    );
 }
 
 #[test]
 fn albedo_outside_zero_one_is_an_error() {
-    for albedo in [Vec3::new(1.0, 0.5, 0.5), Vec3::new(0.5, -0.1, 0.5), Vec3::new(0.5, f32::NAN, 0.5)] {
+    for albedo in [
+        Vec3::new(1.0, 0.5, 0.5),
+        Vec3::new(0.5, -0.1, 0.5),
+        Vec3::new(0.5, f32::NAN, 0.5),
+    ] {
         let mut s = one_quad();
         s.materials[0].albedo = albedo;
         match s.validate().unwrap_err() {
@@ -124,29 +164,60 @@ fn negative_or_nan_emission_is_an_error() {
     for e in [Vec3::new(-1.0, 0.0, 0.0), Vec3::splat(f32::INFINITY)] {
         let mut s = one_quad();
         s.materials[0].emission = e;
-        assert!(matches!(s.validate(), Err(SceneError::InvalidEmission { .. })));
+        assert!(matches!(
+            s.validate(),
+            Err(SceneError::InvalidEmission { .. })
+        ));
     }
 }
 
 #[test]
 fn bad_lights_and_cameras_are_errors() {
     let mut s = one_quad();
-    s.point_lights.push(PointLight { name: "bulb".into(), position: Vec3::NAN, intensity: Vec3::ONE, radius: None });
+    s.point_lights.push(PointLight {
+        name: "bulb".into(),
+        position: Vec3::NAN,
+        intensity: Vec3::ONE,
+        radius: None,
+    });
     let e = s.validate().unwrap_err();
     assert!(e.to_string().contains("bulb"), "{e}");
     let mut s = one_quad();
-    s.cameras.push(Camera { name: "eye".into(), position: Vec3::ZERO, target: Vec3::Y, up: Vec3::Y, fov_y: 1.0, aspect: 1.0, near: 0.1, far: 1.0 });
-    assert_eq!(s.validate().unwrap_err(), SceneError::InvalidCamera { camera: "camera #0 'eye'".into() });
+    s.cameras.push(Camera {
+        name: "eye".into(),
+        position: Vec3::ZERO,
+        target: Vec3::Y,
+        up: Vec3::Y,
+        fov_y: 1.0,
+        aspect: 1.0,
+        near: 0.1,
+        far: 1.0,
+    });
+    assert_eq!(
+        s.validate().unwrap_err(),
+        SceneError::InvalidCamera {
+            camera: "camera #0 'eye'".into()
+        }
+    );
 }
 
 #[test]
 fn mismatched_attribute_counts_are_errors() {
     let mut s = one_quad();
     s.meshes[0].uvs = Some(vec![Default::default(); 3]);
-    assert!(matches!(s.validate(), Err(SceneError::AttributeCountMismatch { attribute: "uvs", .. })));
+    assert!(matches!(
+        s.validate(),
+        Err(SceneError::AttributeCountMismatch {
+            attribute: "uvs",
+            ..
+        })
+    ));
     let mut s = one_quad();
     s.meshes[0].material_ids.pop();
-    assert!(matches!(s.validate(), Err(SceneError::MaterialCountMismatch { .. })));
+    assert!(matches!(
+        s.validate(),
+        Err(SceneError::MaterialCountMismatch { .. })
+    ));
 }
 
 #[test]

@@ -6,7 +6,16 @@ use scene_core::scene::Camera;
 use scene_core::view::{HemicubeFace, View};
 
 fn camera() -> Camera {
-    Camera { name: "c".into(), position: Vec3::new(1.0, 2.0, 3.0), target: Vec3::new(0.2, 1.5, -1.0), up: Vec3::Y, fov_y: 0.8, aspect: 1.5, near: 0.1, far: 50.0 }
+    Camera {
+        name: "c".into(),
+        position: Vec3::new(1.0, 2.0, 3.0),
+        target: Vec3::new(0.2, 1.5, -1.0),
+        up: Vec3::Y,
+        fov_y: 0.8,
+        aspect: 1.5,
+        near: 0.1,
+        far: 50.0,
+    }
 }
 
 #[test]
@@ -63,7 +72,10 @@ fn orthographic_reconstruction_round_trips() {
 fn hemicube_faces_cover_the_hemisphere_once() {
     let n = Vec3::new(0.2, 0.9, -0.3).normalize();
     let p = Vec3::new(1.0, -2.0, 0.5);
-    let faces: Vec<View> = HemicubeFace::ALL.iter().map(|&f| View::hemicube(p, n, f, 0.01, 10.0)).collect();
+    let faces: Vec<View> = HemicubeFace::ALL
+        .iter()
+        .map(|&f| View::hemicube(p, n, f, 0.01, 10.0))
+        .collect();
     let mut rng = Rng::new(3, 0);
     for _ in 0..5000 {
         let mut d = uniform_sphere(rng.next_vec2());
@@ -76,12 +88,16 @@ fn hemicube_faces_cover_the_hemisphere_once() {
         let inside = faces
             .iter()
             .filter(|v| {
-                v.project_uv(p + d).is_some_and(|uv| uv.cmpge(Vec2::ZERO).all() && uv.cmple(Vec2::ONE).all())
+                v.project_uv(p + d)
+                    .is_some_and(|uv| uv.cmpge(Vec2::ZERO).all() && uv.cmple(Vec2::ONE).all())
                     && d.dot(v.forward) > 0.0
             })
             .count();
         // Directions on a shared cube edge may fall into two faces.
-        assert!((1..=2).contains(&inside), "direction {d} seen by {inside} faces");
+        assert!(
+            (1..=2).contains(&inside),
+            "direction {d} seen by {inside} faces"
+        );
     }
     // Side faces see nothing below the surface.
     let side = &faces[1];

@@ -1,0 +1,1286 @@
+//! Headless GPU context (wgpu), scene and image upload, the GPU G-buffer and explicit
+//! readback.
+//!
+//! Everything here is blocking: [`GpuContext::new`] and the `read_*` helpers drive wgpu's
+//! futures with `pollster` and `Device::poll`, so callers never see async code. Nothing is
+//! cached globally; every [`GpuContext`] owns its own device (and is cheap to clone, all
+//! wgpu handles being reference counted).
+//!
+//! Adapter selection follows wgpu's environment variables:
+//!
+//! * `WGPU_BACKEND`: comma-separated backends to try (`vulkan`, `gl`, `metal`, `dx12`);
+//!   all compiled-in backends when unset.
+//! * `WGPU_ADAPTER_NAME`: pick the first adapter whose name contains this (case-insensitive)
+//!   substring, e.g. `llvmpipe` for Mesa's lavapipe.
+//! * `WGPU_POWER_PREF`: `high` (the default here), `low` or `none`, when no name is given.
+//!
+//! On a machine without a GPU, Mesa's software Vulkan driver works:
+//! `apt-get install mesa-vulkan-drivers libvulkan1` (Debian/Ubuntu).
+//!
+//! Tests of every crate get their context from [`gpu_test_context`], which skips (or, with
+//! `REQUIRE_GPU=1`, fails) when no adapter exists.
+
+use std::borrow::Cow;
+use std::sync::mpsc;
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Vec3, Vec4};
+use wgpu::util::DeviceExt;
+
+use crate::gbuffer::GBuffer;
+use crate::image::Image;
+use crate::scene::Scene;
+
+/// WGSL source of the luminance compute shader (thesis eq. 17), see [`luminance_gpu`].
+pub const LUMINANCE_WGSL: &str = include_str!("../../../shaders/scene-core/luminance.wgsl");
+
+/// Workgroup edge of [`LUMINANCE_WGSL`] (8 x 8 invocations).
+const LUMINANCE_WORKGROUP: u32 = 8;
+
+/// An error of the GPU layer.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No adapter exists for the backends tried.
+    #[error(
+        "no GPU adapter found (backends tried: {tried}); install a Vulkan driver, e.g. Mesa's \
+         lavapipe: apt-get install mesa-vulkan-drivers, or set WGPU_BACKEND/WGPU_ADAPTER_NAME"
+    )]
+    NoAdapter {
+        /// The backends that were tried, e.g. `vulkan, gl`.
+        tried: String,
+    },
+    /// `WGPU_ADAPTER_NAME` is set but matches none of the adapters found.
+    #[error(
+        "no GPU adapter matches WGPU_ADAPTER_NAME={wanted:?} (adapters found: {available}); \
+         unset it or pick one of those names"
+    )]
+    AdapterNotFound {
+        /// The requested name substring.
+        wanted: String,
+        /// Summaries of the adapters that exist.
+        available: String,
+    },
+    /// The adapter refused to create a device.
+    #[error("GPU device request failed: {0}")]
+    RequestDevice(String),
+    /// Copying or mapping data back to the CPU failed.
+    #[error("GPU readback failed: {0}")]
+    Readback(String),
+    /// A size is zero or exceeds the device's limits.
+    #[error("invalid GPU resource size {width}x{height}: {reason}")]
+    InvalidSize {
+        /// Requested width.
+        width: u32,
+        /// Requested height.
+        height: u32,
+        /// Why it is invalid.
+        reason: String,
+    },
+    /// CPU data does not have the length its declared size implies.
+    #[error("{what} has {found} elements, expected {expected}")]
+    BadLength {
+        /// Which data.
+        what: &'static str,
+        /// Expected element count.
+        expected: usize,
+        /// Actual element count.
+        found: usize,
+    },
+    /// A texture has another format than the operation needs.
+    #[error("texture format {found:?} where {expected} was expected")]
+    WrongFormat {
+        /// The format(s) the operation accepts.
+        expected: &'static str,
+        /// The texture's format.
+        found: wgpu::TextureFormat,
+    },
+    /// wgpu reported a validation error (a bug in the calling code or a missing usage flag).
+    #[error("GPU validation error: {0}")]
+    Validation(String),
+}
+
+impl GpuError {
+    /// True when the error means "no usable adapter here" (rather than a failure of an
+    /// existing one): [`GpuError::NoAdapter`] and [`GpuError::AdapterNotFound`].
+    pub fn is_missing_adapter(&self) -> bool {
+        matches!(self, Self::NoAdapter { .. } | Self::AdapterNotFound { .. })
+    }
+}
+
+/// A headless wgpu instance, adapter, device and queue.
+#[derive(Clone, Debug)]
+pub struct GpuContext {
+    /// The wgpu instance (backends from `WGPU_BACKEND`).
+    pub instance: wgpu::Instance,
+    /// The chosen adapter.
+    pub adapter: wgpu::Adapter,
+    /// The device, created with the adapter's own limits (not the downlevel defaults).
+    pub device: wgpu::Device,
+    /// The device's queue.
+    pub queue: wgpu::Queue,
+}
+
+/// Optional features requested when the adapter has them (currently only timestamp
+/// queries, for benchmarks). Check `device.features()` before using them.
+const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY;
+
+impl GpuContext {
+    /// Creates a headless context, blocking until the device is ready.
+    ///
+    /// Backends come from `WGPU_BACKEND` (all compiled-in ones when unset). With
+    /// `WGPU_ADAPTER_NAME` set, the first adapter whose name contains it (case-insensitive)
+    /// is used; otherwise wgpu picks one with `WGPU_POWER_PREF`, high performance by default.
+    /// The device gets the adapter's full limits, so storage textures, large buffers and
+    /// so on work wherever the hardware allows.
+    pub fn new() -> Result<Self, GpuError> {
+        pollster::block_on(Self::new_async())
+    }
+
+    /// The async form of [`GpuContext::new`].
+    pub async fn new_async() -> Result<Self, GpuError> {
+        let desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        let tried = describe_backends(desc.backends);
+        let backends = desc.backends;
+        let instance = wgpu::Instance::new(desc);
+
+        let wanted = std::env::var("WGPU_ADAPTER_NAME")
+            .ok()
+            .filter(|s| !s.trim().is_empty());
+        let adapter = match wanted {
+            Some(wanted) => {
+                let adapters = instance.enumerate_adapters(backends).await;
+                if adapters.is_empty() {
+                    return Err(GpuError::NoAdapter { tried });
+                }
+                let needle = wanted.trim().to_lowercase();
+                match adapters
+                    .iter()
+                    .find(|a| a.get_info().name.to_lowercase().contains(&needle))
+                {
+                    Some(a) => a.clone(),
+                    None => {
+                        let available = adapters
+                            .iter()
+                            .map(|a| summary_of(&a.get_info()))
+                            .collect::<Vec<_>>()
+                            .join("; ");
+                        return Err(GpuError::AdapterNotFound { wanted, available });
+                    }
+                }
+            }
+            None => instance
+                .request_adapter(&wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::from_env()
+                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                    force_fallback_adapter: false,
+                    compatible_surface: None,
+                    apply_limit_buckets: false,
+                })
+                .await
+                .map_err(|_| GpuError::NoAdapter { tried })?,
+        };
+
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("scene-core"),
+                required_features: adapter.features() & OPTIONAL_FEATURES,
+                required_limits: adapter.limits(),
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| {
+                GpuError::RequestDevice(format!(
+                    "{e} (adapter: {})",
+                    summary_of(&adapter.get_info())
+                ))
+            })?;
+        Ok(Self {
+            instance,
+            adapter,
+            device,
+            queue,
+        })
+    }
+
+    /// A one-line description of the adapter: name, backend and device type, e.g.
+    /// `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
+    pub fn adapter_summary(&self) -> String {
+        summary_of(&self.adapter.get_info())
+    }
+
+    /// Checks a 2D texture size against zero and the device's `max_texture_dimension_2d`.
+    pub fn check_texture_size(&self, width: u32, height: u32) -> Result<(), GpuError> {
+        let max = self.device.limits().max_texture_dimension_2d;
+        let reason = if width == 0 || height == 0 {
+            "zero-size textures are not allowed".to_string()
+        } else if width > max || height > max {
+            format!("the device's max_texture_dimension_2d is {max}")
+        } else {
+            return Ok(());
+        };
+        Err(GpuError::InvalidSize {
+            width,
+            height,
+            reason,
+        })
+    }
+
+    /// Uploads the scene's geometry and materials (see [`GpuScene`] for the layouts).
+    /// Textures are not uploaded; materials keep their texture index for the caller to bind.
+    pub fn upload_scene(&self, scene: &Scene) -> GpuScene {
+        let vertices = flatten_scene(scene);
+        let materials = gpu_materials(scene);
+        // Never create empty buffers: empty storage bindings are invalid. The counts say
+        // how many elements are real.
+        let vertex_bytes: &[u8] = if vertices.is_empty() {
+            bytemuck::bytes_of(&GpuVertex::DUMMY)
+        } else {
+            bytemuck::cast_slice(&vertices)
+        };
+        let material_bytes: &[u8] = if materials.is_empty() {
+            bytemuck::bytes_of(&GpuMaterial::DUMMY)
+        } else {
+            bytemuck::cast_slice(&materials)
+        };
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let vertex_buffer = self
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("scene vertices"),
+                contents: vertex_bytes,
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | copy,
+            });
+        let material_buffer = self
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("scene materials"),
+                contents: material_bytes,
+                usage: wgpu::BufferUsages::STORAGE | copy,
+            });
+        GpuScene {
+            vertices: vertex_buffer,
+            materials: material_buffer,
+            vertex_count: vertices.len() as u32,
+            triangle_count: (vertices.len() / 3) as u32,
+            material_count: materials.len() as u32,
+        }
+    }
+
+    /// Uploads a linear RGB image as an `Rgba32Float` texture (alpha 1) with usages
+    /// `TEXTURE_BINDING | STORAGE_BINDING | COPY_SRC | COPY_DST`.
+    ///
+    /// Errors on a zero or too large size, or a pixel count that does not match it.
+    pub fn upload_image(&self, img: &Image) -> Result<wgpu::Texture, GpuError> {
+        self.check_texture_size(img.width, img.height)?;
+        check_len("image pixels", img.width, img.height, img.pixels.len())?;
+        let texture = self.create_texture_2d(
+            "image",
+            img.width,
+            img.height,
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::COPY_DST,
+        );
+        let texels: Vec<[f32; 4]> = img
+            .pixels
+            .iter()
+            .map(|p| p.extend(1.0).to_array())
+            .collect();
+        self.write_texture_2d(&texture, bytemuck::cast_slice(&texels), 16);
+        Ok(texture)
+    }
+
+    /// Creates a single-mip, single-sample 2D texture (no size checks).
+    fn create_texture_2d(
+        &self,
+        label: &str,
+        width: u32,
+        height: u32,
+        format: wgpu::TextureFormat,
+        usage: wgpu::TextureUsages,
+    ) -> wgpu::Texture {
+        self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    }
+
+    /// Writes tightly packed rows into mip 0 of a 2D texture (`Queue::write_texture` needs no
+    /// 256-byte row alignment).
+    fn write_texture_2d(&self, texture: &wgpu::Texture, bytes: &[u8], texel_size: u32) {
+        let (width, height) = (texture.width(), texture.height());
+        self.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(width * texel_size),
+                rows_per_image: Some(height),
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
+    /// Reads mip 0 (layer 0) of a 2D texture back as tightly packed rows, top row first.
+    ///
+    /// Handles the 256-byte row alignment of texture-to-buffer copies
+    /// (`COPY_BYTES_PER_ROW_ALIGNMENT`) by copying into a padded staging buffer and dropping
+    /// the padding. For depth-stencil formats the depth aspect is read. The texture needs
+    /// `COPY_SRC` usage.
+    pub fn read_texture_bytes(&self, texture: &wgpu::Texture) -> Result<Vec<u8>, GpuError> {
+        let format = texture.format();
+        let aspect = if format.is_depth_stencil_format() {
+            wgpu::TextureAspect::DepthOnly
+        } else {
+            wgpu::TextureAspect::All
+        };
+        let texel_size = format
+            .block_copy_size(Some(aspect))
+            .filter(|_| format.block_dimensions() == (1, 1))
+            .ok_or_else(|| {
+                GpuError::Readback(format!(
+                    "texture format {format:?} cannot be read back texel by texel"
+                ))
+            })?;
+        if !texture.usage().contains(wgpu::TextureUsages::COPY_SRC) {
+            return Err(GpuError::Readback(format!(
+                "texture lacks COPY_SRC usage (has {:?})",
+                texture.usage()
+            )));
+        }
+        let (width, height) = (texture.width(), texture.height());
+        let row = width as usize * texel_size as usize;
+        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT as usize;
+        let padded_row = row.div_ceil(align) * align;
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("texture readback"),
+            size: (padded_row * height as usize) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("texture readback"),
+            });
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &staging,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded_row as u32),
+                    rows_per_image: Some(height),
+                },
+            },
+            wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+        );
+        let padded = self.submit_and_map(encoder, &staging)?;
+        if padded_row == row {
+            return Ok(padded);
+        }
+        let mut out = Vec::with_capacity(row * height as usize);
+        for r in padded.chunks_exact(padded_row) {
+            out.extend_from_slice(&r[..row]);
+        }
+        Ok(out)
+    }
+
+    /// Reads an `Rgba32Float` texture back, one `[r, g, b, a]` per texel, row-major.
+    pub fn read_texture_rgba32f(&self, texture: &wgpu::Texture) -> Result<Vec<[f32; 4]>, GpuError> {
+        expect_format(texture, "Rgba32Float", |f| {
+            f == wgpu::TextureFormat::Rgba32Float
+        })?;
+        Ok(pod_vec(&self.read_texture_bytes(texture)?))
+    }
+
+    /// Reads an `R32Float` (or the depth of a `Depth32Float`) texture back, row-major.
+    pub fn read_texture_r32f(&self, texture: &wgpu::Texture) -> Result<Vec<f32>, GpuError> {
+        expect_format(texture, "R32Float or Depth32Float", |f| {
+            matches!(
+                f,
+                wgpu::TextureFormat::R32Float | wgpu::TextureFormat::Depth32Float
+            )
+        })?;
+        Ok(pod_vec(&self.read_texture_bytes(texture)?))
+    }
+
+    /// Reads an `R32Uint` texture back, row-major.
+    pub fn read_texture_r32u(&self, texture: &wgpu::Texture) -> Result<Vec<u32>, GpuError> {
+        expect_format(texture, "R32Uint", |f| f == wgpu::TextureFormat::R32Uint)?;
+        Ok(pod_vec(&self.read_texture_bytes(texture)?))
+    }
+
+    /// Reads a whole buffer back (it needs `COPY_SRC` usage) through a staging buffer.
+    pub fn read_buffer(&self, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+        if !buffer.usage().contains(wgpu::BufferUsages::COPY_SRC) {
+            return Err(GpuError::Readback(format!(
+                "buffer lacks COPY_SRC usage (has {:?})",
+                buffer.usage()
+            )));
+        }
+        let size = buffer.size();
+        if size == 0 {
+            return Ok(Vec::new());
+        }
+        if !size.is_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT) {
+            return Err(GpuError::Readback(format!(
+                "buffer size {size} is not a multiple of {}",
+                wgpu::COPY_BUFFER_ALIGNMENT
+            )));
+        }
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("buffer readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("buffer readback"),
+            });
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+        self.submit_and_map(encoder, &staging)
+    }
+
+    /// Reads a whole buffer back as elements of `T` (trailing bytes that do not fill a
+    /// whole element are dropped).
+    pub fn read_buffer_as<T: Pod>(&self, buffer: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
+        Ok(pod_vec(&self.read_buffer(buffer)?))
+    }
+
+    /// Submits `encoder` inside a validation error scope, maps `staging` for reading, waits
+    /// for the device and returns a copy of the mapped bytes.
+    fn submit_and_map(
+        &self,
+        encoder: wgpu::CommandEncoder,
+        staging: &wgpu::Buffer,
+    ) -> Result<Vec<u8>, GpuError> {
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        self.queue.submit([encoder.finish()]);
+        let slice = staging.slice(..);
+        let (tx, rx) = mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |result| {
+            let _ = tx.send(result);
+        });
+        let polled = self.device.poll(wgpu::PollType::wait_indefinitely());
+        if let Some(error) = pollster::block_on(scope.pop()) {
+            return Err(GpuError::Validation(error.to_string()));
+        }
+        polled.map_err(|e| GpuError::Readback(format!("device poll failed: {e}")))?;
+        match rx.try_recv() {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => return Err(GpuError::Readback(format!("buffer mapping failed: {e}"))),
+            Err(_) => {
+                return Err(GpuError::Readback(
+                    "buffer mapping did not complete after waiting for the device".into(),
+                ));
+            }
+        }
+        let bytes = {
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| GpuError::Readback(format!("mapped range unavailable: {e}")))?;
+            view.to_vec()
+        };
+        staging.unmap();
+        Ok(bytes)
+    }
+
+    /// Runs `f` inside a validation error scope and turns a captured error into
+    /// [`GpuError::Validation`].
+    fn validated<T>(&self, f: impl FnOnce() -> T) -> Result<T, GpuError> {
+        let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let value = f();
+        match pollster::block_on(scope.pop()) {
+            Some(error) => Err(GpuError::Validation(error.to_string())),
+            None => Ok(value),
+        }
+    }
+}
+
+/// Which backends of `requested` this build of wgpu can use, as `vulkan, gl`.
+fn describe_backends(requested: wgpu::Backends) -> String {
+    let usable = requested & wgpu::Instance::enabled_backend_features();
+    let names: Vec<String> = usable
+        .iter_names()
+        .map(|(name, _)| name.to_lowercase())
+        .collect();
+    let mut s = if names.is_empty() {
+        "none usable in this build".to_string()
+    } else {
+        names.join(", ")
+    };
+    if let Ok(env) = std::env::var("WGPU_BACKEND") {
+        s.push_str(&format!(" (WGPU_BACKEND={env:?})"));
+    }
+    s
+}
+
+fn summary_of(info: &wgpu::AdapterInfo) -> String {
+    format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
+}
+
+fn check_len(what: &'static str, width: u32, height: u32, found: usize) -> Result<(), GpuError> {
+    let expected = width as usize * height as usize;
+    if found == expected {
+        Ok(())
+    } else {
+        Err(GpuError::BadLength {
+            what,
+            expected,
+            found,
+        })
+    }
+}
+
+fn expect_format(
+    texture: &wgpu::Texture,
+    expected: &'static str,
+    ok: impl Fn(wgpu::TextureFormat) -> bool,
+) -> Result<(), GpuError> {
+    let found = texture.format();
+    if ok(found) {
+        Ok(())
+    } else {
+        Err(GpuError::WrongFormat { expected, found })
+    }
+}
+
+/// Copies bytes into a vector of `T` (the bytes need not be aligned for `T`).
+fn pod_vec<T: Pod>(bytes: &[u8]) -> Vec<T> {
+    bytes
+        .chunks_exact(std::mem::size_of::<T>())
+        .map(bytemuck::pod_read_unaligned)
+        .collect()
+}
+
+/// A context for GPU tests of any crate of the workspace.
+///
+/// Returns `Some` when an adapter exists. When none does: if the environment variable
+/// `REQUIRE_GPU` is set to a non-empty value other than `0` (as CI does) it panics with the
+/// [`GpuError`] message, so a missing driver fails loudly; otherwise it prints
+/// `skipping GPU test: <reason>` to stderr and returns `None`, and the test should return
+/// early. An adapter that exists but fails to create a device always panics.
+///
+/// Nothing is cached: each call creates a fresh device, which takes about 15-25 ms on Mesa's
+/// lavapipe (the first one in a process about 55 ms), so tests simply call it each time.
+///
+/// ```no_run
+/// let Some(ctx) = scene_core::gpu::gpu_test_context() else { return };
+/// println!("testing on {}", ctx.adapter_summary());
+/// ```
+pub fn gpu_test_context() -> Option<GpuContext> {
+    match GpuContext::new() {
+        Ok(ctx) => Some(ctx),
+        Err(e) => {
+            let required = std::env::var("REQUIRE_GPU").is_ok_and(|v| !v.is_empty() && v != "0");
+            if required {
+                panic!("REQUIRE_GPU is set but no GPU context could be created: {e}");
+            }
+            if !e.is_missing_adapter() {
+                panic!("a GPU adapter exists but the context failed: {e}");
+            }
+            eprintln!("skipping GPU test: {e}");
+            None
+        }
+    }
+}
+
+/// One vertex of the flattened, non-indexed scene (48 bytes).
+///
+/// Triangle `t` (global id, meshes numbered in order as in [`Scene::mesh_offsets`]) is
+/// vertices `3t, 3t + 1, 3t + 2`, so a shader can also recover it as `vertex_index / 3`.
+/// The same layout reads as a WGSL storage-buffer struct:
+///
+/// ```wgsl
+/// struct Vertex {
+///     position: vec3<f32>, triangle_id: u32,
+///     normal: vec3<f32>,   material_id: u32,
+///     uv: vec2<f32>,       has_uv: u32, pad: u32,
+/// }
+/// ```
+///
+/// As vertex attributes see [`GpuVertex::ATTRIBUTES`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuVertex {
+    /// World-space position (metres).
+    pub position: [f32; 3],
+    /// Global triangle id.
+    pub triangle_id: u32,
+    /// World-space vertex normal (unit after [`Scene::validate`]; zero if the mesh has none).
+    pub normal: [f32; 3],
+    /// Material index (into [`GpuScene::materials`] and [`Scene::materials`]).
+    pub material_id: u32,
+    /// Texture coordinates (zero when the mesh has none).
+    pub uv: [f32; 2],
+    /// 1 when the mesh has texture coordinates, 0 otherwise.
+    pub has_uv: u32,
+    /// Padding to 48 bytes (keeps the WGSL struct layout identical).
+    pub pad: u32,
+}
+
+impl GpuVertex {
+    /// Vertex attributes: location 0 position (`Float32x3`), 1 triangle id (`Uint32`),
+    /// 2 normal (`Float32x3`), 3 material id (`Uint32`), 4 uv (`Float32x2`), 5 has_uv
+    /// (`Uint32`).
+    pub const ATTRIBUTES: [wgpu::VertexAttribute; 6] = wgpu::vertex_attr_array![
+        0 => Float32x3,
+        1 => Uint32,
+        2 => Float32x3,
+        3 => Uint32,
+        4 => Float32x2,
+        5 => Uint32,
+    ];
+
+    /// The vertex buffer layout of a [`GpuScene::vertices`] buffer (per-vertex stepping).
+    pub fn buffer_layout() -> wgpu::VertexBufferLayout<'static> {
+        wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<GpuVertex>() as wgpu::BufferAddress,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &Self::ATTRIBUTES,
+        }
+    }
+
+    /// The placeholder element of an empty vertex buffer.
+    const DUMMY: Self = Self {
+        position: [0.0; 3],
+        triangle_id: 0,
+        normal: [0.0; 3],
+        material_id: 0,
+        uv: [0.0; 2],
+        has_uv: 0,
+        pad: 0,
+    };
+}
+
+/// One material in the material storage buffer (32 bytes). WGSL:
+///
+/// ```wgsl
+/// struct Material { albedo: vec3<f32>, texture: i32, emission: vec3<f32>, pad: u32 }
+/// ```
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMaterial {
+    /// Linear RGB albedo factor.
+    pub albedo: [f32; 3],
+    /// Index into [`Scene::textures`] of the albedo texture, or -1 for none.
+    pub texture: i32,
+    /// Emitted radiance, linear RGB.
+    pub emission: [f32; 3],
+    /// Padding to 32 bytes.
+    pub pad: u32,
+}
+
+impl GpuMaterial {
+    /// The placeholder element of an empty material buffer.
+    const DUMMY: Self = Self {
+        albedo: [0.0; 3],
+        texture: -1,
+        emission: [0.0; 3],
+        pad: 0,
+    };
+}
+
+/// A scene uploaded for rasterisation and compute: flattened triangles and materials.
+///
+/// Draw it as a non-indexed triangle list of `vertex_count` vertices with
+/// [`GpuVertex::buffer_layout`]; `triangle_id = vertex_index / 3`. Both buffers have usages
+/// `STORAGE | COPY_SRC | COPY_DST` (the vertex buffer also `VERTEX`) and are never empty:
+/// a scene without triangles or materials gets one zeroed dummy element, so use the counts.
+#[derive(Debug)]
+pub struct GpuScene {
+    /// [`GpuVertex`] array, three per triangle, in global triangle id order.
+    pub vertices: wgpu::Buffer,
+    /// [`GpuMaterial`] array, in [`Scene::materials`] order.
+    pub materials: wgpu::Buffer,
+    /// Number of real vertices (`3 * triangle_count`).
+    pub vertex_count: u32,
+    /// Number of triangles.
+    pub triangle_count: u32,
+    /// Number of real materials.
+    pub material_count: u32,
+}
+
+/// The CPU side of [`GpuContext::upload_scene`]: three [`GpuVertex`] per triangle, in global
+/// triangle id order ([`Scene::mesh_offsets`]). Missing normals or UVs become zero.
+pub fn flatten_scene(scene: &Scene) -> Vec<GpuVertex> {
+    let offsets = scene.mesh_offsets();
+    let mut out = Vec::with_capacity(scene.triangle_count() * 3);
+    for (mi, mesh) in scene.meshes.iter().enumerate() {
+        for (t, (tri, &material_id)) in mesh.indices.iter().zip(&mesh.material_ids).enumerate() {
+            let triangle_id = offsets[mi] + t as u32;
+            for &i in tri {
+                let i = i as usize;
+                let uv = mesh.uvs.as_ref().and_then(|u| u.get(i).copied());
+                out.push(GpuVertex {
+                    position: mesh
+                        .positions
+                        .get(i)
+                        .copied()
+                        .unwrap_or(Vec3::ZERO)
+                        .to_array(),
+                    triangle_id,
+                    normal: mesh
+                        .normals
+                        .get(i)
+                        .copied()
+                        .unwrap_or(Vec3::ZERO)
+                        .to_array(),
+                    material_id,
+                    uv: uv.unwrap_or_default().to_array(),
+                    has_uv: u32::from(uv.is_some()),
+                    pad: 0,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The CPU side of the material buffer of [`GpuContext::upload_scene`].
+pub fn gpu_materials(scene: &Scene) -> Vec<GpuMaterial> {
+    scene
+        .materials
+        .iter()
+        .map(|m| GpuMaterial {
+            albedo: m.albedo.to_array(),
+            texture: m.albedo_texture.map_or(-1, |t| t as i32),
+            emission: m.emission.to_array(),
+            pad: 0,
+        })
+        .collect()
+}
+
+/// A G-buffer on the GPU: one texture per [`GBuffer`] channel plus a depth-stencil
+/// attachment for rasterisation. All textures are `width x height`, single mip, single
+/// sample, row 0 at the top.
+///
+/// The colour textures have usages `RENDER_ATTACHMENT | TEXTURE_BINDING | STORAGE_BINDING |
+/// COPY_SRC | COPY_DST`; `depth_stencil` has `RENDER_ATTACHMENT | TEXTURE_BINDING |
+/// COPY_SRC`. Albedo and normal use `Rgba32Float` so that readback is exact.
+#[derive(Debug)]
+pub struct GpuGBuffer {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// [`GpuGBuffer::ALBEDO_FORMAT`]: albedo in `rgb`, radiation mask in `a`.
+    pub albedo: wgpu::Texture,
+    /// [`GpuGBuffer::NORMAL_FORMAT`]: world normal in `xyz`, `w` unused (0).
+    pub normal: wgpu::Texture,
+    /// [`GpuGBuffer::DEPTH_FORMAT`]: linear depth / far, 1 on background.
+    pub depth: wgpu::Texture,
+    /// [`GpuGBuffer::TRIANGLE_ID_FORMAT`]: global triangle id, `u32::MAX` on background.
+    pub triangle_id: wgpu::Texture,
+    /// [`GpuGBuffer::DEPTH_STENCIL_FORMAT`]: the rasteriser's depth attachment.
+    pub depth_stencil: wgpu::Texture,
+}
+
+impl GpuGBuffer {
+    /// Format of [`GpuGBuffer::albedo`].
+    pub const ALBEDO_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+    /// Format of [`GpuGBuffer::normal`].
+    pub const NORMAL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+    /// Format of [`GpuGBuffer::depth`].
+    pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
+    /// Format of [`GpuGBuffer::triangle_id`].
+    pub const TRIANGLE_ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+    /// Format of [`GpuGBuffer::depth_stencil`].
+    pub const DEPTH_STENCIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+    /// The colour attachment formats in render-target order: albedo, normal, depth,
+    /// triangle id.
+    pub const COLOR_FORMATS: [wgpu::TextureFormat; 4] = [
+        Self::ALBEDO_FORMAT,
+        Self::NORMAL_FORMAT,
+        Self::DEPTH_FORMAT,
+        Self::TRIANGLE_ID_FORMAT,
+    ];
+
+    /// Creates the textures (contents undefined until rendered or written; wgpu zeroes
+    /// them). Errors on a zero or too large size.
+    pub fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Self, GpuError> {
+        ctx.check_texture_size(width, height)?;
+        let color = wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::STORAGE_BINDING
+            | wgpu::TextureUsages::COPY_SRC
+            | wgpu::TextureUsages::COPY_DST;
+        let depth_stencil = wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC;
+        ctx.validated(|| Self {
+            width,
+            height,
+            albedo: ctx.create_texture_2d(
+                "gbuffer albedo",
+                width,
+                height,
+                Self::ALBEDO_FORMAT,
+                color,
+            ),
+            normal: ctx.create_texture_2d(
+                "gbuffer normal",
+                width,
+                height,
+                Self::NORMAL_FORMAT,
+                color,
+            ),
+            depth: ctx.create_texture_2d("gbuffer depth", width, height, Self::DEPTH_FORMAT, color),
+            triangle_id: ctx.create_texture_2d(
+                "gbuffer triangle id",
+                width,
+                height,
+                Self::TRIANGLE_ID_FORMAT,
+                color,
+            ),
+            depth_stencil: ctx.create_texture_2d(
+                "gbuffer depth-stencil",
+                width,
+                height,
+                Self::DEPTH_STENCIL_FORMAT,
+                depth_stencil,
+            ),
+        })
+    }
+
+    /// Creates a GPU G-buffer holding a copy of `gbuffer` (the depth-stencil attachment is
+    /// left cleared: depth textures cannot be written by copies).
+    pub fn upload(ctx: &GpuContext, gbuffer: &GBuffer) -> Result<Self, GpuError> {
+        let gpu = Self::new(ctx, gbuffer.width, gbuffer.height)?;
+        gpu.write(ctx, gbuffer)?;
+        Ok(gpu)
+    }
+
+    /// Overwrites the colour textures with `gbuffer`, which must have the same size.
+    pub fn write(&self, ctx: &GpuContext, gbuffer: &GBuffer) -> Result<(), GpuError> {
+        if (gbuffer.width, gbuffer.height) != (self.width, self.height) {
+            return Err(GpuError::InvalidSize {
+                width: gbuffer.width,
+                height: gbuffer.height,
+                reason: format!("the GPU G-buffer is {}x{}", self.width, self.height),
+            });
+        }
+        let (w, h) = (self.width, self.height);
+        check_len("G-buffer albedo", w, h, gbuffer.albedo.len())?;
+        check_len("G-buffer normal", w, h, gbuffer.normal.len())?;
+        check_len("G-buffer depth", w, h, gbuffer.depth.len())?;
+        check_len("G-buffer triangle_id", w, h, gbuffer.triangle_id.len())?;
+        let normals: Vec<Vec4> = gbuffer.normal.iter().map(|n| n.extend(0.0)).collect();
+        ctx.validated(|| {
+            ctx.write_texture_2d(&self.albedo, bytemuck::cast_slice(&gbuffer.albedo), 16);
+            ctx.write_texture_2d(&self.normal, bytemuck::cast_slice(&normals), 16);
+            ctx.write_texture_2d(&self.depth, bytemuck::cast_slice(&gbuffer.depth), 4);
+            ctx.write_texture_2d(
+                &self.triangle_id,
+                bytemuck::cast_slice(&gbuffer.triangle_id),
+                4,
+            );
+        })
+    }
+
+    /// The explicit readback step: copies all colour textures to the CPU.
+    pub fn read_back(&self, ctx: &GpuContext) -> Result<GBuffer, GpuError> {
+        let albedo = ctx
+            .read_texture_rgba32f(&self.albedo)?
+            .into_iter()
+            .map(Vec4::from_array)
+            .collect();
+        let normal = ctx
+            .read_texture_rgba32f(&self.normal)?
+            .into_iter()
+            .map(|[x, y, z, _]| Vec3::new(x, y, z))
+            .collect();
+        Ok(GBuffer {
+            width: self.width,
+            height: self.height,
+            albedo,
+            normal,
+            depth: ctx.read_texture_r32f(&self.depth)?,
+            triangle_id: ctx.read_texture_r32u(&self.triangle_id)?,
+        })
+    }
+}
+
+/// Per-pixel luminance of `img` computed on the GPU with the thesis' eq. 17 weights,
+/// `0.27 R + 0.67 G + 0.06 B` (the compute shader [`LUMINANCE_WGSL`],
+/// `shaders/scene-core/luminance.wgsl`, 8 x 8 workgroups). Row-major like
+/// [`Image::luminance`], which it matches to a few ulps.
+///
+/// Errors (never panics) on a zero-size image, a size beyond the device's limits or a
+/// pixel count that does not match the size.
+pub fn luminance_gpu(ctx: &GpuContext, img: &Image) -> Result<Vec<f32>, GpuError> {
+    let src = ctx.upload_image(img)?;
+    let dst = ctx.create_texture_2d(
+        "luminance",
+        img.width,
+        img.height,
+        wgpu::TextureFormat::R32Float,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+    );
+    let device = &ctx.device;
+    ctx.validated(|| {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("luminance.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(LUMINANCE_WGSL)),
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("luminance"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        // Rgba32Float is not filterable without an optional feature; the
+                        // shader only uses textureLoad.
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: wgpu::TextureFormat::R32Float,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("luminance"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("luminance"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let src_view = src.create_view(&Default::default());
+        let dst_view = dst.create_view(&Default::default());
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("luminance"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&src_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&dst_view),
+                },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("luminance"),
+        });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("luminance"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(
+                img.width.div_ceil(LUMINANCE_WORKGROUP),
+                img.height.div_ceil(LUMINANCE_WORKGROUP),
+                1,
+            );
+        }
+        ctx.queue.submit([encoder.finish()]);
+    })?;
+    ctx.read_texture_r32f(&dst)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Material, Mesh};
+    use glam::Vec2;
+
+    /// A small deterministic generator (xorshift), so the tests need no extra crate.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next_f32(&mut self) -> f32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    #[test]
+    fn gpu_luminance_matches_cpu_on_odd_size() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        eprintln!("GPU tests on {}", ctx.adapter_summary());
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        let (w, h) = (37, 23);
+        let pixels = (0..w * h)
+            .map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0)
+            .collect();
+        let img = Image::from_pixels(w, h, pixels).unwrap();
+        let gpu = luminance_gpu(&ctx, &img).unwrap();
+        let cpu = img.luminance();
+        assert_eq!(gpu.len(), cpu.len());
+        for (i, (&g, &c)) in gpu.iter().zip(&cpu).enumerate() {
+            assert!(
+                (g - c).abs() <= 1e-6 * c.abs(),
+                "pixel {i} ({}, {}): gpu {g} cpu {c}",
+                i as u32 % w,
+                i as u32 / w
+            );
+        }
+    }
+
+    #[test]
+    fn gpu_luminance_one_pixel() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        let img = Image::filled(1, 1, Vec3::new(1.0, 2.0, 3.0));
+        let gpu = luminance_gpu(&ctx, &img).unwrap();
+        assert_eq!(gpu.len(), 1);
+        let c = crate::image::luminance(img.pixels[0]);
+        assert!((gpu[0] - c).abs() <= 1e-6 * c, "gpu {} cpu {c}", gpu[0]);
+    }
+
+    #[test]
+    fn gpu_luminance_zero_size_is_an_error() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        for (w, h) in [(0, 0), (0, 5), (5, 0)] {
+            let err = luminance_gpu(&ctx, &Image::new(w, h)).unwrap_err();
+            assert!(matches!(err, GpuError::InvalidSize { .. }), "{err}");
+        }
+        let bad = Image {
+            width: 2,
+            height: 2,
+            pixels: vec![Vec3::ONE; 3],
+        };
+        assert!(matches!(
+            luminance_gpu(&ctx, &bad),
+            Err(GpuError::BadLength { .. })
+        ));
+    }
+
+    #[test]
+    fn gpu_gbuffer_round_trips_exactly() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        let (w, h) = (13, 7);
+        let mut rng = Rng(12345);
+        let mut cpu = GBuffer::background(w, h);
+        for i in 0..cpu.len() {
+            if i % 5 == 3 {
+                continue; // keep some background pixels
+            }
+            let mut r = || rng.next_f32();
+            cpu.albedo[i] = Vec4::new(r(), r(), r(), 1.0);
+            cpu.normal[i] = Vec3::new(r() - 0.5, r() - 0.5, r() - 0.5).normalize();
+            cpu.depth[i] = r();
+            cpu.triangle_id[i] = (r() * 1e6) as u32;
+        }
+        let gpu = GpuGBuffer::upload(&ctx, &cpu).unwrap();
+        assert_eq!((gpu.width, gpu.height), (w, h));
+        let back = gpu.read_back(&ctx).unwrap();
+        assert_eq!(back, cpu);
+        // The depth attachment reads back too (cleared to zero by wgpu).
+        let depth = ctx.read_texture_r32f(&gpu.depth_stencil).unwrap();
+        assert_eq!(depth.len(), cpu.len());
+    }
+
+    #[test]
+    fn gpu_gbuffer_rejects_bad_sizes() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        assert!(matches!(
+            GpuGBuffer::new(&ctx, 0, 4),
+            Err(GpuError::InvalidSize { .. })
+        ));
+        let max = ctx.device.limits().max_texture_dimension_2d;
+        assert!(matches!(
+            GpuGBuffer::new(&ctx, max + 1, 1),
+            Err(GpuError::InvalidSize { .. })
+        ));
+        let gpu = GpuGBuffer::new(&ctx, 3, 2).unwrap();
+        assert!(gpu.write(&ctx, &GBuffer::background(2, 3)).is_err());
+        let mut short = GBuffer::background(3, 2);
+        short.depth.pop();
+        assert!(matches!(
+            gpu.write(&ctx, &short),
+            Err(GpuError::BadLength { .. })
+        ));
+    }
+
+    #[test]
+    fn gpu_readers_check_format_and_usage() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        let tex = ctx.upload_image(&Image::new(3, 3)).unwrap();
+        assert!(matches!(
+            ctx.read_texture_r32u(&tex),
+            Err(GpuError::WrongFormat { .. })
+        ));
+        let no_copy = ctx.create_texture_2d(
+            "no copy",
+            2,
+            2,
+            wgpu::TextureFormat::R32Float,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        assert!(matches!(
+            ctx.read_texture_r32f(&no_copy),
+            Err(GpuError::Readback(_))
+        ));
+        // Image upload round trip, alpha set to 1.
+        let img = Image::filled(5, 3, Vec3::new(0.25, 0.5, 4.0));
+        let back = ctx
+            .read_texture_rgba32f(&ctx.upload_image(&img).unwrap())
+            .unwrap();
+        assert!(back.iter().all(|&p| p == [0.25, 0.5, 4.0, 1.0]));
+    }
+
+    fn two_mesh_scene() -> Scene {
+        let mut scene = Scene::new("gpu-test");
+        scene
+            .materials
+            .push(Material::diffuse("grey", Vec3::splat(0.5)));
+        let mut lamp = Material::emissive("lamp", Vec3::splat(0.1), Vec3::new(4.0, 3.0, 2.0));
+        lamp.albedo_texture = Some(0);
+        scene.materials.push(lamp);
+        let mut floor = Mesh {
+            name: "floor".into(),
+            uvs: Some(Vec::new()),
+            ..Default::default()
+        };
+        floor.push_quad(
+            [
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, -1.0),
+                Vec3::new(0.0, 0.0, -1.0),
+            ],
+            0,
+        );
+        let mut light = Mesh {
+            name: "light".into(),
+            ..Default::default()
+        };
+        light.push_triangle(
+            [Vec3::Y, Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, -1.0)],
+            1,
+        );
+        scene.meshes = vec![floor, light];
+        scene
+    }
+
+    #[test]
+    fn flatten_scene_orders_by_global_triangle_id() {
+        let scene = two_mesh_scene();
+        let v = flatten_scene(&scene);
+        assert_eq!(v.len(), 9);
+        let ids: Vec<u32> = v.iter().map(|v| v.triangle_id).collect();
+        assert_eq!(ids, [0, 0, 0, 1, 1, 1, 2, 2, 2]);
+        for (k, vert) in v.iter().enumerate() {
+            assert_eq!(vert.triangle_id, k as u32 / 3);
+        }
+        assert_eq!(v[6].material_id, 1);
+        assert_eq!(v[6].position, [0.0, 1.0, 0.0]);
+        assert_eq!(v[0].has_uv, 1);
+        assert_eq!(v[4].uv, Vec2::new(1.0, 1.0).to_array()); // second quad triangle: a, c, d
+        assert_eq!(v[7].has_uv, 0);
+        let m = gpu_materials(&scene);
+        assert_eq!(m[0].texture, -1);
+        assert_eq!(m[1].texture, 0);
+        assert_eq!(m[1].emission, [4.0, 3.0, 2.0]);
+        assert_eq!(std::mem::size_of::<GpuVertex>(), 48);
+        assert_eq!(std::mem::size_of::<GpuMaterial>(), 32);
+    }
+
+    #[test]
+    fn gpu_scene_upload_round_trips() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        let scene = two_mesh_scene();
+        let gpu = ctx.upload_scene(&scene);
+        assert_eq!(
+            (gpu.vertex_count, gpu.triangle_count, gpu.material_count),
+            (9, 3, 2)
+        );
+        let v: Vec<GpuVertex> = ctx.read_buffer_as(&gpu.vertices).unwrap();
+        assert_eq!(v, flatten_scene(&scene));
+        let m: Vec<GpuMaterial> = ctx.read_buffer_as(&gpu.materials).unwrap();
+        assert_eq!(m, gpu_materials(&scene));
+        // An empty scene still gets (dummy) buffers.
+        let empty = ctx.upload_scene(&Scene::new("empty"));
+        assert_eq!(
+            (
+                empty.vertex_count,
+                empty.triangle_count,
+                empty.material_count
+            ),
+            (0, 0, 0)
+        );
+        assert!(empty.vertices.size() > 0 && empty.materials.size() > 0);
+    }
+
+    #[test]
+    fn gpu_error_message_names_the_fix() {
+        let msg = GpuError::NoAdapter {
+            tried: "vulkan, gl".into(),
+        }
+        .to_string();
+        assert!(msg.contains("backends tried: vulkan, gl"), "{msg}");
+        assert!(msg.contains("apt-get install mesa-vulkan-drivers"), "{msg}");
+        assert!(msg.contains("WGPU_BACKEND/WGPU_ADAPTER_NAME"), "{msg}");
+    }
+}

@@ -1,0 +1,121 @@
+//! `cargo xtask shaders`: every WGSL file parsed and validated by naga, then translated to
+//! SPIR-V, MSL and HLSL, so that a shader a backend cannot take fails CI, not a user.
+
+use std::path::{Path, PathBuf};
+
+use naga::back::{hlsl, msl, spv};
+use naga::valid::{Capabilities, ValidationFlags, Validator};
+
+fn wgsl_files(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), String> {
+    let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    for entry in entries {
+        let path = entry.map_err(|e| e.to_string())?.path();
+        if path.is_dir() {
+            wgsl_files(&path, out)?;
+        } else if path.extension().is_some_and(|e| e == "wgsl") {
+            out.push(path);
+        }
+    }
+    Ok(())
+}
+
+/// The workspace root (xtask lives one level below it).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default()
+}
+
+/// Validates and translates one WGSL source; returns the SPIR-V word count, MSL and HLSL.
+pub fn check_source(name: &str, source: &str) -> Result<(usize, String, String), String> {
+    let module = naga::front::wgsl::parse_str(source)
+        .map_err(|e| format!("{name}: parse error:\n{}", e.emit_to_string(source)))?;
+    let info = Validator::new(ValidationFlags::all(), Capabilities::all())
+        .validate(&module)
+        .map_err(|e| format!("{name}: validation error:\n{}", e.emit_to_string(source)))?;
+    let words = spv::write_vec(&module, &info, &spv::Options::default(), None)
+        .map_err(|e| format!("{name}: SPIR-V: {e}"))?;
+    let (msl_src, _) = msl::write_string(
+        &module,
+        &info,
+        &msl::Options::default(),
+        &msl::PipelineOptions::default(),
+    )
+    .map_err(|e| format!("{name}: MSL: {e}"))?;
+    let mut hlsl_src = String::new();
+    let options = hlsl::Options::default();
+    let pipeline = hlsl::PipelineOptions::default();
+    let mut writer = hlsl::Writer::new(&mut hlsl_src, &options, &pipeline);
+    writer
+        .write(&module, &info, None)
+        .map_err(|e| format!("{name}: HLSL: {e}"))?;
+    Ok((words.len(), msl_src, hlsl_src))
+}
+
+/// Validates every `shaders/**/*.wgsl`; with `out`, writes `.spv`, `.metal` and `.hlsl`
+/// translations there. Returns the number of shaders. Fails when there are none.
+pub fn validate_all(out: Option<&Path>) -> Result<usize, String> {
+    let root = workspace_root().join("shaders");
+    let mut files = Vec::new();
+    wgsl_files(&root, &mut files)?;
+    files.sort();
+    if files.is_empty() {
+        return Err(format!("no .wgsl files under {}", root.display()));
+    }
+    let mut errors = Vec::new();
+    for f in &files {
+        let rel = f.strip_prefix(&root).unwrap_or(f).display().to_string();
+        let source = std::fs::read_to_string(f).map_err(|e| format!("{rel}: {e}"))?;
+        match check_source(&rel, &source) {
+            Ok((words, msl_src, hlsl_src)) => {
+                eprintln!(
+                    "ok  {rel} (SPIR-V {words} words, MSL {} B, HLSL {} B)",
+                    msl_src.len(),
+                    hlsl_src.len()
+                );
+                if let Some(dir) = out {
+                    let stem = dir.join(rel.replace(".wgsl", ""));
+                    if let Some(parent) = stem.parent() {
+                        std::fs::create_dir_all(parent).map_err(|e| e.to_string())?;
+                    }
+                    std::fs::write(stem.with_extension("metal"), msl_src)
+                        .map_err(|e| e.to_string())?;
+                    std::fs::write(stem.with_extension("hlsl"), hlsl_src)
+                        .map_err(|e| e.to_string())?;
+                }
+            }
+            Err(e) => errors.push(e),
+        }
+    }
+    if errors.is_empty() {
+        Ok(files.len())
+    } else {
+        Err(errors.join("\n"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn broken_shaders_are_rejected() {
+        let good = "@compute @workgroup_size(1) fn main() {}";
+        assert!(check_source("good", good).is_ok());
+        // Syntax error.
+        assert!(
+            check_source("bad", "fn main( {")
+                .unwrap_err()
+                .contains("parse error")
+        );
+        // Parses but fails validation (type mismatch).
+        let invalid = "@compute @workgroup_size(1) fn main() { let x: f32 = 1u; }";
+        assert!(check_source("invalid", invalid).is_err());
+    }
+
+    #[test]
+    fn the_project_shaders_are_valid() {
+        assert!(validate_all(None).unwrap() >= 1);
+    }
+}
