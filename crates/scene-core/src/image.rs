@@ -80,12 +80,20 @@ impl Image {
 
     /// Pixel at `(x, y)`.
     pub fn get(&self, x: u32, y: u32) -> Vec3 {
-        self.pixels[(y * self.width + x) as usize]
+        debug_assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside the image"
+        );
+        self.pixels[y as usize * self.width as usize + x as usize]
     }
 
     /// Sets the pixel at `(x, y)`.
     pub fn set(&mut self, x: u32, y: u32, c: Vec3) {
-        self.pixels[(y * self.width + x) as usize] = c;
+        debug_assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside the image"
+        );
+        self.pixels[y as usize * self.width as usize + x as usize] = c;
     }
 
     /// Per-pixel luminance (eq. 17).

@@ -82,8 +82,11 @@ pub struct RayScene {
     bvh: Option<CwBvh>,
     /// Triangles in BVH primitive order.
     triangles: Vec<PreparedTriangle>,
-    /// Global triangle id of each BVH primitive.
+    /// Global triangle id of each BVH primitive (a triangle split by the builder's spatial
+    /// pre-splits appears more than once).
     global_ids: Vec<u32>,
+    /// Number of distinct triangles.
+    count: usize,
     /// Time the BVH build took.
     pub build_time: Duration,
 }
@@ -112,6 +115,7 @@ impl RayScene {
                 bvh: None,
                 triangles: Vec::new(),
                 global_ids: Vec::new(),
+                count: 0,
                 build_time: start.elapsed(),
             };
         }
@@ -133,13 +137,14 @@ impl RayScene {
             bvh: Some(bvh),
             triangles,
             global_ids,
+            count: tris.len(),
             build_time: start.elapsed(),
         }
     }
 
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
-        self.triangles.len()
+        self.count
     }
 
     /// The closest hit along `origin + t * direction` for `t` in `[t_min, t_max]`.

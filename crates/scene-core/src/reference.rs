@@ -153,8 +153,9 @@ struct TriData {
 struct Emitters {
     /// Global triangle ids.
     ids: Vec<u32>,
-    /// Cumulative distribution over `ids` (last = 1).
-    cdf: Vec<f32>,
+    /// Cumulative distribution over `ids` (last = 1), in f64 so that tiny emitters keep a
+    /// non-empty interval.
+    cdf: Vec<f64>,
     /// Selection probability indexed by global triangle id (0 for non-emitters).
     select_pdf: Vec<f32>,
 }
@@ -206,14 +207,19 @@ impl<'a> PathTracer<'a> {
         let total: f64 = weights.iter().sum();
         let mut cdf = Vec::with_capacity(weights.len());
         let mut acc = 0.0f64;
-        let mut select_pdf = vec![0.0f32; tris.len()];
-        for (k, w) in weights.iter().enumerate() {
+        for w in &weights {
             acc += w;
-            cdf.push((acc / total) as f32);
-            select_pdf[ids[k] as usize] = (w / total) as f32;
+            cdf.push(acc / total);
         }
         if let Some(last) = cdf.last_mut() {
             *last = 1.0;
+        }
+        // The probability each emitter is really drawn with: its interval of the stored CDF.
+        let mut select_pdf = vec![0.0f32; tris.len()];
+        let mut prev = 0.0f64;
+        for (k, &c) in cdf.iter().enumerate() {
+            select_pdf[ids[k] as usize] = (c - prev) as f32;
+            prev = c;
         }
         let extent = scene.extent();
         Self {
@@ -356,7 +362,7 @@ impl<'a> PathTracer<'a> {
             }
         }
         if !self.emitters.ids.is_empty() {
-            let u = rng.next_f32();
+            let u = rng.next_f64();
             let k = self
                 .emitters
                 .cdf
@@ -375,7 +381,9 @@ impl<'a> PathTracer<'a> {
                 let cos_l = tri.ng.dot(-w);
                 if cos > 0.0 && cos_l > 0.0 {
                     stats.shadow += 1;
-                    if !self.rays.occluded(p, w, 0.0, dist * (1.0 - 1e-4)) {
+                    // Stop short of the emitter by an absolute, scene-relative margin: an
+                    // occluder flush against the light must still block it.
+                    if !self.rays.occluded(p, w, 0.0, dist - 2.0 * self.eps) {
                         let pdf_area = self.emitters.select_pdf[id as usize] / tri.area;
                         let pl = pdf_area * d2 / cos_l;
                         let pb = cos * std::f32::consts::FRAC_1_PI;
@@ -451,6 +459,8 @@ impl Accumulator {
         let start = Instant::now();
         let (w, h) = (self.width, self.height);
         let first = self.spp;
+        // Sample indices are u32: never wrap.
+        let samples = samples.min(u32::MAX - first);
         let done = AtomicU64::new(0);
         let row_stats: Vec<RayStats> = self
             .sum

@@ -15,7 +15,7 @@ pub fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Combines a seed with up to three stream indices into a new well-mixed seed.
+/// Combines a seed with two stream indices into a new well-mixed seed.
 pub fn hash_seed(seed: u64, a: u64, b: u64) -> u64 {
     mix64(mix64(mix64(seed ^ 0x9e37_79b9_7f4a_7c15).wrapping_add(a)).wrapping_add(b))
 }
@@ -56,6 +56,12 @@ impl Rng {
         (self.next_u32() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
     }
 
+    /// A uniform double in [0, 1) with 53 random bits.
+    pub fn next_f64(&mut self) -> f64 {
+        let bits = ((self.next_u32() as u64) << 21) ^ (self.next_u32() as u64 >> 11);
+        bits as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
     /// Two uniform floats in [0, 1).
     pub fn next_vec2(&mut self) -> Vec2 {
         Vec2::new(self.next_f32(), self.next_f32())
@@ -74,6 +80,8 @@ const PRIMES: [u32; 16] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 4
 /// `dim`-th prime base with random digit scrambling (each digit position gets its own
 /// seeded shift modulo the base, applied to all digit positions down to f32 precision so the
 /// implied trailing zeros are scrambled too). The unscrambled sequence is `seed = None`.
+/// Digits below 1e-9 are not computed, so dimension `d` repeats with period
+/// `base^k` where `base^-k < 1e-9` (2^30 points in base 2, far beyond f32 resolution).
 pub fn halton(index: u64, dim: usize, seed: Option<u64>) -> f32 {
     let base = PRIMES[dim % PRIMES.len()] as u64;
     let inv_base = 1.0 / base as f64;
@@ -106,9 +114,11 @@ pub fn r2(index: u64, offset: Vec2) -> Vec2 {
     const A1: f64 = 1.0 / G;
     const A2: f64 = 1.0 / (G * G);
     let i = index as f64;
-    let x = (offset.x as f64 + 0.5 + A1 * i).fract();
-    let y = (offset.y as f64 + 0.5 + A2 * i).fract();
-    Vec2::new(x as f32, y as f32)
+    let x = (offset.x as f64 + 0.5 + A1 * i).rem_euclid(1.0);
+    let y = (offset.y as f64 + 0.5 + A2 * i).rem_euclid(1.0);
+    // The f64 to f32 rounding may reach 1.0: keep the result in [0, 1).
+    let top = 1.0 - f32::EPSILON / 2.0;
+    Vec2::new((x as f32).min(top), (y as f32).min(top))
 }
 
 /// Maps a point of the unit square to the unit disk (Shirley-Chiu concentric map, which

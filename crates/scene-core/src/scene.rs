@@ -91,6 +91,8 @@ impl Texture {
         }
         let w = self.width as i64;
         let h = self.height as i64;
+        // Wrap first so that huge coordinates cannot overflow the integer texel index.
+        let uv = uv - uv.floor();
         let x = uv.x * self.width as f32 - 0.5;
         let y = uv.y * self.height as f32 - 0.5;
         let x0 = x.floor();
@@ -168,14 +170,18 @@ pub struct PointLight {
 
 impl PointLight {
     /// The distance falloff: `1/d^2`, or eq. 16's `saturate(1 - (d/r)^2)` when a radius is set.
-    /// Returns 0 for a zero distance with inverse-square falloff rather than infinity.
+    /// Never infinite: 0 at zero distance, and at most `f32::MAX` for tiny distances.
     pub fn falloff(&self, distance: f32) -> f32 {
         match self.radius {
             Some(r) if r > 0.0 => (1.0 - (distance / r).powi(2)).clamp(0.0, 1.0),
             Some(_) => 0.0,
             None => {
                 let d2 = distance * distance;
-                if d2 > 0.0 { 1.0 / d2 } else { 0.0 }
+                if d2 > 0.0 {
+                    (1.0 / d2).min(f32::MAX)
+                } else {
+                    0.0
+                }
             }
         }
     }
@@ -369,11 +375,12 @@ impl Scene {
     /// Checks the scene and repairs what can be repaired.
     ///
     /// Errors (each names the mesh, triangle, material or light at fault): non-finite
-    /// positions, normals or UVs counts that do not match positions, indices out of range,
+    /// positions or UVs, UV or material-id counts that do not match, indices out of range,
     /// material ids out of range, albedo outside [0, 1) (radiosity diverges at 1), negative or
     /// non-finite emission, non-finite or negative light data, invalid cameras.
     /// Repairs: degenerate triangles are dropped and counted; missing, zero-length or
-    /// non-finite normals are recomputed from the faces.
+    /// non-finite normals are recomputed from the faces (a normal array whose length does not
+    /// match the positions is replaced whole, every vertex counted).
     pub fn validate(&mut self) -> Result<ValidationReport, SceneError> {
         let mut report = ValidationReport::default();
         self.validate_materials()?;
@@ -392,8 +399,9 @@ impl Scene {
                 bounds.grow(*p);
             }
         }
-        let extent = bounds.diagonal().max(f32::MIN_POSITIVE);
-        let min_area = DEGENERATE_REL_AREA * extent * extent;
+        // In f64: the square of a huge (finite) extent must not overflow to infinity.
+        let extent = (bounds.max - bounds.min).as_dvec3().length();
+        let min_area = DEGENERATE_REL_AREA as f64 * extent * extent;
         let material_count = self.materials.len();
         for (mi, mesh) in self.meshes.iter_mut().enumerate() {
             let label = mesh_label(mesh, mi);
@@ -448,6 +456,7 @@ impl Scene {
                 .iter()
                 .map(|t| {
                     let [a, b, c] = t.map(|i| positions[i as usize]);
+                    let [a, b, c] = [a, b, c].map(|p| p.as_dvec3());
                     0.5 * (b - a).cross(c - a).length() > min_area
                 })
                 .collect();
@@ -466,7 +475,7 @@ impl Scene {
             let needs: Vec<bool> = mesh
                 .normals
                 .iter()
-                .map(|n| !n.is_finite() || n.length_squared() < 1e-24)
+                .map(|n| n.try_normalize().is_none() || n.length_squared() < 1e-24)
                 .collect();
             let count = needs.iter().filter(|&&b| b).count();
             if count > 0 {

@@ -137,8 +137,9 @@ impl View {
         }
     }
 
-    /// An orthographic view looking along `direction` at a box of half-size `half_extent`
-    /// around `center` (a shadow-map view for a directional light).
+    /// An orthographic view looking along `direction` that contains the sphere of radius
+    /// `half_extent` around `center` (a shadow-map view for a directional light; pass half
+    /// the scene's bounding-box diagonal to contain the whole box).
     pub fn orthographic_fit(center: Vec3, direction: Vec3, half_extent: f32) -> View {
         let forward = direction.normalize();
         let (_, up) = orthonormal_basis(forward);
@@ -320,7 +321,9 @@ impl View {
         }
     }
 
-    /// The primary ray through image coordinates `uv`: origin and unit direction.
+    /// The primary ray through image coordinates `uv`: origin and unit direction. The ray
+    /// starts at the eye, not at the near plane (the path tracer sees what a rasteriser's
+    /// near plane would clip).
     pub fn ray(&self, uv: Vec2) -> (Vec3, Vec3) {
         match self.projection {
             Projection::Perspective {

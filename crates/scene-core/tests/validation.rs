@@ -237,3 +237,27 @@ fn degenerate_threshold_is_relative_to_scene_scale() {
         assert_eq!(s.meshes[0].indices.len(), 2);
     }
 }
+
+#[test]
+fn huge_but_finite_values_neither_panic_nor_drop_everything() {
+    // Normals with huge components are renormalised to unit length, not zeroed.
+    let mut s = one_quad();
+    s.meshes[0].normals[0] = Vec3::new(0.0, 0.0, 3e19);
+    s.validate().unwrap();
+    assert!((s.meshes[0].normals[0] - Vec3::Z).length() < 1e-6);
+    // Coordinates near 1e19: the squared extent would overflow f32; triangles are kept.
+    let mut s = one_quad();
+    for p in &mut s.meshes[0].positions {
+        *p *= 1e19;
+    }
+    assert_eq!(s.validate().unwrap().total_degenerate(), 0);
+    // A texture sampled at huge coordinates wraps instead of overflowing.
+    let tex = scene_core::Texture {
+        name: "t".into(),
+        width: 3,
+        height: 2,
+        texels: vec![Vec3::splat(0.5); 6],
+    };
+    let c = tex.sample_bilinear(scene_core::glam::Vec2::new(3e19, -7e20));
+    assert!((c - Vec3::splat(0.5)).length() < 1e-6);
+}
