@@ -21,6 +21,15 @@ pub const NAMES: [&str; 5] = [
     "many-boxes",
 ];
 
+/// A small instance of every built-in scene, for tests and quick checks.
+pub const SMALL_INSTANCES: [&str; 5] = [
+    "cornell",
+    "cornell-point",
+    "primitives",
+    "corridor",
+    "many-boxes 50",
+];
+
 /// Largest box count of `many-boxes` (12 N + 2 <= 10^6 triangles).
 pub const MAX_BOXES: u32 = 83_333;
 
@@ -726,13 +735,7 @@ mod tests {
 
     #[test]
     fn every_builtin_builds_and_validates() {
-        for name in [
-            "cornell",
-            "cornell-point",
-            "primitives",
-            "corridor",
-            "many-boxes 50",
-        ] {
+        for name in SMALL_INSTANCES {
             let s = scene(name).unwrap();
             assert!(s.triangle_count() > 0, "{name}");
             assert!(!s.cameras.is_empty(), "{name}");

@@ -65,7 +65,7 @@
 
 use std::borrow::Cow;
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use base64::Engine as _;
 use glam::{Mat3, Mat4, Quat, Vec2, Vec3};
@@ -1156,16 +1156,15 @@ fn write_error(path: &Path, e: impl Into<Box<dyn std::error::Error + Send + Sync
 }
 
 fn write_file_atomically(path: &Path, bytes: &[u8]) -> Result<(), GltfError> {
-    let tmp: PathBuf = crate::image::temp_path(path);
-    let result = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if let Err(source) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(GltfError::Write {
-            path: path.to_path_buf(),
-            source,
-        });
-    }
-    Ok(())
+    let write_error = |source| GltfError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
+    crate::image::write_via_temp(
+        path,
+        |tmp| std::fs::write(tmp, bytes).map_err(write_error),
+        write_error,
+    )
 }
 
 /// The binary buffer with its buffer views and accessors.
@@ -1501,7 +1500,7 @@ mod tests {
     use super::*;
 
     /// A unique path in the temporary directory.
-    fn temp_file(name: &str) -> PathBuf {
+    fn temp_file(name: &str) -> std::path::PathBuf {
         static COUNTER: AtomicUsize = AtomicUsize::new(0);
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
         std::env::temp_dir().join(format!(
@@ -1810,13 +1809,7 @@ mod tests {
 
     #[test]
     fn round_trip_builtins() {
-        for name in [
-            "cornell",
-            "cornell-point",
-            "primitives",
-            "corridor",
-            "many-boxes 50",
-        ] {
+        for name in crate::builtin::SMALL_INSTANCES {
             let s = crate::builtin::scene(name).unwrap();
             for ext in ["gltf", "glb"] {
                 let r = round_trip_file(&s, ext);

@@ -259,16 +259,27 @@ pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&Path) -> Result<(), String>,
 ) -> Result<(), ImageError> {
+    write_via_temp(path, write, |e| e.to_string()).map_err(|message| ImageError::Write {
+        path: path.to_path_buf(),
+        message,
+    })
+}
+
+/// The shared mechanism of every file the toolkit writes: `write` fills a temporary file
+/// beside `path` ([`temp_path`]), which is then renamed over `path`; on any failure the
+/// temporary file is removed and `path` is untouched. `rename_error` turns a failed rename
+/// into the caller's error type.
+pub fn write_via_temp<E>(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), E>,
+    rename_error: impl FnOnce(std::io::Error) -> E,
+) -> Result<(), E> {
     let tmp = temp_path(path);
-    let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(|e| e.to_string()));
-    if let Err(message) = result {
+    let result = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(rename_error));
+    if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
-        return Err(ImageError::Write {
-            path: path.to_path_buf(),
-            message,
-        });
     }
-    Ok(())
+    result
 }
 
 /// `dir/.name.tmp.ext`: hidden, in the same directory (so the rename is atomic), keeping the
