@@ -1,22 +1,139 @@
 //! # isr
 //!
-//! Image-space radiosity (thesis chapter 4): one-bounce indirect light from neighbouring G-buffer pixels treated as patches (eq. 25), spherical-occluder SSAO (eq. 26), Gaussian blur, bilateral upsampling (eqs. 27-28), final lighting (eq. 29) and exponential shadow maps with PCF (eq. 30), on the CPU and the GPU.
-//!
-//! **Status: skeleton.** Nothing is implemented yet (see issue 5); this crate compiles so the
-//! workspace and its dependency rule hold. It consumes a `scene_core::GBuffer` (or `GpuGBuffer`) and implements `scene_core::Technique`.
-//!
-//! What it will consume already exists in `scene-core`:
+//! Image-space radiosity (the thesis' chapter 4) as a post-process on any G-buffer: one
+//! bounce of indirect light from neighbouring pixels treated as patches (eq. 25),
+//! spherical-occluder SSAO (eq. 26), a Gaussian or edge-aware blur, bilateral upsampling
+//! (eqs. 27-28) and the lighting phase (eq. 29) with exponential shadow maps and PCF (eq. 30),
+//! on the CPU (rayon) and the GPU (wgpu compute, one shader per pass in `shaders/isr/`).
 //!
 //! ```
-//! use scene_core::{builtin, View};
+//! use isr::{IsrInputs, IsrScene, IsrSettings, ShadowSettings, downsample, render_cpu};
+//! use scene_core::{GBufferRenderer, View, builtin, gbuffer::RayCastRenderer};
 //!
-//! let scene = builtin::scene("cornell").unwrap();
-//! let view = View::from_camera(&scene.cameras[0]);
-//! assert!(view.frustum_corners().is_some());
-//! assert_eq!(isr::STATUS, "skeleton");
+//! let scene = builtin::scene("cornell-point").unwrap();
+//! let view = View::from_camera(&scene.cameras[0].with_aspect(32.0 / 24.0));
+//! // Any G-buffer will do; here primary rays give it.
+//! let full = RayCastRenderer.render(&scene, &view, 32, 24).unwrap();
+//! let coarse = downsample(&full);
+//! // Lights and shadow maps, once per scene.
+//! let prepared = IsrScene::new(&scene, &ShadowSettings { cube_resolution: 32, ..Default::default() }).unwrap();
+//! let isr = render_cpu(&prepared, &IsrInputs { full: &full, coarse: &coarse, view: &view },
+//!                      &IsrSettings::default()).unwrap();
+//! let dl = render_cpu(&prepared, &IsrInputs { full: &full, coarse: &coarse, view: &view },
+//!                     &IsrSettings::dl()).unwrap();
+//! // ISR adds the indirect bounce that direct lighting lacks.
+//! assert!(isr.image.mean().element_sum() > dl.image.mean().element_sum());
+//! assert_eq!(isr.image.non_finite_count(), 0);
 //! ```
+//!
+//! The pieces:
+//! - [`IsrScene`]: lights (point, directional, point samples of emissive triangles), their
+//!   shadow maps and the emissive-triangle table, built once per scene;
+//! - [`IsrInputs`] + [`IsrSettings`] -> [`render_cpu`]: one frame on the CPU;
+//! - [`GpuIsr`]: the same frame on the GPU from a [`scene_core::gpu::GpuGBuffer`] into a
+//!   caller-provided texture, without readback;
+//! - [`IsrTechnique`] and [`DlTechnique`]: [`scene_core::Technique`]s holding any
+//!   [`scene_core::GBufferRenderer`].
+//!
+//! The passes, each a module here and a shader in `shaders/isr/`: [`downsample`],
+//! [`lighting`] (also the `Lit` senders on the coarse buffer), [`radiosity`] (ISR + SSAO),
+//! [`blur`], [`upsample`]. [`shadow`] builds the maps on the CPU (they are view-independent).
+//! `docs/isr.md` has the design decisions, the readings of the thesis' equations and the
+//! measured errors and timings.
 
-/// Implementation status of this crate.
-pub const STATUS: &str = "skeleton";
+pub mod blur;
+pub mod downsample;
+pub mod frame;
+pub mod geometry;
+pub mod gpu;
+pub mod lighting;
+pub mod lights;
+pub mod radiosity;
+pub mod settings;
+pub mod shadow;
+pub mod technique;
+pub mod upsample;
+
+pub use downsample::{coarse_size, downsample};
+pub use frame::{Frame, IsrInputs, PassTimings, render_cpu, render_image};
+pub use gpu::{GpuIsr, GpuIsrInputs};
+pub use lights::{IsrScene, Light, LightKind};
+pub use settings::{Blur, Estimator, IsrSettings, Radius, Sender, ShadowSettings};
+pub use technique::{Backend, DlTechnique, IsrTechnique};
 
 pub use scene_core;
+
+/// An error of the ISR crate.
+#[derive(Debug, thiserror::Error)]
+pub enum IsrError {
+    /// A parameter is out of range.
+    #[error("invalid ISR setting {name} = {value}: {reason}")]
+    InvalidSetting {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A buffer has zero width or height.
+    #[error("the {which} buffer has zero size ({width}x{height})")]
+    ZeroSize {
+        /// Which buffer ("full", "coarse", "output").
+        which: &'static str,
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+    },
+    /// A G-buffer channel does not have one element per pixel.
+    #[error("the {which} G-buffer's {channel} has {found} elements, expected {expected}")]
+    BadLength {
+        /// Which buffer.
+        which: &'static str,
+        /// Which channel.
+        channel: &'static str,
+        /// Pixels.
+        expected: usize,
+        /// Elements found.
+        found: usize,
+    },
+    /// A G-buffer holds NaN or infinity on a non-background pixel.
+    #[error("the {which} G-buffer's {channel} is not finite at pixel ({x}, {y})")]
+    NonFinite {
+        /// Which buffer.
+        which: &'static str,
+        /// Which channel.
+        channel: &'static str,
+        /// Column.
+        x: u32,
+        /// Row.
+        y: u32,
+    },
+    /// Sizes that must agree do not.
+    #[error("size mismatch: {0}")]
+    SizeMismatch(String),
+    /// The scene's light data cannot be used.
+    #[error("bad scene: {0}")]
+    BadScene(String),
+    /// A budget (shadow-map texels, GPU buffer size) would be exceeded.
+    #[error("budget exceeded: {0}")]
+    Budget(String),
+    /// The GPU failed, or a texture has the wrong format or usage.
+    #[error(transparent)]
+    Gpu(#[from] scene_core::gpu::GpuError),
+    /// An error of the shared layer (G-buffer rendering).
+    #[error(transparent)]
+    Core(#[from] Box<scene_core::Error>),
+}
+
+impl From<IsrError> for scene_core::Error {
+    fn from(e: IsrError) -> Self {
+        match e {
+            IsrError::Gpu(g) => scene_core::Error::Gpu(g),
+            IsrError::Core(c) => *c,
+            IsrError::Budget(b) => scene_core::Error::Budget(b),
+            other => scene_core::Error::InvalidArgument(other.to_string()),
+        }
+    }
+}

@@ -1,0 +1,495 @@
+//! What the lighting phase needs from a [`Scene`]: its lights (point, directional, and
+//! point samples standing in for emissive triangles), their shadow maps and a table of
+//! emissive triangles, prepared once per scene ([`IsrScene`]).
+
+use glam::{Vec2, Vec3};
+use scene_core::ray::RayScene;
+use scene_core::sampling::{r2, uniform_triangle};
+use scene_core::{Scene, luminance};
+
+use crate::IsrError;
+use crate::settings::ShadowSettings;
+use crate::shadow::{self, MapKind, ShadowMap};
+
+/// What kind of light a [`Light`] is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LightKind {
+    /// A point light: irradiance `I falloff(d) cos` (inverse square, or eq. 16's window).
+    Point,
+    /// A directional light: irradiance `E cos`.
+    Directional,
+    /// A point sample of an emissive triangle with a cosine profile (one-sided):
+    /// irradiance `L A cos_l cos / (d^2 + A / pi)`, the disk form factor, which stays finite
+    /// on the emitter itself.
+    EmitterSample,
+}
+
+/// One light of the lighting phase.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Its kind.
+    pub kind: LightKind,
+    /// Position (point lights and emitter samples).
+    pub position: Vec3,
+    /// Unit direction the light travels (directional) or the emitting side's unit normal
+    /// (emitter samples).
+    pub direction: Vec3,
+    /// Intensity (point), irradiance (directional) or emitted radiance (emitter sample).
+    pub color: Vec3,
+    /// Radius of eq. 16's windowed falloff; 0 for inverse square (point lights only).
+    pub radius: f32,
+    /// The emitter area the sample stands for (emitter samples only).
+    pub area: f32,
+    /// Its shadow map, when shadows are on.
+    pub shadow: Option<ShadowMap>,
+}
+
+impl Light {
+    /// Unshadowed irradiance at `p` on a surface of unit normal `n` (two-sided surfaces:
+    /// `n` faces the viewer).
+    pub fn irradiance(&self, p: Vec3, n: Vec3) -> Vec3 {
+        match self.kind {
+            LightKind::Point => {
+                let to = self.position - p;
+                let d = to.length();
+                if d.is_nan() || d <= 0.0 {
+                    return Vec3::ZERO;
+                }
+                let cos = n.dot(to / d);
+                if cos <= 0.0 {
+                    return Vec3::ZERO;
+                }
+                self.color * (falloff(self.radius, d) * cos)
+            }
+            LightKind::Directional => {
+                let cos = -n.dot(self.direction);
+                if cos <= 0.0 {
+                    return Vec3::ZERO;
+                }
+                self.color * cos
+            }
+            LightKind::EmitterSample => {
+                let to = self.position - p;
+                let d2 = to.length_squared();
+                if d2.is_nan() || d2 <= 0.0 {
+                    return Vec3::ZERO;
+                }
+                let w = to / d2.sqrt();
+                let cos = n.dot(w);
+                let cos_l = -self.direction.dot(w);
+                if cos <= 0.0 || cos_l <= 0.0 {
+                    return Vec3::ZERO;
+                }
+                self.color
+                    * (self.area * cos_l * cos / (d2 + self.area * std::f32::consts::FRAC_1_PI))
+            }
+        }
+    }
+}
+
+/// The distance falloff of a point light, as [`scene_core::PointLight::falloff`]: eq. 16's
+/// `saturate(1 - (d/r)^2)` for `radius > 0`, else `1/d^2` (0 at `d = 0`, at most
+/// `f32::MAX`).
+pub fn falloff(radius: f32, d: f32) -> f32 {
+    if radius > 0.0 {
+        (1.0 - (d / radius) * (d / radius)).clamp(0.0, 1.0)
+    } else {
+        let d2 = d * d;
+        if d2 > 0.0 {
+            (1.0 / d2).min(f32::MAX)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Emissive triangles, for the emission of directly visible emitters.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EmitterTable {
+    /// Per global triangle id: index into `entries`, or `u32::MAX` for non-emitters.
+    pub per_triangle: Vec<u32>,
+    /// `(emitted radiance, unit geometric normal of the emitting side)`.
+    pub entries: Vec<(Vec3, Vec3)>,
+}
+
+impl EmitterTable {
+    /// The radiance a triangle sends towards `to_viewer` (unit): its emission on the
+    /// winding's front side, zero elsewhere and for unknown ids.
+    pub fn emission(&self, triangle: u32, to_viewer: Vec3) -> Vec3 {
+        match self.per_triangle.get(triangle as usize) {
+            Some(&e) if e != u32::MAX => {
+                let (l, n) = self.entries[e as usize];
+                if n.dot(to_viewer) > 0.0 {
+                    l
+                } else {
+                    Vec3::ZERO
+                }
+            }
+            _ => Vec3::ZERO,
+        }
+    }
+}
+
+/// A scene prepared for ISR: lights, shadow maps and emissive triangles. View-independent;
+/// build it once per scene ([`crate::Technique::prepare`](scene_core::Technique::prepare)
+/// does).
+#[derive(Clone, Debug, PartialEq)]
+pub struct IsrScene {
+    /// The scene's extent (diagonal of its bounds; 1 when empty): the unit of relative
+    /// radii and of shadow-map depths.
+    pub extent: f32,
+    /// All lights, emitter samples included.
+    pub lights: Vec<Light>,
+    /// All shadow maps' texels, concatenated (see [`ShadowMap::offset`]).
+    pub shadow_texels: Vec<f32>,
+    /// Emissive triangles.
+    pub emitters: EmitterTable,
+    /// The shadow settings the maps were built with.
+    pub shadows: ShadowSettings,
+    /// The cube-map resolution actually used after fitting [`ShadowSettings::max_texels`]
+    /// (point lights, emitter samples).
+    pub cube_resolutions: (u32, u32),
+}
+
+impl IsrScene {
+    /// Prepares `scene` (which should be validated): resolves lights, places
+    /// `shadows.emitter_samples` stratified point samples on the emissive triangles (each
+    /// sample picks a triangle by the stratum `(k + 1/2)/S` of the power distribution and a
+    /// point in it by the R2 sequence), and renders and filters the shadow maps.
+    ///
+    /// Errors on invalid settings, non-finite light data, or shadow maps that do not fit
+    /// `shadows.max_texels` even at 16 texels per cube face.
+    pub fn new(scene: &Scene, shadows: &ShadowSettings) -> Result<Self, IsrError> {
+        shadows.validate()?;
+        let extent = scene.extent();
+        let mut lights = Vec::new();
+        for (i, l) in scene.point_lights.iter().enumerate() {
+            if !(l.position.is_finite() && l.intensity.is_finite()) {
+                return Err(IsrError::BadScene(format!(
+                    "point light #{i} '{}' is not finite",
+                    l.name
+                )));
+            }
+            lights.push(Light {
+                kind: LightKind::Point,
+                position: l.position,
+                direction: Vec3::ZERO,
+                color: l.intensity.max(Vec3::ZERO),
+                radius: l
+                    .radius
+                    .filter(|r| *r > 0.0 && r.is_finite())
+                    .unwrap_or(0.0),
+                area: 0.0,
+                shadow: None,
+            });
+        }
+        for (i, l) in scene.directional_lights.iter().enumerate() {
+            let d = l.direction.normalize_or_zero();
+            if d == Vec3::ZERO || !l.irradiance.is_finite() {
+                return Err(IsrError::BadScene(format!(
+                    "directional light #{i} '{}' has no direction or a non-finite irradiance",
+                    l.name
+                )));
+            }
+            lights.push(Light {
+                kind: LightKind::Directional,
+                position: Vec3::ZERO,
+                direction: d,
+                color: l.irradiance.max(Vec3::ZERO),
+                radius: 0.0,
+                area: 0.0,
+                shadow: None,
+            });
+        }
+        let (emitters, samples) = emitters(scene, shadows.emitter_samples, extent);
+        lights.extend(samples);
+
+        let mut this = Self {
+            extent,
+            lights,
+            shadow_texels: Vec::new(),
+            emitters,
+            shadows: *shadows,
+            cube_resolutions: (shadows.cube_resolution, shadows.emitter_cube_resolution),
+        };
+        if shadows.enabled && !this.lights.is_empty() {
+            this.build_shadow_maps(scene)?;
+        }
+        Ok(this)
+    }
+
+    fn build_shadow_maps(&mut self, scene: &Scene) -> Result<(), IsrError> {
+        let s = &self.shadows;
+        let count = |kind: LightKind| self.lights.iter().filter(|l| l.kind == kind).count() as u64;
+        let (n_point, n_dir, n_emit) = (
+            count(LightKind::Point),
+            count(LightKind::Directional),
+            count(LightKind::EmitterSample),
+        );
+        let (mut cube, mut emit) = (s.cube_resolution, s.emitter_cube_resolution);
+        let dir_texels = n_dir * (s.directional_resolution as u64).pow(2);
+        let total = |c: u32, e: u32| {
+            dir_texels + 6 * n_point * (c as u64).pow(2) + 6 * n_emit * (e as u64).pow(2)
+        };
+        while total(cube, emit) > s.max_texels && (cube > 16 || emit > 16) {
+            cube = (cube / 2).max(16.min(cube));
+            emit = (emit / 2).max(16.min(emit));
+        }
+        if total(cube, emit) > s.max_texels {
+            return Err(IsrError::Budget(format!(
+                "shadow maps need {} texels even at 16 texels per cube face, over the budget \
+                 of {} (ShadowSettings::max_texels); lower directional_resolution or raise it",
+                total(cube, emit),
+                s.max_texels
+            )));
+        }
+        self.cube_resolutions = (cube, emit);
+        let rays = RayScene::build(scene);
+        let bounds = scene.bounds();
+        let extent = self.extent;
+        let center = if bounds.is_empty() {
+            Vec3::ZERO
+        } else {
+            bounds.center()
+        };
+        let half = 0.5 * extent;
+        let mut texels = Vec::with_capacity(total(cube, emit) as usize);
+        let c = s.esm_exponent;
+        let filter = s.filter_radius;
+        for light in &mut self.lights {
+            let (kind, res) = match light.kind {
+                LightKind::Directional => {
+                    let view = scene_core::View::orthographic_fit(center, light.direction, half);
+                    (
+                        MapKind::Ortho {
+                            eye: view.eye,
+                            right: view.right(),
+                            up: view.up,
+                            forward: view.forward,
+                            half_extent: half,
+                        },
+                        s.directional_resolution,
+                    )
+                }
+                LightKind::Point => (
+                    MapKind::Cube {
+                        center: light.position,
+                    },
+                    cube,
+                ),
+                LightKind::EmitterSample => (
+                    MapKind::Cube {
+                        center: light.position,
+                    },
+                    emit,
+                ),
+            };
+            let mut map = match kind {
+                MapKind::Cube { center: p } => {
+                    // Farther than anything in the scene.
+                    let far = if bounds.is_empty() {
+                        1.0
+                    } else {
+                        (p - bounds.min).abs().max((p - bounds.max).abs()).length()
+                    };
+                    shadow::render_cube(&rays, p, res, extent, far / extent + 1.0)
+                }
+                MapKind::Ortho { .. } => shadow::render_ortho(&rays, &kind, res, extent),
+            };
+            let faces = if matches!(kind, MapKind::Cube { .. }) {
+                6
+            } else {
+                1
+            };
+            shadow::log_filter(&mut map, res, faces, filter, c);
+            light.shadow = Some(ShadowMap {
+                offset: texels.len(),
+                resolution: res,
+                kind,
+            });
+            texels.extend_from_slice(&map);
+        }
+        self.shadow_texels = texels;
+        Ok(())
+    }
+
+    /// True when the scene has any light: a light, an emitter sample or a visible emitter.
+    /// Without any, nothing can be bounced and ISR adds nothing (which matters for
+    /// [`crate::Sender::Albedo`], whose senders do not depend on the lights).
+    pub fn has_light(&self) -> bool {
+        !self.lights.is_empty() || !self.emitters.entries.is_empty()
+    }
+
+    /// The shadowed irradiance at `p` (unit normal `n`) from all lights.
+    pub fn irradiance(&self, p: Vec3, n: Vec3) -> Vec3 {
+        let mut e = Vec3::ZERO;
+        for light in &self.lights {
+            let l = light.irradiance(p, n);
+            if l == Vec3::ZERO {
+                continue;
+            }
+            let v = match (&light.shadow, self.shadows.enabled) {
+                (Some(map), true) => {
+                    shadow::visibility(&self.shadow_texels, map, p, n, self.extent, &self.shadows)
+                }
+                _ => 1.0,
+            };
+            e += l * v;
+        }
+        e
+    }
+}
+
+/// The emissive-triangle table and `count` stratified point samples of the emitters.
+fn emitters(scene: &Scene, count: u32, extent: f32) -> (EmitterTable, Vec<Light>) {
+    let mut table = EmitterTable {
+        per_triangle: Vec::with_capacity(scene.triangle_count()),
+        entries: Vec::new(),
+    };
+    // (emission, normal, corners, area, weight)
+    let mut tris: Vec<(Vec3, Vec3, [Vec3; 3], f32, f64)> = Vec::new();
+    for mesh in &scene.meshes {
+        for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
+            let material = scene.materials.get(m as usize);
+            let le = material.map_or(Vec3::ZERO, |m| m.emission);
+            if le.max_element() > 0.0 && le.is_finite() {
+                let p = t.map(|i| mesh.positions[i as usize]);
+                let c = (p[1] - p[0]).cross(p[2] - p[0]);
+                let area = 0.5 * c.length();
+                let n = c.normalize_or_zero();
+                table.per_triangle.push(table.entries.len() as u32);
+                table.entries.push((le, n));
+                let w = luminance(le).max(le.max_element() * 1e-3) as f64 * area as f64;
+                if w > 0.0 && n != Vec3::ZERO {
+                    tris.push((le, n, p, area, w));
+                }
+            } else {
+                table.per_triangle.push(u32::MAX);
+            }
+        }
+    }
+    let mut samples = Vec::new();
+    let total: f64 = tris.iter().map(|t| t.4).sum();
+    if count == 0 || tris.is_empty() || total <= 0.0 {
+        return (table, samples);
+    }
+    let mut cdf = Vec::with_capacity(tris.len());
+    let mut acc = 0.0f64;
+    for t in &tris {
+        acc += t.4;
+        cdf.push(acc / total);
+    }
+    for k in 0..count {
+        let u = (k as f64 + 0.5) / count as f64;
+        let i = cdf.partition_point(|&c| c <= u).min(tris.len() - 1);
+        let (le, n, p, area, w) = tris[i];
+        let b = uniform_triangle(r2(k as u64, Vec2::ZERO));
+        let q = p[0] * (1.0 - b.x - b.y) + p[1] * b.x + p[2] * b.y;
+        // The sample stands for area * (total / w) / count of emitter, so that the sum over
+        // samples is an unbiased estimate of the emitters' light.
+        let share = (area as f64 * total / w / count as f64) as f32;
+        samples.push(Light {
+            kind: LightKind::EmitterSample,
+            // Off the emitter's surface, so its own triangle does not shadow it.
+            position: q + n * (1e-4 * extent),
+            direction: n,
+            color: le,
+            radius: 0.0,
+            area: share,
+            shadow: None,
+        });
+    }
+    (table, samples)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use scene_core::builtin;
+
+    #[test]
+    fn emitter_samples_carry_the_emitters_power() {
+        let scene = builtin::scene("cornell").unwrap();
+        let s = IsrScene::new(
+            &scene,
+            &ShadowSettings {
+                enabled: false,
+                emitter_samples: 7,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let samples: Vec<&Light> = s
+            .lights
+            .iter()
+            .filter(|l| l.kind == LightKind::EmitterSample)
+            .collect();
+        assert_eq!(samples.len(), 7);
+        // Sum of sample areas = emitter area (one emission colour).
+        let area: f32 = samples.iter().map(|l| l.area).sum();
+        assert!((area - 0.13 * 0.105).abs() < 1e-3 * area, "{area}");
+        // Far from the light the samples act like a point of intensity L A cos.
+        let p = Vec3::new(0.278, -10.0, 0.28);
+        let e = s.irradiance(p, Vec3::Y);
+        let d2 = (samples[0].position - p).length_squared();
+        let expect = samples[0].color * area / d2;
+        assert!((e - expect).abs().max_element() < 1e-2 * expect.max_element());
+        assert!(s.emitters.entries.len() == 2);
+    }
+
+    #[test]
+    fn point_light_shadows_in_the_cornell_box() {
+        let scene = builtin::scene("cornell-point").unwrap();
+        let s = IsrScene::new(
+            &scene,
+            &ShadowSettings {
+                cube_resolution: 64,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        // Open floor is lit as without shadows; the floor enclosed by the tall block is dark.
+        let open = Vec3::new(0.45, 0.0, 0.1);
+        let lit = s.irradiance(open, Vec3::Y);
+        let unshadowed = s.lights[0].irradiance(open, Vec3::Y);
+        assert!(
+            (lit - unshadowed).abs().max_element() < 0.05 * unshadowed.max_element(),
+            "{lit} vs {unshadowed}"
+        );
+        let under = s.irradiance(Vec3::new(0.37, 0.0, 0.35), Vec3::Y);
+        assert!(
+            under.max_element() < 1e-3 * unshadowed.max_element(),
+            "{under}"
+        );
+        let all_finite = s.shadow_texels.iter().all(|t| t.is_finite());
+        assert!(all_finite);
+    }
+
+    #[test]
+    fn budget_halves_cube_maps_then_errors() {
+        let mut scene = builtin::scene("cornell-point").unwrap();
+        let l = scene.point_lights[0].clone();
+        for _ in 0..63 {
+            scene.point_lights.push(l.clone());
+        }
+        let s = IsrScene::new(
+            &scene,
+            &ShadowSettings {
+                cube_resolution: 256,
+                max_texels: 64 * 6 * 32 * 32,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(s.cube_resolutions.0, 32);
+        let e = IsrScene::new(
+            &scene,
+            &ShadowSettings {
+                max_texels: 1000,
+                ..Default::default()
+            },
+        )
+        .unwrap_err();
+        assert!(matches!(e, IsrError::Budget(_)), "{e}");
+    }
+}

@@ -1,0 +1,365 @@
+//! The parameters of one ISR frame ([`IsrSettings`]) and of the view-independent shadow
+//! maps ([`ShadowSettings`]).
+
+use crate::IsrError;
+
+/// How eq. 25 turns one neighbourhood sample into light arriving at the receiver.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Estimator {
+    /// Eq. 25 exactly as published: `L_P(X) = rho_P (2 pi / N) F_PX L_X` with the
+    /// differential form factor of eq. 6, `F_PX = cos(theta_P) cos(theta_X) A_X / (pi r^2)`,
+    /// and `A_X` the fronto-parallel footprint of one coarse pixel at X's depth (figure 4.4).
+    /// The `1/r^2` singularity is guarded by `r^2 >= A_X` (a patch is never closer than its
+    /// own size). The `2 pi / N` weight makes the term depend on `N` and on the sampling
+    /// radius; it is not an estimate of the one-bounce integral.
+    Thesis,
+    /// The physically consistent point-to-patch estimator:
+    /// `(rho_P / pi) sum L_X cos(theta_P) cos(theta_X) A_X / r^2`, where each of the `N`
+    /// samples stands for `1/N` of the screen-space disk it is drawn from, so `A_X` is that
+    /// share of the disk projected onto the surface at X. A Monte Carlo estimate of the light
+    /// reflected from all surfaces visible inside the disk. The singularity is handled with
+    /// the disk form factor `A cos cos / (pi r^2 + A)`, which tends to `cos cos` (at most 1)
+    /// as `r -> 0` instead of diverging.
+    Patch,
+}
+
+/// What radiance a neighbourhood sample sends (`L_X` of eq. 25).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Sender {
+    /// The thesis: the RGB of the coarse colour (albedo) buffer, independent of the lights.
+    Albedo,
+    /// What eq. 25 means physically: the radiance X reflects from direct light,
+    /// `albedo_X / pi * E_direct(X)` with shadows, computed by the lighting pass on the
+    /// coarse buffer before the ISR pass.
+    Lit,
+}
+
+/// The blur of the coarse ISR/SSAO buffer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Blur {
+    /// Separable Gaussian (the thesis). Background pixels (the stencil mask) take no part.
+    Gaussian,
+    /// Separable Gaussian whose taps are also weighted by how close each tap lies to the
+    /// centre pixel's tangent plane and how well the normals agree, so indirect light does
+    /// not bleed across depth discontinuities.
+    EdgeAware,
+}
+
+/// The world-space radius of the neighbourhood the samples are drawn from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Radius {
+    /// A fraction of the scene's extent (the diagonal of its bounds): the same picture
+    /// whatever the scene's unit.
+    Relative(f32),
+    /// World units (metres).
+    World(f32),
+}
+
+impl Radius {
+    /// The radius in world units for a scene of `extent`.
+    pub fn world(self, extent: f32) -> f32 {
+        match self {
+            Radius::Relative(r) => r * extent,
+            Radius::World(r) => r,
+        }
+    }
+}
+
+/// The parameters of one frame of image-space radiosity.
+///
+/// The defaults follow the thesis where it is unambiguous (`k_ssao = k_isr = 0.5`, section
+/// 4.7; 80 samples, section 5.3.1; Gaussian blur) and the physically sound reading where it
+/// is not (`Patch` estimator, `Lit` senders, `k_dl = 1`: see [`IsrSettings::k_dl`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IsrSettings {
+    /// Compute the indirect (ISR) term. Off together with `ssao` this is the DL baseline.
+    pub indirect: bool,
+    /// Compute screen-space ambient occlusion (eq. 26).
+    pub ssao: bool,
+    /// Neighbourhood samples per coarse pixel, `N` (the thesis used 24, 48 and 80); 1..=256.
+    pub samples: u32,
+    /// How a sample turns into light (eq. 25).
+    pub estimator: Estimator,
+    /// What a sample sends.
+    pub sender: Sender,
+    /// Radius of the sampled neighbourhood.
+    pub radius: Radius,
+    /// Blur of the coarse buffer.
+    pub blur: Blur,
+    /// Blur taps on each side of the centre (0 disables the blur); at most 16.
+    pub blur_radius: u32,
+    /// Standard deviation of the blur's Gaussian, in coarse pixels.
+    pub blur_sigma: f32,
+    /// Guard of the bilateral weight `1 / |z_p - z_i|` (eq. 27), relative to the target
+    /// pixel's depth: the weight is `1 / max(|z_p - z_i|, eps * z_p)`, so equal depths give a
+    /// large finite weight.
+    pub upsample_epsilon: f32,
+    /// Exponent of the optional normal weight `max(n_p . n_i, 0)^k` of the bilateral
+    /// upsampling (0 turns it off, as in the thesis).
+    pub upsample_normal_power: f32,
+    /// Scale of the direct light (eq. 29). In the thesis `k_dl` is the direct lighting
+    /// computed in listing 7 (times the shadow factor); here that lighting is computed
+    /// physically (`albedo / pi * E`) and `k_dl` scales it. 1 keeps it physical; only `k_ssao`
+    /// and `k_isr` are the 0.5 constants of section 4.7.
+    pub k_dl: f32,
+    /// Ambient occlusion power in [0, 1] (eq. 29): the occluded term is multiplied by
+    /// `saturate(accessibility + 1 - k_ssao)`.
+    pub k_ssao: f32,
+    /// Indirect light power (eq. 29), at least 0.
+    pub k_isr: f32,
+    /// Apply ambient occlusion to the indirect term only instead of to the direct term (the
+    /// thesis darkens the direct term, which shadows already account for).
+    pub ao_indirect_only: bool,
+}
+
+impl Default for IsrSettings {
+    fn default() -> Self {
+        Self {
+            indirect: true,
+            ssao: true,
+            samples: 80,
+            estimator: Estimator::Patch,
+            sender: Sender::Lit,
+            radius: Radius::Relative(0.25),
+            blur: Blur::Gaussian,
+            blur_radius: 4,
+            blur_sigma: 2.0,
+            upsample_epsilon: 1e-3,
+            upsample_normal_power: 0.0,
+            k_dl: 1.0,
+            k_ssao: 0.5,
+            k_isr: 0.5,
+            ao_indirect_only: false,
+        }
+    }
+}
+
+impl IsrSettings {
+    /// The thesis' configuration: eq. 25 as published with albedo senders.
+    pub fn thesis() -> Self {
+        Self {
+            estimator: Estimator::Thesis,
+            sender: Sender::Albedo,
+            ..Self::default()
+        }
+    }
+
+    /// The DL baseline of the thesis (`I_DL`): the same pipeline with ISR and SSAO off.
+    pub fn dl() -> Self {
+        Self {
+            indirect: false,
+            ssao: false,
+            ..Self::default()
+        }
+    }
+
+    /// True when neither the indirect term nor AO is computed (the coarse passes are
+    /// skipped).
+    pub fn is_direct_only(&self) -> bool {
+        !self.indirect && !self.ssao
+    }
+
+    /// Checks every parameter; `extent` is the scene's extent for the relative radius.
+    pub fn validate(&self, extent: f32) -> Result<(), IsrError> {
+        let bad = |name: &'static str, value: String, reason: &str| {
+            Err(IsrError::InvalidSetting {
+                name,
+                value,
+                reason: reason.into(),
+            })
+        };
+        if !(1..=MAX_SAMPLES).contains(&self.samples) {
+            return bad(
+                "samples",
+                self.samples.to_string(),
+                "must be in 1..=256 (the thesis used 24, 48, 80)",
+            );
+        }
+        let r = self.radius.world(extent);
+        if !(r.is_finite() && r > 0.0) {
+            return bad(
+                "radius",
+                format!("{:?}", self.radius),
+                "must give a positive finite world radius",
+            );
+        }
+        if self.blur_radius > MAX_BLUR_RADIUS {
+            return bad("blur_radius", self.blur_radius.to_string(), "at most 16");
+        }
+        if !(self.blur_sigma.is_finite() && self.blur_sigma > 0.0) {
+            return bad(
+                "blur_sigma",
+                self.blur_sigma.to_string(),
+                "must be positive",
+            );
+        }
+        if !(self.upsample_epsilon.is_finite() && self.upsample_epsilon > 0.0) {
+            return bad(
+                "upsample_epsilon",
+                self.upsample_epsilon.to_string(),
+                "must be positive (it guards 1/|dz|)",
+            );
+        }
+        if !(self.upsample_normal_power.is_finite() && self.upsample_normal_power >= 0.0) {
+            return bad(
+                "upsample_normal_power",
+                self.upsample_normal_power.to_string(),
+                "must be finite and >= 0",
+            );
+        }
+        if !(self.k_dl.is_finite() && self.k_dl >= 0.0) {
+            return bad("k_dl", self.k_dl.to_string(), "must be finite and >= 0");
+        }
+        if !(0.0..=1.0).contains(&self.k_ssao) {
+            return bad("k_ssao", self.k_ssao.to_string(), "must be in [0, 1]");
+        }
+        if !(self.k_isr.is_finite() && self.k_isr >= 0.0) {
+            return bad("k_isr", self.k_isr.to_string(), "must be finite and >= 0");
+        }
+        Ok(())
+    }
+}
+
+/// Largest [`IsrSettings::samples`].
+pub const MAX_SAMPLES: u32 = 256;
+/// Largest [`IsrSettings::blur_radius`].
+pub const MAX_BLUR_RADIUS: u32 = 16;
+
+/// The exponential shadow maps (eq. 30, listing 8), built once per scene by
+/// [`crate::IsrScene::new`]: they do not depend on the camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowSettings {
+    /// Shadows on; off, every light reaches every surface facing it.
+    pub enabled: bool,
+    /// Texels per side of a directional light's orthographic map.
+    pub directional_resolution: u32,
+    /// Texels per side of each cube-map face of a point light.
+    pub cube_resolution: u32,
+    /// Point samples standing in for the emissive triangles (0: emitters light nothing, they
+    /// are only seen).
+    pub emitter_samples: u32,
+    /// Texels per side of each cube-map face of an emitter sample.
+    pub emitter_cube_resolution: u32,
+    /// The ESM exponent `c` of eq. 30, applied to depths measured in units of the scene's
+    /// extent (so the softness does not depend on the scene's unit). Maps are filtered in
+    /// log space and every exponential is of a non-positive argument, so no value of `c`
+    /// can overflow f32 (the thesis' `exp(90 z)` of a stored depth `z` near 1 would).
+    pub esm_exponent: f32,
+    /// Taps on each side of the log-space Gaussian prefilter of the maps (0: none); at most 4.
+    pub filter_radius: u32,
+    /// Receivers are moved this many shadow-map texels along their normal before the lookup
+    /// (against self-shadowing).
+    pub normal_offset: f32,
+    /// Constant depth bias in shadow-map texels.
+    pub depth_bias: f32,
+    /// Budget of shadow-map texels over all maps. Cube maps are halved in resolution (down to
+    /// 16 texels) until they fit; beyond that [`crate::IsrScene::new`] fails.
+    pub max_texels: u64,
+}
+
+impl Default for ShadowSettings {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            directional_resolution: 1024,
+            cube_resolution: 256,
+            emitter_samples: 16,
+            emitter_cube_resolution: 128,
+            esm_exponent: 200.0,
+            filter_radius: 1,
+            normal_offset: 1.5,
+            depth_bias: 1.0,
+            max_texels: 1 << 25,
+        }
+    }
+}
+
+impl ShadowSettings {
+    /// Checks every parameter.
+    pub fn validate(&self) -> Result<(), IsrError> {
+        let bad = |name: &'static str, value: String, reason: &str| {
+            Err(IsrError::InvalidSetting {
+                name,
+                value,
+                reason: reason.into(),
+            })
+        };
+        for (name, r) in [
+            ("directional_resolution", self.directional_resolution),
+            ("cube_resolution", self.cube_resolution),
+            ("emitter_cube_resolution", self.emitter_cube_resolution),
+        ] {
+            if !(1..=8192).contains(&r) {
+                return bad(name, r.to_string(), "must be in 1..=8192");
+            }
+        }
+        if self.emitter_samples > 4096 {
+            return bad(
+                "emitter_samples",
+                self.emitter_samples.to_string(),
+                "at most 4096",
+            );
+        }
+        if !(self.esm_exponent.is_finite() && self.esm_exponent > 0.0) {
+            return bad(
+                "esm_exponent",
+                self.esm_exponent.to_string(),
+                "must be positive and finite",
+            );
+        }
+        if self.filter_radius > 4 {
+            return bad("filter_radius", self.filter_radius.to_string(), "at most 4");
+        }
+        for (name, v) in [
+            ("normal_offset", self.normal_offset),
+            ("depth_bias", self.depth_bias),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(name, v.to_string(), "must be finite and >= 0");
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_valid_and_bad_values_are_named() {
+        IsrSettings::default().validate(1.0).unwrap();
+        IsrSettings::dl().validate(1.0).unwrap();
+        ShadowSettings::default().validate().unwrap();
+        let e = IsrSettings {
+            samples: 0,
+            ..Default::default()
+        }
+        .validate(1.0)
+        .unwrap_err();
+        assert!(e.to_string().contains("samples"), "{e}");
+        let e = IsrSettings {
+            k_ssao: f32::NAN,
+            ..Default::default()
+        }
+        .validate(1.0)
+        .unwrap_err();
+        assert!(e.to_string().contains("k_ssao"), "{e}");
+        assert!(
+            IsrSettings {
+                radius: Radius::World(-1.0),
+                ..Default::default()
+            }
+            .validate(1.0)
+            .is_err()
+        );
+        assert!(
+            ShadowSettings {
+                esm_exponent: f32::INFINITY,
+                ..Default::default()
+            }
+            .validate()
+            .is_err()
+        );
+    }
+}

@@ -1,0 +1,122 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use isr::{Estimator, IsrInputs, IsrScene, IsrSettings, Sender, ShadowSettings, downsample};
+use scene_core::gbuffer::RayCastRenderer;
+use scene_core::{GBuffer, GBufferRenderer, Image, Scene, View, builtin};
+
+/// Small shadow maps: fast to build in the dev profile.
+pub fn small_shadows() -> ShadowSettings {
+    ShadowSettings {
+        directional_resolution: 256,
+        cube_resolution: 64,
+        emitter_samples: 8,
+        emitter_cube_resolution: 32,
+        ..Default::default()
+    }
+}
+
+/// A scene's G-buffers from camera `camera` at `w x h`.
+pub struct Setup {
+    pub scene: Scene,
+    pub prepared: IsrScene,
+    pub view: View,
+    pub full: GBuffer,
+    pub coarse: GBuffer,
+}
+
+impl Setup {
+    pub fn new(scene: Scene, camera: usize, w: u32, h: u32) -> Self {
+        let prepared = IsrScene::new(&scene, &small_shadows()).unwrap();
+        Self::with_prepared(scene, prepared, camera, w, h)
+    }
+
+    pub fn builtin(name: &str, camera: usize, w: u32, h: u32) -> Self {
+        Self::new(builtin::scene(name).unwrap(), camera, w, h)
+    }
+
+    pub fn with_prepared(scene: Scene, prepared: IsrScene, camera: usize, w: u32, h: u32) -> Self {
+        let cam = scene.cameras[camera].with_aspect(w as f32 / h as f32);
+        let view = View::from_camera(&cam);
+        let full = RayCastRenderer.render(&scene, &view, w, h).unwrap();
+        let coarse = downsample(&full);
+        Self {
+            scene,
+            prepared,
+            view,
+            full,
+            coarse,
+        }
+    }
+
+    pub fn inputs(&self) -> IsrInputs<'_> {
+        IsrInputs {
+            full: &self.full,
+            coarse: &self.coarse,
+            view: &self.view,
+        }
+    }
+
+    pub fn render(&self, settings: &IsrSettings) -> Image {
+        isr::render_image(&self.prepared, &self.inputs(), settings).unwrap()
+    }
+}
+
+/// Every mode combination, named.
+pub fn modes() -> Vec<(&'static str, IsrSettings)> {
+    let mut v = Vec::new();
+    for (name, estimator, sender) in [
+        ("thesis-albedo", Estimator::Thesis, Sender::Albedo),
+        ("thesis-lit", Estimator::Thesis, Sender::Lit),
+        ("patch-albedo", Estimator::Patch, Sender::Albedo),
+        ("patch-lit", Estimator::Patch, Sender::Lit),
+    ] {
+        v.push((
+            name,
+            IsrSettings {
+                estimator,
+                sender,
+                ..Default::default()
+            },
+        ));
+    }
+    v
+}
+
+/// Eq. 19: mean over pixels and channels of |a - b|.
+pub fn mean_error(a: &Image, b: &Image) -> f64 {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| (*p - *q).abs().element_sum() as f64)
+        .sum::<f64>()
+        / (3.0 * a.pixels.len() as f64)
+}
+
+/// Mean of all channels of an image.
+pub fn image_mean(a: &Image) -> f64 {
+    a.pixels.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3.0 * a.pixels.len() as f64)
+}
+
+/// Scales every length of a scene (positions, cameras, lights; point intensities by s^2 so
+/// irradiance is unchanged; radiance of emitters is scale-free).
+pub fn scaled(mut s: Scene, k: f32) -> Scene {
+    for m in &mut s.meshes {
+        for p in &mut m.positions {
+            *p *= k;
+        }
+    }
+    for c in &mut s.cameras {
+        c.position *= k;
+        c.target *= k;
+        c.near *= k;
+        c.far *= k;
+    }
+    for l in &mut s.point_lights {
+        l.position *= k;
+        l.intensity *= k * k;
+        l.radius = l.radius.map(|r| r * k);
+    }
+    s
+}
