@@ -519,8 +519,10 @@ impl GpuContext {
     }
 
     /// Runs `f` inside a validation error scope and turns a captured error into
-    /// [`GpuError::Validation`].
-    fn validated<T>(&self, f: impl FnOnce() -> T) -> Result<T, GpuError> {
+    /// [`GpuError::Validation`] (blocking; on native backends the scope resolves at once).
+    /// Wrap resource and pipeline creation and command submission in it so that a wgpu
+    /// validation failure becomes an error value instead of wgpu's default panic.
+    pub fn validated<T>(&self, f: impl FnOnce() -> T) -> Result<T, GpuError> {
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let value = f();
         match pollster::block_on(scope.pop()) {
