@@ -1,0 +1,598 @@
+//! The GPU G-buffer: a wgpu render pipeline writing albedo + radiation mask, world normal,
+//! linear depth and triangle id in one pass with multiple render targets (thesis figure
+//! 4.1), plus the depth attachment. Shader: `shaders/gbuffer/mrt.wgsl` ([`MRT_WGSL`]).
+//!
+//! The result stays on the GPU as a [`GpuGBuffer`] (formats in
+//! [`GpuGBuffer::COLOR_FORMATS`]); reading it back is the separate, explicit step
+//! [`GpuGBuffer::read_back`]. The [`GBufferRenderer`] implementation of [`GpuRasterizer`]
+//! does both, for callers that want a CPU [`GBuffer`].
+//!
+//! Scenes are uploaded once into a [`GpuPreparedScene`] (the flattened vertex buffer of
+//! [`scene_core::gpu::GpuScene`], per-triangle geometric normals for the two-sided flip, and
+//! the albedo textures as one texel buffer sampled bilinearly in the shader exactly like
+//! [`scene_core::Texture::sample_bilinear`]). The trait implementation keeps the last
+//! prepared scene and re-uploads only when the scene's content fingerprint changes.
+
+use std::borrow::Cow;
+
+use bytemuck::{Pod, Zeroable};
+use rayon::prelude::*;
+use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, GpuScene, GpuVertex};
+use scene_core::view::Projection;
+use scene_core::{Error, GBuffer, GBufferRenderer, Scene, View};
+use wgpu::util::DeviceExt;
+
+use crate::raster::check_target;
+
+/// WGSL source of the G-buffer geometry pass.
+pub const MRT_WGSL: &str = include_str!("../../../shaders/gbuffer/mrt.wgsl");
+
+/// The view uniform of `mrt.wgsl` (96 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct ViewUniform {
+    view_proj: [f32; 16],
+    eye: [f32; 3],
+    inv_far: f32,
+    forward: [f32; 3],
+    orthographic: u32,
+}
+
+impl ViewUniform {
+    fn new(view: &View) -> Self {
+        Self {
+            view_proj: view.view_projection().to_cols_array(),
+            eye: view.eye.to_array(),
+            inv_far: 1.0 / view.far,
+            forward: view.forward.to_array(),
+            orthographic: u32::from(matches!(view.projection, Projection::Orthographic { .. })),
+        }
+    }
+}
+
+/// Where one texture lies in the texel buffer (16 bytes, `TextureInfo` in `mrt.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct TextureInfo {
+    offset: u32,
+    width: u32,
+    height: u32,
+    pad: u32,
+}
+
+/// A scene uploaded for [`GpuRasterizer`].
+#[derive(Debug)]
+pub struct GpuPreparedScene {
+    /// The flattened vertices and materials ([`GpuContext::upload_scene`]).
+    pub geometry: GpuScene,
+    /// One unit geometric normal per triangle (`vec4`, `w` = 0), by global triangle id.
+    pub face_normals: wgpu::Buffer,
+    /// Offset and size of each albedo texture in `texels`.
+    pub texture_infos: wgpu::Buffer,
+    /// Every texture's linear RGB texels (`vec4`, `w` = 1), one texture after another.
+    pub texels: wgpu::Buffer,
+    /// The content fingerprint of the scene it was made from ([`scene_fingerprint`]).
+    pub fingerprint: u64,
+}
+
+impl GpuPreparedScene {
+    /// Uploads `scene`. Errors when a buffer exceeds the device's buffer or storage-binding
+    /// size limits (about 2.8 million triangles per 128 MiB vertex buffer at 48 bytes per
+    /// vertex; per-triangle normals are 16 bytes).
+    pub fn new(ctx: &GpuContext, scene: &Scene) -> Result<Self, GpuError> {
+        let limits = ctx.device.limits();
+        let triangles = scene.triangle_count() as u64;
+        let too_big = |what: &str, bytes: u64, limit: u64| {
+            if bytes > limit {
+                Err(GpuError::Validation(format!(
+                    "scene '{}': {what} needs {bytes} bytes, the device allows {limit}",
+                    scene.name
+                )))
+            } else {
+                Ok(())
+            }
+        };
+        too_big(
+            "the vertex buffer",
+            triangles * 3 * std::mem::size_of::<GpuVertex>() as u64,
+            limits.max_buffer_size,
+        )?;
+        too_big(
+            "the face-normal buffer",
+            triangles * 16,
+            limits.max_storage_buffer_binding_size,
+        )?;
+        let texel_count: u64 = scene
+            .textures
+            .iter()
+            .map(|t| t.width as u64 * t.height as u64)
+            .sum();
+        too_big(
+            "the texel buffer",
+            texel_count * 16,
+            limits.max_storage_buffer_binding_size,
+        )?;
+
+        let mut normals: Vec<[f32; 4]> = Vec::with_capacity(triangles as usize);
+        for mesh in &scene.meshes {
+            let part: Vec<[f32; 4]> = mesh
+                .indices
+                .par_iter()
+                .with_min_len(4096)
+                .map(|idx| {
+                    let p = idx.map(|i| {
+                        mesh.positions
+                            .get(i as usize)
+                            .copied()
+                            .unwrap_or(glam::Vec3::ZERO)
+                    });
+                    let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+                    [n.x, n.y, n.z, 0.0]
+                })
+                .collect();
+            normals.extend(part);
+        }
+        let mut infos = Vec::with_capacity(scene.textures.len());
+        let mut texels: Vec<[f32; 4]> = Vec::with_capacity(texel_count as usize);
+        for t in &scene.textures {
+            let n = t.width as usize * t.height as usize;
+            infos.push(TextureInfo {
+                offset: texels.len() as u32,
+                width: if t.texels.len() == n { t.width } else { 0 },
+                height: if t.texels.len() == n { t.height } else { 0 },
+                pad: 0,
+            });
+            texels.extend(t.texels.iter().take(n).map(|c| [c.x, c.y, c.z, 1.0]));
+        }
+        let geometry = ctx.validated(|| ctx.upload_scene(scene))?;
+        let storage = |label: &str, bytes: &[u8], dummy: &[u8]| {
+            ctx.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    // Empty storage bindings are invalid: upload a placeholder.
+                    contents: if bytes.is_empty() { dummy } else { bytes },
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                })
+        };
+        let dummy4 = [0u8; 16];
+        let (face_normals, texture_infos, texels) = ctx.validated(|| {
+            (
+                storage("face normals", bytemuck::cast_slice(&normals), &dummy4),
+                storage("texture infos", bytemuck::cast_slice(&infos), &dummy4),
+                storage("texels", bytemuck::cast_slice(&texels), &dummy4),
+            )
+        })?;
+        Ok(Self {
+            geometry,
+            face_normals,
+            texture_infos,
+            texels,
+            fingerprint: scene_fingerprint(scene),
+        })
+    }
+}
+
+/// A 64-bit fingerprint of everything the G-buffer depends on: mesh positions, normals,
+/// UVs, indices and material ids, materials and textures (FxHash-style mixing, rayon over
+/// large arrays; about 10 ms for 10^6 triangles on 2 cores). Used to decide whether a
+/// cached [`GpuPreparedScene`] is still valid; a collision (vanishingly unlikely outside
+/// adversarial input) would reuse stale geometry.
+pub fn scene_fingerprint(scene: &Scene) -> u64 {
+    fn mix(h: u64, w: u64) -> u64 {
+        (h.rotate_left(5) ^ w).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95)
+    }
+    fn words(h: u64, bytes: &[u8]) -> u64 {
+        const CHUNK: usize = 1 << 18;
+        let parts: Vec<u64> = bytes
+            .par_chunks(CHUNK)
+            .map(|c| {
+                let mut h = 0x243f_6a88_85a3_08d3u64;
+                let mut it = c.chunks_exact(8);
+                for w in &mut it {
+                    h = mix(h, u64::from_le_bytes(w.try_into().unwrap_or([0; 8])));
+                }
+                for &b in it.remainder() {
+                    h = mix(h, b as u64);
+                }
+                h
+            })
+            .collect();
+        let mut h = mix(h, bytes.len() as u64);
+        for p in parts {
+            h = mix(h, p);
+        }
+        h
+    }
+    let mut h = mix(0, scene.meshes.len() as u64);
+    for m in &scene.meshes {
+        h = words(h, bytemuck::cast_slice(&m.positions));
+        h = words(h, bytemuck::cast_slice(&m.normals));
+        h = match &m.uvs {
+            Some(uvs) => words(mix(h, 1), bytemuck::cast_slice(uvs)),
+            None => mix(h, 0),
+        };
+        h = words(h, bytemuck::cast_slice(&m.indices));
+        h = words(h, bytemuck::cast_slice(&m.material_ids));
+    }
+    h = mix(h, scene.materials.len() as u64);
+    for m in &scene.materials {
+        h = words(h, bytemuck::cast_slice(&[m.albedo, m.emission]));
+        h = mix(h, m.albedo_texture.map_or(u64::MAX, u64::from));
+    }
+    h = mix(h, scene.textures.len() as u64);
+    for t in &scene.textures {
+        h = mix(mix(h, t.width as u64), t.height as u64);
+        h = words(h, bytemuck::cast_slice(&t.texels));
+    }
+    h
+}
+
+/// The wgpu MRT G-buffer renderer.
+///
+/// ```no_run
+/// use gbuffer::GpuRasterizer;
+/// use scene_core::{builtin, gpu::GpuContext, View};
+///
+/// let ctx = GpuContext::new().unwrap();
+/// let scene = builtin::scene("cornell").unwrap();
+/// let view = View::from_camera(&scene.cameras[0]);
+/// let rast = GpuRasterizer::new(&ctx).unwrap();
+/// let prepared = rast.prepare(&scene).unwrap();
+/// let target = rast.render_gpu(&prepared, &view, 512, 512).unwrap(); // stays on the GPU
+/// let cpu_copy = target.read_back(&ctx).unwrap(); // the explicit readback
+/// assert_eq!(cpu_copy.len(), 512 * 512);
+/// ```
+#[derive(Debug)]
+pub struct GpuRasterizer {
+    ctx: GpuContext,
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::RenderPipeline,
+    cache: Option<GpuPreparedScene>,
+}
+
+/// Bytes per sample of the four colour targets (16 + 16 + 4 + 4).
+const MRT_BYTES_PER_SAMPLE: u32 = 40;
+
+impl GpuRasterizer {
+    /// Compiles the pipeline on `ctx`'s device. Errors when the device cannot write the
+    /// four colour targets in one pass (its `max_color_attachment_bytes_per_sample` is
+    /// below 40; Vulkan, DX12 and recent Metal devices allow 64 or more).
+    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+        let limit = ctx.device.limits().max_color_attachment_bytes_per_sample;
+        if limit < MRT_BYTES_PER_SAMPLE {
+            return Err(GpuError::Validation(format!(
+                "the device allows {limit} bytes of colour attachments per sample; the \
+                 G-buffer pass writes {MRT_BYTES_PER_SAMPLE} (albedo, normal, depth, id)"
+            )));
+        }
+        let device = &ctx.device;
+        let (layout, pipeline) = ctx.validated(|| {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("mrt.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(MRT_WGSL)),
+            });
+            let storage =
+                |binding: u32, visibility: wgpu::ShaderStages| wgpu::BindGroupLayoutEntry {
+                    binding,
+                    visibility,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                };
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("gbuffer mrt"),
+                entries: &[
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 0,
+                        visibility: wgpu::ShaderStages::VERTEX,
+                        ty: wgpu::BindingType::Buffer {
+                            ty: wgpu::BufferBindingType::Uniform,
+                            has_dynamic_offset: false,
+                            min_binding_size: wgpu::BufferSize::new(
+                                std::mem::size_of::<ViewUniform>() as u64,
+                            ),
+                        },
+                        count: None,
+                    },
+                    storage(1, wgpu::ShaderStages::FRAGMENT),
+                    storage(2, wgpu::ShaderStages::VERTEX),
+                    storage(3, wgpu::ShaderStages::FRAGMENT),
+                    storage(4, wgpu::ShaderStages::FRAGMENT),
+                ],
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("gbuffer mrt"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let targets = GpuGBuffer::COLOR_FORMATS.map(|format| {
+                Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })
+            });
+            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("gbuffer mrt"),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(GpuVertex::buffer_layout())],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: GpuGBuffer::DEPTH_STENCIL_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &targets,
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            (layout, pipeline)
+        })?;
+        Ok(Self {
+            ctx: ctx.clone(),
+            layout,
+            pipeline,
+            cache: None,
+        })
+    }
+
+    /// The context the pipeline lives on.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// Uploads a scene for [`GpuRasterizer::encode`] and friends.
+    pub fn prepare(&self, scene: &Scene) -> Result<GpuPreparedScene, GpuError> {
+        GpuPreparedScene::new(&self.ctx, scene)
+    }
+
+    /// Records the G-buffer pass for `view` into `encoder`, rendering into `target`
+    /// (cleared first). Nothing runs until the encoder is submitted; several views can be
+    /// recorded into one encoder (each gets its own uniform buffer).
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &GpuPreparedScene,
+        view: &View,
+        target: &GpuGBuffer,
+    ) -> Result<(), Error> {
+        check_target(view, target.width, target.height)?;
+        let device = &self.ctx.device;
+        self.ctx.validated(|| {
+            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("gbuffer view"),
+                contents: bytemuck::bytes_of(&ViewUniform::new(view)),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("gbuffer mrt"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: uniform.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: scene.geometry.materials.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: scene.face_normals.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: scene.texture_infos.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 4,
+                        resource: scene.texels.as_entire_binding(),
+                    },
+                ],
+            });
+            let views = [
+                &target.albedo,
+                &target.normal,
+                &target.depth,
+                &target.triangle_id,
+            ]
+            .map(|t| t.create_view(&Default::default()));
+            let clears = [
+                wgpu::Color::TRANSPARENT,
+                wgpu::Color::TRANSPARENT,
+                wgpu::Color {
+                    r: 1.0,
+                    g: 0.0,
+                    b: 0.0,
+                    a: 0.0,
+                },
+                wgpu::Color {
+                    r: scene_core::BACKGROUND_ID as f64,
+                    g: 0.0,
+                    b: 0.0,
+                    a: 0.0,
+                },
+            ];
+            let attachments: Vec<Option<wgpu::RenderPassColorAttachment<'_>>> = views
+                .iter()
+                .zip(clears)
+                .map(|(view, clear)| {
+                    Some(wgpu::RenderPassColorAttachment {
+                        view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(clear),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })
+                })
+                .collect();
+            let depth_view = target.depth_stencil.create_view(&Default::default());
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("gbuffer mrt"),
+                color_attachments: &attachments,
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            let count = scene.geometry.vertex_count;
+            if count > 0 {
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.set_vertex_buffer(0, scene.geometry.vertices.slice(..));
+                pass.draw(0..count, 0..1);
+            }
+        })?;
+        Ok(())
+    }
+
+    /// Renders `view` into `target` and submits (returns without waiting for the GPU).
+    pub fn render_to(
+        &self,
+        scene: &GpuPreparedScene,
+        view: &View,
+        target: &GpuGBuffer,
+    ) -> Result<(), Error> {
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("gbuffer"),
+            });
+        self.encode(&mut encoder, scene, view, target)?;
+        self.ctx
+            .validated(|| self.ctx.queue.submit([encoder.finish()]))?;
+        Ok(())
+    }
+
+    /// Creates a `width x height` [`GpuGBuffer`], renders `view` into it and submits.
+    pub fn render_gpu(
+        &self,
+        scene: &GpuPreparedScene,
+        view: &View,
+        width: u32,
+        height: u32,
+    ) -> Result<GpuGBuffer, Error> {
+        check_target(view, width, height)?;
+        let target = GpuGBuffer::new(&self.ctx, width, height)?;
+        self.render_to(scene, view, &target)?;
+        Ok(target)
+    }
+
+    /// Renders the five faces of the hemicube of `resolution` at `point` with `normal`
+    /// (views and sizes as [`crate::hemicube`]) into new GPU G-buffers, recorded into one
+    /// command buffer and submitted once (without waiting).
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_hemicube_gpu(
+        &self,
+        scene: &GpuPreparedScene,
+        point: glam::Vec3,
+        normal: glam::Vec3,
+        resolution: u32,
+        near: f32,
+        far: f32,
+    ) -> Result<Vec<(scene_core::HemicubeFace, View, GpuGBuffer)>, Error> {
+        if !(normal.is_finite() && normal.length() > 0.0 && point.is_finite()) {
+            return Err(Error::InvalidArgument(format!(
+                "hemicube at {point} needs a finite non-zero normal (got {normal})"
+            )));
+        }
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("gbuffer hemicube"),
+            });
+        let mut faces = Vec::with_capacity(5);
+        for (face, view) in crate::hemicube::hemicube_views(point, normal, near, far) {
+            let (w, h) = face.size(resolution);
+            check_target(&view, w, h)?;
+            let target = GpuGBuffer::new(&self.ctx, w, h)?;
+            self.encode(&mut encoder, scene, &view, &target)?;
+            faces.push((face, view, target));
+        }
+        self.ctx
+            .validated(|| self.ctx.queue.submit([encoder.finish()]))?;
+        Ok(faces)
+    }
+
+    /// Blocks until all submitted work has finished (for timing).
+    pub fn wait(&self) -> Result<(), GpuError> {
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Readback(format!("device poll failed: {e}")))
+    }
+
+    /// The prepared scene for `scene`, from the cache when its fingerprint matches.
+    fn cached(&mut self, scene: &Scene) -> Result<&GpuPreparedScene, GpuError> {
+        let fingerprint = scene_fingerprint(scene);
+        let stale = self
+            .cache
+            .as_ref()
+            .is_none_or(|c| c.fingerprint != fingerprint);
+        if stale {
+            self.cache = None;
+            self.cache = Some(GpuPreparedScene::new(&self.ctx, scene)?);
+        }
+        self.cache
+            .as_ref()
+            .ok_or_else(|| GpuError::Validation("scene upload vanished".into()))
+    }
+}
+
+impl GBufferRenderer for GpuRasterizer {
+    fn name(&self) -> &str {
+        "gpu"
+    }
+
+    /// Uploads the scene (unless the cached upload has the same fingerprint), renders on
+    /// the GPU and reads the result back.
+    fn render(
+        &mut self,
+        scene: &Scene,
+        view: &View,
+        width: u32,
+        height: u32,
+    ) -> Result<GBuffer, Error> {
+        check_target(view, width, height)?;
+        self.cached(scene)?;
+        let prepared = self
+            .cache
+            .as_ref()
+            .ok_or_else(|| GpuError::Validation("scene upload vanished".into()))?;
+        let target = self.render_gpu(prepared, view, width, height)?;
+        Ok(target.read_back(&self.ctx)?)
+    }
+}

@@ -1,0 +1,839 @@
+//! The CPU G-buffer rasteriser: tiled, rayon-parallel, watertight.
+//!
+//! # Pipeline
+//!
+//! 1. **Transform**: every vertex is multiplied by the view-projection matrix once (rayon
+//!    over vertices).
+//! 2. **Set-up** (rayon over fixed chunks of triangles): trivial frustum rejection, clipping
+//!    against the near plane (clip `z >= 0`, as the GPU does) and, for vertices that would
+//!    land absurdly far outside the image, against a guard band; fan triangulation of the
+//!    clipped polygon; projection to screen space and snapping to a fixed-point grid of
+//!    1/256 pixel ([`SUBPIXEL_BITS`], the precision of most GPUs); rejection of zero-area
+//!    triangles and of triangles that cover no pixel centre; binning into
+//!    [`TILE`] x [`TILE`] pixel tiles. Each chunk bins its own triangles, in order.
+//! 3. **Visibility** (rayon over bands of tile rows): per tile, triangles in global order
+//!    are scanned with exact 64-bit integer edge functions; a pixel centre is covered when
+//!    all three edge functions are positive, or zero on a *top* or *left* edge (the
+//!    top-left fill rule, so a pixel on an edge shared by two triangles belongs to exactly
+//!    one of them). The depth test is `z < stored` on clip-space depth interpolated linearly
+//!    in screen space, the buffer cleared to 1 (exactly the GPU pipeline's `Less` test on a
+//!    depth attachment cleared to 1); ties keep the earlier triangle, like GPU draw order.
+//! 4. **Resolve**: only the winning triangle of each pixel is shaded: perspective-correct
+//!    barycentrics, mapped back to the original (unclipped) triangle, interpolate the
+//!    vertex normals (renormalised; the face normal where they cancel), the UVs (bilinear
+//!    albedo texture lookup) and the linear depth.
+//!
+//! Triangles are two-sided: nothing is culled by winding, and the normal is flipped to face
+//! the viewer when the triangle's geometric normal faces away from the eye (the
+//! convention of [`scene_core::gbuffer::RayCastRenderer`]). Results are bit-identical for
+//! any number of threads: chunk boundaries do not depend on the thread count, each tile is
+//! processed by one thread in global triangle order, and every pixel is computed by the
+//! same sequence of operations.
+
+use glam::{Vec2, Vec3, Vec4};
+use rayon::prelude::*;
+use scene_core::view::Projection;
+use scene_core::{BACKGROUND_ID, Error, GBuffer, GBufferRenderer, Scene, View};
+
+/// Tile edge in pixels.
+pub const TILE: u32 = 32;
+/// Sub-pixel precision of snapped vertex positions: 8 bits, 1/256 pixel.
+pub const SUBPIXEL_BITS: u32 = 8;
+/// Largest width or height a renderer of this crate accepts.
+pub const MAX_TARGET_SIZE: u32 = 16384;
+
+const SUB: i64 = 1 << SUBPIXEL_BITS;
+const HALF: i64 = SUB / 2;
+/// Triangles per set-up chunk (at least); fixed so results do not depend on thread count.
+const MIN_CHUNK: usize = 4096;
+/// At most this many chunks, so per-chunk bins stay small for huge scenes.
+const MAX_CHUNKS: usize = 256;
+/// The guard band keeps screen coordinates within about +-2^19 pixels (vertices beyond
+/// +-2^21 are refused), so snapped coordinates stay below 2^29 in magnitude and edge
+/// functions below 2^61: no 64-bit overflow.
+const GUARD_PIXELS: f32 = (1u32 << 20) as f32;
+
+/// The CPU rasteriser. Stateless; `Default` and `new` give the same value.
+///
+/// ```
+/// use gbuffer::CpuRasterizer;
+/// use scene_core::{builtin, GBufferRenderer, View};
+///
+/// let scene = builtin::scene("cornell").unwrap();
+/// let view = View::from_camera(&scene.cameras[0]);
+/// let g = CpuRasterizer::new().render(&scene, &view, 64, 64).unwrap();
+/// assert_eq!(g.len(), 64 * 64);
+/// // The published camera sees the inside of the box almost everywhere.
+/// assert!(g.background_mask().iter().filter(|&&b| b).count() < 64 * 4);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CpuRasterizer;
+
+impl CpuRasterizer {
+    /// The rasteriser.
+    pub fn new() -> Self {
+        Self
+    }
+
+    /// Renders `scene` from `view` into a `width x height` G-buffer on the calling rayon
+    /// pool (see the module documentation for the conventions).
+    ///
+    /// Errors on a zero or oversized target ([`MAX_TARGET_SIZE`]) and on a view with
+    /// non-finite data or `0 < near < far` violated. Triangles with out-of-range indices
+    /// or material ids, or non-finite positions, are skipped rather than trusted.
+    pub fn render_gbuffer(
+        &self,
+        scene: &Scene,
+        view: &View,
+        width: u32,
+        height: u32,
+    ) -> Result<GBuffer, Error> {
+        check_target(view, width, height)?;
+        let setup = Setup::run(scene, view, width, height);
+        let mut g = GBuffer::background(width, height);
+        let band = (TILE * width) as usize;
+        g.albedo
+            .par_chunks_mut(band)
+            .zip(g.normal.par_chunks_mut(band))
+            .zip(g.depth.par_chunks_mut(band))
+            .zip(g.triangle_id.par_chunks_mut(band))
+            .enumerate()
+            .for_each(|(ty, (((albedo, normal), depth), ids))| {
+                let mut out = BandOut {
+                    albedo,
+                    normal,
+                    depth,
+                    ids,
+                };
+                setup.shade_band(scene, view, ty as u32, &mut out);
+            });
+        Ok(g)
+    }
+
+    /// Diagnostic: for each pixel (row-major), how many triangle fragments cover its centre
+    /// after clipping, with no depth test (fragments beyond the far plane are not counted).
+    /// A closed or tiling mesh seen from one side gives exactly 1 where it covers the image:
+    /// this is how the fill rule is tested.
+    pub fn coverage(
+        &self,
+        scene: &Scene,
+        view: &View,
+        width: u32,
+        height: u32,
+    ) -> Result<Vec<u32>, Error> {
+        check_target(view, width, height)?;
+        let setup = Setup::run(scene, view, width, height);
+        let mut counts = vec![0u32; width as usize * height as usize];
+        counts
+            .par_chunks_mut((TILE * width) as usize)
+            .enumerate()
+            .for_each(|(ty, band)| setup.count_band(ty as u32, band));
+        Ok(counts)
+    }
+}
+
+impl GBufferRenderer for CpuRasterizer {
+    fn name(&self) -> &str {
+        "cpu"
+    }
+
+    fn render(
+        &mut self,
+        scene: &Scene,
+        view: &View,
+        width: u32,
+        height: u32,
+    ) -> Result<GBuffer, Error> {
+        self.render_gbuffer(scene, view, width, height)
+    }
+}
+
+/// Checks a render target size and a view; shared by the CPU and GPU renderers.
+pub(crate) fn check_target(view: &View, width: u32, height: u32) -> Result<(), Error> {
+    if width == 0 || height == 0 {
+        return Err(Error::InvalidArgument(format!(
+            "G-buffer size {width}x{height}: zero-size targets are not allowed"
+        )));
+    }
+    if width > MAX_TARGET_SIZE || height > MAX_TARGET_SIZE {
+        return Err(Error::InvalidArgument(format!(
+            "G-buffer size {width}x{height} exceeds the maximum of {MAX_TARGET_SIZE} per side"
+        )));
+    }
+    check_view(view)
+}
+
+/// Checks that a view can be rasterised: finite data, unit-ish frame, `0 < near < far`,
+/// a projection window of non-zero size.
+pub(crate) fn check_view(view: &View) -> Result<(), Error> {
+    let (l, r, b, t) = match view.projection {
+        Projection::Perspective {
+            left,
+            right,
+            bottom,
+            top,
+        }
+        | Projection::Orthographic {
+            left,
+            right,
+            bottom,
+            top,
+        } => (left, right, bottom, top),
+    };
+    let finite = view.eye.is_finite()
+        && view.forward.is_finite()
+        && view.up.is_finite()
+        && [l, r, b, t, view.near, view.far]
+            .iter()
+            .all(|x| x.is_finite());
+    if !finite {
+        return Err(Error::InvalidArgument(
+            "view has non-finite eye, frame, window or planes".into(),
+        ));
+    }
+    if !(view.near > 0.0 && view.far > view.near) {
+        return Err(Error::InvalidArgument(format!(
+            "view needs 0 < near < far (near {}, far {})",
+            view.near, view.far
+        )));
+    }
+    if r <= l || t <= b {
+        return Err(Error::InvalidArgument(format!(
+            "view window is empty (left {l}, right {r}, bottom {b}, top {t})"
+        )));
+    }
+    if (view.forward.length() - 1.0).abs() > 1e-3
+        || (view.up.length() - 1.0).abs() > 1e-3
+        || view.forward.dot(view.up).abs() > 1e-3
+    {
+        return Err(Error::InvalidArgument(
+            "view forward and up must be orthonormal".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// A clip-space vertex during clipping, with its barycentric coordinates in the original
+/// triangle.
+#[derive(Clone, Copy, Debug)]
+struct ClipVertex {
+    clip: Vec4,
+    bary: Vec3,
+}
+
+/// A triangle ready for scan conversion.
+#[derive(Clone, Copy, Debug)]
+struct Tri {
+    /// Snapped screen positions (1/256 pixel, y down), counter-clockwise on screen so the
+    /// doubled area is positive.
+    xy: [[i32; 2]; 3],
+    /// Clip-space depth `z / w` per vertex.
+    z: [f32; 3],
+    /// Homogeneous barycentric planes: for the pixel centre at NDC `(x, y)`, the
+    /// perspective-correct barycentric weight of vertex `k` is proportional to
+    /// `plane[k] . (x, y, 1)` (the cross product of the other two vertices' clip-space
+    /// `(x, y, w)`). Interpolation uses these unsnapped planes, like GPUs do; only coverage
+    /// and the depth test use the snapped positions.
+    plane: [Vec3; 3],
+    /// Index of the triangle in its mesh.
+    local: u32,
+    /// [`BARY_IDENTITY`], [`BARY_SWAPPED`], or an index into the chunk's `barys`.
+    bary: u32,
+    /// Pixel bounding box `[x0, y0, x1, y1]`, inclusive, inside the image.
+    bbox: [u16; 4],
+}
+
+/// The triangle's vertices are the original ones, in order.
+const BARY_IDENTITY: u32 = u32::MAX;
+/// The original vertices with the second and third exchanged.
+const BARY_SWAPPED: u32 = u32::MAX - 1;
+
+/// The set-up output of one chunk of triangles of one mesh.
+struct Chunk {
+    mesh: u32,
+    tris: Vec<Tri>,
+    /// Barycentric rows (one per set-up vertex) of clipped triangles.
+    barys: Vec<[Vec3; 3]>,
+    /// `bins[bin_start[t]..bin_start[t + 1]]` are the indices into `tris` touching tile `t`.
+    bin_start: Vec<u32>,
+    bins: Vec<u32>,
+}
+
+/// Everything the tile passes need.
+struct Setup {
+    width: u32,
+    height: u32,
+    tiles_x: u32,
+    chunks: Vec<Chunk>,
+    offsets: Vec<u32>,
+}
+
+/// Edge-function coefficients of one edge.
+#[derive(Clone, Copy)]
+struct Edge {
+    /// `E(x, y) = a (x - x0) + b (y - y0)` in 1/256 pixel units.
+    a: i64,
+    b: i64,
+    x0: i64,
+    y0: i64,
+    /// 0 for top and left edges, -1 otherwise.
+    bias: i64,
+}
+
+impl Edge {
+    /// The edge from `p` to `q`; the interior (for a triangle with positive doubled area)
+    /// is where `E > 0`.
+    fn new(p: [i32; 2], q: [i32; 2]) -> Self {
+        let (dx, dy) = (q[0] as i64 - p[0] as i64, q[1] as i64 - p[1] as i64);
+        // With y pointing down, the interior of an edge with dy < 0 lies to its right (a
+        // left edge); a horizontal edge with dx > 0 has the interior below it (a top edge).
+        let top_left = dy < 0 || (dy == 0 && dx > 0);
+        Self {
+            a: -dy,
+            b: dx,
+            x0: p[0] as i64,
+            y0: p[1] as i64,
+            bias: if top_left { 0 } else { -1 },
+        }
+    }
+
+    /// The raw edge function at a point (1/256 pixel units).
+    fn at(&self, x: i64, y: i64) -> i64 {
+        self.a * (x - self.x0) + self.b * (y - self.y0)
+    }
+}
+
+fn pixel_centre(p: u32) -> i64 {
+    p as i64 * SUB + HALF
+}
+
+/// Output slices of one band of tile rows.
+struct BandOut<'a> {
+    albedo: &'a mut [Vec4],
+    normal: &'a mut [Vec3],
+    depth: &'a mut [f32],
+    ids: &'a mut [u32],
+}
+
+impl Setup {
+    fn run(scene: &Scene, view: &View, width: u32, height: u32) -> Setup {
+        let vp = view.view_projection();
+        let clip: Vec<Vec<Vec4>> = scene
+            .meshes
+            .iter()
+            .map(|m| {
+                m.positions
+                    .par_iter()
+                    .with_min_len(4096)
+                    .map(|&p| vp * p.extend(1.0))
+                    .collect()
+            })
+            .collect();
+        let total = scene.triangle_count();
+        let chunk_size = MIN_CHUNK.max(total.div_ceil(MAX_CHUNKS));
+        let mut specs = Vec::new();
+        for (mi, mesh) in scene.meshes.iter().enumerate() {
+            let n = mesh.indices.len();
+            let mut start = 0;
+            while start < n {
+                let end = (start + chunk_size).min(n);
+                specs.push((mi, start, end));
+                start = end;
+            }
+        }
+        let tiles_x = width.div_ceil(TILE);
+        let tiles_y = height.div_ceil(TILE);
+        let ctx = SetupContext {
+            width,
+            height,
+            tiles_x,
+            tiles: (tiles_x * tiles_y) as usize,
+            guard_x: GUARD_PIXELS / width as f32,
+            guard_y: GUARD_PIXELS / height as f32,
+        };
+        let chunks = specs
+            .par_iter()
+            .map(|&(mi, start, end)| ctx.setup_chunk(scene, mi, &clip[mi], start, end))
+            .collect();
+        Setup {
+            width,
+            height,
+            tiles_x,
+            chunks,
+            offsets: scene.mesh_offsets(),
+        }
+    }
+
+    /// The pixel rectangle `[x0, y0, x1, y1]` (inclusive) of tile `(tx, ty)`.
+    fn tile_rect(&self, tx: u32, ty: u32) -> [u32; 4] {
+        [
+            tx * TILE,
+            ty * TILE,
+            ((tx + 1) * TILE).min(self.width) - 1,
+            ((ty + 1) * TILE).min(self.height) - 1,
+        ]
+    }
+
+    /// Calls `f(chunk index, triangle index)` for every triangle binned to tile `t`, in
+    /// global triangle order.
+    fn for_each_in_tile(&self, t: usize, mut f: impl FnMut(usize, usize)) {
+        for (ci, chunk) in self.chunks.iter().enumerate() {
+            let (s, e) = (chunk.bin_start[t] as usize, chunk.bin_start[t + 1] as usize);
+            for &ti in &chunk.bins[s..e] {
+                f(ci, ti as usize);
+            }
+        }
+    }
+
+    /// Visibility and resolve for one band of tiles; writes the band's rows.
+    fn shade_band(&self, scene: &Scene, view: &View, ty: u32, out: &mut BandOut<'_>) {
+        let tile_px = (TILE * TILE) as usize;
+        let mut zbuf = vec![1.0f32; tile_px];
+        let mut winner = vec![u64::MAX; tile_px];
+        let w = self.width as usize;
+        for tx in 0..self.tiles_x {
+            let rect = self.tile_rect(tx, ty);
+            zbuf.fill(1.0);
+            winner.fill(u64::MAX);
+            let t = (ty * self.tiles_x + tx) as usize;
+            self.for_each_in_tile(t, |ci, ti| {
+                let tri = &self.chunks[ci].tris[ti];
+                let key = ((ci as u64) << 32) | ti as u64;
+                scan(tri, rect, |lx, ly, z| {
+                    let i = ly * TILE as usize + lx;
+                    if z < zbuf[i] {
+                        zbuf[i] = z;
+                        winner[i] = key;
+                    }
+                });
+            });
+            for ly in 0..=(rect[3] - rect[1]) as usize {
+                for lx in 0..=(rect[2] - rect[0]) as usize {
+                    let key = winner[ly * TILE as usize + lx];
+                    if key == u64::MAX {
+                        continue;
+                    }
+                    let (px, py) = (rect[0] + lx as u32, rect[1] + ly as u32);
+                    if let Some((a, n, d, id)) = self.resolve(scene, view, key, px, py) {
+                        let o = ly * w + px as usize;
+                        out.albedo[o] = a;
+                        out.normal[o] = n;
+                        out.depth[o] = d;
+                        out.ids[o] = id;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Fragment counts for one band of tiles.
+    fn count_band(&self, ty: u32, band: &mut [u32]) {
+        let w = self.width as usize;
+        for tx in 0..self.tiles_x {
+            let rect = self.tile_rect(tx, ty);
+            let t = (ty * self.tiles_x + tx) as usize;
+            self.for_each_in_tile(t, |ci, ti| {
+                scan(&self.chunks[ci].tris[ti], rect, |lx, ly, z| {
+                    if z < 1.0 {
+                        band[ly * w + rect[0] as usize + lx] += 1;
+                    }
+                });
+            });
+        }
+    }
+
+    /// Shades the winning triangle `key` at pixel `(px, py)`: albedo with mask, normal
+    /// facing the viewer, linear depth, global triangle id.
+    fn resolve(
+        &self,
+        scene: &Scene,
+        view: &View,
+        key: u64,
+        px: u32,
+        py: u32,
+    ) -> Option<(Vec4, Vec3, f32, u32)> {
+        let chunk = &self.chunks[(key >> 32) as usize];
+        let tri = &chunk.tris[(key & 0xffff_ffff) as usize];
+        let ndc = Vec3::new(
+            (px as f32 + 0.5) / self.width as f32 * 2.0 - 1.0,
+            1.0 - (py as f32 + 0.5) / self.height as f32 * 2.0,
+            1.0,
+        );
+        let q = tri.plane.map(|pl| pl.dot(ndc));
+        let qs = q[0] + q[1] + q[2];
+        if qs == 0.0 || !qs.is_finite() {
+            return None;
+        }
+        let b = Vec3::new(q[0] / qs, q[1] / qs, q[2] / qs);
+        let bo = match tri.bary {
+            BARY_IDENTITY => b,
+            BARY_SWAPPED => Vec3::new(b.x, b.z, b.y),
+            i => {
+                let rows = chunk.barys[i as usize];
+                rows[0] * b.x + rows[1] * b.y + rows[2] * b.z
+            }
+        };
+        let mesh = &scene.meshes[chunk.mesh as usize];
+        let idx = mesh.indices[tri.local as usize];
+        let p = idx.map(|i| mesh.positions[i as usize]);
+        let ng = (p[1] - p[0]).cross(p[2] - p[0]);
+        let flip = facing_away(view, ng, p[0]);
+        let bw = bo.to_array();
+        let depth = (0..3)
+            .map(|k| (p[k] - view.eye).dot(view.forward) / view.far * bw[k])
+            .sum::<f32>();
+        let mut n = (0..3)
+            .map(|k| {
+                mesh.normals
+                    .get(idx[k] as usize)
+                    .copied()
+                    .unwrap_or(Vec3::ZERO)
+                    * bw[k]
+            })
+            .sum::<Vec3>()
+            .normalize_or_zero();
+        if n == Vec3::ZERO {
+            n = ng.normalize_or_zero();
+        }
+        if flip {
+            n = -n;
+        }
+        let uv = mesh.uvs.as_ref().map(|uvs| {
+            (0..3)
+                .map(|k| uvs.get(idx[k] as usize).copied().unwrap_or(Vec2::ZERO) * bw[k])
+                .sum::<Vec2>()
+        });
+        let material = mesh.material_ids[tri.local as usize];
+        let albedo = scene.albedo_at(material, uv);
+        let id = self.offsets[chunk.mesh as usize] + tri.local;
+        debug_assert_ne!(id, BACKGROUND_ID);
+        Some((albedo.extend(1.0), n, depth, id))
+    }
+}
+
+/// True when a triangle with (unnormalised) geometric normal `ng` through `p0` shows its
+/// back to the view, so its shading normal must be flipped: the sign of `ng . (p0 - eye)`
+/// for perspective views (constant over the triangle's plane), of `ng . forward` for
+/// orthographic ones.
+pub(crate) fn facing_away(view: &View, ng: Vec3, p0: Vec3) -> bool {
+    match view.projection {
+        Projection::Perspective { .. } => ng.dot(p0 - view.eye) > 0.0,
+        Projection::Orthographic { .. } => ng.dot(view.forward) > 0.0,
+    }
+}
+
+/// Calls `f(local x, local y, z)` for every pixel of `rect` whose centre `tri` covers (top-
+/// left rule), with the fragment's clip-space depth.
+fn scan(tri: &Tri, rect: [u32; 4], mut f: impl FnMut(usize, usize, f32)) {
+    let x0 = (tri.bbox[0] as u32).max(rect[0]);
+    let y0 = (tri.bbox[1] as u32).max(rect[1]);
+    let x1 = (tri.bbox[2] as u32).min(rect[2]);
+    let y1 = (tri.bbox[3] as u32).min(rect[3]);
+    if x0 > x1 || y0 > y1 {
+        return;
+    }
+    let [v0, v1, v2] = tri.xy;
+    let edges = [Edge::new(v1, v2), Edge::new(v2, v0), Edge::new(v0, v1)];
+    let (sx, sy) = (pixel_centre(x0), pixel_centre(y0));
+    let raw = edges.map(|e| e.at(sx, sy));
+    let area = (raw[0] + raw[1] + raw[2]) as f64;
+    // Depth plane: z = sum_k E_k z_k / area, stepped exactly like the edge functions.
+    let zk = tri.z.map(f64::from);
+    let z_at = |e: [f64; 3]| (e[0] * zk[0] + e[1] * zk[1] + e[2] * zk[2]) / area;
+    let z_start = z_at(raw.map(|v| v as f64));
+    let dzdx = z_at(edges.map(|e| (e.a * SUB) as f64));
+    let dzdy = z_at(edges.map(|e| (e.b * SUB) as f64));
+    let mut row = [
+        raw[0] + edges[0].bias,
+        raw[1] + edges[1].bias,
+        raw[2] + edges[2].bias,
+    ];
+    let step_x = edges.map(|e| e.a * SUB);
+    let step_y = edges.map(|e| e.b * SUB);
+    let mut z_row = z_start;
+    for y in y0..=y1 {
+        let mut e = row;
+        let mut z = z_row;
+        for x in x0..=x1 {
+            if (e[0] | e[1] | e[2]) >= 0 {
+                f((x - rect[0]) as usize, (y - rect[1]) as usize, z as f32);
+            }
+            e[0] += step_x[0];
+            e[1] += step_x[1];
+            e[2] += step_x[2];
+            z += dzdx;
+        }
+        row[0] += step_y[0];
+        row[1] += step_y[1];
+        row[2] += step_y[2];
+        z_row += dzdy;
+    }
+}
+
+/// Constants of the set-up stage.
+struct SetupContext {
+    width: u32,
+    height: u32,
+    tiles_x: u32,
+    tiles: usize,
+    /// Guard band half-extents in NDC units.
+    guard_x: f32,
+    guard_y: f32,
+}
+
+/// The plane `dist(clip) >= 0` of one clip stage.
+#[derive(Clone, Copy)]
+enum Plane {
+    Near,
+    Guard { axis: usize, sign: f32, g: f32 },
+}
+
+impl Plane {
+    fn dist(self, c: Vec4) -> f32 {
+        match self {
+            Plane::Near => c.z,
+            Plane::Guard { axis, sign, g } => g * c.w - sign * c[axis],
+        }
+    }
+}
+
+/// Orders two clip vertices canonically (lexicographic on the bit patterns of their clip
+/// coordinates), so an edge shared by two triangles is cut at bit-identical points.
+fn canonical_first(a: &ClipVertex, b: &ClipVertex) -> bool {
+    let ka = a.clip.to_array().map(f32::to_bits);
+    let kb = b.clip.to_array().map(f32::to_bits);
+    ka <= kb
+}
+
+/// Sutherland-Hodgman against one plane.
+fn clip_polygon(input: &[ClipVertex], plane: Plane, out: &mut Vec<ClipVertex>) {
+    out.clear();
+    let n = input.len();
+    for i in 0..n {
+        let a = input[i];
+        let b = input[(i + 1) % n];
+        let (da, db) = (plane.dist(a.clip), plane.dist(b.clip));
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let (p, q, dp, dq) = if canonical_first(&a, &b) {
+                (a, b, da, db)
+            } else {
+                (b, a, db, da)
+            };
+            let t = dp / (dp - dq);
+            out.push(ClipVertex {
+                clip: p.clip + (q.clip - p.clip) * t,
+                bary: p.bary + (q.bary - p.bary) * t,
+            });
+        }
+    }
+}
+
+impl SetupContext {
+    fn setup_chunk(
+        &self,
+        scene: &Scene,
+        mesh_index: usize,
+        clip: &[Vec4],
+        start: usize,
+        end: usize,
+    ) -> Chunk {
+        let mesh = &scene.meshes[mesh_index];
+        let mut chunk = Chunk {
+            mesh: mesh_index as u32,
+            tris: Vec::new(),
+            barys: Vec::new(),
+            bin_start: Vec::new(),
+            bins: Vec::new(),
+        };
+        let mut poly = Vec::with_capacity(12);
+        let mut tmp = Vec::with_capacity(12);
+        for local in start..end {
+            let idx = mesh.indices[local];
+            let material_ok = mesh
+                .material_ids
+                .get(local)
+                .is_some_and(|&m| (m as usize) < scene.materials.len());
+            if !material_ok
+                || idx.iter().any(|&i| i as usize >= clip.len())
+                || idx
+                    .iter()
+                    .any(|&i| mesh.uvs.as_ref().is_some_and(|uvs| i as usize >= uvs.len()))
+            {
+                continue;
+            }
+            let c = idx.map(|i| clip[i as usize]);
+            if !c.iter().all(|v| v.is_finite()) {
+                continue;
+            }
+            // Trivial rejection against the view frustum (near, far, sides).
+            let all = |f: &dyn Fn(Vec4) -> bool| c.iter().all(|&v| f(v));
+            if all(&|v| v.z < 0.0)
+                || all(&|v| v.z > v.w)
+                || all(&|v| v.x > v.w)
+                || all(&|v| v.x < -v.w)
+                || all(&|v| v.y > v.w)
+                || all(&|v| v.y < -v.w)
+            {
+                continue;
+            }
+            let planes = [
+                Plane::Near,
+                Plane::Guard {
+                    axis: 0,
+                    sign: 1.0,
+                    g: self.guard_x,
+                },
+                Plane::Guard {
+                    axis: 0,
+                    sign: -1.0,
+                    g: self.guard_x,
+                },
+                Plane::Guard {
+                    axis: 1,
+                    sign: 1.0,
+                    g: self.guard_y,
+                },
+                Plane::Guard {
+                    axis: 1,
+                    sign: -1.0,
+                    g: self.guard_y,
+                },
+            ];
+            let needs_clip = planes.iter().any(|&pl| c.iter().any(|&v| pl.dist(v) < 0.0));
+            if !needs_clip {
+                self.emit(&mut chunk, local as u32, [c[0], c[1], c[2]], None);
+                continue;
+            }
+            poly.clear();
+            for (k, &v) in c.iter().enumerate() {
+                let mut bary = Vec3::ZERO;
+                bary[k] = 1.0;
+                poly.push(ClipVertex { clip: v, bary });
+            }
+            for &pl in &planes {
+                if poly.iter().any(|v| pl.dist(v.clip) < 0.0) {
+                    clip_polygon(&poly, pl, &mut tmp);
+                    std::mem::swap(&mut poly, &mut tmp);
+                    if poly.len() < 3 {
+                        break;
+                    }
+                }
+            }
+            for k in 1..poly.len().saturating_sub(1) {
+                let (a, b, d) = (poly[0], poly[k], poly[k + 1]);
+                self.emit(
+                    &mut chunk,
+                    local as u32,
+                    [a.clip, b.clip, d.clip],
+                    Some([a.bary, b.bary, d.bary]),
+                );
+            }
+        }
+        self.bin(&mut chunk);
+        chunk
+    }
+
+    /// Projects, snaps and bounds one (possibly clipped) triangle; drops it when it has no
+    /// area or covers no pixel centre.
+    fn emit(&self, chunk: &mut Chunk, local: u32, c: [Vec4; 3], bary: Option<[Vec3; 3]>) {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let mut xy = [[0i32; 2]; 3];
+        let mut z = [0f32; 3];
+        for k in 0..3 {
+            let iw = 1.0 / c[k].w as f64;
+            let sx = (c[k].x as f64 * iw * 0.5 + 0.5) * w;
+            let sy = (0.5 - c[k].y as f64 * iw * 0.5) * h;
+            if !(sx.abs() < 2.0 * GUARD_PIXELS as f64 && sy.abs() < 2.0 * GUARD_PIXELS as f64) {
+                return; // only reachable through w ~ 0 from rounding; nothing to draw
+            }
+            xy[k] = [
+                (sx * SUB as f64).round() as i32,
+                (sy * SUB as f64).round() as i32,
+            ];
+            z[k] = (c[k].z as f64 * iw) as f32;
+        }
+        let mut c = c;
+        let area = Edge::new(xy[0], xy[1]).at(xy[2][0] as i64, xy[2][1] as i64);
+        if area == 0 {
+            return;
+        }
+        let swapped = area < 0;
+        if swapped {
+            xy.swap(1, 2);
+            z.swap(1, 2);
+            c.swap(1, 2);
+        }
+        let h = c.map(|v| glam::DVec3::new(v.x as f64, v.y as f64, v.w as f64));
+        let plane = [h[1].cross(h[2]), h[2].cross(h[0]), h[0].cross(h[1])].map(|p| p.as_vec3());
+        let min_x = xy.iter().map(|p| p[0]).min().unwrap_or(0) as i64;
+        let max_x = xy.iter().map(|p| p[0]).max().unwrap_or(0) as i64;
+        let min_y = xy.iter().map(|p| p[1]).min().unwrap_or(0) as i64;
+        let max_y = xy.iter().map(|p| p[1]).max().unwrap_or(0) as i64;
+        // Pixels whose centre x * 256 + 128 lies in [min, max].
+        let first = |lo: i64| -((-(lo - HALF)).div_euclid(SUB));
+        let last = |hi: i64| (hi - HALF).div_euclid(SUB);
+        let x0 = first(min_x).max(0);
+        let x1 = last(max_x).min(self.width as i64 - 1);
+        let y0 = first(min_y).max(0);
+        let y1 = last(max_y).min(self.height as i64 - 1);
+        if x0 > x1 || y0 > y1 {
+            return;
+        }
+        let code = match bary {
+            None if swapped => BARY_SWAPPED,
+            None => BARY_IDENTITY,
+            Some(mut rows) => {
+                if swapped {
+                    rows.swap(1, 2);
+                }
+                chunk.barys.push(rows);
+                (chunk.barys.len() - 1) as u32
+            }
+        };
+        chunk.tris.push(Tri {
+            xy,
+            z,
+            plane,
+            local,
+            bary: code,
+            bbox: [x0 as u16, y0 as u16, x1 as u16, y1 as u16],
+        });
+    }
+
+    /// Counting sort of the chunk's triangles into tiles (keeping triangle order).
+    fn bin(&self, chunk: &mut Chunk) {
+        let tile_range = |t: &Tri| {
+            let b = t.bbox.map(|v| v as u32 / TILE);
+            (b[0], b[1], b[2], b[3])
+        };
+        let mut counts = vec![0u32; self.tiles + 1];
+        for t in &chunk.tris {
+            let (tx0, ty0, tx1, ty1) = tile_range(t);
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    counts[(ty * self.tiles_x + tx) as usize + 1] += 1;
+                }
+            }
+        }
+        for i in 1..counts.len() {
+            counts[i] += counts[i - 1];
+        }
+        let mut fill = counts.clone();
+        let mut bins = vec![0u32; counts[self.tiles] as usize];
+        for (i, t) in chunk.tris.iter().enumerate() {
+            let (tx0, ty0, tx1, ty1) = tile_range(t);
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    let slot = &mut fill[(ty * self.tiles_x + tx) as usize];
+                    bins[*slot as usize] = i as u32;
+                    *slot += 1;
+                }
+            }
+        }
+        chunk.bin_start = counts;
+        chunk.bins = bins;
+    }
+}

@@ -1,0 +1,159 @@
+// Coarse G-buffer: 2x downsampling in each direction ("4 times smaller", thesis section
+// 4.2), mirroring crates/gbuffer/src/downsample.rs sample for sample.
+//
+// One invocation per coarse pixel (8x8 workgroups). Coarse pixel (X, Y) covers the fine
+// block (2X..2X+1, 2Y..2Y+1), clipped at the fine buffer's edge for odd sizes, so a block
+// has 1, 2 or 4 samples, visited in raster order (top-left, top-right, bottom-left,
+// bottom-right).
+//
+// Modes (uniform `mode`):
+//   0 AVERAGE         the thesis: every channel averaged over the block (background
+//                     included), the normal renormalised; triangle id of the sample whose
+//                     depth is nearest the mean depth.
+//   1 NEAREST_MEDIAN  depth-aware choice: all channels of one sample, the lower median of
+//                     the block's depths (ties broken by raster order). Invents nothing.
+//   2 SURFACE_AVERAGE the lower-median sample's surface: the average of the samples that
+//                     share its background status, lie within a relative depth tolerance
+//                     and have normals within an angle of its normal.
+// Normals that cancel (sum shorter than CANCEL * samples) take the representative sample's
+// normal (zero on background).
+
+@group(0) @binding(0) var src_albedo: texture_2d<f32>;
+@group(0) @binding(1) var src_normal: texture_2d<f32>;
+@group(0) @binding(2) var src_depth: texture_2d<f32>;
+@group(0) @binding(3) var src_id: texture_2d<u32>;
+@group(0) @binding(4) var dst_albedo: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(5) var dst_normal: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(6) var dst_depth: texture_storage_2d<r32float, write>;
+@group(0) @binding(7) var dst_id: texture_storage_2d<r32uint, write>;
+
+struct Params {
+    mode: u32,
+    // Relative depth tolerance and minimum normal cosine of SURFACE_AVERAGE.
+    depth_tolerance: f32,
+    normal_cos: f32,
+    pad: u32,
+}
+@group(0) @binding(8) var<uniform> params: Params;
+
+const BACKGROUND: u32 = 0xffffffffu;
+const CANCEL: f32 = 1e-6;
+
+struct Sample {
+    albedo: vec4<f32>,
+    normal: vec3<f32>,
+    depth: f32,
+    id: u32,
+}
+
+fn load(p: vec2<i32>) -> Sample {
+    var s: Sample;
+    s.albedo = textureLoad(src_albedo, p, 0);
+    s.normal = textureLoad(src_normal, p, 0).xyz;
+    s.depth = textureLoad(src_depth, p, 0).x;
+    s.id = textureLoad(src_id, p, 0).x;
+    return s;
+}
+
+// Unit `sum`, or `fallback` when it (nearly) cancels.
+fn renormalise(sum: vec3<f32>, count: f32, fallback: vec3<f32>) -> vec3<f32> {
+    let len = sqrt(dot(sum, sum));
+    if (len <= CANCEL * count) {
+        return fallback;
+    }
+    return sum * (1.0 / len);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let coarse = textureDimensions(dst_depth);
+    if (gid.x >= coarse.x || gid.y >= coarse.y) {
+        return;
+    }
+    let fine = vec2<i32>(textureDimensions(src_depth));
+    let base = vec2<i32>(gid.xy) * 2;
+    var s: array<Sample, 4>;
+    var n = 0u;
+    for (var dy = 0; dy < 2; dy++) {
+        for (var dx = 0; dx < 2; dx++) {
+            let p = base + vec2<i32>(dx, dy);
+            if (p.x < fine.x && p.y < fine.y) {
+                s[n] = load(p);
+                n++;
+            }
+        }
+    }
+    let count = f32(n);
+
+    // The lower median of the depths: the sample with exactly `(n - 1) / 2` samples before
+    // it in (depth, index) order.
+    let want = (n - 1u) / 2u;
+    var rep = 0u;
+    for (var i = 0u; i < n; i++) {
+        var before = 0u;
+        for (var j = 0u; j < n; j++) {
+            if (s[j].depth < s[i].depth || (s[j].depth == s[i].depth && j < i)) {
+                before++;
+            }
+        }
+        if (before == want) {
+            rep = i;
+        }
+    }
+
+    var albedo = s[rep].albedo;
+    var normal = s[rep].normal;
+    var depth = s[rep].depth;
+    var id = s[rep].id;
+
+    if (params.mode == 0u) {
+        var a = vec4<f32>(0.0);
+        var nsum = vec3<f32>(0.0);
+        var dsum = 0.0;
+        for (var i = 0u; i < n; i++) {
+            a += s[i].albedo;
+            nsum += s[i].normal;
+            dsum += s[i].depth;
+        }
+        depth = dsum / count;
+        var best = 0u;
+        for (var i = 1u; i < n; i++) {
+            if (abs(s[i].depth - depth) < abs(s[best].depth - depth)) {
+                best = i;
+            }
+        }
+        albedo = a / count;
+        id = s[best].id;
+        normal = renormalise(nsum, count, s[best].normal);
+    } else if (params.mode == 2u) {
+        let r = s[rep];
+        let is_bg = r.id == BACKGROUND;
+        var a = vec4<f32>(0.0);
+        var nsum = vec3<f32>(0.0);
+        var dsum = 0.0;
+        var m = 0.0;
+        for (var i = 0u; i < n; i++) {
+            let q = s[i];
+            var same = (q.id == BACKGROUND) == is_bg;
+            if (!is_bg && i != rep) {
+                same = same && abs(q.depth - r.depth) <= params.depth_tolerance * r.depth
+                    && dot(q.normal, r.normal) >= params.normal_cos;
+            }
+            if (same) {
+                a += q.albedo;
+                nsum += q.normal;
+                dsum += q.depth;
+                m += 1.0;
+            }
+        }
+        albedo = a / m;
+        depth = dsum / m;
+        normal = renormalise(nsum, m, r.normal);
+    }
+
+    let c = vec2<i32>(gid.xy);
+    textureStore(dst_albedo, c, albedo);
+    textureStore(dst_normal, c, vec4<f32>(normal, 0.0));
+    textureStore(dst_depth, c, vec4<f32>(depth, 0.0, 0.0, 0.0));
+    textureStore(dst_id, c, vec4<u32>(id, 0u, 0u, 0u));
+}
