@@ -104,6 +104,59 @@ pub fn blur_pass(
         .collect()
 }
 
+/// WGSL source of the GPU pass (`shaders/isr/blur.wgsl`), one direction per dispatch.
+pub const WGSL: &str = include_str!("../../../shaders/isr/blur.wgsl");
+
+/// The GPU pass.
+pub(crate) struct GpuPass {
+    pub pipeline: crate::gpu::Pipeline,
+}
+
+impl GpuPass {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        use crate::gpu::{storage_texture_entry, texture_entry, uniform_entry};
+        Self {
+            pipeline: crate::gpu::Pipeline::new(
+                device,
+                "isr blur",
+                WGSL,
+                &[
+                    uniform_entry(0),
+                    uniform_entry(1),
+                    texture_entry(2, false),
+                    texture_entry(3, false),
+                    texture_entry(4, true),
+                    texture_entry(5, false),
+                    storage_texture_entry(6, wgpu::TextureFormat::Rgba32Float),
+                ],
+            ),
+        }
+    }
+
+    /// `params` selects the direction (`x` = 1 horizontal).
+    pub(crate) fn bind(
+        &self,
+        device: &wgpu::Device,
+        globals: &wgpu::Buffer,
+        params: &wgpu::Buffer,
+        coarse: &scene_core::gpu::GpuGBuffer,
+        input: &wgpu::Texture,
+        out: &wgpu::Texture,
+    ) -> wgpu::BindGroup {
+        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let views = [
+            v(&coarse.normal),
+            v(&coarse.depth),
+            v(&coarse.triangle_id),
+            v(input),
+            v(out),
+        ];
+        let mut res = vec![globals.as_entire_binding(), params.as_entire_binding()];
+        res.extend(views.iter().map(wgpu::BindingResource::TextureView));
+        self.pipeline.bind(device, &res)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -96,6 +96,63 @@ fn block(full: &GBuffer, idx: &[usize]) -> (Vec4, Vec3, f32, u32) {
     (a / count, nrm, z / count, full.triangle_id[rep])
 }
 
+/// WGSL source of the GPU pass (`shaders/isr/downsample.wgsl`).
+pub const WGSL: &str = include_str!("../../../shaders/isr/downsample.wgsl");
+
+/// The GPU pass: reads a full [`scene_core::gpu::GpuGBuffer`], writes the colour textures of
+/// a coarse one.
+pub(crate) struct GpuPass {
+    pub pipeline: crate::gpu::Pipeline,
+}
+
+impl GpuPass {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        use crate::gpu::{storage_texture_entry, texture_entry};
+        use scene_core::gpu::GpuGBuffer;
+        Self {
+            pipeline: crate::gpu::Pipeline::new(
+                device,
+                "isr downsample",
+                WGSL,
+                &[
+                    texture_entry(0, false),
+                    texture_entry(1, false),
+                    texture_entry(2, false),
+                    texture_entry(3, true),
+                    storage_texture_entry(4, GpuGBuffer::ALBEDO_FORMAT),
+                    storage_texture_entry(5, GpuGBuffer::NORMAL_FORMAT),
+                    storage_texture_entry(6, GpuGBuffer::DEPTH_FORMAT),
+                    storage_texture_entry(7, GpuGBuffer::TRIANGLE_ID_FORMAT),
+                ],
+            ),
+        }
+    }
+
+    pub(crate) fn bind(
+        &self,
+        device: &wgpu::Device,
+        full: &scene_core::gpu::GpuGBuffer,
+        coarse: &scene_core::gpu::GpuGBuffer,
+    ) -> wgpu::BindGroup {
+        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let views = [
+            v(&full.albedo),
+            v(&full.normal),
+            v(&full.depth),
+            v(&full.triangle_id),
+            v(&coarse.albedo),
+            v(&coarse.normal),
+            v(&coarse.depth),
+            v(&coarse.triangle_id),
+        ];
+        let res: Vec<wgpu::BindingResource<'_>> = views
+            .iter()
+            .map(wgpu::BindingResource::TextureView)
+            .collect();
+        self.pipeline.bind(device, &res)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

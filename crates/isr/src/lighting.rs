@@ -101,3 +101,100 @@ pub fn compose(
         pixels,
     }
 }
+
+/// WGSL source of the GPU pass (`shaders/isr/lighting.wgsl`); its output is
+/// `rgba32float`, replaced by `rgba16float` for the second pipeline.
+pub const WGSL: &str = include_str!("../../../shaders/isr/lighting.wgsl");
+
+/// The scene's storage buffers the lighting pass reads.
+pub(crate) struct SceneBuffers<'a> {
+    pub lights: &'a wgpu::Buffer,
+    pub shadow_texels: &'a wgpu::Buffer,
+    pub emitter_of: &'a wgpu::Buffer,
+    pub emitters: &'a wgpu::Buffer,
+}
+
+/// The GPU pass, one pipeline per output format (`Rgba32Float`, `Rgba16Float`).
+pub(crate) struct GpuPass {
+    pipelines: [crate::gpu::Pipeline; 2],
+}
+
+impl GpuPass {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        let make = |format: wgpu::TextureFormat, name: &str| {
+            use crate::gpu::{
+                storage_buffer_entry, storage_texture_entry, texture_entry, uniform_entry,
+            };
+            let source = WGSL.replace(
+                "texture_storage_2d<rgba32float, write>",
+                &format!("texture_storage_2d<{name}, write>"),
+            );
+            crate::gpu::Pipeline::new(
+                device,
+                "isr lighting",
+                &source,
+                &[
+                    uniform_entry(0),
+                    uniform_entry(1),
+                    texture_entry(2, false),
+                    texture_entry(3, false),
+                    texture_entry(4, false),
+                    texture_entry(5, true),
+                    texture_entry(6, false),
+                    storage_buffer_entry(7),
+                    storage_buffer_entry(8),
+                    storage_buffer_entry(9),
+                    storage_buffer_entry(10),
+                    storage_texture_entry(11, format),
+                ],
+            )
+        };
+        Self {
+            pipelines: [
+                make(wgpu::TextureFormat::Rgba32Float, "rgba32float"),
+                make(wgpu::TextureFormat::Rgba16Float, "rgba16float"),
+            ],
+        }
+    }
+
+    /// The pipeline writing `format` (`Rgba16Float`, else `Rgba32Float`).
+    pub(crate) fn pipeline(&self, format: wgpu::TextureFormat) -> &crate::gpu::Pipeline {
+        if format == wgpu::TextureFormat::Rgba16Float {
+            &self.pipelines[1]
+        } else {
+            &self.pipelines[0]
+        }
+    }
+}
+
+/// A bind group of `pipeline` (from [`GpuPass::pipeline`]) over G-buffer `g`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn bind(
+    pipeline: &crate::gpu::Pipeline,
+    device: &wgpu::Device,
+    globals: &wgpu::Buffer,
+    params: &wgpu::Buffer,
+    g: &scene_core::gpu::GpuGBuffer,
+    isr: &wgpu::Texture,
+    scene: &SceneBuffers<'_>,
+    out: &wgpu::TextureView,
+) -> wgpu::BindGroup {
+    let v = |t: &wgpu::Texture| t.create_view(&Default::default());
+    let views = [
+        v(&g.albedo),
+        v(&g.normal),
+        v(&g.depth),
+        v(&g.triangle_id),
+        v(isr),
+    ];
+    let mut res = vec![globals.as_entire_binding(), params.as_entire_binding()];
+    res.extend(views.iter().map(wgpu::BindingResource::TextureView));
+    res.extend([
+        scene.lights.as_entire_binding(),
+        scene.shadow_texels.as_entire_binding(),
+        scene.emitter_of.as_entire_binding(),
+        scene.emitters.as_entire_binding(),
+        wgpu::BindingResource::TextureView(out),
+    ]);
+    pipeline.bind(device, &res)
+}

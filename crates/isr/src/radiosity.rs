@@ -122,11 +122,17 @@ fn gather(
     }
     let uv = pixel_uv(x, y, w, h);
     let z0 = g.depth[i];
+    if z0.is_nan() || z0 <= 0.0 {
+        return Vec4::new(0.0, 0.0, 0.0, 1.0);
+    }
     let p0 = screen.world(uv, z0);
     let n0 = usable_normal(g.normal[i], screen.to_viewer(uv));
     let rho = g.albedo[i].truncate() * g.albedo[i].w;
     let n = settings.samples as f32;
-    let rp = screen.plane_radius(z0, radius);
+    // A disk wider than twice the image reaches every pixel from anywhere: clamp there.
+    let rp = screen
+        .plane_radius(z0, radius)
+        .min(2.0 * screen.span_u.max(screen.span_v));
     let radius_px = Vec2::new(rp / screen.span_u * w as f32, rp / screen.span_v * h as f32);
     let disk_share = PI * rp * rp / n;
     let rot = pattern.rotations[((y % 4) * 4 + x % 4) as usize];
@@ -137,7 +143,8 @@ fn gather(
     for o in &pattern.offsets {
         let r = Vec2::new(o.x * rot.x - o.y * rot.y, o.x * rot.y + o.y * rot.x);
         let s = (centre + r * radius_px).floor();
-        if s.x < 0.0 || s.y < 0.0 || s.x >= w as f32 || s.y >= h as f32 {
+        // Written to reject NaN too.
+        if !(s.x >= 0.0 && s.y >= 0.0 && s.x < w as f32 && s.y < h as f32) {
             continue;
         }
         let (sx, sy) = (s.x as u32, s.y as u32);
@@ -147,6 +154,9 @@ fn gather(
         }
         let uvk = pixel_uv(sx, sy, w, h);
         let zk = g.depth[k];
+        if zk.is_nan() || zk <= 0.0 {
+            continue;
+        }
         let xk = screen.world(uvk, zk);
         let nk = usable_normal(g.normal[k], screen.to_viewer(uvk));
         let d = xk - p0;
@@ -207,6 +217,62 @@ fn gather(
         1.0
     };
     gi.extend(access)
+}
+
+/// WGSL source of the GPU pass (`shaders/isr/radiosity.wgsl`).
+pub const WGSL: &str = include_str!("../../../shaders/isr/radiosity.wgsl");
+
+/// The GPU pass.
+pub(crate) struct GpuPass {
+    pub pipeline: crate::gpu::Pipeline,
+}
+
+impl GpuPass {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        use crate::gpu::{
+            storage_buffer_entry, storage_texture_entry, texture_entry, uniform_entry,
+        };
+        Self {
+            pipeline: crate::gpu::Pipeline::new(
+                device,
+                "isr radiosity",
+                WGSL,
+                &[
+                    uniform_entry(0),
+                    storage_buffer_entry(1),
+                    texture_entry(2, false),
+                    texture_entry(3, false),
+                    texture_entry(4, false),
+                    texture_entry(5, true),
+                    texture_entry(6, false),
+                    storage_texture_entry(7, wgpu::TextureFormat::Rgba32Float),
+                ],
+            ),
+        }
+    }
+
+    pub(crate) fn bind(
+        &self,
+        device: &wgpu::Device,
+        globals: &wgpu::Buffer,
+        pattern: &wgpu::Buffer,
+        coarse: &scene_core::gpu::GpuGBuffer,
+        senders: &wgpu::Texture,
+        out: &wgpu::Texture,
+    ) -> wgpu::BindGroup {
+        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let views = [
+            v(&coarse.albedo),
+            v(&coarse.normal),
+            v(&coarse.depth),
+            v(&coarse.triangle_id),
+            v(senders),
+            v(out),
+        ];
+        let mut res = vec![globals.as_entire_binding(), pattern.as_entire_binding()];
+        res.extend(views.iter().map(wgpu::BindingResource::TextureView));
+        self.pipeline.bind(device, &res)
+    }
 }
 
 #[cfg(test)]

@@ -213,16 +213,18 @@ pub fn log_filter(map: &mut [f32], res: u32, faces: usize, radius: u32, c: f32) 
     }
 }
 
-/// Eq. 30 at one texel: `exp(-c max(r - o, 0))` (never of a positive argument).
+/// Eq. 30 at one texel: `exp(-c max(r - o, 0))`, never of a positive argument (and the
+/// argument capped at -100, where the result is below 4e-44, so `c d` may even be infinite).
 pub fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
     let d = (receiver - occluder).max(0.0);
-    (-(c * d)).exp()
+    (-(c * d).min(100.0)).exp()
 }
 
 /// Bilinear PCF of eq. 30 over the four texels around image coordinates `uv` of one face
 /// (listing 8), texels clamped to the face.
 fn pcf(face: &[f32], res: u32, uv: Vec2, c: f32, receiver: f32) -> f32 {
-    let t = uv * res as f32 - Vec2::splat(0.5);
+    // Clamped first, so that receivers far outside the map index safely.
+    let t = (uv * res as f32 - Vec2::splat(0.5)).clamp(Vec2::splat(-1.0), Vec2::splat(res as f32));
     let i0 = t.floor();
     let f = t - i0;
     let last = res as i32 - 1;

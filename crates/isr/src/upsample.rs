@@ -118,6 +118,63 @@ fn upsample_pixel(
     best.map_or(NOTHING, |(_, j)| values[j])
 }
 
+/// WGSL source of the GPU pass (`shaders/isr/upsample.wgsl`).
+pub const WGSL: &str = include_str!("../../../shaders/isr/upsample.wgsl");
+
+/// The GPU pass.
+pub(crate) struct GpuPass {
+    pub pipeline: crate::gpu::Pipeline,
+}
+
+impl GpuPass {
+    pub(crate) fn new(device: &wgpu::Device) -> Self {
+        use crate::gpu::{storage_texture_entry, texture_entry, uniform_entry};
+        Self {
+            pipeline: crate::gpu::Pipeline::new(
+                device,
+                "isr upsample",
+                WGSL,
+                &[
+                    uniform_entry(0),
+                    texture_entry(1, false),
+                    texture_entry(2, false),
+                    texture_entry(3, true),
+                    texture_entry(4, false),
+                    texture_entry(5, false),
+                    texture_entry(6, true),
+                    texture_entry(7, false),
+                    storage_texture_entry(8, wgpu::TextureFormat::Rgba32Float),
+                ],
+            ),
+        }
+    }
+
+    pub(crate) fn bind(
+        &self,
+        device: &wgpu::Device,
+        globals: &wgpu::Buffer,
+        full: &scene_core::gpu::GpuGBuffer,
+        coarse: &scene_core::gpu::GpuGBuffer,
+        values: &wgpu::Texture,
+        out: &wgpu::Texture,
+    ) -> wgpu::BindGroup {
+        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let views = [
+            v(&full.normal),
+            v(&full.depth),
+            v(&full.triangle_id),
+            v(&coarse.normal),
+            v(&coarse.depth),
+            v(&coarse.triangle_id),
+            v(values),
+            v(out),
+        ];
+        let mut res = vec![globals.as_entire_binding()];
+        res.extend(views.iter().map(wgpu::BindingResource::TextureView));
+        self.pipeline.bind(device, &res)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,224 @@
+//! The GPU path against the CPU path (the readable reference) on the built-in scenes, and
+//! its error handling. Skipped without an adapter unless `REQUIRE_GPU` is set (CI runs it
+//! on Mesa's lavapipe).
+
+mod common;
+
+use common::{Setup, image_mean, mean_error, modes, small_shadows};
+use isr::{Backend, Blur, GpuIsr, GpuIsrInputs, IsrError, IsrSettings, IsrTechnique, render_cpu};
+use scene_core::gbuffer::RayCastRenderer;
+use scene_core::gpu::{GpuContext, GpuGBuffer, gpu_test_context};
+use scene_core::{Technique, builtin};
+
+fn all_settings() -> Vec<(&'static str, IsrSettings)> {
+    let mut v = modes();
+    v.push(("dl", IsrSettings::dl()));
+    v.push((
+        "edge-aware, normal weight, AO on indirect, 24 samples",
+        IsrSettings {
+            blur: Blur::EdgeAware,
+            upsample_normal_power: 8.0,
+            ao_indirect_only: true,
+            samples: 24,
+            ..Default::default()
+        },
+    ));
+    v
+}
+
+fn output(ctx: &GpuContext, w: u32, h: u32, format: wgpu::TextureFormat) -> wgpu::Texture {
+    ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("test output"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
+}
+
+#[test]
+fn gpu_matches_cpu_on_the_builtin_scenes() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    eprintln!("GPU tests on {}", ctx.adapter_summary());
+    for name in builtin::SMALL_INSTANCES {
+        let setup = Setup::builtin(name, 0, 96, 72);
+        let mut gpu = GpuIsr::new(&ctx, &setup.prepared).unwrap();
+        for (mode, s) in all_settings() {
+            let cpu = render_cpu(&setup.prepared, &setup.inputs(), &s).unwrap();
+            // The same coarse buffer...
+            let (img, _) = gpu
+                .render_gbuffers(&setup.full, Some(&setup.coarse), &setup.view, &s)
+                .unwrap();
+            let m = image_mean(&cpu.image);
+            let e = mean_error(&cpu.image, &img);
+            assert_eq!(img.non_finite_count(), 0, "{name} {mode}");
+            eprintln!("{name:14} {mode:50} mean {m:.4} rel diff {:.2e}", e / m);
+            assert!(
+                e < 1e-3 * m,
+                "{name} {mode}: mean |cpu - gpu| = {e:.3e}, image mean {m:.4}"
+            );
+            // ... and the coarse buffer downsampled on the GPU.
+            let (img, _) = gpu.render_gbuffer(&setup.full, &setup.view, &s).unwrap();
+            let e = mean_error(&cpu.image, &img);
+            assert!(
+                e < 1e-3 * m,
+                "{name} {mode}, GPU downsample: mean |cpu - gpu| = {e:.3e}, image mean {m:.4}"
+            );
+        }
+    }
+}
+
+#[test]
+fn engine_integration_records_into_the_callers_encoder_and_texture() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let setup = Setup::builtin("cornell", 0, 64, 48);
+    let mut gpu = GpuIsr::new(&ctx, &setup.prepared).unwrap();
+    let full = GpuGBuffer::upload(&ctx, &setup.full).unwrap();
+    let s = IsrSettings::default();
+    let cpu = render_cpu(&setup.prepared, &setup.inputs(), &s)
+        .unwrap()
+        .image;
+    for format in [
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureFormat::Rgba16Float,
+    ] {
+        let target = output(&ctx, 64, 48, format);
+        let inputs = GpuIsrInputs {
+            full: &full,
+            coarse: None,
+            view: &setup.view,
+        };
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        gpu.encode(&mut encoder, &inputs, &s, &target).unwrap();
+        ctx.queue.submit([encoder.finish()]);
+        let bytes = ctx.read_texture_bytes(&target).unwrap();
+        let pixels: Vec<glam::Vec3> = if format == wgpu::TextureFormat::Rgba32Float {
+            bytes
+                .chunks_exact(16)
+                .map(|c| {
+                    let f: [f32; 4] = bytemuck::pod_read_unaligned(c);
+                    glam::Vec3::new(f[0], f[1], f[2])
+                })
+                .collect()
+        } else {
+            bytes
+                .chunks_exact(8)
+                .map(|c| {
+                    let h: [u16; 4] = bytemuck::pod_read_unaligned(c);
+                    glam::Vec3::new(half(h[0]), half(h[1]), half(h[2]))
+                })
+                .collect()
+        };
+        let img = scene_core::Image::from_pixels(64, 48, pixels).unwrap();
+        let tolerance = if format == wgpu::TextureFormat::Rgba16Float {
+            // Half floats carry 11 significant bits.
+            2e-3
+        } else {
+            1e-3
+        };
+        let e = mean_error(&cpu, &img);
+        assert!(e < tolerance * image_mean(&cpu), "{format:?}: {e}");
+    }
+}
+
+/// IEEE half to f32 (normal numbers and zero are enough here).
+fn half(h: u16) -> f32 {
+    let sign = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
+    let exp = ((h >> 10) & 0x1f) as i32;
+    let frac = (h & 0x3ff) as f32;
+    if exp == 0 {
+        sign * frac * 2f32.powi(-24)
+    } else {
+        sign * (1.0 + frac / 1024.0) * 2f32.powi(exp - 15)
+    }
+}
+
+#[test]
+fn bad_outputs_and_inputs_are_typed_errors() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let setup = Setup::builtin("cornell-point", 0, 32, 24);
+    let mut gpu = GpuIsr::new(&ctx, &setup.prepared).unwrap();
+    let full = GpuGBuffer::upload(&ctx, &setup.full).unwrap();
+    let inputs = GpuIsrInputs {
+        full: &full,
+        coarse: None,
+        view: &setup.view,
+    };
+    let s = IsrSettings::default();
+    let wrong_size = output(&ctx, 16, 24, wgpu::TextureFormat::Rgba32Float);
+    assert!(matches!(
+        gpu.render(&inputs, &s, &wrong_size).unwrap_err(),
+        IsrError::SizeMismatch(_)
+    ));
+    let wrong_format = output(&ctx, 32, 24, wgpu::TextureFormat::Rgba8Unorm);
+    assert!(matches!(
+        gpu.render(&inputs, &s, &wrong_format).unwrap_err(),
+        IsrError::Gpu(_)
+    ));
+    let no_storage = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width: 32,
+            height: 24,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING,
+        view_formats: &[],
+    });
+    assert!(gpu.render(&inputs, &s, &no_storage).is_err());
+    let bad = IsrSettings { samples: 0, ..s };
+    let ok = output(&ctx, 32, 24, wgpu::TextureFormat::Rgba32Float);
+    assert!(matches!(
+        gpu.render(&inputs, &bad, &ok).unwrap_err(),
+        IsrError::InvalidSetting { .. }
+    ));
+    // NaN in a CPU G-buffer is caught before upload.
+    let mut nan = setup.full.clone();
+    let i = nan.triangle_id.iter().position(|&t| t != u32::MAX).unwrap();
+    nan.normal[i].x = f32::NAN;
+    assert!(matches!(
+        gpu.render_gbuffer(&nan, &setup.view, &s).unwrap_err(),
+        IsrError::NonFinite { .. }
+    ));
+    // A 1x1 frame.
+    let one = Setup::builtin("cornell", 0, 1, 1);
+    let mut gpu = GpuIsr::new(&ctx, &one.prepared).unwrap();
+    let (img, _) = gpu.render_gbuffer(&one.full, &one.view, &s).unwrap();
+    assert!(img.pixels[0].is_finite());
+}
+
+#[test]
+fn the_technique_runs_on_the_gpu() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let scene = builtin::scene("primitives").unwrap();
+    let mut cpu = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer))
+        .with_shadows(small_shadows());
+    let mut gpu = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer))
+        .with_shadows(small_shadows())
+        .with_backend(Backend::Gpu(ctx));
+    cpu.prepare(&scene).unwrap();
+    gpu.prepare(&scene).unwrap();
+    let a = cpu.render(&scene, &scene.cameras[0], 48, 36).unwrap();
+    let b = gpu.render(&scene, &scene.cameras[0], 48, 36).unwrap();
+    assert!(mean_error(&a, &b) < 1e-3 * image_mean(&a));
+    assert!(gpu.last_timings().lighting > std::time::Duration::ZERO);
+}
