@@ -419,6 +419,9 @@ pub struct DownsampleStats {
     pub invented_normal: usize,
     /// Pixels where the coarse buffer and the direct render disagree on background.
     pub background_mismatch: usize,
+    /// Pixels that are geometry in both the coarse buffer and the direct render (the
+    /// denominator of the means below).
+    pub geometry_pixels: usize,
     /// Pixels, geometry in both, whose depths differ by more than
     /// [`INVENTED_DEPTH_TOLERANCE`] (relative).
     pub depth_mismatch: usize,
@@ -511,6 +514,7 @@ pub fn compare_with_direct(coarse: &GBuffer, direct: &GBuffer, fine: &GBuffer) -
             .sum::<f64>()
             / 3.0;
     }
+    s.geometry_pixels = both;
     if both > 0 {
         s.mean_normal_error_deg = nsum / both as f64;
         s.mean_albedo_error = asum / both as f64;

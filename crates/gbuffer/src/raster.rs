@@ -2,26 +2,32 @@
 //!
 //! # Pipeline
 //!
-//! 1. **Transform**: every vertex is multiplied by the view-projection matrix once (rayon
-//!    over vertices).
-//! 2. **Set-up** (rayon over fixed chunks of triangles): trivial frustum rejection, clipping
+//! 1. **Set-up** (rayon over fixed chunks of triangles): transformation by the
+//!    view-projection matrix (shared vertices give bit-identical results), outcode
+//!    frustum rejection, clipping
 //!    against the near plane (clip `z >= 0`, as the GPU does) and, for vertices that would
 //!    land absurdly far outside the image, against a guard band; fan triangulation of the
 //!    clipped polygon; projection to screen space and snapping to a fixed-point grid of
 //!    1/256 pixel ([`SUBPIXEL_BITS`], the precision of most GPUs); rejection of zero-area
 //!    triangles and of triangles that cover no pixel centre; binning into
 //!    [`TILE`] x [`TILE`] pixel tiles. Each chunk bins its own triangles, in order.
-//! 3. **Visibility** (rayon over bands of tile rows): per tile, triangles in global order
+//! 2. **Visibility** (rayon over bands of tile rows): per tile, triangles in global order
 //!    are scanned with exact 64-bit integer edge functions; a pixel centre is covered when
 //!    all three edge functions are positive, or zero on a *top* or *left* edge (the
 //!    top-left fill rule, so a pixel on an edge shared by two triangles belongs to exactly
 //!    one of them). The depth test is `z < stored` on clip-space depth interpolated linearly
 //!    in screen space, the buffer cleared to 1 (exactly the GPU pipeline's `Less` test on a
 //!    depth attachment cleared to 1); ties keep the earlier triangle, like GPU draw order.
-//! 4. **Resolve**: only the winning triangle of each pixel is shaded: perspective-correct
-//!    barycentrics, mapped back to the original (unclipped) triangle, interpolate the
-//!    vertex normals (renormalised; the face normal where they cancel), the UVs (bilinear
-//!    albedo texture lookup) and the linear depth.
+//! 3. **Resolve**: only the winning triangle of each pixel is shaded: perspective-correct
+//!    barycentrics from the unsnapped clip-space vertices (homogeneous 2D barycentric
+//!    planes, as GPUs interpolate), mapped back to the original (unclipped) triangle,
+//!    interpolate the vertex normals (renormalised; the face normal where they cancel),
+//!    the UVs (bilinear albedo texture lookup) and the linear depth.
+//!
+//! The fill rule makes the *snapped* mesh watertight: no pixel centre on a shared edge is
+//! lost or covered twice, exact ties included. A sub-pixel sliver can flip orientation
+//! when its vertices snap (far away, at grazing angles) and then overlaps its neighbours,
+//! exactly as on GPUs; the depth test still gives every pixel one triangle.
 //!
 //! Triangles are two-sided: nothing is culled by winding, and the normal is flipped to face
 //! the viewer when the triangle's geometric normal faces away from the eye (the
@@ -89,14 +95,45 @@ impl CpuRasterizer {
         height: u32,
     ) -> Result<GBuffer, Error> {
         check_target(view, width, height)?;
+        let n = width as usize * height as usize;
+        // Fresh memory is faulted in by the writing threads, not serially.
+        let mut g = GBuffer {
+            width,
+            height,
+            albedo: par_filled(n, Vec4::ZERO),
+            normal: par_filled(n, Vec3::ZERO),
+            depth: par_filled(n, 1.0),
+            triangle_id: par_filled(n, BACKGROUND_ID),
+        };
+        self.render_into(scene, view, &mut g)?;
+        Ok(g)
+    }
+
+    /// Renders into an existing G-buffer of `target.width x target.height`, overwriting
+    /// every pixel (its channel vectors are resized if their lengths do not match). Reusing
+    /// one target across frames avoids allocating and faulting in ~36 bytes per pixel each
+    /// frame, which at 1024x768 costs more than rasterising a simple scene.
+    pub fn render_into(
+        &self,
+        scene: &Scene,
+        view: &View,
+        target: &mut GBuffer,
+    ) -> Result<(), Error> {
+        let (width, height) = (target.width, target.height);
+        check_target(view, width, height)?;
+        let n = width as usize * height as usize;
+        target.albedo.resize(n, Vec4::ZERO);
+        target.normal.resize(n, Vec3::ZERO);
+        target.depth.resize(n, 1.0);
+        target.triangle_id.resize(n, BACKGROUND_ID);
         let setup = Setup::run(scene, view, width, height);
-        let mut g = GBuffer::background(width, height);
         let band = (TILE * width) as usize;
-        g.albedo
+        target
+            .albedo
             .par_chunks_mut(band)
-            .zip(g.normal.par_chunks_mut(band))
-            .zip(g.depth.par_chunks_mut(band))
-            .zip(g.triangle_id.par_chunks_mut(band))
+            .zip(target.normal.par_chunks_mut(band))
+            .zip(target.depth.par_chunks_mut(band))
+            .zip(target.triangle_id.par_chunks_mut(band))
             .enumerate()
             .for_each(|(ty, (((albedo, normal), depth), ids))| {
                 let mut out = BandOut {
@@ -105,9 +142,9 @@ impl CpuRasterizer {
                     depth,
                     ids,
                 };
-                setup.shade_band(scene, view, ty as u32, &mut out);
+                setup.shade_band(scene, ty as u32, &mut out);
             });
-        Ok(g)
+        Ok(())
     }
 
     /// Diagnostic: for each pixel (row-major), how many triangle fragments cover its centre
@@ -213,6 +250,13 @@ pub(crate) fn check_view(view: &View) -> Result<(), Error> {
     Ok(())
 }
 
+/// A vector of `n` copies of `value`, written by the rayon pool.
+fn par_filled<T: Copy + Send + Sync>(n: usize, value: T) -> Vec<T> {
+    let mut v = Vec::with_capacity(n);
+    v.par_extend(rayon::iter::repeat_n(value, n));
+    v
+}
+
 /// A clip-space vertex during clipping, with its barycentric coordinates in the original
 /// triangle.
 #[derive(Clone, Copy, Debug)]
@@ -235,8 +279,12 @@ struct Tri {
     /// `(x, y, w)`). Interpolation uses these unsnapped planes, like GPUs do; only coverage
     /// and the depth test use the snapped positions.
     plane: [Vec3; 3],
+    /// Linear depth of the original triangle's three vertices (original order).
+    depth: [f32; 3],
     /// Index of the triangle in its mesh.
     local: u32,
+    /// The original triangle shows its back to the view: flip its normals.
+    flip: bool,
     /// [`BARY_IDENTITY`], [`BARY_SWAPPED`], or an index into the chunk's `barys`.
     bary: u32,
     /// Pixel bounding box `[x0, y0, x1, y1]`, inclusive, inside the image.
@@ -263,6 +311,8 @@ struct Chunk {
 struct Setup {
     width: u32,
     height: u32,
+    /// `(2 / width, 2 / height)`: pixel to NDC.
+    ndc_scale: Vec2,
     tiles_x: u32,
     chunks: Vec<Chunk>,
     offsets: Vec<u32>,
@@ -303,6 +353,14 @@ impl Edge {
     }
 }
 
+/// A screen coordinate in pixels to the nearest 1/256 pixel (ties away from zero, like
+/// `f64::round`, without the libm call).
+#[inline]
+fn snap(v: f64) -> i32 {
+    let f = v * SUB as f64;
+    (f + 0.5f64.copysign(f)) as i32
+}
+
 fn pixel_centre(p: u32) -> i64 {
     p as i64 * SUB + HALF
 }
@@ -317,18 +375,6 @@ struct BandOut<'a> {
 
 impl Setup {
     fn run(scene: &Scene, view: &View, width: u32, height: u32) -> Setup {
-        let vp = view.view_projection();
-        let clip: Vec<Vec<Vec4>> = scene
-            .meshes
-            .iter()
-            .map(|m| {
-                m.positions
-                    .par_iter()
-                    .with_min_len(4096)
-                    .map(|&p| vp * p.extend(1.0))
-                    .collect()
-            })
-            .collect();
         let total = scene.triangle_count();
         let chunk_size = MIN_CHUNK.max(total.div_ceil(MAX_CHUNKS));
         let mut specs = Vec::new();
@@ -344,6 +390,8 @@ impl Setup {
         let tiles_x = width.div_ceil(TILE);
         let tiles_y = height.div_ceil(TILE);
         let ctx = SetupContext {
+            view_proj: view.view_projection(),
+            view: *view,
             width,
             height,
             tiles_x,
@@ -353,11 +401,12 @@ impl Setup {
         };
         let chunks = specs
             .par_iter()
-            .map(|&(mi, start, end)| ctx.setup_chunk(scene, mi, &clip[mi], start, end))
+            .map(|&(mi, start, end)| ctx.setup_chunk(scene, mi, start, end))
             .collect();
         Setup {
             width,
             height,
+            ndc_scale: Vec2::new(2.0 / width as f32, 2.0 / height as f32),
             tiles_x,
             chunks,
             offsets: scene.mesh_offsets(),
@@ -385,11 +434,12 @@ impl Setup {
         }
     }
 
-    /// Visibility and resolve for one band of tiles; writes the band's rows.
-    fn shade_band(&self, scene: &Scene, view: &View, ty: u32, out: &mut BandOut<'_>) {
+    /// Visibility and resolve for one band of tiles; writes every pixel of the band's rows.
+    fn shade_band(&self, scene: &Scene, ty: u32, out: &mut BandOut<'_>) {
         let tile_px = (TILE * TILE) as usize;
         let mut zbuf = vec![1.0f32; tile_px];
         let mut winner = vec![u64::MAX; tile_px];
+        let mut cache = ShadeCache::default();
         let w = self.width as usize;
         for tx in 0..self.tiles_x {
             let rect = self.tile_rect(tx, ty);
@@ -410,17 +460,19 @@ impl Setup {
             for ly in 0..=(rect[3] - rect[1]) as usize {
                 for lx in 0..=(rect[2] - rect[0]) as usize {
                     let key = winner[ly * TILE as usize + lx];
-                    if key == u64::MAX {
-                        continue;
-                    }
                     let (px, py) = (rect[0] + lx as u32, rect[1] + ly as u32);
-                    if let Some((a, n, d, id)) = self.resolve(scene, view, key, px, py) {
-                        let o = ly * w + px as usize;
-                        out.albedo[o] = a;
-                        out.normal[o] = n;
-                        out.depth[o] = d;
-                        out.ids[o] = id;
-                    }
+                    let o = ly * w + px as usize;
+                    let shaded = if key == u64::MAX {
+                        None
+                    } else {
+                        self.resolve(scene, &mut cache, key, px, py)
+                    };
+                    let (a, n, d, id) =
+                        shaded.unwrap_or((Vec4::ZERO, Vec3::ZERO, 1.0, BACKGROUND_ID));
+                    out.albedo[o] = a;
+                    out.normal[o] = n;
+                    out.depth[o] = d;
+                    out.ids[o] = id;
                 }
             }
         }
@@ -443,28 +495,36 @@ impl Setup {
     }
 
     /// Shades the winning triangle `key` at pixel `(px, py)`: albedo with mask, normal
-    /// facing the viewer, linear depth, global triangle id.
+    /// facing the viewer, linear depth, global triangle id. `cache` keeps the per-triangle
+    /// data of the last triangle shaded (neighbouring pixels mostly share it).
     fn resolve(
         &self,
         scene: &Scene,
-        view: &View,
+        cache: &mut ShadeCache,
         key: u64,
         px: u32,
         py: u32,
     ) -> Option<(Vec4, Vec3, f32, u32)> {
         let chunk = &self.chunks[(key >> 32) as usize];
         let tri = &chunk.tris[(key & 0xffff_ffff) as usize];
+        if cache.key != key {
+            *cache = ShadeCache::new(scene, chunk, tri, key, &self.offsets);
+        }
         let ndc = Vec3::new(
-            (px as f32 + 0.5) / self.width as f32 * 2.0 - 1.0,
-            1.0 - (py as f32 + 0.5) / self.height as f32 * 2.0,
+            (px as f32 + 0.5) * self.ndc_scale.x - 1.0,
+            1.0 - (py as f32 + 0.5) * self.ndc_scale.y,
             1.0,
         );
-        let q = tri.plane.map(|pl| pl.dot(ndc));
-        let qs = q[0] + q[1] + q[2];
-        if qs == 0.0 || !qs.is_finite() {
+        let q = Vec3::new(
+            tri.plane[0].dot(ndc),
+            tri.plane[1].dot(ndc),
+            tri.plane[2].dot(ndc),
+        );
+        let inv = 1.0 / (q.x + q.y + q.z);
+        if !inv.is_finite() {
             return None;
         }
-        let b = Vec3::new(q[0] / qs, q[1] / qs, q[2] / qs);
+        let b = q * inv;
         let bo = match tri.bary {
             BARY_IDENTITY => b,
             BARY_SWAPPED => Vec3::new(b.x, b.z, b.y),
@@ -473,41 +533,75 @@ impl Setup {
                 rows[0] * b.x + rows[1] * b.y + rows[2] * b.z
             }
         };
+        let bw = bo.to_array();
+        let depth = tri.depth[0] * bw[0] + tri.depth[1] * bw[1] + tri.depth[2] * bw[2];
+        let mut n =
+            (cache.normals[0] * bw[0] + cache.normals[1] * bw[1] + cache.normals[2] * bw[2])
+                .normalize_or_zero();
+        if n == Vec3::ZERO {
+            n = cache.face_normal;
+        }
+        if tri.flip {
+            n = -n;
+        }
+        let albedo = match (cache.constant_albedo, cache.uvs) {
+            (Some(a), _) => a,
+            (None, Some(uv)) => {
+                let uv = uv[0] * bw[0] + uv[1] * bw[1] + uv[2] * bw[2];
+                scene.albedo_at(cache.material, Some(uv))
+            }
+            (None, None) => scene.albedo_at(cache.material, None),
+        };
+        Some((albedo.extend(1.0), n, depth, cache.id))
+    }
+}
+
+/// Per-triangle shading data, cached across neighbouring pixels.
+struct ShadeCache {
+    key: u64,
+    normals: [Vec3; 3],
+    face_normal: Vec3,
+    uvs: Option<[Vec2; 3]>,
+    material: u32,
+    /// The albedo when it does not vary over the triangle (no texture or no UVs).
+    constant_albedo: Option<Vec3>,
+    id: u32,
+}
+
+impl Default for ShadeCache {
+    fn default() -> Self {
+        Self {
+            key: u64::MAX,
+            normals: [Vec3::ZERO; 3],
+            face_normal: Vec3::ZERO,
+            uvs: None,
+            material: 0,
+            constant_albedo: None,
+            id: BACKGROUND_ID,
+        }
+    }
+}
+
+impl ShadeCache {
+    fn new(scene: &Scene, chunk: &Chunk, tri: &Tri, key: u64, offsets: &[u32]) -> Self {
         let mesh = &scene.meshes[chunk.mesh as usize];
         let idx = mesh.indices[tri.local as usize];
         let p = idx.map(|i| mesh.positions[i as usize]);
-        let ng = (p[1] - p[0]).cross(p[2] - p[0]);
-        let flip = facing_away(view, ng, p[0]);
-        let bw = bo.to_array();
-        let depth = (0..3)
-            .map(|k| (p[k] - view.eye).dot(view.forward) / view.far * bw[k])
-            .sum::<f32>();
-        let mut n = (0..3)
-            .map(|k| {
-                mesh.normals
-                    .get(idx[k] as usize)
-                    .copied()
-                    .unwrap_or(Vec3::ZERO)
-                    * bw[k]
-            })
-            .sum::<Vec3>()
-            .normalize_or_zero();
-        if n == Vec3::ZERO {
-            n = ng.normalize_or_zero();
-        }
-        if flip {
-            n = -n;
-        }
-        let uv = mesh.uvs.as_ref().map(|uvs| {
-            (0..3)
-                .map(|k| uvs.get(idx[k] as usize).copied().unwrap_or(Vec2::ZERO) * bw[k])
-                .sum::<Vec2>()
-        });
         let material = mesh.material_ids[tri.local as usize];
-        let albedo = scene.albedo_at(material, uv);
-        let id = self.offsets[chunk.mesh as usize] + tri.local;
-        debug_assert_ne!(id, BACKGROUND_ID);
-        Some((albedo.extend(1.0), n, depth, id))
+        let uvs = mesh
+            .uvs
+            .as_ref()
+            .map(|uvs| idx.map(|i| uvs.get(i as usize).copied().unwrap_or(Vec2::ZERO)));
+        let textured = scene.materials[material as usize].albedo_texture.is_some();
+        Self {
+            key,
+            normals: idx.map(|i| mesh.normals.get(i as usize).copied().unwrap_or(Vec3::ZERO)),
+            face_normal: (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero(),
+            uvs,
+            material,
+            constant_albedo: (!textured || uvs.is_none()).then(|| scene.albedo_at(material, None)),
+            id: offsets[chunk.mesh as usize] + tri.local,
+        }
     }
 }
 
@@ -572,6 +666,8 @@ fn scan(tri: &Tri, rect: [u32; 4], mut f: impl FnMut(usize, usize, f32)) {
 
 /// Constants of the set-up stage.
 struct SetupContext {
+    view_proj: glam::Mat4,
+    view: View,
     width: u32,
     height: u32,
     tiles_x: u32,
@@ -632,18 +728,13 @@ fn clip_polygon(input: &[ClipVertex], plane: Plane, out: &mut Vec<ClipVertex>) {
 }
 
 impl SetupContext {
-    fn setup_chunk(
-        &self,
-        scene: &Scene,
-        mesh_index: usize,
-        clip: &[Vec4],
-        start: usize,
-        end: usize,
-    ) -> Chunk {
+    fn setup_chunk(&self, scene: &Scene, mesh_index: usize, start: usize, end: usize) -> Chunk {
         let mesh = &scene.meshes[mesh_index];
         let mut chunk = Chunk {
             mesh: mesh_index as u32,
-            tris: Vec::new(),
+            // Most triangles give one set-up triangle at most; untouched capacity costs
+            // only address space.
+            tris: Vec::with_capacity(end - start),
             barys: Vec::new(),
             bin_start: Vec::new(),
             bins: Vec::new(),
@@ -657,28 +748,40 @@ impl SetupContext {
                 .get(local)
                 .is_some_and(|&m| (m as usize) < scene.materials.len());
             if !material_ok
-                || idx.iter().any(|&i| i as usize >= clip.len())
+                || idx.iter().any(|&i| i as usize >= mesh.positions.len())
                 || idx
                     .iter()
                     .any(|&i| mesh.uvs.as_ref().is_some_and(|uvs| i as usize >= uvs.len()))
             {
                 continue;
             }
-            let c = idx.map(|i| clip[i as usize]);
+            // Shared vertices transform to bit-identical clip coordinates (same inputs,
+            // same operations), which the watertight set-up relies on.
+            let p = idx.map(|i| mesh.positions[i as usize]);
+            let c = p.map(|p| self.view_proj * p.extend(1.0));
             if !c.iter().all(|v| v.is_finite()) {
                 continue;
             }
-            // Trivial rejection against the view frustum (near, far, sides).
-            let all = |f: &dyn Fn(Vec4) -> bool| c.iter().all(|&v| f(v));
-            if all(&|v| v.z < 0.0)
-                || all(&|v| v.z > v.w)
-                || all(&|v| v.x > v.w)
-                || all(&|v| v.x < -v.w)
-                || all(&|v| v.y > v.w)
-                || all(&|v| v.y < -v.w)
-            {
+            // Outcodes: bits 0-5 outside the frustum (near, far, sides) for trivial
+            // rejection, bits 6-10 outside the near plane or the guard band (clip needed).
+            let code = |v: Vec4| {
+                let (gx, gy) = (self.guard_x * v.w, self.guard_y * v.w);
+                u32::from(v.z < 0.0)
+                    | u32::from(v.z > v.w) << 1
+                    | u32::from(v.x > v.w) << 2
+                    | u32::from(v.x < -v.w) << 3
+                    | u32::from(v.y > v.w) << 4
+                    | u32::from(v.y < -v.w) << 5
+                    | u32::from(v.x > gx) << 6
+                    | u32::from(v.x < -gx) << 7
+                    | u32::from(v.y > gy) << 8
+                    | u32::from(v.y < -gy) << 9
+            };
+            let codes = c.map(code);
+            if codes[0] & codes[1] & codes[2] & 0x3f != 0 {
                 continue;
             }
+            let needs_clip = (codes[0] | codes[1] | codes[2]) & 0x3c1 != 0;
             let planes = [
                 Plane::Near,
                 Plane::Guard {
@@ -702,9 +805,8 @@ impl SetupContext {
                     g: self.guard_y,
                 },
             ];
-            let needs_clip = planes.iter().any(|&pl| c.iter().any(|&v| pl.dist(v) < 0.0));
             if !needs_clip {
-                self.emit(&mut chunk, local as u32, [c[0], c[1], c[2]], None);
+                self.emit(&mut chunk, local as u32, &p, [c[0], c[1], c[2]], None);
                 continue;
             }
             poly.clear();
@@ -727,6 +829,7 @@ impl SetupContext {
                 self.emit(
                     &mut chunk,
                     local as u32,
+                    &p,
                     [a.clip, b.clip, d.clip],
                     Some([a.bary, b.bary, d.bary]),
                 );
@@ -738,7 +841,14 @@ impl SetupContext {
 
     /// Projects, snaps and bounds one (possibly clipped) triangle; drops it when it has no
     /// area or covers no pixel centre.
-    fn emit(&self, chunk: &mut Chunk, local: u32, c: [Vec4; 3], bary: Option<[Vec3; 3]>) {
+    fn emit(
+        &self,
+        chunk: &mut Chunk,
+        local: u32,
+        p: &[Vec3; 3],
+        c: [Vec4; 3],
+        bary: Option<[Vec3; 3]>,
+    ) {
         let (w, h) = (self.width as f64, self.height as f64);
         let mut xy = [[0i32; 2]; 3];
         let mut z = [0f32; 3];
@@ -749,10 +859,7 @@ impl SetupContext {
             if !(sx.abs() < 2.0 * GUARD_PIXELS as f64 && sy.abs() < 2.0 * GUARD_PIXELS as f64) {
                 return; // only reachable through w ~ 0 from rounding; nothing to draw
             }
-            xy[k] = [
-                (sx * SUB as f64).round() as i32,
-                (sy * SUB as f64).round() as i32,
-            ];
+            xy[k] = [snap(sx), snap(sy)];
             z[k] = (c[k].z as f64 * iw) as f32;
         }
         let mut c = c;
@@ -782,6 +889,7 @@ impl SetupContext {
         if x0 > x1 || y0 > y1 {
             return;
         }
+        let view = &self.view;
         let code = match bary {
             None if swapped => BARY_SWAPPED,
             None => BARY_IDENTITY,
@@ -797,7 +905,9 @@ impl SetupContext {
             xy,
             z,
             plane,
+            depth: p.map(|p| (p - view.eye).dot(view.forward) / view.far),
             local,
+            flip: facing_away(view, (p[1] - p[0]).cross(p[2] - p[0]), p[0]),
             bary: code,
             bbox: [x0 as u16, y0 as u16, x1 as u16, y1 as u16],
         });
