@@ -7,6 +7,8 @@
 //! - `reference`: render a scene with the reference path tracer to EXR + PNG.
 //! - `export-gltf`: write a built-in scene as glTF.
 //! - `bench reference`: rays per second of the reference path tracer.
+//! - `bench gbuffer`: G-buffer ms per frame (CPU and GPU), downsampling passes and quality,
+//!   position reconstruction micro-benchmark.
 
 mod bench;
 mod checks;
@@ -87,7 +89,7 @@ enum Command {
     },
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
-        /// What to benchmark: `reference`.
+        /// What to benchmark: `reference` or `gbuffer`.
         what: String,
         /// Worker threads.
         #[arg(long, default_value_t = 2)]
@@ -240,7 +242,10 @@ fn run(cli: Cli) -> Result<(), String> {
             repeats,
         } => match what.as_str() {
             "reference" => bench::reference(threads, repeats),
-            other => Err(format!("unknown benchmark '{other}' (known: reference)")),
+            "gbuffer" => bench::gbuffer(threads, repeats),
+            other => Err(format!(
+                "unknown benchmark '{other}' (known: reference, gbuffer)"
+            )),
         },
     }
 }
