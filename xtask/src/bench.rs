@@ -19,6 +19,150 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
+/// `cargo xtask bench isr`: ISR per-frame milliseconds at 1024x768 (512x384 coarse) with 24,
+/// 48 and 80 samples, split by pass, on the CPU (`threads` workers) and the GPU (whatever
+/// adapter wgpu picks; lavapipe without a GPU); DL (direct light only) for comparison.
+/// Medians of `repeats` frames after one warm-up.
+pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
+    use isr::{GpuIsr, GpuIsrInputs, IsrInputs, IsrScene, IsrSettings, PassTimings};
+    use scene_core::GBufferRenderer;
+    use scene_core::gbuffer::RayCastRenderer;
+    use scene_core::gpu::{GpuContext, GpuGBuffer};
+
+    let (w, h) = (1024u32, 768u32);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+        .map_err(|e| e.to_string())?;
+    let gpu = match GpuContext::new() {
+        Ok(ctx) => Some(ctx),
+        Err(e) => {
+            println!("no GPU figures: {e}");
+            None
+        }
+    };
+    let err = |e: isr::IsrError| e.to_string();
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    // Per-pass medians of a list of frame timings.
+    let medians = |frames: &[PassTimings]| -> [f64; 7] {
+        let col = |f: &dyn Fn(&PassTimings) -> std::time::Duration| {
+            median(frames.iter().map(|t| ms(f(t))).collect())
+        };
+        [
+            col(&|t| t.downsample),
+            col(&|t| t.senders),
+            col(&|t| t.radiosity),
+            col(&|t| t.blur),
+            col(&|t| t.upsample),
+            col(&|t| t.lighting),
+            col(&|t| t.total()),
+        ]
+    };
+    let row = |label: &str, m: [f64; 7]| {
+        println!(
+            "{label:<26} {:>10.2} {:>9.2} {:>10.2} {:>8.2} {:>9.2} {:>9.2} {:>9.2}",
+            m[0], m[1], m[2], m[3], m[4], m[5], m[6]
+        );
+    };
+    println!(
+        "ISR at {w}x{h} output, {}x{} coarse; CPU on {threads} thread(s); GPU: {}; median of {repeats} frames after 1 warm-up (ms)",
+        w / 2,
+        h / 2,
+        gpu.as_ref()
+            .map_or("none".to_string(), |c| c.adapter_summary())
+    );
+    for name in ["corridor", "cornell"] {
+        let scene = builtin::scene(name).map_err(|e| e.to_string())?;
+        let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
+        let t0 = Instant::now();
+        let prepared = pool
+            .install(|| IsrScene::new(&scene, &isr::ShadowSettings::default()))
+            .map_err(err)?;
+        let prepare = t0.elapsed();
+        let full = RayCastRenderer
+            .render(&scene, &view, w, h)
+            .map_err(|e| e.to_string())?;
+        println!(
+            "\n{name}: {} lights (emitter samples included), shadow maps built in {:.0} ms ({} texels)",
+            prepared.lights.len(),
+            ms(prepare),
+            prepared.shadow_texels.len()
+        );
+        println!(
+            "{:<26} {:>10} {:>9} {:>10} {:>8} {:>9} {:>9} {:>9}",
+            "", "downsample", "senders", "ISR+SSAO", "blur", "upsample", "lighting", "frame"
+        );
+        let configs: Vec<(String, IsrSettings)> = [24u32, 48, 80]
+            .iter()
+            .map(|&n| {
+                (
+                    format!("ISR {n} samples"),
+                    IsrSettings {
+                        samples: n,
+                        ..Default::default()
+                    },
+                )
+            })
+            .chain([("DL".to_string(), IsrSettings::dl())])
+            .collect();
+        for (label, s) in &configs {
+            let mut frames = Vec::new();
+            for i in 0..=repeats {
+                let frame = pool.install(|| {
+                    let t = Instant::now();
+                    let coarse = isr::downsample(&full);
+                    let down = t.elapsed();
+                    let inputs = IsrInputs {
+                        full: &full,
+                        coarse: &coarse,
+                        view: &view,
+                    };
+                    isr::render_cpu(&prepared, &inputs, s).map(|f| PassTimings {
+                        downsample: down,
+                        ..f.timings
+                    })
+                });
+                let t = frame.map_err(err)?;
+                if i > 0 {
+                    frames.push(t);
+                }
+            }
+            row(&format!("CPU {label}"), medians(&frames));
+        }
+        let Some(ctx) = &gpu else {
+            continue;
+        };
+        let mut g = GpuIsr::new(ctx, &prepared).map_err(err)?;
+        let gfull = GpuGBuffer::upload(ctx, &full).map_err(|e| e.to_string())?;
+        let out = g.output_texture(w, h).map_err(err)?;
+        let inputs = GpuIsrInputs {
+            full: &gfull,
+            coarse: None,
+            view: &view,
+        };
+        for (label, s) in &configs {
+            let mut frames = Vec::new();
+            let mut whole = Vec::new();
+            for i in 0..=repeats {
+                let t = g.render_timed(&inputs, s, &out).map_err(err)?;
+                let start = Instant::now();
+                g.render(&inputs, s, &out).map_err(err)?;
+                g.wait().map_err(err)?;
+                if i > 0 {
+                    frames.push(t);
+                    whole.push(ms(start.elapsed()));
+                }
+            }
+            row(&format!("GPU {label}"), medians(&frames));
+            println!("{:<26} one submit per frame: {:.2}", "", median(whole));
+        }
+    }
+    println!(
+        "\n(GPU per-pass figures submit and wait for each pass; 'one submit per frame' is the whole frame in one command buffer.)"
+    );
+    Ok(())
+}
+
 /// Benchmarks the reference path tracer on `cornell` and `many-boxes` at about 10^6
 /// triangles with `threads` workers.
 pub fn reference(threads: usize, repeats: usize) -> Result<(), String> {
@@ -110,8 +254,15 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
             .map_or("none".to_string(), |c| c.adapter_summary())
     );
     println!(
-        "{:<22} {:>10} {:>12} {:>12} {:>14} {:>12} {:>16}",
-        "scene", "triangles", "CPU ms", "GPU ms", "GPU readback", "GPU upload", "GPU trait+read"
+        "{:<22} {:>10} {:>10} {:>12} {:>12} {:>14} {:>12} {:>16}",
+        "scene",
+        "triangles",
+        "CPU ms",
+        "CPU trait",
+        "GPU ms",
+        "GPU readback",
+        "GPU upload",
+        "GPU trait+read"
     );
     let rast = match &gpu {
         Some(ctx) => Some(GpuRasterizer::new(ctx).map_err(gerr)?),
@@ -125,12 +276,19 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
     for name in &scenes {
         let scene = builtin::scene(name).map_err(|e| e.to_string())?;
         let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
+        // Steady state: one target reused frame after frame (like the GPU's).
+        let mut target = scene_core::GBuffer::background(w, h);
         let cpu_ms = time_ms(repeats, || {
-            pool.install(|| CpuRasterizer.render_gbuffer(&scene, &view, w, h))
+            pool.install(|| CpuRasterizer.render_into(&scene, &view, &mut target))
+                .map_err(err)
+        })?;
+        // The GBufferRenderer path: a new G-buffer per call.
+        let cpu_trait_ms = time_ms(repeats, || {
+            pool.install(|| CpuRasterizer.render(&scene, &view, w, h))
                 .map(|_| ())
                 .map_err(err)
         })?;
-        let mut cols = vec![format!("{cpu_ms:>12.2}")];
+        let mut cols = vec![format!("{cpu_ms:>10.2}"), format!("{cpu_trait_ms:>12.2}")];
         if let (Some(ctx), Some(rast)) = (&gpu, &rast) {
             let t0 = Instant::now();
             let prepared = rast.prepare(&scene).map_err(gerr)?;
@@ -168,6 +326,9 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
     let fine = pool
         .install(|| CpuRasterizer.render_gbuffer(&scene, &view, w, h))
         .map_err(err)?;
+    println!(
+        "(CPU ms: render_into a reused target; CPU trait: GBufferRenderer::render, a new G-buffer per frame; GPU ms: the MRT pass into a reused GpuGBuffer, waited for; GPU readback: GpuGBuffer::read_back; GPU upload: scene upload, once; GPU trait+read: GBufferRenderer::render with the cached upload, incl. fingerprint, new targets and readback)"
+    );
     println!();
     println!("downsampling {w}x{h} -> {}x{} (corridor)", w / 2, h / 2);
     println!("{:<22} {:>10} {:>10}", "mode", "CPU ms", "GPU ms");

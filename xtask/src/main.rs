@@ -7,6 +7,7 @@
 //! - `reference`: render a scene with the reference path tracer to EXR + PNG.
 //! - `export-gltf`: write a built-in scene as glTF.
 //! - `bench reference`: rays per second of the reference path tracer.
+//! - `bench isr`: ISR ms per frame by pass at 1024x768, 24/48/80 samples, CPU and GPU.
 //! - `bench gbuffer`: G-buffer ms per frame (CPU and GPU), downsampling passes and quality,
 //!   position reconstruction micro-benchmark.
 
@@ -89,7 +90,7 @@ enum Command {
     },
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
-        /// What to benchmark: `reference` or `gbuffer`.
+        /// What to benchmark: `reference`, `gbuffer` or `isr`.
         what: String,
         /// Worker threads.
         #[arg(long, default_value_t = 2)]
@@ -242,9 +243,10 @@ fn run(cli: Cli) -> Result<(), String> {
             repeats,
         } => match what.as_str() {
             "reference" => bench::reference(threads, repeats),
+            "isr" => bench::isr(threads, repeats),
             "gbuffer" => bench::gbuffer(threads, repeats),
             other => Err(format!(
-                "unknown benchmark '{other}' (known: reference, gbuffer)"
+                "unknown benchmark '{other}' (known: reference, gbuffer, isr)"
             )),
         },
     }

@@ -578,6 +578,22 @@ impl GpuIsr {
         &self.ctx
     }
 
+    /// A `width x height` `Rgba32Float` texture usable as [`GpuIsr::render`]'s output (with
+    /// `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC` usage).
+    pub fn output_texture(&self, width: u32, height: u32) -> Result<wgpu::Texture, IsrError> {
+        self.ctx.check_texture_size(width, height)?;
+        Ok(rgba_texture(&self.ctx, "isr output", width, height))
+    }
+
+    /// Blocks until the device has finished all submitted work (for timing).
+    pub fn wait(&self) -> Result<(), IsrError> {
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Readback(format!("device poll failed: {e}")).into())
+    }
+
     /// Records one frame into `encoder` (queue writes of the frame's uniforms happen now
     /// and apply at the next submit, so submit one frame before encoding the next). Nothing
     /// is read back. `output` must be `full`'s size, `Rgba32Float` or `Rgba16Float`, with

@@ -62,6 +62,8 @@ pub use settings::{Blur, Estimator, IsrSettings, Radius, Sender, ShadowSettings}
 pub use technique::{Backend, DlTechnique, IsrTechnique};
 
 pub use scene_core;
+/// The wgpu this crate's GPU path is built on (use it for the textures you hand in).
+pub use wgpu;
 
 /// An error of the ISR crate.
 #[derive(Debug, thiserror::Error)]
