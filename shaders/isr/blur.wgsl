@@ -99,6 +99,15 @@ fn view_scale(depth: f32) -> f32 {
     }
     return depth * g.eye_far.w;
 }
+// The normal if usable, else the direction to the viewer (computed only then).
+fn normal_or_viewer(n: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
+    let l2 = dot(n, n);
+    if (l2 > MIN_NORMAL_LEN2 && l2 <= MAX_FINITE) {
+        return n / sqrt(l2);
+    }
+    return to_viewer(uv);
+}
+
 // ---- end of shared declarations ----
 
 const EDGE_PLANE_SIGMA: f32 = 0.05;
@@ -137,7 +146,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (edge) {
         let zc = textureLoad(depth_tex, p, 0).x;
         pc = world(uv, zc);
-        nc = usable_normal(textureLoad(normal_tex, p, 0).xyz, to_viewer(uv));
+        nc = normal_or_viewer(textureLoad(normal_tex, p, 0).xyz, uv);
         plane_scale = view_scale(zc) * EDGE_PLANE_SIGMA;
     }
     let radius = i32(g.config.w);
@@ -162,7 +171,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (edge && k != 0) {
             let uvt = pixel_uv(t, size);
             let pt = world(uvt, textureLoad(depth_tex, t, 0).x);
-            let nt = usable_normal(textureLoad(normal_tex, t, 0).xyz, to_viewer(uvt));
+            let nt = normal_or_viewer(textureLoad(normal_tex, t, 0).xyz, uvt);
             let d = dot(nc, pt - pc) / max(plane_scale, MIN_POSITIVE);
             let cn = max(dot(nc, nt), 0.0);
             wt *= exp(-(d * d)) * cn * cn;

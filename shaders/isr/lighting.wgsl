@@ -102,6 +102,15 @@ fn view_scale(depth: f32) -> f32 {
     }
     return depth * g.eye_far.w;
 }
+// The normal if usable, else the direction to the viewer (computed only then).
+fn normal_or_viewer(n: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
+    let l2 = dot(n, n);
+    if (l2 > MIN_NORMAL_LEN2 && l2 <= MAX_FINITE) {
+        return n / sqrt(l2);
+    }
+    return to_viewer(uv);
+}
+
 // ---- end of shared declarations ----
 
 const KIND_POINT: u32 = 0u;
@@ -202,7 +211,10 @@ fn irradiance(l: Light, p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
 
 // Eq. 30 at one texel, never of a positive argument.
 fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
-    let d = max(receiver - occluder, 0.0);
+    let d = receiver - occluder;
+    if (d <= 0.0) {
+        return 1.0;
+    }
     return exp(-min(c * d, 100.0));
 }
 

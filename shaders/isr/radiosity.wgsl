@@ -105,6 +105,15 @@ fn view_scale(depth: f32) -> f32 {
     }
     return depth * g.eye_far.w;
 }
+// The normal if usable, else the direction to the viewer (computed only then).
+fn normal_or_viewer(n: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
+    let l2 = dot(n, n);
+    if (l2 > MIN_NORMAL_LEN2 && l2 <= MAX_FINITE) {
+        return n / sqrt(l2);
+    }
+    return to_viewer(uv);
+}
+
 // ---- end of shared declarations ----
 
 @group(0) @binding(0) var<uniform> g: Globals;
@@ -137,7 +146,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let p0 = world(uv, z0);
-    let n0 = usable_normal(textureLoad(normal_tex, p, 0).xyz, to_viewer(uv));
+    let n0 = normal_or_viewer(textureLoad(normal_tex, p, 0).xyz, uv);
     let a0 = textureLoad(albedo_tex, p, 0);
     let rho = a0.rgb * a0.a;
     let samples = g.config.x;
@@ -172,7 +181,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             continue;
         }
         let xk = world(uvk, zk);
-        let nk = usable_normal(textureLoad(normal_tex, sp, 0).xyz, to_viewer(uvk));
+        let nk = normal_or_viewer(textureLoad(normal_tex, sp, 0).xyz, uvk);
         let d = xk - p0;
         let r2 = dot(d, d);
         if (!(r2 > 0.0 && r2 <= MAX_FINITE)) {

@@ -99,6 +99,15 @@ fn view_scale(depth: f32) -> f32 {
     }
     return depth * g.eye_far.w;
 }
+// The normal if usable, else the direction to the viewer (computed only then).
+fn normal_or_viewer(n: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
+    let l2 = dot(n, n);
+    if (l2 > MIN_NORMAL_LEN2 && l2 <= MAX_FINITE) {
+        return n / sqrt(l2);
+    }
+    return to_viewer(uv);
+}
+
 // ---- end of shared declarations ----
 
 const VANISHED: f32 = 1e-30;

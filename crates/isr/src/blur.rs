@@ -12,7 +12,7 @@ use glam::Vec4;
 use rayon::prelude::*;
 use scene_core::GBuffer;
 
-use crate::geometry::{Screen, pixel_uv, usable_normal};
+use crate::geometry::{Screen, normal_or_viewer, pixel_uv};
 use crate::settings::{Blur, IsrSettings};
 
 /// Tangent-plane distance, relative to the view depth, at which an edge-aware tap's weight
@@ -65,7 +65,7 @@ pub fn blur_pass(
                 let (pc, nc, scale) = if edge {
                     (
                         screen.world(uv, g.depth[i]),
-                        usable_normal(g.normal[i], screen.to_viewer(uv)),
+                        normal_or_viewer(g.normal[i], screen, uv),
                         screen.scale(g.depth[i]) * EDGE_PLANE_SIGMA,
                     )
                 } else {
@@ -90,7 +90,7 @@ pub fn blur_pass(
                     if edge && k != 0 {
                         let uvt = pixel_uv(tx as u32, ty as u32, w, h);
                         let pt = screen.world(uvt, g.depth[t]);
-                        let nt = usable_normal(g.normal[t], screen.to_viewer(uvt));
+                        let nt = normal_or_viewer(g.normal[t], screen, uvt);
                         let d = nc.dot(pt - pc) / scale.max(f32::MIN_POSITIVE);
                         let cn = nc.dot(nt).max(0.0);
                         wt *= (-(d * d)).exp() * cn * cn;

@@ -177,6 +177,17 @@ pub fn usable_normal(n: Vec3, fallback: Vec3) -> Vec3 {
     }
 }
 
+/// `n` if it is a usable normal, otherwise the direction towards the viewer at `uv` (computed
+/// only then).
+pub fn normal_or_viewer(n: Vec3, screen: &Screen, uv: Vec2) -> Vec3 {
+    let l2 = n.length_squared();
+    if l2 > MIN_NORMAL_LEN2 && l2.is_finite() {
+        n / l2.sqrt()
+    } else {
+        screen.to_viewer(uv)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,7 +17,7 @@ use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 use scene_core::{GBuffer, Image};
 
-use crate::geometry::{Screen, pixel_uv, usable_normal};
+use crate::geometry::{Screen, normal_or_viewer, pixel_uv, usable_normal};
 use crate::lights::IsrScene;
 use crate::settings::IsrSettings;
 
@@ -43,7 +43,7 @@ pub fn senders(scene: &IsrScene, screen: &Screen, g: &GBuffer) -> Vec<Vec3> {
                 }
                 let uv = pixel_uv(x, y, w, h);
                 let p = screen.world(uv, g.depth[i]);
-                let n = usable_normal(g.normal[i], screen.to_viewer(uv));
+                let n = normal_or_viewer(g.normal[i], screen, uv);
                 g.albedo[i].truncate() * FRAC_1_PI * scene.irradiance(p, n)
             })
         })

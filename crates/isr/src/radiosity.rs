@@ -38,7 +38,7 @@ use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use scene_core::GBuffer;
 
-use crate::geometry::{Screen, pixel_uv, usable_normal};
+use crate::geometry::{Screen, normal_or_viewer, pixel_uv};
 use crate::settings::{Estimator, IsrSettings, Sender};
 
 /// The 4x4 Bayer matrix ordering the 16 per-pixel rotations.
@@ -126,7 +126,7 @@ fn gather(
         return Vec4::new(0.0, 0.0, 0.0, 1.0);
     }
     let p0 = screen.world(uv, z0);
-    let n0 = usable_normal(g.normal[i], screen.to_viewer(uv));
+    let n0 = normal_or_viewer(g.normal[i], screen, uv);
     let rho = g.albedo[i].truncate() * g.albedo[i].w;
     let n = settings.samples as f32;
     // A disk wider than twice the image reaches every pixel from anywhere: clamp there.
@@ -158,7 +158,7 @@ fn gather(
             continue;
         }
         let xk = screen.world(uvk, zk);
-        let nk = usable_normal(g.normal[k], screen.to_viewer(uvk));
+        let nk = normal_or_viewer(g.normal[k], screen, uvk);
         let d = xk - p0;
         let r2 = d.length_squared();
         if !(r2 > 0.0 && r2.is_finite()) {

@@ -216,7 +216,11 @@ pub fn log_filter(map: &mut [f32], res: u32, faces: usize, radius: u32, c: f32) 
 /// Eq. 30 at one texel: `exp(-c max(r - o, 0))`, never of a positive argument (and the
 /// argument capped at -100, where the result is below 4e-44, so `c d` may even be infinite).
 pub fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
-    let d = (receiver - occluder).max(0.0);
+    let d = receiver - occluder;
+    if d <= 0.0 {
+        // Lit: the common case, without an exp.
+        return 1.0;
+    }
     (-(c * d).min(100.0)).exp()
 }
 
