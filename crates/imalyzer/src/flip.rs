@@ -448,22 +448,23 @@ impl Pair<'_> {
     /// The exposure range HDR-FLIP uses: `(c_start, c_stop, count)`.
     pub fn hdr_exposures(&self, options: &FlipOptions) -> Result<(f32, f32, usize), CompareError> {
         // Rec. 709 luminance with its customary rounded weights (flip-evaluator's).
-        let lum_row = Vec3::new(0.2126, 0.7152, 0.0722);
-        let mut lum: Vec<f32> = (0..self.checked.len())
+        // (in f64: values near f32::MAX must not overflow to infinity).
+        let lum_row = DVec3::new(0.2126, 0.7152, 0.0722);
+        let mut lum: Vec<f64> = (0..self.checked.len())
             .filter(|&i| self.is_used(i))
-            .map(|i| lum_row.dot(self.reference.pixels[i].max(Vec3::ZERO)))
+            .map(|i| lum_row.dot(self.reference.pixels[i].max(Vec3::ZERO).as_dvec3()))
             .collect();
         let mid = lum.len() / 2;
-        let (_, &mut median, _) = lum.select_nth_unstable_by(mid, f32::total_cmp);
-        let max = lum.iter().copied().fold(0.0f32, f32::max);
+        let (_, &mut median, _) = lum.select_nth_unstable_by(mid, f64::total_cmp);
+        let max = lum.iter().copied().fold(0.0f64, f64::max);
         let x85 = exposure_at_target();
         let eps = f32::EPSILON as f64;
         let start = options
             .start_exposure
-            .unwrap_or((x85 / (max as f64).max(eps)).log2() as f32);
+            .unwrap_or((x85 / max.max(eps)).log2() as f32);
         let stop = options
             .stop_exposure
-            .unwrap_or((x85 / (median as f64).max(eps)).log2() as f32);
+            .unwrap_or((x85 / median.max(eps)).log2() as f32);
         if !(start.is_finite() && stop.is_finite() && start <= stop) {
             return Err(CompareError::InvalidArgument(format!(
                 "HDR-FLIP exposures must be finite with start <= stop, got {start} and {stop}"

@@ -17,7 +17,9 @@
 //!   narrower or lower than 11 pixels have no such interior: their mean is taken over the
 //!   whole map.
 
-use scene_core::{Image, luminance};
+use rayon::prelude::*;
+use scene_core::Image;
+use scene_core::glam::Vec3;
 
 use crate::error::CompareError;
 use crate::filter::{Border, separable};
@@ -84,8 +86,13 @@ impl Pair<'_> {
         }
         let (w, h) = (self.width() as usize, self.height() as usize);
         let (a, b) = self.filled_for_filters();
-        let x: Vec<f64> = a.iter().map(|&p| luminance(p) as f64).collect();
-        let y: Vec<f64> = b.iter().map(|&p| luminance(p) as f64).collect();
+        // Eq. 17 in f64, so that values near f32::MAX stay finite.
+        let lum = |p: &Vec3| {
+            let p = p.as_dvec3();
+            0.27 * p.x + 0.67 * p.y + 0.06 * p.z
+        };
+        let x: Vec<f64> = a.par_iter().map(lum).collect();
+        let y: Vec<f64> = b.par_iter().map(lum).collect();
         let k = window();
         let blur = |v: &[f64]| separable(v, w, &k, &k, Border::Reflect);
         let mx = blur(&x);
@@ -95,6 +102,7 @@ impl Pair<'_> {
         let mxy = blur(&x.iter().zip(&y).map(|(p, q)| p * q).collect::<Vec<_>>());
         let (c1, c2) = ((K1 * l).powi(2), (K2 * l).powi(2));
         let s: Vec<f64> = (0..w * h)
+            .into_par_iter()
             .map(|i| {
                 let (ux, uy) = (mx[i], my[i]);
                 let vx = mxx[i] - ux * ux;

@@ -562,3 +562,28 @@ fn metrics_by_name() {
         );
     }
 }
+
+#[test]
+fn extreme_finite_values_give_finite_results() {
+    // Largest, smallest and subnormal finite values, negative values, single pixels.
+    let mut a = Image::filled(12, 12, Vec3::splat(0.5));
+    a.set(1, 1, Vec3::splat(f32::MAX));
+    a.set(2, 2, Vec3::splat(f32::MIN_POSITIVE));
+    a.set(3, 3, Vec3::splat(1e-42));
+    let mut b = Image::filled(12, 12, Vec3::splat(0.25));
+    b.set(1, 1, Vec3::new(-f32::MAX, 0.0, f32::MAX));
+    b.set(4, 4, Vec3::splat(-3.0));
+    let one_a = Image::filled(1, 1, Vec3::splat(0.3));
+    let one_b = Image::filled(1, 1, Vec3::splat(f32::MAX));
+    for (x, y) in [(&a, &b), (&b, &a), (&one_a, &one_b)] {
+        let p = Pair::new(x, y).unwrap();
+        for m in Measure::ALL {
+            let v = p.evaluate(m, &Default::default()).unwrap();
+            assert!(!v.value.is_nan(), "{m:?} = {}", v.value);
+            if let Some(map) = v.map {
+                assert!(map.iter().all(|e| !e.is_nan()), "{m:?} map");
+            }
+        }
+        assert!(quality(x, x, y).is_ok());
+    }
+}
