@@ -58,9 +58,27 @@ fn configurations() -> Vec<(&'static str, IsrSettings)> {
                 ..base
             },
         ),
-        ("+24 samples", IsrSettings { samples: 24, ..base }),
-        ("+48 samples", IsrSettings { samples: 48, ..base }),
-        ("+no AO", IsrSettings { ssao: false, ..base }),
+        (
+            "+24 samples",
+            IsrSettings {
+                samples: 24,
+                ..base
+            },
+        ),
+        (
+            "+48 samples",
+            IsrSettings {
+                samples: 48,
+                ..base
+            },
+        ),
+        (
+            "+no AO",
+            IsrSettings {
+                ssao: false,
+                ..base
+            },
+        ),
         (
             "+k_isr 1, no AO",
             IsrSettings {
@@ -93,7 +111,7 @@ fn isr_is_closer_to_the_reference_than_dl_on_every_default_camera() {
     for name in ["cornell-point", "primitives", "corridor"] {
         let scene = builtin::scene(name).unwrap();
         let prepared = IsrScene::new(&scene, &ShadowSettings::default()).unwrap();
-        for (ci, camera) in scene.cameras.iter().enumerate() {
+        for camera in &scene.cameras {
             let view = View::from_camera(&camera.with_aspect(w as f32 / h as f32));
             let settings = ReferenceSettings {
                 width: w,
