@@ -65,7 +65,8 @@ pub fn downsample(full: &GBuffer) -> GBuffer {
     out
 }
 
-/// One coarse texel from the non-background samples `idx` of its block.
+/// One coarse texel (section 4.2's `DownsampleBuffer`) from the non-background samples
+/// `idx` of its block.
 fn block(full: &GBuffer, idx: &[usize]) -> (Vec4, Vec3, f32, u32) {
     let Some(&first) = idx.first() else {
         return (Vec4::ZERO, Vec3::ZERO, 1.0, BACKGROUND_ID);

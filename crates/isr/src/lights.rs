@@ -46,7 +46,8 @@ pub struct Light {
 
 impl Light {
     /// Unshadowed irradiance at `p` on a surface of unit normal `n` (two-sided surfaces:
-    /// `n` faces the viewer).
+    /// `n` faces the viewer): the `k_dl` factor of listing 7 before shadowing, with eq. 16's
+    /// falloff for point lights that have a radius.
     pub fn irradiance(&self, p: Vec3, n: Vec3) -> Vec3 {
         match self.kind {
             LightKind::Point => {
@@ -320,7 +321,8 @@ impl IsrScene {
         !self.lights.is_empty() || !self.emitters.entries.is_empty()
     }
 
-    /// The shadowed irradiance at `p` (unit normal `n`) from all lights.
+    /// The shadowed irradiance at `p` (unit normal `n`) from all lights: listing 7's direct
+    /// lighting times listing 8's shadow factor (eq. 30) per light.
     pub fn irradiance(&self, p: Vec3, n: Vec3) -> Vec3 {
         let mut e = Vec3::ZERO;
         for light in &self.lights {

@@ -82,7 +82,7 @@ impl SamplePattern {
     }
 }
 
-/// Runs the ISR + SSAO pass over the coarse buffer `coarse` seen through `screen`. `senders`
+/// Runs the ISR + SSAO pass (eqs. 25 and 26, listing 6) over the coarse buffer `coarse` seen through `screen`. `senders`
 /// holds each coarse pixel's direct radiance for [`Sender::Lit`] (ignored for
 /// [`Sender::Albedo`]); `radius` is in world units.
 pub fn radiosity(
@@ -103,7 +103,9 @@ pub fn radiosity(
         .collect()
 }
 
-/// One coarse pixel of the pass.
+/// One coarse pixel of the pass: eq. 25 (indirect light, with eq. 6's form factor or the
+/// disk form factor) and eq. 26 (spherical-occluder AO, eq. 14 per sample) over the
+/// pattern's samples.
 #[allow(clippy::too_many_arguments)]
 fn gather(
     screen: &Screen,

@@ -164,7 +164,8 @@ pub fn render_ortho(rays: &RayScene, kind: &MapKind, res: u32, extent: f32) -> V
         .collect()
 }
 
-/// Separable log-space Gaussian prefilter of `faces` square faces of `res` texels (clamped at
+/// The ESM prefilter of section 4.6 ("filter (blur) the shadow map"), for eq. 30: a
+/// separable log-space Gaussian of `faces` square faces of `res` texels (clamped at
 /// face edges): each texel becomes `o_max + ln(sum w_i exp(c (o_i - o_max))) / c` over its
 /// taps, the logarithm of the linear ESM filter of `exp(c o)` without ever forming it.
 pub fn log_filter(map: &mut [f32], res: u32, faces: usize, radius: u32, c: f32) {
@@ -243,7 +244,7 @@ fn pcf(face: &[f32], res: u32, uv: Vec2, c: f32, receiver: f32) -> f32 {
 }
 
 /// The shadow factor of `map` for a receiver at `p` with unit normal `n` (1 lit, 0 in
-/// shadow).
+/// shadow): eq. 30 with listing 8's bilinear PCF, after the normal offset.
 pub fn visibility(
     texels: &[f32],
     map: &ShadowMap,

@@ -43,6 +43,8 @@ pub fn upsample(
 /// No indirect light, no occlusion.
 const NOTHING: Vec4 = Vec4::new(0.0, 0.0, 0.0, 1.0);
 
+/// One full-resolution pixel: eq. 27's guarded weights normalised by eq. 28, or the
+/// nearest-depth fallback.
 fn upsample_pixel(
     full: &GBuffer,
     coarse: &GBuffer,
