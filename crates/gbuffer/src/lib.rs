@@ -30,7 +30,8 @@
 //!   scene-core's [`GpuGBuffer`](scene_core::gpu::GpuGBuffer) in one pass
 //!   (`shaders/gbuffer/mrt.wgsl`). The result stays on the GPU; reading it back is an
 //!   explicit step. Both renderers implement [`GBufferRenderer`](scene_core::GBufferRenderer)
-//!   and agree to within 1e-5 in depth and normals off triangle edges.
+//!   and agree to about 1e-5 in depth and normals (tested to 1e-4) wherever they pick the
+//!   same triangle.
 //! * Views: any scene-core [`View`](scene_core::View): cameras, orthographic shadow-map
 //!   views, and the five faces of a hemicube ([`hemicube`]).
 //! * Coarse buffers ([`downsample`](mod@downsample)): 2x downsampling on the CPU and the
@@ -67,6 +68,6 @@ pub use mrt::{GpuPreparedScene, GpuRasterizer, scene_fingerprint};
 pub use raster::CpuRasterizer;
 pub use reconstruct::{
     FrustumReconstruction, GpuReconstructor, InverseMatrixReconstruction, ReconstructionMethod,
-    reconstruct_buffer,
+    reconstruct_buffer, reconstruct_into,
 };
 pub use scene_core;

@@ -309,16 +309,33 @@ pub fn reconstruct_buffer(
     height: u32,
     taps: u32,
 ) -> Vec<Vec3> {
+    let mut out = vec![Vec3::ZERO; width as usize * height as usize];
+    reconstruct_into(view, method, depth, width, height, taps, &mut out);
+    out
+}
+
+/// [`reconstruct_buffer`] into an existing slice (no allocation; for benchmarks).
+///
+/// Panics if `depth` or `out` does not have `width * height` elements.
+pub fn reconstruct_into(
+    view: &View,
+    method: ReconstructionMethod,
+    depth: &[f32],
+    width: u32,
+    height: u32,
+    taps: u32,
+    out: &mut [Vec3],
+) {
     let (w, h) = (width as usize, height as usize);
     assert_eq!(depth.len(), w * h, "depth buffer size");
+    assert_eq!(out.len(), w * h, "output size");
+    if out.is_empty() {
+        return;
+    }
     let n = taps.clamp(1, MAX_TAPS) as usize;
     let frustum = FrustumReconstruction::new(view);
     let inverse = InverseMatrixReconstruction::new(view);
     let size = Vec2::new(width as f32, height as f32);
-    let mut out = vec![Vec3::ZERO; w * h];
-    if out.is_empty() {
-        return out;
-    }
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, o) in row.iter_mut().enumerate() {
             let mut sum = Vec3::ZERO;
@@ -338,7 +355,6 @@ pub fn reconstruct_buffer(
             *o = sum / n as f32;
         }
     });
-    out
 }
 
 /// The uniform of `reconstruct.wgsl`.
