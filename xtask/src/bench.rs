@@ -254,7 +254,7 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
             .map_or("none".to_string(), |c| c.adapter_summary())
     );
     println!(
-        "{:<22} {:>10} {:>10} {:>12} {:>12} {:>14} {:>12} {:>16}",
+        "{:<22} {:>10} {:>10} {:>12} {:>12} {:>14} {:>12} {:>16} {:>12}",
         "scene",
         "triangles",
         "CPU ms",
@@ -262,7 +262,8 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
         "GPU ms",
         "GPU readback",
         "GPU upload",
-        "GPU trait+read"
+        "GPU trait+read",
+        "fingerprint"
     );
     let rast = match &gpu {
         Some(ctx) => Some(GpuRasterizer::new(ctx).map_err(gerr)?),
@@ -312,11 +313,16 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
             cols.push(format!("{upload_ms:>12.1}"));
             cols.push(format!("{trait_ms:>16.2}"));
         }
+        let fingerprint_ms = time_ms(repeats, || {
+            pool.install(|| gbuffer::scene_fingerprint(&scene));
+            Ok(())
+        })?;
         println!(
-            "{:<22} {:>10} {}",
+            "{:<22} {:>10} {} {:>12.2}",
             name,
             scene.triangle_count(),
-            cols.join(" ")
+            cols.join(" "),
+            fingerprint_ms
         );
     }
 
@@ -327,7 +333,7 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
         .install(|| CpuRasterizer.render_gbuffer(&scene, &view, w, h))
         .map_err(err)?;
     println!(
-        "(CPU ms: render_into a reused target; CPU trait: GBufferRenderer::render, a new G-buffer per frame; GPU ms: the MRT pass into a reused GpuGBuffer, waited for; GPU readback: GpuGBuffer::read_back; GPU upload: scene upload, once; GPU trait+read: GBufferRenderer::render with the cached upload, incl. fingerprint, new targets and readback)"
+        "(CPU ms: render_into a reused target; CPU trait: GBufferRenderer::render, a new G-buffer per frame; GPU ms: the MRT pass into a reused GpuGBuffer, waited for; GPU readback: GpuGBuffer::read_back; GPU upload: scene upload, once; GPU trait+read: GBufferRenderer::render with the cached upload, incl. fingerprint, new targets and readback; fingerprint: the cache key, CPU)"
     );
     println!();
     println!("downsampling {w}x{h} -> {}x{} (corridor)", w / 2, h / 2);
@@ -533,9 +539,12 @@ fn reconstruction(
             _ => &g.depth,
         };
         let mut cols = Vec::new();
+        let mut out = vec![scene_core::glam::Vec3::ZERO; (w * h) as usize];
         for (k, taps) in [1u32, 24].into_iter().enumerate() {
             let ms = time_ms(repeats, || {
-                pool.install(|| gbuffer::reconstruct_buffer(&view, method, input, w, h, taps));
+                pool.install(|| {
+                    gbuffer::reconstruct_into(&view, method, input, w, h, taps, &mut out)
+                });
                 Ok(())
             })?;
             times[m][k] = ms;
