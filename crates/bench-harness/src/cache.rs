@@ -1,0 +1,189 @@
+//! Reference images cached on disk, keyed by a hash of the scene, camera, settings and spp.
+
+use std::path::{Path, PathBuf};
+
+use scene_core::reference::{self, ReferenceSettings};
+use scene_core::{Camera, Image, Scene, View};
+use serde::{Deserialize, Serialize};
+
+use crate::HarnessError;
+
+/// Bumped when the path tracer's output for the same inputs changes.
+pub const TRACER_VERSION: u32 = 1;
+
+/// 64-bit FNV-1a: stable across platforms, Rust versions and runs.
+#[derive(Clone, Copy, Debug)]
+pub struct Fnv(u64);
+
+impl Default for Fnv {
+    fn default() -> Self {
+        Self(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fnv {
+    /// Feeds bytes.
+    pub fn bytes(&mut self, b: &[u8]) -> &mut Self {
+        for &x in b {
+            self.0 ^= x as u64;
+            self.0 = self.0.wrapping_mul(0x0100_0000_01b3);
+        }
+        self
+    }
+
+    /// Feeds a string (length-prefixed).
+    pub fn str(&mut self, s: &str) -> &mut Self {
+        self.u64(s.len() as u64).bytes(s.as_bytes())
+    }
+
+    /// Feeds an integer.
+    pub fn u64(&mut self, v: u64) -> &mut Self {
+        self.bytes(&v.to_le_bytes())
+    }
+
+    /// Feeds floats by their bits.
+    pub fn f32s(&mut self, v: impl IntoIterator<Item = f32>) -> &mut Self {
+        for x in v {
+            self.bytes(&x.to_bits().to_le_bytes());
+        }
+        self
+    }
+
+    /// The hash.
+    pub fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// A hash of everything in `scene` that light transport sees (geometry, materials,
+/// textures, lights; not the name or the cameras).
+pub fn scene_hash(scene: &Scene) -> u64 {
+    let mut h = Fnv::default();
+    for m in &scene.meshes {
+        h.u64(m.positions.len() as u64)
+            .f32s(m.positions.iter().flat_map(|p| p.to_array()))
+            .f32s(m.normals.iter().flat_map(|p| p.to_array()));
+        if let Some(uv) = &m.uvs {
+            h.f32s(uv.iter().flat_map(|p| p.to_array()));
+        }
+        for (t, mat) in m.indices.iter().zip(&m.material_ids) {
+            h.u64(t[0] as u64 | (t[1] as u64) << 21 | (t[2] as u64) << 42)
+                .u64(*mat as u64);
+        }
+    }
+    for t in &scene.textures {
+        h.u64(t.width as u64)
+            .u64(t.height as u64)
+            .f32s(t.texels.iter().flat_map(|p| p.to_array()));
+    }
+    // Materials and lights are small: their Debug text (shortest round-trip floats).
+    h.str(&format!("{:?}", scene.materials))
+        .str(&format!("{:?}", scene.point_lights))
+        .str(&format!("{:?}", scene.directional_lights));
+    h.finish()
+}
+
+/// The cache key of a reference render.
+pub fn reference_key(scene_hash: u64, camera: &Camera, settings: &ReferenceSettings) -> u64 {
+    let mut h = Fnv::default();
+    h.u64(TRACER_VERSION as u64)
+        .u64(scene_hash)
+        .f32s(camera.position.to_array())
+        .f32s(camera.target.to_array())
+        .f32s(camera.up.to_array())
+        .f32s([camera.fov_y, camera.aspect, camera.near, camera.far])
+        .u64(settings.width as u64)
+        .u64(settings.height as u64)
+        .u64(settings.spp as u64)
+        .str(&settings.bounces.to_string())
+        .u64(settings.seed);
+    h.finish()
+}
+
+#[derive(Serialize, Deserialize)]
+struct CacheMeta {
+    seconds: f64,
+    spp: u32,
+    scene: String,
+    camera: String,
+    bounces: String,
+}
+
+/// A cached or freshly rendered reference.
+#[derive(Clone, Debug)]
+pub struct CachedReference {
+    /// The image.
+    pub image: Image,
+    /// Seconds of the render that produced it.
+    pub seconds: f64,
+    /// Its key.
+    pub key: u64,
+    /// True when read from the cache.
+    pub from_cache: bool,
+}
+
+/// A folder of reference renders.
+#[derive(Clone, Debug)]
+pub struct ReferenceCache {
+    dir: PathBuf,
+}
+
+impl ReferenceCache {
+    /// A cache in `dir` (created on the first write).
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        Self { dir: dir.into() }
+    }
+
+    /// The cache folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The reference of `camera` (its aspect as given) from the cache, or rendered with
+    /// `settings` and stored. `progress(rows_done, rows_total)` follows a render.
+    pub fn get_or_render(
+        &self,
+        scene: &Scene,
+        scene_hash: u64,
+        camera: &Camera,
+        settings: &ReferenceSettings,
+        progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+    ) -> Result<CachedReference, HarnessError> {
+        let key = reference_key(scene_hash, camera, settings);
+        let exr = self.dir.join(format!("{key:016x}.exr"));
+        let meta_path = self.dir.join(format!("{key:016x}.json"));
+        if let (Ok(image), Ok(text)) = (Image::read_exr(&exr), std::fs::read_to_string(&meta_path))
+            && let Ok(meta) = serde_json::from_str::<CacheMeta>(&text)
+            && image.width == settings.width
+            && image.height == settings.height
+        {
+            return Ok(CachedReference {
+                image,
+                seconds: meta.seconds,
+                key,
+                from_cache: true,
+            });
+        }
+        let out = reference::render(scene, &View::from_camera(camera), settings, progress);
+        std::fs::create_dir_all(&self.dir).map_err(|e| HarnessError::io(&self.dir, e))?;
+        out.image
+            .write_exr(&exr)
+            .map_err(|e| HarnessError::from(scene_core::Error::from(e)))?;
+        crate::write_json(
+            &meta_path,
+            &CacheMeta {
+                seconds: out.stats.seconds,
+                spp: out.spp,
+                scene: scene.name.clone(),
+                camera: camera.name.clone(),
+                bounces: settings.bounces.to_string(),
+            },
+        )?;
+        Ok(CachedReference {
+            image: out.image,
+            seconds: out.stats.seconds,
+            key,
+            from_cache: false,
+        })
+    }
+}

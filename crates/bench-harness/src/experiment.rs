@@ -1,0 +1,619 @@
+//! An experiment: scenes x cameras x techniques x metrics, run view by view with resume.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use scene_core::reference::{Bounces, ReferenceSettings};
+use scene_core::{Camera, Image, Metric, Scene, Technique};
+
+use crate::HarnessError;
+use crate::cache::{Fnv, ReferenceCache, scene_hash};
+use crate::cameras::CameraSpec;
+use crate::results::{
+    ErrorSet, ReferenceResult, Results, RunSettings, TechniqueInfo, TechniqueResult, Timing,
+    ViewResult, summarize,
+};
+
+/// A scene and the cameras to render it from.
+pub struct SceneSetup {
+    /// Id used in reports and file names.
+    pub id: String,
+    /// The scene.
+    pub scene: Scene,
+    /// The views (their aspect ratio is replaced by the image's).
+    pub cameras: Vec<Camera>,
+}
+
+/// A technique with its label.
+pub struct TechniqueSetup {
+    /// Unique label (`dl`, `isr-80`, `isr-thesis-24`...).
+    pub label: String,
+    /// Family: the technique's kind (`dl`, `isr`).
+    pub family: String,
+    /// Its parameters in words.
+    pub description: String,
+    /// The technique.
+    pub technique: Box<dyn Technique>,
+}
+
+/// The settings of an experiment.
+#[derive(Clone, Debug)]
+pub struct ExperimentSettings {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Reference samples per pixel.
+    pub spp: u32,
+    /// Reference bounce limits (default: 1 and unlimited); the first drives the plots.
+    pub bounces: Vec<Bounces>,
+    /// Reference seed.
+    pub seed: u64,
+    /// Untimed frames before the timed ones.
+    pub warmup: u32,
+    /// Timed frames (median, min, max reported).
+    pub repeats: u32,
+    /// Output folder.
+    pub out_dir: PathBuf,
+    /// Reference cache folder (default `<out_dir>/reference-cache`).
+    pub cache_dir: Option<PathBuf>,
+    /// Label of the baseline technique (DL).
+    pub baseline: String,
+    /// The metric whose value decides which image is closer (eq. 19's mean error).
+    pub error_metric: String,
+    /// The correlation metric (eq. 20).
+    pub correlation_metric: String,
+    /// Technique label shown against the baseline in the per-view plots and the gallery
+    /// (default: the first technique that is not the baseline).
+    pub headline: Option<String>,
+    /// Show progress bars.
+    pub progress: bool,
+    /// Stop after computing this many views (simulates an interrupted run).
+    pub stop_after_views: Option<usize>,
+    /// PNG exposure in stops.
+    pub exposure: f32,
+    /// Write every image (EXR and PNG, and difference images); off keeps only the gallery.
+    pub write_images: bool,
+}
+
+impl Default for ExperimentSettings {
+    fn default() -> Self {
+        Self {
+            width: 160,
+            height: 120,
+            spp: 64,
+            bounces: vec![Bounces::Limited(1), Bounces::Unlimited],
+            seed: 1,
+            warmup: 1,
+            repeats: 3,
+            out_dir: PathBuf::from("out/experiment"),
+            cache_dir: None,
+            baseline: "dl".into(),
+            error_metric: "mean-error".into(),
+            correlation_metric: "pearson".into(),
+            headline: None,
+            progress: true,
+            stop_after_views: None,
+            exposure: 0.0,
+            write_images: true,
+        }
+    }
+}
+
+/// What a run did.
+#[derive(Clone, Debug)]
+pub struct RunOutcome {
+    /// The results (every finished view, this run's and resumed ones).
+    pub results: Results,
+    /// Views computed by this run.
+    pub views_computed: usize,
+    /// Views taken from an earlier run's per-view files.
+    pub views_resumed: usize,
+    /// `Technique::render` calls made by this run.
+    pub technique_renders: u64,
+    /// Reference images rendered by this run (the others came from the cache).
+    pub reference_renders: u64,
+    /// True when the run stopped early ([`ExperimentSettings::stop_after_views`]).
+    pub interrupted: bool,
+    /// `results.json`.
+    pub results_json: PathBuf,
+    /// `report.md` (not written when interrupted).
+    pub report_md: PathBuf,
+    /// `report.html` (not written when interrupted).
+    pub report_html: PathBuf,
+    /// Wall-clock seconds of the run.
+    pub seconds: f64,
+}
+
+/// Scenes x cameras x techniques x metrics.
+pub struct Experiment {
+    /// Settings.
+    pub settings: ExperimentSettings,
+    /// Scenes with their cameras.
+    pub scenes: Vec<SceneSetup>,
+    /// Techniques (labels unique; one must be the baseline).
+    pub techniques: Vec<TechniqueSetup>,
+    /// Metrics (must include the error metric).
+    pub metrics: Vec<Box<dyn Metric>>,
+}
+
+/// File-name-safe form of a label.
+pub fn slug(s: &str) -> String {
+    let mut out: String = s
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if out.is_empty() {
+        out.push('_');
+    }
+    out
+}
+
+/// The folder of a view's images, relative to the output folder.
+pub fn view_dir(scene: &str, camera_index: usize, camera_name: &str) -> PathBuf {
+    PathBuf::from("images")
+        .join(slug(scene))
+        .join(format!("{camera_index:02}-{}", slug(camera_name)))
+}
+
+fn bar(show: bool, len: u64, template: &str, msg: String) -> ProgressBar {
+    let b = if show && std::env::var_os("CI").is_none() {
+        ProgressBar::new(len)
+    } else {
+        ProgressBar::hidden()
+    };
+    b.set_style(
+        ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    b.set_message(msg);
+    b
+}
+
+/// Per-pixel distance `sum_c |a - b|` (the thesis' pixel-level comparison).
+fn pixel_distance(a: glam::Vec3, b: glam::Vec3) -> f32 {
+    (a - b).abs().element_sum()
+}
+
+/// `|reference - test|` per channel.
+pub fn difference(reference: &Image, test: &Image) -> Image {
+    Image {
+        width: reference.width,
+        height: reference.height,
+        pixels: reference
+            .pixels
+            .iter()
+            .zip(&test.pixels)
+            .map(|(r, t)| (*r - *t).abs())
+            .collect(),
+    }
+}
+
+impl Experiment {
+    fn run_settings(&self) -> RunSettings {
+        let s = &self.settings;
+        RunSettings {
+            width: s.width,
+            height: s.height,
+            spp: s.spp,
+            bounces: s.bounces.iter().map(|b| b.to_string()).collect(),
+            seed: s.seed,
+            warmup: s.warmup,
+            repeats: s.repeats,
+            baseline: s.baseline.clone(),
+            error_metric: s.error_metric.clone(),
+            correlation_metric: s.correlation_metric.clone(),
+        }
+    }
+
+    fn infos(&self) -> Vec<TechniqueInfo> {
+        self.techniques
+            .iter()
+            .map(|t| TechniqueInfo {
+                label: t.label.clone(),
+                family: t.family.clone(),
+                description: t.description.clone(),
+            })
+            .collect()
+    }
+
+    /// The fingerprint a per-view file must carry to be reused.
+    fn config_key(&self, scene_hash: u64) -> String {
+        let s = &self.settings;
+        let mut h = Fnv::default();
+        h.u64(scene_hash)
+            .u64(s.width as u64)
+            .u64(s.height as u64)
+            .u64(s.spp as u64)
+            .u64(s.seed)
+            .u64(s.warmup as u64)
+            .u64(s.repeats as u64)
+            .str(&s.baseline)
+            .str(&s.error_metric);
+        for b in &s.bounces {
+            h.str(&b.to_string());
+        }
+        for t in &self.techniques {
+            h.str(&t.label).str(&t.description);
+        }
+        for m in &self.metrics {
+            h.str(m.name());
+        }
+        format!("{:016x}", h.finish())
+    }
+
+    fn validate(&self) -> Result<(), HarnessError> {
+        let s = &self.settings;
+        if s.width == 0 || s.height == 0 || s.spp == 0 || s.repeats == 0 {
+            return Err(HarnessError::Invalid(format!(
+                "size, spp and repeats must be positive (got {}x{}, {} spp, {} repeats)",
+                s.width, s.height, s.spp, s.repeats
+            )));
+        }
+        if s.bounces.is_empty() {
+            return Err(HarnessError::Invalid("no reference bounce limit".into()));
+        }
+        let mut labels: Vec<&str> = Vec::new();
+        for t in &self.techniques {
+            if labels.contains(&t.label.as_str()) {
+                return Err(HarnessError::Invalid(format!(
+                    "technique label '{}' appears twice",
+                    t.label
+                )));
+            }
+            labels.push(&t.label);
+        }
+        if !labels.contains(&s.baseline.as_str()) {
+            return Err(HarnessError::Invalid(format!(
+                "the baseline '{}' is not among the techniques ({})",
+                s.baseline,
+                labels.join(", ")
+            )));
+        }
+        if !self.metrics.iter().any(|m| m.name() == s.error_metric) {
+            return Err(HarnessError::Invalid(format!(
+                "the error metric '{}' is not among the metrics",
+                s.error_metric
+            )));
+        }
+        for sc in &self.scenes {
+            if sc.cameras.is_empty() {
+                return Err(HarnessError::Invalid(format!(
+                    "scene '{}' has no camera",
+                    sc.id
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Runs the experiment: every view not already finished (a per-view file in
+    /// `<out>/views/` with the same settings) is computed and its file written as soon as it
+    /// is done; then `results.json`, `report.md` and `report.html` are written from all views.
+    pub fn run(&mut self) -> Result<RunOutcome, HarnessError> {
+        self.validate()?;
+        let start = Instant::now();
+        let out = self.settings.out_dir.clone();
+        let views_dir = out.join("views");
+        std::fs::create_dir_all(&views_dir).map_err(|e| HarnessError::io(&views_dir, e))?;
+        let cache = ReferenceCache::new(
+            self.settings
+                .cache_dir
+                .clone()
+                .unwrap_or_else(|| out.join("reference-cache")),
+        );
+        let total_views: usize = self.scenes.iter().map(|s| s.cameras.len()).sum();
+        let views_bar = bar(
+            self.settings.progress,
+            total_views as u64,
+            "{msg:30} [{bar:30}] {pos}/{len} views, eta {eta}",
+            "experiment".into(),
+        );
+        let mut outcome_views = Vec::new();
+        let (mut computed, mut resumed, mut renders, mut ref_renders) =
+            (0usize, 0usize, 0u64, 0u64);
+        let mut interrupted = false;
+        let scenes = std::mem::take(&mut self.scenes);
+        let result = (|| -> Result<(), HarnessError> {
+            for sc in &scenes {
+                let hash = scene_hash(&sc.scene);
+                let config = self.config_key(hash);
+                let mut prepared: Option<Vec<f64>> = None;
+                for (ci, camera) in sc.cameras.iter().enumerate() {
+                    let file = views_dir.join(format!(
+                        "{}--{ci:02}-{}.json",
+                        slug(&sc.id),
+                        slug(&camera.name)
+                    ));
+                    if let Some(v) = read_view(&file, &config) {
+                        outcome_views.push(v);
+                        resumed += 1;
+                        views_bar.inc(1);
+                        continue;
+                    }
+                    if let Some(limit) = self.settings.stop_after_views
+                        && computed >= limit
+                    {
+                        interrupted = true;
+                        return Ok(());
+                    }
+                    views_bar.set_message(format!("{} / {}", sc.id, camera.name));
+                    // Precomputation once per scene, timed apart from the frames.
+                    if prepared.is_none() {
+                        let mut times = Vec::new();
+                        for t in &mut self.techniques {
+                            let t0 = Instant::now();
+                            t.technique.prepare(&sc.scene).map_err(|e| {
+                                HarnessError::Technique {
+                                    label: t.label.clone(),
+                                    scene: sc.id.clone(),
+                                    source: Box::new(e),
+                                }
+                            })?;
+                            times.push(t0.elapsed().as_secs_f64());
+                        }
+                        prepared = Some(times);
+                    }
+                    let prepare_times = prepared.clone().unwrap_or_default();
+                    let (view, n_renders, n_refs) = self.run_view(
+                        sc,
+                        hash,
+                        ci,
+                        camera,
+                        &config,
+                        &prepare_times,
+                        &cache,
+                        &out,
+                        &views_bar,
+                    )?;
+                    renders += n_renders;
+                    ref_renders += n_refs;
+                    crate::write_json(&file, &view)?;
+                    outcome_views.push(view);
+                    computed += 1;
+                    views_bar.inc(1);
+                }
+            }
+            Ok(())
+        })();
+        self.scenes = scenes;
+        views_bar.finish_and_clear();
+        result?;
+
+        let settings = self.run_settings();
+        let infos = self.infos();
+        let summary = summarize(&settings, &infos, &outcome_views);
+        let results = Results {
+            settings,
+            techniques: infos,
+            metrics: self.metrics.iter().map(|m| m.name().to_string()).collect(),
+            views: outcome_views,
+            summary,
+        };
+        let results_json = out.join("results.json");
+        let report_md = out.join("report.md");
+        let report_html = out.join("report.html");
+        crate::write_json(&results_json, &results)?;
+        if !interrupted {
+            let headline = self.settings.headline.clone().or_else(|| {
+                self.techniques
+                    .iter()
+                    .find(|t| t.label != self.settings.baseline)
+                    .map(|t| t.label.clone())
+            });
+            write_text(
+                &report_md,
+                &crate::report::markdown(&results, headline.as_deref()),
+            )?;
+            write_text(
+                &report_html,
+                &crate::report::html(&results, headline.as_deref(), &out),
+            )?;
+        }
+        Ok(RunOutcome {
+            results,
+            views_computed: computed,
+            views_resumed: resumed,
+            technique_renders: renders,
+            reference_renders: ref_renders,
+            interrupted,
+            results_json,
+            report_md,
+            report_html,
+            seconds: start.elapsed().as_secs_f64(),
+        })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn run_view(
+        &mut self,
+        sc: &SceneSetup,
+        hash: u64,
+        ci: usize,
+        camera: &Camera,
+        config: &str,
+        prepare_times: &[f64],
+        cache: &ReferenceCache,
+        out: &Path,
+        views_bar: &ProgressBar,
+    ) -> Result<(ViewResult, u64, u64), HarnessError> {
+        let s = self.settings.clone();
+        let cam = camera.with_aspect(s.width as f32 / s.height as f32);
+        let dir_rel = view_dir(&sc.id, ci, &camera.name);
+        let dir = out.join(&dir_rel);
+        std::fs::create_dir_all(&dir).map_err(|e| HarnessError::io(&dir, e))?;
+        // References.
+        let mut references = Vec::new();
+        let mut ref_images = Vec::new();
+        let mut ref_renders = 0;
+        for b in &s.bounces {
+            let rs = ReferenceSettings {
+                width: s.width,
+                height: s.height,
+                spp: s.spp,
+                bounces: *b,
+                seed: s.seed,
+            };
+            let rows = bar(
+                s.progress && !views_bar.is_hidden(),
+                s.height as u64,
+                "{msg:30} [{bar:30}] {pos}/{len} rows",
+                format!("reference, bounces {b}"),
+            );
+            let report = |done: u64, _total: u64| rows.set_position(done);
+            let r = cache.get_or_render(&sc.scene, hash, &cam, &rs, Some(&report))?;
+            rows.finish_and_clear();
+            if !r.from_cache {
+                ref_renders += 1;
+            }
+            let stem = format!("reference-b{b}");
+            write_image(&dir, &stem, &r.image, s.exposure, true)?;
+            references.push(ReferenceResult {
+                bounces: b.to_string(),
+                spp: s.spp,
+                seconds: r.seconds,
+                key: format!("{:016x}", r.key),
+            });
+            ref_images.push(r.image);
+        }
+        // Techniques: warm-up, timed repeats; the last frame is measured.
+        let mut renders = 0;
+        let mut images = Vec::new();
+        let mut results = Vec::new();
+        for (ti, t) in self.techniques.iter_mut().enumerate() {
+            let fail = |e| HarnessError::Technique {
+                label: t.label.clone(),
+                scene: sc.id.clone(),
+                source: Box::new(e),
+            };
+            let mut samples = Vec::new();
+            let mut last = None;
+            for i in 0..s.warmup + s.repeats {
+                let t0 = Instant::now();
+                let img = t
+                    .technique
+                    .render(&sc.scene, &cam, s.width, s.height)
+                    .map_err(fail)?;
+                let dt = t0.elapsed().as_secs_f64();
+                renders += 1;
+                if i >= s.warmup {
+                    samples.push(dt);
+                }
+                last = Some(img);
+            }
+            let img = last.ok_or_else(|| HarnessError::Invalid("no frame rendered".into()))?;
+            if img.width != s.width || img.height != s.height {
+                return Err(HarnessError::Invalid(format!(
+                    "technique '{}' returned {}x{} for {}x{}",
+                    t.label, img.width, img.height, s.width, s.height
+                )));
+            }
+            write_image(&dir, &slug(&t.label), &img, s.exposure, s.write_images)?;
+            results.push(TechniqueResult {
+                label: t.label.clone(),
+                prepare_s: prepare_times.get(ti).copied().unwrap_or(0.0),
+                frame: Timing::from_samples(&samples),
+                errors: Vec::new(),
+            });
+            images.push(img);
+        }
+        // Errors against every reference, and the pixel comparison with the baseline.
+        let base = self
+            .techniques
+            .iter()
+            .position(|t| t.label == s.baseline)
+            .unwrap_or(0);
+        for (ri, (b, reference)) in s.bounces.iter().zip(&ref_images).enumerate() {
+            for (ti, img) in images.iter().enumerate() {
+                let mut metrics = Vec::new();
+                for m in &self.metrics {
+                    let v = m
+                        .compare(reference, img)
+                        .map_err(|e| HarnessError::Metric {
+                            name: m.name().to_string(),
+                            source: Box::new(e),
+                        })?;
+                    metrics.push((m.name().to_string(), v.value));
+                }
+                let closer = (ti != base).then(|| {
+                    reference
+                        .pixels
+                        .iter()
+                        .zip(&img.pixels)
+                        .zip(&images[base].pixels)
+                        .filter(|((r, t), d)| pixel_distance(**r, **t) < pixel_distance(**r, **d))
+                        .count() as u64
+                });
+                let label = &results[ti].label;
+                let diff = difference(reference, img);
+                // Difference images: every one when asked, the gallery's always.
+                write_image(
+                    &dir,
+                    &format!("diff-{}-b{b}", slug(label)),
+                    &diff,
+                    s.exposure + 3.0,
+                    s.write_images || ri == 0,
+                )?;
+                results[ti].errors.push(ErrorSet {
+                    bounces: b.to_string(),
+                    metrics,
+                    pixels_closer: closer,
+                    pixels: reference.pixels.len() as u64,
+                });
+            }
+        }
+        Ok((
+            ViewResult {
+                scene: sc.id.clone(),
+                camera_index: ci,
+                camera: CameraSpec::from_camera(camera),
+                config: config.to_string(),
+                references,
+                techniques: results,
+            },
+            renders,
+            ref_renders,
+        ))
+    }
+}
+
+fn read_view(path: &Path, config: &str) -> Option<ViewResult> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let v: ViewResult = serde_json::from_str(&text).ok()?;
+    (v.config == config).then_some(v)
+}
+
+/// Writes `<dir>/<stem>.png` always and `<dir>/<stem>.exr` when `exr` is set.
+fn write_image(
+    dir: &Path,
+    stem: &str,
+    image: &Image,
+    exposure: f32,
+    exr: bool,
+) -> Result<(), HarnessError> {
+    image
+        .write_png(&dir.join(format!("{stem}.png")), exposure)
+        .map_err(|e| HarnessError::from(scene_core::Error::from(e)))?;
+    if exr {
+        image
+            .write_exr(&dir.join(format!("{stem}.exr")))
+            .map_err(|e| HarnessError::from(scene_core::Error::from(e)))?;
+    }
+    Ok(())
+}
+
+fn write_text(path: &Path, text: &str) -> Result<(), HarnessError> {
+    scene_core::image::write_via_temp(
+        path,
+        |tmp| std::fs::write(tmp, text).map_err(|e| HarnessError::io(path, e)),
+        |e| HarnessError::io(path, e),
+    )
+}

@@ -1,0 +1,428 @@
+//! What an experiment measured (`results.json`) and the summary computed from it.
+
+use serde::{Deserialize, Serialize};
+
+use crate::cameras::CameraSpec;
+
+/// Frame times of one technique on one view (seconds).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Timing {
+    /// Median of the timed repeats.
+    pub median_s: f64,
+    /// Fastest repeat.
+    pub min_s: f64,
+    /// Slowest repeat.
+    pub max_s: f64,
+    /// Timed repeats (after the warm-up frames).
+    pub repeats: u32,
+}
+
+impl Timing {
+    /// Median, min and max of `samples` (seconds); zeros when empty.
+    pub fn from_samples(samples: &[f64]) -> Self {
+        let mut v = samples.to_vec();
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = match n {
+            0 => 0.0,
+            _ if n % 2 == 1 => v[n / 2],
+            _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+        };
+        Self {
+            median_s: median,
+            min_s: v.first().copied().unwrap_or(0.0),
+            max_s: v.last().copied().unwrap_or(0.0),
+            repeats: n as u32,
+        }
+    }
+}
+
+/// The errors of one technique against the reference at one bounce limit.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ErrorSet {
+    /// The reference's bounce limit (`"1"`, `"inf"`...).
+    pub bounces: String,
+    /// Metric name and value, in the experiment's metric order.
+    pub metrics: Vec<(String, f64)>,
+    /// Pixels strictly closer to the reference than the baseline's (per-pixel distance: the
+    /// sum over channels of the absolute difference); `None` for the baseline itself.
+    pub pixels_closer: Option<u64>,
+    /// Pixels compared.
+    pub pixels: u64,
+}
+
+impl ErrorSet {
+    /// The value of metric `name`.
+    pub fn metric(&self, name: &str) -> Option<f64> {
+        self.metrics.iter().find(|(n, _)| n == name).map(|m| m.1)
+    }
+}
+
+/// One technique on one view.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TechniqueResult {
+    /// The technique's label (unique in the experiment).
+    pub label: String,
+    /// Precomputation time for the view's scene (seconds; the run that computed the view).
+    pub prepare_s: f64,
+    /// Frame times.
+    pub frame: Timing,
+    /// Errors per reference bounce limit.
+    pub errors: Vec<ErrorSet>,
+}
+
+/// A reference image of one view.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceResult {
+    /// Bounce limit.
+    pub bounces: String,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Seconds the path tracer took (when it was rendered, even if cached since).
+    pub seconds: f64,
+    /// The cache key (hex).
+    pub key: String,
+}
+
+/// Everything measured on one view (scene and camera).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ViewResult {
+    /// The scene's id in the experiment.
+    pub scene: String,
+    /// Index of the camera in the scene's list.
+    pub camera_index: usize,
+    /// The camera.
+    pub camera: CameraSpec,
+    /// Fingerprint of the settings that produced this view (a changed setting recomputes).
+    pub config: String,
+    /// The reference images.
+    pub references: Vec<ReferenceResult>,
+    /// The techniques, in the experiment's order.
+    pub techniques: Vec<TechniqueResult>,
+}
+
+impl ViewResult {
+    /// The camera's name.
+    pub fn camera_name(&self) -> String {
+        self.camera
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("view{}", self.camera_index))
+    }
+
+    /// The result of technique `label`.
+    pub fn technique(&self, label: &str) -> Option<&TechniqueResult> {
+        self.techniques.iter().find(|t| t.label == label)
+    }
+
+    /// The value of `metric` for `label` at `bounces`.
+    pub fn error(&self, label: &str, bounces: &str, metric: &str) -> Option<f64> {
+        self.technique(label)?
+            .errors
+            .iter()
+            .find(|e| e.bounces == bounces)?
+            .metric(metric)
+    }
+}
+
+/// One technique as the experiment describes it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TechniqueInfo {
+    /// Unique label (`dl`, `isr-80`...).
+    pub label: String,
+    /// Family (`dl`, `isr`...): the rows of Table 2.
+    pub family: String,
+    /// Parameters in words.
+    pub description: String,
+}
+
+/// A row of the thesis' Table 2: frame time over all views.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TimeRow {
+    /// Technique label, or `reference (bounces N)`.
+    pub label: String,
+    /// Views rendered.
+    pub views: usize,
+    /// Total of the per-view median frame times (seconds).
+    pub total_s: f64,
+    /// Average frame time (milliseconds).
+    pub avg_frame_ms: f64,
+    /// Average frames per second (`views / total`).
+    pub avg_fps: f64,
+    /// Precomputation summed over scenes (seconds; 0 for the reference).
+    pub prepare_s: f64,
+}
+
+/// The thesis' summary statistics of one technique against the baseline at one bounce limit.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Comparison {
+    /// The technique.
+    pub technique: String,
+    /// The baseline (DL).
+    pub baseline: String,
+    /// The reference's bounce limit.
+    pub bounces: String,
+    /// Views compared.
+    pub views: usize,
+    /// Share of views where the technique's mean error (eq. 19) is below the baseline's.
+    pub share_views_better: f64,
+    /// Mean over views of the quality gain `(e_baseline - e_technique) / e_baseline`.
+    pub mean_gain: f64,
+    /// Mean error of the technique over views.
+    pub mean_error: f64,
+    /// Mean error of the baseline over views.
+    pub baseline_mean_error: f64,
+    /// Mean Pearson correlation (eq. 20) of the technique, when the metric was run.
+    pub mean_pearson: Option<f64>,
+    /// Mean Pearson correlation of the baseline.
+    pub baseline_mean_pearson: Option<f64>,
+    /// Share of all pixels (over all views) closer to the reference than the baseline's.
+    pub share_pixels_closer: f64,
+}
+
+/// One point of the speed-against-error plot of a scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SpeedErrorPoint {
+    /// Technique label.
+    pub label: String,
+    /// Mean over the scene's views of the median frame time (milliseconds).
+    pub frame_ms: f64,
+    /// Mean error over the scene's views.
+    pub error: f64,
+    /// True when no other point is both faster and closer (the Pareto front).
+    pub pareto: bool,
+}
+
+/// The speed-against-error points of one scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneSpeedError {
+    /// Scene id.
+    pub scene: String,
+    /// Bounce limit of the reference the error is measured against.
+    pub bounces: String,
+    /// One point per technique.
+    pub points: Vec<SpeedErrorPoint>,
+}
+
+/// Summary of a run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// Table 2: one row per technique, then one per reference bounce limit.
+    pub times: Vec<TimeRow>,
+    /// Every technique but the baseline against it, per bounce limit.
+    pub comparisons: Vec<Comparison>,
+    /// Speed against error per scene (error at the first bounce limit).
+    pub speed_error: Vec<SceneSpeedError>,
+}
+
+/// The settings of a run, as recorded.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunSettings {
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Reference samples per pixel.
+    pub spp: u32,
+    /// Reference bounce limits.
+    pub bounces: Vec<String>,
+    /// Reference seed.
+    pub seed: u64,
+    /// Warm-up frames per view and technique.
+    pub warmup: u32,
+    /// Timed frames per view and technique.
+    pub repeats: u32,
+    /// Baseline technique label.
+    pub baseline: String,
+    /// The metric that decides "closer" (eq. 19).
+    pub error_metric: String,
+    /// The correlation metric (eq. 20).
+    pub correlation_metric: String,
+}
+
+/// The content of `results.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Results {
+    /// Settings.
+    pub settings: RunSettings,
+    /// Techniques.
+    pub techniques: Vec<TechniqueInfo>,
+    /// Metric names.
+    pub metrics: Vec<String>,
+    /// Every view, in run order.
+    pub views: Vec<ViewResult>,
+    /// The summary.
+    pub summary: Summary,
+}
+
+fn mean(v: impl IntoIterator<Item = f64>) -> Option<f64> {
+    let (mut s, mut n) = (0.0, 0usize);
+    for x in v {
+        s += x;
+        n += 1;
+    }
+    (n > 0).then(|| s / n as f64)
+}
+
+/// Computes the summary of `views` (see [`Summary`]).
+pub fn summarize(
+    settings: &RunSettings,
+    techniques: &[TechniqueInfo],
+    views: &[ViewResult],
+) -> Summary {
+    let mut times = Vec::new();
+    for t in techniques {
+        let frames: Vec<f64> = views
+            .iter()
+            .filter_map(|v| v.technique(&t.label))
+            .map(|r| r.frame.median_s)
+            .collect();
+        // Precomputation once per scene.
+        let mut prepare = 0.0;
+        let mut seen: Vec<&str> = Vec::new();
+        for v in views {
+            if !seen.contains(&v.scene.as_str())
+                && let Some(r) = v.technique(&t.label)
+            {
+                seen.push(&v.scene);
+                prepare += r.prepare_s;
+            }
+        }
+        times.push(time_row(t.label.clone(), &frames, prepare));
+    }
+    for b in &settings.bounces {
+        let frames: Vec<f64> = views
+            .iter()
+            .filter_map(|v| v.references.iter().find(|r| &r.bounces == b))
+            .map(|r| r.seconds)
+            .collect();
+        times.push(time_row(format!("reference (bounces {b})"), &frames, 0.0));
+    }
+
+    let mut comparisons = Vec::new();
+    let (em, cm, base) = (
+        &settings.error_metric,
+        &settings.correlation_metric,
+        &settings.baseline,
+    );
+    for t in techniques.iter().filter(|t| &t.label != base) {
+        for b in &settings.bounces {
+            let mut pairs = Vec::new();
+            let (mut closer, mut pixels) = (0u64, 0u64);
+            for v in views {
+                if let (Some(et), Some(eb)) = (v.error(&t.label, b, em), v.error(base, b, em)) {
+                    pairs.push((et, eb, v));
+                    if let Some(set) = v
+                        .technique(&t.label)
+                        .and_then(|r| r.errors.iter().find(|e| &e.bounces == b))
+                    {
+                        closer += set.pixels_closer.unwrap_or(0);
+                        pixels += set.pixels;
+                    }
+                }
+            }
+            if pairs.is_empty() {
+                continue;
+            }
+            let n = pairs.len();
+            comparisons.push(Comparison {
+                technique: t.label.clone(),
+                baseline: base.clone(),
+                bounces: b.clone(),
+                views: n,
+                share_views_better: pairs.iter().filter(|(et, eb, _)| et < eb).count() as f64
+                    / n as f64,
+                mean_gain: mean(pairs.iter().map(|(et, eb, _)| gain(*eb, *et))).unwrap_or(0.0),
+                mean_error: mean(pairs.iter().map(|p| p.0)).unwrap_or(0.0),
+                baseline_mean_error: mean(pairs.iter().map(|p| p.1)).unwrap_or(0.0),
+                mean_pearson: mean(
+                    pairs
+                        .iter()
+                        .filter_map(|(_, _, v)| v.error(&t.label, b, cm)),
+                ),
+                baseline_mean_pearson: mean(
+                    pairs.iter().filter_map(|(_, _, v)| v.error(base, b, cm)),
+                ),
+                share_pixels_closer: if pixels > 0 {
+                    closer as f64 / pixels as f64
+                } else {
+                    0.0
+                },
+            });
+        }
+    }
+
+    let mut speed_error = Vec::new();
+    if let Some(b) = settings.bounces.first() {
+        let mut scenes: Vec<&str> = Vec::new();
+        for v in views {
+            if !scenes.contains(&v.scene.as_str()) {
+                scenes.push(&v.scene);
+            }
+        }
+        for s in scenes {
+            let sv: Vec<&ViewResult> = views.iter().filter(|v| v.scene == s).collect();
+            let mut points: Vec<SpeedErrorPoint> = techniques
+                .iter()
+                .filter_map(|t| {
+                    let frame = mean(
+                        sv.iter()
+                            .filter_map(|v| v.technique(&t.label))
+                            .map(|r| r.frame.median_s * 1e3),
+                    )?;
+                    let error = mean(sv.iter().filter_map(|v| v.error(&t.label, b, em)))?;
+                    Some(SpeedErrorPoint {
+                        label: t.label.clone(),
+                        frame_ms: frame,
+                        error,
+                        pareto: false,
+                    })
+                })
+                .collect();
+            mark_pareto(&mut points);
+            speed_error.push(SceneSpeedError {
+                scene: s.to_string(),
+                bounces: b.clone(),
+                points,
+            });
+        }
+    }
+    Summary {
+        times,
+        comparisons,
+        speed_error,
+    }
+}
+
+/// The thesis' quality gain `(e_baseline - e) / e_baseline` (0 when the baseline is exact).
+pub fn gain(baseline_error: f64, error: f64) -> f64 {
+    if baseline_error > 0.0 {
+        (baseline_error - error) / baseline_error
+    } else {
+        0.0
+    }
+}
+
+fn time_row(label: String, frames: &[f64], prepare_s: f64) -> TimeRow {
+    let total: f64 = frames.iter().sum();
+    let n = frames.len();
+    TimeRow {
+        label,
+        views: n,
+        total_s: total,
+        avg_frame_ms: if n > 0 { total / n as f64 * 1e3 } else { 0.0 },
+        avg_fps: if total > 0.0 { n as f64 / total } else { 0.0 },
+        prepare_s,
+    }
+}
+
+/// Marks the points no other point dominates (at most as slow and at most as wrong, and
+/// better in one of the two).
+pub fn mark_pareto(points: &mut [SpeedErrorPoint]) {
+    let snapshot: Vec<(f64, f64)> = points.iter().map(|p| (p.frame_ms, p.error)).collect();
+    for p in points.iter_mut() {
+        p.pareto = !snapshot
+            .iter()
+            .any(|&(t, e)| t <= p.frame_ms && e <= p.error && (t < p.frame_ms || e < p.error));
+    }
+}

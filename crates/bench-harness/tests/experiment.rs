@@ -1,0 +1,394 @@
+//! A tiny experiment end to end with stand-in techniques and a mean-error metric: every
+//! output, report numbers equal to results.json, resume after an interruption, bad input.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use bench_harness::cameras::parse_camera_list;
+use bench_harness::experiment::view_dir;
+use bench_harness::{
+    Experiment, ExperimentSettings, HarnessError, Results, SceneSetup, TechniqueSetup,
+    random_cameras,
+};
+use scene_core::glam::Vec3;
+use scene_core::reference::Bounces;
+use scene_core::{Camera, Error, Image, Metric, MetricValue, Scene, Technique, builtin};
+
+/// Primary-ray albedo times a constant: a cheap technique whose error depends on the gain.
+struct Flat {
+    gain: f32,
+    renders: Arc<AtomicU64>,
+}
+
+impl Technique for Flat {
+    fn name(&self) -> &str {
+        "flat"
+    }
+    fn prepare(&mut self, _: &Scene) -> Result<(), Error> {
+        Ok(())
+    }
+    fn render(&mut self, scene: &Scene, camera: &Camera, w: u32, h: u32) -> Result<Image, Error> {
+        self.renders.fetch_add(1, Ordering::SeqCst);
+        let view = scene_core::View::from_camera(&camera.with_aspect(w as f32 / h as f32));
+        let rays = scene_core::ray::RayScene::build(scene);
+        let offsets = scene.mesh_offsets();
+        let mut img = Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let uv = scene_core::glam::Vec2::new(
+                    (x as f32 + 0.5) / w as f32,
+                    (y as f32 + 0.5) / h as f32,
+                );
+                let (o, d) = view.ray(uv);
+                if let Some(hit) = rays.closest_hit(o, d, 0.0, f32::INFINITY) {
+                    let t = scene.triangle_ref(&offsets, hit.triangle).unwrap();
+                    let m = scene.meshes[t.mesh as usize].material_ids[t.local as usize];
+                    let mat = &scene.materials[m as usize];
+                    img.set(x, y, mat.albedo * self.gain + mat.emission);
+                }
+            }
+        }
+        Ok(img)
+    }
+}
+
+/// Eq. 19's mean absolute difference.
+struct MeanError;
+impl Metric for MeanError {
+    fn name(&self) -> &str {
+        "mean-error"
+    }
+    fn lower_is_better(&self) -> bool {
+        true
+    }
+    fn compare(&self, r: &Image, t: &Image) -> Result<MetricValue, Error> {
+        let s: f64 = r
+            .pixels
+            .iter()
+            .zip(&t.pixels)
+            .map(|(a, b)| (*a - *b).abs().element_sum() as f64)
+            .sum();
+        Ok(MetricValue {
+            value: s / (3 * r.pixels.len()) as f64,
+            map: None,
+        })
+    }
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("bench-harness-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn experiment(out: &Path, renders: &Arc<AtomicU64>) -> Experiment {
+    let scene = builtin::scene("cornell").unwrap();
+    let tech = |label: &str, gain: f32| TechniqueSetup {
+        label: label.into(),
+        family: label.split('-').next().unwrap().into(),
+        description: format!("albedo x {gain}"),
+        technique: Box::new(Flat {
+            gain,
+            renders: renders.clone(),
+        }),
+    };
+    Experiment {
+        settings: ExperimentSettings {
+            width: 64,
+            height: 48,
+            spp: 4,
+            bounces: vec![Bounces::Limited(1), Bounces::Unlimited],
+            repeats: 2,
+            out_dir: out.to_path_buf(),
+            cache_dir: Some(out.join("cache")),
+            progress: false,
+            ..Default::default()
+        },
+        scenes: vec![SceneSetup {
+            id: "cornell".into(),
+            cameras: scene.cameras[..2].to_vec(),
+            scene,
+        }],
+        techniques: vec![tech("dl", 0.05), tech("isr-a", 0.3), tech("isr-b", 0.6)],
+        metrics: vec![Box::new(MeanError)],
+    }
+}
+
+/// (camera, technique, metric values) of every error set.
+type Errors = Vec<(String, String, Vec<(String, f64)>)>;
+
+fn errors(r: &Results) -> Errors {
+    r.views
+        .iter()
+        .flat_map(|v| {
+            v.techniques.iter().flat_map(move |t| {
+                t.errors
+                    .iter()
+                    .map(move |e| (v.camera_name(), t.label.clone(), e.metrics.clone()))
+            })
+        })
+        .collect()
+}
+
+/// The cells of the Markdown table row that starts with `| first |`, and optionally whose
+/// second cell is `second`.
+fn row(md: &str, first: &str, second: Option<&str>) -> Vec<String> {
+    md.lines()
+        .map(|l| {
+            l.trim_matches('|')
+                .split('|')
+                .map(|c| c.trim().to_string())
+                .collect::<Vec<_>>()
+        })
+        .find(|c| {
+            c.first().map(String::as_str) == Some(first)
+                && second.is_none_or(|s| c.get(1).map(String::as_str) == Some(s))
+        })
+        .unwrap_or_else(|| panic!("no row {first} {second:?} in report.md"))
+}
+
+/// The text of the report section whose heading starts with `heading`.
+fn section<'a>(md: &'a str, heading: &str) -> &'a str {
+    let start = md
+        .find(heading)
+        .unwrap_or_else(|| panic!("no section {heading}"));
+    let rest = &md[start + heading.len()..];
+    &rest[..rest.find("\n## ").unwrap_or(rest.len())]
+}
+
+fn num(cell: &str) -> (f64, f64) {
+    // Value and the half-unit of its last printed digit.
+    let pct = cell.ends_with('%');
+    let t = cell.trim_end_matches('%');
+    let decimals = t.split_once('.').map_or(0, |(_, d)| d.len());
+    let v: f64 = t.parse().unwrap_or_else(|_| panic!("not a number: {cell}"));
+    let scale = if pct { 100.0 } else { 1.0 };
+    (
+        v / scale,
+        0.5 * 10f64.powi(-(decimals as i32)) / scale + 1e-12,
+    )
+}
+
+fn assert_cell(cell: &str, expected: f64) {
+    let (v, tol) = num(cell);
+    assert!(
+        (v - expected).abs() <= tol,
+        "report shows {cell}, results.json has {expected}"
+    );
+}
+
+#[test]
+fn tiny_experiment_writes_every_output_and_the_report_matches_results_json() {
+    let out = temp_dir("tiny");
+    let renders = Arc::new(AtomicU64::new(0));
+    let outcome = experiment(&out, &renders).run().unwrap();
+    assert_eq!(outcome.views_computed, 2);
+    assert!(!outcome.interrupted);
+    // 2 views x 3 techniques x (1 warm-up + 2 repeats).
+    assert_eq!(renders.load(Ordering::SeqCst), 18);
+    assert_eq!(outcome.reference_renders, 4);
+    for f in ["results.json", "report.md", "report.html"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    for v in &outcome.results.views {
+        let dir = out.join(view_dir(&v.scene, v.camera_index, &v.camera_name()));
+        for stem in ["reference-b1", "reference-binf", "dl", "isr-a", "isr-b"] {
+            for ext in ["png", "exr"] {
+                assert!(dir.join(format!("{stem}.{ext}")).is_file(), "{stem}.{ext}");
+            }
+        }
+        for stem in ["diff-dl-b1", "diff-isr-a-binf", "diff-isr-b-b1"] {
+            assert!(dir.join(format!("{stem}.png")).is_file(), "{stem}");
+            assert!(dir.join(format!("{stem}.exr")).is_file(), "{stem}");
+        }
+        // Timings: median within [min, max].
+        for t in &v.techniques {
+            assert!(t.frame.min_s <= t.frame.median_s && t.frame.median_s <= t.frame.max_s);
+            assert_eq!(t.frame.repeats, 2);
+        }
+    }
+
+    // results.json is what the run returned.
+    let text = std::fs::read_to_string(out.join("results.json")).unwrap();
+    let json: Results = serde_json::from_str(&text).unwrap();
+    assert_eq!(json, outcome.results);
+
+    // Every number of Table 2 and of the comparisons in report.md equals results.json's.
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let times = section(&md, "## Time");
+    for t in &json.summary.times {
+        let c = row(times, &t.label, None);
+        assert_eq!(c[1], t.views.to_string());
+        assert_cell(&c[2], t.total_s);
+        assert_cell(&c[3], t.avg_frame_ms);
+        assert_cell(&c[4], t.avg_fps);
+        assert_cell(&c[5], t.prepare_s);
+    }
+    assert_eq!(json.summary.comparisons.len(), 4);
+    let against = section(&md, "## Against the baseline");
+    for cmp in &json.summary.comparisons {
+        let c = row(against, &cmp.technique, Some(&cmp.bounces));
+        assert_eq!(c[2], cmp.views.to_string());
+        assert_cell(&c[3], cmp.share_views_better);
+        assert_cell(&c[4], cmp.mean_gain);
+        assert_cell(&c[5], cmp.mean_error);
+        assert_cell(&c[6], cmp.baseline_mean_error);
+        assert_cell(&c[9], cmp.share_pixels_closer);
+        // The summary is consistent with the per-view numbers.
+        let per_view: Vec<(f64, f64)> = json
+            .views
+            .iter()
+            .map(|v| {
+                (
+                    v.error(&cmp.technique, &cmp.bounces, "mean-error").unwrap(),
+                    v.error("dl", &cmp.bounces, "mean-error").unwrap(),
+                )
+            })
+            .collect();
+        let mean_gain = per_view.iter().map(|(e, b)| (b - e) / b).sum::<f64>() / 2.0;
+        assert!((mean_gain - cmp.mean_gain).abs() < 1e-12);
+    }
+    // The speed-against-error table and its Pareto front.
+    let se = &json.summary.speed_error[0];
+    assert_eq!(se.points.len(), 3);
+    assert!(se.points.iter().any(|p| p.pareto));
+    let speed = section(&md, "### cornell");
+    for p in &se.points {
+        let c = row(speed, &p.label, None);
+        assert_cell(&c[1], p.frame_ms);
+        assert_cell(&c[2], p.error);
+        assert_eq!(c[3] == "yes", p.pareto);
+    }
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("<svg") && html.contains("data:image/png;base64,"));
+    assert!(html.contains("speed against error"));
+
+    // A second run reuses everything: no render, no reference.
+    let renders2 = Arc::new(AtomicU64::new(0));
+    let again = experiment(&out, &renders2).run().unwrap();
+    assert_eq!(again.views_resumed, 2);
+    assert_eq!(renders2.load(Ordering::SeqCst), 0);
+    assert_eq!(errors(&again.results), errors(&outcome.results));
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn an_interrupted_run_resumes_without_recomputing_finished_views() {
+    let out = temp_dir("resume");
+    let renders = Arc::new(AtomicU64::new(0));
+    let mut first = experiment(&out, &renders);
+    first.settings.stop_after_views = Some(1);
+    let partial = first.run().unwrap();
+    assert!(partial.interrupted);
+    assert_eq!(partial.views_computed, 1);
+    assert_eq!(renders.load(Ordering::SeqCst), 9);
+    assert!(!out.join("report.md").exists());
+
+    let renders2 = Arc::new(AtomicU64::new(0));
+    let resumed = experiment(&out, &renders2).run().unwrap();
+    assert_eq!(resumed.views_resumed, 1);
+    assert_eq!(resumed.views_computed, 1);
+    // Only the second view was rendered.
+    assert_eq!(renders2.load(Ordering::SeqCst), 9);
+    // The first view keeps its recorded timings.
+    assert_eq!(resumed.results.views[0], partial.results.views[0]);
+
+    // The same errors as an uninterrupted run elsewhere.
+    let fresh_dir = temp_dir("resume-fresh");
+    let fresh = experiment(&fresh_dir, &Arc::new(AtomicU64::new(0)))
+        .run()
+        .unwrap();
+    assert_eq!(errors(&resumed.results), errors(&fresh.results));
+    std::fs::remove_dir_all(&out).ok();
+    std::fs::remove_dir_all(&fresh_dir).ok();
+}
+
+#[test]
+fn references_are_cached_across_output_folders() {
+    let base = temp_dir("cache");
+    let cache = base.join("shared-cache");
+    let renders = Arc::new(AtomicU64::new(0));
+    let mut a = experiment(&base.join("a"), &renders);
+    a.settings.cache_dir = Some(cache.clone());
+    a.settings.bounces = vec![Bounces::Limited(1)];
+    assert_eq!(a.run().unwrap().reference_renders, 2);
+    let mut b = experiment(&base.join("b"), &renders);
+    b.settings.cache_dir = Some(cache.clone());
+    b.settings.bounces = vec![Bounces::Limited(1)];
+    assert_eq!(b.run().unwrap().reference_renders, 0);
+    // Another spp is another key.
+    let mut c = experiment(&base.join("c"), &renders);
+    c.settings.cache_dir = Some(cache);
+    c.settings.bounces = vec![Bounces::Limited(1)];
+    c.settings.spp = 5;
+    assert_eq!(c.run().unwrap().reference_renders, 2);
+    std::fs::remove_dir_all(&base).ok();
+}
+
+#[test]
+fn bad_camera_lists_and_setups_give_clear_errors() {
+    let scene = builtin::scene("cornell").unwrap();
+    let e = parse_camera_list("[{\"position\": [0, 1", &scene, "cams.json").unwrap_err();
+    assert!(matches!(e, HarnessError::CameraList { .. }));
+    assert!(e.to_string().contains("cams.json"), "{e}");
+    let e = parse_camera_list(
+        "[{\"position\": [0,0,0], \"target\": [0,0,0], \"fov\": 40}]",
+        &scene,
+        "same.json",
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("target equals position"), "{e}");
+    let e = parse_camera_list(
+        "[{\"position\": [0,0,0], \"target\": [0,0,1], \"fov\": 200}]",
+        &scene,
+        "fov.json",
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("fov"), "{e}");
+    let e = bench_harness::load_camera_list(Path::new("/no/such/cams.json"), &scene).unwrap_err();
+    assert!(e.to_string().contains("/no/such/cams.json"), "{e}");
+
+    let ok = parse_camera_list(
+        "{\"cameras\": [{\"name\": \"a\", \"position\": [0.278, 0.273, -0.8], \"target\": [0.278, 0.273, 0], \"fov\": 40}]}",
+        &scene,
+        "ok.json",
+    )
+    .unwrap();
+    assert_eq!(ok[0].name, "a");
+    assert!((ok[0].fov_y.to_degrees() - 40.0).abs() < 1e-4);
+
+    // A baseline that is not among the techniques.
+    let out = temp_dir("bad");
+    let renders = Arc::new(AtomicU64::new(0));
+    let mut x = experiment(&out, &renders);
+    x.settings.baseline = "nope".into();
+    let e = x.run().err().unwrap();
+    assert!(e.to_string().contains("baseline 'nope'"), "{e}");
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn random_cameras_are_seeded_in_free_space_and_see_geometry() {
+    let scene = builtin::scene("cornell").unwrap();
+    let s = bench_harness::RandomCameraSettings::default();
+    let a = random_cameras(&scene, 3, &s).unwrap();
+    let b = random_cameras(&scene, 3, &s).unwrap();
+    assert_eq!(a, b);
+    let bounds = scene.bounds();
+    for c in &a {
+        assert!(c.position.cmpge(bounds.min).all() && c.position.cmple(bounds.max).all());
+        assert!((c.target - c.position).length() > 0.0);
+    }
+    let other = random_cameras(
+        &scene,
+        3,
+        &bench_harness::RandomCameraSettings { seed: 2, ..s },
+    )
+    .unwrap();
+    assert_ne!(a, other);
+    // A scene with no geometry cannot place cameras.
+    let empty = Scene::new("empty");
+    assert!(random_cameras(&empty, 1, &s).is_err());
+    let _ = Vec3::ZERO;
+}
