@@ -8,11 +8,14 @@
 //! - `export-gltf`: write a built-in scene as glTF.
 //! - `bench reference`: rays per second of the reference path tracer.
 //! - `bench isr`: ISR ms per frame by pass at 1024x768, 24/48/80 samples, CPU and GPU.
+//! - `experiment`: the main job: scenes x cameras x `dl`/`isr` against the reference path
+//!   tracer, with `report.md`, `report.html` and `results.json`.
 //! - `bench gbuffer`: G-buffer ms per frame (CPU and GPU), downsampling passes and quality,
 //!   position reconstruction micro-benchmark.
 
 mod bench;
 mod checks;
+mod experiment;
 mod shaders;
 
 use std::path::{Path, PathBuf};
@@ -87,6 +90,51 @@ enum Command {
         /// Output file (.gltf or .glb).
         #[arg(long)]
         out: PathBuf,
+    },
+    /// The main job: render the scenes with DL, ISR and the reference path tracer and write
+    /// results.json, report.md and report.html (speed against error).
+    Experiment {
+        /// Built-in scene name or .gltf/.glb path (repeatable; default: cornell,
+        /// cornell-point, primitives, corridor).
+        #[arg(long = "scene")]
+        scenes: Vec<String>,
+        /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
+        /// isr-N, isr-thesis-N; comma-separated.
+        #[arg(long, default_value = "dl,isr")]
+        techniques: String,
+        /// Views per scene: the scene's cameras first, then seeded random ones.
+        #[arg(long)]
+        views: Option<usize>,
+        /// Reference samples per pixel.
+        #[arg(long, default_value_t = 256)]
+        spp: u32,
+        /// Reference bounce limits, comma-separated (0, 1, N, inf).
+        #[arg(long, default_value = "1,inf")]
+        bounces: String,
+        /// Image size WxH.
+        #[arg(long, default_value = "256x192")]
+        size: String,
+        /// Output directory.
+        #[arg(long, default_value = "out/experiment")]
+        out: PathBuf,
+        /// Run ISR and DL on the GPU (wgpu).
+        #[arg(long, conflicts_with = "cpu")]
+        gpu: bool,
+        /// Run ISR and DL on the CPU (the default).
+        #[arg(long)]
+        cpu: bool,
+        /// A camera list for a scene: SCENE=FILE.json (repeatable).
+        #[arg(long)]
+        cameras: Vec<String>,
+        /// Timed frames per view after one warm-up.
+        #[arg(long, default_value_t = 3)]
+        repeats: u32,
+        /// Seed of the reference and the random cameras.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Also write a POV-Ray scene file per view (thesis' radiosity block).
+        #[arg(long)]
+        povray: bool,
     },
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
@@ -237,6 +285,34 @@ fn run(cli: Cli) -> Result<(), String> {
             println!("{}", out.display());
             Ok(())
         }
+        Command::Experiment {
+            scenes,
+            techniques,
+            views,
+            spp,
+            bounces,
+            size,
+            out,
+            gpu,
+            cpu: _,
+            cameras,
+            repeats,
+            seed,
+            povray,
+        } => experiment::run(&experiment::Options {
+            scenes,
+            techniques,
+            views,
+            spp,
+            bounces,
+            size,
+            out,
+            gpu,
+            cameras,
+            repeats,
+            seed,
+            povray,
+        }),
         Command::Bench {
             what,
             threads,

@@ -1,0 +1,491 @@
+//! `cargo xtask experiment`: the main job. Built-in (or glTF) scenes x cameras x the `dl` and
+//! `isr` techniques x imalyzer's measures, against the reference path tracer, through
+//! bench-harness.
+
+use std::path::{Path, PathBuf};
+
+use bench_harness::{
+    Experiment, ExperimentSettings, RandomCameraSettings, RunOutcome, SceneSetup, TechniqueSetup,
+    cameras_for, load_camera_list,
+};
+use gbuffer::CpuRasterizer;
+use imalyzer::{Measure, MeasureMetric};
+use isr::{Backend, IsrSettings, IsrTechnique};
+use scene_core::reference::Bounces;
+use scene_core::{Metric, Technique};
+
+/// The built-in scenes of the default run.
+pub const DEFAULT_SCENES: [&str; 4] = ["cornell", "cornell-point", "primitives", "corridor"];
+
+/// The ISR sample counts of the thesis.
+pub const SAMPLES: [u32; 3] = [24, 48, 80];
+
+/// Everything `cargo xtask experiment` takes.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Scene names or glTF paths (empty: the defaults).
+    pub scenes: Vec<String>,
+    /// Comma-separated technique list.
+    pub techniques: String,
+    /// Views per scene (default: the scene's own cameras).
+    pub views: Option<usize>,
+    /// Reference spp.
+    pub spp: u32,
+    /// Bounce limits, comma-separated.
+    pub bounces: String,
+    /// `WxH`.
+    pub size: String,
+    /// Output folder.
+    pub out: PathBuf,
+    /// Run ISR on the GPU.
+    pub gpu: bool,
+    /// Camera lists, `SCENE=FILE.json`.
+    pub cameras: Vec<String>,
+    /// Timed repeats.
+    pub repeats: u32,
+    /// Seed of the reference and the random cameras.
+    pub seed: u64,
+    /// Write a POV-Ray file per view.
+    pub povray: bool,
+}
+
+/// One technique the command line named.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TechniqueChoice {
+    /// Label.
+    pub label: String,
+    /// `dl` or `isr`.
+    pub family: String,
+    /// The frame settings.
+    pub settings: IsrSettings,
+    /// Parameters in words.
+    pub description: String,
+}
+
+fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
+    let base = if thesis {
+        IsrSettings::thesis()
+    } else {
+        IsrSettings::default()
+    };
+    let (label, mode) = if thesis {
+        (
+            format!("isr-thesis-{samples}"),
+            "thesis mode (eq. 25 as published, albedo senders)",
+        )
+    } else {
+        (
+            format!("isr-{samples}"),
+            "default mode (patch estimator, lit senders)",
+        )
+    };
+    TechniqueChoice {
+        label,
+        family: "isr".into(),
+        settings: IsrSettings { samples, ..base },
+        description: format!("{samples} samples, {mode}, CPU rasteriser G-buffer"),
+    }
+}
+
+/// Parses a technique list: `dl`, `isr` (both modes at 24, 48 and 80 samples), `isr-default`,
+/// `isr-thesis`, `isr-N`, `isr-thesis-N`. `dl` (the baseline) is added first when missing.
+pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
+    let known = "dl, isr, isr-default, isr-thesis, isr-N, isr-thesis-N (N in 1..=256)";
+    let mut out: Vec<TechniqueChoice> = Vec::new();
+    for token in list.split(',').map(str::trim).filter(|t| !t.is_empty()) {
+        let t = token.to_ascii_lowercase();
+        let mut add: Vec<TechniqueChoice> = Vec::new();
+        match t.as_str() {
+            "dl" => add.push(TechniqueChoice {
+                label: "dl".into(),
+                family: "dl".into(),
+                settings: IsrSettings::dl(),
+                description: "direct light with ESM shadows (the thesis' I_DL)".into(),
+            }),
+            "isr" => {
+                add.extend(SAMPLES.map(|n| isr_choice(false, n)));
+                add.extend(SAMPLES.map(|n| isr_choice(true, n)));
+            }
+            "isr-default" => add.extend(SAMPLES.map(|n| isr_choice(false, n))),
+            "isr-thesis" => add.extend(SAMPLES.map(|n| isr_choice(true, n))),
+            _ => {
+                let (thesis, n) = if let Some(n) = t.strip_prefix("isr-thesis-") {
+                    (true, n)
+                } else if let Some(n) = t.strip_prefix("isr-") {
+                    (false, n)
+                } else {
+                    return Err(format!("unknown technique '{token}' (known: {known})"));
+                };
+                let n: u32 = n
+                    .parse()
+                    .ok()
+                    .filter(|n| (1..=256).contains(n))
+                    .ok_or_else(|| format!("unknown technique '{token}' (known: {known})"))?;
+                add.push(isr_choice(thesis, n));
+            }
+        }
+        for c in add {
+            if !out.iter().any(|o| o.label == c.label) {
+                out.push(c);
+            }
+        }
+    }
+    if out.is_empty() {
+        return Err(format!("no technique given (known: {known})"));
+    }
+    if !out.iter().any(|c| c.label == "dl") {
+        out.insert(0, parse_techniques("dl")?.remove(0));
+    }
+    Ok(out)
+}
+
+/// Parses `WxH`.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("size must be WxH, got '{s}'"))?;
+    let w: u32 = w
+        .trim()
+        .parse()
+        .map_err(|_| format!("size must be WxH, got '{s}'"))?;
+    let h: u32 = h
+        .trim()
+        .parse()
+        .map_err(|_| format!("size must be WxH, got '{s}'"))?;
+    if w == 0 || h == 0 || w > 8192 || h > 8192 {
+        return Err(format!("size must be between 1x1 and 8192x8192, got '{s}'"));
+    }
+    Ok((w, h))
+}
+
+/// Parses a comma-separated bounce list (`1,inf`).
+pub fn parse_bounces(s: &str) -> Result<Vec<Bounces>, String> {
+    let v: Vec<Bounces> = s
+        .split(',')
+        .map(str::trim)
+        .filter(|t| !t.is_empty())
+        .map(|t| t.parse::<Bounces>())
+        .collect::<Result<_, _>>()?;
+    if v.is_empty() {
+        return Err("no bounce limit given".into());
+    }
+    Ok(v)
+}
+
+fn scene_id(spec: &str) -> String {
+    let lower = spec.to_ascii_lowercase();
+    if lower.ends_with(".gltf") || lower.ends_with(".glb") {
+        Path::new(spec)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene".into())
+    } else {
+        spec.trim().replace([' ', ':'], "-")
+    }
+}
+
+/// Builds the experiment the options describe (scenes loaded, cameras parsed or drawn).
+pub fn build(o: &Options) -> Result<Experiment, String> {
+    let (width, height) = parse_size(&o.size)?;
+    let bounces = parse_bounces(&o.bounces)?;
+    let choices = parse_techniques(&o.techniques)?;
+    if o.spp == 0 {
+        return Err("--spp must be positive".into());
+    }
+    let backend = if o.gpu {
+        let ctx = scene_core::gpu::GpuContext::new()
+            .map_err(|e| format!("--gpu: {e} (run with --cpu to stay on the CPU)"))?;
+        Backend::Gpu(ctx)
+    } else {
+        Backend::Cpu
+    };
+    let specs: Vec<String> = if o.scenes.is_empty() {
+        DEFAULT_SCENES.iter().map(|s| s.to_string()).collect()
+    } else {
+        o.scenes.clone()
+    };
+    let mut lists: Vec<(String, PathBuf)> = Vec::new();
+    for c in &o.cameras {
+        let (scene, file) = c
+            .split_once('=')
+            .ok_or_else(|| format!("--cameras takes SCENE=FILE.json, got '{c}'"))?;
+        lists.push((scene.trim().to_string(), PathBuf::from(file.trim())));
+    }
+    let mut scenes = Vec::new();
+    for spec in &specs {
+        let lower = spec.to_ascii_lowercase();
+        if (lower.ends_with(".gltf") || lower.ends_with(".glb")) && !Path::new(spec).exists() {
+            return Err(format!("scene file '{spec}' does not exist"));
+        }
+        let scene = crate::load_scene(spec)?;
+        let id = scene_id(spec);
+        let given = match lists.iter().find(|(s, _)| s == spec || *s == id) {
+            Some((_, file)) => load_camera_list(file, &scene).map_err(|e| e.to_string())?,
+            None => scene.cameras.clone(),
+        };
+        let count = o.views.unwrap_or(given.len().max(1));
+        let random = RandomCameraSettings {
+            seed: o.seed,
+            ..Default::default()
+        };
+        let cameras = cameras_for(&scene, &given, count, &random).map_err(|e| e.to_string())?;
+        scenes.push(SceneSetup { id, scene, cameras });
+    }
+    for (s, _) in &lists {
+        if !scenes.iter().any(|sc| &sc.id == s) && !specs.contains(s) {
+            return Err(format!(
+                "--cameras names scene '{s}', which is not in the run"
+            ));
+        }
+    }
+    let techniques = choices
+        .into_iter()
+        .map(|c| {
+            let t = IsrTechnique::new(c.settings, Box::new(CpuRasterizer::new()))
+                .with_backend(backend.clone())
+                .named(&c.label);
+            TechniqueSetup {
+                label: c.label,
+                family: c.family,
+                description: c.description,
+                technique: Box::new(t) as Box<dyn Technique>,
+            }
+        })
+        .collect();
+    let metrics: Vec<Box<dyn Metric>> = [
+        Measure::MeanError,
+        Measure::MeanError8bit,
+        Measure::Pearson,
+        Measure::Rmse,
+        Measure::Ssim,
+        Measure::Flip,
+    ]
+    .into_iter()
+    .map(|m| Box::new(MeasureMetric::new(m)) as Box<dyn Metric>)
+    .collect();
+    Ok(Experiment {
+        settings: ExperimentSettings {
+            width,
+            height,
+            spp: o.spp,
+            bounces,
+            seed: o.seed,
+            warmup: 1,
+            repeats: o.repeats.max(1),
+            out_dir: o.out.clone(),
+            cache_dir: None,
+            baseline: "dl".into(),
+            error_metric: Measure::MeanError.name().into(),
+            correlation_metric: Measure::Pearson.name().into(),
+            headline: Some("isr-80".into()).filter(|h| {
+                parse_techniques(&o.techniques)
+                    .map(|c| c.iter().any(|c| &c.label == h))
+                    .unwrap_or(false)
+            }),
+            progress: true,
+            stop_after_views: None,
+            exposure: 0.0,
+            write_images: true,
+        },
+        scenes,
+        techniques,
+        metrics,
+    })
+}
+
+/// The summary table printed at the end.
+pub fn summary_text(outcome: &RunOutcome) -> String {
+    use bench_harness::report::{fmt_2, fmt_ms, fmt_pct, fmt_s};
+    let r = &outcome.results;
+    let mut s = String::new();
+    s.push_str(&format!(
+        "{:<26} {:>6} {:>12} {:>14} {:>10}\n",
+        "technique", "views", "total (s)", "frame (ms)", "FPS"
+    ));
+    for t in &r.summary.times {
+        s.push_str(&format!(
+            "{:<26} {:>6} {:>12} {:>14} {:>10}\n",
+            t.label,
+            t.views,
+            fmt_s(t.total_s),
+            fmt_ms(t.avg_frame_ms),
+            fmt_2(t.avg_fps)
+        ));
+    }
+    s.push_str(&format!(
+        "\n{:<18} {:>7} {:>13} {:>11} {:>14}\n",
+        "against dl", "bounces", "views better", "mean gain", "pixels closer"
+    ));
+    for c in &r.summary.comparisons {
+        s.push_str(&format!(
+            "{:<18} {:>7} {:>13} {:>11} {:>14}\n",
+            c.technique,
+            c.bounces,
+            fmt_pct(c.share_views_better),
+            fmt_pct(c.mean_gain),
+            fmt_pct(c.share_pixels_closer)
+        ));
+    }
+    s
+}
+
+/// Runs `cargo xtask experiment`.
+pub fn run(o: &Options) -> Result<(), String> {
+    let mut experiment = build(o)?;
+    let views: usize = experiment.scenes.iter().map(|s| s.cameras.len()).sum();
+    eprintln!(
+        "experiment: {} scene(s), {views} view(s), {} technique(s), {}x{}, reference {} spp, bounces {}",
+        experiment.scenes.len(),
+        experiment.techniques.len(),
+        experiment.settings.width,
+        experiment.settings.height,
+        experiment.settings.spp,
+        o.bounces
+    );
+    if o.povray {
+        for sc in &experiment.scenes {
+            for (i, cam) in sc.cameras.iter().enumerate() {
+                let dir = o.out.join("povray");
+                std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+                let file = dir.join(format!(
+                    "{}--{i:02}-{}.pov",
+                    bench_harness::experiment::slug(&sc.id),
+                    bench_harness::experiment::slug(&cam.name)
+                ));
+                bench_harness::povray::write(
+                    &file,
+                    &sc.scene,
+                    cam,
+                    experiment.settings.width,
+                    experiment.settings.height,
+                )
+                .map_err(|e| e.to_string())?;
+            }
+        }
+        eprintln!("POV-Ray files in {}", o.out.join("povray").display());
+    }
+    let outcome = experiment.run().map_err(|e| e.to_string())?;
+    eprintln!(
+        "{} view(s) computed, {} resumed, {} reference render(s), {:.1} s",
+        outcome.views_computed, outcome.views_resumed, outcome.reference_renders, outcome.seconds
+    );
+    print!("{}", summary_text(&outcome));
+    println!("\nreport: {}", outcome.report_md.display());
+    println!("report: {}", outcome.report_html.display());
+    println!("results: {}", outcome.results_json.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn options() -> Options {
+        Options {
+            scenes: vec!["cornell".into()],
+            techniques: "dl,isr-24".into(),
+            views: Some(1),
+            spp: 2,
+            bounces: "1".into(),
+            size: "32x24".into(),
+            out: std::env::temp_dir().join(format!("xtask-experiment-{}", std::process::id())),
+            gpu: false,
+            cameras: Vec::new(),
+            repeats: 1,
+            seed: 1,
+            povray: false,
+        }
+    }
+
+    fn err(o: &Options) -> String {
+        match build(o) {
+            Ok(_) => panic!("expected an error"),
+            Err(e) => e,
+        }
+    }
+
+    #[test]
+    fn technique_lists_expand_and_unknown_names_are_refused() {
+        let all = parse_techniques("isr").unwrap();
+        let labels: Vec<&str> = all.iter().map(|c| c.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "dl",
+                "isr-24",
+                "isr-48",
+                "isr-80",
+                "isr-thesis-24",
+                "isr-thesis-48",
+                "isr-thesis-80"
+            ]
+        );
+        assert_eq!(parse_techniques("dl, isr-thesis-48").unwrap().len(), 2);
+        let e = parse_techniques("dl,magic").unwrap_err();
+        assert!(
+            e.contains("unknown technique 'magic'") && e.contains("known"),
+            "{e}"
+        );
+        assert!(parse_techniques("isr-0").is_err());
+        assert!(parse_techniques("isr-999").is_err());
+    }
+
+    #[test]
+    fn missing_scene_files_unknown_techniques_and_bad_camera_lists_are_clear_errors() {
+        let mut o = options();
+        o.scenes = vec!["/no/such/scene.gltf".into()];
+        let e = err(&o);
+        assert!(
+            e.contains("/no/such/scene.gltf") && e.contains("does not exist"),
+            "{e}"
+        );
+
+        let mut o = options();
+        o.techniques = "dl,nope".into();
+        assert!(err(&o).contains("unknown technique 'nope'"));
+
+        let dir = std::env::temp_dir().join(format!("xtask-cams-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("broken.json");
+        std::fs::write(&file, "[{\"position\": [1, 2, 3], \"target\": ").unwrap();
+        let mut o = options();
+        o.cameras = vec![format!("cornell={}", file.display())];
+        let e = err(&o);
+        assert!(
+            e.contains("camera list") && e.contains("broken.json"),
+            "{e}"
+        );
+
+        let mut o = options();
+        o.size = "64by48".into();
+        assert!(err(&o).contains("WxH"));
+        let mut o = options();
+        o.bounces = "one".into();
+        assert!(err(&o).contains("bounces"));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn a_camera_list_and_random_views_build_the_scene_setup() {
+        let dir = std::env::temp_dir().join(format!("xtask-cams-ok-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("cams.json");
+        std::fs::write(
+            &file,
+            "[{\"name\": \"mine\", \"position\": [0.278, 0.273, -0.8], \"target\": [0.278, 0.273, 0.0], \"fov\": 39}]",
+        )
+        .unwrap();
+        let mut o = options();
+        o.cameras = vec![format!("cornell={}", file.display())];
+        o.views = Some(3);
+        let x = build(&o).unwrap();
+        let names: Vec<&str> = x.scenes[0]
+            .cameras
+            .iter()
+            .map(|c| c.name.as_str())
+            .collect();
+        assert_eq!(names, ["mine", "random0", "random1"]);
+        assert_eq!(x.techniques.len(), 2);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
