@@ -313,17 +313,18 @@ pub fn summary_text(outcome: &RunOutcome) -> String {
         ));
     }
     s.push_str(&format!(
-        "\n{:<18} {:>7} {:>13} {:>11} {:>14}\n",
-        "against dl", "bounces", "views better", "mean gain", "pixels closer"
+        "\n{:<18} {:>7} {:>13} {:>11} {:>14} {:>16}\n",
+        "against dl", "bounces", "views better", "mean gain", "pixels closer", "changed closer"
     ));
     for c in &r.summary.comparisons {
         s.push_str(&format!(
-            "{:<18} {:>7} {:>13} {:>11} {:>14}\n",
+            "{:<18} {:>7} {:>13} {:>11} {:>14} {:>16}\n",
             c.technique,
             c.bounces,
             fmt_pct(c.share_views_better),
             fmt_pct(c.mean_gain),
-            fmt_pct(c.share_pixels_closer)
+            fmt_pct(c.share_pixels_closer),
+            fmt_pct(c.share_changed_pixels_closer)
         ));
     }
     s

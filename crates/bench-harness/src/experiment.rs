@@ -15,6 +15,9 @@ use crate::results::{
     ViewResult, summarize,
 };
 
+/// Version of the per-view result format; views written by another version are recomputed.
+pub const RESULTS_VERSION: u64 = 2;
+
 /// A scene and the cameras to render it from.
 pub struct SceneSetup {
     /// Id used in reports and file names.
@@ -229,7 +232,8 @@ impl Experiment {
     fn config_key(&self, scene_hash: u64) -> String {
         let s = &self.settings;
         let mut h = Fnv::default();
-        h.u64(scene_hash)
+        h.u64(RESULTS_VERSION)
+            .u64(scene_hash)
             .u64(s.width as u64)
             .u64(s.height as u64)
             .u64(s.spp as u64)
@@ -543,15 +547,25 @@ impl Experiment {
                         })?;
                     metrics.push((m.name().to_string(), v.value));
                 }
-                let closer = (ti != base).then(|| {
-                    reference
+                let (closer, farther) = if ti == base {
+                    (None, None)
+                } else {
+                    let (mut c, mut f) = (0u64, 0u64);
+                    for ((r, t), d) in reference
                         .pixels
                         .iter()
                         .zip(&img.pixels)
                         .zip(&images[base].pixels)
-                        .filter(|((r, t), d)| pixel_distance(**r, **t) < pixel_distance(**r, **d))
-                        .count() as u64
-                });
+                    {
+                        let (dt, db) = (pixel_distance(*r, *t), pixel_distance(*r, *d));
+                        if dt < db {
+                            c += 1;
+                        } else if dt > db {
+                            f += 1;
+                        }
+                    }
+                    (Some(c), Some(f))
+                };
                 let label = &results[ti].label;
                 let diff = difference(reference, img);
                 // Difference images: every one when asked, the gallery's always.
@@ -566,6 +580,7 @@ impl Experiment {
                     bounces: b.to_string(),
                     metrics,
                     pixels_closer: closer,
+                    pixels_farther: farther,
                     pixels: reference.pixels.len() as u64,
                 });
             }

@@ -88,16 +88,17 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
         "\n## Against the baseline (the thesis' summary statistics)\n\nGain = mean over views \
          of (e_baseline - e) / e_baseline with e the eq. 19 mean error; pixels closer: share \
          of all pixels whose distance to the reference (sum over channels of |D|) is below \
-         the baseline's.\n"
+         the baseline's; changed pixels closer: the same share among the pixels whose distance \
+         differs from the baseline's (ties left out).\n"
     );
     let _ = writeln!(
         o,
-        "| technique | bounces | views | views better | mean gain | mean error | baseline mean error | mean Pearson | baseline mean Pearson | pixels closer |\n|---|---|---|---|---|---|---|---|---|---|"
+        "| technique | bounces | views | views better | mean gain | mean error | baseline mean error | mean Pearson | baseline mean Pearson | pixels closer | changed pixels closer |\n|---|---|---|---|---|---|---|---|---|---|---|"
     );
     for c in &r.summary.comparisons {
         let _ = writeln!(
             o,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             c.technique,
             c.bounces,
             c.views,
@@ -107,7 +108,8 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
             fmt_err(c.baseline_mean_error),
             opt(c.mean_pearson),
             opt(c.baseline_mean_pearson),
-            fmt_pct(c.share_pixels_closer)
+            fmt_pct(c.share_pixels_closer),
+            fmt_pct(c.share_changed_pixels_closer)
         );
     }
     let _ = writeln!(o, "\n## Speed against error per scene\n");

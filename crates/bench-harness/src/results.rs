@@ -47,6 +47,10 @@ pub struct ErrorSet {
     /// Pixels strictly closer to the reference than the baseline's (per-pixel distance: the
     /// sum over channels of the absolute difference); `None` for the baseline itself.
     pub pixels_closer: Option<u64>,
+    /// Pixels strictly farther from the reference than the baseline's (`None` for the
+    /// baseline); the rest are ties (background, emitters, untouched pixels).
+    #[serde(default)]
+    pub pixels_farther: Option<u64>,
     /// Pixels compared.
     pub pixels: u64,
 }
@@ -178,6 +182,10 @@ pub struct Comparison {
     pub baseline_mean_pearson: Option<f64>,
     /// Share of all pixels (over all views) closer to the reference than the baseline's.
     pub share_pixels_closer: f64,
+    /// Share of the pixels that differ in distance from the baseline's (ties left out)
+    /// where the technique is closer.
+    #[serde(default)]
+    pub share_changed_pixels_closer: f64,
 }
 
 /// One point of the speed-against-error plot of a scene.
@@ -308,7 +316,7 @@ pub fn summarize(
     for t in techniques.iter().filter(|t| &t.label != base) {
         for b in &settings.bounces {
             let mut pairs = Vec::new();
-            let (mut closer, mut pixels) = (0u64, 0u64);
+            let (mut closer, mut farther, mut pixels) = (0u64, 0u64, 0u64);
             for v in views {
                 if let (Some(et), Some(eb)) = (v.error(&t.label, b, em), v.error(base, b, em)) {
                     pairs.push((et, eb, v));
@@ -317,6 +325,7 @@ pub fn summarize(
                         .and_then(|r| r.errors.iter().find(|e| &e.bounces == b))
                     {
                         closer += set.pixels_closer.unwrap_or(0);
+                        farther += set.pixels_farther.unwrap_or(0);
                         pixels += set.pixels;
                     }
                 }
@@ -345,6 +354,11 @@ pub fn summarize(
                 ),
                 share_pixels_closer: if pixels > 0 {
                     closer as f64 / pixels as f64
+                } else {
+                    0.0
+                },
+                share_changed_pixels_closer: if closer + farther > 0 {
+                    closer as f64 / (closer + farther) as f64
                 } else {
                     0.0
                 },

@@ -235,6 +235,7 @@ fn tiny_experiment_writes_every_output_and_the_report_matches_results_json() {
         assert_cell(&c[5], cmp.mean_error);
         assert_cell(&c[6], cmp.baseline_mean_error);
         assert_cell(&c[9], cmp.share_pixels_closer);
+        assert_cell(&c[10], cmp.share_changed_pixels_closer);
         // The summary is consistent with the per-view numbers.
         let per_view: Vec<(f64, f64)> = json
             .views
