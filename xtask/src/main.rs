@@ -106,7 +106,7 @@ enum Command {
         #[arg(long)]
         views: Option<usize>,
         /// Reference samples per pixel.
-        #[arg(long, default_value_t = 256)]
+        #[arg(long, default_value_t = 512)]
         spp: u32,
         /// Reference bounce limits, comma-separated (0, 1, N, inf).
         #[arg(long, default_value = "1,inf")]
