@@ -49,6 +49,68 @@ pub struct Options {
     pub povray: bool,
 }
 
+/// POV-Ray as a [`Technique`]: each frame exports the scene and camera with the thesis'
+/// radiosity block ([`bench_harness::povray`]), runs `povray` and reads its EXR back. An extra
+/// reference column (the thesis' ground truth), compared with the path tracer like any
+/// technique.
+pub struct PovrayTechnique {
+    dir: PathBuf,
+    frame: u64,
+}
+
+impl PovrayTechnique {
+    /// Renders through files in `dir`.
+    pub fn new(dir: PathBuf) -> Self {
+        Self { dir, frame: 0 }
+    }
+}
+
+impl Technique for PovrayTechnique {
+    fn name(&self) -> &str {
+        "povray"
+    }
+
+    fn prepare(&mut self, _: &scene_core::Scene) -> Result<(), scene_core::Error> {
+        Ok(())
+    }
+
+    fn render(
+        &mut self,
+        scene: &scene_core::Scene,
+        camera: &scene_core::Camera,
+        width: u32,
+        height: u32,
+    ) -> Result<scene_core::Image, scene_core::Error> {
+        let fail = |m: String| scene_core::Error::InvalidArgument(format!("povray: {m}"));
+        std::fs::create_dir_all(&self.dir).map_err(|e| fail(e.to_string()))?;
+        self.frame += 1;
+        let stem = format!(
+            "{}-{}-{}",
+            bench_harness::experiment::slug(&scene.name),
+            bench_harness::experiment::slug(&camera.name),
+            self.frame
+        );
+        let pov = self.dir.join(format!("{stem}.pov"));
+        let exr = self.dir.join(format!("{stem}.exr"));
+        bench_harness::povray::write(&pov, scene, camera, width, height)
+            .map_err(|e| fail(e.to_string()))?;
+        let out = std::process::Command::new("povray")
+            .arg(format!("+I{}", pov.display()))
+            .arg(format!("+O{}", exr.display()))
+            .args(["+FE", "-D", "-V", "+A0.1", "+AM2"])
+            .arg(format!("+W{width}"))
+            .arg(format!("+H{height}"))
+            .output()
+            .map_err(|e| fail(format!("cannot run povray: {e}")))?;
+        if !out.status.success() {
+            let err = String::from_utf8_lossy(&out.stderr);
+            let tail: String = err.lines().rev().take(5).collect::<Vec<_>>().join(" / ");
+            return Err(fail(format!("{} failed: {tail}", pov.display())));
+        }
+        Ok(scene_core::Image::read_exr(&exr)?)
+    }
+}
+
 /// One technique the command line named.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TechniqueChoice {
@@ -238,7 +300,7 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             ));
         }
     }
-    let techniques = choices
+    let techniques: Vec<TechniqueSetup> = choices
         .into_iter()
         .map(|c| {
             let t = IsrTechnique::new(c.settings, Box::new(CpuRasterizer::new()))
@@ -249,9 +311,27 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                 family: c.family,
                 description: c.description,
                 technique: Box::new(t) as Box<dyn Technique>,
+                single_frame: false,
             }
         })
         .collect();
+    let mut techniques: Vec<TechniqueSetup> = techniques;
+    if o.povray {
+        if bench_harness::povray::povray_available() {
+            techniques.push(TechniqueSetup {
+                label: "povray".into(),
+                family: "povray".into(),
+                description: "POV-Ray 3.7 with the thesis' radiosity block (Table 1), one frame"
+                    .into(),
+                technique: Box::new(PovrayTechnique::new(o.out.join("povray"))),
+                single_frame: true,
+            });
+        } else {
+            eprintln!(
+                "note: povray is not on PATH; --povray writes the scene files without rendering them"
+            );
+        }
+    }
     let metrics: Vec<Box<dyn Metric>> = [
         Measure::MeanError,
         Measure::MeanError8bit,
@@ -487,6 +567,22 @@ mod tests {
             .collect();
         assert_eq!(names, ["mine", "random0", "random1"]);
         assert_eq!(x.techniques.len(), 2);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn povray_renders_the_exported_scene_when_it_is_installed() {
+        if !bench_harness::povray::povray_available() {
+            eprintln!("povray is not on PATH; skipping the POV-Ray render check");
+            return;
+        }
+        let scene = scene_core::builtin::scene("cornell-point").unwrap();
+        let dir = std::env::temp_dir().join(format!("xtask-povray-{}", std::process::id()));
+        let mut t = PovrayTechnique::new(dir.clone());
+        let img = t.render(&scene, &scene.cameras[0], 32, 24).unwrap();
+        assert_eq!((img.width, img.height), (32, 24));
+        assert_eq!(img.non_finite_count(), 0);
+        assert!(img.mean().element_sum() > 0.0);
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -38,6 +38,9 @@ pub struct TechniqueSetup {
     pub description: String,
     /// The technique.
     pub technique: Box<dyn Technique>,
+    /// Render a single timed frame per view (no warm-up, no repeats), for slow offline
+    /// renderers such as POV-Ray.
+    pub single_frame: bool,
 }
 
 /// The settings of an experiment.
@@ -246,7 +249,9 @@ impl Experiment {
             h.str(&b.to_string());
         }
         for t in &self.techniques {
-            h.str(&t.label).str(&t.description);
+            h.str(&t.label)
+                .str(&t.description)
+                .u64(t.single_frame as u64);
         }
         for m in &self.metrics {
             h.str(m.name());
@@ -500,7 +505,12 @@ impl Experiment {
             };
             let mut samples = Vec::new();
             let mut last = None;
-            for i in 0..s.warmup + s.repeats {
+            let (warmup, frames) = if t.single_frame {
+                (0, 1)
+            } else {
+                (s.warmup, s.warmup + s.repeats)
+            };
+            for i in 0..frames {
                 let t0 = Instant::now();
                 let img = t
                     .technique
@@ -508,7 +518,7 @@ impl Experiment {
                     .map_err(fail)?;
                 let dt = t0.elapsed().as_secs_f64();
                 renders += 1;
-                if i >= s.warmup {
+                if i >= warmup {
                     samples.push(dt);
                 }
                 last = Some(img);

@@ -41,8 +41,8 @@
 //!     },
 //!     scenes: vec![SceneSetup { id: "cornell".into(), cameras: scene.cameras[..1].to_vec(), scene }],
 //!     techniques: vec![
-//!         TechniqueSetup { label: "dl".into(), family: "dl".into(), description: "black".into(), technique: Box::new(Grey(0.0)) },
-//!         TechniqueSetup { label: "grey".into(), family: "grey".into(), description: "0.1".into(), technique: Box::new(Grey(0.1)) },
+//!         TechniqueSetup { label: "dl".into(), family: "dl".into(), description: "black".into(), technique: Box::new(Grey(0.0)), single_frame: false },
+//!         TechniqueSetup { label: "grey".into(), family: "grey".into(), description: "0.1".into(), technique: Box::new(Grey(0.1)), single_frame: false },
 //!     ],
 //!     metrics: vec![Box::new(Mae)],
 //! };

@@ -3,8 +3,9 @@
 //! reference.
 //!
 //! What is exported: every mesh as a `mesh2` with per-triangle textures (diffuse albedo
-//! factor, emission as `ambient`; textures are left out), point lights (windowed falloff as
-//! `fade_distance`/`fade_power 2` approximately, inverse square as `fade_power 2`),
+//! factor, emission as `emission`; textures are left out), point lights (inverse square
+//! through `fade_power 2` with a small `fade_distance` and a compensated colour; the windowed
+//! falloff of eq. 16 only roughly),
 //! directional lights as `parallel` lights, the camera (right-handed scene mirrored in x,
 //! since POV-Ray is left-handed). Radiance is in the scene's units; POV-Ray's light model is
 //! not physically identical, so the render is a second opinion, not the ground truth.
@@ -31,7 +32,7 @@ pub fn export(scene: &Scene, camera: &Camera, width: u32, height: u32) -> String
     let mut o = String::new();
     let _ = writeln!(
         o,
-        "// Exported by bench-harness from scene '{}', camera '{}'.\n\
+        "#version 3.7;\n// Exported by bench-harness from scene '{}', camera '{}'.\n\
          // Render: povray +W{width} +H{height} +FE +O<out>.exr <this file>\n",
         scene.name, camera.name
     );
@@ -54,11 +55,20 @@ pub fn export(scene: &Scene, camera: &Camera, width: u32, height: u32) -> String
         v(camera.up),
         fov_x.to_degrees()
     );
+    // POV-Ray's diffuse finish has no 1/pi and attenuates by 2 / (1 + (d / f)^2): with a
+    // small f that is 2 f^2 / d^2, so the colour I / (2 pi f^2) gives the scene's I / d^2.
+    let extent = scene.extent().max(1e-3);
+    let f = extent * 1e-3;
     for l in &scene.point_lights {
-        let c = l.intensity;
-        let fade = match l.radius {
-            Some(r) => format!("fade_distance {} fade_power 2", r * 0.5),
-            None => "fade_distance 1 fade_power 2".into(),
+        let (c, fade) = match l.radius {
+            Some(r) => (
+                l.intensity / (2.0 * std::f32::consts::PI),
+                format!("fade_distance {} fade_power 2", r * 0.5),
+            ),
+            None => (
+                l.intensity / (2.0 * std::f32::consts::PI * f * f),
+                format!("fade_distance {f} fade_power 2"),
+            ),
         };
         let _ = writeln!(
             o,
@@ -69,7 +79,6 @@ pub fn export(scene: &Scene, camera: &Camera, width: u32, height: u32) -> String
             c.z
         );
     }
-    let extent = scene.extent().max(1e-3);
     let centre = scene.bounds().center();
     for l in &scene.directional_lights {
         let from = centre - l.direction.normalize() * extent * 10.0;

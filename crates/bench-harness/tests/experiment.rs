@@ -92,6 +92,7 @@ fn experiment(out: &Path, renders: &Arc<AtomicU64>) -> Experiment {
             gain,
             renders: renders.clone(),
         }),
+        single_frame: false,
     };
     Experiment {
         settings: ExperimentSettings {
