@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use scene_core::reference::{Bounces, ReferenceSettings};
 use scene_core::{Camera, Image, Metric, Scene, Technique};
 
@@ -169,9 +169,10 @@ pub fn view_dir(scene: &str, camera_index: usize, camera_name: &str) -> PathBuf 
         .join(format!("{camera_index:02}-{}", slug(camera_name)))
 }
 
-fn bar(show: bool, len: u64, template: &str, msg: String) -> ProgressBar {
+/// A bar drawn through `multi` when shown (never under `CI`), hidden otherwise.
+fn bar(multi: &MultiProgress, show: bool, len: u64, template: &str, msg: String) -> ProgressBar {
     let b = if show && std::env::var_os("CI").is_none() {
-        ProgressBar::new(len)
+        multi.add(ProgressBar::new(len))
     } else {
         ProgressBar::hidden()
     };
@@ -320,7 +321,9 @@ impl Experiment {
                 .unwrap_or_else(|| out.join("reference-cache")),
         );
         let total_views: usize = self.scenes.iter().map(|s| s.cameras.len()).sum();
+        let multi = MultiProgress::new();
         let views_bar = bar(
+            &multi,
             self.settings.progress,
             total_views as u64,
             "{msg:30} [{bar:30}] {pos}/{len} views, eta {eta}",
@@ -381,7 +384,7 @@ impl Experiment {
                         &prepare_times,
                         &cache,
                         &out,
-                        &views_bar,
+                        (&multi, &views_bar),
                     )?;
                     renders += n_renders;
                     ref_renders += n_refs;
@@ -452,7 +455,7 @@ impl Experiment {
         prepare_times: &[f64],
         cache: &ReferenceCache,
         out: &Path,
-        views_bar: &ProgressBar,
+        (multi, views_bar): (&MultiProgress, &ProgressBar),
     ) -> Result<(ViewResult, u64, u64), HarnessError> {
         let s = self.settings.clone();
         let cam = camera.with_aspect(s.width as f32 / s.height as f32);
@@ -472,6 +475,7 @@ impl Experiment {
                 seed: s.seed,
             };
             let rows = bar(
+                multi,
                 s.progress && !views_bar.is_hidden(),
                 s.height as u64,
                 "{msg:30} [{bar:30}] {pos}/{len} rows",
@@ -480,6 +484,7 @@ impl Experiment {
             let report = |done: u64, _total: u64| rows.set_position(done);
             let r = cache.get_or_render(&sc.scene, hash, &cam, &rs, Some(&report))?;
             rows.finish_and_clear();
+            multi.remove(&rows);
             if !r.from_cache {
                 ref_renders += 1;
             }
