@@ -585,4 +585,44 @@ mod tests {
         assert!(img.mean().element_sum() > 0.0);
         std::fs::remove_dir_all(&dir).ok();
     }
+
+    #[test]
+    fn the_main_job_runs_end_to_end_on_a_tiny_setting_and_resumes() {
+        let mut o = options();
+        o.out = std::env::temp_dir().join(format!("xtask-tiny-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&o.out);
+        o.views = Some(2);
+        o.size = "64x48".into();
+        o.spp = 4;
+        o.bounces = "1,inf".into();
+        o.techniques = "dl,isr-24,isr-thesis-24".into();
+        let mut x = build(&o).unwrap();
+        x.settings.progress = false;
+        let first = x.run().unwrap();
+        assert_eq!(first.views_computed, 2);
+        // 3 techniques x 2 views x (1 warm-up + 1 repeat).
+        assert_eq!(first.technique_renders, 12);
+        let r = &first.results;
+        assert_eq!(r.summary.comparisons.len(), 4);
+        assert_eq!(r.metrics.len(), 6);
+        for v in &r.views {
+            for t in &v.techniques {
+                for e in &t.errors {
+                    assert_eq!(e.metrics.len(), 6);
+                    assert!(e.metrics.iter().all(|(_, x)| x.is_finite()));
+                }
+            }
+        }
+        for f in ["results.json", "report.md", "report.html"] {
+            assert!(o.out.join(f).is_file(), "{f}");
+        }
+        assert!(summary_text(&first).contains("isr-thesis-24"));
+        // A rerun with the same options renders nothing.
+        let mut again = build(&o).unwrap();
+        again.settings.progress = false;
+        let second = again.run().unwrap();
+        assert_eq!((second.views_resumed, second.technique_renders), (2, 0));
+        assert_eq!(second.reference_renders, 0);
+        std::fs::remove_dir_all(&o.out).ok();
+    }
 }
