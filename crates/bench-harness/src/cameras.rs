@@ -168,6 +168,9 @@ pub struct RandomCameraSettings {
     pub fov: f32,
     /// Smallest share of probe rays through the image that must hit geometry.
     pub min_coverage: f32,
+    /// Fewest distinct triangles the probe rays must hit (so a view is not one flat wall
+    /// or the bare ground).
+    pub min_triangles: usize,
     /// Candidates tried per camera before giving up.
     pub max_attempts: u32,
 }
@@ -178,6 +181,7 @@ impl Default for RandomCameraSettings {
             seed: 1,
             fov: 55.0,
             min_coverage: 0.7,
+            min_triangles: 4,
             max_attempts: 2000,
         }
     }
@@ -217,11 +221,11 @@ fn inside_geometry(scene: &Scene, rays: &RayScene, offsets: &[u32], p: Vec3) -> 
     back * 2 > PROBES
 }
 
-/// Share of an 8 x 6 grid of rays through `camera`'s image that hit geometry, and the
-/// median hit distance.
-fn coverage(rays: &RayScene, camera: &Camera) -> (f32, f32) {
+/// Share of an 8 x 6 grid of rays through `camera`'s image that hit geometry, the median
+/// hit distance and the number of distinct triangles hit.
+fn coverage(rays: &RayScene, camera: &Camera) -> (f32, f32, usize) {
     let view = View::from_camera(camera);
-    let (mut hits, mut dists) = (0u32, Vec::new());
+    let (mut hits, mut dists, mut tris) = (0u32, Vec::new(), Vec::new());
     for y in 0..6 {
         for x in 0..8 {
             let uv = glam::Vec2::new((x as f32 + 0.5) / 8.0, (y as f32 + 0.5) / 6.0);
@@ -229,18 +233,21 @@ fn coverage(rays: &RayScene, camera: &Camera) -> (f32, f32) {
             if let Some(h) = rays.closest_hit(o, d, 0.0, camera.far) {
                 hits += 1;
                 dists.push(h.t);
+                if !tris.contains(&h.triangle) {
+                    tris.push(h.triangle);
+                }
             }
         }
     }
     dists.sort_by(f32::total_cmp);
     let median = dists.get(dists.len() / 2).copied().unwrap_or(0.0);
-    (hits as f32 / 48.0, median)
+    (hits as f32 / 48.0, median, tris.len())
 }
 
 /// `count` seeded random cameras inside `scene`'s bounds: each eye lies in free space (not
 /// inside a solid, not closer to a surface than 2 % of the extent), looks in a random
 /// direction that is not too steep, and sees geometry through at least `min_coverage` of
-/// its image. Deterministic for a seed. Fails when the scene is empty or no candidate
+/// its image, made of at least `min_triangles` triangles. Deterministic for a seed. Fails when the scene is empty or no candidate
 /// passes within `max_attempts` tries.
 pub fn random_cameras(
     scene: &Scene,
@@ -291,8 +298,9 @@ pub fn random_cameras(
         let Ok(camera) = spec.to_camera(scene, out.len()) else {
             continue;
         };
-        let (cov, median) = coverage(&rays, &camera.with_aspect(4.0 / 3.0));
-        if cov >= settings.min_coverage && median > 0.02 * extent {
+        let (cov, median, tris) = coverage(&rays, &camera.with_aspect(4.0 / 3.0));
+        if cov >= settings.min_coverage && median > 0.02 * extent && tris >= settings.min_triangles
+        {
             out.push(camera);
         }
     }
