@@ -17,6 +17,16 @@ use scene_core::{Metric, Technique};
 /// The built-in scenes of the default run.
 pub const DEFAULT_SCENES: [&str; 4] = ["cornell", "cornell-point", "primitives", "corridor"];
 
+/// The measures every view is compared with.
+pub const MEASURES: [Measure; 6] = [
+    Measure::MeanError,
+    Measure::MeanError8bit,
+    Measure::Pearson,
+    Measure::Rmse,
+    Measure::Ssim,
+    Measure::Flip,
+];
+
 /// The ISR sample counts of the thesis.
 pub const SAMPLES: [u32; 3] = [24, 48, 80];
 
@@ -45,8 +55,12 @@ pub struct Options {
     pub repeats: u32,
     /// Seed of the reference and the random cameras.
     pub seed: u64,
-    /// Write a POV-Ray file per view.
+    /// Write a POV-Ray file per view (and render it when povray is on PATH).
     pub povray: bool,
+    /// The measure deciding "closer" and the gain.
+    pub error_metric: String,
+    /// Reference cache folder.
+    pub cache: Option<PathBuf>,
 }
 
 /// POV-Ray as a [`Technique`]: each frame exports the scene and camera with the thesis'
@@ -332,17 +346,25 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             );
         }
     }
-    let metrics: Vec<Box<dyn Metric>> = [
-        Measure::MeanError,
-        Measure::MeanError8bit,
-        Measure::Pearson,
-        Measure::Rmse,
-        Measure::Ssim,
-        Measure::Flip,
-    ]
-    .into_iter()
-    .map(|m| Box::new(MeasureMetric::new(m)) as Box<dyn Metric>)
-    .collect();
+    let error_metric = Measure::parse(&o.error_metric)
+        .filter(|m| MEASURES.contains(m) && m.lower_is_better())
+        .map(|m| m.name().to_string())
+        .ok_or_else(|| {
+            let known: Vec<&str> = MEASURES
+                .iter()
+                .filter(|m| m.lower_is_better())
+                .map(|m| m.name())
+                .collect();
+            format!(
+                "unknown error metric '{}' (known: {})",
+                o.error_metric,
+                known.join(", ")
+            )
+        })?;
+    let metrics: Vec<Box<dyn Metric>> = MEASURES
+        .into_iter()
+        .map(|m| Box::new(MeasureMetric::new(m)) as Box<dyn Metric>)
+        .collect();
     Ok(Experiment {
         settings: ExperimentSettings {
             width,
@@ -353,9 +375,9 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             warmup: 1,
             repeats: o.repeats.max(1),
             out_dir: o.out.clone(),
-            cache_dir: None,
+            cache_dir: o.cache.clone(),
             baseline: "dl".into(),
-            error_metric: Measure::MeanError.name().into(),
+            error_metric,
             correlation_metric: Measure::Pearson.name().into(),
             headline: Some("isr-80".into()).filter(|h| {
                 parse_techniques(&o.techniques)
@@ -475,6 +497,8 @@ mod tests {
             repeats: 1,
             seed: 1,
             povray: false,
+            error_metric: "mean-error".into(),
+            cache: None,
         }
     }
 
@@ -543,6 +567,9 @@ mod tests {
         let mut o = options();
         o.bounces = "one".into();
         assert!(err(&o).contains("bounces"));
+        let mut o = options();
+        o.error_metric = "psnr".into();
+        assert!(err(&o).contains("unknown error metric 'psnr'"));
         std::fs::remove_dir_all(&dir).ok();
     }
 

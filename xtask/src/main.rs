@@ -132,9 +132,17 @@ enum Command {
         /// Seed of the reference and the random cameras.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Also write a POV-Ray scene file per view (thesis' radiosity block).
+        /// Also write a POV-Ray scene file per view (thesis' radiosity block); renders it as an
+        /// extra column when povray is on PATH.
         #[arg(long)]
         povray: bool,
+        /// The measure that decides which image is closer and the gain: mean-error (eq. 19 on
+        /// linear values), mean-error-8bit (on 8-bit sRGB codes, as the thesis), rmse, flip.
+        #[arg(long, default_value = "mean-error")]
+        error_metric: String,
+        /// Reference cache folder (default DIR/reference-cache).
+        #[arg(long)]
+        cache: Option<PathBuf>,
     },
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
@@ -299,6 +307,8 @@ fn run(cli: Cli) -> Result<(), String> {
             repeats,
             seed,
             povray,
+            error_metric,
+            cache,
         } => experiment::run(&experiment::Options {
             scenes,
             techniques,
@@ -312,6 +322,8 @@ fn run(cli: Cli) -> Result<(), String> {
             repeats,
             seed,
             povray,
+            error_metric,
+            cache,
         }),
         Command::Bench {
             what,
