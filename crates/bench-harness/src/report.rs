@@ -339,6 +339,60 @@ fn series_svg(title: &str, ylabel: &str, series: &[(&str, &str, Vec<f64>)], zero
     o
 }
 
+/// The subset of Markdown the report uses (headings, pipe tables, paragraphs, `code`) as HTML.
+fn markdown_to_html(md: &str) -> String {
+    let inline = |t: &str| {
+        let mut out = String::new();
+        for (i, part) in esc(t).split('`').enumerate() {
+            if i % 2 == 1 {
+                let _ = write!(out, "<code>{part}</code>");
+            } else {
+                out.push_str(part);
+            }
+        }
+        out
+    };
+    let mut o = String::new();
+    let mut in_table = false;
+    for line in md.lines() {
+        let t = line.trim();
+        if t.starts_with('|') {
+            let cells: Vec<&str> = t.trim_matches('|').split('|').map(str::trim).collect();
+            if cells
+                .iter()
+                .all(|c| !c.is_empty() && c.chars().all(|ch| ch == '-'))
+            {
+                continue;
+            }
+            let tag = if in_table { "td" } else { "th" };
+            if !in_table {
+                o.push_str("<table>");
+                in_table = true;
+            }
+            o.push_str("<tr>");
+            for c in cells {
+                let _ = write!(o, "<{tag}>{}</{tag}>", inline(c));
+            }
+            o.push_str("</tr>");
+            continue;
+        }
+        if in_table {
+            o.push_str("</table>");
+            in_table = false;
+        }
+        let level = t.chars().take_while(|&c| c == '#').count();
+        if level > 0 {
+            let _ = write!(o, "<h{level}>{}</h{level}>", inline(t[level..].trim()));
+        } else if !t.is_empty() {
+            let _ = write!(o, "<p>{}</p>", inline(t));
+        }
+    }
+    if in_table {
+        o.push_str("</table>");
+    }
+    o
+}
+
 fn embed_png(out: &Path, rel: &Path) -> String {
     match std::fs::read(out.join(rel)) {
         Ok(bytes) => format!(
@@ -362,12 +416,9 @@ pub fn html(r: &Results, headline: Option<&str>, out: &Path) -> String {
          td,th{border:1px solid #ccc;padding:2px 6px}figure{display:inline-block;margin:4px}\
          img{image-rendering:pixelated;width:240px}</style></head><body>",
     );
-    // The tables: the Markdown report's, as preformatted text.
-    let _ = write!(
-        o,
-        "<pre>{}</pre><h2>Speed against error</h2>",
-        esc(&markdown(r, headline))
-    );
+    // The Markdown report's text and tables, as HTML.
+    o.push_str(&markdown_to_html(&markdown(r, headline)));
+    o.push_str("<h2>Speed against error (plots)</h2>");
     for se in &r.summary.speed_error {
         o.push_str(&speed_error_svg(se));
     }

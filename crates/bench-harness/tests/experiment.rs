@@ -264,6 +264,7 @@ fn tiny_experiment_writes_every_output_and_the_report_matches_results_json() {
     }
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(html.contains("<svg") && html.contains("data:image/png;base64,"));
+    assert!(html.contains("<table>") && html.contains("<th>technique</th>"));
     assert!(html.contains("speed against error"));
 
     // A second run reuses everything: no render, no reference.
