@@ -6,109 +6,8 @@
 // from the centre pixel's tangent plane and s the centre's view depth, times
 // max(n_c . n_t, 0)^2.
 
-// ---- Shared declarations (the same text in every ISR shader but downsample.wgsl) ----
-
-// Per-frame parameters; crates/isr/src/gpu.rs `Globals` writes them.
-struct Globals {
-    // Eye position; w: far plane distance.
-    eye_far: vec4<f32>,
-    // Perspective: f_o of eq. 24; orthographic: the view's top-left corner. w: 1 if ortho.
-    corner_ortho: vec4<f32>,
-    // f_u (or the ortho width vector); w: image-plane width (tangent units or metres).
-    du_span: vec4<f32>,
-    // f_v (or the ortho height vector); w: image-plane height.
-    dv_span: vec4<f32>,
-    // Unit view direction; w: the scene's extent.
-    forward_extent: vec4<f32>,
-    // Full-resolution width, height; coarse width, height.
-    sizes: vec4<u32>,
-    // Samples N, flags (FLAG_*), light count, blur radius.
-    config: vec4<u32>,
-    // k_dl, k_ssao, k_isr, world-space sampling radius.
-    k: vec4<f32>,
-    // Blur sigma, upsampling epsilon, upsampling normal power, ESM exponent c.
-    filters: vec4<f32>,
-    // Shadow normal offset and depth bias (texels); unused; unused.
-    shadow: vec4<f32>,
-}
-
-const FLAG_INDIRECT: u32 = 1u;
-const FLAG_SSAO: u32 = 2u;
-const FLAG_AO_INDIRECT_ONLY: u32 = 4u;
-const FLAG_EDGE_AWARE: u32 = 8u;
-const FLAG_THESIS: u32 = 16u;
-const FLAG_LIT: u32 = 32u;
-
-const BACKGROUND: u32 = 0xffffffffu;
-const PI: f32 = 3.14159265358979;
-const MIN_NORMAL_LEN2: f32 = 1e-12;
-const MIN_FOOTPRINT_COS: f32 = 0.1;
-const MIN_POSITIVE: f32 = 1.17549435e-38;
-const MAX_FINITE: f32 = 3.40282347e38;
-
-fn has_flag(f: u32) -> bool {
-    return (g.config.y & f) != 0u;
-}
-
-fn is_ortho() -> bool {
-    return g.corner_ortho.w > 0.5;
-}
-
-fn pixel_uv(p: vec2<i32>, size: vec2<u32>) -> vec2<f32> {
-    return (vec2<f32>(p) + vec2<f32>(0.5)) / vec2<f32>(size);
-}
-
-// Eq. 24: world position from image coordinates and linear depth.
-fn world(uv: vec2<f32>, depth: f32) -> vec3<f32> {
-    if (is_ortho()) {
-        return g.corner_ortho.xyz + g.du_span.xyz * uv.x + g.dv_span.xyz * uv.y
-            + g.forward_extent.xyz * (depth * g.eye_far.w);
-    }
-    return g.eye_far.xyz + (g.corner_ortho.xyz + g.du_span.xyz * uv.x + g.dv_span.xyz * uv.y) * depth;
-}
-
-// The view ray at uv, scaled to a unit component along the view direction.
-fn ray_q(uv: vec2<f32>) -> vec3<f32> {
-    if (is_ortho()) {
-        return g.forward_extent.xyz;
-    }
-    return (g.corner_ortho.xyz + g.du_span.xyz * uv.x + g.dv_span.xyz * uv.y) / g.eye_far.w;
-}
-
-fn to_viewer(uv: vec2<f32>) -> vec3<f32> {
-    let q = ray_q(uv);
-    let rcp = 1.0 / length(q);
-    if (rcp > 0.0 && rcp <= MAX_FINITE) {
-        return -(q * rcp);
-    }
-    return -g.forward_extent.xyz;
-}
-
-fn usable_normal(n: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
-    let l2 = dot(n, n);
-    if (l2 > MIN_NORMAL_LEN2 && l2 <= MAX_FINITE) {
-        return n / sqrt(l2);
-    }
-    return fallback;
-}
-
-// Metres per unit of image-plane span at a linear depth.
-fn view_scale(depth: f32) -> f32 {
-    if (is_ortho()) {
-        return 1.0;
-    }
-    return depth * g.eye_far.w;
-}
-// The normal if usable, else the direction to the viewer (computed only then).
-fn normal_or_viewer(n: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
-    let l2 = dot(n, n);
-    if (l2 > MIN_NORMAL_LEN2 && l2 <= MAX_FINITE) {
-        return n / sqrt(l2);
-    }
-    return to_viewer(uv);
-}
-
-// ---- end of shared declarations ----
+// common.wgsl, prepended, declares Globals, g (group 0, binding 0), the FLAG_* constants
+// and the view helpers.
 
 const EDGE_PLANE_SIGMA: f32 = 0.05;
 
@@ -117,7 +16,6 @@ struct PassParams {
     mode: vec4<u32>,
 }
 
-@group(0) @binding(0) var<uniform> g: Globals;
 @group(0) @binding(1) var<uniform> params: PassParams;
 @group(0) @binding(2) var normal_tex: texture_2d<f32>;
 @group(0) @binding(3) var depth_tex: texture_2d<f32>;

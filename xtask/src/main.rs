@@ -270,9 +270,13 @@ fn reference(
 fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
         Command::Ci { no_test } => checks::ci(!no_test),
-        Command::Shaders { out } => shaders::validate_all(out.as_deref()).map(|n| {
-            println!("{n} shader(s) valid and translated to SPIR-V, MSL and HLSL");
-        }),
+        Command::Shaders { out } => {
+            shaders::validate_all(&shaders::workspace_root().join("shaders"), out.as_deref()).map(
+                |n| {
+                    println!("{n} shader(s) valid and translated to SPIR-V, MSL and HLSL");
+                },
+            )
+        }
         Command::DepRule => checks::dependency_rule(),
         Command::Reference {
             scene,

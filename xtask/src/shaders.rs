@@ -1,5 +1,12 @@
 //! `cargo xtask shaders`: every WGSL file parsed and validated by naga, then translated to
 //! SPIR-V, MSL and HLSL, so that a shader a backend cannot take fails CI, not a user.
+//!
+//! WGSL has no `#include`, so a directory's shared declarations go in a file named
+//! `common.wgsl`: it is validated on its own, and prepended to every other `.wgsl` in the same
+//! directory (not in its subdirectories) before that file is validated. The crate embedding
+//! such a pass must do the same, e.g.
+//! `concat!(include_str!(".../common.wgsl"), include_str!(".../pass.wgsl"))`; a pass that
+//! must not get the common part goes in a subdirectory.
 
 use std::path::{Path, PathBuf};
 
@@ -53,24 +60,50 @@ pub fn check_source(name: &str, source: &str) -> Result<(usize, String, String),
     Ok((words.len(), msl_src, hlsl_src))
 }
 
-/// Validates every `shaders/**/*.wgsl`; with `out`, writes `.spv`, `.metal` and `.hlsl`
-/// translations there. Returns the number of shaders. Fails when there are none.
-pub fn validate_all(out: Option<&Path>) -> Result<usize, String> {
-    let root = workspace_root().join("shaders");
+/// The name of a directory's shared prelude; see the module documentation.
+pub const COMMON: &str = "common.wgsl";
+
+/// The source to validate for `file`: its text, after its directory's `common.wgsl` unless it
+/// is that file or there is none.
+fn source_of(file: &Path, rel: &str) -> Result<String, String> {
+    let own = std::fs::read_to_string(file).map_err(|e| format!("{rel}: {e}"))?;
+    if file.file_name().is_some_and(|n| n == COMMON) {
+        return Ok(own);
+    }
+    let common = file.with_file_name(COMMON);
+    if !common.is_file() {
+        return Ok(own);
+    }
+    let prelude =
+        std::fs::read_to_string(&common).map_err(|e| format!("{}: {e}", common.display()))?;
+    Ok(prelude + &own)
+}
+
+/// Validates every `**/*.wgsl` under `root` (each after its directory's `common.wgsl`, see the
+/// module documentation); with `out`, writes `.metal` and `.hlsl` translations there. Returns
+/// the number of shaders. Fails when there are none.
+pub fn validate_all(root: &Path, out: Option<&Path>) -> Result<usize, String> {
     let mut files = Vec::new();
-    wgsl_files(&root, &mut files)?;
+    wgsl_files(root, &mut files)?;
     files.sort();
     if files.is_empty() {
         return Err(format!("no .wgsl files under {}", root.display()));
     }
     let mut errors = Vec::new();
     for f in &files {
-        let rel = f.strip_prefix(&root).unwrap_or(f).display().to_string();
-        let source = std::fs::read_to_string(f).map_err(|e| format!("{rel}: {e}"))?;
-        match check_source(&rel, &source) {
+        let rel = f.strip_prefix(root).unwrap_or(f).display().to_string();
+        let source = source_of(f, &rel)?;
+        let with_common =
+            f.file_name().is_some_and(|n| n != COMMON) && f.with_file_name(COMMON).is_file();
+        let name = if with_common {
+            format!("{rel} (after its directory's {COMMON})")
+        } else {
+            rel.clone()
+        };
+        match check_source(&name, &source) {
             Ok((words, msl_src, hlsl_src)) => {
                 eprintln!(
-                    "ok  {rel} (SPIR-V {words} words, MSL {} B, HLSL {} B)",
+                    "ok  {name} (SPIR-V {words} words, MSL {} B, HLSL {} B)",
                     msl_src.len(),
                     hlsl_src.len()
                 );
@@ -116,6 +149,30 @@ mod tests {
 
     #[test]
     fn the_project_shaders_are_valid() {
-        assert!(validate_all(None).unwrap() >= 1);
+        assert!(validate_all(&workspace_root().join("shaders"), None).unwrap() >= 1);
+    }
+
+    #[test]
+    fn common_wgsl_is_prepended_to_its_directory() {
+        let root = std::env::temp_dir().join(format!("xtask-common-wgsl-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let dir = root.join("pass");
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        let pass = "@compute @workgroup_size(1) fn main() { let x: f32 = twice(1.0); }";
+        std::fs::write(dir.join("pass.wgsl"), pass).unwrap();
+        // Without common.wgsl, `twice` is undefined.
+        assert!(validate_all(&root, None).is_err());
+        // With it, the pass validates, and so does the common file on its own.
+        let common = "fn twice(v: f32) -> f32 { return 2.0 * v; }\n";
+        std::fs::write(dir.join(COMMON), common).unwrap();
+        assert_eq!(validate_all(&root, None), Ok(2));
+        // Only the same directory gets it, not a subdirectory.
+        std::fs::write(dir.join("sub").join("other.wgsl"), pass).unwrap();
+        assert!(
+            validate_all(&root, None)
+                .unwrap_err()
+                .contains("other.wgsl")
+        );
+        std::fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -104,8 +104,11 @@ pub fn blur_pass(
         .collect()
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/blur.wgsl`), one direction per dispatch.
-pub const WGSL: &str = include_str!("../../../shaders/isr/blur.wgsl");
+/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `blur.wgsl`), one direction per dispatch.
+pub const WGSL: &str = concat!(
+    include_str!("../../../shaders/isr/common.wgsl"),
+    include_str!("../../../shaders/isr/blur.wgsl")
+);
 
 /// The GPU pass.
 pub(crate) struct GpuPass {

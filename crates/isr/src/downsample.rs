@@ -97,8 +97,8 @@ fn block(full: &GBuffer, idx: &[usize]) -> (Vec4, Vec3, f32, u32) {
     (a / count, nrm, z / count, full.triangle_id[rep])
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/downsample.wgsl`).
-pub const WGSL: &str = include_str!("../../../shaders/isr/downsample.wgsl");
+/// WGSL source of the GPU pass (`shaders/isr/standalone/downsample.wgsl`).
+pub const WGSL: &str = include_str!("../../../shaders/isr/standalone/downsample.wgsl");
 
 /// The GPU pass: reads a full [`scene_core::gpu::GpuGBuffer`], writes the colour textures of
 /// a coarse one.

@@ -102,9 +102,12 @@ pub fn compose(
     }
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/lighting.wgsl`); its output is
+/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `lighting.wgsl`); its output is
 /// `rgba32float`, replaced by `rgba16float` for the second pipeline.
-pub const WGSL: &str = include_str!("../../../shaders/isr/lighting.wgsl");
+pub const WGSL: &str = concat!(
+    include_str!("../../../shaders/isr/common.wgsl"),
+    include_str!("../../../shaders/isr/lighting.wgsl")
+);
 
 /// The scene's storage buffers the lighting pass reads.
 pub(crate) struct SceneBuffers<'a> {

@@ -221,8 +221,11 @@ fn gather(
     gi.extend(access)
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/radiosity.wgsl`).
-pub const WGSL: &str = include_str!("../../../shaders/isr/radiosity.wgsl");
+/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `radiosity.wgsl`).
+pub const WGSL: &str = concat!(
+    include_str!("../../../shaders/isr/common.wgsl"),
+    include_str!("../../../shaders/isr/radiosity.wgsl")
+);
 
 /// The GPU pass.
 pub(crate) struct GpuPass {

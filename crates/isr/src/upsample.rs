@@ -120,8 +120,11 @@ fn upsample_pixel(
     best.map_or(NOTHING, |(_, j)| values[j])
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/upsample.wgsl`).
-pub const WGSL: &str = include_str!("../../../shaders/isr/upsample.wgsl");
+/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `upsample.wgsl`).
+pub const WGSL: &str = concat!(
+    include_str!("../../../shaders/isr/common.wgsl"),
+    include_str!("../../../shaders/isr/upsample.wgsl")
+);
 
 /// The GPU pass.
 pub(crate) struct GpuPass {

@@ -5,6 +5,8 @@
 // representative and averages the samples within DEPTH_TOLERANCE (relative) of its depth:
 // the thesis' average inside a surface, the foreground across a silhouette. Normals that
 // cancel fall back to the representative's. A block without geometry is background.
+//
+// In standalone/ so that ../common.wgsl is not prepended: its textures start at binding 0.
 
 @group(0) @binding(0) var full_albedo: texture_2d<f32>;
 @group(0) @binding(1) var full_normal: texture_2d<f32>;
