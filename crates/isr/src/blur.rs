@@ -146,17 +146,17 @@ impl GpuPass {
         input: &wgpu::Texture,
         out: &wgpu::Texture,
     ) -> wgpu::BindGroup {
-        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let views = [
-            v(&coarse.normal),
-            v(&coarse.depth),
-            v(&coarse.triangle_id),
-            v(input),
-            v(out),
-        ];
-        let mut res = vec![globals.as_entire_binding(), params.as_entire_binding()];
-        res.extend(views.iter().map(wgpu::BindingResource::TextureView));
-        self.pipeline.bind(device, &res)
+        self.pipeline.bind_buffers_then_textures(
+            device,
+            &[globals, params],
+            &[
+                &coarse.normal,
+                &coarse.depth,
+                &coarse.triangle_id,
+                input,
+                out,
+            ],
+        )
     }
 }
 

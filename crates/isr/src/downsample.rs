@@ -135,22 +135,20 @@ impl GpuPass {
         full: &scene_core::gpu::GpuGBuffer,
         coarse: &scene_core::gpu::GpuGBuffer,
     ) -> wgpu::BindGroup {
-        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let views = [
-            v(&full.albedo),
-            v(&full.normal),
-            v(&full.depth),
-            v(&full.triangle_id),
-            v(&coarse.albedo),
-            v(&coarse.normal),
-            v(&coarse.depth),
-            v(&coarse.triangle_id),
-        ];
-        let res: Vec<wgpu::BindingResource<'_>> = views
-            .iter()
-            .map(wgpu::BindingResource::TextureView)
-            .collect();
-        self.pipeline.bind(device, &res)
+        self.pipeline.bind_buffers_then_textures(
+            device,
+            &[],
+            &[
+                &full.albedo,
+                &full.normal,
+                &full.depth,
+                &full.triangle_id,
+                &coarse.albedo,
+                &coarse.normal,
+                &coarse.depth,
+                &coarse.triangle_id,
+            ],
+        )
     }
 }
 

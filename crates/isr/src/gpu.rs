@@ -345,6 +345,21 @@ impl Pipeline {
         })
     }
 
+    /// A bind group with `buffers` (whole) at bindings `0..`, then a default view of each of
+    /// `textures` at the bindings after them.
+    pub(crate) fn bind_buffers_then_textures(
+        &self,
+        device: &wgpu::Device,
+        buffers: &[&wgpu::Buffer],
+        textures: &[&wgpu::Texture],
+    ) -> wgpu::BindGroup {
+        let views: Vec<wgpu::TextureView> = textures.iter().map(|t| view_of(t)).collect();
+        let mut res: Vec<wgpu::BindingResource<'_>> =
+            buffers.iter().map(|b| b.as_entire_binding()).collect();
+        res.extend(views.iter().map(wgpu::BindingResource::TextureView));
+        self.bind(device, &res)
+    }
+
     /// Records one dispatch covering `width x height` invocations.
     pub(crate) fn dispatch(
         &self,

@@ -265,18 +265,18 @@ impl GpuPass {
         senders: &wgpu::Texture,
         out: &wgpu::Texture,
     ) -> wgpu::BindGroup {
-        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let views = [
-            v(&coarse.albedo),
-            v(&coarse.normal),
-            v(&coarse.depth),
-            v(&coarse.triangle_id),
-            v(senders),
-            v(out),
-        ];
-        let mut res = vec![globals.as_entire_binding(), pattern.as_entire_binding()];
-        res.extend(views.iter().map(wgpu::BindingResource::TextureView));
-        self.pipeline.bind(device, &res)
+        self.pipeline.bind_buffers_then_textures(
+            device,
+            &[globals, pattern],
+            &[
+                &coarse.albedo,
+                &coarse.normal,
+                &coarse.depth,
+                &coarse.triangle_id,
+                senders,
+                out,
+            ],
+        )
     }
 }
 

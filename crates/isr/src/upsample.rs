@@ -163,20 +163,20 @@ impl GpuPass {
         values: &wgpu::Texture,
         out: &wgpu::Texture,
     ) -> wgpu::BindGroup {
-        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let views = [
-            v(&full.normal),
-            v(&full.depth),
-            v(&full.triangle_id),
-            v(&coarse.normal),
-            v(&coarse.depth),
-            v(&coarse.triangle_id),
-            v(values),
-            v(out),
-        ];
-        let mut res = vec![globals.as_entire_binding()];
-        res.extend(views.iter().map(wgpu::BindingResource::TextureView));
-        self.pipeline.bind(device, &res)
+        self.pipeline.bind_buffers_then_textures(
+            device,
+            &[globals],
+            &[
+                &full.normal,
+                &full.depth,
+                &full.triangle_id,
+                &coarse.normal,
+                &coarse.depth,
+                &coarse.triangle_id,
+                values,
+                out,
+            ],
+        )
     }
 }
 
