@@ -250,49 +250,19 @@ impl GpuDownsampler {
                 label: Some("downsample.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(DOWNSAMPLE_WGSL)),
             });
-            let sampled =
-                |binding: u32, sample_type: wgpu::TextureSampleType| wgpu::BindGroupLayoutEntry {
-                    binding,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                };
-            let storage = |binding: u32, format: wgpu::TextureFormat| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::StorageTexture {
-                    access: wgpu::StorageTextureAccess::WriteOnly,
-                    format,
-                    view_dimension: wgpu::TextureViewDimension::D2,
-                },
-                count: None,
-            };
-            let float = wgpu::TextureSampleType::Float { filterable: false };
+            use scene_core::gpu::layout::{float_texture, storage_texture, texture, uniform};
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("gbuffer downsample"),
                 entries: &[
-                    sampled(0, float),
-                    sampled(1, float),
-                    sampled(2, float),
-                    sampled(3, wgpu::TextureSampleType::Uint),
-                    storage(4, GpuGBuffer::ALBEDO_FORMAT),
-                    storage(5, GpuGBuffer::NORMAL_FORMAT),
-                    storage(6, GpuGBuffer::DEPTH_FORMAT),
-                    storage(7, GpuGBuffer::TRIANGLE_ID_FORMAT),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 8,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::Buffer {
-                            ty: wgpu::BufferBindingType::Uniform,
-                            has_dynamic_offset: false,
-                            min_binding_size: None,
-                        },
-                        count: None,
-                    },
+                    float_texture(0),
+                    float_texture(1),
+                    float_texture(2),
+                    texture(3, wgpu::TextureSampleType::Uint),
+                    storage_texture(4, GpuGBuffer::ALBEDO_FORMAT),
+                    storage_texture(5, GpuGBuffer::NORMAL_FORMAT),
+                    storage_texture(6, GpuGBuffer::DEPTH_FORMAT),
+                    storage_texture(7, GpuGBuffer::TRIANGLE_ID_FORMAT),
+                    uniform(8),
                 ],
             });
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

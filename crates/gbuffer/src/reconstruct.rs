@@ -391,42 +391,14 @@ impl GpuReconstructor {
                 label: Some("reconstruct.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(RECONSTRUCT_WGSL)),
             });
-            let texture =
-                |binding: u32, sample_type: wgpu::TextureSampleType| wgpu::BindGroupLayoutEntry {
-                    binding,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                };
+            use scene_core::gpu::layout::{float_texture, storage_texture, texture, uniform};
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("gbuffer reconstruct"),
                 entries: &[
-                    texture(0, wgpu::TextureSampleType::Float { filterable: false }),
+                    float_texture(0),
                     texture(1, wgpu::TextureSampleType::Depth),
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 2,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::StorageTexture {
-                            access: wgpu::StorageTextureAccess::WriteOnly,
-                            format: wgpu::TextureFormat::Rgba32Float,
-                            view_dimension: wgpu::TextureViewDimension::D2,
-                        },
-                        count: None,
-                    },
-                    wgpu::BindGroupLayoutEntry {
-                        binding: 3,
-                        visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::Buffer {
-                            ty: wgpu::BufferBindingType::Uniform,
-                            has_dynamic_offset: false,
-                            min_binding_size: None,
-                        },
-                        count: None,
-                    },
+                    storage_texture(2, wgpu::TextureFormat::Rgba32Float),
+                    uniform(3),
                 ],
             });
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

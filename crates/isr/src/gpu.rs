@@ -224,68 +224,20 @@ pub fn gpu_lights(scene: &IsrScene) -> Vec<GpuLight> {
 
 // ---- pipeline helpers used by the pass modules ----
 
-/// A sampled (read with `textureLoad`) 2D texture binding.
+/// A sampled (read with `textureLoad`) 2D texture binding: `u32` or non-filterable float.
 pub(crate) fn texture_entry(binding: u32, uint: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Texture {
-            sample_type: if uint {
-                wgpu::TextureSampleType::Uint
-            } else {
-                wgpu::TextureSampleType::Float { filterable: false }
-            },
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
+    if uint {
+        layout::texture(binding, wgpu::TextureSampleType::Uint)
+    } else {
+        layout::float_texture(binding)
     }
 }
 
-/// A write-only storage texture binding.
-pub(crate) fn storage_texture_entry(
-    binding: u32,
-    format: wgpu::TextureFormat,
-) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::StorageTexture {
-            access: wgpu::StorageTextureAccess::WriteOnly,
-            format,
-            view_dimension: wgpu::TextureViewDimension::D2,
-        },
-        count: None,
-    }
-}
-
-/// A uniform buffer binding.
-pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-/// A read-only storage buffer binding.
-pub(crate) fn storage_buffer_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: true },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
+pub(crate) use scene_core::gpu::layout;
+pub(crate) use scene_core::gpu::layout::{
+    storage_buffer as storage_buffer_entry, storage_texture as storage_texture_entry,
+    uniform as uniform_entry,
+};
 
 /// A compute pipeline (entry point `main`) and its bind group layout.
 pub(crate) struct Pipeline {
