@@ -19,6 +19,21 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
+/// The rayon pool a benchmark runs its CPU work in.
+fn worker_pool(threads: usize) -> Result<rayon::ThreadPool, String> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build()
+        .map_err(|e| e.to_string())
+}
+
+/// A GPU context for the GPU columns, or `None` after printing why there are none.
+fn gpu_or_say_why() -> Option<scene_core::gpu::GpuContext> {
+    scene_core::gpu::GpuContext::new()
+        .map_err(|e| println!("no GPU figures: {e}"))
+        .ok()
+}
+
 /// `cargo xtask bench isr`: ISR per-frame milliseconds at 1024x768 (512x384 coarse) with 24,
 /// 48 and 80 samples, split by pass, on the CPU (`threads` workers) and the GPU (whatever
 /// adapter wgpu picks; lavapipe without a GPU); DL (direct light only) for comparison.
@@ -27,20 +42,10 @@ pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
     use isr::{GpuIsr, GpuIsrInputs, IsrInputs, IsrScene, IsrSettings, PassTimings};
     use scene_core::GBufferRenderer;
     use scene_core::gbuffer::RayCastRenderer;
-    use scene_core::gpu::{GpuContext, GpuGBuffer};
+    use scene_core::gpu::GpuGBuffer;
 
     let (w, h) = (1024u32, 768u32);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.max(1))
-        .build()
-        .map_err(|e| e.to_string())?;
-    let gpu = match GpuContext::new() {
-        Ok(ctx) => Some(ctx),
-        Err(e) => {
-            println!("no GPU figures: {e}");
-            None
-        }
-    };
+    let (pool, gpu) = (worker_pool(threads)?, gpu_or_say_why());
     let err = |e: isr::IsrError| e.to_string();
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     // Per-pass medians of a list of frame timings.
@@ -166,10 +171,7 @@ pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
 /// Benchmarks the reference path tracer on `cornell` and `many-boxes` at about 10^6
 /// triangles with `threads` workers.
 pub fn reference(threads: usize, repeats: usize) -> Result<(), String> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.max(1))
-        .build()
-        .map_err(|e| e.to_string())?;
+    let pool = worker_pool(threads)?;
     println!(
         "reference path tracer, {threads} thread(s), 160x120, 8 spp, unlimited bounces; median of {repeats} after 1 warm-up"
     );
@@ -232,20 +234,10 @@ fn time_ms(repeats: usize, mut f: impl FnMut() -> Result<(), String>) -> Result<
 pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
     use gbuffer::{CpuRasterizer, DownsampleMode, GpuDownsampler, GpuRasterizer};
     use scene_core::GBufferRenderer;
-    use scene_core::gpu::{GpuContext, GpuGBuffer};
+    use scene_core::gpu::GpuGBuffer;
 
     let (w, h) = (1024u32, 768u32);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.max(1))
-        .build()
-        .map_err(|e| e.to_string())?;
-    let gpu = match GpuContext::new() {
-        Ok(ctx) => Some(ctx),
-        Err(e) => {
-            println!("no GPU figures: {e}");
-            None
-        }
-    };
+    let (pool, gpu) = (worker_pool(threads)?, gpu_or_say_why());
     let err = |e: scene_core::Error| e.to_string();
     let gerr = |e: scene_core::gpu::GpuError| e.to_string();
     println!(

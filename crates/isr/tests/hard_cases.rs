@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{Setup, image_mean, mean_error, modes, scaled, small_shadows};
+use common::{Setup, image_mean, mean_error, modes, small_shadows};
 use glam::{Vec3, Vec4};
 use isr::{
     Blur, IsrError, IsrInputs, IsrScene, IsrSettings, IsrTechnique, ShadowSettings, render_cpu,
@@ -260,7 +260,7 @@ fn scenes_in_millimetres_and_kilometres_give_the_same_picture() {
         for (mode, s) in all_settings() {
             let reference = base.render(&s);
             for k in [1e-3f32, 1e4] {
-                let mut scene = scaled(builtin::scene(name).unwrap(), k);
+                let mut scene = builtin::scene(name).unwrap().scaled(k);
                 scene.validate().unwrap();
                 let setup = Setup::new(scene, 0, 48, 36);
                 let img = setup.render(&s);

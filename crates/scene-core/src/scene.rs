@@ -603,6 +603,31 @@ impl Scene {
         Ok(())
     }
 
+    /// The scene with every length multiplied by `k` (positions, cameras and their planes,
+    /// point lights and their radii). Point intensities are multiplied by `k^2` so that the
+    /// irradiance they give is unchanged; emitted radiance, albedo and directional irradiance
+    /// are scale-free. A renderer whose parameters are relative to the scene gives the same
+    /// picture of `s.scaled(k)` as of `s`: the scale-invariance tests rest on this.
+    pub fn scaled(mut self, k: f32) -> Scene {
+        for m in &mut self.meshes {
+            for p in &mut m.positions {
+                *p *= k;
+            }
+        }
+        for c in &mut self.cameras {
+            c.position *= k;
+            c.target *= k;
+            c.near *= k;
+            c.far *= k;
+        }
+        for l in &mut self.point_lights {
+            l.position *= k;
+            l.intensity *= k * k;
+            l.radius = l.radius.map(|r| r * k);
+        }
+        self
+    }
+
     /// Maps a global triangle id to its mesh and local index (binary search over offsets).
     pub fn triangle_ref(&self, offsets: &[u32], global: u32) -> Option<TriangleRef> {
         if offsets.is_empty() || global >= *offsets.last()? {

@@ -411,28 +411,6 @@ fn bounces_parse() {
     assert!("x".parse::<Bounces>().is_err());
 }
 
-/// Scales every length of a scene (positions, camera, lights; point intensities by s^2 so
-/// that irradiance is unchanged; radiance of area lights is scale-free).
-fn scaled(mut s: Scene, k: f32) -> Scene {
-    for m in &mut s.meshes {
-        for p in &mut m.positions {
-            *p *= k;
-        }
-    }
-    for c in &mut s.cameras {
-        c.position *= k;
-        c.target *= k;
-        c.near *= k;
-        c.far *= k;
-    }
-    for l in &mut s.point_lights {
-        l.position *= k;
-        l.intensity *= k * k;
-        l.radius = l.radius.map(|r| r * k);
-    }
-    s
-}
-
 #[test]
 fn scenes_in_millimetres_and_kilometres_give_the_same_picture() {
     for name in ["cornell", "cornell-point"] {
@@ -452,7 +430,7 @@ fn scenes_in_millimetres_and_kilometres_give_the_same_picture() {
         let se =
             (out.variance.pixels.iter().copied().sum::<Vec3>() / settings.spp as f32).powf(0.5) / n;
         for k in [1e-3f32, 1e4] {
-            let mut s = scaled(base.clone(), k);
+            let mut s = base.clone().scaled(k);
             s.validate().unwrap();
             let img = render(&s, &View::from_camera(&s.cameras[0]), &settings, None).image;
             assert_eq!(img.non_finite_count(), 0);

@@ -98,25 +98,3 @@ pub fn mean_error(a: &Image, b: &Image) -> f64 {
 pub fn image_mean(a: &Image) -> f64 {
     a.pixels.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3.0 * a.pixels.len() as f64)
 }
-
-/// Scales every length of a scene (positions, cameras, lights; point intensities by s^2 so
-/// irradiance is unchanged; radiance of emitters is scale-free).
-pub fn scaled(mut s: Scene, k: f32) -> Scene {
-    for m in &mut s.meshes {
-        for p in &mut m.positions {
-            *p *= k;
-        }
-    }
-    for c in &mut s.cameras {
-        c.position *= k;
-        c.target *= k;
-        c.near *= k;
-        c.far *= k;
-    }
-    for l in &mut s.point_lights {
-        l.position *= k;
-        l.intensity *= k * k;
-        l.radius = l.radius.map(|r| r * k);
-    }
-    s
-}
