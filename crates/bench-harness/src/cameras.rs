@@ -69,24 +69,14 @@ impl CameraSpec {
     }
 
     /// The camera for `scene` (aspect 1; the harness sets the image's aspect). `index` names
-    /// unnamed cameras. Fails on non-finite values, a zero view direction or a field of view
-    /// outside (0, 180) degrees.
+    /// unnamed cameras. Fails on a field of view outside (0, 180) degrees and on whatever
+    /// [`Camera::check`] refuses (non-finite values, a zero view direction, up parallel to
+    /// it, planes out of order), exactly as for a scene's own cameras.
     pub fn to_camera(&self, scene: &Scene, index: usize) -> Result<Camera, String> {
         let p = Vec3::from_array(self.position);
         let t = Vec3::from_array(self.target);
         let up = Vec3::from_array(self.up);
         let name = self.name.clone().unwrap_or_else(|| format!("view{index}"));
-        if !(p.is_finite() && t.is_finite() && up.is_finite()) {
-            return Err(format!(
-                "camera '{name}': non-finite position, target or up"
-            ));
-        }
-        let dir = t - p;
-        if dir.length_squared() == 0.0 || dir.normalize().cross(up).length_squared() < 1e-8 {
-            return Err(format!(
-                "camera '{name}': target equals position or up is parallel to the view direction"
-            ));
-        }
         if !(self.fov > 0.0 && self.fov < 180.0) {
             return Err(format!(
                 "camera '{name}': fov must be in (0, 180) degrees, got {}",
@@ -98,12 +88,7 @@ impl CameraSpec {
             .far
             .unwrap_or_else(|| (p - scene.bounds().center()).length() + extent * 2.0);
         let near = self.near.unwrap_or(extent * 1e-3);
-        if !(near > 0.0 && far > near) {
-            return Err(format!(
-                "camera '{name}': need 0 < near < far, got {near} and {far}"
-            ));
-        }
-        Ok(Camera {
+        let camera = Camera {
             name,
             position: p,
             target: t,
@@ -112,7 +97,11 @@ impl CameraSpec {
             aspect: 1.0,
             near,
             far,
-        })
+        };
+        // The same check as a scene's own cameras (values that JSON's f64 turned into
+        // infinity or zero when narrowed to f32 fail here).
+        camera.check(index).map_err(|e| e.to_string())?;
+        Ok(camera)
     }
 }
 

@@ -2,6 +2,8 @@
 
 use std::path::PathBuf;
 
+use crate::budget::BudgetError;
+
 /// A scene that breaks an invariant diffuse transport relies on.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum SceneError {
@@ -116,12 +118,12 @@ pub enum SceneError {
         reason: String,
     },
     /// A camera is degenerate (zero view direction, up parallel to it, bad fov or planes).
-    #[error(
-        "{camera}: degenerate camera (check position/target/up, fov in (0, pi), 0 < near < far)"
-    )]
+    #[error("{camera}: degenerate camera: {reason}")]
     InvalidCamera {
         /// The camera at fault.
         camera: String,
+        /// What is wrong.
+        reason: String,
     },
     /// A name given to `builtin` is unknown or its parameter is out of range.
     #[error(
@@ -157,6 +159,20 @@ pub enum GltfError {
         /// The validation error.
         source: SceneError,
     },
+    /// An external file the glTF names was refused: outside the scene's folder, absolute,
+    /// not a regular file, or of an unsupported scheme.
+    #[error("{path}: refused URI '{uri}': {reason}")]
+    RefusedUri {
+        /// The glTF file.
+        path: PathBuf,
+        /// The URI as written in the file (cut to 200 characters).
+        uri: String,
+        /// Why it was refused.
+        reason: String,
+    },
+    /// The file asks for more memory than the budget allows (checked before allocating).
+    #[error(transparent)]
+    Budget(#[from] BudgetError),
     /// Writing failed.
     #[error("{path}: cannot write: {source}")]
     Write {
@@ -178,6 +194,19 @@ pub enum ImageError {
         /// What the decoder said.
         message: String,
     },
+    /// A decoder in a dependency panicked on this file; the panic was caught.
+    #[error(
+        "{path}: the image decoder failed on this file (a fault in the decoder, caught): {message}"
+    )]
+    DecoderFault {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's panic message.
+        message: String,
+    },
+    /// The image asks for more memory than the budget allows (checked before allocating).
+    #[error(transparent)]
+    Budget(#[from] BudgetError),
     /// Encoding or writing failed.
     #[error("{path}: cannot write image: {message}")]
     Write {

@@ -74,8 +74,9 @@ use gltf::khr_lights_punctual::Kind as LightKind;
 use gltf::mesh::Mode;
 use serde_json::{Value, json};
 
-use crate::error::GltfError;
-use crate::image::{linear_to_srgb, srgb_to_linear};
+use crate::budget::{Allowance, Budget};
+use crate::error::{GltfError, ImageError};
+use crate::image::{Image, linear_to_srgb};
 use crate::scene::{
     Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture, label_or_index,
 };
@@ -89,9 +90,8 @@ pub const DEFAULT_ALBEDO: f32 = 0.8;
 /// Name of the material given to primitives that have none.
 pub const DEFAULT_MATERIAL_NAME: &str = "default";
 
-/// Sparse accessors without a buffer view may not claim more elements than this (they
-/// would otherwise allocate without bound from a few bytes of JSON).
-const MAX_SPARSE_ONLY_COUNT: usize = 1 << 26;
+mod uri;
+pub use uri::ExternalFiles;
 
 /// Key of the camera node extras that carries the distance to the camera target.
 const TARGET_DISTANCE_KEY: &str = "target_distance";
@@ -117,6 +117,18 @@ pub struct ImportResult {
     /// Adjustments made while importing (clamped albedo, spot lights imported as point
     /// lights, dropped degenerate triangles, ...).
     pub warnings: Vec<String>,
+}
+
+/// How [`import_with`] treats what a file asks for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImportOptions {
+    /// Limits on what the file may make the importer allocate: file and buffer sizes, decoded
+    /// textures, vertices and indices after instancing, and the scene's total bytes. Each is
+    /// checked before the allocation; exceeding one gives [`GltfError::Budget`].
+    pub budget: Budget,
+    /// Where external buffers and images may be read from (default: the scene's folder
+    /// only); a refused URI gives [`GltfError::RefusedUri`].
+    pub external_files: ExternalFiles,
 }
 
 impl ImportResult {
@@ -242,19 +254,37 @@ impl Ignored {
 /// accessor types, indices past the vertex count, a cyclic node hierarchy);
 /// [`GltfError::Invalid`] when the imported scene fails [`Scene::validate`].
 pub fn import(path: &Path) -> Result<ImportResult, GltfError> {
-    let bytes = std::fs::read(path).map_err(|e| read_error(path, e.to_string()))?;
+    import_with(path, &ImportOptions::default())
+}
+
+/// [`import`] with explicit [`ImportOptions`] (budget and external-file policy).
+pub fn import_with(path: &Path, options: &ImportOptions) -> Result<ImportResult, GltfError> {
+    let bytes = crate::budget::read_file(path, &options.budget).map_err(|e| match e {
+        crate::budget::ReadFileError::Budget(b) => GltfError::Budget(b),
+        other => read_error(path, other.to_string()),
+    })?;
     let base = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    import_bytes(&bytes, Some(base), path)
+    import_bytes(&bytes, Some(base), path, options)
 }
 
 /// Imports a self-contained glTF from memory: a `.glb`, or a `.gltf` whose buffers and
-/// images are data URIs (external references give [`GltfError::Read`]).
-/// `name_for_errors` names the data in errors, and its stem names the scene.
+/// images are data URIs (external references give [`GltfError::RefusedUri`]), under the
+/// default [`ImportOptions`]. `name_for_errors` names the data in errors, and its stem
+/// names the scene.
 pub fn import_slice(bytes: &[u8], name_for_errors: &Path) -> Result<ImportResult, GltfError> {
-    import_bytes(bytes, None, name_for_errors)
+    import_slice_with(bytes, name_for_errors, &ImportOptions::default())
+}
+
+/// [`import_slice`] with explicit [`ImportOptions`].
+pub fn import_slice_with(
+    bytes: &[u8],
+    name_for_errors: &Path,
+    options: &ImportOptions,
+) -> Result<ImportResult, GltfError> {
+    import_bytes(bytes, None, name_for_errors, options)
 }
 
 fn read_error(path: &Path, message: impl Into<String>) -> GltfError {
@@ -271,17 +301,28 @@ fn content_error(path: &Path, message: impl Into<String>) -> GltfError {
     }
 }
 
-fn import_bytes(bytes: &[u8], base: Option<&Path>, path: &Path) -> Result<ImportResult, GltfError> {
+fn import_bytes(
+    bytes: &[u8],
+    base: Option<&Path>,
+    path: &Path,
+    options: &ImportOptions,
+) -> Result<ImportResult, GltfError> {
+    let mut allowance = Allowance::new(options.budget, path);
     let (document, blob) = parse_document(bytes).map_err(|m| read_error(path, m))?;
-    let buffers = gltf::import_buffers(&document, base, blob)
-        .map_err(|e| read_error(path, format!("cannot load buffers: {e}")))?;
+    let uris = uri::UriReader {
+        path,
+        base,
+        policy: options.external_files,
+    };
+    let buffers = load_buffers(&document, blob, &uris, &mut allowance)?;
     let name = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let mut importer = Importer {
         path,
-        base,
+        uris,
+        allowance,
         doc: &document,
         buffers: &buffers,
         scene: Scene::new(&name),
@@ -311,9 +352,48 @@ fn import_bytes(bytes: &[u8], base: Option<&Path>, path: &Path) -> Result<Import
     })
 }
 
+/// Loads every buffer (GLB chunk, data URI or external file under the URI policy), each
+/// charged to the allowance before it is read, and checks it holds its `byteLength`.
+fn load_buffers(
+    document: &gltf::Document,
+    mut blob: Option<Vec<u8>>,
+    uris: &uri::UriReader,
+    allowance: &mut Allowance,
+) -> Result<Vec<gltf::buffer::Data>, GltfError> {
+    let path = uris.path;
+    let mut buffers = Vec::with_capacity(document.buffers().len());
+    for buffer in document.buffers() {
+        let what = format!("buffer {}", buffer.index());
+        let mut data = match buffer.source() {
+            gltf::buffer::Source::Bin => {
+                let bin = blob.take().ok_or_else(|| {
+                    read_error(path, format!("{what}: the file has no binary chunk"))
+                })?;
+                allowance.charge_bytes(bin.len() as u64, || what.clone())?;
+                bin
+            }
+            gltf::buffer::Source::Uri(u) => uris.read(u, &what, allowance)?,
+        };
+        if data.len() < buffer.length() {
+            return Err(read_error(
+                path,
+                format!(
+                    "{what}: {} bytes, but byteLength says {}",
+                    data.len(),
+                    buffer.length()
+                ),
+            ));
+        }
+        data.resize(data.len().next_multiple_of(4), 0);
+        buffers.push(gltf::buffer::Data(data));
+    }
+    Ok(buffers)
+}
+
 /// Parses and validates the document, rejecting first the inputs on which `gltf` 1.4
 /// would panic (a GLB length below the header size, a `POSITION` accessor index out of
-/// range, images without a source or MIME type, percent-encoded URIs that are not UTF-8).
+/// range, images without a source or MIME type, cameras without the projection their type
+/// names).
 fn parse_document(bytes: &[u8]) -> Result<(gltf::Document, Option<Vec<u8>>), String> {
     if bytes.starts_with(b"glTF") {
         let length = bytes
@@ -357,42 +437,30 @@ fn precheck(root: &gltf::json::Root) -> Result<(), String> {
                 return Err(format!("image {i}: bufferView without mimeType"));
             }
             (None, None) => return Err(format!("image {i}: neither uri nor bufferView")),
-            (None, Some(uri)) => check_uri(uri).map_err(|m| format!("image {i}: {m}"))?,
             _ => {}
         }
     }
-    for (i, buffer) in root.buffers.iter().enumerate() {
-        if let Some(uri) = &buffer.uri {
-            check_uri(uri).map_err(|m| format!("buffer {i}: {m}"))?;
+    // `gltf` unwraps the projection object that the camera's type names.
+    for (i, camera) in root.cameras.iter().enumerate() {
+        use gltf::json::camera::Type;
+        use gltf::json::validation::Checked;
+        let present = match camera.type_ {
+            Checked::Valid(Type::Perspective) => camera.perspective.is_some(),
+            Checked::Valid(Type::Orthographic) => camera.orthographic.is_some(),
+            Checked::Invalid => false,
+        };
+        if !present {
+            let ty = match camera.type_ {
+                Checked::Valid(Type::Perspective) => "perspective",
+                Checked::Valid(Type::Orthographic) => "orthographic",
+                Checked::Invalid => "an unknown type",
+            };
+            return Err(format!(
+                "camera {i}: its type is {ty} but it has no {ty} object"
+            ));
         }
     }
     Ok(())
-}
-
-/// `gltf` percent-decodes relative URIs and panics when the result is not UTF-8.
-fn check_uri(uri: &str) -> Result<(), String> {
-    if uri.contains(':') || !uri.contains('%') {
-        return Ok(());
-    }
-    let b = uri.as_bytes();
-    let mut out = Vec::with_capacity(b.len());
-    let mut i = 0;
-    while i < b.len() {
-        let hex = |c: u8| (c as char).to_digit(16);
-        if b[i] == b'%'
-            && i + 2 < b.len()
-            && let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2]))
-        {
-            out.push((h * 16 + l) as u8);
-            i += 3;
-            continue;
-        }
-        out.push(b[i]);
-        i += 1;
-    }
-    std::str::from_utf8(&out)
-        .map(|_| ())
-        .map_err(|_| format!("URI '{uri}' is not UTF-8 once percent-decoded"))
 }
 
 /// Why an accessor cannot be read: its bytes are out of range, or its type is wrong.
@@ -480,11 +548,7 @@ fn check_accessor(
     match acc.view() {
         Some(view) => check_range(&view, acc.offset(), count, elem, buffers)
             .map_err(AccessorProblem::Range)?,
-        None if count > MAX_SPARSE_ONLY_COUNT => {
-            return Err(AccessorProblem::Range(format!(
-                "sparse accessor without buffer view claims {count} elements"
-            )));
-        }
+        // A sparse-only accessor's count is charged to the vertex budget before it is read.
         None => {}
     }
     if let Some(sparse) = acc.sparse() {
@@ -512,7 +576,8 @@ struct PendingFar {
 
 struct Importer<'a> {
     path: &'a Path,
-    base: Option<&'a Path>,
+    uris: uri::UriReader<'a>,
+    allowance: Allowance,
     doc: &'a gltf::Document,
     buffers: &'a [gltf::buffer::Data],
     scene: Scene,
@@ -706,34 +771,37 @@ impl<'a> Importer<'a> {
                 format!("texture {} '{name}'", texture.index()),
             );
         }
-        let fail = |m: String| {
-            read_error(
-                self.path,
-                format!("texture {} '{name}': {m}", texture.index()),
-            )
-        };
+        let what = format!("texture {} '{name}'", texture.index());
+        let path = self.path;
         let encoded: Cow<[u8]> = match image.source() {
-            gltf::image::Source::View { view, .. } => {
-                Cow::Borrowed(view_bytes(&view, self.buffers).map_err(fail)?)
-            }
+            gltf::image::Source::View { view, .. } => Cow::Borrowed(
+                view_bytes(&view, self.buffers)
+                    .map_err(|m| read_error(path, format!("{what}: {m}")))?,
+            ),
             gltf::image::Source::Uri { uri, .. } => {
-                let data =
-                    gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), self.base)
-                        .map_err(|e| fail(e.to_string()))?;
-                Cow::Owned(data.0)
+                Cow::Owned(self.uris.read(uri, &what, &mut self.allowance)?)
             }
         };
-        let decoded = image::load_from_memory(&encoded).map_err(|e| fail(e.to_string()))?;
-        let rgb = decoded.to_rgb32f();
-        let texels = rgb
-            .pixels()
-            .map(|p| Vec3::from(p.0.map(|c| srgb_to_linear(c.clamp(0.0, 1.0)).clamp(0.0, 1.0))))
-            .collect();
+        let image_error = |e: ImageError| match e {
+            ImageError::Budget(mut b) => {
+                b.what = format!("{what}: {}", b.what);
+                GltfError::Budget(b)
+            }
+            other => read_error(path, format!("{what}: {other}")),
+        };
+        // The header's size is charged to the scene before the texels are decoded.
+        let (w, h) = Image::probe_dimensions(&encoded, path).map_err(image_error)?;
+        self.allowance
+            .charge_bytes(u64::from(w) * u64::from(h) * 12, || {
+                format!("{what}: {w}x{h} texels")
+            })?;
+        let decoded = Image::decode_srgb(&encoded, None, path, self.allowance.budget())
+            .map_err(image_error)?;
         Ok(Texture {
             name,
-            width: rgb.width(),
-            height: rgb.height(),
-            texels,
+            width: decoded.width,
+            height: decoded.height,
+            texels: decoded.pixels,
         })
     }
 
@@ -951,6 +1019,18 @@ impl<'a> Importer<'a> {
             return Err(content_error(path, format!("{at}: no POSITION attribute")));
         };
         check(&pos_acc, "POSITION", &[DataType::F32], Dimensions::Vec3)?;
+        // Charge the primitive (vertices, indices and their bytes in the scene) before any
+        // of it is read: counts come from the file and are not trusted.
+        let n = pos_acc.count() as u64;
+        let index_count = prim.indices().map_or(n, |a| a.count() as u64);
+        let vertex_bytes = 12 + 12 + if tex_set.is_some() { 8 } else { 0 };
+        self.allowance.charge_mesh(
+            n,
+            index_count,
+            n.saturating_mul(vertex_bytes)
+                .saturating_add(index_count.saturating_mul(4 + 4)),
+            || at.clone(),
+        )?;
         let positions: Vec<Vec3> = reader
             .read_positions()
             .map(|it| it.map(Vec3::from).collect())
@@ -2273,7 +2353,7 @@ mod tests {
         }
         // Percent-encoded URIs that are not UTF-8 (gltf 1.4 would panic decoding them).
         let r = import_edited(|r| r["buffers"][0]["uri"] = json!("%FF%FE.bin"));
-        assert!(matches!(r, Err(GltfError::Read { .. })), "{r:?}");
+        assert!(matches!(r, Err(GltfError::RefusedUri { .. })), "{r:?}");
     }
 
     #[test]

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
+use crate::budget::{Budget, ReadFileError};
 use crate::error::ImageError;
 
 /// A linear RGB image, row-major, top row first.
@@ -145,23 +146,64 @@ impl Image {
         })
     }
 
-    /// Reads the RGB channels of the first layer of an OpenEXR file (alpha ignored).
+    /// Reads the RGB channels of the first layer of an OpenEXR file (alpha ignored), under
+    /// the default [`Budget`]. See [`Image::decode_exr`].
     pub fn read_exr(path: &Path) -> Result<Self, ImageError> {
+        Self::read_exr_with(path, &Budget::default())
+    }
+
+    /// [`Image::read_exr`] under `budget`: the file's size is checked against
+    /// [`Budget::file_bytes`] before it is read.
+    pub fn read_exr_with(path: &Path, budget: &Budget) -> Result<Self, ImageError> {
+        let bytes = read_image_file(path, budget)?;
+        Self::decode_exr(&bytes, path, budget)
+    }
+
+    /// Decodes the RGB channels of the first layer of an OpenEXR file held in memory;
+    /// `path` names it in errors.
+    ///
+    /// Every layer's data window is checked against [`Budget::image_bytes`] (12 bytes a
+    /// pixel) before any pixel storage is allocated. The decoder runs on the calling thread
+    /// (never on a thread pool, where a panic would abort the process) and a panic inside
+    /// it becomes [`ImageError::DecoderFault`].
+    pub fn decode_exr(bytes: &[u8], path: &Path, budget: &Budget) -> Result<Self, ImageError> {
         use exr::prelude::*;
         let read_err = |message: String| ImageError::Read {
             path: path.to_path_buf(),
             message,
         };
-        let img = read_first_rgba_layer_from_file(
-            path,
-            |res, _| {
-                let (w, h) = (res.width(), res.height());
-                (w, vec![Vec3::ZERO; w * h])
-            },
-            |(w, px): &mut (usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-                px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
-            },
-        )
+        let meta = catch_decoder_panic(path, || {
+            exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        })?
+        .map_err(|e| read_err(e.to_string()))?;
+        for (i, header) in meta.headers.iter().enumerate() {
+            let size = header.layer_size;
+            budget.check_image(
+                size.width() as u64,
+                size.height() as u64,
+                0,
+                path,
+                &format!("EXR layer {i}"),
+            )?;
+        }
+        let img = catch_decoder_panic(path, || {
+            read()
+                .no_deep_data()
+                .largest_resolution_level()
+                .rgba_channels(
+                    |res, _| {
+                        let (w, h) = (res.width(), res.height());
+                        (w, vec![Vec3::ZERO; w * h])
+                    },
+                    |(w, px): &mut (usize, Vec<Vec3>), pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                        px[pos.y() * *w + pos.x()] = Vec3::new(r, g, b);
+                    },
+                )
+                .first_valid_layer()
+                .all_attributes()
+                .non_parallel()
+                .from_buffered(std::io::Cursor::new(bytes))
+        })?
         .map_err(|e| read_err(e.to_string()))?;
         let size = img.layer_data.size;
         let (_, pixels) = img.layer_data.channel_data.pixels;
@@ -203,48 +245,165 @@ impl Image {
         })
     }
 
-    /// Reads an 8- or 16-bit PNG and converts it from sRGB to linear RGB (alpha ignored).
+    /// Reads an 8- or 16-bit PNG and converts it from sRGB to linear RGB (alpha ignored),
+    /// under the default [`Budget`]. See [`Image::decode_srgb`].
     pub fn read_png(path: &Path) -> Result<Image, ImageError> {
+        Self::read_png_with(path, &Budget::default())
+    }
+
+    /// [`Image::read_png`] under `budget`.
+    pub fn read_png_with(path: &Path, budget: &Budget) -> Result<Image, ImageError> {
+        let bytes = read_image_file(path, budget)?;
+        Self::decode_srgb(&bytes, Some(image::ImageFormat::Png), path, budget)
+    }
+
+    /// The width and height an encoded image's header declares (nothing is decoded), for
+    /// charging a budget before decoding.
+    pub fn probe_dimensions(bytes: &[u8], path: &Path) -> Result<(u32, u32), ImageError> {
         let read_err = |message: String| ImageError::Read {
             path: path.to_path_buf(),
             message,
         };
-        let bytes = std::fs::read(path).map_err(|e| read_err(e.to_string()))?;
-        let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
-            .map_err(|e| read_err(e.to_string()))?;
-        let rgb = img.to_rgb32f();
-        let (width, height) = rgb.dimensions();
+        catch_decoder_panic(path, || {
+            image::ImageReader::new(std::io::Cursor::new(bytes))
+                .with_guessed_format()
+                .map_err(|e| read_err(e.to_string()))?
+                .into_dimensions()
+                .map_err(|e| read_err(e.to_string()))
+        })?
+    }
+
+    /// Decodes an 8-bit image file held in memory (PNG, or with `format` `None` whatever
+    /// format the bytes show and the `image` crate was built with) from sRGB to linear RGB,
+    /// alpha ignored; `path` names it in errors.
+    ///
+    /// The header's dimensions are checked against [`Budget::image_bytes`], counting the
+    /// decoder's buffer and the linear copy, before anything is decoded; the decoder is also
+    /// given the budget as its own allocation limit. A panic inside the decoder becomes
+    /// [`ImageError::DecoderFault`].
+    pub fn decode_srgb(
+        bytes: &[u8],
+        format: Option<image::ImageFormat>,
+        path: &Path,
+        budget: &Budget,
+    ) -> Result<Image, ImageError> {
+        use image::ImageDecoder as _;
+        let read_err = |message: String| ImageError::Read {
+            path: path.to_path_buf(),
+            message,
+        };
+        let decoded = catch_decoder_panic(path, || {
+            let reader = image::ImageReader::new(std::io::Cursor::new(bytes));
+            let reader = match format {
+                Some(f) => {
+                    let mut r = reader;
+                    r.set_format(f);
+                    r
+                }
+                None => reader
+                    .with_guessed_format()
+                    .map_err(|e| read_err(e.to_string()))?,
+            };
+            let mut decoder = reader.into_decoder().map_err(|e| read_err(e.to_string()))?;
+            let (w, h) = decoder.dimensions();
+            let color = decoder.color_type();
+            // 8-bit input converts straight to the linear copy; anything else passes through
+            // an f32 RGB copy first.
+            let eight_bit = color.bytes_per_pixel() == color.channel_count();
+            let staging = if eight_bit { 0 } else { 12 };
+            let bytes_needed = budget.check_image(
+                w as u64,
+                h as u64,
+                color.bytes_per_pixel() as u64 + staging,
+                path,
+                "image",
+            )?;
+            let mut limits = image::Limits::default();
+            limits.max_alloc = Some(bytes_needed.max(1 << 20));
+            decoder
+                .set_limits(limits)
+                .map_err(|e| read_err(e.to_string()))?;
+            image::DynamicImage::from_decoder(decoder).map_err(|e| read_err(e.to_string()))
+        })??;
+        let (width, height) = (decoded.width(), decoded.height());
         if width == 0 || height == 0 {
             return Err(read_err("image has zero size".into()));
         }
-        let pixels = rgb
-            .pixels()
-            .map(|p| {
-                Vec3::new(
-                    srgb_to_linear(p[0]),
-                    srgb_to_linear(p[1]),
-                    srgb_to_linear(p[2]),
-                )
-            })
-            .collect();
         Ok(Image {
             width,
             height,
-            pixels,
+            pixels: srgb_pixels_to_linear(&decoded),
         })
     }
 
-    /// Reads an image by extension: `.exr` or `.png`.
+    /// Reads an image by extension: `.exr` or `.png`, under the default [`Budget`].
     pub fn read(path: &Path) -> Result<Image, ImageError> {
+        Self::read_with(path, &Budget::default())
+    }
+
+    /// [`Image::read`] under `budget`.
+    pub fn read_with(path: &Path, budget: &Budget) -> Result<Image, ImageError> {
         match extension(path).as_deref() {
-            Some("exr") => Self::read_exr(path),
-            Some("png") => Self::read_png(path),
+            Some("exr") => Self::read_exr_with(path, budget),
+            Some("png") => Self::read_png_with(path, budget),
             _ => Err(ImageError::Read {
                 path: path.to_path_buf(),
                 message: "unknown extension (expected .exr or .png)".into(),
             }),
         }
     }
+}
+
+/// Linear RGB of a decoded sRGB image: 8-bit channels through a 256-entry table, other
+/// depths through an f32 copy (clamped to [0, 1] first).
+fn srgb_pixels_to_linear(img: &image::DynamicImage) -> Vec<Vec3> {
+    use image::DynamicImage as D;
+    let lut: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0));
+    let rgb = |p: &[u8]| Vec3::new(lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]);
+    let grey = |p: &[u8]| Vec3::splat(lut[p[0] as usize]);
+    match img {
+        D::ImageLuma8(b) => b.pixels().map(|p| grey(&p.0)).collect(),
+        D::ImageLumaA8(b) => b.pixels().map(|p| grey(&p.0)).collect(),
+        D::ImageRgb8(b) => b.pixels().map(|p| rgb(&p.0)).collect(),
+        D::ImageRgba8(b) => b.pixels().map(|p| rgb(&p.0)).collect(),
+        other => other
+            .to_rgb32f()
+            .pixels()
+            .map(|p| Vec3::from(p.0.map(|c| srgb_to_linear(c.clamp(0.0, 1.0)))))
+            .collect(),
+    }
+}
+
+/// Reads an image file whole, within [`Budget::file_bytes`], refusing non-regular files.
+fn read_image_file(path: &Path, budget: &Budget) -> Result<Vec<u8>, ImageError> {
+    crate::budget::read_file(path, budget).map_err(|e| match e {
+        ReadFileError::Budget(b) => ImageError::Budget(b),
+        other => ImageError::Read {
+            path: path.to_path_buf(),
+            message: other.to_string(),
+        },
+    })
+}
+
+/// Runs a decoder on this thread and turns a panic inside it into
+/// [`ImageError::DecoderFault`] (dependencies' decoders are not trusted not to panic on
+/// hostile input; run on a rayon thread, such a panic would abort the process).
+pub fn catch_decoder_panic<T>(path: &Path, decode: impl FnOnce() -> T) -> Result<T, ImageError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(decode)).map_err(|payload| {
+        ImageError::DecoderFault {
+            path: path.to_path_buf(),
+            message: panic_message(payload.as_ref()),
+        }
+    })
+}
+
+/// The text of a caught panic's payload.
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "panic with a non-text payload".into())
 }
 
 fn extension(path: &Path) -> Option<String> {

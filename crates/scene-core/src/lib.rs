@@ -16,6 +16,7 @@
 //! assert!(out.image.pixels.iter().all(|p| p.is_finite()));
 //! ```
 
+pub mod budget;
 pub mod builtin;
 pub mod error;
 pub mod gbuffer;
@@ -30,6 +31,7 @@ pub mod scene;
 pub mod technique;
 pub mod view;
 
+pub use budget::{Budget, BudgetError};
 pub use error::{GltfError, ImageError, SceneError};
 pub use gbuffer::{BACKGROUND_ID, GBuffer, GBufferRenderer};
 pub use image::{Image, luminance};
@@ -55,6 +57,9 @@ pub enum Error {
     #[cfg(feature = "gpu")]
     #[error(transparent)]
     Gpu(#[from] gpu::GpuError),
+    /// A file asked for more than its [`budget::Budget`] allows.
+    #[error(transparent)]
+    FileBudget(#[from] budget::BudgetError),
     /// A budget (memory, element count) would be exceeded.
     #[error("budget exceeded: {0}")]
     Budget(String),

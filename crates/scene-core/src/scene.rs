@@ -227,6 +227,47 @@ impl Camera {
             ..self.clone()
         }
     }
+
+    /// Checks what every view of this camera needs: finite position, target and up; a view
+    /// direction of non-zero length that up is not parallel to; field of view in (0, pi);
+    /// finite aspect > 0; finite planes with 0 < near < far. The error names the camera
+    /// (`index` labels an unnamed one) and says what is wrong. [`Scene::validate`] and every
+    /// loader of cameras (glTF, camera lists) use this one check.
+    pub fn check(&self, index: usize) -> Result<(), SceneError> {
+        let dir = self.target - self.position;
+        let reason =
+            if !(self.position.is_finite() && self.target.is_finite() && self.up.is_finite()) {
+                Some("position, target or up is not finite".to_string())
+            } else if dir.length_squared() == 0.0 || !dir.length_squared().is_finite() {
+                Some("target equals position (or lies too far to measure)".into())
+            } else if dir.normalize().cross(self.up).length_squared() <= 1e-12 {
+                Some("up is zero or parallel to the view direction".into())
+            } else if !(self.fov_y > 0.0 && self.fov_y < std::f32::consts::PI) {
+                Some(format!(
+                    "vertical field of view {} rad is outside (0, pi)",
+                    self.fov_y
+                ))
+            } else if !(self.aspect > 0.0 && self.aspect.is_finite()) {
+                Some(format!(
+                    "aspect ratio {} is not finite and > 0",
+                    self.aspect
+                ))
+            } else if !(self.near > 0.0 && self.far > self.near && self.far.is_finite()) {
+                Some(format!(
+                    "planes near {} and far {} break 0 < near < far < infinity",
+                    self.near, self.far
+                ))
+            } else {
+                None
+            };
+        match reason {
+            None => Ok(()),
+            Some(reason) => Err(SceneError::InvalidCamera {
+                camera: label_or_index(&self.name, "camera", index),
+                reason,
+            }),
+        }
+    }
 }
 
 /// A scene: meshes, materials, textures, lights and cameras.
@@ -581,24 +622,7 @@ impl Scene {
 
     fn validate_cameras(&self) -> Result<(), SceneError> {
         for (i, c) in self.cameras.iter().enumerate() {
-            let dir = c.target - c.position;
-            let ok = c.position.is_finite()
-                && c.target.is_finite()
-                && c.up.is_finite()
-                && dir.length_squared() > 0.0
-                && dir.normalize().cross(c.up).length_squared() > 1e-12
-                && c.fov_y > 0.0
-                && c.fov_y < std::f32::consts::PI
-                && c.aspect > 0.0
-                && c.aspect.is_finite()
-                && c.near > 0.0
-                && c.far > c.near
-                && c.far.is_finite();
-            if !ok {
-                return Err(SceneError::InvalidCamera {
-                    camera: label_or_index(&c.name, "camera", i),
-                });
-            }
+            c.check(i)?;
         }
         Ok(())
     }

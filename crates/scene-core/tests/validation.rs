@@ -193,12 +193,13 @@ fn bad_lights_and_cameras_are_errors() {
         near: 0.1,
         far: 1.0,
     });
-    assert_eq!(
-        s.validate().unwrap_err(),
-        SceneError::InvalidCamera {
-            camera: "camera #0 'eye'".into()
+    match s.validate().unwrap_err() {
+        SceneError::InvalidCamera { camera, reason } => {
+            assert_eq!(camera, "camera #0 'eye'");
+            assert!(reason.contains("parallel"), "{reason}");
         }
-    );
+        other => panic!("expected InvalidCamera, got {other}"),
+    }
 }
 
 #[test]
