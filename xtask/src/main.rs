@@ -10,12 +10,15 @@
 //! - `bench isr`: ISR ms per frame by pass at 1024x768, 24/48/80 samples, CPU and GPU.
 //! - `experiment`: the main job: scenes x cameras x `dl`/`isr` against the reference path
 //!   tracer, with `report.md`, `report.html` and `results.json`.
+//! - `fuzz`: mutation fuzzing of the loaders (glTF, GLB, EXR, PNG, camera lists); failing
+//!   inputs are kept under `tests/fuzz-regressions/` and replayed by the tests.
 //! - `bench gbuffer`: G-buffer ms per frame (CPU and GPU), downsampling passes and quality,
 //!   position reconstruction micro-benchmark.
 
 mod bench;
 mod checks;
 mod experiment;
+mod fuzz;
 mod shaders;
 
 use std::path::{Path, PathBuf};
@@ -144,6 +147,38 @@ enum Command {
         #[arg(long)]
         cache: Option<PathBuf>,
     },
+    /// Fuzz the loaders with mutated seed files: each input under catch_unwind, the worker
+    /// under an address-space cap and a per-input time limit; failing inputs are saved under
+    /// tests/fuzz-regressions/<target>/ (replayed by `cargo test`).
+    Fuzz {
+        /// A target to run: gltf, glb, exr, png, cameras (repeatable; default all).
+        #[arg(long = "target")]
+        targets: Vec<String>,
+        /// Seconds per target.
+        #[arg(long, default_value_t = 60)]
+        seconds: u64,
+        /// Seed of the mutations.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Targets fuzzed at once.
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
+        /// Working directory.
+        #[arg(long, default_value = "out/fuzz")]
+        dir: PathBuf,
+    },
+    /// One fuzz worker (started by `fuzz`).
+    #[command(hide = true)]
+    FuzzWorker {
+        #[arg(long)]
+        target: String,
+        #[arg(long)]
+        seconds: u64,
+        #[arg(long)]
+        seed: u64,
+        #[arg(long)]
+        dir: PathBuf,
+    },
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
         /// What to benchmark: `reference`, `gbuffer` or `isr`.
@@ -162,7 +197,12 @@ enum Command {
 pub fn load_scene(spec: &str) -> Result<Scene, String> {
     let lower = spec.to_ascii_lowercase();
     if lower.ends_with(".gltf") || lower.ends_with(".glb") {
-        let imported = gltf_io::import(Path::new(spec)).map_err(|e| e.to_string())?;
+        let options = gltf_io::ImportOptions {
+            budget: scene_core::Budget::from_env()?,
+            ..Default::default()
+        };
+        let imported =
+            gltf_io::import_with(Path::new(spec), &options).map_err(|e| e.to_string())?;
         let summary = imported.summary();
         if !summary.is_empty() {
             eprintln!("{summary}");
@@ -329,6 +369,25 @@ fn run(cli: Cli) -> Result<(), String> {
             error_metric,
             cache,
         }),
+        Command::Fuzz {
+            targets,
+            seconds,
+            seed,
+            jobs,
+            dir,
+        } => fuzz::run(&fuzz::Options {
+            targets,
+            seconds,
+            seed,
+            dir,
+            jobs,
+        }),
+        Command::FuzzWorker {
+            target,
+            seconds,
+            seed,
+            dir,
+        } => fuzz::worker(&target, seconds, seed, &dir),
         Command::Bench {
             what,
             threads,

@@ -170,8 +170,11 @@ fn main() -> ExitCode {
     }
 }
 
+/// Reads an image under the default budget, or the one `DIFFUSE_GI_BUDGET` sets: a
+/// corrupted header asking for gigabytes is refused before anything is allocated.
 fn read(path: &Path) -> Result<Image, String> {
-    Image::read(path).map_err(|e| e.to_string())
+    let budget = imalyzer::scene_core::Budget::from_env()?;
+    Image::read_with(path, &budget).map_err(|e| e.to_string())
 }
 
 fn policy(exclude: bool) -> NonFinite {

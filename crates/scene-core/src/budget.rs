@@ -8,7 +8,7 @@
 //! abort.
 //!
 //! The defaults ([`Budget::default`]) fit a workstation with 16-32 GiB of memory and admit
-//! every real scene we know of (16k x 8k textures, tens of millions of triangles); callers
+//! every real scene we know of (8k x 8k textures, tens of millions of triangles); callers
 //! with other needs build their own, or set the `DIFFUSE_GI_BUDGET` environment variable
 //! that the command-line tools read through [`Budget::from_env`]:
 //!
@@ -24,8 +24,8 @@
 //! |---|---|---|
 //! | `file_bytes` | 4 GiB | one file read whole (glTF/GLB, external buffer, image file, JSON) |
 //! | `image_bytes` | 2 GiB | one decoded image: the decoder's buffer plus the linear f32 copy (16 bytes a pixel for 8-bit RGBA input) |
-//! | `vertices` | 2^26 | vertices of a loaded scene, after instancing (every node that uses a mesh adds its vertices) |
-//! | `indices` | 3 x 2^26 | triangle indices of a loaded scene, after instancing |
+//! | `vertices` | 2^25 (33.5 M) | vertices of a loaded scene, after instancing (every node that uses a mesh adds its vertices) |
+//! | `indices` | 3 x 2^25 | triangle indices (33.5 M triangles) of a loaded scene, after instancing |
 //! | `scene_bytes` | 8 GiB | everything a loaded scene holds: loaded buffers, decoded textures, vertex and index arrays |
 
 use std::fmt;
@@ -54,8 +54,8 @@ impl Default for Budget {
         Self {
             file_bytes: 4 * GIB,
             image_bytes: 2 * GIB,
-            vertices: 1 << 26,
-            indices: 3 << 26,
+            vertices: 1 << 25,
+            indices: 3 << 25,
             scene_bytes: 8 * GIB,
         }
     }

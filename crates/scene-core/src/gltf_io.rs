@@ -795,8 +795,8 @@ impl<'a> Importer<'a> {
             .charge_bytes(u64::from(w) * u64::from(h) * 12, || {
                 format!("{what}: {w}x{h} texels")
             })?;
-        let decoded = Image::decode_srgb(&encoded, None, path, self.allowance.budget())
-            .map_err(image_error)?;
+        let decoded =
+            Image::decode_texture(&encoded, path, self.allowance.budget()).map_err(image_error)?;
         Ok(Texture {
             name,
             width: decoded.width,

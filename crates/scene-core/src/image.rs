@@ -254,7 +254,26 @@ impl Image {
     /// [`Image::read_png`] under `budget`.
     pub fn read_png_with(path: &Path, budget: &Budget) -> Result<Image, ImageError> {
         let bytes = read_image_file(path, budget)?;
-        Self::decode_srgb(&bytes, Some(image::ImageFormat::Png), path, budget)
+        Self::decode_png(&bytes, path, budget)
+    }
+
+    /// Decodes a PNG held in memory from sRGB to linear RGB (alpha ignored); `path` names it
+    /// in errors. See [`Image::decode_texture`] for the budget and the handling of decoder
+    /// faults.
+    pub fn decode_png(bytes: &[u8], path: &Path, budget: &Budget) -> Result<Image, ImageError> {
+        Self::decode_srgb(bytes, Some(image::ImageFormat::Png), path, budget)
+    }
+
+    /// Decodes an 8- or 16-bit image held in memory, in whatever format its bytes show
+    /// (among those the `image` crate was built with), from sRGB to linear RGB (alpha
+    /// ignored); `path` names it in errors.
+    ///
+    /// The header's dimensions are checked against [`Budget::image_bytes`], counting the
+    /// decoder's buffer and the linear copy, before anything is decoded; the decoder is also
+    /// given the budget as its own allocation limit. A panic inside the decoder becomes
+    /// [`ImageError::DecoderFault`].
+    pub fn decode_texture(bytes: &[u8], path: &Path, budget: &Budget) -> Result<Image, ImageError> {
+        Self::decode_srgb(bytes, None, path, budget)
     }
 
     /// The width and height an encoded image's header declares (nothing is decoded), for
@@ -273,15 +292,8 @@ impl Image {
         })?
     }
 
-    /// Decodes an 8-bit image file held in memory (PNG, or with `format` `None` whatever
-    /// format the bytes show and the `image` crate was built with) from sRGB to linear RGB,
-    /// alpha ignored; `path` names it in errors.
-    ///
-    /// The header's dimensions are checked against [`Budget::image_bytes`], counting the
-    /// decoder's buffer and the linear copy, before anything is decoded; the decoder is also
-    /// given the budget as its own allocation limit. A panic inside the decoder becomes
-    /// [`ImageError::DecoderFault`].
-    pub fn decode_srgb(
+    /// [`Image::decode_png`] and [`Image::decode_texture`]: `format` `None` guesses it.
+    fn decode_srgb(
         bytes: &[u8],
         format: Option<image::ImageFormat>,
         path: &Path,

@@ -1,0 +1,260 @@
+//! Fuzz targets: what `cargo xtask fuzz` feeds mutated files to, with the seed files the
+//! project writes itself, and the replay of every input that ever failed
+//! (`tests/fuzz-regressions/<target>/`, replayed by `tests/tests/fuzz_regressions.rs`).
+//!
+//! A target takes bytes and returns `Ok` or a typed error turned into text; both are fine.
+//! A panic, an abort, an allocation past the memory cap or an input that runs past the time
+//! limit is a finding.
+
+use std::path::{Path, PathBuf};
+
+use scene_core::budget::Budget;
+use scene_core::gltf_io::{self, ImportOptions};
+use scene_core::{Image, Scene, builtin};
+
+use crate::hostile;
+
+/// Everything a target needs besides the input.
+pub struct Context {
+    /// The budget every loader runs under.
+    pub budget: Budget,
+    /// A directory the gltf target writes its input into (as `scene/fuzz.gltf`, beside
+    /// `scene/buf.bin`; `outside.bin` lies one level up, outside the scene's folder).
+    pub scratch: PathBuf,
+    /// The scene camera lists are parsed for.
+    pub cornell: Scene,
+}
+
+impl Context {
+    /// A context whose scratch directory is `scratch` (created and filled here).
+    pub fn new(budget: Budget, scratch: &Path) -> Self {
+        let scene_dir = scratch.join("scene");
+        std::fs::create_dir_all(&scene_dir).expect("fuzz scratch directory");
+        std::fs::write(scene_dir.join("buf.bin"), hostile::triangle_buffer()).expect("buf.bin");
+        std::fs::write(scratch.join("outside.bin"), hostile::triangle_buffer())
+            .expect("outside.bin");
+        Self {
+            budget,
+            scratch: scratch.to_path_buf(),
+            cornell: builtin::scene("cornell").expect("cornell"),
+        }
+    }
+}
+
+/// The budget of fuzzing runs and of the regression replay: small enough that a worker
+/// under a 3 GiB address space can honour it with room to spare, large enough for every
+/// seed.
+pub fn fuzz_budget() -> Budget {
+    Budget {
+        file_bytes: 64 << 20,
+        image_bytes: 256 << 20,
+        vertices: 1 << 22,
+        indices: 3 << 22,
+        scene_bytes: 512 << 20,
+    }
+}
+
+/// One thing to fuzz.
+pub struct Target {
+    /// Its name (`cargo xtask fuzz --target NAME`, and the regression folder).
+    pub name: &'static str,
+    /// File extension of its inputs.
+    pub ext: &'static str,
+    /// Whether inputs are JSON text (the fuzzer then also mutates parsed values).
+    pub json: bool,
+    /// The seed files.
+    pub seeds: fn() -> Vec<Vec<u8>>,
+    /// Runs one input.
+    pub run: fn(&[u8], &Context) -> Result<(), String>,
+}
+
+/// Every target.
+pub fn targets() -> Vec<Target> {
+    vec![
+        Target {
+            name: "gltf",
+            ext: "gltf",
+            json: true,
+            seeds: gltf_seeds,
+            run: run_gltf,
+        },
+        Target {
+            name: "glb",
+            ext: "glb",
+            json: false,
+            seeds: || scenes().map(|n| hostile::exported(n, "glb")).collect(),
+            run: |bytes, ctx| {
+                let options = ImportOptions {
+                    budget: ctx.budget,
+                    ..Default::default()
+                };
+                gltf_io::import_slice_with(bytes, Path::new("fuzz.glb"), &options)
+                    .map(|_| ())
+                    .map_err(|e| e.to_string())
+            },
+        },
+        Target {
+            name: "exr",
+            ext: "exr",
+            json: false,
+            seeds: || {
+                let mut s = vec![hostile::small_exr(7, 5)];
+                s.extend(hostile::exr_variants());
+                s
+            },
+            run: |bytes, ctx| {
+                Image::decode_exr(bytes, Path::new("fuzz.exr"), &ctx.budget)
+                    .map(|_| ())
+                    .map_err(|e| e.to_string())
+            },
+        },
+        Target {
+            name: "png",
+            ext: "png",
+            json: false,
+            seeds: png_seeds,
+            run: |bytes, ctx| {
+                Image::decode_png(bytes, Path::new("fuzz.png"), &ctx.budget)
+                    .map(|_| ())
+                    .map_err(|e| e.to_string())
+            },
+        },
+        Target {
+            name: "cameras",
+            ext: "json",
+            json: true,
+            seeds: || {
+                let mut s: Vec<Vec<u8>> = hostile::bad_camera_lists()
+                    .into_iter()
+                    .map(|(_, t)| t.into_bytes())
+                    .collect();
+                s.push(
+                    br#"{"cameras": [{"name": "a", "position": [0.278, 0.273, -0.8], "target": [0.278, 0.273, 0], "up": [0, 1, 0], "fov": 40, "near": 0.01, "far": 5}]}"#
+                        .to_vec(),
+                );
+                s
+            },
+            run: |bytes, ctx| {
+                let text = std::str::from_utf8(bytes).map_err(|e| e.to_string())?;
+                let cams = bench_harness::parse_camera_list(text, &ctx.cornell, "fuzz.json")
+                    .map_err(|e| e.to_string())?;
+                // What the list admits must be a camera a scene admits.
+                for (i, c) in cams.iter().enumerate() {
+                    if let Err(e) = c.check(i) {
+                        panic!("camera list admitted a camera Scene::validate refuses: {e}");
+                    }
+                }
+                Ok(())
+            },
+        },
+    ]
+}
+
+fn scenes() -> impl Iterator<Item = &'static str> {
+    ["cornell", "cornell-point", "primitives", "corridor"].into_iter()
+}
+
+fn gltf_seeds() -> Vec<Vec<u8>> {
+    let mut s: Vec<Vec<u8>> = scenes().map(|n| hostile::exported(n, "gltf")).collect();
+    s.push(hostile::to_bytes(&hostile::triangle_json()));
+    s.push(hostile::triangle_with_buffer_uri("buf.bin"));
+    s.push(hostile::triangle_with_texture(&png_seeds()[0]));
+    s.push(hostile::sparse_instanced(4, 3));
+    s.push(hostile::camera_type_mismatch());
+    s
+}
+
+fn run_gltf(bytes: &[u8], ctx: &Context) -> Result<(), String> {
+    let path = ctx.scratch.join("scene").join("fuzz.gltf");
+    std::fs::write(&path, bytes).map_err(|e| format!("fuzz harness: {e}"))?;
+    let options = ImportOptions {
+        budget: ctx.budget,
+        ..Default::default()
+    };
+    gltf_io::import_with(&path, &options)
+        .map(|_| ())
+        .map_err(|e| e.to_string())
+}
+
+fn png_seeds() -> Vec<Vec<u8>> {
+    let dir = hostile::scratch_dir("png-seeds");
+    let mut img = Image::new(5, 3);
+    for (i, p) in img.pixels.iter_mut().enumerate() {
+        *p = scene_core::glam::Vec3::new(i as f32 / 15.0, 0.5, 1.0 - i as f32 / 15.0);
+    }
+    let path = dir.join("seed.png");
+    img.write_png(&path, 0.0).expect("seed PNG");
+    let mut seeds = vec![std::fs::read(&path).expect("seed PNG bytes")];
+    let _ = std::fs::remove_dir_all(&dir);
+    seeds.push(hostile::png_bomb(16));
+    // 16-bit RGBA and 8-bit grey-alpha, written with the png crate.
+    for (color, depth, channels, bytes_per) in [
+        (png::ColorType::Rgba, png::BitDepth::Sixteen, 4, 2),
+        (png::ColorType::GrayscaleAlpha, png::BitDepth::Eight, 2, 1),
+        (png::ColorType::Rgb, png::BitDepth::Eight, 3, 1),
+    ] {
+        let (w, h) = (6u32, 4u32);
+        let data: Vec<u8> = (0..w * h * channels * bytes_per)
+            .map(|i| (i * 37 % 251) as u8)
+            .collect();
+        let mut out = Vec::new();
+        {
+            let mut enc = png::Encoder::new(&mut out, w, h);
+            enc.set_color(color);
+            enc.set_depth(depth);
+            let mut writer = enc.write_header().expect("PNG header");
+            writer.write_image_data(&data).expect("PNG data");
+        }
+        seeds.push(out);
+    }
+    seeds
+}
+
+/// How one input ended.
+#[derive(Debug, PartialEq)]
+pub enum Outcome {
+    /// Loaded.
+    Ok,
+    /// Refused with an error (the message).
+    Refused(String),
+    /// Panicked (the panic message): a finding.
+    Panicked(String),
+}
+
+/// Runs `target` on `bytes`, catching a panic.
+pub fn run(target: &Target, bytes: &[u8], ctx: &Context) -> Outcome {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| (target.run)(bytes, ctx))) {
+        Ok(Ok(())) => Outcome::Ok,
+        Ok(Err(e)) => Outcome::Refused(e),
+        Err(payload) => Outcome::Panicked(scene_core::image::panic_message(payload.as_ref())),
+    }
+}
+
+/// `tests/fuzz-regressions`: one folder per target holding every input that ever failed.
+pub fn regressions_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz-regressions")
+}
+
+/// The saved failing inputs of `target`, sorted by name.
+pub fn regressions(target: &Target) -> Vec<PathBuf> {
+    let dir = regressions_root().join(target.name);
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .map(|rd| {
+            rd.filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.is_file())
+                .collect()
+        })
+        .unwrap_or_default();
+    files.sort();
+    files
+}
+
+/// FNV-1a of the bytes, as 16 hex digits: the file name a finding is saved under.
+pub fn content_name(bytes: &[u8]) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}
