@@ -98,7 +98,7 @@ pub fn targets() -> Vec<Target> {
             ext: "exr",
             json: false,
             seeds: || {
-                let mut s = vec![hostile::small_exr(7, 5)];
+                let mut s = vec![hostile::small_exr(7, 5), hostile::exr_b44_overflow()];
                 s.extend(hostile::exr_variants());
                 s
             },

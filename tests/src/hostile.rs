@@ -190,7 +190,9 @@ pub fn exr_bomb(w: i32, h: i32) -> Vec<u8> {
 /// scan lines and tiles: the fuzzer's seeds for the decoders (B44 among them).
 pub fn exr_variants() -> Vec<Vec<u8>> {
     use exr::prelude::*;
-    let (w, h) = (19usize, 13usize);
+    // Large enough that B44 and the others compress (a block that does not shrink is stored
+    // raw, which would leave their decoders unexercised).
+    let (w, h) = (40usize, 36usize);
     let mut out = Vec::new();
     let compressions = [
         Compression::Uncompressed,
@@ -233,6 +235,60 @@ pub fn exr_variants() -> Vec<Vec<u8>> {
         }
     }
     out
+}
+
+/// A 32 x 32 B44 EXR of a smooth gradient whose first compressed 4 x 4 block is all zero
+/// bytes: the `exr` crate's B44 decoder (1.74) subtracts the block's bias from a zero base
+/// value, an arithmetic overflow that panics in builds with overflow checks. Decoded on a
+/// rayon thread (the crate's parallel path) that panic aborts the process.
+pub fn exr_b44_overflow() -> Vec<u8> {
+    use exr::prelude::*;
+    let encoding = Encoding {
+        compression: Compression::B44,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    };
+    let pixel = |p: Vec2<usize>| {
+        let v = f16::from_f32(0.5 + (p.x() + p.y()) as f32 / 64.0);
+        (v, v, v)
+    };
+    let layer = Layer::new(
+        (32, 32),
+        LayerAttributes::named("main"),
+        encoding,
+        SpecificChannels::rgb(pixel),
+    );
+    let mut bytes = Vec::new();
+    exr::image::Image::from_layer(layer)
+        .write()
+        .to_buffered(Cursor::new(&mut bytes))
+        .expect("write a B44 EXR");
+    // Walk the header's attributes (name\0 type\0 size value) to its end, then follow the
+    // first entry of the offset table to the first chunk: y (i32), size (i32), data.
+    let mut at = 8;
+    loop {
+        let name_end = at + bytes[at..].iter().position(|&b| b == 0).expect("name");
+        if name_end == at {
+            at += 1;
+            break;
+        }
+        let type_end = name_end
+            + 1
+            + bytes[name_end + 1..]
+                .iter()
+                .position(|&b| b == 0)
+                .expect("type");
+        let size = i32::from_le_bytes(bytes[type_end + 1..type_end + 5].try_into().unwrap());
+        at = type_end + 5 + size as usize;
+    }
+    let chunk = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+    let size = i32::from_le_bytes(bytes[chunk + 4..chunk + 8].try_into().unwrap()) as usize;
+    assert!(
+        size >= 14 && size < 32 * 32 * 6,
+        "the chunk is B44-compressed ({size} bytes)"
+    );
+    bytes[chunk + 8..chunk + 8 + 14].fill(0);
+    bytes
 }
 
 /// Camera lists with values that JSON holds but an f32 camera cannot: a far plane that

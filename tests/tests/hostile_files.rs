@@ -87,6 +87,26 @@ fn exr_bomb_is_refused_before_allocating() {
 }
 
 #[test]
+fn a_panic_in_the_exr_decoder_is_an_error_not_an_abort() {
+    let bytes = hostile::exr_b44_overflow();
+    // Before: decoded on rayon's threads, this aborted the process (exit 134) in any build
+    // with overflow checks, tests included.
+    let r = Image::decode_exr(&bytes, Path::new("b44.exr"), &Budget::default());
+    if cfg!(debug_assertions) {
+        match r {
+            Err(ImageError::DecoderFault { path, message }) => {
+                assert!(path.ends_with("b44.exr"));
+                assert!(message.contains("overflow"), "{message}");
+            }
+            other => panic!("expected a caught decoder fault, got {other:?}"),
+        }
+    } else {
+        // Release builds wrap instead of panicking: any outcome but a panic is fine.
+        let _ = r;
+    }
+}
+
+#[test]
 fn png_bomb_is_refused_before_allocating() {
     in_child(
         "png_bomb_is_refused_before_allocating",

@@ -98,7 +98,9 @@ pub fn run(opts: &Options) -> Result<(), String> {
             .collect();
         for h in handles {
             let (name, s) = h.join().map_err(|_| "a supervisor thread panicked")?;
-            results.push((name, s?));
+            let s = s?;
+            println!("[{name}] finished: {s:?}");
+            results.push((name, s));
         }
     }
     println!(

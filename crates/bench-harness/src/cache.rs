@@ -152,8 +152,11 @@ impl ReferenceCache {
         let key = reference_key(scene_hash, camera, settings);
         let exr = self.dir.join(format!("{key:016x}.exr"));
         let meta_path = self.dir.join(format!("{key:016x}.json"));
-        if let (Ok(image), Ok(text)) = (Image::read_exr(&exr), std::fs::read_to_string(&meta_path))
-            && let Ok(meta) = serde_json::from_str::<CacheMeta>(&text)
+        let budget = scene_core::Budget::default();
+        if let (Ok(image), Ok(text)) = (
+            Image::read_exr_with(&exr, &budget),
+            scene_core::budget::read_file(&meta_path, &budget),
+        ) && let Ok(meta) = serde_json::from_slice::<CacheMeta>(&text)
             && image.width == settings.width
             && image.height == settings.height
         {

@@ -135,10 +135,14 @@ pub fn parse_camera_list(
 
 /// Reads a camera list file for `scene`.
 pub fn load_camera_list(path: &Path, scene: &Scene) -> Result<Vec<Camera>, HarnessError> {
-    let text = std::fs::read_to_string(path).map_err(|e| HarnessError::CameraList {
+    let bad = |message: String| HarnessError::CameraList {
         path: path.display().to_string(),
-        message: e.to_string(),
-    })?;
+        message,
+    };
+    // Within the file budget, and never from a device or FIFO.
+    let bytes = scene_core::budget::read_file(path, &scene_core::Budget::default())
+        .map_err(|e| bad(e.to_string()))?;
+    let text = String::from_utf8(bytes).map_err(|e| bad(format!("not UTF-8: {e}")))?;
     parse_camera_list(&text, scene, &path.display().to_string())
 }
 

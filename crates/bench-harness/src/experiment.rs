@@ -345,7 +345,7 @@ impl Experiment {
                         slug(&sc.id),
                         slug(&camera.name)
                     ));
-                    if let Some(v) = read_view(&file, &config) {
+                    if let Some(v) = read_view(&file, &config, camera) {
                         outcome_views.push(v);
                         resumed += 1;
                         views_bar.inc(1);
@@ -615,10 +615,13 @@ impl Experiment {
     }
 }
 
-fn read_view(path: &Path, config: &str) -> Option<ViewResult> {
-    let text = std::fs::read_to_string(path).ok()?;
-    let v: ViewResult = serde_json::from_str(&text).ok()?;
-    (v.config == config).then_some(v)
+/// A saved view result to resume from: read within the default file budget (never from a
+/// device), and used only when its configuration and its camera are exactly this run's (a
+/// camera is checked once, when its list is loaded; a saved file does not bring its own).
+fn read_view(path: &Path, config: &str, camera: &Camera) -> Option<ViewResult> {
+    let bytes = scene_core::budget::read_file(path, &scene_core::Budget::default()).ok()?;
+    let v: ViewResult = serde_json::from_slice(&bytes).ok()?;
+    (v.config == config && v.camera == CameraSpec::from_camera(camera)).then_some(v)
 }
 
 /// Writes `<dir>/<stem>.png` always and `<dir>/<stem>.exr` when `exr` is set.

@@ -1,0 +1,237 @@
+//! The command-line tools on hostile files: `xtask reference`, `xtask experiment --scene
+//! FILE` (and `--cameras`) and `imalyzer` exit non-zero with a message naming the file and
+//! the fault, never a panic (exit 101) or an abort, each run under a 1 GiB address-space
+//! cap so that an allocation made from a file's word fails the test.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use golden_tests::hostile;
+
+const CAP_KIB: u64 = 1 << 20;
+
+/// Runs `exe args` under the cap; returns (exit code, stderr + stdout).
+fn run_capped(exe: &Path, args: &[&str]) -> (Option<i32>, String) {
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -v {CAP_KIB} && exec \"$0\" \"$@\""))
+        .arg(exe)
+        .args(args)
+        .env("CI", "1")
+        .output()
+        .expect("run under sh");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    (out.status.code(), text)
+}
+
+/// Expects a clean failure (exit 1) whose message holds every one of `needles`.
+fn fails_cleanly(exe: &Path, args: &[&str], needles: &[&str]) {
+    let (code, text) = run_capped(exe, args);
+    assert_eq!(code, Some(1), "{args:?} exited {code:?}:\n{text}");
+    assert!(!text.contains("panicked"), "{args:?} panicked:\n{text}");
+    for n in needles {
+        assert!(text.contains(n), "{args:?}: message lacks '{n}':\n{text}");
+    }
+}
+
+struct Files {
+    dir: PathBuf,
+    cases: Vec<(PathBuf, &'static str)>,
+}
+
+/// Each hostile scene file with a phrase its error must contain.
+fn hostile_scenes() -> Files {
+    let dir = hostile::scratch_dir("cli");
+    let w = |name: &str, bytes: Vec<u8>| hostile::write(&dir, name, &bytes);
+    let cases = vec![
+        (
+            w("camera.gltf", hostile::camera_type_mismatch()),
+            "camera 0",
+        ),
+        (
+            w("sparse.gltf", hostile::sparse_instanced(1 << 26, 4)),
+            "vertices",
+        ),
+        (
+            w(
+                "texture.gltf",
+                hostile::triangle_with_texture(&hostile::png_bomb(16384)),
+            ),
+            "image-bytes",
+        ),
+        (
+            w(
+                "passwd.gltf",
+                hostile::triangle_with_buffer_uri("file:///etc/passwd"),
+            ),
+            "refused URI 'file:///etc/passwd'",
+        ),
+        (
+            w(
+                "zero.gltf",
+                hostile::triangle_with_buffer_uri("file:///dev/zero"),
+            ),
+            "refused URI 'file:///dev/zero'",
+        ),
+        (
+            w(
+                "up.gltf",
+                hostile::triangle_with_buffer_uri("../outside.bin"),
+            ),
+            "outside the scene's folder",
+        ),
+    ];
+    std::fs::write(
+        dir.parent().unwrap().join("outside.bin"),
+        hostile::triangle_buffer(),
+    )
+    .ok();
+    Files { dir, cases }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn xtask_reference_and_experiment_refuse_hostile_scenes() {
+    let xtask = Path::new(env!("CARGO_BIN_EXE_xtask"));
+    let files = hostile_scenes();
+    let out = files.dir.join("out");
+    for (file, phrase) in &files.cases {
+        let name = file.file_name().unwrap().to_str().unwrap();
+        fails_cleanly(
+            xtask,
+            &[
+                "reference",
+                "--scene",
+                s(file),
+                "--width",
+                "8",
+                "--height",
+                "8",
+                "--spp",
+                "1",
+                "--out",
+                s(&out),
+            ],
+            &[name, phrase],
+        );
+        fails_cleanly(
+            xtask,
+            &[
+                "experiment",
+                "--scene",
+                s(file),
+                "--spp",
+                "1",
+                "--size",
+                "8x8",
+                "--out",
+                s(&out),
+            ],
+            &[name, phrase],
+        );
+    }
+    // Nothing half-written.
+    assert!(!out.exists() || std::fs::read_dir(&out).unwrap().next().is_none());
+    std::fs::remove_dir_all(&files.dir).ok();
+}
+
+#[test]
+fn xtask_experiment_refuses_bad_camera_lists() {
+    let xtask = Path::new(env!("CARGO_BIN_EXE_xtask"));
+    let dir = hostile::scratch_dir("cli-cams");
+    for (i, (what, text)) in hostile::bad_camera_lists().into_iter().enumerate() {
+        let file = hostile::write(&dir, &format!("cams{i}.json"), text.as_bytes());
+        let arg = format!("cornell={}", file.display());
+        let name = format!("cams{i}.json");
+        let (code, out) = run_capped(
+            xtask,
+            &[
+                "experiment",
+                "--scene",
+                "cornell",
+                "--cameras",
+                &arg,
+                "--spp",
+                "1",
+                "--size",
+                "8x8",
+                "--out",
+                s(&dir.join("out")),
+            ],
+        );
+        assert_eq!(code, Some(1), "{what}: {out}");
+        assert!(
+            out.contains(&name) && out.contains("degenerate camera"),
+            "{what}: {out}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `imalyzer`, built beside this crate's binary by `cargo test --workspace`.
+fn imalyzer() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_BIN_EXE_xtask"))
+        .with_file_name(format!("imalyzer{}", std::env::consts::EXE_SUFFIX));
+    p.exists().then_some(p)
+}
+
+#[test]
+fn imalyzer_refuses_image_bombs() {
+    let Some(imalyzer) = imalyzer() else {
+        eprintln!("imalyzer is not built (cargo test --workspace builds it); not tested here");
+        return;
+    };
+    let dir = hostile::scratch_dir("cli-imalyzer");
+    let good = hostile::write(&dir, "good.exr", &hostile::small_exr(4, 4));
+    let exr_bomb = hostile::write(&dir, "bomb.exr", &hostile::exr_bomb(100_000, 100_000));
+    let png_bomb = hostile::write(&dir, "bomb.png", &hostile::png_bomb(16384));
+    let good_png = dir.join("good.png");
+    scene_core::Image::read(&good)
+        .unwrap()
+        .write_png(&good_png, 0.0)
+        .unwrap();
+    fails_cleanly(
+        &imalyzer,
+        &["compare", s(&good), s(&exr_bomb)],
+        &["bomb.exr", "image-bytes"],
+    );
+    fails_cleanly(
+        &imalyzer,
+        &["compare", s(&png_bomb), s(&good_png)],
+        &["bomb.png", "image-bytes"],
+    );
+    // ztest with a corrupted variance image.
+    let (code, text) = run_capped(
+        &imalyzer,
+        &[
+            "ztest",
+            s(&good),
+            s(&good),
+            "--variance",
+            s(&exr_bomb),
+            "--spp",
+            "4",
+        ],
+    );
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("bomb.exr") && text.contains("image-bytes"),
+        "{text}"
+    );
+    // The budget is the caller's: DIFFUSE_GI_BUDGET can lower it.
+    let out = Command::new(&imalyzer)
+        .args(["compare", s(&good), s(&good)])
+        .env("DIFFUSE_GI_BUDGET", "image-bytes=100")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("image-bytes budget of 100 bytes"));
+    std::fs::remove_dir_all(&dir).ok();
+}
