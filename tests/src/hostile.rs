@@ -284,7 +284,7 @@ pub fn exr_b44_overflow() -> Vec<u8> {
     let chunk = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
     let size = i32::from_le_bytes(bytes[chunk + 4..chunk + 8].try_into().unwrap()) as usize;
     assert!(
-        size >= 14 && size < 32 * 32 * 6,
+        (14..32 * 32 * 6).contains(&size),
         "the chunk is B44-compressed ({size} bytes)"
     );
     bytes[chunk + 8..chunk + 8 + 14].fill(0);

@@ -310,14 +310,15 @@ fn peak_rss_kib() -> u64 {
 fn mutate(target: &Target, corpus: &[Vec<u8>], rng: &mut Rng) -> Vec<u8> {
     let pick = |rng: &mut Rng| corpus[rng.below(corpus.len() as u32) as usize].clone();
     let mut data = pick(rng);
-    if target.json && rng.below(2) == 0 {
-        if let Ok(mut v) = serde_json::from_slice::<Value>(&data) {
-            for _ in 0..1 + rng.below(3) {
-                mutate_json(&mut v, rng);
-            }
-            if let Ok(bytes) = serde_json::to_vec(&v) {
-                return bytes;
-            }
+    if target.json
+        && rng.below(2) == 0
+        && let Ok(mut v) = serde_json::from_slice::<Value>(&data)
+    {
+        for _ in 0..1 + rng.below(3) {
+            mutate_json(&mut v, rng);
+        }
+        if let Ok(bytes) = serde_json::to_vec(&v) {
+            return bytes;
         }
     }
     for _ in 0..1 + rng.below(4) {

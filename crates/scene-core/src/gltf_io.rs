@@ -35,7 +35,8 @@
 //!   world +Y as up; `aspectRatio` defaults to 1; a missing `zfar` (infinite projection)
 //!   becomes `max(1000 znear, 2 (distance to the scene's centre + scene extent))`. The
 //!   target lies `extras.target_distance` (written by [`export`]) or 1 along the view
-//!   direction. Orthographic cameras are ignored.
+//!   direction. Orthographic cameras are ignored; a camera without the projection object its
+//!   type names is a [`GltfError::Read`].
 //! * Animations, skins (meshes are taken in their node's rest transform), morph targets,
 //!   vertex colours, metallic/roughness, normal/occlusion/emissive textures, transparency,
 //!   non-default samplers, other scenes and any extension but the two above are ignored and
@@ -45,6 +46,13 @@
 //!   and out-of-range buffer data give [`GltfError::Read`]; nothing panics (accessors are
 //!   checked against their buffers before the `gltf` readers touch them, and a few inputs
 //!   on which `gltf` 1.4 itself would panic are rejected first).
+//! * Nothing is allocated from the file's word before it is charged to the
+//!   [`ImportOptions::budget`]: buffers (by their size or their data URI's), textures (by
+//!   their header's size, before decoding), vertices and indices after instancing (by the
+//!   accessors' counts, before reading). Exceeding it is a [`GltfError::Budget`].
+//! * Buffers and images named by URI are read by [`ExternalFiles`] policy: by default only
+//!   regular files inside the glTF's folder (symbolic links followed); absolute paths,
+//!   `..` out of the folder, devices and other schemes are a [`GltfError::RefusedUri`].
 //!
 //! # Export
 //!
@@ -545,11 +553,10 @@ fn check_accessor(
     if count == 0 {
         return Err(AccessorProblem::Kind("count is 0".into()));
     }
-    match acc.view() {
-        Some(view) => check_range(&view, acc.offset(), count, elem, buffers)
-            .map_err(AccessorProblem::Range)?,
-        // A sparse-only accessor's count is charged to the vertex budget before it is read.
-        None => {}
+    // A sparse-only accessor (no view) has nothing to range-check here; its count is
+    // charged to the vertex budget before it is read.
+    if let Some(view) = acc.view() {
+        check_range(&view, acc.offset(), count, elem, buffers).map_err(AccessorProblem::Range)?;
     }
     if let Some(sparse) = acc.sparse() {
         let n = sparse.count();
