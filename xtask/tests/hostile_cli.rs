@@ -207,6 +207,15 @@ fn imalyzer_refuses_image_bombs() {
         &["compare", s(&png_bomb), s(&good_png)],
         &["bomb.png", "image-bytes"],
     );
+    // A decoder panic inside the exr crate (an abort before) is a message and exit 1; the
+    // image is 32 x 32 so compare it with one of its size.
+    let b44 = hostile::write(&dir, "b44.exr", &hostile::exr_b44_overflow());
+    let good32 = hostile::write(&dir, "good32.exr", &hostile::small_exr(32, 32));
+    fails_cleanly(
+        &imalyzer,
+        &["compare", s(&good32), s(&b44)],
+        &["b44.exr", "decoder"],
+    );
     // ztest with a corrupted variance image.
     let (code, text) = run_capped(
         &imalyzer,

@@ -400,12 +400,29 @@ fn read_image_file(path: &Path, budget: &Budget) -> Result<Vec<u8>, ImageError> 
 /// Runs a decoder on this thread and turns a panic inside it into
 /// [`ImageError::DecoderFault`] (dependencies' decoders are not trusted not to panic on
 /// hostile input; run on a rayon thread, such a panic would abort the process).
+///
+/// The panic is reported through the error only: the first call wraps the process' panic
+/// hook (once, chaining to the hook in place) so that it stays silent for a panic raised on
+/// a thread while that thread is inside this function, and prints every other panic as
+/// before.
 pub fn catch_decoder_panic<T>(path: &Path, decode: impl FnOnce() -> T) -> Result<T, ImageError> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(decode)).map_err(|payload| {
-        ImageError::DecoderFault {
-            path: path.to_path_buf(),
-            message: panic_message(payload.as_ref()),
-        }
+    use std::cell::Cell;
+    thread_local!(static IN_DECODER: Cell<bool> = const { Cell::new(false) });
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !IN_DECODER.with(Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    let outer = IN_DECODER.with(|f| f.replace(true));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(decode));
+    IN_DECODER.with(|f| f.set(outer));
+    result.map_err(|payload| ImageError::DecoderFault {
+        path: path.to_path_buf(),
+        message: panic_message(payload.as_ref()),
     })
 }
 
