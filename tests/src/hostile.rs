@@ -138,6 +138,56 @@ pub fn png_bomb(side: u32) -> Vec<u8> {
     out
 }
 
+/// A PNG of only a signature, an IHDR declaring `w x h` 8-bit grey pixels, an empty IDAT
+/// and an IEND:
+/// a few dozen bytes whose header alone asks for `w h` bytes (the `png` crate admits any
+/// size whose byte count fits an `isize`).
+pub fn png_header_only(w: u32, h: u32) -> Vec<u8> {
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut chunk = |kind: &[u8; 4], data: &[u8]| {
+        out.extend((data.len() as u32).to_be_bytes());
+        let mut body = kind.to_vec();
+        body.extend_from_slice(data);
+        out.extend_from_slice(&body);
+        out.extend(crc32(&body).to_be_bytes());
+    };
+    let mut ihdr = Vec::new();
+    ihdr.extend(w.to_be_bytes());
+    ihdr.extend(h.to_be_bytes());
+    ihdr.extend([8, 0, 0, 0, 0]); // depth 8, grey, deflate, adaptive filter, no interlace
+    chunk(b"IHDR", &ihdr);
+    chunk(b"IDAT", &[]);
+    chunk(b"IEND", &[]);
+    out
+}
+
+/// CRC-32 (ISO 3309, as PNG chunks use).
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xffff_ffffu32;
+    for &b in bytes {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xedb8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// [`sparse_instanced`]`(3, 1)` with a second sparse-only accessor of `normals` elements
+/// used as `NORMAL`: the `gltf` reader sizes its output from that count.
+pub fn sparse_normals(normals: u64) -> Vec<u8> {
+    let mut v: Value = serde_json::from_slice(&sparse_instanced(3, 1)).expect("JSON");
+    let mut acc = v["accessors"][0].clone();
+    acc["count"] = json!(normals);
+    v["accessors"].as_array_mut().expect("accessors").push(acc);
+    v["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = json!(1);
+    to_bytes(&v)
+}
+
 /// The one-triangle glTF with a material whose base colour texture is the embedded `png`.
 pub fn triangle_with_texture(png: &[u8]) -> Vec<u8> {
     let mut v = triangle_json();

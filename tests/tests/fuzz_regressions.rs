@@ -4,7 +4,7 @@
 //! address-space cap and a time limit: an input that aborts, allocates past the cap or hangs
 //! fails this test as it failed the fuzzer.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use golden_tests::child::in_child;
 use golden_tests::fuzz::{self, Context, Outcome};
@@ -23,7 +23,16 @@ fn every_saved_fuzz_finding_is_refused_or_loads_without_a_panic() {
             for target in fuzz::targets() {
                 for file in fuzz::regressions(&target) {
                     let bytes = std::fs::read(&file).unwrap();
+                    let start = Instant::now();
                     let outcome = fuzz::run(&target, &bytes, &ctx);
+                    // A hang guard, far above the fuzzer's 10 s limit (a debug build on a
+                    // busy machine is slow; an input that loops is not).
+                    assert!(
+                        start.elapsed() < Duration::from_secs(60),
+                        "{} ran {:?}",
+                        file.display(),
+                        start.elapsed()
+                    );
                     assert!(
                         !matches!(outcome, Outcome::Panicked(_)),
                         "{}: {outcome:?}",

@@ -244,11 +244,20 @@ fn uris_resolve_only_inside_the_scene_folder() {
     ] {
         import_uri(&scene, ok, ExternalFiles::SceneFolder).unwrap_or_else(|e| panic!("{ok}: {e}"));
     }
-    let absolute_inside = format!(
-        "file://{}",
-        scene.join("buf.bin").canonicalize().unwrap().display()
-    );
-    import_uri(&scene, &absolute_inside, ExternalFiles::SceneFolder).unwrap_err();
+    // Absolute paths and file: URIs that lie inside the folder are read too.
+    let inside = scene.join("buf.bin").canonicalize().unwrap();
+    import_uri(
+        &scene,
+        &format!("file://{}", inside.display()),
+        ExternalFiles::SceneFolder,
+    )
+    .unwrap();
+    import_uri(
+        &scene,
+        &inside.display().to_string(),
+        ExternalFiles::SceneFolder,
+    )
+    .unwrap();
     let refused = [
         "file:///etc/passwd".to_string(),
         "file:///dev/zero".to_string(),
@@ -260,6 +269,10 @@ fn uris_resolve_only_inside_the_scene_folder() {
         format!("file://{}", outside.display()),
         "http://example.invalid/buf.bin".to_string(),
         "%2e%2e/outside.bin".to_string(),
+        // Refused before anything outside is looked at: a missing file out there gives the
+        // same error as a present one.
+        "../no-such-file.bin".to_string(),
+        "../../../../../../../../no/such/dir/x.bin".to_string(),
     ];
     for uri in &refused {
         match import_uri(&scene, uri, ExternalFiles::SceneFolder) {
@@ -306,6 +319,95 @@ fn uris_resolve_only_inside_the_scene_folder() {
 }
 
 #[test]
+fn sparse_attributes_strips_and_huge_png_headers_are_charged_before_reading() {
+    in_child(
+        "sparse_attributes_strips_and_huge_png_headers_are_charged_before_reading",
+        CAP,
+        TIMEOUT,
+        || {
+            // A NORMAL accessor of 2^40 sparse-only values beside 3 positions.
+            let e = gltf_io::import_slice(&hostile::sparse_normals(1 << 40), Path::new("n.gltf"))
+                .unwrap_err();
+            assert!(
+                e.to_string()
+                    .contains("NORMAL accessor 1 has 1099511627776 values for 3"),
+                "{e}"
+            );
+            // A strip of k vertices makes k - 2 triangles: 3 (k - 2) indices are charged.
+            let mut v: serde_json::Value =
+                serde_json::from_slice(&hostile::sparse_instanced(1000, 1)).unwrap();
+            v["meshes"][0]["primitives"][0]["mode"] = serde_json::json!(5);
+            let options = ImportOptions {
+                budget: Budget {
+                    indices: 2000,
+                    ..Budget::default()
+                },
+                ..Default::default()
+            };
+            let e =
+                gltf_io::import_slice_with(&hostile::to_bytes(&v), Path::new("s.gltf"), &options)
+                    .unwrap_err();
+            let b = budget_error(&e);
+            assert_eq!((b.which, b.needed), (Limit::Indices, 3 * 998), "{e}");
+            // A texture whose PNG header declares 100 000 x 100 000 pixels: the budget
+            // refuses it from the header.
+            let png = hostile::png_header_only(100_000, 100_000);
+            let e =
+                gltf_io::import_slice(&hostile::triangle_with_texture(&png), Path::new("t.gltf"))
+                    .unwrap_err();
+            let b = budget_error(&e);
+            assert_eq!(
+                (b.which, b.needed),
+                (Limit::ImageBytes, 100_000u64 * 100_000 * 12),
+                "{e}"
+            );
+            let e = Image::decode_png(&png, Path::new("h.png"), &Budget::default()).unwrap_err();
+            assert!(matches!(e, ImageError::Budget(_)), "{e}");
+            // 1.3e9 x 1.3e9 (w h 12 overflows u64 arithmetic that does not saturate): one row
+            // alone is over the decoder's header-stage limit, which refuses it first.
+            let png = hostile::png_header_only(1_300_000_000, 1_300_000_000);
+            let e =
+                gltf_io::import_slice(&hostile::triangle_with_texture(&png), Path::new("t.gltf"))
+                    .unwrap_err();
+            assert!(
+                e.to_string().contains("texture 0") && e.to_string().contains("limit"),
+                "{e}"
+            );
+        },
+    );
+}
+
+#[test]
+fn fifos_are_refused_without_blocking() {
+    let dir = hostile::scratch_dir("fifo");
+    let fifo = dir.join("f.json");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("mkfifo is not available here; not tested");
+        return;
+    }
+    let scene = builtin::scene("cornell").unwrap();
+    // Each of these would block forever opening the FIFO for reading.
+    let e = bench_harness::load_camera_list(&fifo, &scene).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    let gltf = dir.join("f.gltf");
+    std::process::Command::new("mkfifo")
+        .arg(&gltf)
+        .status()
+        .unwrap();
+    let e = gltf_io::import(&gltf).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    let exr = dir.join("f.exr");
+    std::process::Command::new("mkfifo")
+        .arg(&exr)
+        .status()
+        .unwrap();
+    let e = Image::read(&exr).unwrap_err();
+    assert!(e.to_string().contains("not a regular file"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn an_external_buffer_over_the_budget_is_refused_before_reading() {
     let (dir, scene) = scene_folder();
     let big = scene.join("big.bin");
@@ -325,7 +427,13 @@ fn an_external_buffer_over_the_budget_is_refused_before_reading() {
     };
     let e = gltf_io::import_with(&path, &options).unwrap_err();
     let b = budget_error(&e);
-    assert_eq!((b.which, b.needed), (Limit::SceneBytes, 64 << 20), "{e}");
+    // The buffer, with the glTF file already charged (a few kilobytes).
+    assert_eq!(b.which, Limit::SceneBytes, "{e}");
+    assert!(
+        b.needed > 64 << 20 && b.needed < (64 << 20) + (64 << 10),
+        "{e}"
+    );
+    assert!(e.to_string().contains("big.bin"), "{e}");
     assert!(gltf_io::import_with(&path, &ImportOptions::default()).is_ok());
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -363,7 +471,14 @@ fn budgets_are_configurable_and_defaults_admit_the_builtin_scenes() {
 #[test]
 fn camera_lists_go_through_the_scene_camera_check() {
     let scene = builtin::scene("cornell").unwrap();
-    for (what, text) in hostile::bad_camera_lists() {
+    let mut lists = hostile::bad_camera_lists();
+    lists.push((
+        "up 3e38 (its cross product overflows)",
+        lists[0]
+            .1
+            .replace(", \"far\": 1e39", ", \"up\": [3e38, 3e38, 0]"),
+    ));
+    for (what, text) in lists {
         let e = bench_harness::parse_camera_list(&text, &scene, "cams.json").expect_err(what);
         let msg = e.to_string();
         assert!(

@@ -29,6 +29,9 @@ const WORKER_ADDRESS_SPACE: u64 = 3 << 30;
 /// An input that runs longer than this is a hang.
 const INPUT_TIME_LIMIT: Duration = Duration::from_secs(10);
 
+/// A worker that is not ready to fuzz after this long is a hang.
+const SETUP_TIME_LIMIT: Duration = Duration::from_secs(120);
+
 /// Options of `cargo xtask fuzz`.
 pub struct Options {
     /// Targets to run (all when empty).
@@ -96,8 +99,10 @@ pub fn run(opts: &Options) -> Result<(), String> {
                 })
             })
             .collect();
-        for h in handles {
-            let (name, s) = h.join().map_err(|_| "a supervisor thread panicked")?;
+        // Join every supervisor of the chunk before reporting a failure of one.
+        let joined: Vec<_> = handles.into_iter().map(|h| h.join()).collect();
+        for j in joined {
+            let (name, s) = j.map_err(|_| "a supervisor thread panicked")?;
             let s = s?;
             println!("[{name}] finished: {s:?}");
             results.push((name, s));
@@ -144,6 +149,8 @@ fn supervise(name: &str, dir: &Path, seconds: u64, seed: u64) -> Result<Summary,
             .saturating_duration_since(Instant::now())
             .as_secs()
             .max(1);
+        // A worker that dies before its first input must not be blamed on an old one.
+        let _ = std::fs::remove_file(dir.join("current"));
         let mut child = Command::new("sh")
             .arg("-c")
             .arg(format!(
@@ -172,15 +179,22 @@ fn supervise(name: &str, dir: &Path, seconds: u64, seed: u64) -> Result<Summary,
         });
         let mut done = false;
         let mut hung = false;
+        let mut ready = false;
+        let mut fatal = None;
         let mut last_inputs = 0;
         loop {
-            match rx.recv_timeout(INPUT_TIME_LIMIT) {
+            // Setting up (seeds, scratch files) gets longer than one input.
+            let wait = if ready {
+                INPUT_TIME_LIMIT
+            } else {
+                SETUP_TIME_LIMIT
+            };
+            match rx.recv_timeout(wait) {
                 Ok(line) => {
                     let mut parts = line.split_whitespace();
                     match parts.next() {
-                        Some("progress") => {
-                            last_inputs = parse_next(&mut parts);
-                        }
+                        Some("ready") => ready = true,
+                        Some("progress") => last_inputs = parse_next(&mut parts),
                         Some("panic") => {
                             summary.panics += 1;
                             println!("[{name}] panic: {}", line.trim_start_matches("panic "));
@@ -190,6 +204,11 @@ fn supervise(name: &str, dir: &Path, seconds: u64, seed: u64) -> Result<Summary,
                             summary.refused += parse_next(&mut parts);
                             summary.peak_kib = summary.peak_kib.max(parse_next(&mut parts));
                             done = true;
+                            break;
+                        }
+                        Some("fatal") => {
+                            fatal = Some(line.trim_start_matches("fatal ").to_string());
+                            break;
                         }
                         _ => {}
                     }
@@ -199,7 +218,7 @@ fn supervise(name: &str, dir: &Path, seconds: u64, seed: u64) -> Result<Summary,
                     hung = true;
                     summary.hangs += 1;
                     let saved = save_current(name, dir, "hang")?;
-                    println!("[{name}] hang: an input ran over {INPUT_TIME_LIMIT:?}: {saved}");
+                    println!("[{name}] hang: no word from the worker for {wait:?}: {saved}");
                     break;
                 }
                 Err(mpsc::RecvTimeoutError::Disconnected) => break,
@@ -207,6 +226,9 @@ fn supervise(name: &str, dir: &Path, seconds: u64, seed: u64) -> Result<Summary,
         }
         let status = child.wait().map_err(|e| e.to_string())?;
         summary.inputs += last_inputs;
+        if let Some(message) = fatal {
+            return Err(format!("[{name}] the fuzz worker failed: {message}"));
+        }
         if done {
             break;
         }
@@ -226,10 +248,13 @@ fn parse_next<'a>(parts: &mut impl Iterator<Item = &'a str>) -> u64 {
     parts.next().and_then(|s| s.parse().ok()).unwrap_or(0)
 }
 
-/// Copies the worker's current input into the regression folder.
+/// Copies the worker's current input into the regression folder (there is none when the
+/// worker died while setting up).
 fn save_current(name: &str, dir: &Path, why: &str) -> Result<String, String> {
-    let bytes = std::fs::read(dir.join("current")).map_err(|e| e.to_string())?;
-    save_finding(name, &bytes, why)
+    match std::fs::read(dir.join("current")) {
+        Ok(bytes) => save_finding(name, &bytes, why),
+        Err(_) => Ok("no input yet (the worker was setting up)".into()),
+    }
 }
 
 fn save_finding(name: &str, bytes: &[u8], why: &str) -> Result<String, String> {
@@ -245,8 +270,17 @@ fn save_finding(name: &str, bytes: &[u8], why: &str) -> Result<String, String> {
     Ok(path.display().to_string())
 }
 
-/// `xtask fuzz-worker`: mutates and runs inputs of one target until `seconds` pass.
+/// `xtask fuzz-worker`: mutates and runs inputs of one target until `seconds` pass. A
+/// failure of the harness itself (not of an input) is reported as a `fatal` line.
 pub fn worker(name: &str, seconds: u64, seed: u64, dir: &Path) -> Result<(), String> {
+    let result = fuzz_loop(name, seconds, seed, dir);
+    if let Err(e) = &result {
+        println!("fatal {}", e.replace('\n', " "));
+    }
+    result
+}
+
+fn fuzz_loop(name: &str, seconds: u64, seed: u64, dir: &Path) -> Result<(), String> {
     // Panics are caught and reported; the default hook's message would only be noise.
     std::panic::set_hook(Box::new(|_| {}));
     let targets = fuzz::targets();
@@ -267,6 +301,7 @@ pub fn worker(name: &str, seconds: u64, seed: u64, dir: &Path) -> Result<(), Str
     let mut last_report = Instant::now();
     let (mut inputs, mut refused) = (0u64, 0u64);
     let stdout = std::io::stdout();
+    let _ = writeln!(stdout.lock(), "ready");
     while Instant::now() < deadline {
         let input = mutate(target, &corpus, &mut rng);
         std::fs::write(&current, &input).map_err(|e| e.to_string())?;

@@ -43,9 +43,13 @@ struct Files {
     cases: Vec<(PathBuf, &'static str)>,
 }
 
-/// Each hostile scene file with a phrase its error must contain.
+/// Each hostile scene file (in `DIR/scene/`, with `DIR/outside.bin` beside that folder)
+/// with a phrase its error must contain.
 fn hostile_scenes() -> Files {
-    let dir = hostile::scratch_dir("cli");
+    let root = hostile::scratch_dir("cli");
+    hostile::write(&root, "outside.bin", &hostile::triangle_buffer());
+    let dir = root.join("scene");
+    std::fs::create_dir_all(&dir).unwrap();
     let w = |name: &str, bytes: Vec<u8>| hostile::write(&dir, name, &bytes);
     let cases = vec![
         (

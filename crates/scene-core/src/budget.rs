@@ -368,6 +368,13 @@ impl Allowance {
 /// before reading; a file that grows while it is read is cut at the limit and refused.
 pub fn read_file(path: &Path, budget: &Budget) -> Result<Vec<u8>, ReadFileError> {
     use std::io::Read as _;
+    // Before opening: opening a FIFO for reading would block until a writer comes.
+    if !std::fs::metadata(path)
+        .map_err(ReadFileError::Io)?
+        .is_file()
+    {
+        return Err(ReadFileError::NotAFile);
+    }
     let file = std::fs::File::open(path).map_err(ReadFileError::Io)?;
     let meta = file.metadata().map_err(ReadFileError::Io)?;
     if !meta.is_file() {

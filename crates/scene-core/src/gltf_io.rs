@@ -316,6 +316,15 @@ fn import_bytes(
     options: &ImportOptions,
 ) -> Result<ImportResult, GltfError> {
     let mut allowance = Allowance::new(options.budget, path);
+    // The file itself, and its JSON once parsed: each JSON object becomes a Rust struct of
+    // at most a few hundred bytes, so 512 bytes an object (counted by its opening brace)
+    // bounds what parsing allocates, before it does.
+    let json = json_part(bytes);
+    let objects = json.iter().filter(|&&b| b == b'{').count() as u64;
+    allowance.charge_bytes(bytes.len() as u64, || "the file".into())?;
+    allowance.charge_bytes(objects.saturating_mul(JSON_OBJECT_BYTES), || {
+        format!("its JSON once parsed ({objects} objects)")
+    })?;
     let (document, blob) = parse_document(bytes).map_err(|m| read_error(path, m))?;
     let uris = uri::UriReader {
         path,
@@ -358,6 +367,22 @@ fn import_bytes(
         ignored,
         warnings,
     })
+}
+
+/// Bytes charged for each JSON object of a glTF before it is parsed (an upper bound of the
+/// size of the `gltf-json` struct it becomes, with its vectors and maps).
+const JSON_OBJECT_BYTES: u64 = 512;
+
+/// The JSON of a glTF: the whole file, or a GLB's first chunk (as far as the file holds).
+fn json_part(bytes: &[u8]) -> &[u8] {
+    if !bytes.starts_with(b"glTF") {
+        return bytes;
+    }
+    let len = bytes
+        .get(12..16)
+        .map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    let end = 20usize.saturating_add(len).min(bytes.len());
+    bytes.get(20..end).unwrap_or(&[])
 }
 
 /// Loads every buffer (GLB chunk, data URI or external file under the URI policy), each
@@ -797,11 +822,11 @@ impl<'a> Importer<'a> {
             other => read_error(path, format!("{what}: {other}")),
         };
         // The header's size is charged to the scene before the texels are decoded.
-        let (w, h) = Image::probe_dimensions(&encoded, path).map_err(image_error)?;
+        let budget = *self.allowance.budget();
+        let (w, h) = Image::probe_dimensions(&encoded, path, &budget).map_err(image_error)?;
+        let texel_bytes = budget.check_image(u64::from(w), u64::from(h), 0, path, &what)?;
         self.allowance
-            .charge_bytes(u64::from(w) * u64::from(h) * 12, || {
-                format!("{what}: {w}x{h} texels")
-            })?;
+            .charge_bytes(texel_bytes, || format!("{what}: {w}x{h} texels"))?;
         let decoded =
             Image::decode_texture(&encoded, path, self.allowance.budget()).map_err(image_error)?;
         Ok(Texture {
@@ -1028,16 +1053,41 @@ impl<'a> Importer<'a> {
         check(&pos_acc, "POSITION", &[DataType::F32], Dimensions::Vec3)?;
         // Charge the primitive (vertices, indices and their bytes in the scene) before any
         // of it is read: counts come from the file and are not trusted.
+        // Strips and fans of k indices make k - 2 triangles, lists k / 3.
         let n = pos_acc.count() as u64;
-        let index_count = prim.indices().map_or(n, |a| a.count() as u64);
+        let raw_indices = prim.indices().map_or(n, |a| a.count() as u64);
+        let triangles = match mode {
+            Mode::Triangles => raw_indices / 3,
+            _ => raw_indices.saturating_sub(2),
+        };
         let vertex_bytes = 12 + 12 + if tex_set.is_some() { 8 } else { 0 };
+        // Bytes: the vertex arrays; the indices as read (4 each); per triangle its index
+        // triple twice (primitive, then mesh) and its material id.
         self.allowance.charge_mesh(
             n,
-            index_count,
+            triangles.saturating_mul(3),
             n.saturating_mul(vertex_bytes)
-                .saturating_add(index_count.saturating_mul(4 + 4)),
+                .saturating_add(raw_indices.saturating_mul(4))
+                .saturating_add(triangles.saturating_mul(12 + 12 + 4)),
             || at.clone(),
         )?;
+        // Every other attribute must have one value per vertex before it is read: the
+        // `gltf` readers size their output from the accessor's count (a sparse-only
+        // accessor has no buffer to bound it).
+        let same_count = |acc: &gltf::Accessor, what: &str| {
+            if acc.count() as u64 == n {
+                Ok(())
+            } else {
+                Err(read_error(
+                    path,
+                    format!(
+                        "{at}: {what} accessor {} has {} values for {n} vertices",
+                        acc.index(),
+                        acc.count()
+                    ),
+                ))
+            }
+        };
         let positions: Vec<Vec3> = reader
             .read_positions()
             .map(|it| it.map(Vec3::from).collect())
@@ -1050,6 +1100,7 @@ impl<'a> Importer<'a> {
         let normals = match prim.get(&gltf::Semantic::Normals) {
             Some(acc) => {
                 check(&acc, "NORMAL", &[DataType::F32], Dimensions::Vec3)?;
+                same_count(&acc, "NORMAL")?;
                 let normals: Vec<Vec3> = reader
                     .read_normals()
                     .map(|it| it.map(Vec3::from).collect())
@@ -1072,6 +1123,7 @@ impl<'a> Importer<'a> {
                         &[DataType::F32, DataType::U8, DataType::U16],
                         Dimensions::Vec2,
                     )?;
+                    same_count(&acc, &what)?;
                     let uvs: Vec<Vec2> = reader
                         .read_tex_coords(set)
                         .map(|it| it.into_f32().map(Vec2::from).collect())

@@ -277,16 +277,23 @@ impl Image {
     }
 
     /// The width and height an encoded image's header declares (nothing is decoded), for
-    /// charging a budget before decoding.
-    pub fn probe_dimensions(bytes: &[u8], path: &Path) -> Result<(u32, u32), ImageError> {
+    /// charging a budget before decoding. What the header parser itself may allocate
+    /// (colour profiles, text chunks) is held to [`header_limits`].
+    pub fn probe_dimensions(
+        bytes: &[u8],
+        path: &Path,
+        budget: &Budget,
+    ) -> Result<(u32, u32), ImageError> {
         let read_err = |message: String| ImageError::Read {
             path: path.to_path_buf(),
             message,
         };
         catch_decoder_panic(path, || {
-            image::ImageReader::new(std::io::Cursor::new(bytes))
+            let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
                 .with_guessed_format()
-                .map_err(|e| read_err(e.to_string()))?
+                .map_err(|e| read_err(e.to_string()))?;
+            reader.limits(header_limits(budget));
+            reader
                 .into_dimensions()
                 .map_err(|e| read_err(e.to_string()))
         })?
@@ -306,7 +313,7 @@ impl Image {
         };
         let decoded = catch_decoder_panic(path, || {
             let reader = image::ImageReader::new(std::io::Cursor::new(bytes));
-            let reader = match format {
+            let mut reader = match format {
                 Some(f) => {
                     let mut r = reader;
                     r.set_format(f);
@@ -316,6 +323,7 @@ impl Image {
                     .with_guessed_format()
                     .map_err(|e| read_err(e.to_string()))?,
             };
+            reader.limits(header_limits(budget));
             let mut decoder = reader.into_decoder().map_err(|e| read_err(e.to_string()))?;
             let (w, h) = decoder.dimensions();
             let color = decoder.color_type();
@@ -364,6 +372,15 @@ impl Image {
             }),
         }
     }
+}
+
+/// The `image` crate's limits while it parses a header, before the pixels are budgeted:
+/// colour profiles and text chunks may take at most 64 MiB (or the image budget, if
+/// smaller).
+fn header_limits(budget: &Budget) -> image::Limits {
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(budget.image_bytes.min(64 << 20));
+    limits
 }
 
 /// Linear RGB of a decoded sRGB image: 8-bit channels through a 256-entry table, other

@@ -240,7 +240,9 @@ impl Camera {
                 Some("position, target or up is not finite".to_string())
             } else if dir.length_squared() == 0.0 || !dir.length_squared().is_finite() {
                 Some("target equals position (or lies too far to measure)".into())
-            } else if dir.normalize().cross(self.up).length_squared() <= 1e-12 {
+            } else if !(dir.normalize().cross(self.up).length_squared() > 1e-12
+                && dir.normalize().cross(self.up).length_squared().is_finite())
+            {
                 Some("up is zero or parallel to the view direction".into())
             } else if !(self.fov_y > 0.0 && self.fov_y < std::f32::consts::PI) {
                 Some(format!(

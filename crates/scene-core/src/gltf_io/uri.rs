@@ -12,9 +12,10 @@ use crate::error::GltfError;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum ExternalFiles {
     /// Only regular files inside the folder of the glTF file (or below it): relative URIs,
-    /// and `file:` URIs that point there. Symbolic links are followed and the target must
-    /// lie inside the folder too. Absolute paths elsewhere, `..` that leaves the folder,
-    /// devices and other schemes (`http:` ...) are refused. The default.
+    /// and `file:` URIs or absolute paths that point there. Symbolic links are followed and
+    /// the target must lie inside the folder too. Paths elsewhere, `..` that leaves the
+    /// folder (refused before any path outside is looked at), devices and other schemes
+    /// (`http:` ...) are refused. The default.
     #[default]
     SceneFolder,
     /// Any regular file the process can read, absolute paths and `file:` URIs included
@@ -120,39 +121,61 @@ impl UriReader<'_> {
         } else {
             PathBuf::from(&decoded)
         };
+        let target = if raw.is_absolute() {
+            raw
+        } else {
+            base.join(raw)
+        };
         if self.policy == ExternalFiles::Anywhere {
-            return Ok(if raw.is_absolute() {
-                raw
-            } else {
-                base.join(raw)
-            });
+            return Ok(target);
         }
-        if raw.is_absolute() {
-            return Err(self.refused(
+        let outside = |shown_path: &Path, folder: &Path| {
+            self.refused(
                 uri,
-                "absolute paths are refused (only files inside the scene's folder are read; \
-                 ExternalFiles::Anywhere allows others)",
-            ));
+                format!(
+                    "{} lies outside the scene's folder {} (ExternalFiles::Anywhere allows it)",
+                    shown_path.display(),
+                    folder.display()
+                ),
+            )
+        };
+        // First without touching the file system: `..` that climbs out of the folder is
+        // refused before any path outside it is looked at.
+        let base_abs = std::path::absolute(base)
+            .map_err(|e| self.read_err("scene folder", format!("{}: {e}", base.display())))?;
+        let lexical = lexically_normal(&std::path::absolute(&target).unwrap_or(target.clone()));
+        if !lexical.starts_with(lexically_normal(&base_abs)) {
+            return Err(outside(&lexical, &base_abs));
         }
+        // Then with symbolic links resolved: a link inside the folder may point out of it.
         let folder = base
             .canonicalize()
             .map_err(|e| self.read_err("scene folder", format!("{}: {e}", base.display())))?;
-        let target = base.join(&raw);
         let resolved = target
             .canonicalize()
             .map_err(|e| self.read_err(&shown(uri), format!("{}: {e}", target.display())))?;
         if !resolved.starts_with(&folder) {
-            return Err(self.refused(
-                uri,
-                format!(
-                    "{} lies outside the scene's folder {} (ExternalFiles::Anywhere allows it)",
-                    resolved.display(),
-                    folder.display()
-                ),
-            ));
+            return Err(outside(&resolved, &folder));
         }
         Ok(resolved)
     }
+}
+
+/// `path` with `.` dropped and each `..` removing the component before it (never above the
+/// root), without looking at the file system.
+fn lexically_normal(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in path.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other),
+        }
+    }
+    out
 }
 
 /// `scheme:` at the start (RFC 3986: a letter, then letters, digits, `+`, `-`, `.`), but
