@@ -277,12 +277,10 @@ fn scenes_in_millimetres_and_kilometres_give_the_same_picture() {
 
 #[test]
 fn shadow_exponent_at_the_f32_limit() {
-    let scene = builtin::scene("cornell-point").unwrap();
-    let base = Setup::builtin("cornell-point", 0, 48, 36);
-    let usual = base.render(&IsrSettings::default());
-    // ln(f32::MAX) = 88.72: exp(c * depth) of a naive ESM overflows from here on; the log
-    // space maps do not, even with the largest finite exponent.
-    for c in [88.72f32, 1e4, f32::MAX] {
+    // The corridor: four point lights behind pillars, so the cube-map ESM decides real
+    // shadows (the empty Cornell box has no occluder to test).
+    let scene = builtin::scene("corridor").unwrap();
+    let render = |c: f32| {
         let shadows = ShadowSettings {
             esm_exponent: c,
             ..small_shadows()
@@ -295,13 +293,53 @@ fn shadow_exponent_at_the_f32_limit() {
         let setup = Setup::with_prepared(scene.clone(), prepared, 0, 48, 36);
         let img = setup.render(&IsrSettings::default());
         assert_eq!(img.non_finite_count(), 0, "c = {c}");
-        // Harder shadows than the default, but the same picture overall.
+        img
+    };
+    // ESM's visibility is min(1, exp(c (z_occluder - z))): as c grows it tends to the hard
+    // depth test, which a large finite c (1e3, far past exp's f32 range of 88.72 in a
+    // naive map) already reaches on every pixel a texel or more from a shadow edge.
+    let hard = render(1e3);
+    let mean = image_mean(&hard);
+    // ln(f32::MAX) = 88.72: exp(c * depth) of a naive ESM overflows from here on; the log
+    // space maps do not, even with the largest finite exponent, and give the hard test.
+    for c in [1e4f32, f32::MAX] {
+        let img = render(c);
+        let e = mean_error(&img, &hard);
+        eprintln!("c = {c}: mean difference to c = 1e3 {e:.3e} of mean {mean:.5}");
+        // Past 1e3 only pixels within a fraction of a texel of an edge can change: a
+        // thousandth of the mean allows for them, a broken map (all lit, all dark, NaN
+        // turned 0) is off by tens of percent.
         assert!(
-            mean_error(&img, &usual) < 0.25 * image_mean(&usual),
-            "c = {c}: {}",
-            mean_error(&img, &usual)
+            e <= 1e-4 * mean,
+            "c = {c}: mean difference {e:.3e}, mean {mean:.5}"
         );
     }
+    // At the overflow threshold itself the shadows are softer but the picture the same:
+    // the difference to the hard test is the penumbra's, measured 0.16 % of the mean here,
+    // while a map whose shadows vanished differs by the shadows' whole share, 2.6 %
+    // (checked below): 1 % separates the two.
+    let soft = render(88.72);
+    let e = mean_error(&soft, &hard);
+    eprintln!("c = 88.72: mean difference to c = 1e3 {e:.3e} of mean {mean:.5}");
+    assert!(
+        e <= 1e-2 * mean,
+        "c = 88.72: mean difference {e:.3e}, mean {mean:.5}"
+    );
+    // And the shadows are there: without shadows the picture is brighter by far.
+    let unshadowed = {
+        let shadows = ShadowSettings {
+            enabled: false,
+            ..small_shadows()
+        };
+        let prepared = IsrScene::new(&scene, &shadows).unwrap();
+        Setup::with_prepared(scene.clone(), prepared, 0, 48, 36).render(&IsrSettings::default())
+    };
+    let lit = mean_error(&unshadowed, &hard);
+    eprintln!("no shadows: mean difference {lit:.3e}");
+    assert!(
+        lit > 2e-2 * mean,
+        "shadows change only {lit:.3e} of {mean:.5}"
+    );
 }
 
 #[test]

@@ -94,6 +94,21 @@ pub fn mean_error(a: &Image, b: &Image) -> f64 {
         / (3.0 * a.pixels.len() as f64)
 }
 
+/// The largest absolute channel difference between two images of one size, and the pixel
+/// where it is.
+pub fn max_difference(a: &Image, b: &Image) -> (f64, usize) {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| (*p - *q).abs().max_element() as f64)
+        .enumerate()
+        .fold(
+            (0.0, 0),
+            |(m, at), (i, d)| if d > m { (d, i) } else { (m, at) },
+        )
+}
+
 /// Mean of all channels of an image.
 pub fn image_mean(a: &Image) -> f64 {
     a.pixels.iter().map(|p| p.element_sum() as f64).sum::<f64>() / (3.0 * a.pixels.len() as f64)
