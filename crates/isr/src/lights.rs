@@ -3,9 +3,10 @@
 //! emissive triangles, prepared once per scene ([`IsrScene`]).
 
 use glam::{Vec2, Vec3};
+use scene_core::Scene;
+use scene_core::lights::{Emitters, LightState};
 use scene_core::ray::RayScene;
 use scene_core::sampling::{r2, uniform_triangle};
-use scene_core::{Scene, luminance};
 
 use crate::IsrError;
 use crate::settings::ShadowSettings;
@@ -88,20 +89,10 @@ impl Light {
     }
 }
 
-/// The distance falloff of a point light, as [`scene_core::PointLight::falloff`]: eq. 16's
-/// `saturate(1 - (d/r)^2)` for `radius > 0`, else `1/d^2` (0 at `d = 0`, at most
-/// `f32::MAX`).
+/// The distance falloff of a point light whose eq. 16 radius is `radius` (0: inverse
+/// square): scene-core's [`scene_core::lights::falloff`].
 pub fn falloff(radius: f32, d: f32) -> f32 {
-    if radius > 0.0 {
-        (1.0 - (d / radius) * (d / radius)).clamp(0.0, 1.0)
-    } else {
-        let d2 = d * d;
-        if d2 > 0.0 {
-            (1.0 / d2).min(f32::MAX)
-        } else {
-            0.0
-        }
-    }
+    scene_core::lights::falloff((radius > 0.0).then_some(radius), d)
 }
 
 /// Emissive triangles, for the emission of directly visible emitters.
@@ -342,60 +333,40 @@ impl IsrScene {
     }
 }
 
-/// The emissive-triangle table and `count` stratified point samples of the emitters.
+/// The emissive-triangle table and `count` stratified point samples of the emitters, drawn
+/// from scene-core's power table ([`Emitters`], the one the reference samples too).
 fn emitters(scene: &Scene, count: u32, extent: f32) -> (EmitterTable, Vec<Light>) {
-    let mut table = EmitterTable {
-        per_triangle: Vec::with_capacity(scene.triangle_count()),
-        entries: Vec::new(),
+    let power = Emitters::new(scene, &LightState::default());
+    let table = EmitterTable {
+        per_triangle: power.per_triangle.clone(),
+        entries: power
+            .triangles
+            .iter()
+            .map(|t| (t.emission, t.normal))
+            .collect(),
     };
-    // (emission, normal, corners, area, weight)
-    let mut tris: Vec<(Vec3, Vec3, [Vec3; 3], f32, f64)> = Vec::new();
-    for mesh in &scene.meshes {
-        for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
-            let material = scene.materials.get(m as usize);
-            let le = material.map_or(Vec3::ZERO, |m| m.emission);
-            if le.max_element() > 0.0 && le.is_finite() {
-                let p = t.map(|i| mesh.positions[i as usize]);
-                let c = (p[1] - p[0]).cross(p[2] - p[0]);
-                let area = 0.5 * c.length();
-                let n = c.normalize_or_zero();
-                table.per_triangle.push(table.entries.len() as u32);
-                table.entries.push((le, n));
-                let w = luminance(le).max(le.max_element() * 1e-3) as f64 * area as f64;
-                if w > 0.0 && n != Vec3::ZERO {
-                    tris.push((le, n, p, area, w));
-                }
-            } else {
-                table.per_triangle.push(u32::MAX);
-            }
-        }
-    }
     let mut samples = Vec::new();
-    let total: f64 = tris.iter().map(|t| t.4).sum();
-    if count == 0 || tris.is_empty() || total <= 0.0 {
+    if count == 0 || power.is_empty() {
         return (table, samples);
-    }
-    let mut cdf = Vec::with_capacity(tris.len());
-    let mut acc = 0.0f64;
-    for t in &tris {
-        acc += t.4;
-        cdf.push(acc / total);
     }
     for k in 0..count {
         let u = (k as f64 + 0.5) / count as f64;
-        let i = cdf.partition_point(|&c| c <= u).min(tris.len() - 1);
-        let (le, n, p, area, w) = tris[i];
+        let Some(i) = power.pick(u) else {
+            break;
+        };
+        let t = &power.triangles[i];
+        let p = t.corners;
         let b = uniform_triangle(r2(k as u64, Vec2::ZERO));
         let q = p[0] * (1.0 - b.x - b.y) + p[1] * b.x + p[2] * b.y;
         // The sample stands for area * (total / w) / count of emitter, so that the sum over
         // samples is an unbiased estimate of the emitters' light.
-        let share = (area as f64 * total / w / count as f64) as f32;
+        let share = (t.area as f64 * power.total_weight / t.weight / count as f64) as f32;
         samples.push(Light {
             kind: LightKind::EmitterSample,
             // Off the emitter's surface, so its own triangle does not shadow it.
-            position: q + n * (1e-4 * extent),
-            direction: n,
-            color: le,
+            position: q + t.normal * (1e-4 * extent),
+            direction: t.normal,
+            color: t.emission,
             radius: 0.0,
             area: share,
             shadow: None,

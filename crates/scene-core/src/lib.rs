@@ -24,6 +24,7 @@ pub mod gltf_io;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod image;
+pub mod lights;
 pub mod ray;
 pub mod reference;
 pub mod sampling;
@@ -35,6 +36,7 @@ pub use budget::{Budget, BudgetError};
 pub use error::{GltfError, ImageError, SceneError};
 pub use gbuffer::{BACKGROUND_ID, GBuffer, GBufferRenderer};
 pub use image::{Image, luminance};
+pub use lights::{LightId, LightSetting, LightState};
 pub use scene::{Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture};
 pub use technique::{Metric, MetricValue, Technique};
 pub use view::{FrustumCorners, HemicubeFace, Projection, View};

@@ -21,7 +21,8 @@ use std::time::Instant;
 use glam::{DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 
-use crate::image::{Image, luminance};
+use crate::image::Image;
+use crate::lights::{Emitters, LightId, LightState};
 use crate::ray::RayScene;
 use crate::sampling::{Rng, cosine_hemisphere, hash_seed, uniform_triangle};
 use crate::scene::Scene;
@@ -147,17 +148,7 @@ struct TriData {
     ng: Vec3,
     area: f32,
     material: u32,
-}
-
-/// Emissive triangles with a power-proportional selection table.
-struct Emitters {
-    /// Global triangle ids.
-    ids: Vec<u32>,
-    /// Cumulative distribution over `ids` (last = 1), in f64 so that tiny emitters keep a
-    /// non-empty interval.
-    cdf: Vec<f64>,
-    /// Selection probability indexed by global triangle id (0 for non-emitters).
-    select_pdf: Vec<f32>,
+    mesh: u32,
 }
 
 /// A scene prepared for path tracing: BVH, flattened triangles and emitter table.
@@ -167,6 +158,11 @@ pub struct PathTracer<'a> {
     tris: Vec<TriData>,
     uvs: Vec<Option<[Vec2; 3]>>,
     emitters: Emitters,
+    /// (direct, indirect) factors of the light state, per point light, directional light
+    /// and mesh (for its emissive triangles).
+    point_factors: Vec<[Vec3; 2]>,
+    directional_factors: Vec<[Vec3; 2]>,
+    mesh_factors: Vec<[Vec3; 2]>,
     /// Offset of secondary ray origins, relative to the scene's extent.
     eps: f32,
     /// A distance longer than any ray inside the scene.
@@ -174,12 +170,20 @@ pub struct PathTracer<'a> {
 }
 
 impl<'a> PathTracer<'a> {
-    /// Prepares `scene` (which should be validated).
+    /// Prepares `scene` (which should be validated) with every light as the scene gives it.
     pub fn new(scene: &'a Scene) -> Self {
+        Self::with_lights(scene, &LightState::default())
+    }
+
+    /// Prepares `scene` under a light state: each light's emission is multiplied by its
+    /// colour, its direct light (emission seen directly, light arriving at the first
+    /// surface) by its `direct` factor and everything after a reflection by its `indirect`
+    /// factor; a light that is off contributes nothing and is never sampled.
+    pub fn with_lights(scene: &'a Scene, lights: &LightState) -> Self {
         let rays = RayScene::build(scene);
         let mut tris = Vec::with_capacity(scene.triangle_count());
         let mut uvs = Vec::with_capacity(scene.triangle_count());
-        for mesh in &scene.meshes {
+        for (mi, mesh) in scene.meshes.iter().enumerate() {
             for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
                 let p = t.map(|i| mesh.positions[i as usize]);
                 let c = (p[1] - p[0]).cross(p[2] - p[0]);
@@ -190,48 +194,31 @@ impl<'a> PathTracer<'a> {
                     ng: c.normalize_or_zero(),
                     area: 0.5 * c.length(),
                     material: m,
+                    mesh: mi as u32,
                 });
                 uvs.push(mesh.uvs.as_ref().map(|uv| t.map(|i| uv[i as usize])));
             }
         }
-        let mut ids = Vec::new();
-        let mut weights = Vec::new();
-        for (i, t) in tris.iter().enumerate() {
-            let e = scene.materials[t.material as usize].emission;
-            let w = luminance(e).max(e.max_element() * 1e-3) * t.area;
-            if w > 0.0 {
-                ids.push(i as u32);
-                weights.push(w as f64);
-            }
-        }
-        let total: f64 = weights.iter().sum();
-        let mut cdf = Vec::with_capacity(weights.len());
-        let mut acc = 0.0f64;
-        for w in &weights {
-            acc += w;
-            cdf.push(acc / total);
-        }
-        if let Some(last) = cdf.last_mut() {
-            *last = 1.0;
-        }
-        // The probability each emitter is really drawn with: its interval of the stored CDF.
-        let mut select_pdf = vec![0.0f32; tris.len()];
-        let mut prev = 0.0f64;
-        for (k, &c) in cdf.iter().enumerate() {
-            select_pdf[ids[k] as usize] = (c - prev) as f32;
-            prev = c;
-        }
+        let factors = |id: LightId| {
+            let s = lights.get(id);
+            [s.direct_factor(), s.indirect_factor()]
+        };
         let extent = scene.extent();
         Self {
             scene,
             rays,
             tris,
             uvs,
-            emitters: Emitters {
-                ids,
-                cdf,
-                select_pdf,
-            },
+            emitters: Emitters::new(scene, lights),
+            point_factors: (0..scene.point_lights.len() as u32)
+                .map(|i| factors(LightId::Point(i)))
+                .collect(),
+            directional_factors: (0..scene.directional_lights.len() as u32)
+                .map(|i| factors(LightId::Directional(i)))
+                .collect(),
+            mesh_factors: (0..scene.meshes.len() as u32)
+                .map(|i| factors(LightId::Emissive(i)))
+                .collect(),
             eps: extent * 2e-5,
             far: extent * 4.0,
         }
@@ -277,18 +264,22 @@ impl<'a> PathTracer<'a> {
             let mat = &self.scene.materials[tri.material as usize];
             // Emission, one-sided.
             let cos_l = tri.ng.dot(-d);
-            if mat.is_emissive() && cos_l > 0.0 {
+            // Seen from the camera or from the first surface it is direct light, after a
+            // reflection indirect.
+            let factor = self.mesh_factors[tri.mesh as usize][usize::from(k > 1)];
+            if mat.is_emissive() && cos_l > 0.0 && factor != Vec3::ZERO {
                 let w = match prev_pdf {
                     None => 1.0,
                     Some(pb) => {
-                        let pl = self.emitters.select_pdf[hit.triangle as usize] / tri.area
+                        let pl = self.emitters.probability_of_triangle(hit.triangle) as f32
+                            / tri.area
                             * hit.t
                             * hit.t
                             / cos_l;
                         power_heuristic(pb, pl)
                     }
                 };
-                l += beta * mat.emission * w;
+                l += beta * mat.emission * factor * w;
             }
             if k > max_vertex {
                 break;
@@ -306,7 +297,10 @@ impl<'a> PathTracer<'a> {
             let uv = self.uvs[hit.triangle as usize].map(|uv| uv[0] * b0 + uv[1] * b1 + uv[2] * b2);
             let albedo = self.scene.albedo_at(tri.material, uv);
             let p = x + ng * self.eps;
-            l += beta * albedo * std::f32::consts::FRAC_1_PI * self.direct(p, ns, rng, stats);
+            l += beta
+                * albedo
+                * std::f32::consts::FRAC_1_PI
+                * self.direct(p, ns, usize::from(k > 0), rng, stats);
             // Bounce.
             let nd = cosine_hemisphere(ns, rng.next_vec2());
             let cos = nd.dot(ns);
@@ -330,13 +324,16 @@ impl<'a> PathTracer<'a> {
     }
 
     /// Irradiance at `p` with normal `n` from all lights by next-event estimation (area
-    /// lights MIS-weighted): multiply by albedo/pi for the reflected radiance.
-    fn direct(&self, p: Vec3, n: Vec3, rng: &mut Rng, stats: &mut RayStats) -> Vec3 {
+    /// lights MIS-weighted), each light's term multiplied by its direct (`which` 0: the
+    /// first surface) or indirect (`which` 1) factor: multiply by albedo/pi for the
+    /// reflected radiance.
+    fn direct(&self, p: Vec3, n: Vec3, which: usize, rng: &mut Rng, stats: &mut RayStats) -> Vec3 {
         let mut e = Vec3::ZERO;
-        for light in &self.scene.point_lights {
+        for (light, factor) in self.scene.point_lights.iter().zip(&self.point_factors) {
+            let factor = factor[which];
             let to = light.position - p;
             let dist = to.length();
-            if dist <= 0.0 {
+            if dist <= 0.0 || factor == Vec3::ZERO {
                 continue;
             }
             let w = to / dist;
@@ -347,49 +344,55 @@ impl<'a> PathTracer<'a> {
             }
             stats.shadow += 1;
             if !self.rays.occluded(p, w, 0.0, dist * (1.0 - 1e-5)) {
-                e += light.intensity * (f * cos);
+                e += light.intensity * factor * (f * cos);
             }
         }
-        for light in &self.scene.directional_lights {
+        for (light, factor) in self
+            .scene
+            .directional_lights
+            .iter()
+            .zip(&self.directional_factors)
+        {
+            let factor = factor[which];
             let w = -light.direction.normalize();
             let cos = n.dot(w);
-            if cos <= 0.0 {
+            if cos <= 0.0 || factor == Vec3::ZERO {
                 continue;
             }
             stats.shadow += 1;
             if !self.rays.occluded(p, w, 0.0, self.far) {
-                e += light.irradiance * cos;
+                e += light.irradiance * factor * cos;
             }
         }
-        if !self.emitters.ids.is_empty() {
-            let u = rng.next_f64();
-            let k = self
-                .emitters
-                .cdf
-                .partition_point(|&c| c <= u)
-                .min(self.emitters.ids.len() - 1);
-            let id = self.emitters.ids[k];
-            let tri = &self.tris[id as usize];
+        let picked = if self.emitters.is_empty() {
+            None
+        } else {
+            self.emitters.pick(rng.next_f64())
+        };
+        if let Some(k) = picked {
+            let tri = &self.emitters.triangles[k];
+            let data = &self.tris[tri.triangle as usize];
+            let factor = self.mesh_factors[tri.mesh as usize][which];
             let b = uniform_triangle(rng.next_vec2());
-            let q = tri.p[0] * (1.0 - b.x - b.y) + tri.p[1] * b.x + tri.p[2] * b.y;
+            let q = data.p[0] * (1.0 - b.x - b.y) + data.p[1] * b.x + data.p[2] * b.y;
             let to = q - p;
             let d2 = to.length_squared();
             if d2 > 0.0 {
                 let dist = d2.sqrt();
                 let w = to / dist;
                 let cos = n.dot(w);
-                let cos_l = tri.ng.dot(-w);
-                if cos > 0.0 && cos_l > 0.0 {
+                let cos_l = data.ng.dot(-w);
+                if cos > 0.0 && cos_l > 0.0 && factor != Vec3::ZERO {
                     stats.shadow += 1;
                     // Stop short of the emitter by an absolute, scene-relative margin: an
                     // occluder flush against the light must still block it.
                     if !self.rays.occluded(p, w, 0.0, dist - 2.0 * self.eps) {
-                        let pdf_area = self.emitters.select_pdf[id as usize] / tri.area;
+                        let pdf_area = self.emitters.pick_probability(k) as f32 / data.area;
                         let pl = pdf_area * d2 / cos_l;
                         let pb = cos * std::f32::consts::FRAC_1_PI;
-                        let le = self.scene.materials[tri.material as usize].emission;
+                        let le = self.scene.materials[data.material as usize].emission;
                         // Irradiance estimate Le cos / pdf (solid angle), MIS-weighted.
-                        e += le * (cos / pl * power_heuristic(pl, pb));
+                        e += le * factor * (cos / pl * power_heuristic(pl, pb));
                     }
                 }
             }
@@ -547,7 +550,19 @@ pub fn render(
     settings: &ReferenceSettings,
     progress: Option<&(dyn Fn(u64, u64) + Sync)>,
 ) -> ReferenceOutput {
-    let tracer = PathTracer::new(scene);
+    render_lit(scene, view, settings, &LightState::default(), progress)
+}
+
+/// [`render`] under a light state (see [`PathTracer::with_lights`]): any light alone, any
+/// recolouring, dimming, switching, and per-light direct and indirect multipliers.
+pub fn render_lit(
+    scene: &Scene,
+    view: &View,
+    settings: &ReferenceSettings,
+    lights: &LightState,
+    progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+) -> ReferenceOutput {
+    let tracer = PathTracer::with_lights(scene, lights);
     let mut acc = Accumulator::new(settings.width, settings.height);
     acc.add_pass(
         &tracer,

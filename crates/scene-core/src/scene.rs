@@ -172,18 +172,7 @@ impl PointLight {
     /// The distance falloff: `1/d^2`, or eq. 16's `saturate(1 - (d/r)^2)` when a radius is set.
     /// Never infinite: 0 at zero distance, and at most `f32::MAX` for tiny distances.
     pub fn falloff(&self, distance: f32) -> f32 {
-        match self.radius {
-            Some(r) if r > 0.0 => (1.0 - (distance / r).powi(2)).clamp(0.0, 1.0),
-            Some(_) => 0.0,
-            None => {
-                let d2 = distance * distance;
-                if d2 > 0.0 {
-                    (1.0 / d2).min(f32::MAX)
-                } else {
-                    0.0
-                }
-            }
-        }
+        crate::lights::falloff(self.radius, distance)
     }
 }
 

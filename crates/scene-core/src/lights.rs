@@ -1,0 +1,465 @@
+//! Light sources with stable ids, the per-frame state of each ([`LightState`]), and the
+//! emissive-triangle power table that light sampling uses ([`Emitters`]).
+//!
+//! Every point light, every directional light and every emissive mesh (a mesh with at
+//! least one triangle whose material emits) is a light source with a [`LightId`]. Ids are
+//! positions in the scene's arrays, so they are stable as long as the scene's lights and
+//! meshes are: the same file imported twice gives the same ids.
+//!
+//! A [`LightState`] says, per light, whether it is on, a colour multiplier (recolour and
+//! dim), and separate multipliers for its direct and its indirect light (what engine
+//! users ask of baked lighting). Every technique and the reference path tracer honour it;
+//! the default state (everything on, every multiplier 1) renders the scene as it is.
+//!
+//! ```
+//! use scene_core::{builtin, lights::{LightId, LightState, light_ids}};
+//! let scene = builtin::scene("corridor").unwrap();
+//! let ids = light_ids(&scene);
+//! assert_eq!(ids.len(), 4); // four point lights, no emissive mesh
+//! let mut state = LightState::default();
+//! state.set_color(LightId::Point(0), glam::Vec3::new(1.0, 0.2, 0.2)); // recolour
+//! state.set_enabled(LightId::Point(1), false); // switch off
+//! let one = LightState::only(&scene, LightId::Point(2)); // one light alone
+//! assert!(!one.get(LightId::Point(0)).enabled && one.get(LightId::Point(2)).enabled);
+//! ```
+
+use std::collections::BTreeMap;
+
+use glam::Vec3;
+
+use crate::image::luminance;
+use crate::scene::Scene;
+
+/// The stable id of a light source.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum LightId {
+    /// `scene.point_lights[i]`.
+    Point(u32),
+    /// `scene.directional_lights[i]`.
+    Directional(u32),
+    /// The emissive triangles of `scene.meshes[i]`, as one source.
+    Emissive(u32),
+}
+
+impl LightId {
+    /// A label for messages and reports: `"point light #0 'key'"`.
+    pub fn label(&self, scene: &Scene) -> String {
+        let (kind, name) = match *self {
+            LightId::Point(i) => (
+                "point light",
+                scene.point_lights.get(i as usize).map(|l| l.name.as_str()),
+            ),
+            LightId::Directional(i) => (
+                "directional light",
+                scene
+                    .directional_lights
+                    .get(i as usize)
+                    .map(|l| l.name.as_str()),
+            ),
+            LightId::Emissive(i) => (
+                "emissive mesh",
+                scene.meshes.get(i as usize).map(|m| m.name.as_str()),
+            ),
+        };
+        let i = match *self {
+            LightId::Point(i) | LightId::Directional(i) | LightId::Emissive(i) => i,
+        };
+        match name {
+            Some(n) if !n.is_empty() => format!("{kind} #{i} '{n}'"),
+            _ => format!("{kind} #{i}"),
+        }
+    }
+}
+
+/// Every light source of `scene`, in a fixed order: point lights, directional lights, then
+/// emissive meshes by mesh index.
+pub fn light_ids(scene: &Scene) -> Vec<LightId> {
+    let mut ids: Vec<LightId> = (0..scene.point_lights.len() as u32)
+        .map(LightId::Point)
+        .chain((0..scene.directional_lights.len() as u32).map(LightId::Directional))
+        .collect();
+    for (i, mesh) in scene.meshes.iter().enumerate() {
+        let emits = mesh.material_ids.iter().any(|&m| {
+            scene
+                .materials
+                .get(m as usize)
+                .is_some_and(|m| m.is_emissive())
+        });
+        if emits {
+            ids.push(LightId::Emissive(i as u32));
+        }
+    }
+    ids
+}
+
+/// How one light shines in a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSetting {
+    /// Off: the light gives neither direct nor indirect light, and an emissive mesh does
+    /// not glow.
+    pub enabled: bool,
+    /// Multiplies the light's emission (intensity, irradiance or emitted radiance) per
+    /// channel: recolouring and dimming.
+    pub color: Vec3,
+    /// Multiplies the light's direct light: emission seen directly and light arriving at a
+    /// surface straight from the light.
+    pub direct: f32,
+    /// Multiplies the light's indirect light: everything that reached a surface after one
+    /// or more reflections.
+    pub indirect: f32,
+}
+
+impl Default for LightSetting {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            color: Vec3::ONE,
+            direct: 1.0,
+            indirect: 1.0,
+        }
+    }
+}
+
+impl LightSetting {
+    /// The factor on the light's direct contribution (zero when off).
+    pub fn direct_factor(&self) -> Vec3 {
+        if self.enabled {
+            self.color * self.direct
+        } else {
+            Vec3::ZERO
+        }
+    }
+
+    /// The factor on the light's indirect contribution (zero when off).
+    pub fn indirect_factor(&self) -> Vec3 {
+        if self.enabled {
+            self.color * self.indirect
+        } else {
+            Vec3::ZERO
+        }
+    }
+
+    /// True when the light contributes nothing at all.
+    pub fn is_dark(&self) -> bool {
+        self.direct_factor() == Vec3::ZERO && self.indirect_factor() == Vec3::ZERO
+    }
+
+    fn is_finite(&self) -> bool {
+        self.color.is_finite() && self.direct.is_finite() && self.indirect.is_finite()
+    }
+}
+
+/// The per-frame state of every light of a scene. Lights not mentioned shine as the scene
+/// describes them ([`LightSetting::default`]), so the default state is the scene itself.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LightState {
+    settings: BTreeMap<LightId, LightSetting>,
+}
+
+impl LightState {
+    /// Every light of `scene` off but `id`.
+    pub fn only(scene: &Scene, id: LightId) -> Self {
+        let mut s = Self::default();
+        for other in light_ids(scene) {
+            s.set_enabled(other, other == id);
+        }
+        s
+    }
+
+    /// The setting of `id`.
+    pub fn get(&self, id: LightId) -> LightSetting {
+        self.settings.get(&id).copied().unwrap_or_default()
+    }
+
+    /// Replaces the setting of `id`.
+    pub fn set(&mut self, id: LightId, setting: LightSetting) {
+        if setting == LightSetting::default() {
+            self.settings.remove(&id);
+        } else {
+            self.settings.insert(id, setting);
+        }
+    }
+
+    /// Switches `id` on or off.
+    pub fn set_enabled(&mut self, id: LightId, enabled: bool) {
+        let s = self.get(id);
+        self.set(id, LightSetting { enabled, ..s });
+    }
+
+    /// Sets the colour multiplier of `id`.
+    pub fn set_color(&mut self, id: LightId, color: Vec3) {
+        let s = self.get(id);
+        self.set(id, LightSetting { color, ..s });
+    }
+
+    /// True when every light shines as the scene describes it.
+    pub fn is_default(&self) -> bool {
+        self.settings.is_empty()
+    }
+
+    /// The lights whose setting differs from the default, in id order.
+    pub fn changed(&self) -> impl Iterator<Item = (LightId, LightSetting)> + '_ {
+        self.settings.iter().map(|(k, v)| (*k, *v))
+    }
+
+    /// Checks every multiplier is finite and non-negative; the error names the light.
+    pub fn check(&self, scene: &Scene) -> Result<(), String> {
+        for (id, s) in &self.settings {
+            if !s.is_finite() || s.color.min_element() < 0.0 || s.direct < 0.0 || s.indirect < 0.0 {
+                return Err(format!(
+                    "{}: light setting {s:?} has a negative or non-finite multiplier",
+                    id.label(scene)
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A hash of the state (bit patterns of every changed setting), for cache keys.
+    pub fn fingerprint(&self) -> u64 {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut eat = |x: u64| {
+            for b in x.to_le_bytes() {
+                h ^= u64::from(b);
+                h = h.wrapping_mul(0x0100_0000_01b3);
+            }
+        };
+        for (id, s) in &self.settings {
+            let (kind, i) = match *id {
+                LightId::Point(i) => (0, i),
+                LightId::Directional(i) => (1, i),
+                LightId::Emissive(i) => (2, i),
+            };
+            eat(kind);
+            eat(u64::from(i));
+            eat(u64::from(s.enabled));
+            for f in [s.color.x, s.color.y, s.color.z, s.direct, s.indirect] {
+                eat(u64::from(f.to_bits()));
+            }
+        }
+        h
+    }
+}
+
+/// The distance falloff of a point light (thesis eq. 16 when `radius` is given): `1/d^2`,
+/// or `saturate(1 - (d/r)^2)` for `radius` `Some(r)` (0 for `r <= 0`, which validation
+/// refuses). Never infinite: 0 at zero distance, at most `f32::MAX` for tiny distances.
+/// [`crate::PointLight::falloff`], the reference and ISR all use this one function.
+pub fn falloff(radius: Option<f32>, distance: f32) -> f32 {
+    match radius {
+        Some(r) if r > 0.0 => (1.0 - (distance / r).powi(2)).clamp(0.0, 1.0),
+        Some(_) => 0.0,
+        None => {
+            let d2 = distance * distance;
+            if d2 > 0.0 {
+                (1.0 / d2).min(f32::MAX)
+            } else {
+                0.0
+            }
+        }
+    }
+}
+
+/// One emissive triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmissiveTriangle {
+    /// Global triangle id.
+    pub triangle: u32,
+    /// The mesh it belongs to (its light is [`LightId::Emissive`] of that mesh).
+    pub mesh: u32,
+    /// Corners.
+    pub corners: [Vec3; 3],
+    /// Unit geometric normal of the emitting side (from the winding; zero when degenerate).
+    pub normal: Vec3,
+    /// Area.
+    pub area: f32,
+    /// Emitted radiance as the scene gives it (before any [`LightState`]).
+    pub emission: Vec3,
+    /// Sampling weight: power under the state (`luminance x area`, with a floor of 1e-3 of
+    /// the brightest channel so that saturated colours keep some weight); zero for a light
+    /// that is off.
+    pub weight: f64,
+}
+
+/// The emissive triangles of a scene and the power table that picks them for light
+/// sampling (the reference's next-event estimation, ISR's emitter samples).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Emitters {
+    /// Every emissive triangle (finite, positive emission), in global triangle order.
+    pub triangles: Vec<EmissiveTriangle>,
+    /// Cumulative distribution over `triangles` by weight (last entry 1; empty when no
+    /// triangle has weight), in f64 so that tiny emitters keep a non-empty interval.
+    pub cdf: Vec<f64>,
+    /// Sum of the weights.
+    pub total_weight: f64,
+    /// Per global triangle id: index into `triangles`, or `u32::MAX`.
+    pub per_triangle: Vec<u32>,
+}
+
+impl Emitters {
+    /// The table of `scene` under `state` (an emissive mesh that is off, or whose colour
+    /// is black, gets weight zero: it is never picked).
+    pub fn new(scene: &Scene, state: &LightState) -> Self {
+        let mut e = Emitters {
+            per_triangle: Vec::with_capacity(scene.triangle_count()),
+            ..Default::default()
+        };
+        let mut global = 0u32;
+        for (mi, mesh) in scene.meshes.iter().enumerate() {
+            let setting = state.get(LightId::Emissive(mi as u32));
+            let scale = if setting.enabled {
+                setting.color * setting.direct.max(setting.indirect)
+            } else {
+                Vec3::ZERO
+            };
+            for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
+                let le = scene
+                    .materials
+                    .get(m as usize)
+                    .map_or(Vec3::ZERO, |m| m.emission);
+                if le.max_element() > 0.0 && le.is_finite() {
+                    let p = t.map(|i| mesh.positions[i as usize]);
+                    let c = (p[1] - p[0]).cross(p[2] - p[0]);
+                    let area = 0.5 * c.length();
+                    let power = le * scale;
+                    let weight = f64::from(luminance(power).max(power.max_element() * 1e-3))
+                        * f64::from(area);
+                    e.per_triangle.push(e.triangles.len() as u32);
+                    e.triangles.push(EmissiveTriangle {
+                        triangle: global,
+                        mesh: mi as u32,
+                        corners: p,
+                        normal: c.normalize_or_zero(),
+                        area,
+                        emission: le,
+                        weight: if weight > 0.0 && weight.is_finite() {
+                            weight
+                        } else {
+                            0.0
+                        },
+                    });
+                } else {
+                    e.per_triangle.push(u32::MAX);
+                }
+                global += 1;
+            }
+        }
+        e.total_weight = e.triangles.iter().map(|t| t.weight).sum();
+        if e.total_weight > 0.0 {
+            let mut acc = 0.0f64;
+            e.cdf = e
+                .triangles
+                .iter()
+                .map(|t| {
+                    acc += t.weight;
+                    acc / e.total_weight
+                })
+                .collect();
+            // The last positive-weight entry closes the distribution.
+            if let Some(last) = e.triangles.iter().rposition(|t| t.weight > 0.0) {
+                for c in &mut e.cdf[last..] {
+                    *c = 1.0;
+                }
+            }
+        }
+        e
+    }
+
+    /// True when no triangle can be picked.
+    pub fn is_empty(&self) -> bool {
+        self.cdf.is_empty()
+    }
+
+    /// The triangle (index into `triangles`) that `u` in [0, 1) picks.
+    pub fn pick(&self, u: f64) -> Option<usize> {
+        if self.cdf.is_empty() {
+            return None;
+        }
+        Some(
+            self.cdf
+                .partition_point(|&c| c <= u)
+                .min(self.triangles.len() - 1),
+        )
+    }
+
+    /// The probability that [`Emitters::pick`] returns `k` (its interval of the stored
+    /// CDF, so that what is drawn and what is divided by agree exactly).
+    pub fn pick_probability(&self, k: usize) -> f64 {
+        match self.cdf.get(k) {
+            Some(&c) => c - if k == 0 { 0.0 } else { self.cdf[k - 1] },
+            None => 0.0,
+        }
+    }
+
+    /// [`Emitters::pick_probability`] of a global triangle id (0 for non-emitters).
+    pub fn probability_of_triangle(&self, triangle: u32) -> f64 {
+        match self.per_triangle.get(triangle as usize) {
+            Some(&k) if k != u32::MAX => self.pick_probability(k as usize),
+            _ => 0.0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::builtin;
+
+    #[test]
+    fn ids_cover_every_light_and_only_them() {
+        let cornell = builtin::scene("cornell").unwrap();
+        let ids = light_ids(&cornell);
+        assert_eq!(ids.len(), 1);
+        assert!(matches!(ids[0], LightId::Emissive(_)));
+        assert!(ids[0].label(&cornell).starts_with("emissive mesh #"));
+        let prim = builtin::scene("primitives").unwrap();
+        assert_eq!(light_ids(&prim), vec![LightId::Directional(0)]);
+    }
+
+    #[test]
+    fn state_defaults_and_only() {
+        let scene = builtin::scene("corridor").unwrap();
+        let mut s = LightState::default();
+        assert!(s.is_default());
+        s.set_color(LightId::Point(1), Vec3::new(2.0, 1.0, 0.5));
+        assert!(!s.is_default());
+        assert_eq!(
+            s.get(LightId::Point(1)).direct_factor(),
+            Vec3::new(2.0, 1.0, 0.5)
+        );
+        s.set_color(LightId::Point(1), Vec3::ONE);
+        assert!(
+            s.is_default(),
+            "back to the default setting removes the entry"
+        );
+        let one = LightState::only(&scene, LightId::Point(3));
+        for id in light_ids(&scene) {
+            assert_eq!(one.get(id).enabled, id == LightId::Point(3));
+        }
+        assert_ne!(one.fingerprint(), LightState::default().fingerprint());
+        let mut bad = LightState::default();
+        bad.set_color(LightId::Point(0), Vec3::new(-1.0, 0.0, 0.0));
+        assert!(bad.check(&scene).unwrap_err().contains("point light #0"));
+    }
+
+    #[test]
+    fn emitter_table_picks_by_power_and_follows_the_state() {
+        let scene = builtin::scene("cornell").unwrap();
+        let e = Emitters::new(&scene, &LightState::default());
+        assert_eq!(e.triangles.len(), 2);
+        let sum: f64 = (0..e.triangles.len()).map(|k| e.pick_probability(k)).sum();
+        assert!((sum - 1.0).abs() < 1e-12);
+        // Two triangles of one quad: probabilities proportional to area.
+        let a: f64 = e.triangles.iter().map(|t| f64::from(t.area)).sum();
+        for (k, t) in e.triangles.iter().enumerate() {
+            assert!((e.pick_probability(k) - f64::from(t.area) / a).abs() < 1e-6);
+            assert_eq!(e.probability_of_triangle(t.triangle), e.pick_probability(k));
+        }
+        let id = light_ids(&scene)[0];
+        let mut off = LightState::default();
+        off.set_enabled(id, false);
+        let e = Emitters::new(&scene, &off);
+        assert!(e.is_empty() && e.pick(0.5).is_none());
+        assert_eq!(e.triangles.len(), 2, "still listed, never picked");
+    }
+}
