@@ -1,0 +1,438 @@
+//! glTF export: a [`Scene`] as `.gltf` (embedded buffer) or `.glb` (see the
+//! [parent module](super)).
+
+use std::borrow::Cow;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+
+use base64::Engine as _;
+use glam::{Mat3, Quat, Vec2, Vec3};
+use serde_json::{Value, json};
+
+use super::{EXT_EMISSIVE_STRENGTH, EXT_LIGHTS, TARGET_DISTANCE_KEY};
+use crate::error::GltfError;
+use crate::image::linear_to_srgb;
+use crate::scene::{Scene, Texture};
+
+pub(super) const GL_ARRAY_BUFFER: u32 = 34962;
+pub(super) const GL_ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const GL_FLOAT: u32 = 5126;
+pub(super) const GL_UNSIGNED_INT: u32 = 5125;
+const GL_LINEAR: u32 = 9729;
+const GL_REPEAT: u32 = 10497;
+
+/// Exports a scene as `.gltf` (JSON with the buffer embedded as a base64 data URI) or `.glb`,
+/// chosen by the extension of `path` (case-insensitive).
+///
+/// The scene must pass [`Scene::validate`] (checked on a copy; the file is written from the
+/// original, so triangle order and ids are kept) or [`GltfError::Invalid`] is returned. See
+/// the [module documentation](self) for the layout. I/O failures and an unknown extension
+/// give [`GltfError::Write`]; a failed write leaves no partial file at `path`.
+pub fn export(scene: &Scene, path: &Path) -> Result<(), GltfError> {
+    let binary = match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("gltf") => false,
+        Some("glb") => true,
+        _ => {
+            return Err(write_error(
+                path,
+                std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    "the file extension must be .gltf or .glb",
+                ),
+            ));
+        }
+    };
+    let mut checked = scene.clone();
+    checked.validate().map_err(|source| GltfError::Invalid {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let (mut root, bin) = build_document(scene, &checked).map_err(|m| write_error(path, m))?;
+    let bytes = if binary {
+        if !bin.is_empty() {
+            root["buffers"] = json!([{ "byteLength": bin.len() }]);
+        }
+        let json_bytes = serde_json::to_vec(&root).map_err(|e| write_error(path, e))?;
+        if json_bytes.len() as u64 + bin.len() as u64 + 28 > u64::from(u32::MAX) {
+            return Err(write_error(
+                path,
+                "the scene is too large for a .glb (4 GiB)",
+            ));
+        }
+        let glb = gltf::binary::Glb {
+            header: gltf::binary::Header {
+                magic: *b"glTF",
+                version: 2,
+                length: 0, // computed by the writer
+            },
+            json: Cow::Owned(json_bytes),
+            bin: (!bin.is_empty()).then_some(Cow::Owned(bin)),
+        };
+        glb.to_vec().map_err(|e| write_error(path, e.to_string()))?
+    } else {
+        if !bin.is_empty() {
+            let uri = format!(
+                "data:application/octet-stream;base64,{}",
+                base64::engine::general_purpose::STANDARD.encode(&bin)
+            );
+            root["buffers"] = json!([{ "byteLength": bin.len(), "uri": uri }]);
+        }
+        serde_json::to_vec_pretty(&root).map_err(|e| write_error(path, e))?
+    };
+    write_file_atomically(path, &bytes)
+}
+
+fn write_error(path: &Path, e: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> GltfError {
+    GltfError::Write {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e),
+    }
+}
+
+fn write_file_atomically(path: &Path, bytes: &[u8]) -> Result<(), GltfError> {
+    let write_error = |source| GltfError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
+    crate::image::write_via_temp(
+        path,
+        |tmp| std::fs::write(tmp, bytes).map_err(write_error),
+        write_error,
+    )
+}
+
+/// The binary buffer with its buffer views and accessors.
+#[derive(Default)]
+pub(super) struct BinWriter {
+    pub(super) bin: Vec<u8>,
+    pub(super) views: Vec<Value>,
+    pub(super) accessors: Vec<Value>,
+}
+
+impl BinWriter {
+    pub(super) fn view(&mut self, bytes: &[u8], target: Option<u32>) -> usize {
+        self.pad();
+        let mut view = json!({
+            "buffer": 0,
+            "byteOffset": self.bin.len(),
+            "byteLength": bytes.len(),
+        });
+        if let Some(t) = target {
+            view["target"] = json!(t);
+        }
+        self.bin.extend_from_slice(bytes);
+        self.pad();
+        self.views.push(view);
+        self.views.len() - 1
+    }
+
+    pub(super) fn pad(&mut self) {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+    }
+
+    pub(super) fn floats(
+        &mut self,
+        values: impl Iterator<Item = f32>,
+        count: usize,
+        ty: &str,
+    ) -> Value {
+        let bytes: Vec<u8> = values.flat_map(f32::to_le_bytes).collect();
+        let view = self.view(&bytes, Some(GL_ARRAY_BUFFER));
+        json!({
+            "bufferView": view,
+            "componentType": GL_FLOAT,
+            "count": count,
+            "type": ty,
+        })
+    }
+
+    pub(super) fn push(&mut self, accessor: Value) -> usize {
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    pub(super) fn vec3(&mut self, data: &[Vec3], bounds: bool) -> usize {
+        let mut acc = self.floats(data.iter().flat_map(|v| v.to_array()), data.len(), "VEC3");
+        if bounds {
+            let min = data.iter().fold(Vec3::INFINITY, |a, &b| a.min(b));
+            let max = data.iter().fold(Vec3::NEG_INFINITY, |a, &b| a.max(b));
+            acc["min"] = json!(min.to_array());
+            acc["max"] = json!(max.to_array());
+        }
+        self.push(acc)
+    }
+
+    pub(super) fn vec2(&mut self, data: &[Vec2]) -> usize {
+        let acc = self.floats(data.iter().flat_map(|v| v.to_array()), data.len(), "VEC2");
+        self.push(acc)
+    }
+
+    pub(super) fn indices(&mut self, data: &[u32]) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|i| i.to_le_bytes()).collect();
+        let view = self.view(&bytes, Some(GL_ELEMENT_ARRAY_BUFFER));
+        self.push(json!({
+            "bufferView": view,
+            "componentType": GL_UNSIGNED_INT,
+            "count": data.len(),
+            "type": "SCALAR",
+        }))
+    }
+}
+
+/// Splits a non-negative colour into a `[0, 1]` colour and a scale (its maximum channel).
+fn split_scale(c: Vec3) -> ([f32; 3], f32) {
+    let m = c.max_element();
+    if m > 0.0 {
+        ((c / m).min(Vec3::ONE).to_array(), m)
+    } else {
+        ([1.0, 1.0, 1.0], 0.0)
+    }
+}
+
+fn named(mut v: Value, name: &str) -> Value {
+    if !name.is_empty() {
+        v["name"] = json!(name);
+    }
+    v
+}
+
+/// Builds the glTF JSON (without `buffers`) and the binary buffer. `checked` is the
+/// validated copy of `scene` (same vertices, repaired normals).
+fn build_document(scene: &Scene, checked: &Scene) -> Result<(Value, Vec<u8>), String> {
+    let mut w = BinWriter::default();
+    let mut extensions_used: BTreeSet<&str> = BTreeSet::new();
+
+    // Textures referenced by materials, in index order, embedded as sRGB PNGs.
+    let referenced: BTreeSet<u32> = scene
+        .materials
+        .iter()
+        .filter_map(|m| m.albedo_texture)
+        .collect();
+    let mut texture_map = BTreeMap::new();
+    let mut images = Vec::new();
+    let mut textures = Vec::new();
+    for &t in &referenced {
+        let tex = &scene.textures[t as usize];
+        let png = encode_png(tex).map_err(|e| format!("texture {t} '{}': {e}", tex.name))?;
+        let view = w.view(&png, None);
+        images.push(named(
+            json!({ "bufferView": view, "mimeType": "image/png" }),
+            &tex.name,
+        ));
+        texture_map.insert(t, textures.len());
+        textures.push(named(
+            json!({ "source": images.len() - 1, "sampler": 0 }),
+            &tex.name,
+        ));
+    }
+
+    let materials: Vec<Value> = scene
+        .materials
+        .iter()
+        .map(|m| {
+            let mut pbr = json!({
+                "baseColorFactor": [m.albedo.x, m.albedo.y, m.albedo.z, 1.0],
+                "metallicFactor": 0.0,
+                "roughnessFactor": 1.0,
+            });
+            if let Some(t) = m.albedo_texture.and_then(|t| texture_map.get(&t)) {
+                pbr["baseColorTexture"] = json!({ "index": t });
+            }
+            let mut mat = named(json!({ "pbrMetallicRoughness": pbr }), &m.name);
+            if m.emission.max_element() > 1.0 {
+                let (factor, strength) = split_scale(m.emission);
+                mat["emissiveFactor"] = json!(factor);
+                mat["extensions"] =
+                    json!({ EXT_EMISSIVE_STRENGTH: { "emissiveStrength": strength } });
+                extensions_used.insert(EXT_EMISSIVE_STRENGTH);
+            } else if m.is_emissive() {
+                mat["emissiveFactor"] = json!(m.emission.to_array());
+            }
+            mat
+        })
+        .collect();
+
+    let mut meshes = Vec::new();
+    let mut nodes = Vec::new();
+    for (mesh, fixed) in scene.meshes.iter().zip(&checked.meshes) {
+        if mesh.indices.is_empty() {
+            continue;
+        }
+        let uvs = mesh
+            .uvs
+            .as_ref()
+            .filter(|uvs| uvs.len() == mesh.positions.len());
+        let mut primitives = Vec::new();
+        let mut start = 0;
+        while start < mesh.indices.len() {
+            let material = mesh.material_ids[start];
+            let mut end = start + 1;
+            while end < mesh.indices.len() && mesh.material_ids[end] == material {
+                end += 1;
+            }
+            let run = &mesh.indices[start..end];
+            // Compact to the vertices this run uses, keeping their relative order.
+            let mut used: Vec<u32> = run.iter().flatten().copied().collect();
+            used.sort_unstable();
+            used.dedup();
+            let local = |v: u32| used.binary_search(&v).unwrap_or_else(|i| i) as u32;
+            let idx: Vec<u32> = run.iter().flatten().map(|&v| local(v)).collect();
+            let positions: Vec<Vec3> = used.iter().map(|&v| mesh.positions[v as usize]).collect();
+            let normals: Vec<Vec3> = used.iter().map(|&v| fixed.normals[v as usize]).collect();
+            let mut attributes = json!({
+                "POSITION": w.vec3(&positions, true),
+                "NORMAL": w.vec3(&normals, false),
+            });
+            if let Some(uvs) = uvs {
+                let uv: Vec<Vec2> = used.iter().map(|&v| uvs[v as usize]).collect();
+                attributes["TEXCOORD_0"] = json!(w.vec2(&uv));
+            }
+            primitives.push(json!({
+                "attributes": attributes,
+                "indices": w.indices(&idx),
+                "material": material,
+                "mode": 4,
+            }));
+            start = end;
+        }
+        meshes.push(named(json!({ "primitives": primitives }), &mesh.name));
+        nodes.push(named(json!({ "mesh": meshes.len() - 1 }), &mesh.name));
+    }
+
+    let mut lights = Vec::new();
+    for l in &scene.point_lights {
+        let (color, intensity) = split_scale(l.intensity);
+        let mut light = named(
+            json!({ "type": "point", "color": color, "intensity": intensity }),
+            &l.name,
+        );
+        if let Some(r) = l.radius {
+            light["range"] = json!(r);
+        }
+        lights.push(light);
+        nodes.push(named(
+            json!({
+                "translation": l.position.to_array(),
+                "extensions": { EXT_LIGHTS: { "light": lights.len() - 1 } },
+            }),
+            &l.name,
+        ));
+    }
+    for l in &scene.directional_lights {
+        let (color, intensity) = split_scale(l.irradiance);
+        lights.push(named(
+            json!({ "type": "directional", "color": color, "intensity": intensity }),
+            &l.name,
+        ));
+        let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, l.direction.normalize()).normalize();
+        nodes.push(named(
+            json!({
+                "rotation": rotation.to_array(),
+                "extensions": { EXT_LIGHTS: { "light": lights.len() - 1 } },
+            }),
+            &l.name,
+        ));
+    }
+    if !lights.is_empty() {
+        extensions_used.insert(EXT_LIGHTS);
+    }
+
+    let mut cameras = Vec::new();
+    for c in &scene.cameras {
+        let offset = c.target - c.position;
+        let forward = offset.normalize();
+        let right = forward.cross(c.up).normalize();
+        let up = right.cross(forward);
+        let rotation = Quat::from_mat3(&Mat3::from_cols(right, up, -forward)).normalize();
+        cameras.push(named(
+            json!({
+                "type": "perspective",
+                "perspective": {
+                    "yfov": c.fov_y,
+                    "aspectRatio": c.aspect,
+                    "znear": c.near,
+                    "zfar": c.far,
+                },
+            }),
+            &c.name,
+        ));
+        nodes.push(named(
+            json!({
+                "camera": cameras.len() - 1,
+                "translation": c.position.to_array(),
+                "rotation": rotation.to_array(),
+                "extras": { TARGET_DISTANCE_KEY: offset.length() },
+            }),
+            &c.name,
+        ));
+    }
+
+    let mut root = json!({
+        "asset": { "version": "2.0", "generator": "scene-core gltf_io" },
+        "scene": 0,
+        "scenes": [named(json!({ "nodes": (0..nodes.len()).collect::<Vec<_>>() }), &scene.name)],
+    });
+    let mut set = |key: &str, v: Vec<Value>| {
+        if !v.is_empty() {
+            root[key] = Value::Array(v);
+        }
+    };
+    set("nodes", nodes);
+    set("meshes", meshes);
+    set("materials", materials);
+    set("cameras", cameras);
+    set("images", images);
+    let has_textures = !textures.is_empty();
+    set("textures", textures);
+    if has_textures {
+        root["samplers"] = json!([{
+            "magFilter": GL_LINEAR,
+            "minFilter": GL_LINEAR,
+            "wrapS": GL_REPEAT,
+            "wrapT": GL_REPEAT,
+        }]);
+    }
+    if !lights.is_empty() {
+        root["extensions"] = json!({ EXT_LIGHTS: { "lights": lights } });
+    }
+    if !extensions_used.is_empty() {
+        root["extensionsUsed"] = json!(extensions_used.into_iter().collect::<Vec<_>>());
+    }
+    if !w.views.is_empty() {
+        root["bufferViews"] = Value::Array(std::mem::take(&mut w.views));
+        root["accessors"] = Value::Array(std::mem::take(&mut w.accessors));
+    }
+    w.pad();
+    Ok((root, w.bin))
+}
+
+/// Encodes linear texels as an 8-bit sRGB PNG.
+fn encode_png(tex: &Texture) -> Result<Vec<u8>, String> {
+    let bytes: Vec<u8> = tex
+        .texels
+        .iter()
+        .flat_map(|c| {
+            c.to_array()
+                .map(|x| (linear_to_srgb(x) * 255.0).round() as u8)
+        })
+        .collect();
+    let img = image::RgbImage::from_raw(tex.width, tex.height, bytes).ok_or_else(|| {
+        format!(
+            "{} texels for {}x{}",
+            tex.texels.len(),
+            tex.width,
+            tex.height
+        )
+    })?;
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png)
+        .map_err(|e| e.to_string())?;
+    Ok(out.into_inner())
+}

@@ -1,0 +1,1123 @@
+//! glTF import: the file and everything it names, read under a budget and a URI policy,
+//! flattened into a validated [`Scene`] (see the [parent module](super)).
+
+use std::borrow::Cow;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
+
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use gltf::accessor::{DataType, Dimensions};
+use gltf::khr_lights_punctual::Kind as LightKind;
+use gltf::mesh::Mode;
+use serde_json::Value;
+
+use super::uri::{self, ExternalFiles};
+use super::{
+    ALBEDO_MAX, DEFAULT_ALBEDO, DEFAULT_MATERIAL_NAME, EXT_EMISSIVE_STRENGTH, EXT_LIGHTS,
+    TARGET_DISTANCE_KEY,
+};
+use crate::budget::{Allowance, Budget};
+use crate::error::{GltfError, ImageError};
+use crate::image::Image;
+use crate::scene::{
+    Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture, label_or_index,
+};
+
+/// What [`import`] produced: the scene plus what was left out and what was adjusted.
+#[derive(Clone, Debug)]
+pub struct ImportResult {
+    /// The validated scene (named after the file stem).
+    pub scene: Scene,
+    /// Features of the file that were not imported, one entry each, as `"<kind>: <detail>"`
+    /// (for example `"animation: 'Walk'"`).
+    pub ignored: Vec<String>,
+    /// Adjustments made while importing (clamped albedo, spot lights imported as point
+    /// lights, dropped degenerate triangles, ...).
+    pub warnings: Vec<String>,
+}
+
+/// How [`import_with`] treats what a file asks for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImportOptions {
+    /// Limits on what the file may make the importer allocate: file and buffer sizes, decoded
+    /// textures, vertices and indices after instancing, and the scene's total bytes. Each is
+    /// checked before the allocation; exceeding one gives [`GltfError::Budget`].
+    pub budget: Budget,
+    /// Where external buffers and images may be read from (default: the scene's folder
+    /// only); a refused URI gives [`GltfError::RefusedUri`].
+    pub external_files: ExternalFiles,
+}
+
+impl ImportResult {
+    /// One line counting what was ignored, by kind, in order of first appearance, e.g.
+    /// `"ignored: 3 metallic-roughness textures, 1 spot cone (imported as point light), 2
+    /// animations"`, or `"ignored: nothing"`.
+    pub fn summary(&self) -> String {
+        let mut counts: Vec<(&str, usize)> = Vec::new();
+        for entry in &self.ignored {
+            let kind = entry.split_once(": ").map_or(entry.as_str(), |(k, _)| k);
+            match counts.iter_mut().find(|(k, _)| *k == kind) {
+                Some((_, n)) => *n += 1,
+                None => counts.push((kind, 1)),
+            }
+        }
+        if counts.is_empty() {
+            return "ignored: nothing".to_string();
+        }
+        let parts: Vec<String> = counts
+            .iter()
+            .map(|&(kind, n)| {
+                if n == 1 {
+                    format!("1 {kind}")
+                } else {
+                    format!("{n} {}", Ignored::plural_of(kind))
+                }
+            })
+            .collect();
+        format!("ignored: {}", parts.join(", "))
+    }
+}
+
+/// Kinds of ignored features (singular form is the prefix of an `ignored` entry).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Ignored {
+    Animation,
+    Skin,
+    MorphTargets,
+    VertexColors,
+    NonTriangles,
+    MetallicRoughness,
+    MetallicRoughnessTexture,
+    NormalTexture,
+    OcclusionTexture,
+    EmissiveTexture,
+    Sampler,
+    Transparency,
+    SpotCone,
+    OrthographicCamera,
+    Extension,
+    OtherScene,
+}
+
+impl Ignored {
+    const ALL: [Ignored; 16] = [
+        Ignored::Animation,
+        Ignored::Skin,
+        Ignored::MorphTargets,
+        Ignored::VertexColors,
+        Ignored::NonTriangles,
+        Ignored::MetallicRoughness,
+        Ignored::MetallicRoughnessTexture,
+        Ignored::NormalTexture,
+        Ignored::OcclusionTexture,
+        Ignored::EmissiveTexture,
+        Ignored::Sampler,
+        Ignored::Transparency,
+        Ignored::SpotCone,
+        Ignored::OrthographicCamera,
+        Ignored::Extension,
+        Ignored::OtherScene,
+    ];
+
+    fn forms(self) -> (&'static str, &'static str) {
+        match self {
+            Ignored::Animation => ("animation", "animations"),
+            Ignored::Skin => ("skin", "skins"),
+            Ignored::MorphTargets => ("morph target set", "morph target sets"),
+            Ignored::VertexColors => ("vertex colour set", "vertex colour sets"),
+            Ignored::NonTriangles => ("point/line primitive", "point/line primitives"),
+            Ignored::MetallicRoughness => {
+                ("metallic/roughness setting", "metallic/roughness settings")
+            }
+            Ignored::MetallicRoughnessTexture => {
+                ("metallic-roughness texture", "metallic-roughness textures")
+            }
+            Ignored::NormalTexture => ("normal texture", "normal textures"),
+            Ignored::OcclusionTexture => ("occlusion texture", "occlusion textures"),
+            Ignored::EmissiveTexture => ("emissive texture", "emissive textures"),
+            Ignored::Sampler => (
+                "sampler setting (bilinear/repeat used)",
+                "sampler settings (bilinear/repeat used)",
+            ),
+            Ignored::Transparency => ("transparency setting", "transparency settings"),
+            Ignored::SpotCone => (
+                "spot cone (imported as point light)",
+                "spot cones (imported as point lights)",
+            ),
+            Ignored::OrthographicCamera => ("orthographic camera", "orthographic cameras"),
+            Ignored::Extension => ("extension", "extensions"),
+            Ignored::OtherScene => ("other scene", "other scenes"),
+        }
+    }
+
+    fn plural_of(singular: &str) -> String {
+        Ignored::ALL
+            .iter()
+            .map(|k| k.forms())
+            .find(|(s, _)| *s == singular)
+            .map_or_else(|| format!("{singular}s"), |(_, p)| p.to_string())
+    }
+}
+
+/// Imports a `.gltf` (with embedded or external buffers and images) or `.glb` file.
+///
+/// See the [module documentation](self) for what is imported and what is ignored.
+/// Errors: [`GltfError::Read`] when the file cannot be read or parsed or its buffers are
+/// missing, truncated or inconsistent; [`GltfError::Content`] for unusable content (wrong
+/// accessor types, indices past the vertex count, a cyclic node hierarchy);
+/// [`GltfError::Invalid`] when the imported scene fails [`Scene::validate`].
+pub fn import(path: &Path) -> Result<ImportResult, GltfError> {
+    import_with(path, &ImportOptions::default())
+}
+
+/// [`import`] with explicit [`ImportOptions`] (budget and external-file policy).
+pub fn import_with(path: &Path, options: &ImportOptions) -> Result<ImportResult, GltfError> {
+    let bytes = crate::budget::read_file(path, &options.budget).map_err(|e| match e {
+        crate::budget::ReadFileError::Budget(b) => GltfError::Budget(b),
+        other => read_error(path, other.to_string()),
+    })?;
+    let base = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    import_bytes(&bytes, Some(base), path, options)
+}
+
+/// Imports a self-contained glTF from memory: a `.glb`, or a `.gltf` whose buffers and
+/// images are data URIs (external references give [`GltfError::RefusedUri`]), under the
+/// default [`ImportOptions`]. `name_for_errors` names the data in errors, and its stem
+/// names the scene.
+pub fn import_slice(bytes: &[u8], name_for_errors: &Path) -> Result<ImportResult, GltfError> {
+    import_slice_with(bytes, name_for_errors, &ImportOptions::default())
+}
+
+/// [`import_slice`] with explicit [`ImportOptions`].
+pub fn import_slice_with(
+    bytes: &[u8],
+    name_for_errors: &Path,
+    options: &ImportOptions,
+) -> Result<ImportResult, GltfError> {
+    import_bytes(bytes, None, name_for_errors, options)
+}
+
+fn read_error(path: &Path, message: impl Into<String>) -> GltfError {
+    GltfError::Read {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+fn content_error(path: &Path, message: impl Into<String>) -> GltfError {
+    GltfError::Content {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+fn import_bytes(
+    bytes: &[u8],
+    base: Option<&Path>,
+    path: &Path,
+    options: &ImportOptions,
+) -> Result<ImportResult, GltfError> {
+    let mut allowance = Allowance::new(options.budget, path);
+    // The file itself, and its JSON once parsed: each JSON object becomes a Rust struct of
+    // at most a few hundred bytes, so 512 bytes an object (counted by its opening brace)
+    // bounds what parsing allocates, before it does.
+    let json = json_part(bytes);
+    let objects = json.iter().filter(|&&b| b == b'{').count() as u64;
+    allowance.charge_bytes(bytes.len() as u64, || "the file".into())?;
+    allowance.charge_bytes(objects.saturating_mul(JSON_OBJECT_BYTES), || {
+        format!("its JSON once parsed ({objects} objects)")
+    })?;
+    let (document, blob) = parse_document(bytes).map_err(|m| read_error(path, m))?;
+    let uris = uri::UriReader {
+        path,
+        base,
+        policy: options.external_files,
+    };
+    let buffers = load_buffers(&document, blob, &uris, &mut allowance)?;
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut importer = Importer {
+        path,
+        uris,
+        allowance,
+        doc: &document,
+        buffers: &buffers,
+        scene: Scene::new(&name),
+        ignored: Vec::new(),
+        warnings: Vec::new(),
+        default_material: None,
+        pending_far: Vec::new(),
+    };
+    importer.run()?;
+    let Importer {
+        mut scene,
+        ignored,
+        mut warnings,
+        ..
+    } = importer;
+    let report = scene.validate().map_err(|source| GltfError::Invalid {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    for (mesh, n) in &report.degenerate_dropped {
+        warnings.push(format!("{mesh}: {n} degenerate triangles dropped"));
+    }
+    Ok(ImportResult {
+        scene,
+        ignored,
+        warnings,
+    })
+}
+
+/// Bytes charged for each JSON object of a glTF before it is parsed (an upper bound of the
+/// size of the `gltf-json` struct it becomes, with its vectors and maps).
+const JSON_OBJECT_BYTES: u64 = 512;
+
+/// The JSON of a glTF: the whole file, or a GLB's first chunk (as far as the file holds).
+fn json_part(bytes: &[u8]) -> &[u8] {
+    if !bytes.starts_with(b"glTF") {
+        return bytes;
+    }
+    let len = bytes
+        .get(12..16)
+        .map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    let end = 20usize.saturating_add(len).min(bytes.len());
+    bytes.get(20..end).unwrap_or(&[])
+}
+
+/// Loads every buffer (GLB chunk, data URI or external file under the URI policy), each
+/// charged to the allowance before it is read, and checks it holds its `byteLength`.
+fn load_buffers(
+    document: &gltf::Document,
+    mut blob: Option<Vec<u8>>,
+    uris: &uri::UriReader,
+    allowance: &mut Allowance,
+) -> Result<Vec<gltf::buffer::Data>, GltfError> {
+    let path = uris.path;
+    let mut buffers = Vec::with_capacity(document.buffers().len());
+    for buffer in document.buffers() {
+        let what = format!("buffer {}", buffer.index());
+        let mut data = match buffer.source() {
+            gltf::buffer::Source::Bin => {
+                let bin = blob.take().ok_or_else(|| {
+                    read_error(path, format!("{what}: the file has no binary chunk"))
+                })?;
+                allowance.charge_bytes(bin.len() as u64, || what.clone())?;
+                bin
+            }
+            gltf::buffer::Source::Uri(u) => uris.read(u, &what, allowance)?,
+        };
+        if data.len() < buffer.length() {
+            return Err(read_error(
+                path,
+                format!(
+                    "{what}: {} bytes, but byteLength says {}",
+                    data.len(),
+                    buffer.length()
+                ),
+            ));
+        }
+        data.resize(data.len().next_multiple_of(4), 0);
+        buffers.push(gltf::buffer::Data(data));
+    }
+    Ok(buffers)
+}
+
+/// Parses and validates the document, rejecting first the inputs on which `gltf` 1.4
+/// would panic (a GLB length below the header size, a `POSITION` accessor index out of
+/// range, images without a source or MIME type, cameras without the projection their type
+/// names).
+fn parse_document(bytes: &[u8]) -> Result<(gltf::Document, Option<Vec<u8>>), String> {
+    if bytes.starts_with(b"glTF") {
+        let length = bytes
+            .get(8..12)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .ok_or("GLB header truncated")?;
+        if length < 12 {
+            return Err(format!("GLB header declares a length of {length} bytes"));
+        }
+    }
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| e.to_string())?;
+    let root = document.into_json();
+    precheck(&root)?;
+    let document = gltf::Document::from_json(root).map_err(|e| e.to_string())?;
+    Ok((document, blob))
+}
+
+fn precheck(root: &gltf::json::Root) -> Result<(), String> {
+    let accessors = root.accessors.len();
+    for (mi, mesh) in root.meshes.iter().enumerate() {
+        for (pi, prim) in mesh.primitives.iter().enumerate() {
+            for (semantic, index) in &prim.attributes {
+                if index.value() >= accessors {
+                    let name = match semantic {
+                        gltf::json::validation::Checked::Valid(s) => s.to_string(),
+                        gltf::json::validation::Checked::Invalid => "?".to_string(),
+                    };
+                    return Err(format!(
+                        "mesh {mi} primitive {pi}: attribute {name} uses accessor {} but the \
+                         file has {accessors}",
+                        index.value()
+                    ));
+                }
+            }
+        }
+    }
+    for (i, image) in root.images.iter().enumerate() {
+        match (&image.buffer_view, &image.uri) {
+            (Some(_), _) if image.mime_type.is_none() => {
+                return Err(format!("image {i}: bufferView without mimeType"));
+            }
+            (None, None) => return Err(format!("image {i}: neither uri nor bufferView")),
+            _ => {}
+        }
+    }
+    // `gltf` unwraps the projection object that the camera's type names.
+    for (i, camera) in root.cameras.iter().enumerate() {
+        use gltf::json::camera::Type;
+        use gltf::json::validation::Checked;
+        let present = match camera.type_ {
+            Checked::Valid(Type::Perspective) => camera.perspective.is_some(),
+            Checked::Valid(Type::Orthographic) => camera.orthographic.is_some(),
+            Checked::Invalid => false,
+        };
+        if !present {
+            let ty = match camera.type_ {
+                Checked::Valid(Type::Perspective) => "perspective",
+                Checked::Valid(Type::Orthographic) => "orthographic",
+                Checked::Invalid => "an unknown type",
+            };
+            return Err(format!(
+                "camera {i}: its type is {ty} but it has no {ty} object"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Why an accessor cannot be read: its bytes are out of range, or its type is wrong.
+enum AccessorProblem {
+    Range(String),
+    Kind(String),
+}
+
+fn view_bytes<'b>(
+    view: &gltf::buffer::View,
+    buffers: &'b [gltf::buffer::Data],
+) -> Result<&'b [u8], String> {
+    let data = buffers
+        .get(view.buffer().index())
+        .ok_or_else(|| format!("buffer {} not loaded", view.buffer().index()))?;
+    view.offset()
+        .checked_add(view.length())
+        .and_then(|end| data.0.get(view.offset()..end))
+        .ok_or_else(|| {
+            format!(
+                "buffer view {} ({} bytes at {}) lies outside buffer {} ({} bytes)",
+                view.index(),
+                view.length(),
+                view.offset(),
+                view.buffer().index(),
+                data.0.len()
+            )
+        })
+}
+
+/// Checks that `count` elements of `elem` bytes at `offset` in `view` (with the view's
+/// stride) lie inside the loaded buffer, as `gltf`'s readers assume.
+fn check_range(
+    view: &gltf::buffer::View,
+    offset: usize,
+    count: usize,
+    elem: usize,
+    buffers: &[gltf::buffer::Data],
+) -> Result<(), String> {
+    if count == 0 {
+        return Err("count is 0".into());
+    }
+    let stride = view.stride().unwrap_or(elem);
+    if stride < elem {
+        return Err(format!(
+            "byteStride {stride} is below the element size {elem}"
+        ));
+    }
+    let bytes = view_bytes(view, buffers)?;
+    let end = stride
+        .checked_mul(count - 1)
+        .and_then(|x| x.checked_add(elem))
+        .and_then(|x| x.checked_add(offset));
+    match end {
+        Some(end) if end <= bytes.len() => Ok(()),
+        _ => Err(format!(
+            "{count} elements of {elem} bytes (stride {stride}) at offset {offset} overrun buffer \
+             view {} ({} bytes)",
+            view.index(),
+            bytes.len()
+        )),
+    }
+}
+
+fn check_accessor(
+    acc: &gltf::Accessor,
+    types: &[DataType],
+    dims: Dimensions,
+    buffers: &[gltf::buffer::Data],
+) -> Result<(), AccessorProblem> {
+    if !types.contains(&acc.data_type()) || acc.dimensions() != dims {
+        return Err(AccessorProblem::Kind(format!(
+            "is {:?} {:?}, expected {:?} of {:?}",
+            acc.dimensions(),
+            acc.data_type(),
+            dims,
+            types
+        )));
+    }
+    let elem = acc.size();
+    let count = acc.count();
+    if count == 0 {
+        return Err(AccessorProblem::Kind("count is 0".into()));
+    }
+    // A sparse-only accessor (no view) has nothing to range-check here; its count is
+    // charged to the vertex budget before it is read.
+    if let Some(view) = acc.view() {
+        check_range(&view, acc.offset(), count, elem, buffers).map_err(AccessorProblem::Range)?;
+    }
+    if let Some(sparse) = acc.sparse() {
+        let n = sparse.count();
+        let indices = sparse.indices();
+        let index_size = match indices.index_type() {
+            gltf::accessor::sparse::IndexType::U8 => 1,
+            gltf::accessor::sparse::IndexType::U16 => 2,
+            gltf::accessor::sparse::IndexType::U32 => 4,
+        };
+        check_range(&indices.view(), indices.offset(), n, index_size, buffers)
+            .map_err(|m| AccessorProblem::Range(format!("sparse indices: {m}")))?;
+        let values = sparse.values();
+        check_range(&values.view(), values.offset(), n, elem, buffers)
+            .map_err(|m| AccessorProblem::Range(format!("sparse values: {m}")))?;
+    }
+    Ok(())
+}
+
+/// A camera whose far plane is computed once the scene's bounds are known.
+struct PendingFar {
+    camera: usize,
+    near: f32,
+}
+
+struct Importer<'a> {
+    path: &'a Path,
+    uris: uri::UriReader<'a>,
+    allowance: Allowance,
+    doc: &'a gltf::Document,
+    buffers: &'a [gltf::buffer::Data],
+    scene: Scene,
+    ignored: Vec<String>,
+    warnings: Vec<String>,
+    default_material: Option<u32>,
+    pending_far: Vec<PendingFar>,
+}
+
+/// The vertex and triangle data of one primitive, in world space.
+struct PrimitiveData {
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    uvs: Option<Vec<Vec2>>,
+    triangles: Vec<[u32; 3]>,
+    material: u32,
+}
+
+impl<'a> Importer<'a> {
+    fn ignore(&mut self, kind: Ignored, detail: impl AsRef<str>) {
+        self.ignored
+            .push(format!("{}: {}", kind.forms().0, detail.as_ref()));
+    }
+
+    fn run(&mut self) -> Result<(), GltfError> {
+        let doc = self.doc;
+        for ext in doc.extensions_used() {
+            if ext != EXT_LIGHTS && ext != EXT_EMISSIVE_STRENGTH {
+                self.ignore(Ignored::Extension, ext);
+            }
+        }
+        for (i, anim) in doc.animations().enumerate() {
+            self.ignore(
+                Ignored::Animation,
+                label_or_index(anim.name().unwrap_or(""), "animation", i),
+            );
+        }
+        for (i, skin) in doc.skins().enumerate() {
+            self.ignore(
+                Ignored::Skin,
+                label_or_index(skin.name().unwrap_or(""), "skin", i),
+            );
+        }
+        self.import_materials()?;
+
+        let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| doc.scenes().next()) {
+            Some(chosen) => {
+                for other in doc.scenes().filter(|s| s.index() != chosen.index()) {
+                    self.ignore(
+                        Ignored::OtherScene,
+                        label_or_index(other.name().unwrap_or(""), "scene", other.index()),
+                    );
+                }
+                chosen.nodes().collect()
+            }
+            None => {
+                let mut is_child = vec![false; doc.nodes().len()];
+                for node in doc.nodes() {
+                    for child in node.children() {
+                        is_child[child.index()] = true;
+                    }
+                }
+                if doc.nodes().len() > 0 {
+                    self.warnings
+                        .push("the file has no scene: importing every root node".into());
+                }
+                doc.nodes().filter(|n| !is_child[n.index()]).collect()
+            }
+        };
+
+        let mut visited = vec![false; doc.nodes().len()];
+        let mut stack: Vec<(gltf::Node, Mat4)> = roots
+            .into_iter()
+            .rev()
+            .map(|n| (n, Mat4::IDENTITY))
+            .collect();
+        while let Some((node, parent)) = stack.pop() {
+            if std::mem::replace(&mut visited[node.index()], true) {
+                return Err(content_error(
+                    self.path,
+                    format!(
+                        "node {} is reached twice: the node hierarchy has a cycle or a shared child",
+                        node.index()
+                    ),
+                ));
+            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            self.visit(&node, world)?;
+            let children: Vec<gltf::Node> = node.children().collect();
+            for child in children.into_iter().rev() {
+                stack.push((child, world));
+            }
+        }
+
+        // Far planes of cameras with an infinite projection.
+        let bounds = self.scene.bounds();
+        let (center, extent) = if bounds.is_empty() {
+            (Vec3::ZERO, 0.0)
+        } else {
+            (bounds.center(), bounds.diagonal())
+        };
+        for p in std::mem::take(&mut self.pending_far) {
+            let cam = &mut self.scene.cameras[p.camera];
+            let reach = 2.0 * (cam.position.distance(center) + extent);
+            cam.far = (1000.0 * p.near).max(reach);
+        }
+        Ok(())
+    }
+
+    fn import_materials(&mut self) -> Result<(), GltfError> {
+        let doc = self.doc;
+        // Textures used as base colour, decoded in glTF texture index order.
+        let used: BTreeSet<usize> = doc
+            .materials()
+            .filter_map(|m| m.pbr_metallic_roughness().base_color_texture())
+            .map(|info| info.texture().index())
+            .collect();
+        let mut texture_map = BTreeMap::new();
+        for t in used {
+            let Some(texture) = doc.textures().nth(t) else {
+                continue;
+            };
+            let decoded = self.decode_texture(&texture)?;
+            texture_map.insert(t, self.scene.textures.len() as u32);
+            self.scene.textures.push(decoded);
+        }
+        for (i, m) in doc.materials().enumerate() {
+            let name = m.name().unwrap_or("").to_string();
+            let label = label_or_index(&name, "material", i);
+            let pbr = m.pbr_metallic_roughness();
+            let f = pbr.base_color_factor();
+            let mut albedo = Vec3::new(f[0], f[1], f[2]);
+            if albedo.max_element() > ALBEDO_MAX {
+                albedo = albedo.min(Vec3::splat(ALBEDO_MAX));
+                self.warnings
+                    .push(format!("{label}: albedo clamped below 1 (to {ALBEDO_MAX})"));
+            }
+            let albedo_texture = pbr
+                .base_color_texture()
+                .and_then(|info| texture_map.get(&info.texture().index()).copied());
+            let emission = Vec3::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0);
+            if pbr.metallic_roughness_texture().is_some() {
+                self.ignore(Ignored::MetallicRoughnessTexture, &label);
+            }
+            if pbr.metallic_factor() > 0.0 || pbr.roughness_factor() < 1.0 {
+                self.ignore(
+                    Ignored::MetallicRoughness,
+                    format!(
+                        "{label} (metallic {}, roughness {})",
+                        pbr.metallic_factor(),
+                        pbr.roughness_factor()
+                    ),
+                );
+            }
+            if m.normal_texture().is_some() {
+                self.ignore(Ignored::NormalTexture, &label);
+            }
+            if m.occlusion_texture().is_some() {
+                self.ignore(Ignored::OcclusionTexture, &label);
+            }
+            if m.emissive_texture().is_some() {
+                self.ignore(Ignored::EmissiveTexture, &label);
+            }
+            if f[3] < 1.0 || m.alpha_mode() != gltf::material::AlphaMode::Opaque {
+                self.ignore(Ignored::Transparency, &label);
+            }
+            self.scene.materials.push(Material {
+                name,
+                albedo,
+                albedo_texture,
+                emission,
+            });
+        }
+        Ok(())
+    }
+
+    fn decode_texture(&mut self, texture: &gltf::Texture) -> Result<Texture, GltfError> {
+        use gltf::texture::{MagFilter, WrappingMode};
+        let image = texture.source();
+        let name = image
+            .name()
+            .or(texture.name())
+            .map_or_else(|| format!("texture {}", texture.index()), str::to_string);
+        let sampler = texture.sampler();
+        if sampler.wrap_s() != WrappingMode::Repeat
+            || sampler.wrap_t() != WrappingMode::Repeat
+            || sampler.mag_filter() == Some(MagFilter::Nearest)
+        {
+            self.ignore(
+                Ignored::Sampler,
+                format!("texture {} '{name}'", texture.index()),
+            );
+        }
+        let what = format!("texture {} '{name}'", texture.index());
+        let path = self.path;
+        let encoded: Cow<[u8]> = match image.source() {
+            gltf::image::Source::View { view, .. } => Cow::Borrowed(
+                view_bytes(&view, self.buffers)
+                    .map_err(|m| read_error(path, format!("{what}: {m}")))?,
+            ),
+            gltf::image::Source::Uri { uri, .. } => {
+                Cow::Owned(self.uris.read(uri, &what, &mut self.allowance)?)
+            }
+        };
+        let image_error = |e: ImageError| match e {
+            ImageError::Budget(mut b) => {
+                b.what = format!("{what}: {}", b.what);
+                GltfError::Budget(b)
+            }
+            other => read_error(path, format!("{what}: {other}")),
+        };
+        // The header's size is charged to the scene before the texels are decoded.
+        let budget = *self.allowance.budget();
+        let (w, h) = Image::probe_dimensions(&encoded, path, &budget).map_err(image_error)?;
+        let texel_bytes = budget.check_image(u64::from(w), u64::from(h), 0, path, &what)?;
+        self.allowance
+            .charge_bytes(texel_bytes, || format!("{what}: {w}x{h} texels"))?;
+        let decoded =
+            Image::decode_texture(&encoded, path, self.allowance.budget()).map_err(image_error)?;
+        Ok(Texture {
+            name,
+            width: decoded.width,
+            height: decoded.height,
+            texels: decoded.pixels,
+        })
+    }
+
+    fn visit(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), GltfError> {
+        let node_name = node.name().unwrap_or("");
+        if let Some(mesh) = node.mesh() {
+            self.import_mesh(node_name, &mesh, world)?;
+        }
+        if let Some(camera) = node.camera() {
+            let name = camera.name().unwrap_or(node_name).to_string();
+            match camera.projection() {
+                gltf::camera::Projection::Perspective(p) => {
+                    let position = world.transform_point3(Vec3::ZERO);
+                    let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+                    let up = world
+                        .transform_vector3(Vec3::Y)
+                        .try_normalize()
+                        .unwrap_or(Vec3::Y);
+                    let distance = target_distance(node).unwrap_or(1.0);
+                    let near = p.znear();
+                    if p.zfar().is_none() {
+                        self.pending_far.push(PendingFar {
+                            camera: self.scene.cameras.len(),
+                            near,
+                        });
+                    }
+                    self.scene.cameras.push(Camera {
+                        name,
+                        position,
+                        target: position + forward * distance,
+                        up,
+                        fov_y: p.yfov(),
+                        aspect: p.aspect_ratio().unwrap_or(1.0),
+                        near,
+                        far: p.zfar().unwrap_or(1000.0 * near),
+                    });
+                }
+                gltf::camera::Projection::Orthographic(_) => {
+                    let label = label_or_index(&name, "camera", camera.index());
+                    self.ignore(Ignored::OrthographicCamera, label);
+                }
+            }
+        }
+        if let Some(light) = node.light() {
+            let name = light.name().unwrap_or(node_name).to_string();
+            let power = Vec3::from(light.color()) * light.intensity();
+            match light.kind() {
+                LightKind::Directional => {
+                    self.scene.directional_lights.push(DirectionalLight {
+                        name,
+                        direction: world.transform_vector3(Vec3::NEG_Z).normalize_or_zero(),
+                        irradiance: power,
+                    });
+                }
+                kind => {
+                    if let LightKind::Spot { .. } = kind {
+                        let label = label_or_index(&name, "light", light.index());
+                        self.warnings.push(format!(
+                            "{label}: spot light imported as a point light (cone ignored)"
+                        ));
+                        self.ignore(Ignored::SpotCone, label);
+                    }
+                    self.scene.point_lights.push(PointLight {
+                        name,
+                        position: world.transform_point3(Vec3::ZERO),
+                        intensity: power,
+                        radius: light.range(),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn import_mesh(
+        &mut self,
+        node_name: &str,
+        mesh: &gltf::Mesh,
+        world: Mat4,
+    ) -> Result<(), GltfError> {
+        let name = if node_name.is_empty() {
+            mesh.name().unwrap_or("").to_string()
+        } else {
+            node_name.to_string()
+        };
+        let label = label_or_index(mesh.name().unwrap_or(""), "glTF mesh", mesh.index());
+        let linear = Mat3::from_mat4(world);
+        let det = linear.determinant();
+        let normal_matrix = if det != 0.0 && det.is_finite() {
+            linear.inverse().transpose()
+        } else {
+            Mat3::ZERO
+        };
+        let flip = det < 0.0;
+
+        let mut out = Mesh {
+            name,
+            ..Default::default()
+        };
+        let mut any_normals = false;
+        for (pi, prim) in mesh.primitives().enumerate() {
+            let Some(data) = self.read_primitive(&label, pi, &prim)? else {
+                continue;
+            };
+            let base = out.positions.len();
+            let total = base + data.positions.len();
+            if u32::try_from(total).is_err() {
+                return Err(content_error(
+                    self.path,
+                    format!("{label}: more than 2^32 vertices"),
+                ));
+            }
+            let base = base as u32;
+            out.positions
+                .extend(data.positions.iter().map(|&p| world.transform_point3(p)));
+            match data.normals {
+                Some(normals) => {
+                    any_normals = true;
+                    out.normals.extend(normals.iter().map(|&n| {
+                        let n = (normal_matrix * n).normalize_or_zero();
+                        if n.is_finite() { n } else { Vec3::ZERO }
+                    }));
+                }
+                // Zero normals are recomputed by validation.
+                None => out.normals.resize(total, Vec3::ZERO),
+            }
+            match (data.uvs, &mut out.uvs) {
+                (Some(uvs), Some(all)) => all.extend(uvs),
+                (Some(uvs), None) => {
+                    let mut all = vec![Vec2::ZERO; base as usize];
+                    all.extend(uvs);
+                    out.uvs = Some(all);
+                }
+                (None, Some(all)) => all.resize(total, Vec2::ZERO),
+                (None, None) => {}
+            }
+            out.indices.extend(data.triangles.iter().map(|t| {
+                let [a, b, c] = t.map(|i| i + base);
+                if flip { [a, c, b] } else { [a, b, c] }
+            }));
+            out.material_ids
+                .extend(std::iter::repeat_n(data.material, data.triangles.len()));
+        }
+        if !any_normals {
+            out.normals.clear();
+        }
+        if !out.indices.is_empty() {
+            self.scene.meshes.push(out);
+        }
+        Ok(())
+    }
+
+    fn default_material(&mut self) -> u32 {
+        *self.default_material.get_or_insert_with(|| {
+            self.scene.materials.push(Material::diffuse(
+                DEFAULT_MATERIAL_NAME,
+                Vec3::splat(DEFAULT_ALBEDO),
+            ));
+            self.scene.materials.len() as u32 - 1
+        })
+    }
+
+    fn read_primitive(
+        &mut self,
+        label: &str,
+        pi: usize,
+        prim: &gltf::Primitive,
+    ) -> Result<Option<PrimitiveData>, GltfError> {
+        let at = format!("{label} primitive {pi}");
+        let mode = prim.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            self.ignore(Ignored::NonTriangles, format!("{at} ({mode:?})"));
+            return Ok(None);
+        }
+        if prim.morph_targets().next().is_some() {
+            self.ignore(Ignored::MorphTargets, &at);
+        }
+        if prim.get(&gltf::Semantic::Colors(0)).is_some() {
+            self.ignore(Ignored::VertexColors, &at);
+        }
+        let material = match prim.material().index() {
+            Some(m) => m as u32,
+            None => self.default_material(),
+        };
+        let tex_set = prim
+            .material()
+            .pbr_metallic_roughness()
+            .base_color_texture()
+            .map(|info| info.tex_coord());
+
+        let buffers = self.buffers;
+        let path = self.path;
+        let check = |acc: &gltf::Accessor, what: &str, types: &[DataType], dims: Dimensions| {
+            check_accessor(acc, types, dims, buffers).map_err(|p| match p {
+                AccessorProblem::Range(m) => {
+                    read_error(path, format!("{at}: {what} accessor {}: {m}", acc.index()))
+                }
+                AccessorProblem::Kind(m) => {
+                    content_error(path, format!("{at}: {what} accessor {}: {m}", acc.index()))
+                }
+            })
+        };
+        let count_mismatch = |what: &str, found: usize, expected: usize| {
+            read_error(
+                path,
+                format!("{at}: {found} {what} values read, {expected} expected"),
+            )
+        };
+
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
+        let Some(pos_acc) = prim.get(&gltf::Semantic::Positions) else {
+            return Err(content_error(path, format!("{at}: no POSITION attribute")));
+        };
+        check(&pos_acc, "POSITION", &[DataType::F32], Dimensions::Vec3)?;
+        // Charge the primitive (vertices, indices and their bytes in the scene) before any
+        // of it is read: counts come from the file and are not trusted.
+        // Strips and fans of k indices make k - 2 triangles, lists k / 3.
+        let n = pos_acc.count() as u64;
+        let raw_indices = prim.indices().map_or(n, |a| a.count() as u64);
+        let triangles = match mode {
+            Mode::Triangles => raw_indices / 3,
+            _ => raw_indices.saturating_sub(2),
+        };
+        let vertex_bytes = 12 + 12 + if tex_set.is_some() { 8 } else { 0 };
+        // Bytes: the vertex arrays; the indices as read (4 each); per triangle its index
+        // triple twice (primitive, then mesh) and its material id.
+        self.allowance.charge_mesh(
+            n,
+            triangles.saturating_mul(3),
+            n.saturating_mul(vertex_bytes)
+                .saturating_add(raw_indices.saturating_mul(4))
+                .saturating_add(triangles.saturating_mul(12 + 12 + 4)),
+            || at.clone(),
+        )?;
+        // Every other attribute must have one value per vertex before it is read: the
+        // `gltf` readers size their output from the accessor's count (a sparse-only
+        // accessor has no buffer to bound it).
+        let same_count = |acc: &gltf::Accessor, what: &str| {
+            if acc.count() as u64 == n {
+                Ok(())
+            } else {
+                Err(read_error(
+                    path,
+                    format!(
+                        "{at}: {what} accessor {} has {} values for {n} vertices",
+                        acc.index(),
+                        acc.count()
+                    ),
+                ))
+            }
+        };
+        let positions: Vec<Vec3> = reader
+            .read_positions()
+            .map(|it| it.map(Vec3::from).collect())
+            .unwrap_or_default();
+        let n = pos_acc.count();
+        if positions.len() != n {
+            return Err(count_mismatch("POSITION", positions.len(), n));
+        }
+
+        let normals = match prim.get(&gltf::Semantic::Normals) {
+            Some(acc) => {
+                check(&acc, "NORMAL", &[DataType::F32], Dimensions::Vec3)?;
+                same_count(&acc, "NORMAL")?;
+                let normals: Vec<Vec3> = reader
+                    .read_normals()
+                    .map(|it| it.map(Vec3::from).collect())
+                    .unwrap_or_default();
+                if normals.len() != n {
+                    return Err(count_mismatch("NORMAL", normals.len(), n));
+                }
+                Some(normals)
+            }
+            None => None,
+        };
+
+        let uvs = match tex_set {
+            Some(set) => match prim.get(&gltf::Semantic::TexCoords(set)) {
+                Some(acc) => {
+                    let what = format!("TEXCOORD_{set}");
+                    check(
+                        &acc,
+                        &what,
+                        &[DataType::F32, DataType::U8, DataType::U16],
+                        Dimensions::Vec2,
+                    )?;
+                    same_count(&acc, &what)?;
+                    let uvs: Vec<Vec2> = reader
+                        .read_tex_coords(set)
+                        .map(|it| it.into_f32().map(Vec2::from).collect())
+                        .unwrap_or_default();
+                    if uvs.len() != n {
+                        return Err(count_mismatch(&what, uvs.len(), n));
+                    }
+                    Some(uvs)
+                }
+                None => {
+                    self.warnings.push(format!(
+                        "{at}: the material has a base colour texture but there is no \
+                         TEXCOORD_{set}; texture coordinates set to 0"
+                    ));
+                    Some(vec![Vec2::ZERO; n])
+                }
+            },
+            None => None,
+        };
+
+        let indices: Vec<u32> = match prim.indices() {
+            Some(acc) => {
+                check(
+                    &acc,
+                    "index",
+                    &[DataType::U8, DataType::U16, DataType::U32],
+                    Dimensions::Scalar,
+                )?;
+                let indices: Vec<u32> = reader
+                    .read_indices()
+                    .map(|it| it.into_u32().collect())
+                    .unwrap_or_default();
+                if indices.len() != acc.count() {
+                    return Err(count_mismatch("index", indices.len(), acc.count()));
+                }
+                if let Some(bad) = indices.iter().find(|&&i| i as usize >= n) {
+                    return Err(content_error(
+                        path,
+                        format!("{at}: index {bad} is past the primitive's {n} vertices"),
+                    ));
+                }
+                indices
+            }
+            None => {
+                let n32 = u32::try_from(n)
+                    .map_err(|_| content_error(path, format!("{at}: too many vertices")))?;
+                (0..n32).collect()
+            }
+        };
+        let triangles = triangulate(mode, &indices);
+        if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
+            self.warnings.push(format!(
+                "{at}: {} indices is not a multiple of 3; the last {} ignored",
+                indices.len(),
+                indices.len() % 3
+            ));
+        }
+        Ok(Some(PrimitiveData {
+            positions,
+            normals,
+            uvs,
+            triangles,
+            material,
+        }))
+    }
+}
+
+/// Converts a triangle list, strip or fan into triangles (glTF 2.0 spec, 3.7.2.1).
+fn triangulate(mode: Mode, idx: &[u32]) -> Vec<[u32; 3]> {
+    match mode {
+        Mode::TriangleStrip => (0..idx.len().saturating_sub(2))
+            .map(|i| {
+                if i % 2 == 0 {
+                    [idx[i], idx[i + 1], idx[i + 2]]
+                } else {
+                    [idx[i], idx[i + 2], idx[i + 1]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => (0..idx.len().saturating_sub(2))
+            .map(|i| [idx[i + 1], idx[i + 2], idx[0]])
+            .collect(),
+        _ => idx.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+    }
+}
+
+fn target_distance(node: &gltf::Node) -> Option<f32> {
+    let raw = node.extras().as_ref()?;
+    let value: Value = serde_json::from_str(raw.get()).ok()?;
+    let d = value.get(TARGET_DISTANCE_KEY)?.as_f64()? as f32;
+    (d.is_finite() && d > 0.0).then_some(d)
+}
