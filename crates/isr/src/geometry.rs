@@ -4,6 +4,7 @@
 //! [`Screen::uniform`].
 
 use glam::{Vec2, Vec3};
+use scene_core::view::FrustumReconstruction;
 use scene_core::{Projection, View};
 
 /// Normals shorter than this are treated as missing (cancelled in a downsample).
@@ -34,6 +35,8 @@ pub struct Screen {
     pub span_v: f32,
     /// True for an orthographic view.
     pub ortho: bool,
+    /// Eq. 24 positions from linear depth: scene-core's one reconstruction.
+    pub reconstruction: FrustumReconstruction,
 }
 
 impl Screen {
@@ -63,6 +66,7 @@ impl Screen {
                     span_u: right - left,
                     span_v: top - bottom,
                     ortho: false,
+                    reconstruction: FrustumReconstruction::new(view),
                 }
             }
             Projection::Orthographic {
@@ -82,6 +86,7 @@ impl Screen {
                     span_u: right - left,
                     span_v: top - bottom,
                     ortho: true,
+                    reconstruction: FrustumReconstruction::new(view),
                 }
             }
         }
@@ -91,11 +96,7 @@ impl Screen {
     /// `eye + (f_o + u f_u + v f_v) depth`; orthographic: the corner plus the offsets plus
     /// `forward * depth * far`).
     pub fn world(&self, uv: Vec2, depth: f32) -> Vec3 {
-        if self.ortho {
-            self.corner + self.du * uv.x + self.dv * uv.y + self.forward * (depth * self.far)
-        } else {
-            self.eye + (self.corner + self.du * uv.x + self.dv * uv.y) * depth
-        }
+        self.reconstruction.world(uv, depth)
     }
 
     /// The view ray direction at `uv`, scaled so its component along `forward` is 1

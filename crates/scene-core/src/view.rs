@@ -68,6 +68,92 @@ pub struct FrustumCorners {
     pub dv: Vec3,
 }
 
+/// Eqs. 23-24: positions as `base(uv) + ray(uv) * depth`, both affine in `(u, v)`: the one
+/// reconstruction of world (and view-space) positions from a G-buffer's linear depth that
+/// [`View::reconstruct_world`], the `gbuffer` crate and ISR use. Six multiply-adds per
+/// position. Orthographic views take the same affine form with the roles swapped: the base
+/// point moves with `(u, v)` and the depth direction is constant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrustumReconstruction {
+    /// World space: `base = base[0] + u base[1] + v base[2]` (the eye and two zeros for
+    /// perspective views).
+    pub base: [Vec3; 3],
+    /// World space: `ray = ray[0] + u ray[1] + v ray[2]` (`f_o`, `f_u`, `f_v` for
+    /// perspective views; `far * forward` and two zeros for orthographic ones).
+    pub ray: [Vec3; 3],
+    /// The same in view space (right-handed, looking down -Z; eq. 23's corner is
+    /// `(left far, top far, -far)`).
+    pub view_base: [Vec3; 3],
+    /// View-space `ray` terms.
+    pub view_ray: [Vec3; 3],
+}
+
+impl FrustumReconstruction {
+    /// The vectors of `view`. For perspective views `ray` is [`View::frustum_corners`].
+    pub fn new(view: &View) -> Self {
+        let (r, u, f) = (view.right(), view.up, view.forward);
+        let far = view.far;
+        match view.projection {
+            Projection::Perspective {
+                left,
+                right,
+                bottom,
+                top,
+            } => {
+                let vo = Vec3::new(left * far, top * far, -far);
+                let vu = Vec3::new((right - left) * far, 0.0, 0.0);
+                let vv = Vec3::new(0.0, (bottom - top) * far, 0.0);
+                let c = view.frustum_corners().unwrap_or(FrustumCorners {
+                    origin: Vec3::ZERO,
+                    du: Vec3::ZERO,
+                    dv: Vec3::ZERO,
+                });
+                Self {
+                    base: [view.eye, Vec3::ZERO, Vec3::ZERO],
+                    ray: [c.origin, c.du, c.dv],
+                    view_base: [Vec3::ZERO; 3],
+                    view_ray: [vo, vu, vv],
+                }
+            }
+            Projection::Orthographic {
+                left,
+                right,
+                bottom,
+                top,
+            } => Self {
+                base: [
+                    view.eye + r * left + u * top,
+                    r * (right - left),
+                    u * (bottom - top),
+                ],
+                ray: [f * far, Vec3::ZERO, Vec3::ZERO],
+                view_base: [
+                    Vec3::new(left, top, 0.0),
+                    Vec3::new(right - left, 0.0, 0.0),
+                    Vec3::new(0.0, bottom - top, 0.0),
+                ],
+                view_ray: [Vec3::new(0.0, 0.0, -far), Vec3::ZERO, Vec3::ZERO],
+            },
+        }
+    }
+
+    /// World-space position at image coordinates `uv` with linear depth `depth`.
+    #[inline]
+    pub fn world(&self, uv: Vec2, depth: f32) -> Vec3 {
+        let base = self.base[0] + self.base[1] * uv.x + self.base[2] * uv.y;
+        let ray = self.ray[0] + self.ray[1] * uv.x + self.ray[2] * uv.y;
+        base + ray * depth
+    }
+
+    /// View-space position at image coordinates `uv` with linear depth `depth`.
+    #[inline]
+    pub fn view_space(&self, uv: Vec2, depth: f32) -> Vec3 {
+        let base = self.view_base[0] + self.view_base[1] * uv.x + self.view_base[2] * uv.y;
+        let ray = self.view_ray[0] + self.view_ray[1] * uv.x + self.view_ray[2] * uv.y;
+        base + ray * depth
+    }
+}
+
 /// Which face of a hemicube a [`View`] from [`View::hemicube`] is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HemicubeFace {
@@ -299,26 +385,7 @@ impl View {
     /// `depth` (distance along `forward` / far), by the frustum vectors (eq. 24) for
     /// perspective views and by the view frame for orthographic ones.
     pub fn reconstruct_world(&self, uv: Vec2, depth: f32) -> Vec3 {
-        match self.projection {
-            Projection::Perspective { .. } => {
-                let c = self.frustum_corners().unwrap_or(FrustumCorners {
-                    origin: Vec3::ZERO,
-                    du: Vec3::ZERO,
-                    dv: Vec3::ZERO,
-                });
-                self.eye + (c.origin + c.du * uv.x + c.dv * uv.y) * depth
-            }
-            Projection::Orthographic {
-                left,
-                right,
-                bottom,
-                top,
-            } => {
-                let x = left + (right - left) * uv.x;
-                let y = top + (bottom - top) * uv.y;
-                self.eye + self.right() * x + self.up * y + self.forward * (depth * self.far)
-            }
-        }
+        FrustumReconstruction::new(self).world(uv, depth)
     }
 
     /// The primary ray through image coordinates `uv`: origin and unit direction. The ray
