@@ -63,7 +63,7 @@ pub mod reconstruct;
 pub use downsample::{
     DownsampleMode, DownsampleStats, GpuDownsampler, coarse_size, compare_with_direct, downsample,
 };
-pub use hemicube::{HemicubeFaceBuffer, hemicube_views, render_hemicube};
+pub use hemicube::{HemicubeFaceBuffer, hemicube_views};
 pub use mrt::{GpuPreparedScene, GpuRasterizer, scene_fingerprint};
 pub use raster::CpuRasterizer;
 pub use reconstruct::{

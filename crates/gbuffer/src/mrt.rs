@@ -522,11 +522,7 @@ impl GpuRasterizer {
         near: f32,
         far: f32,
     ) -> Result<Vec<(scene_core::HemicubeFace, View, GpuGBuffer)>, Error> {
-        if !(normal.is_finite() && normal.length() > 0.0 && point.is_finite()) {
-            return Err(Error::InvalidArgument(format!(
-                "hemicube at {point} needs a finite non-zero normal (got {normal})"
-            )));
-        }
+        scene_core::gbuffer::check_hemicube(point, normal, resolution)?;
         let mut encoder = self
             .ctx
             .device
@@ -594,5 +590,35 @@ impl GBufferRenderer for GpuRasterizer {
             .ok_or_else(|| GpuError::Validation("scene upload vanished".into()))?;
         let target = self.render_gpu(prepared, view, width, height)?;
         Ok(target.read_back(&self.ctx)?)
+    }
+
+    /// All five faces recorded into one submission ([`GpuRasterizer::render_hemicube_gpu`]),
+    /// then read back.
+    fn render_hemicube(
+        &mut self,
+        scene: &Scene,
+        point: glam::Vec3,
+        normal: glam::Vec3,
+        resolution: u32,
+        near: f32,
+        far: f32,
+    ) -> Result<Vec<scene_core::HemicubeFaceBuffer>, Error> {
+        scene_core::gbuffer::check_hemicube(point, normal, resolution)?;
+        self.cached(scene)?;
+        let prepared = self
+            .cache
+            .as_ref()
+            .ok_or_else(|| GpuError::Validation("scene upload vanished".into()))?;
+        let faces = self.render_hemicube_gpu(prepared, point, normal, resolution, near, far)?;
+        faces
+            .into_iter()
+            .map(|(face, view, target)| {
+                Ok(scene_core::HemicubeFaceBuffer {
+                    face,
+                    view,
+                    gbuffer: target.read_back(&self.ctx)?,
+                })
+            })
+            .collect()
     }
 }

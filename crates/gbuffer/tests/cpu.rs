@@ -6,7 +6,6 @@ use common::*;
 use gbuffer::{
     CpuRasterizer, DownsampleMode, FrustumReconstruction, InverseMatrixReconstruction,
     ReconstructionMethod, coarse_size, compare_with_direct, downsample, reconstruct_buffer,
-    render_hemicube,
 };
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::glam::{Vec2, Vec3, Vec4};
@@ -68,8 +67,9 @@ fn cpu_matches_primary_rays_on_hemicube_faces_and_orthographic_views() {
         (Vec3::new(0.3, 0.0005, 0.25), Vec3::Y),
         (Vec3::new(0.2, 0.2, 0.35), Vec3::new(-0.3, 0.1, -0.9)),
     ] {
-        let faces =
-            render_hemicube(&mut CpuRasterizer, &scene, point, normal, 64, 1e-3, 2.0).unwrap();
+        let faces = CpuRasterizer
+            .render_hemicube(&scene, point, normal, 64, 1e-3, 2.0)
+            .unwrap();
         assert_eq!(faces.len(), 5);
         for f in &faces {
             let (w, h) = f.face.size(64);

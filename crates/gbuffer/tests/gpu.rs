@@ -93,11 +93,12 @@ fn gpu_matches_cpu_on_hemicubes_shadow_maps_and_textures() {
     };
     let scene = builtin::scene("cornell").unwrap();
     let point = Vec3::new(0.3, 0.0005, 0.25);
-    let cpu_faces =
-        gbuffer::render_hemicube(&mut CpuRasterizer, &scene, point, Vec3::Y, 48, 1e-3, 2.0)
-            .unwrap();
-    let gpu_faces =
-        gbuffer::render_hemicube(&mut gpu, &scene, point, Vec3::Y, 48, 1e-3, 2.0).unwrap();
+    let cpu_faces = CpuRasterizer
+        .render_hemicube(&scene, point, Vec3::Y, 48, 1e-3, 2.0)
+        .unwrap();
+    let gpu_faces = gpu
+        .render_hemicube(&scene, point, Vec3::Y, 48, 1e-3, 2.0)
+        .unwrap();
     for (c, g) in cpu_faces.iter().zip(&gpu_faces) {
         assert_gpu_matches_cpu(&c.gbuffer, &g.gbuffer, &format!("hemicube {:?}", c.face));
     }

@@ -5,7 +5,7 @@ use glam::{Vec3, Vec4};
 
 use crate::Error;
 use crate::scene::Scene;
-use crate::view::View;
+use crate::view::{HemicubeFace, View};
 
 /// Triangle id stored for background pixels.
 pub const BACKGROUND_ID: u32 = u32::MAX;
@@ -68,9 +68,44 @@ impl GBuffer {
     }
 }
 
+/// One rendered hemicube face.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HemicubeFaceBuffer {
+    /// Which face.
+    pub face: HemicubeFace,
+    /// Its view.
+    pub view: View,
+    /// Its G-buffer.
+    pub gbuffer: GBuffer,
+}
+
+/// The five views of a hemicube at `point` with `normal`, in [`HemicubeFace::ALL`] order
+/// (scene-core's [`View::hemicube`]; face sizes are [`HemicubeFace::size`]: `res x res` and
+/// `res x ceil(res/2)`, the side faces' image "up" being the normal, their bottom row on
+/// the tangent plane).
+pub fn hemicube_views(point: Vec3, normal: Vec3, near: f32, far: f32) -> [(HemicubeFace, View); 5] {
+    HemicubeFace::ALL.map(|face| (face, View::hemicube(point, normal, face, near, far)))
+}
+
+/// Checks the placement of a hemicube: finite point, finite non-zero normal, resolution
+/// at least 1.
+pub fn check_hemicube(point: Vec3, normal: Vec3, resolution: u32) -> Result<(), Error> {
+    if !(normal.is_finite() && normal.length() > 0.0 && point.is_finite()) {
+        return Err(Error::InvalidArgument(format!(
+            "hemicube at {point} needs a finite point and a finite non-zero normal (got {normal})"
+        )));
+    }
+    if resolution == 0 {
+        return Err(Error::InvalidArgument(
+            "hemicube resolution must be at least 1".into(),
+        ));
+    }
+    Ok(())
+}
+
 /// Something that renders a [`Scene`] seen from a [`View`] into a [`GBuffer`]. The `gbuffer`
 /// crate implements it on the CPU and the GPU; `ibrr-ldc` and `relight-pr` take any
-/// implementation for their hemicube renders.
+/// implementation for their hemicube renders ([`GBufferRenderer::render_hemicube`]).
 pub trait GBufferRenderer {
     /// A short name for reports ("cpu", "gpu").
     fn name(&self) -> &str;
@@ -82,6 +117,37 @@ pub trait GBufferRenderer {
         width: u32,
         height: u32,
     ) -> Result<GBuffer, Error>;
+
+    /// Renders the five faces of the hemicube of `resolution` at `point` with `normal`
+    /// ([`hemicube_views`]), in [`HemicubeFace::ALL`] order. The default renders the faces
+    /// one after the other with [`GBufferRenderer::render`]; a renderer that can batch
+    /// them overrides it (the GPU rasteriser records all five into one submission).
+    ///
+    /// Errors on a zero resolution, a zero or non-finite normal or point
+    /// ([`check_hemicube`]), and whatever the renderer reports.
+    #[allow(clippy::too_many_arguments)]
+    fn render_hemicube(
+        &mut self,
+        scene: &Scene,
+        point: Vec3,
+        normal: Vec3,
+        resolution: u32,
+        near: f32,
+        far: f32,
+    ) -> Result<Vec<HemicubeFaceBuffer>, Error> {
+        check_hemicube(point, normal, resolution)?;
+        hemicube_views(point, normal, near, far)
+            .into_iter()
+            .map(|(face, view)| {
+                let (w, h) = face.size(resolution);
+                Ok(HemicubeFaceBuffer {
+                    face,
+                    view,
+                    gbuffer: self.render(scene, &view, w, h)?,
+                })
+            })
+            .collect()
+    }
 }
 
 /// A [`GBufferRenderer`] that casts one primary ray through each pixel centre with the

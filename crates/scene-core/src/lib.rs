@@ -34,7 +34,7 @@ pub mod view;
 
 pub use budget::{Budget, BudgetError};
 pub use error::{GltfError, ImageError, SceneError};
-pub use gbuffer::{BACKGROUND_ID, GBuffer, GBufferRenderer};
+pub use gbuffer::{BACKGROUND_ID, GBuffer, GBufferRenderer, HemicubeFaceBuffer, hemicube_views};
 pub use image::{Image, luminance};
 pub use lights::{LightId, LightSetting, LightState};
 pub use scene::{Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture};
