@@ -51,11 +51,7 @@ impl Screen {
             } => {
                 let c = view
                     .frustum_corners()
-                    .unwrap_or(scene_core::FrustumCorners {
-                        origin: Vec3::ZERO,
-                        du: Vec3::ZERO,
-                        dv: Vec3::ZERO,
-                    });
+                    .unwrap_or(scene_core::FrustumCorners::ZERO);
                 Self {
                     eye: view.eye,
                     corner: c.origin,

@@ -103,11 +103,7 @@ impl FrustumReconstruction {
                 let vo = Vec3::new(left * far, top * far, -far);
                 let vu = Vec3::new((right - left) * far, 0.0, 0.0);
                 let vv = Vec3::new(0.0, (bottom - top) * far, 0.0);
-                let c = view.frustum_corners().unwrap_or(FrustumCorners {
-                    origin: Vec3::ZERO,
-                    du: Vec3::ZERO,
-                    dv: Vec3::ZERO,
-                });
+                let c = view.frustum_corners().unwrap_or(FrustumCorners::ZERO);
                 Self {
                     base: [view.eye, Vec3::ZERO, Vec3::ZERO],
                     ray: [c.origin, c.du, c.dv],
@@ -152,6 +148,15 @@ impl FrustumReconstruction {
         let ray = self.view_ray[0] + self.view_ray[1] * uv.x + self.view_ray[2] * uv.y;
         base + ray * depth
     }
+}
+
+impl FrustumCorners {
+    /// All three vectors zero.
+    pub const ZERO: Self = Self {
+        origin: Vec3::ZERO,
+        du: Vec3::ZERO,
+        dv: Vec3::ZERO,
+    };
 }
 
 /// Which face of a hemicube a [`View`] from [`View::hemicube`] is.
