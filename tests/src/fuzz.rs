@@ -88,9 +88,11 @@ pub fn targets() -> Vec<Target> {
                     budget: ctx.budget,
                     ..Default::default()
                 };
-                gltf_io::import_slice_with(bytes, Path::new("fuzz.glb"), &options)
-                    .map(|_| ())
-                    .map_err(|e| e.to_string())
+                refused(gltf_io::import_slice_with(
+                    bytes,
+                    Path::new("fuzz.glb"),
+                    &options,
+                ))
             },
         },
         Target {
@@ -102,22 +104,14 @@ pub fn targets() -> Vec<Target> {
                 s.extend(hostile::exr_variants());
                 s
             },
-            run: |bytes, ctx| {
-                Image::decode_exr(bytes, Path::new("fuzz.exr"), &ctx.budget)
-                    .map(|_| ())
-                    .map_err(|e| e.to_string())
-            },
+            run: |bytes, ctx| refused(Image::decode_exr(bytes, Path::new("fuzz.exr"), &ctx.budget)),
         },
         Target {
             name: "png",
             ext: "png",
             json: false,
             seeds: png_seeds,
-            run: |bytes, ctx| {
-                Image::decode_png(bytes, Path::new("fuzz.png"), &ctx.budget)
-                    .map(|_| ())
-                    .map_err(|e| e.to_string())
-            },
+            run: |bytes, ctx| refused(Image::decode_png(bytes, Path::new("fuzz.png"), &ctx.budget)),
         },
         Target {
             name: "cameras",
@@ -150,6 +144,11 @@ pub fn targets() -> Vec<Target> {
     ]
 }
 
+/// A loader's result as a target's: loaded, or refused with the error's text.
+fn refused<T, E: std::fmt::Display>(r: Result<T, E>) -> Result<(), String> {
+    r.map(|_| ()).map_err(|e| e.to_string())
+}
+
 fn scenes() -> impl Iterator<Item = &'static str> {
     ["cornell", "cornell-point", "primitives", "corridor"].into_iter()
 }
@@ -171,9 +170,7 @@ fn run_gltf(bytes: &[u8], ctx: &Context) -> Result<(), String> {
         budget: ctx.budget,
         ..Default::default()
     };
-    gltf_io::import_with(&path, &options)
-        .map(|_| ())
-        .map_err(|e| e.to_string())
+    refused(gltf_io::import_with(&path, &options))
 }
 
 fn png_seeds() -> Vec<Vec<u8>> {
@@ -251,10 +248,8 @@ pub fn regressions(target: &Target) -> Vec<PathBuf> {
 
 /// FNV-1a of the bytes, as 16 hex digits: the file name a finding is saved under.
 pub fn content_name(bytes: &[u8]) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for &b in bytes {
-        h ^= u64::from(b);
-        h = h.wrapping_mul(0x0100_0000_01b3);
-    }
-    format!("{h:016x}")
+    format!(
+        "{:016x}",
+        scene_core::hash::Fnv::default().bytes(bytes).finish()
+    )
 }

@@ -23,6 +23,7 @@ pub mod gbuffer;
 pub mod gltf_io;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod hash;
 pub mod image;
 pub mod lights;
 pub mod ray;

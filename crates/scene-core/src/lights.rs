@@ -217,27 +217,19 @@ impl LightState {
 
     /// A hash of the state (bit patterns of every changed setting), for cache keys.
     pub fn fingerprint(&self) -> u64 {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        let mut eat = |x: u64| {
-            for b in x.to_le_bytes() {
-                h ^= u64::from(b);
-                h = h.wrapping_mul(0x0100_0000_01b3);
-            }
-        };
+        let mut h = crate::hash::Fnv::default();
         for (id, s) in &self.settings {
             let (kind, i) = match *id {
                 LightId::Point(i) => (0, i),
                 LightId::Directional(i) => (1, i),
                 LightId::Emissive(i) => (2, i),
             };
-            eat(kind);
-            eat(u64::from(i));
-            eat(u64::from(s.enabled));
-            for f in [s.color.x, s.color.y, s.color.z, s.direct, s.indirect] {
-                eat(u64::from(f.to_bits()));
-            }
+            h.u64(kind)
+                .u64(u64::from(i))
+                .u64(u64::from(s.enabled))
+                .f32s([s.color.x, s.color.y, s.color.z, s.direct, s.indirect]);
         }
-        h
+        h.finish()
     }
 }
 
