@@ -18,6 +18,20 @@ pub struct ChildRun {
     pub output: String,
 }
 
+/// A command that runs `exe` with its address space limited to `limit_bytes` (through
+/// `sh -c 'ulimit -v ...; exec ...'`): an allocation past the limit fails inside it. Add the
+/// program's arguments with `.args(...)`.
+pub fn capped_command(exe: &std::path::Path, limit_bytes: u64) -> Command {
+    let mut c = Command::new("sh");
+    c.arg("-c")
+        .arg(format!(
+            "ulimit -v {} && exec \"$0\" \"$@\"",
+            limit_bytes / 1024
+        ))
+        .arg(exe);
+    c
+}
+
 /// In the parent: runs the test `test_name` of the current test binary again, alone, in a
 /// child process whose address space is limited to `limit_bytes` (`ulimit -v`) and whose
 /// wall time is limited to `timeout`; panics with the child's output when the child fails,
@@ -39,13 +53,7 @@ pub fn in_child(
     let log: PathBuf = dir.join("output.txt");
     let file = std::fs::File::create(&log).expect("child log");
     let start = Instant::now();
-    let mut child = Command::new("sh")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -v {} && exec \"$0\" \"$@\"",
-            limit_bytes / 1024
-        ))
-        .arg(&exe)
+    let mut child = capped_command(&exe, limit_bytes)
         .args([test_name, "--exact", "--nocapture", "--test-threads=1"])
         .env(CHILD_ENV, "1")
         .env("RUST_BACKTRACE", "0")

@@ -14,7 +14,7 @@
 
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -151,13 +151,7 @@ fn supervise(name: &str, dir: &Path, seconds: u64, seed: u64) -> Result<Summary,
             .max(1);
         // A worker that dies before its first input must not be blamed on an old one.
         let _ = std::fs::remove_file(dir.join("current"));
-        let mut child = Command::new("sh")
-            .arg("-c")
-            .arg(format!(
-                "ulimit -v {} && exec \"$0\" \"$@\"",
-                WORKER_ADDRESS_SPACE / 1024
-            ))
-            .arg(&exe)
+        let mut child = golden_tests::child::capped_command(&exe, WORKER_ADDRESS_SPACE)
             .args(["fuzz-worker", "--target", name, "--seconds"])
             .arg(left.to_string())
             .arg("--seed")

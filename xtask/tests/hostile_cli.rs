@@ -8,14 +8,11 @@ use std::process::Command;
 
 use golden_tests::hostile;
 
-const CAP_KIB: u64 = 1 << 20;
+const CAP_BYTES: u64 = 1 << 30;
 
 /// Runs `exe args` under the cap; returns (exit code, stderr + stdout).
 fn run_capped(exe: &Path, args: &[&str]) -> (Option<i32>, String) {
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg(format!("ulimit -v {CAP_KIB} && exec \"$0\" \"$@\""))
-        .arg(exe)
+    let out = golden_tests::child::capped_command(exe, CAP_BYTES)
         .args(args)
         .env("CI", "1")
         .output()
