@@ -40,51 +40,41 @@ pub struct Screen {
 }
 
 impl Screen {
-    /// The geometry of `view`.
+    /// The geometry of `view`: the affine vectors come from scene-core's
+    /// [`FrustumReconstruction`] (its ray terms for perspective views, its base terms for
+    /// orthographic ones).
     pub fn new(view: &View) -> Self {
-        match view.projection {
+        let (left, right, bottom, top, ortho) = match view.projection {
             Projection::Perspective {
                 left,
                 right,
                 bottom,
                 top,
-            } => {
-                let c = view
-                    .frustum_corners()
-                    .unwrap_or(scene_core::FrustumCorners::ZERO);
-                Self {
-                    eye: view.eye,
-                    corner: c.origin,
-                    du: c.du,
-                    dv: c.dv,
-                    forward: view.forward,
-                    far: view.far,
-                    span_u: right - left,
-                    span_v: top - bottom,
-                    ortho: false,
-                    reconstruction: FrustumReconstruction::new(view),
-                }
-            }
+            } => (left, right, bottom, top, false),
             Projection::Orthographic {
                 left,
                 right,
                 bottom,
                 top,
-            } => {
-                let r = view.right();
-                Self {
-                    eye: view.eye,
-                    corner: view.eye + r * left + view.up * top,
-                    du: r * (right - left),
-                    dv: -view.up * (top - bottom),
-                    forward: view.forward,
-                    far: view.far,
-                    span_u: right - left,
-                    span_v: top - bottom,
-                    ortho: true,
-                    reconstruction: FrustumReconstruction::new(view),
-                }
-            }
+            } => (left, right, bottom, top, true),
+        };
+        let reconstruction = FrustumReconstruction::new(view);
+        let [corner, du, dv] = if ortho {
+            reconstruction.base
+        } else {
+            reconstruction.ray
+        };
+        Self {
+            eye: view.eye,
+            corner,
+            du,
+            dv,
+            forward: view.forward,
+            far: view.far,
+            span_u: right - left,
+            span_v: top - bottom,
+            ortho,
+            reconstruction,
         }
     }
 
