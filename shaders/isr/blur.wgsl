@@ -11,17 +11,14 @@
 
 const EDGE_PLANE_SIGMA: f32 = 0.05;
 
-struct PassParams {
-    // x: 1 for horizontal, 0 for vertical.
-    mode: vec4<u32>,
-}
+// The direction, one pipeline each (a pipeline-overridable constant).
+override HORIZONTAL: bool = true;
 
-@group(0) @binding(1) var<uniform> params: PassParams;
-@group(0) @binding(2) var normal_tex: texture_2d<f32>;
-@group(0) @binding(3) var depth_tex: texture_2d<f32>;
-@group(0) @binding(4) var id_tex: texture_2d<u32>;
-@group(0) @binding(5) var in_tex: texture_2d<f32>;
-@group(0) @binding(6) var out_tex: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(1) var normal_tex: texture_2d<f32>;
+@group(0) @binding(2) var depth_tex: texture_2d<f32>;
+@group(0) @binding(3) var id_tex: texture_2d<u32>;
+@group(0) @binding(4) var in_tex: texture_2d<f32>;
+@group(0) @binding(5) var out_tex: texture_storage_2d<rgba32float, write>;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -35,7 +32,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         textureStore(out_tex, p, centre_value);
         return;
     }
-    let horizontal = params.mode.x == 1u;
+    let horizontal = HORIZONTAL;
     let edge = has_flag(FLAG_EDGE_AWARE);
     let uv = pixel_uv(p, size);
     var pc = vec3<f32>(0.0);

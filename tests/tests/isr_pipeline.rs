@@ -3,7 +3,7 @@
 //! readback in between (the engine-integration path).
 
 use gbuffer::{CpuRasterizer, DownsampleMode, GpuRasterizer};
-use isr::{GpuIsr, GpuIsrInputs, IsrInputs, IsrScene, IsrSettings, ShadowSettings, render_image};
+use isr::{GpuIsr, GpuIsrInputs, IsrInputs, IsrSettings, LightSet, ShadowSettings, render_image};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::gpu_test_context;
 use scene_core::reference::{Bounces, ReferenceSettings, render};
@@ -30,14 +30,16 @@ fn mean(img: &Image) -> f64 {
 fn rasterised_and_ray_cast_gbuffers_give_the_same_isr_image() {
     for name in ["cornell", "primitives", "corridor"] {
         let scene = builtin::scene(name).unwrap();
-        let prepared = IsrScene::new(&scene, &shadows()).unwrap();
+        let prepared = LightSet::new(&scene, &shadows()).unwrap();
         let view = View::from_camera(&scene.cameras[0].with_aspect(96.0 / 72.0));
         let mut images = Vec::new();
         for g in [
             CpuRasterizer::new().render(&scene, &view, 96, 72).unwrap(),
-            RayCastRenderer.render(&scene, &view, 96, 72).unwrap(),
+            RayCastRenderer::new()
+                .render(&scene, &view, 96, 72)
+                .unwrap(),
         ] {
-            let coarse = isr::downsample(&g);
+            let coarse = isr::downsample(&g, isr::DownsampleMode::NearestSurface);
             let inputs = IsrInputs {
                 full: &g,
                 coarse: &coarse,
@@ -64,7 +66,7 @@ fn every_coarse_buffer_of_the_gbuffer_crate_keeps_isr_closer_than_dl() {
         ("corridor", 0),
     ] {
         let scene = builtin::scene(name).unwrap();
-        let prepared = IsrScene::new(&scene, &shadows()).unwrap();
+        let prepared = LightSet::new(&scene, &shadows()).unwrap();
         let view = View::from_camera(&scene.cameras[camera].with_aspect(w as f32 / h as f32));
         let settings = ReferenceSettings {
             width: w,
@@ -106,10 +108,10 @@ fn gpu_rasteriser_to_lit_image_without_readback() {
     let (w, h) = (96u32, 72u32);
     let scene = builtin::scene("cornell").unwrap();
     let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
-    let prepared = IsrScene::new(&scene, &shadows()).unwrap();
+    let prepared = LightSet::new(&scene, &shadows()).unwrap();
     // The engine side: a rasterised G-buffer that never leaves the GPU.
     let rasteriser = GpuRasterizer::new(&ctx).unwrap();
-    let gpu_scene = rasteriser.prepare(&scene).unwrap();
+    let gpu_scene = rasteriser.upload(&scene).unwrap();
     let gbuffer = rasteriser.render_gpu(&gpu_scene, &view, w, h).unwrap();
     // ISR records into the same queue and writes the caller's texture.
     let mut isr = GpuIsr::new(&ctx, &prepared).unwrap();
@@ -133,7 +135,7 @@ fn gpu_rasteriser_to_lit_image_without_readback() {
     )
     .unwrap();
     let full = CpuRasterizer::new().render(&scene, &view, w, h).unwrap();
-    let coarse = isr::downsample(&full);
+    let coarse = isr::downsample(&full, isr::DownsampleMode::NearestSurface);
     let cpu = render_image(
         &prepared,
         &IsrInputs {

@@ -22,7 +22,7 @@
 //! --test isr_reference -- --nocapture` (`ISR_REF_BOUNCES=inf` for the unlimited reference).
 
 use isr::{
-    Blur, Estimator, IsrInputs, IsrScene, IsrSettings, Sender, ShadowSettings, downsample,
+    Blur, Estimator, IsrInputs, IsrSettings, LightSet, Sender, ShadowSettings, downsample,
     render_image,
 };
 use scene_core::gbuffer::RayCastRenderer;
@@ -123,7 +123,7 @@ fn isr_is_closer_to_the_reference_than_dl_on_every_default_camera() {
     let mut views: Vec<String> = Vec::new();
     for name in ["cornell-point", "primitives", "corridor"] {
         let scene = builtin::scene(name).unwrap();
-        let prepared = IsrScene::new(&scene, &ShadowSettings::default()).unwrap();
+        let prepared = LightSet::new(&scene, &ShadowSettings::default()).unwrap();
         for camera in &scene.cameras {
             let view = View::from_camera(&camera.with_aspect(w as f32 / h as f32));
             let settings = ReferenceSettings {
@@ -134,8 +134,8 @@ fn isr_is_closer_to_the_reference_than_dl_on_every_default_camera() {
                 seed: 19,
             };
             let reference = render(&scene, &view, &settings, None).image;
-            let full = RayCastRenderer.render(&scene, &view, w, h).unwrap();
-            let coarse = downsample(&full);
+            let full = RayCastRenderer::new().render(&scene, &view, w, h).unwrap();
+            let coarse = downsample(&full, isr::DownsampleMode::NearestSurface);
             let inputs = IsrInputs {
                 full: &full,
                 coarse: &coarse,

@@ -39,7 +39,7 @@ fn gpu_or_say_why() -> Option<scene_core::gpu::GpuContext> {
 /// adapter wgpu picks; lavapipe without a GPU); DL (direct light only) for comparison.
 /// Medians of `repeats` frames after one warm-up.
 pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
-    use isr::{GpuIsr, GpuIsrInputs, IsrInputs, IsrScene, IsrSettings, PassTimings};
+    use isr::{GpuIsr, GpuIsrInputs, IsrInputs, IsrSettings, LightSet, PassTimings};
     use scene_core::GBufferRenderer;
     use scene_core::gbuffer::RayCastRenderer;
     use scene_core::gpu::GpuGBuffer;
@@ -81,10 +81,10 @@ pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
         let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
         let t0 = Instant::now();
         let prepared = pool
-            .install(|| IsrScene::new(&scene, &isr::ShadowSettings::default()))
+            .install(|| LightSet::new(&scene, &isr::ShadowSettings::default()))
             .map_err(err)?;
         let prepare = t0.elapsed();
-        let full = RayCastRenderer
+        let full = RayCastRenderer::new()
             .render(&scene, &view, w, h)
             .map_err(|e| e.to_string())?;
         println!(
@@ -115,7 +115,7 @@ pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
             for i in 0..=repeats {
                 let frame = pool.install(|| {
                     let t = Instant::now();
-                    let coarse = isr::downsample(&full);
+                    let coarse = isr::downsample(&full, s.downsample);
                     let down = t.elapsed();
                     let inputs = IsrInputs {
                         full: &full,
@@ -272,19 +272,19 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
         // Steady state: one target reused frame after frame (like the GPU's).
         let mut target = scene_core::GBuffer::background(w, h);
         let cpu_ms = time_ms(repeats, || {
-            pool.install(|| CpuRasterizer.render_into(&scene, &view, &mut target))
+            pool.install(|| CpuRasterizer::new().render_into(&scene, &view, &mut target))
                 .map_err(err)
         })?;
         // The GBufferRenderer path: a new G-buffer per call.
         let cpu_trait_ms = time_ms(repeats, || {
-            pool.install(|| CpuRasterizer.render(&scene, &view, w, h))
+            pool.install(|| CpuRasterizer::new().render(&scene, &view, w, h))
                 .map(|_| ())
                 .map_err(err)
         })?;
         let mut cols = vec![format!("{cpu_ms:>10.2}"), format!("{cpu_trait_ms:>12.2}")];
         if let (Some(ctx), Some(rast)) = (&gpu, &rast) {
             let t0 = Instant::now();
-            let prepared = rast.prepare(&scene).map_err(gerr)?;
+            let prepared = rast.upload(&scene).map_err(gerr)?;
             rast.wait().map_err(gerr)?;
             let upload_ms = t0.elapsed().as_secs_f64() * 1e3;
             let target = GpuGBuffer::new(ctx, w, h).map_err(gerr)?;
@@ -306,7 +306,7 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
             cols.push(format!("{trait_ms:>16.2}"));
         }
         let fingerprint_ms = time_ms(repeats, || {
-            pool.install(|| gbuffer::scene_fingerprint(&scene));
+            pool.install(|| scene_core::hash::scene_content_hash(&scene));
             Ok(())
         })?;
         println!(
@@ -322,7 +322,7 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
     let scene = builtin::scene("corridor").map_err(|e| e.to_string())?;
     let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
     let fine = pool
-        .install(|| CpuRasterizer.render_gbuffer(&scene, &view, w, h))
+        .install(|| CpuRasterizer::new().render_gbuffer(&scene, &view, w, h))
         .map_err(err)?;
     println!(
         "(CPU ms: render_into a reused target; CPU trait: GBufferRenderer::render, a new G-buffer per frame; GPU ms: the MRT pass into a reused GpuGBuffer, waited for; GPU readback: GpuGBuffer::read_back; GPU upload: scene upload, once; GPU trait+read: GBufferRenderer::render with the cached upload, incl. fingerprint, new targets and readback; fingerprint: the cache key, CPU)"
@@ -332,7 +332,7 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
     println!("{:<22} {:>10} {:>10}", "mode", "CPU ms", "GPU ms");
     let gpu_fine = match (&gpu, &rast) {
         (Some(ctx), Some(rast)) => {
-            let prepared = rast.prepare(&scene).map_err(gerr)?;
+            let prepared = rast.upload(&scene).map_err(gerr)?;
             let target = GpuGBuffer::new(ctx, w, h).map_err(gerr)?;
             rast.render_to(&prepared, &view, &target).map_err(err)?;
             rast.wait().map_err(gerr)?;
@@ -403,8 +403,8 @@ fn downsampling_quality(pool: &rayon::ThreadPool, w: u32, h: u32) -> Result<(), 
             let view = View::from_camera(&cam.with_aspect(w as f32 / h as f32));
             let (fine, direct) = pool.install(|| {
                 (
-                    CpuRasterizer.render_gbuffer(&scene, &view, w, h),
-                    CpuRasterizer.render_gbuffer(&scene, &view, cw, ch),
+                    CpuRasterizer::new().render_gbuffer(&scene, &view, w, h),
+                    CpuRasterizer::new().render_gbuffer(&scene, &view, cw, ch),
                 )
             });
             let (fine, direct) = (
@@ -473,12 +473,12 @@ fn reconstruction(
     let scene = builtin::scene("corridor").map_err(|e| e.to_string())?;
     let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
     let g = pool
-        .install(|| CpuRasterizer.render_gbuffer(&scene, &view, w, h))
+        .install(|| CpuRasterizer::new().render_gbuffer(&scene, &view, w, h))
         .map_err(|e| e.to_string())?;
     let inv = InverseMatrixReconstruction::new(&view);
     let gpu_target = match (gpu, rast) {
         (Some(ctx), Some(rast)) => {
-            let prepared = rast.prepare(&scene).map_err(|e| e.to_string())?;
+            let prepared = rast.upload(&scene).map_err(|e| e.to_string())?;
             let target = GpuGBuffer::new(ctx, w, h).map_err(|e| e.to_string())?;
             rast.render_to(&prepared, &view, &target)
                 .map_err(|e| e.to_string())?;
@@ -490,7 +490,7 @@ fn reconstruction(
     // Hardware depth: the GPU's depth attachment when there is one, else computed.
     let hw: Vec<f32> = match &gpu_target {
         Some((ctx, _, target)) => ctx
-            .read_texture_r32f(&target.depth_stencil)
+            .read_texture_r32f(target.depth_attachment().map_err(|e| e.to_string())?)
             .map_err(|e| e.to_string())?,
         None => g.depth.iter().map(|&d| inv.ndc_depth(d)).collect(),
     };

@@ -3,6 +3,7 @@
 //! bench-harness.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use bench_harness::{
     Experiment, ExperimentSettings, RandomCameraSettings, RunOutcome, SceneSetup, TechniqueSetup,
@@ -12,7 +13,7 @@ use gbuffer::CpuRasterizer;
 use imalyzer::{Measure, MeasureMetric};
 use isr::{Backend, IsrSettings, IsrTechnique};
 use scene_core::reference::Bounces;
-use scene_core::{Metric, Technique};
+use scene_core::{FrameRequest, Metric, Technique};
 
 /// The built-in scenes of the default run.
 pub const DEFAULT_SCENES: [&str; 4] = ["cornell", "cornell-point", "primitives", "corridor"];
@@ -70,12 +71,17 @@ pub struct Options {
 pub struct PovrayTechnique {
     dir: PathBuf,
     frame: u64,
+    scene: Option<Arc<scene_core::Scene>>,
 }
 
 impl PovrayTechnique {
     /// Renders through files in `dir`.
     pub fn new(dir: PathBuf) -> Self {
-        Self { dir, frame: 0 }
+        Self {
+            dir,
+            frame: 0,
+            scene: None,
+        }
     }
 }
 
@@ -84,18 +90,27 @@ impl Technique for PovrayTechnique {
         "povray"
     }
 
-    fn prepare(&mut self, _: &scene_core::Scene) -> Result<(), scene_core::Error> {
+    fn prepare(&mut self, scene: Arc<scene_core::Scene>) -> Result<(), scene_core::Error> {
+        self.scene = Some(scene);
         Ok(())
     }
 
-    fn render(
-        &mut self,
-        scene: &scene_core::Scene,
-        camera: &scene_core::Camera,
-        width: u32,
-        height: u32,
-    ) -> Result<scene_core::Image, scene_core::Error> {
+    /// Renders with the scene's own lights: POV-Ray's radiosity has no per-light state, so
+    /// a frame whose light state is not the default is refused.
+    fn render(&mut self, frame: &FrameRequest<'_>) -> Result<scene_core::Image, scene_core::Error> {
         let fail = |m: String| scene_core::Error::InvalidArgument(format!("povray: {m}"));
+        let Some(scene) = self.scene.clone() else {
+            return Err(scene_core::Error::NotPrepared("povray".into()));
+        };
+        if !frame.lights.is_default() {
+            return Err(fail("POV-Ray renders the scene's lights as they are; the frame asks for another light state".into()));
+        }
+        let (width, height) = (frame.width, frame.height);
+        let camera = frame
+            .view
+            .to_camera("view")
+            .ok_or_else(|| fail("POV-Ray takes symmetric perspective views only".into()))?;
+        let (scene, camera) = (&*scene, &camera);
         std::fs::create_dir_all(&self.dir).map_err(|e| fail(e.to_string()))?;
         self.frame += 1;
         let stem = format!(
@@ -305,7 +320,11 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             ..Default::default()
         };
         let cameras = cameras_for(&scene, &given, count, &random).map_err(|e| e.to_string())?;
-        scenes.push(SceneSetup { id, scene, cameras });
+        scenes.push(SceneSetup {
+            id,
+            scene: Arc::new(scene),
+            cameras,
+        });
     }
     for (s, _) in &lists {
         if !scenes.iter().any(|sc| &sc.id == s) && !specs.contains(s) {
@@ -606,7 +625,15 @@ mod tests {
         let scene = scene_core::builtin::scene("cornell-point").unwrap();
         let dir = std::env::temp_dir().join(format!("xtask-povray-{}", std::process::id()));
         let mut t = PovrayTechnique::new(dir.clone());
-        let img = t.render(&scene, &scene.cameras[0], 32, 24).unwrap();
+        t.prepare(Arc::new(scene.clone())).unwrap();
+        let img = t
+            .render(&FrameRequest::from_camera(
+                &scene.cameras[0],
+                32,
+                24,
+                &scene_core::LightState::default(),
+            ))
+            .unwrap();
         assert_eq!((img.width, img.height), (32, 24));
         assert_eq!(img.non_finite_count(), 0);
         assert!(img.mean().element_sum() > 0.0);

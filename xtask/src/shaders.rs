@@ -7,6 +7,10 @@
 //! such a pass must do the same, e.g.
 //! `concat!(include_str!(".../common.wgsl"), include_str!(".../pass.wgsl"))`; a pass that
 //! must not get the common part goes in a subdirectory.
+//!
+//! A pass made of several files (one per Rust module it mirrors) says so on its first line,
+//! `// after: a.wgsl b.wgsl`: those files of its directory come between `common.wgsl` and
+//! it, in that order (not transitively), and the embedding crate concatenates the same.
 
 use std::path::{Path, PathBuf};
 
@@ -41,11 +45,20 @@ pub fn check_source(name: &str, source: &str) -> Result<(usize, String, String),
     let info = Validator::new(ValidationFlags::all(), Capabilities::all())
         .validate(&module)
         .map_err(|e| format!("{name}: validation error:\n{}", e.emit_to_string(source)))?;
-    let words = spv::write_vec(&module, &info, &spv::Options::default(), None)
-        .map_err(|e| format!("{name}: SPIR-V: {e}"))?;
-    let (msl_src, _) = msl::write_string(
+    // Pipeline-overridable constants take their defaults, as a pipeline that sets none.
+    let (module, info) = naga::back::pipeline_constants::process_overrides(
         &module,
         &info,
+        None,
+        &Default::default(),
+    )
+    .map_err(|e| format!("{name}: overridable constants: {e}"))?;
+    let (module, info) = (module.as_ref(), info.as_ref());
+    let words = spv::write_vec(module, info, &spv::Options::default(), None)
+        .map_err(|e| format!("{name}: SPIR-V: {e}"))?;
+    let (msl_src, _) = msl::write_string(
+        module,
+        info,
         &msl::Options::default(),
         &msl::PipelineOptions::default(),
     )
@@ -55,7 +68,7 @@ pub fn check_source(name: &str, source: &str) -> Result<(usize, String, String),
     let pipeline = hlsl::PipelineOptions::default();
     let mut writer = hlsl::Writer::new(&mut hlsl_src, &options, &pipeline);
     writer
-        .write(&module, &info, None)
+        .write(module, info, None)
         .map_err(|e| format!("{name}: HLSL: {e}"))?;
     Ok((words.len(), msl_src, hlsl_src))
 }
@@ -71,12 +84,28 @@ fn source_of(file: &Path, rel: &str) -> Result<String, String> {
         return Ok(own);
     }
     let common = file.with_file_name(COMMON);
-    if !common.is_file() {
-        return Ok(own);
+    let mut source = if common.is_file() {
+        std::fs::read_to_string(&common).map_err(|e| format!("{}: {e}", common.display()))?
+    } else {
+        String::new()
+    };
+    for part in after(&own) {
+        let path = file.with_file_name(part);
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| format!("{rel}: its `// after:` part {part}: {e}"))?;
+        source.push_str(&text);
     }
-    let prelude =
-        std::fs::read_to_string(&common).map_err(|e| format!("{}: {e}", common.display()))?;
-    Ok(prelude + &own)
+    Ok(source + &own)
+}
+
+/// The files a WGSL source's first line, `// after: a.wgsl b.wgsl`, says come before it.
+fn after(source: &str) -> Vec<&str> {
+    source
+        .lines()
+        .next()
+        .and_then(|l| l.strip_prefix("// after:"))
+        .map(|rest| rest.split_whitespace().collect())
+        .unwrap_or_default()
 }
 
 /// Validates every `**/*.wgsl` under `root` (each after its directory's `common.wgsl`, see the

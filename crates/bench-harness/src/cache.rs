@@ -13,33 +13,10 @@ pub const TRACER_VERSION: u32 = 1;
 
 pub use scene_core::hash::Fnv;
 
-/// A hash of everything in `scene` that light transport sees (geometry, materials,
+/// The scene identity used in cache keys: scene-core's
+/// [`scene_content_hash`](scene_core::hash::scene_content_hash) (geometry, materials,
 /// textures, lights; not the name or the cameras).
-pub fn scene_hash(scene: &Scene) -> u64 {
-    let mut h = Fnv::default();
-    for m in &scene.meshes {
-        h.u64(m.positions.len() as u64)
-            .f32s(m.positions.iter().flat_map(|p| p.to_array()))
-            .f32s(m.normals.iter().flat_map(|p| p.to_array()));
-        if let Some(uv) = &m.uvs {
-            h.f32s(uv.iter().flat_map(|p| p.to_array()));
-        }
-        for (t, mat) in m.indices.iter().zip(&m.material_ids) {
-            h.u64(t[0] as u64 | (t[1] as u64) << 21 | (t[2] as u64) << 42)
-                .u64(*mat as u64);
-        }
-    }
-    for t in &scene.textures {
-        h.u64(t.width as u64)
-            .u64(t.height as u64)
-            .f32s(t.texels.iter().flat_map(|p| p.to_array()));
-    }
-    // Materials and lights are small: their Debug text (shortest round-trip floats).
-    h.str(&format!("{:?}", scene.materials))
-        .str(&format!("{:?}", scene.point_lights))
-        .str(&format!("{:?}", scene.directional_lights));
-    h.finish()
-}
+pub use scene_core::hash::scene_content_hash as scene_hash;
 
 /// The cache key of a reference render.
 pub fn reference_key(scene_hash: u64, camera: &Camera, settings: &ReferenceSettings) -> u64 {

@@ -1,11 +1,13 @@
 //! An experiment: scenes x cameras x techniques x metrics, run view by view with resume.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use scene_core::reference::{Bounces, ReferenceSettings};
-use scene_core::{Camera, Image, Metric, Scene, Technique};
+
+use scene_core::{Camera, FrameRequest, Image, LightState, Metric, Scene, Technique};
 
 use crate::HarnessError;
 use crate::cache::{Fnv, ReferenceCache, scene_hash};
@@ -22,8 +24,8 @@ pub const RESULTS_VERSION: u64 = 2;
 pub struct SceneSetup {
     /// Id used in reports and file names.
     pub id: String,
-    /// The scene.
-    pub scene: Scene,
+    /// The scene (shared with the techniques prepared for it).
+    pub scene: Arc<Scene>,
     /// The views (their aspect ratio is replaced by the image's).
     pub cameras: Vec<Camera>,
 }
@@ -363,7 +365,7 @@ impl Experiment {
                         let mut times = Vec::new();
                         for t in &mut self.techniques {
                             let t0 = Instant::now();
-                            t.technique.prepare(&sc.scene).map_err(|e| {
+                            t.technique.prepare(sc.scene.clone()).map_err(|e| {
                                 HarnessError::Technique {
                                     label: t.label.clone(),
                                     scene: sc.id.clone(),
@@ -519,7 +521,12 @@ impl Experiment {
                 let t0 = Instant::now();
                 let img = t
                     .technique
-                    .render(&sc.scene, &cam, s.width, s.height)
+                    .render(&FrameRequest::from_camera(
+                        &cam,
+                        s.width,
+                        s.height,
+                        &LightState::default(),
+                    ))
                     .map_err(fail)?;
                 let dt = t0.elapsed().as_secs_f64();
                 renders += 1;

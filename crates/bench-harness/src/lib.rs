@@ -9,16 +9,17 @@
 //!
 //! ```
 //! use bench_harness::{Experiment, ExperimentSettings, SceneSetup, TechniqueSetup};
-//! use scene_core::{builtin, Camera, Error, Image, Metric, MetricValue, Scene, Technique};
+//! use std::sync::Arc;
+//! use scene_core::{builtin, Error, FrameRequest, Image, Metric, MetricValue, Scene, Technique};
 //! use scene_core::reference::Bounces;
 //!
 //! /// A "technique" that renders a constant grey.
 //! struct Grey(f32);
 //! impl Technique for Grey {
 //!     fn name(&self) -> &str { "grey" }
-//!     fn prepare(&mut self, _: &Scene) -> Result<(), Error> { Ok(()) }
-//!     fn render(&mut self, _: &Scene, _: &Camera, w: u32, h: u32) -> Result<Image, Error> {
-//!         Ok(Image::filled(w, h, scene_core::glam::Vec3::splat(self.0)))
+//!     fn prepare(&mut self, _: Arc<Scene>) -> Result<(), Error> { Ok(()) }
+//!     fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
+//!         Ok(Image::filled(frame.width, frame.height, scene_core::glam::Vec3::splat(self.0)))
 //!     }
 //! }
 //! /// Mean absolute difference.
@@ -39,7 +40,7 @@
 //!         width: 16, height: 12, spp: 2, bounces: vec![Bounces::Limited(1)],
 //!         repeats: 1, out_dir: out.clone(), progress: false, ..Default::default()
 //!     },
-//!     scenes: vec![SceneSetup { id: "cornell".into(), cameras: scene.cameras[..1].to_vec(), scene }],
+//!     scenes: vec![SceneSetup { id: "cornell".into(), cameras: scene.cameras[..1].to_vec(), scene: Arc::new(scene) }],
 //!     techniques: vec![
 //!         TechniqueSetup { label: "dl".into(), family: "dl".into(), description: "black".into(), technique: Box::new(Grey(0.0)), single_frame: false },
 //!         TechniqueSetup { label: "grey".into(), family: "grey".into(), description: "0.1".into(), technique: Box::new(Grey(0.1)), single_frame: false },

@@ -13,24 +13,29 @@ use bench_harness::{
 };
 use scene_core::glam::Vec3;
 use scene_core::reference::Bounces;
-use scene_core::{Camera, Error, Image, Metric, MetricValue, Scene, Technique, builtin};
+use scene_core::{Error, FrameRequest, Image, Metric, MetricValue, Scene, Technique, builtin};
 
 /// Primary-ray albedo times a constant: a cheap technique whose error depends on the gain.
 struct Flat {
     gain: f32,
     renders: Arc<AtomicU64>,
+    scene: Option<Arc<Scene>>,
 }
 
 impl Technique for Flat {
     fn name(&self) -> &str {
         "flat"
     }
-    fn prepare(&mut self, _: &Scene) -> Result<(), Error> {
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
+        self.scene = Some(scene);
         Ok(())
     }
-    fn render(&mut self, scene: &Scene, camera: &Camera, w: u32, h: u32) -> Result<Image, Error> {
+    fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
+        let Some(scene) = self.scene.as_deref() else {
+            return Err(Error::NotPrepared("flat".into()));
+        };
         self.renders.fetch_add(1, Ordering::SeqCst);
-        let view = scene_core::View::from_camera(&camera.with_aspect(w as f32 / h as f32));
+        let (w, h, view) = (frame.width, frame.height, frame.view);
         let rays = scene_core::ray::RayScene::build(scene);
         let offsets = scene.mesh_offsets();
         let mut img = Image::new(w, h);
@@ -91,6 +96,7 @@ fn experiment(out: &Path, renders: &Arc<AtomicU64>) -> Experiment {
         technique: Box::new(Flat {
             gain,
             renders: renders.clone(),
+            scene: None,
         }),
         single_frame: false,
     };
@@ -109,7 +115,7 @@ fn experiment(out: &Path, renders: &Arc<AtomicU64>) -> Experiment {
         scenes: vec![SceneSetup {
             id: "cornell".into(),
             cameras: scene.cameras[..2].to_vec(),
-            scene,
+            scene: Arc::new(scene),
         }],
         techniques: vec![tech("dl", 0.05), tech("isr-a", 0.3), tech("isr-b", 0.6)],
         metrics: vec![Box::new(MeanError)],

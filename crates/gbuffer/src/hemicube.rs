@@ -2,8 +2,9 @@
 //! the normal and four half side faces), as `ibrr-ldc` and `relight-pr` need them. Every
 //! [`scene_core::GBufferRenderer`] renders them
 //! ([`GBufferRenderer::render_hemicube`](scene_core::GBufferRenderer::render_hemicube));
-//! the views and face sizes live in scene-core beside the G-buffer. The GPU rasteriser
-//! overrides it to record all five faces into one submission, and
+//! the views and face sizes live in scene-core beside the G-buffer. It renders the five
+//! faces as one batch ([`GBufferRenderer::render_views`](scene_core::GBufferRenderer::render_views)),
+//! which the GPU rasteriser records into one submission, and
 //! [`GpuRasterizer::render_hemicube_gpu`] keeps them on the GPU without readback.
 //!
 //! [`GpuRasterizer::render_hemicube_gpu`]: crate::GpuRasterizer::render_hemicube_gpu

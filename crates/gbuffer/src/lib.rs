@@ -35,8 +35,9 @@
 //! * Views: any scene-core [`View`](scene_core::View): cameras, orthographic shadow-map
 //!   views, and the five faces of a hemicube ([`hemicube`]).
 //! * Coarse buffers ([`downsample`](mod@downsample)): 2x downsampling on the CPU and the
-//!   GPU, with the thesis' averaging and two depth-aware modes, and
-//!   [`compare_with_direct`] to measure them.
+//!   GPU, with the thesis' averaging and three depth-aware modes (one of them ISR's), and
+//!   [`compare_with_direct`] to measure them. They live in scene-core beside the G-buffer
+//!   (`scene_core::gbuffer::downsample`), re-exported here.
 //! * Position reconstruction ([`reconstruct`]): eqs. 23-24 (frustum corners) and inverse
 //!   matrices, on the CPU and in WGSL, for the micro-benchmark of `cargo xtask bench
 //!   gbuffer`.
@@ -53,7 +54,11 @@
 //!
 //! [`GBuffer`]: scene_core::GBuffer
 
-pub mod downsample;
+/// Coarse G-buffers: scene-core's downsampling, the one home of the G-buffer's operations
+/// (re-exported here for existing users).
+pub mod downsample {
+    pub use scene_core::gbuffer::downsample::*;
+}
 pub mod hemicube;
 pub mod mrt;
 pub mod packing;
@@ -64,7 +69,7 @@ pub use downsample::{
     DownsampleMode, DownsampleStats, GpuDownsampler, coarse_size, compare_with_direct, downsample,
 };
 pub use hemicube::{HemicubeFaceBuffer, hemicube_views};
-pub use mrt::{GpuPreparedScene, GpuRasterizer, scene_fingerprint};
+pub use mrt::{GpuPreparedScene, GpuRasterizer};
 pub use raster::CpuRasterizer;
 pub use reconstruct::{
     FrustumReconstruction, GpuReconstructor, InverseMatrixReconstruction, ReconstructionMethod,

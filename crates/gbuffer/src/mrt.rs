@@ -11,15 +11,17 @@
 //! [`scene_core::gpu::GpuScene`], per-triangle geometric normals for the two-sided flip, and
 //! the albedo textures as one texel buffer sampled bilinearly in the shader exactly like
 //! [`scene_core::Texture::sample_bilinear`]). The trait implementation keeps the last
-//! prepared scene and re-uploads only when the scene's content fingerprint changes.
+//! prepared scene ([`GBufferRenderer::prepare`]) and renders every view of it with no
+//! further upload or hashing.
 
 use std::borrow::Cow;
+use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, GpuScene, GpuVertex};
 use scene_core::view::Projection;
-use scene_core::{Error, GBuffer, GBufferRenderer, Scene, View};
+use scene_core::{Error, GBuffer, GBufferRenderer, Scene, View, ViewTarget};
 use wgpu::util::DeviceExt;
 
 use crate::raster::check_target;
@@ -71,8 +73,6 @@ pub struct GpuPreparedScene {
     pub texture_infos: wgpu::Buffer,
     /// Every texture's linear RGB texels (`vec4`, `w` = 1), one texture after another.
     pub texels: wgpu::Buffer,
-    /// The content fingerprint of the scene it was made from ([`scene_fingerprint`]).
-    pub fingerprint: u64,
 }
 
 impl GpuPreparedScene {
@@ -167,64 +167,8 @@ impl GpuPreparedScene {
             face_normals,
             texture_infos,
             texels,
-            fingerprint: scene_fingerprint(scene),
         })
     }
-}
-
-/// A 64-bit fingerprint of everything the G-buffer depends on: mesh positions, normals,
-/// UVs, indices and material ids, materials and textures (FxHash-style mixing, rayon over
-/// large arrays; about 10 ms for 10^6 triangles on 2 cores). Used to decide whether a
-/// cached [`GpuPreparedScene`] is still valid; a collision (vanishingly unlikely outside
-/// adversarial input) would reuse stale geometry.
-pub fn scene_fingerprint(scene: &Scene) -> u64 {
-    fn mix(h: u64, w: u64) -> u64 {
-        (h.rotate_left(5) ^ w).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95)
-    }
-    fn words(h: u64, bytes: &[u8]) -> u64 {
-        const CHUNK: usize = 1 << 18;
-        let parts: Vec<u64> = bytes
-            .par_chunks(CHUNK)
-            .map(|c| {
-                let mut h = 0x243f_6a88_85a3_08d3u64;
-                let mut it = c.chunks_exact(8);
-                for w in &mut it {
-                    h = mix(h, u64::from_le_bytes(w.try_into().unwrap_or([0; 8])));
-                }
-                for &b in it.remainder() {
-                    h = mix(h, b as u64);
-                }
-                h
-            })
-            .collect();
-        let mut h = mix(h, bytes.len() as u64);
-        for p in parts {
-            h = mix(h, p);
-        }
-        h
-    }
-    let mut h = mix(0, scene.meshes.len() as u64);
-    for m in &scene.meshes {
-        h = words(h, bytemuck::cast_slice(&m.positions));
-        h = words(h, bytemuck::cast_slice(&m.normals));
-        h = match &m.uvs {
-            Some(uvs) => words(mix(h, 1), bytemuck::cast_slice(uvs)),
-            None => mix(h, 0),
-        };
-        h = words(h, bytemuck::cast_slice(&m.indices));
-        h = words(h, bytemuck::cast_slice(&m.material_ids));
-    }
-    h = mix(h, scene.materials.len() as u64);
-    for m in &scene.materials {
-        h = words(h, bytemuck::cast_slice(&[m.albedo, m.emission]));
-        h = mix(h, m.albedo_texture.map_or(u64::MAX, u64::from));
-    }
-    h = mix(h, scene.textures.len() as u64);
-    for t in &scene.textures {
-        h = mix(mix(h, t.width as u64), t.height as u64);
-        h = words(h, bytemuck::cast_slice(&t.texels));
-    }
-    h
 }
 
 /// The wgpu MRT G-buffer renderer.
@@ -237,7 +181,7 @@ pub fn scene_fingerprint(scene: &Scene) -> u64 {
 /// let scene = builtin::scene("cornell").unwrap();
 /// let view = View::from_camera(&scene.cameras[0]);
 /// let rast = GpuRasterizer::new(&ctx).unwrap();
-/// let prepared = rast.prepare(&scene).unwrap();
+/// let prepared = rast.upload(&scene).unwrap();
 /// let target = rast.render_gpu(&prepared, &view, 512, 512).unwrap(); // stays on the GPU
 /// let cpu_copy = target.read_back(&ctx).unwrap(); // the explicit readback
 /// assert_eq!(cpu_copy.len(), 512 * 512);
@@ -247,7 +191,7 @@ pub struct GpuRasterizer {
     ctx: GpuContext,
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::RenderPipeline,
-    cache: Option<GpuPreparedScene>,
+    prepared: Option<(Arc<Scene>, GpuPreparedScene)>,
 }
 
 /// Bytes per sample of the four colour targets (16 + 16 + 4 + 4).
@@ -353,7 +297,7 @@ impl GpuRasterizer {
             ctx: ctx.clone(),
             layout,
             pipeline,
-            cache: None,
+            prepared: None,
         })
     }
 
@@ -362,8 +306,9 @@ impl GpuRasterizer {
         &self.ctx
     }
 
-    /// Uploads a scene for [`GpuRasterizer::encode`] and friends.
-    pub fn prepare(&self, scene: &Scene) -> Result<GpuPreparedScene, GpuError> {
+    /// Uploads a scene for [`GpuRasterizer::encode`] and friends (the
+    /// [`GBufferRenderer::prepare`] of the trait keeps one such upload for its renders).
+    pub fn upload(&self, scene: &Scene) -> Result<GpuPreparedScene, GpuError> {
         GpuPreparedScene::new(&self.ctx, scene)
     }
 
@@ -378,6 +323,7 @@ impl GpuRasterizer {
         target: &GpuGBuffer,
     ) -> Result<(), Error> {
         check_target(view, target.width, target.height)?;
+        let depth_attachment = target.depth_attachment()?;
         let device = &self.ctx.device;
         self.ctx.validated(|| {
             let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -449,7 +395,7 @@ impl GpuRasterizer {
                     })
                 })
                 .collect();
-            let depth_view = target.depth_stencil.create_view(&Default::default());
+            let depth_view = depth_attachment.create_view(&Default::default());
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("gbuffer mrt"),
                 color_attachments: &attachments,
@@ -551,20 +497,36 @@ impl GpuRasterizer {
             .map_err(|e| GpuError::Readback(format!("device poll failed: {e}")))
     }
 
-    /// The prepared scene for `scene`, from the cache when its fingerprint matches.
-    fn cached(&mut self, scene: &Scene) -> Result<&GpuPreparedScene, GpuError> {
-        let fingerprint = scene_fingerprint(scene);
-        let stale = self
-            .cache
-            .as_ref()
-            .is_none_or(|c| c.fingerprint != fingerprint);
-        if stale {
-            self.cache = None;
-            self.cache = Some(GpuPreparedScene::new(&self.ctx, scene)?);
+    /// Records every view of `views` into one command buffer, each into a new
+    /// [`GpuGBuffer`], and submits once (without waiting).
+    pub fn render_batch_gpu(
+        &self,
+        scene: &GpuPreparedScene,
+        views: &[ViewTarget],
+    ) -> Result<Vec<GpuGBuffer>, Error> {
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("gbuffer batch"),
+            });
+        let mut targets = Vec::with_capacity(views.len());
+        for t in views {
+            check_target(&t.view, t.width, t.height)?;
+            let target = GpuGBuffer::new(&self.ctx, t.width, t.height)?;
+            self.encode(&mut encoder, scene, &t.view, &target)?;
+            targets.push(target);
         }
-        self.cache
+        self.ctx
+            .validated(|| self.ctx.queue.submit([encoder.finish()]))?;
+        Ok(targets)
+    }
+
+    fn prepared_upload(&self) -> Result<&GpuPreparedScene, Error> {
+        self.prepared
             .as_ref()
-            .ok_or_else(|| GpuError::Validation("scene upload vanished".into()))
+            .map(|p| &p.1)
+            .ok_or_else(|| Error::NotPrepared("the GPU rasteriser".into()))
     }
 }
 
@@ -573,8 +535,30 @@ impl GBufferRenderer for GpuRasterizer {
         "gpu"
     }
 
-    /// Uploads the scene (unless the cached upload has the same fingerprint), renders on
-    /// the GPU and reads the result back.
+    /// Uploads `scene` ([`GpuPreparedScene::new`]); later renders draw it with no further
+    /// upload.
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
+        self.prepared = None;
+        let upload = GpuPreparedScene::new(&self.ctx, &scene)?;
+        self.prepared = Some((scene, upload));
+        Ok(())
+    }
+
+    fn prepared_scene(&self) -> Option<&Arc<Scene>> {
+        self.prepared.as_ref().map(|p| &p.0)
+    }
+
+    /// All views recorded into one submission ([`GpuRasterizer::render_batch_gpu`]), then
+    /// read back.
+    fn render_views(&mut self, views: &[ViewTarget]) -> Result<Vec<GBuffer>, Error> {
+        let targets = self.render_batch_gpu(self.prepared_upload()?, views)?;
+        targets
+            .iter()
+            .map(|t| Ok(t.read_back(&self.ctx)?))
+            .collect()
+    }
+
+    /// A one-off render: `scene` is uploaded for this call unless it is the prepared one.
     fn render(
         &mut self,
         scene: &Scene,
@@ -583,42 +567,19 @@ impl GBufferRenderer for GpuRasterizer {
         height: u32,
     ) -> Result<GBuffer, Error> {
         check_target(view, width, height)?;
-        self.cached(scene)?;
-        let prepared = self
-            .cache
-            .as_ref()
-            .ok_or_else(|| GpuError::Validation("scene upload vanished".into()))?;
-        let target = self.render_gpu(prepared, view, width, height)?;
+        let target = match self.prepared.as_ref() {
+            Some((s, upload)) if std::ptr::eq(Arc::as_ptr(s), scene) => {
+                self.render_gpu(upload, view, width, height)?
+            }
+            _ => {
+                let upload = GpuPreparedScene::new(&self.ctx, scene)?;
+                self.render_gpu(&upload, view, width, height)?
+            }
+        };
         Ok(target.read_back(&self.ctx)?)
     }
 
-    /// All five faces recorded into one submission ([`GpuRasterizer::render_hemicube_gpu`]),
-    /// then read back.
-    fn render_hemicube(
-        &mut self,
-        scene: &Scene,
-        point: glam::Vec3,
-        normal: glam::Vec3,
-        resolution: u32,
-        near: f32,
-        far: f32,
-    ) -> Result<Vec<scene_core::HemicubeFaceBuffer>, Error> {
-        scene_core::gbuffer::check_hemicube(point, normal, resolution)?;
-        self.cached(scene)?;
-        let prepared = self
-            .cache
-            .as_ref()
-            .ok_or_else(|| GpuError::Validation("scene upload vanished".into()))?;
-        let faces = self.render_hemicube_gpu(prepared, point, normal, resolution, near, far)?;
-        faces
-            .into_iter()
-            .map(|(face, view, target)| {
-                Ok(scene_core::HemicubeFaceBuffer {
-                    face,
-                    view,
-                    gbuffer: target.read_back(&self.ctx)?,
-                })
-            })
-            .collect()
+    fn render_views_gpu(&mut self, views: &[ViewTarget]) -> Result<Option<Vec<GpuGBuffer>>, Error> {
+        Ok(Some(self.render_batch_gpu(self.prepared_upload()?, views)?))
     }
 }

@@ -36,10 +36,12 @@
 //! processed by one thread in global triangle order, and every pixel is computed by the
 //! same sequence of operations.
 
+use std::sync::Arc;
+
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use scene_core::view::Projection;
-use scene_core::{BACKGROUND_ID, Error, GBuffer, GBufferRenderer, Scene, View};
+use scene_core::{BACKGROUND_ID, Error, GBuffer, GBufferRenderer, Scene, View, ViewTarget};
 
 /// Tile edge in pixels.
 pub const TILE: u32 = 32;
@@ -59,7 +61,8 @@ const MAX_CHUNKS: usize = 256;
 /// functions below 2^61: no 64-bit overflow.
 const GUARD_PIXELS: f32 = (1u32 << 20) as f32;
 
-/// The CPU rasteriser. Stateless; `Default` and `new` give the same value.
+/// The CPU rasteriser. [`CpuRasterizer::render_gbuffer`] draws any scene directly; as a
+/// [`GBufferRenderer`] it holds the scene it was prepared with.
 ///
 /// ```
 /// use gbuffer::CpuRasterizer;
@@ -72,13 +75,15 @@ const GUARD_PIXELS: f32 = (1u32 << 20) as f32;
 /// // The published camera sees the inside of the box almost everywhere.
 /// assert!(g.background_mask().iter().filter(|&&b| b).count() < 64 * 4);
 /// ```
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct CpuRasterizer;
+#[derive(Clone, Debug, Default)]
+pub struct CpuRasterizer {
+    prepared: Option<Arc<Scene>>,
+}
 
 impl CpuRasterizer {
-    /// The rasteriser.
+    /// The rasteriser, with no scene prepared.
     pub fn new() -> Self {
-        Self
+        Self::default()
     }
 
     /// Renders `scene` from `view` into a `width x height` G-buffer on the calling rayon
@@ -174,6 +179,26 @@ impl GBufferRenderer for CpuRasterizer {
         "cpu"
     }
 
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
+        self.prepared = Some(scene);
+        Ok(())
+    }
+
+    fn prepared_scene(&self) -> Option<&Arc<Scene>> {
+        self.prepared.as_ref()
+    }
+
+    fn render_views(&mut self, views: &[ViewTarget]) -> Result<Vec<GBuffer>, Error> {
+        let Some(scene) = self.prepared.as_ref() else {
+            return Err(Error::NotPrepared("the CPU rasteriser".into()));
+        };
+        views
+            .iter()
+            .map(|t| self.render_gbuffer(scene, &t.view, t.width, t.height))
+            .collect()
+    }
+
+    /// Draws `scene` directly (nothing is prepared or copied).
     fn render(
         &mut self,
         scene: &Scene,

@@ -410,6 +410,7 @@ impl GpuReconstructor {
             .iter()
             .position(|&m| m == method)
             .unwrap_or(0);
+        let hw_depth = gbuffer.depth_attachment()?;
         self.ctx.validated(|| {
             let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("reconstruct params"),
@@ -417,7 +418,7 @@ impl GpuReconstructor {
                 usage: wgpu::BufferUsages::UNIFORM,
             });
             let linear = gbuffer.depth.create_view(&Default::default());
-            let hw = gbuffer.depth_stencil.create_view(&Default::default());
+            let hw = hw_depth.create_view(&Default::default());
             let out_view = out.create_view(&Default::default());
             let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("gbuffer reconstruct"),

@@ -21,8 +21,8 @@ fn camera_view(scene: &Scene, camera: usize, w: u32, h: u32) -> View {
 /// Asserts that the CPU rasteriser and primary rays agree on at least 99.5 % of the
 /// triangle ids, and closely on depth, normal and albedo where they agree.
 fn assert_matches_rays(scene: &Scene, view: &View, w: u32, h: u32, what: &str) {
-    let cpu = CpuRasterizer.render(scene, view, w, h).unwrap();
-    let rays = RayCastRenderer.render(scene, view, w, h).unwrap();
+    let cpu = CpuRasterizer::new().render(scene, view, w, h).unwrap();
+    let rays = RayCastRenderer::new().render(scene, view, w, h).unwrap();
     check_invariants(&cpu, view, scene);
     let d = diff(&cpu, &rays);
     assert!(
@@ -61,15 +61,15 @@ fn cpu_matches_primary_rays_on_every_builtin_scene_and_camera() {
 
 #[test]
 fn cpu_matches_primary_rays_on_hemicube_faces_and_orthographic_views() {
-    let scene = builtin::scene("cornell").unwrap();
+    let scene = std::sync::Arc::new(builtin::scene("cornell").unwrap());
+    let mut cpu = CpuRasterizer::new();
+    cpu.prepare(scene.clone()).unwrap();
     // A point on the floor of the box, and one on the tall block's side.
     for (point, normal) in [
         (Vec3::new(0.3, 0.0005, 0.25), Vec3::Y),
         (Vec3::new(0.2, 0.2, 0.35), Vec3::new(-0.3, 0.1, -0.9)),
     ] {
-        let faces = CpuRasterizer
-            .render_hemicube(&scene, point, normal, 64, 1e-3, 2.0)
-            .unwrap();
+        let faces = cpu.render_hemicube(point, normal, 64, 1e-3, 2.0).unwrap();
         assert_eq!(faces.len(), 5);
         for f in &faces {
             let (w, h) = f.face.size(64);
@@ -118,7 +118,9 @@ fn shared_edges_cover_every_pixel_exactly_once_with_exact_ties() {
         near: 0.1,
         far: 2.0,
     };
-    let counts = CpuRasterizer.coverage(&scene, &view, 64, 64).unwrap();
+    let counts = CpuRasterizer::new()
+        .coverage(&scene, &view, 64, 64)
+        .unwrap();
     let bad: Vec<usize> = (0..counts.len()).filter(|&i| counts[i] != 1).collect();
     assert!(
         bad.is_empty(),
@@ -127,7 +129,7 @@ fn shared_edges_cover_every_pixel_exactly_once_with_exact_ties() {
         &bad[..bad.len().min(8)]
     );
     // The G-buffer agrees: no background, ids from the grid.
-    let g = CpuRasterizer.render(&scene, &view, 64, 64).unwrap();
+    let g = CpuRasterizer::new().render(&scene, &view, 64, 64).unwrap();
     assert!(g.triangle_id.iter().all(|&id| id != BACKGROUND_ID));
 }
 
@@ -147,7 +149,7 @@ fn shared_edges_of_a_jittered_mesh_in_perspective_crossing_the_near_plane() {
     ] {
         let (w, h) = (97, 61);
         let view = look_at(eye, target, 70.0, w as f32 / h as f32, near, 100.0);
-        let counts = CpuRasterizer.coverage(&scene, &view, w, h).unwrap();
+        let counts = CpuRasterizer::new().coverage(&scene, &view, w, h).unwrap();
         let mut covered = 0;
         for (i, &c) in counts.iter().enumerate() {
             assert!(c <= 1, "pixel {i} covered {c} times");
@@ -194,8 +196,12 @@ fn output_is_bit_identical_for_any_thread_count() {
             .unwrap();
         pool.install(|| {
             (
-                CpuRasterizer.render(&scene, &view, 211, 157).unwrap(),
-                CpuRasterizer.coverage(&scene, &view, 211, 157).unwrap(),
+                CpuRasterizer::new()
+                    .render(&scene, &view, 211, 157)
+                    .unwrap(),
+                CpuRasterizer::new()
+                    .coverage(&scene, &view, 211, 157)
+                    .unwrap(),
             )
         })
     };
@@ -254,7 +260,9 @@ fn camera_inside_geometry_sees_inner_faces_facing_it() {
         1e-3,
         2.0,
     );
-    let g = CpuRasterizer.render(&scene, &inside_block, 64, 64).unwrap();
+    let g = CpuRasterizer::new()
+        .render(&scene, &inside_block, 64, 64)
+        .unwrap();
     check_invariants(&g, &inside_block, &scene);
     assert_matches_rays(&scene, &inside_block, 64, 64, "inside the tall block");
 
@@ -304,7 +312,7 @@ fn camera_inside_geometry_sees_inner_faces_facing_it() {
     let scene = one_mesh_scene("cube", cube);
     for target in [Vec3::X, Vec3::Y, Vec3::new(0.3, -0.4, 1.0)] {
         let view = look_at(Vec3::new(0.1, 0.2, -0.3), target, 100.0, 1.25, 0.01, 10.0);
-        let g = CpuRasterizer.render(&scene, &view, 80, 64).unwrap();
+        let g = CpuRasterizer::new().render(&scene, &view, 80, 64).unwrap();
         assert!(
             g.triangle_id.iter().all(|&id| id != BACKGROUND_ID),
             "holes inside the cube"
@@ -317,23 +325,27 @@ fn camera_inside_geometry_sees_inner_faces_facing_it() {
 fn empty_scene_and_zero_size_targets() {
     let scene = Scene::new("empty");
     let view = look_at(Vec3::ZERO, -Vec3::Z, 60.0, 1.0, 0.1, 10.0);
-    let g = CpuRasterizer.render(&scene, &view, 17, 9).unwrap();
+    let g = CpuRasterizer::new().render(&scene, &view, 17, 9).unwrap();
     assert_eq!(g, GBuffer::background(17, 9));
     let full = builtin::scene("cornell").unwrap();
     for (w, h) in [(0, 0), (0, 4), (4, 0)] {
-        let err = CpuRasterizer.render(&full, &view, w, h).unwrap_err();
+        let err = CpuRasterizer::new().render(&full, &view, w, h).unwrap_err();
         assert!(matches!(err, Error::InvalidArgument(_)), "{err}");
     }
-    assert!(CpuRasterizer.render(&full, &view, 20_000, 2).is_err());
+    assert!(
+        CpuRasterizer::new()
+            .render(&full, &view, 20_000, 2)
+            .is_err()
+    );
     let mut bad = view;
     bad.far = bad.near;
     assert!(matches!(
-        CpuRasterizer.render(&full, &bad, 4, 4),
+        CpuRasterizer::new().render(&full, &bad, 4, 4),
         Err(Error::InvalidArgument(_))
     ));
     bad = view;
     bad.eye.x = f32::NAN;
-    assert!(CpuRasterizer.render(&full, &bad, 4, 4).is_err());
+    assert!(CpuRasterizer::new().render(&full, &bad, 4, 4).is_err());
 }
 
 #[test]
@@ -341,8 +353,8 @@ fn one_pixel_and_odd_size_targets() {
     let scene = builtin::scene("cornell").unwrap();
     for c in 0..scene.cameras.len() {
         let view = camera_view(&scene, c, 1, 1);
-        let cpu = CpuRasterizer.render(&scene, &view, 1, 1).unwrap();
-        let rays = RayCastRenderer.render(&scene, &view, 1, 1).unwrap();
+        let cpu = CpuRasterizer::new().render(&scene, &view, 1, 1).unwrap();
+        let rays = RayCastRenderer::new().render(&scene, &view, 1, 1).unwrap();
         assert_eq!(cpu.triangle_id, rays.triangle_id);
         assert!((cpu.depth[0] - rays.depth[0]).abs() < 1e-5);
     }
@@ -377,7 +389,7 @@ fn degenerate_sliver_and_invalid_triangles_are_harmless() {
     mesh.indices.push([0, 2, 9999]);
     mesh.indices.push([0, 2, 3]);
     mesh.material_ids.extend([0, 0, 77]);
-    let g = CpuRasterizer.render(&scene, &view, 64, 64).unwrap();
+    let g = CpuRasterizer::new().render(&scene, &view, 64, 64).unwrap();
     check_invariants(&g, &view, &scene);
 }
 
@@ -390,7 +402,7 @@ fn bilinear_textures_match_the_scene_lookup() {
     ] {
         let view = look_at(eye, target, 60.0, 1.0, 0.05, 10.0);
         assert_matches_rays(&scene, &view, 96, 96, "textured quad");
-        let g = CpuRasterizer.render(&scene, &view, 96, 96).unwrap();
+        let g = CpuRasterizer::new().render(&scene, &view, 96, 96).unwrap();
         let distinct: std::collections::HashSet<[u32; 3]> = g
             .albedo
             .iter()
@@ -413,9 +425,13 @@ fn a_million_triangles() {
     // are still exact ties on edges, all of them on triangle edges.
     for camera in 0..2 {
         let view = camera_view(&scene, camera, 256, 192);
-        let g = CpuRasterizer.render(&scene, &view, 256, 192).unwrap();
+        let g = CpuRasterizer::new()
+            .render(&scene, &view, 256, 192)
+            .unwrap();
         check_invariants(&g, &view, &scene);
-        let rays = RayCastRenderer.render(&scene, &view, 256, 192).unwrap();
+        let rays = RayCastRenderer::new()
+            .render(&scene, &view, 256, 192)
+            .unwrap();
         let d = diff(&g, &rays);
         assert!(
             d.id_fraction() >= 0.995,
@@ -500,8 +516,10 @@ fn depth_aware_downsampling_invents_no_surfaces_where_averaging_does() {
         let scene = builtin::scene(name).unwrap();
         let (w, h) = (256, 192);
         let view = camera_view(&scene, 0, w, h);
-        let fine = CpuRasterizer.render(&scene, &view, w, h).unwrap();
-        let direct = CpuRasterizer.render(&scene, &view, w / 2, h / 2).unwrap();
+        let fine = CpuRasterizer::new().render(&scene, &view, w, h).unwrap();
+        let direct = CpuRasterizer::new()
+            .render(&scene, &view, w / 2, h / 2)
+            .unwrap();
         let stats = |mode| compare_with_direct(&downsample(&fine, mode), &direct, &fine);
         let avg = stats(DownsampleMode::Average);
         let med = stats(DownsampleMode::NearestToMedian);
@@ -601,7 +619,7 @@ fn reconstruction_of_a_rendered_buffer_hits_its_triangles() {
     let scene = builtin::scene("cornell").unwrap();
     let (w, h) = (96, 72);
     let view = camera_view(&scene, 1, w, h);
-    let g = CpuRasterizer.render(&scene, &view, w, h).unwrap();
+    let g = CpuRasterizer::new().render(&scene, &view, w, h).unwrap();
     let offsets = scene.mesh_offsets();
     for method in [
         ReconstructionMethod::FrustumCorners,

@@ -51,7 +51,7 @@ fn assert_gpu_matches_cpu(cpu: &GBuffer, gpu: &GBuffer, what: &str) {
 }
 
 fn compare(gpu: &mut GpuRasterizer, scene: &Scene, view: &View, w: u32, h: u32, what: &str) {
-    let cpu_g = CpuRasterizer.render(scene, view, w, h).unwrap();
+    let cpu_g = CpuRasterizer::new().render(scene, view, w, h).unwrap();
     let gpu_g = gpu.render(scene, view, w, h).unwrap();
     check_invariants(&gpu_g, view, scene);
     assert_gpu_matches_cpu(&cpu_g, &gpu_g, what);
@@ -91,19 +91,18 @@ fn gpu_matches_cpu_on_hemicubes_shadow_maps_and_textures() {
     let Some((_ctx, mut gpu)) = context() else {
         return;
     };
-    let scene = builtin::scene("cornell").unwrap();
+    let scene = std::sync::Arc::new(builtin::scene("cornell").unwrap());
     let point = Vec3::new(0.3, 0.0005, 0.25);
-    let cpu_faces = CpuRasterizer
-        .render_hemicube(&scene, point, Vec3::Y, 48, 1e-3, 2.0)
-        .unwrap();
-    let gpu_faces = gpu
-        .render_hemicube(&scene, point, Vec3::Y, 48, 1e-3, 2.0)
-        .unwrap();
+    let mut cpu = CpuRasterizer::new();
+    cpu.prepare(scene.clone()).unwrap();
+    gpu.prepare(scene.clone()).unwrap();
+    let cpu_faces = cpu.render_hemicube(point, Vec3::Y, 48, 1e-3, 2.0).unwrap();
+    let gpu_faces = gpu.render_hemicube(point, Vec3::Y, 48, 1e-3, 2.0).unwrap();
     for (c, g) in cpu_faces.iter().zip(&gpu_faces) {
         assert_gpu_matches_cpu(&c.gbuffer, &g.gbuffer, &format!("hemicube {:?}", c.face));
     }
     // The batched GPU hemicube gives the same buffers as the trait path.
-    let prepared = gpu.prepare(&scene).unwrap();
+    let prepared = gpu.upload(&scene).unwrap();
     let batched = gpu
         .render_hemicube_gpu(&prepared, point, Vec3::Y, 48, 1e-3, 2.0)
         .unwrap();
@@ -193,7 +192,9 @@ fn gpu_hard_cases() {
     }
     let slivers = one_mesh_scene("slivers", m);
     let view = look_at(Vec3::new(0.0, 0.0, 2.0), Vec3::ZERO, 70.0, 1.0, 0.1, 10.0);
-    let cpu_g = CpuRasterizer.render(&slivers, &view, 128, 128).unwrap();
+    let cpu_g = CpuRasterizer::new()
+        .render(&slivers, &view, 128, 128)
+        .unwrap();
     let gpu_g = gpu.render(&slivers, &view, 128, 128).unwrap();
     // Needles a fraction of a pixel wide: coverage is all edge, so only ids that agree are
     // compared.
@@ -218,9 +219,11 @@ fn gpu_result_stays_on_the_gpu_until_read_back_and_the_cache_follows_the_scene()
     };
     let mut scene = builtin::scene("cornell").unwrap();
     let view = camera_view(&scene, 0, 64, 48);
-    let prepared = gpu.prepare(&scene).unwrap();
+    let prepared = gpu.upload(&scene).unwrap();
     let target: GpuGBuffer = gpu.render_gpu(&prepared, &view, 64, 48).unwrap();
-    let depth_attachment = ctx.read_texture_r32f(&target.depth_stencil).unwrap();
+    let depth_attachment = ctx
+        .read_texture_r32f(target.depth_attachment().unwrap())
+        .unwrap();
     let explicit = target.read_back(&ctx).unwrap();
     assert_eq!(explicit, gpu.render(&scene, &view, 64, 48).unwrap());
     // The hardware depth is the clip-space z of the same surfaces: 1 exactly on background.
@@ -232,7 +235,7 @@ fn gpu_result_stays_on_the_gpu_until_read_back_and_the_cache_follows_the_scene()
     scene.materials[0].albedo = Vec3::new(0.1, 0.2, 0.3);
     let after = gpu.render(&scene, &view, 64, 48).unwrap();
     assert_ne!(before.albedo, after.albedo);
-    let cpu_after = CpuRasterizer.render(&scene, &view, 64, 48).unwrap();
+    let cpu_after = CpuRasterizer::new().render(&scene, &view, 64, 48).unwrap();
     assert_gpu_matches_cpu(&cpu_after, &after, "after recolouring");
 }
 
@@ -249,7 +252,7 @@ fn gpu_downsampling_matches_cpu() {
     ] {
         let scene = builtin::scene(name).unwrap();
         let view = camera_view(&scene, 0, w, h);
-        let prepared = gpu.prepare(&scene).unwrap();
+        let prepared = gpu.upload(&scene).unwrap();
         let fine = gpu.render_gpu(&prepared, &view, w, h).unwrap();
         let fine_cpu = fine.read_back(&ctx).unwrap();
         for mode in DownsampleMode::ALL {
@@ -300,10 +303,12 @@ fn gpu_reconstruction_matches_cpu() {
         let scene = builtin::scene(name).unwrap();
         let (w, h) = (101, 77);
         let view = camera_view(&scene, 0, w, h);
-        let prepared = gpu.prepare(&scene).unwrap();
+        let prepared = gpu.upload(&scene).unwrap();
         let target = gpu.render_gpu(&prepared, &view, w, h).unwrap();
         let g = target.read_back(&ctx).unwrap();
-        let hw = ctx.read_texture_r32f(&target.depth_stencil).unwrap();
+        let hw = ctx
+            .read_texture_r32f(target.depth_attachment().unwrap())
+            .unwrap();
         let range = view.far - view.near;
         for method in ReconstructionMethod::ALL {
             let input = match method {

@@ -110,45 +110,55 @@ pub const WGSL: &str = concat!(
     include_str!("../../../shaders/isr/blur.wgsl")
 );
 
-/// The GPU pass.
+/// The GPU pass: one pipeline per direction (the shader's `HORIZONTAL` constant) over one
+/// compiled module.
 pub(crate) struct GpuPass {
-    pub pipeline: crate::gpu::Pipeline,
+    /// Horizontal, vertical.
+    pub pipelines: [scene_core::gpu::ComputePass; 2],
 }
 
 impl GpuPass {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
         use crate::gpu::{storage_texture_entry, texture_entry, uniform_entry};
-        Self {
-            pipeline: crate::gpu::Pipeline::new(
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("isr blur"),
+            source: wgpu::ShaderSource::Wgsl(WGSL.into()),
+        });
+        let entries = [
+            uniform_entry(0),
+            texture_entry(1, false),
+            texture_entry(2, false),
+            texture_entry(3, true),
+            texture_entry(4, false),
+            storage_texture_entry(5, wgpu::TextureFormat::Rgba32Float),
+        ];
+        let make = |horizontal: bool| {
+            scene_core::gpu::ComputePass::from_module(
                 device,
                 "isr blur",
-                WGSL,
-                &[
-                    uniform_entry(0),
-                    uniform_entry(1),
-                    texture_entry(2, false),
-                    texture_entry(3, false),
-                    texture_entry(4, true),
-                    texture_entry(5, false),
-                    storage_texture_entry(6, wgpu::TextureFormat::Rgba32Float),
-                ],
-            ),
+                &module,
+                &entries,
+                &[("HORIZONTAL", if horizontal { 1.0 } else { 0.0 })],
+            )
+        };
+        Self {
+            pipelines: [make(true), make(false)],
         }
     }
 
-    /// `params` selects the direction (`x` = 1 horizontal).
+    /// A bind group of the `horizontal` (else vertical) pipeline.
     pub(crate) fn bind(
         &self,
         device: &wgpu::Device,
+        horizontal: bool,
         globals: &wgpu::Buffer,
-        params: &wgpu::Buffer,
         coarse: &scene_core::gpu::GpuGBuffer,
         input: &wgpu::Texture,
         out: &wgpu::Texture,
     ) -> wgpu::BindGroup {
-        self.pipeline.bind_buffers_then_textures(
+        self.pipeline(horizontal).bind_buffers_then_textures(
             device,
-            &[globals, params],
+            &[globals],
             &[
                 &coarse.normal,
                 &coarse.depth,
@@ -157,6 +167,11 @@ impl GpuPass {
                 out,
             ],
         )
+    }
+
+    /// The pipeline of one direction.
+    pub(crate) fn pipeline(&self, horizontal: bool) -> &scene_core::gpu::ComputePass {
+        &self.pipelines[usize::from(!horizontal)]
     }
 }
 

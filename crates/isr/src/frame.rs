@@ -6,12 +6,12 @@ use glam::{Vec3, Vec4};
 use scene_core::{GBuffer, Image, View};
 
 use crate::geometry::Screen;
-use crate::lights::IsrScene;
+use crate::light_set::LightSet;
 use crate::settings::{IsrSettings, Sender};
 use crate::{IsrError, blur, lighting, radiosity, upsample};
 
 /// The inputs of a frame: the full-resolution G-buffer, its coarse version (any size; the
-/// thesis uses half the resolution, see [`crate::downsample`]) and the view both were
+/// thesis uses half the resolution, see [`crate::downsample()`]) and the view both were
 /// rendered from.
 #[derive(Clone, Copy, Debug)]
 pub struct IsrInputs<'a> {
@@ -23,9 +23,14 @@ pub struct IsrInputs<'a> {
     pub view: &'a View,
 }
 
-/// Wall-clock time of each pass of a frame.
+/// Time of each pass of a frame: wall clock on the CPU; on the GPU, from timestamp queries
+/// where the adapter has them ([`PassTimings::gpu_timestamps`]), else the wall-clock time of
+/// submitting each pass alone and waiting for it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PassTimings {
+    /// True when the times are GPU timestamps (the passes ran back to back in one
+    /// submission).
+    pub gpu_timestamps: bool,
     /// Downsampling the G-buffer (only when the frame path does it).
     pub downsample: Duration,
     /// Direct light on the coarse buffer (`Lit` senders only).
@@ -123,7 +128,7 @@ pub fn check_gbuffer(which: &'static str, g: &GBuffer) -> Result<(), IsrError> {
 /// Errors on invalid settings, zero-size or malformed buffers and non-finite G-buffer data;
 /// never returns non-finite pixels.
 pub fn render_cpu(
-    scene: &IsrScene,
+    scene: &LightSet,
     inputs: &IsrInputs<'_>,
     settings: &IsrSettings,
 ) -> Result<Frame, IsrError> {
@@ -170,7 +175,7 @@ pub fn render_cpu(
 
 /// Shorthand for [`render_cpu`] that only returns the image.
 pub fn render_image(
-    scene: &IsrScene,
+    scene: &LightSet,
     inputs: &IsrInputs<'_>,
     settings: &IsrSettings,
 ) -> Result<Image, IsrError> {

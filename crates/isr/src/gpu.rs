@@ -6,7 +6,7 @@
 //! Engine integration, a frame per submit:
 //!
 //! ```no_run
-//! use isr::{GpuIsr, GpuIsrInputs, IsrScene, IsrSettings, ShadowSettings};
+//! use isr::{GpuIsr, GpuIsrInputs, LightSet, IsrSettings, ShadowSettings};
 //! use scene_core::gpu::{GpuContext, GpuGBuffer};
 //! use scene_core::{View, builtin};
 //!
@@ -14,7 +14,7 @@
 //! let scene = builtin::scene("cornell").unwrap();
 //! let view = View::from_camera(&scene.cameras[0]);
 //! // Once per scene: lights, shadow maps and emitters, uploaded.
-//! let mut isr = GpuIsr::new(&ctx, &IsrScene::new(&scene, &ShadowSettings::default()).unwrap()).unwrap();
+//! let mut isr = GpuIsr::new(&ctx, &LightSet::new(&scene, &ShadowSettings::default()).unwrap()).unwrap();
 //! // The engine's own G-buffer (here an empty one) and its HDR target (Rgba32Float or
 //! // Rgba16Float, with STORAGE_BINDING usage).
 //! let gbuffer = GpuGBuffer::new(&ctx, 1024, 768).unwrap();
@@ -35,23 +35,25 @@
 //! ctx.queue.submit([encoder.finish()]);
 //! ```
 
-use std::borrow::Cow;
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
-use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
+use scene_core::gbuffer::downsample::{GpuDownsampler, coarse_size};
+use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, PassTimer};
+use scene_core::lights::LightState;
 use scene_core::{GBuffer, Image, View};
 use wgpu::util::DeviceExt;
 
 use crate::geometry::Screen;
-use crate::lights::{IsrScene, LightKind};
+use crate::light_set::{LightKind, LightSet};
+use crate::lighting::Variant;
 use crate::radiosity::SamplePattern;
 use crate::settings::{Blur, Estimator, IsrSettings, Sender};
 use crate::shadow::MapKind;
-use crate::{IsrError, PassTimings, blur, downsample, lighting, radiosity, upsample};
+use crate::{IsrError, PassTimings, blur, lighting, radiosity, upsample};
 
 /// Workgroup edge of every ISR shader (8 x 8 invocations).
-pub const WORKGROUP: u32 = 8;
+pub const WORKGROUP: u32 = scene_core::gpu::WORKGROUP;
 
 /// The per-frame uniform block (`Globals` in the shaders).
 #[repr(C)]
@@ -91,7 +93,7 @@ impl Globals {
     /// The block for one frame.
     pub fn new(
         screen: &Screen,
-        scene: &IsrScene,
+        scene: &LightSet,
         settings: &IsrSettings,
         full: (u32, u32),
         coarse: (u32, u32),
@@ -142,7 +144,7 @@ impl Globals {
     }
 }
 
-/// One light in the light storage buffer (`Light` in `lighting.wgsl`, 112 bytes).
+/// One light in the light storage buffer (`Light` in `light_set.wgsl`, 144 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {
@@ -174,10 +176,31 @@ pub struct GpuLight {
     pub forward: [f32; 3],
     /// 0 cube, 1 orthographic.
     pub map_kind: u32,
+    /// The frame's factor on its direct light.
+    pub direct: [f32; 3],
+    /// Padding.
+    pub pad0: f32,
+    /// The frame's factor on the light it sends on (the `Lit` senders).
+    pub indirect: [f32; 3],
+    /// Padding.
+    pub pad1: f32,
+}
+
+/// The emitter table in the GPU layout: two texels per emitter, (radiance times the frame's
+/// direct factor, 0) and (unit normal of the emitting side, 0).
+pub fn gpu_emitters(scene: &LightSet) -> Vec<[f32; 4]> {
+    let e = &scene.emitters;
+    let mut table = Vec::with_capacity(2 * e.entries.len());
+    for (k, (l, n)) in e.entries.iter().enumerate() {
+        let f = e.direct.get(k).copied().unwrap_or(glam::Vec3::ONE);
+        table.push((*l * f).extend(0.0).to_array());
+        table.push(n.extend(0.0).to_array());
+    }
+    table
 }
 
 /// The lights of `scene` in the GPU layout.
-pub fn gpu_lights(scene: &IsrScene) -> Vec<GpuLight> {
+pub fn gpu_lights(scene: &LightSet) -> Vec<GpuLight> {
     scene
         .lights
         .iter()
@@ -194,6 +217,8 @@ pub fn gpu_lights(scene: &IsrScene) -> Vec<GpuLight> {
                 direction: l.direction.to_array(),
                 area: l.area,
                 map_offset: u32::MAX,
+                direct: l.direct.to_array(),
+                indirect: l.indirect.to_array(),
                 ..Default::default()
             };
             if let (Some(map), true) = (&l.shadow, scene.shadows.enabled) {
@@ -239,97 +264,6 @@ pub(crate) use scene_core::gpu::layout::{
     uniform as uniform_entry,
 };
 
-/// A compute pipeline (entry point `main`) and its bind group layout.
-pub(crate) struct Pipeline {
-    pub pipeline: wgpu::ComputePipeline,
-    pub layout: wgpu::BindGroupLayout,
-}
-
-impl Pipeline {
-    pub(crate) fn new(
-        device: &wgpu::Device,
-        label: &str,
-        source: &str,
-        entries: &[wgpu::BindGroupLayoutEntry],
-    ) -> Self {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(label),
-            source: wgpu::ShaderSource::Wgsl(Cow::Owned(source.to_string())),
-        });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some(label),
-            entries,
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(label),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        Self { pipeline, layout }
-    }
-
-    /// A bind group with `resources[i]` at binding `i`.
-    pub(crate) fn bind(
-        &self,
-        device: &wgpu::Device,
-        resources: &[wgpu::BindingResource<'_>],
-    ) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry<'_>> = resources
-            .iter()
-            .enumerate()
-            .map(|(i, r)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: r.clone(),
-            })
-            .collect();
-        device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: None,
-            layout: &self.layout,
-            entries: &entries,
-        })
-    }
-
-    /// A bind group with `buffers` (whole) at bindings `0..`, then a default view of each of
-    /// `textures` at the bindings after them.
-    pub(crate) fn bind_buffers_then_textures(
-        &self,
-        device: &wgpu::Device,
-        buffers: &[&wgpu::Buffer],
-        textures: &[&wgpu::Texture],
-    ) -> wgpu::BindGroup {
-        let views: Vec<wgpu::TextureView> = textures.iter().map(|t| view_of(t)).collect();
-        let mut res: Vec<wgpu::BindingResource<'_>> =
-            buffers.iter().map(|b| b.as_entire_binding()).collect();
-        res.extend(views.iter().map(wgpu::BindingResource::TextureView));
-        self.bind(device, &res)
-    }
-
-    /// Records one dispatch covering `width x height` invocations.
-    pub(crate) fn dispatch(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        bind_group: &wgpu::BindGroup,
-        width: u32,
-        height: u32,
-    ) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: None,
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, bind_group, &[]);
-        pass.dispatch_workgroups(width.div_ceil(WORKGROUP), height.div_ceil(WORKGROUP), 1);
-    }
-}
-
 fn view_of(t: &wgpu::Texture) -> wgpu::TextureView {
     t.create_view(&Default::default())
 }
@@ -369,7 +303,8 @@ fn rgba_texture(ctx: &GpuContext, label: &str, width: u32, height: u32) -> wgpu:
 pub struct GpuIsrInputs<'a> {
     /// The full-resolution G-buffer (anyone's: only its colour textures are read).
     pub full: &'a GpuGBuffer,
-    /// The coarse G-buffer; `None` downsamples `full` on the GPU (depth-aware, half size).
+    /// The coarse G-buffer; `None` downsamples `full` on the GPU (half size, with
+    /// [`IsrSettings::downsample`]).
     pub coarse: Option<&'a GpuGBuffer>,
     /// The view both were rendered from.
     pub view: &'a View,
@@ -398,43 +333,80 @@ enum Stage {
     Lighting,
 }
 
-/// Where passes are recorded: one caller's encoder, or one submit per pass, timed.
+impl Stage {
+    fn label(self) -> &'static str {
+        match self {
+            Stage::Downsample => "downsample",
+            Stage::Senders => "senders",
+            Stage::Radiosity => "radiosity",
+            Stage::Blur => "blur",
+            Stage::Upsample => "upsample",
+            Stage::Lighting => "lighting",
+        }
+    }
+
+    fn add(self, timings: &mut PassTimings, t: std::time::Duration) {
+        match self {
+            Stage::Downsample => timings.downsample += t,
+            Stage::Senders => timings.senders += t,
+            Stage::Radiosity => timings.radiosity += t,
+            Stage::Blur => timings.blur += t,
+            Stage::Upsample => timings.upsample += t,
+            Stage::Lighting => timings.lighting += t,
+        }
+    }
+}
+
+/// Where passes are recorded: one caller's encoder; one encoder timed by timestamp queries;
+/// or one submit per pass, timed by the wall clock (adapters without timestamps).
 enum Recorder<'a> {
     Into(&'a mut wgpu::CommandEncoder),
-    Timed(&'a GpuContext, PassTimings),
+    Timestamps(wgpu::CommandEncoder, PassTimer, Vec<Stage>),
+    WallClock(&'a GpuContext, PassTimings),
 }
 
 impl Recorder<'_> {
-    fn pass(&mut self, stage: Stage, f: impl FnOnce(&mut wgpu::CommandEncoder)) {
+    /// Records the dispatches of one pass: `f` gets the encoder and the timestamp writes to
+    /// put on its compute pass (at most one timed compute pass per call).
+    fn pass(
+        &mut self,
+        stage: Stage,
+        f: impl FnOnce(&mut wgpu::CommandEncoder, Option<wgpu::ComputePassTimestampWrites<'_>>),
+    ) {
         match self {
-            Recorder::Into(encoder) => f(encoder),
-            Recorder::Timed(ctx, timings) => {
+            Recorder::Into(encoder) => f(encoder, None),
+            Recorder::Timestamps(encoder, timer, stages) => {
+                stages.push(stage);
+                let writes = timer.writes(stage.label());
+                f(encoder, writes)
+            }
+            Recorder::WallClock(ctx, timings) => {
                 let start = Instant::now();
                 let mut encoder = ctx.device.create_command_encoder(&Default::default());
-                f(&mut encoder);
+                f(&mut encoder, None);
                 ctx.queue.submit([encoder.finish()]);
                 let _ = ctx.device.poll(wgpu::PollType::wait_indefinitely());
-                let t = start.elapsed();
-                match stage {
-                    Stage::Downsample => timings.downsample += t,
-                    Stage::Senders => timings.senders += t,
-                    Stage::Radiosity => timings.radiosity += t,
-                    Stage::Blur => timings.blur += t,
-                    Stage::Upsample => timings.upsample += t,
-                    Stage::Lighting => timings.lighting += t,
-                }
+                stage.add(timings, start.elapsed());
             }
         }
     }
 }
 
-/// ISR on the GPU for one prepared scene: pipelines, the scene's lights, shadow maps and
-/// emitters in storage buffers, and intermediate textures (recreated when the size changes).
+/// Timed passes per frame at most (downsample, senders, radiosity, two blur directions,
+/// upsample, lighting).
+const MAX_TIMED_PASSES: u32 = 7;
+
+/// ISR on the GPU for one light set: pipelines, the lights, shadow maps and emitters in
+/// storage buffers, and intermediate textures (recreated when the size changes). Each
+/// recorded frame gets its own uniform buffer, so several views can be encoded before one
+/// submit; a new [`LightState`] rewrites the light buffers ([`GpuIsr::apply`]) and compiles
+/// nothing.
 pub struct GpuIsr {
     ctx: GpuContext,
     extent: f32,
-    scene_globals: IsrScene,
-    downsample: downsample::GpuPass,
+    light_set: LightSet,
+    light_state: u64,
+    downsample: GpuDownsampler,
     lighting: lighting::GpuPass,
     radiosity: radiosity::GpuPass,
     blur: blur::GpuPass,
@@ -443,9 +415,6 @@ pub struct GpuIsr {
     shadow_texels: wgpu::Buffer,
     emitter_of: wgpu::Buffer,
     emitters: wgpu::Buffer,
-    globals: wgpu::Buffer,
-    /// Blur horizontal, blur vertical, senders, compose with ISR, compose without.
-    params: [wgpu::Buffer; 5],
     pattern: Option<(u32, wgpu::Buffer)>,
     dummy: wgpu::Texture,
     targets: Option<Targets>,
@@ -455,19 +424,20 @@ impl std::fmt::Debug for GpuIsr {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("GpuIsr")
             .field("adapter", &self.ctx.adapter_summary())
-            .field("lights", &self.scene_globals.lights.len())
+            .field("lights", &self.light_set.lights.len())
             .finish()
     }
 }
 
 impl GpuIsr {
-    /// Compiles the pipelines and uploads `scene`'s lights, shadow maps and emitters.
-    /// Errors when a buffer exceeds the device's storage-buffer limit.
-    pub fn new(ctx: &GpuContext, scene: &IsrScene) -> Result<Self, IsrError> {
-        scoped(ctx, || Self::create(ctx, scene))
+    /// Compiles the pipelines and uploads `lights` (their shadow maps and emitters, with
+    /// their current factors). Errors when a buffer exceeds the device's storage-buffer
+    /// limit.
+    pub fn new(ctx: &GpuContext, lights: &LightSet) -> Result<Self, IsrError> {
+        scoped(ctx, || Self::create(ctx, lights))
     }
 
-    fn create(ctx: &GpuContext, scene: &IsrScene) -> Result<Self, IsrError> {
+    fn create(ctx: &GpuContext, scene: &LightSet) -> Result<Self, IsrError> {
         let device = &ctx.device;
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let limit = device.limits().max_storage_buffer_binding_size;
@@ -479,29 +449,22 @@ impl GpuIsr {
             )));
         }
         let lights = gpu_lights(scene);
-        let mut table: Vec<[f32; 4]> = Vec::with_capacity(2 * scene.emitters.entries.len());
-        for (l, n) in &scene.emitters.entries {
-            table.push(l.extend(0.0).to_array());
-            table.push(n.extend(0.0).to_array());
-        }
+        let table = gpu_emitters(scene);
         let per_triangle: &[u32] = if scene.emitters.entries.is_empty() {
             // No emitters: no triangle needs looking up.
             &[]
         } else {
             &scene.emitters.per_triangle
         };
-        let uniform = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST;
-        let param =
-            |mode: [u32; 4]| buffer(ctx, "isr pass params", bytemuck::bytes_of(&mode), uniform);
         let this = Self {
             ctx: ctx.clone(),
             extent: scene.extent,
-            scene_globals: IsrScene {
+            light_set: LightSet {
                 shadow_texels: Vec::new(),
-                emitters: Default::default(),
                 ..scene.clone()
             },
-            downsample: downsample::GpuPass::new(device),
+            light_state: LightState::default().fingerprint(),
+            downsample: GpuDownsampler::new(ctx)?,
             lighting: lighting::GpuPass::new(device),
             radiosity: radiosity::GpuPass::new(device),
             blur: blur::GpuPass::new(device),
@@ -520,19 +483,6 @@ impl GpuIsr {
                 storage,
             ),
             emitters: buffer(ctx, "isr emitters", bytemuck::cast_slice(&table), storage),
-            globals: buffer(
-                ctx,
-                "isr globals",
-                bytemuck::bytes_of(&Globals::default()),
-                uniform,
-            ),
-            params: [
-                param([1, 0, 0, 0]),
-                param([0, 0, 0, 0]),
-                param([0, 0, 0, 0]),
-                param([1, 1, 0, 0]),
-                param([1, 0, 0, 0]),
-            ],
             pattern: None,
             dummy: rgba_texture(ctx, "isr dummy", 1, 1),
             targets: None,
@@ -543,6 +493,31 @@ impl GpuIsr {
     /// The context the pipelines live on.
     pub fn context(&self) -> &GpuContext {
         &self.ctx
+    }
+
+    /// Applies a frame's light settings: each light's direct and indirect factors are
+    /// rewritten in the light buffers (when `state` differs from the last one applied).
+    /// Nothing is recompiled or rebuilt. Takes effect at the next submit, like every
+    /// queue write.
+    pub fn apply(&mut self, state: &LightState) {
+        let fingerprint = state.fingerprint();
+        if fingerprint == self.light_state {
+            return;
+        }
+        self.light_state = fingerprint;
+        self.light_set.apply(state);
+        let lights = gpu_lights(&self.light_set);
+        if !lights.is_empty() {
+            self.ctx
+                .queue
+                .write_buffer(&self.lights, 0, bytemuck::cast_slice(&lights));
+        }
+        let table = gpu_emitters(&self.light_set);
+        if !table.is_empty() {
+            self.ctx
+                .queue
+                .write_buffer(&self.emitters, 0, bytemuck::cast_slice(&table));
+        }
     }
 
     /// A `width x height` `Rgba32Float` texture usable as [`GpuIsr::render`]'s output (with
@@ -561,10 +536,11 @@ impl GpuIsr {
             .map_err(|e| GpuError::Readback(format!("device poll failed: {e}")).into())
     }
 
-    /// Records one frame into `encoder` (queue writes of the frame's uniforms happen now
-    /// and apply at the next submit, so submit one frame before encoding the next). Nothing
-    /// is read back. `output` must be `full`'s size, `Rgba32Float` or `Rgba16Float`, with
-    /// `STORAGE_BINDING` usage.
+    /// Records one frame into `encoder`. The frame's uniforms go into a buffer of its own,
+    /// so several frames (views) may be encoded before one submit. Nothing is read back.
+    /// `output` must be `full`'s size, `Rgba32Float` or `Rgba16Float`, with
+    /// `STORAGE_BINDING` usage; the G-buffers must have [`GpuGBuffer`]'s formats
+    /// ([`GpuGBuffer::from_textures`] checks an engine's own textures).
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
@@ -588,8 +564,9 @@ impl GpuIsr {
         Ok(())
     }
 
-    /// Runs one frame submitting and waiting for each pass, and returns the wall-clock time
-    /// of each (for benchmarks; slower than [`GpuIsr::render`]).
+    /// Runs one frame and returns the time of each pass (for benchmarks): from timestamp
+    /// queries in one submission where the adapter has them, else submitting and waiting
+    /// for each pass (slower than [`GpuIsr::render`]).
     pub fn render_timed(
         &mut self,
         inputs: &GpuIsrInputs<'_>,
@@ -597,10 +574,29 @@ impl GpuIsr {
         output: &wgpu::Texture,
     ) -> Result<PassTimings, IsrError> {
         let ctx = self.ctx.clone();
-        let mut rec = Recorder::Timed(&ctx, PassTimings::default());
+        let mut rec = match PassTimer::new(&ctx, MAX_TIMED_PASSES) {
+            Some(timer) => Recorder::Timestamps(
+                ctx.device.create_command_encoder(&Default::default()),
+                timer,
+                Vec::new(),
+            ),
+            None => Recorder::WallClock(&ctx, PassTimings::default()),
+        };
         self.record(&mut rec, inputs, settings, output)?;
         match rec {
-            Recorder::Timed(_, t) => Ok(t),
+            Recorder::Timestamps(mut encoder, timer, stages) => {
+                timer.resolve(&mut encoder);
+                ctx.queue.submit([encoder.finish()]);
+                let mut t = PassTimings {
+                    gpu_timestamps: true,
+                    ..Default::default()
+                };
+                for (stage, (_, d)) in stages.iter().zip(timer.read(&ctx)?) {
+                    stage.add(&mut t, d);
+                }
+                Ok(t)
+            }
+            Recorder::WallClock(_, t) => Ok(t),
             Recorder::Into(_) => Ok(PassTimings::default()),
         }
     }
@@ -740,7 +736,7 @@ impl GpuIsr {
         let full_size = (full.width, full.height);
         let coarse_size = match inputs.coarse {
             Some(c) => (c.width, c.height),
-            None => downsample::coarse_size(full.width, full.height),
+            None => coarse_size(full.width, full.height),
         };
         self.ensure_targets(full_size, coarse_size, inputs.coarse.is_none())?;
         if self
@@ -760,16 +756,14 @@ impl GpuIsr {
             ));
         }
         let screen = Screen::new(inputs.view);
-        let globals = Globals::new(
-            &screen,
-            &self.scene_globals,
-            settings,
-            full_size,
-            coarse_size,
+        let globals = Globals::new(&screen, &self.light_set, settings, full_size, coarse_size);
+        // This frame's own uniforms: a second view encoded before the submit gets its own.
+        let globals = buffer(
+            &self.ctx,
+            "isr globals",
+            bytemuck::bytes_of(&globals),
+            wgpu::BufferUsages::UNIFORM,
         );
-        self.ctx
-            .queue
-            .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
         let device = &self.ctx.device;
         let Some(t) = self.targets.as_ref() else {
             return Err(IsrError::SizeMismatch("no intermediate textures".into()));
@@ -780,18 +774,19 @@ impl GpuIsr {
         let coarse: &GpuGBuffer = match (inputs.coarse, t.coarse_gbuffer.as_ref()) {
             (Some(c), _) => c,
             (None, Some(own)) => {
-                let bg = self.downsample.bind(device, full, own);
-                rec.pass(Stage::Downsample, |e| {
-                    self.downsample
-                        .pipeline
-                        .dispatch(e, &bg, own.width, own.height)
+                let mut result = Ok(());
+                rec.pass(Stage::Downsample, |e, ts| {
+                    result = self
+                        .downsample
+                        .encode_timed(e, full, own, settings.downsample, ts);
                 });
+                result?;
                 own
             }
             (None, None) => return Err(IsrError::SizeMismatch("no coarse buffer".into())),
         };
-        let run_isr = !settings.is_direct_only() && self.scene_globals.has_light();
-        let scene_buffers = lighting::SceneBuffers {
+        let run_isr = !settings.is_direct_only() && self.light_set.has_light();
+        let light_buffers = lighting::LightBuffers {
             lights: &self.lights,
             shadow_texels: &self.shadow_texels,
             emitter_of: &self.emitter_of,
@@ -800,59 +795,45 @@ impl GpuIsr {
         if run_isr {
             let lit = settings.indirect && settings.sender == Sender::Lit;
             if lit {
-                let lp = self.lighting.pipeline(wgpu::TextureFormat::Rgba32Float);
+                let lp = self.lighting.pipeline(device, Variant::Senders);
                 let bg = lighting::bind(
                     lp,
                     device,
-                    &self.globals,
-                    &self.params[2],
+                    &globals,
                     coarse,
                     &self.dummy,
-                    &scene_buffers,
+                    &light_buffers,
                     &view_of(&t.senders),
                 );
-                rec.pass(Stage::Senders, |e| {
-                    lp.dispatch(e, &bg, coarse.width, coarse.height)
+                rec.pass(Stage::Senders, |e, ts| {
+                    lp.dispatch(e, &bg, coarse.width, coarse.height, ts)
                 });
             }
             let senders = if lit { &t.senders } else { &self.dummy };
-            let bg = self.radiosity.bind(
-                device,
-                &self.globals,
-                pattern,
-                coarse,
-                senders,
-                &t.radiosity,
-            );
-            rec.pass(Stage::Radiosity, |e| {
+            let bg = self
+                .radiosity
+                .bind(device, &globals, pattern, coarse, senders, &t.radiosity);
+            rec.pass(Stage::Radiosity, |e, ts| {
                 self.radiosity
                     .pipeline
-                    .dispatch(e, &bg, coarse.width, coarse.height)
+                    .dispatch(e, &bg, coarse.width, coarse.height, ts)
             });
             let blurred = if settings.blur_radius > 0 {
-                let h = self.blur.bind(
-                    device,
-                    &self.globals,
-                    &self.params[0],
-                    coarse,
-                    &t.radiosity,
-                    &t.tmp,
-                );
-                let v = self.blur.bind(
-                    device,
-                    &self.globals,
-                    &self.params[1],
-                    coarse,
-                    &t.tmp,
-                    &t.blurred,
-                );
-                rec.pass(Stage::Blur, |e| {
+                let h = self
+                    .blur
+                    .bind(device, true, &globals, coarse, &t.radiosity, &t.tmp);
+                let v = self
+                    .blur
+                    .bind(device, false, &globals, coarse, &t.tmp, &t.blurred);
+                rec.pass(Stage::Blur, |e, ts| {
                     self.blur
-                        .pipeline
-                        .dispatch(e, &h, coarse.width, coarse.height);
+                        .pipeline(true)
+                        .dispatch(e, &h, coarse.width, coarse.height, ts)
+                });
+                rec.pass(Stage::Blur, |e, ts| {
                     self.blur
-                        .pipeline
-                        .dispatch(e, &v, coarse.width, coarse.height);
+                        .pipeline(false)
+                        .dispatch(e, &v, coarse.width, coarse.height, ts)
                 });
                 &t.blurred
             } else {
@@ -860,32 +841,33 @@ impl GpuIsr {
             };
             let bg = self
                 .upsample
-                .bind(device, &self.globals, full, coarse, blurred, &t.upsampled);
-            rec.pass(Stage::Upsample, |e| {
+                .bind(device, &globals, full, coarse, blurred, &t.upsampled);
+            rec.pass(Stage::Upsample, |e, ts| {
                 self.upsample
                     .pipeline
-                    .dispatch(e, &bg, full.width, full.height)
+                    .dispatch(e, &bg, full.width, full.height, ts)
             });
         }
         let out_view = view_of(output);
-        let (isr_tex, params) = if run_isr {
-            (&t.upsampled, &self.params[3])
-        } else {
-            (&self.dummy, &self.params[4])
-        };
-        let lighting_pass = self.lighting.pipeline(output.format());
+        let isr_tex = if run_isr { &t.upsampled } else { &self.dummy };
+        let lighting_pass = self.lighting.pipeline(
+            device,
+            Variant::Compose {
+                with_isr: run_isr,
+                half: output.format() == wgpu::TextureFormat::Rgba16Float,
+            },
+        );
         let bg = lighting::bind(
             lighting_pass,
             device,
-            &self.globals,
-            params,
+            &globals,
             full,
             isr_tex,
-            &scene_buffers,
+            &light_buffers,
             &out_view,
         );
-        rec.pass(Stage::Lighting, |e| {
-            lighting_pass.dispatch(e, &bg, full.width, full.height)
+        rec.pass(Stage::Lighting, |e, ts| {
+            lighting_pass.dispatch(e, &bg, full.width, full.height, ts)
         });
         Ok(())
     }

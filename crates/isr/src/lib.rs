@@ -7,16 +7,16 @@
 //! on the CPU (rayon) and the GPU (wgpu compute, one shader per pass in `shaders/isr/`).
 //!
 //! ```
-//! use isr::{IsrInputs, IsrScene, IsrSettings, ShadowSettings, downsample, render_cpu};
+//! use isr::{DownsampleMode, IsrInputs, LightSet, IsrSettings, ShadowSettings, downsample, render_cpu};
 //! use scene_core::{GBufferRenderer, View, builtin, gbuffer::RayCastRenderer};
 //!
 //! let scene = builtin::scene("cornell-point").unwrap();
 //! let view = View::from_camera(&scene.cameras[0].with_aspect(32.0 / 24.0));
 //! // Any G-buffer will do; here primary rays give it.
-//! let full = RayCastRenderer.render(&scene, &view, 32, 24).unwrap();
-//! let coarse = downsample(&full);
+//! let full = RayCastRenderer::new().render(&scene, &view, 32, 24).unwrap();
+//! let coarse = downsample(&full, DownsampleMode::NearestSurface);
 //! // Lights and shadow maps, once per scene.
-//! let prepared = IsrScene::new(&scene, &ShadowSettings { cube_resolution: 32, ..Default::default() }).unwrap();
+//! let prepared = LightSet::new(&scene, &ShadowSettings { cube_resolution: 32, ..Default::default() }).unwrap();
 //! let isr = render_cpu(&prepared, &IsrInputs { full: &full, coarse: &coarse, view: &view },
 //!                      &IsrSettings::default()).unwrap();
 //! let dl = render_cpu(&prepared, &IsrInputs { full: &full, coarse: &coarse, view: &view },
@@ -27,7 +27,7 @@
 //! ```
 //!
 //! The pieces:
-//! - [`IsrScene`]: lights (point, directional, point samples of emissive triangles), their
+//! - [`LightSet`]: lights (point, directional, point samples of emissive triangles), their
 //!   shadow maps and the emissive-triangle table, built once per scene;
 //! - [`IsrInputs`] + [`IsrSettings`] -> [`render_cpu`]: one frame on the CPU;
 //! - [`GpuIsr`]: the same frame on the GPU from a [`scene_core::gpu::GpuGBuffer`] into a
@@ -35,29 +35,31 @@
 //! - [`IsrTechnique`] and [`DlTechnique`]: [`scene_core::Technique`]s holding any
 //!   [`scene_core::GBufferRenderer`].
 //!
-//! The passes, each a module here and a shader in `shaders/isr/`: [`downsample`],
-//! [`lighting`] (also the `Lit` senders on the coarse buffer), [`radiosity`] (ISR + SSAO),
-//! [`blur`], [`upsample`]. [`shadow`] builds the maps on the CPU (they are view-independent).
+//! The passes, each a module here and a shader in `shaders/isr/`: [`lighting`] (also the
+//! `Lit` senders on the coarse buffer; its shader is composed of `light_set.wgsl`,
+//! `shadow.wgsl` and `lighting.wgsl`, mirroring [`light_set`], [`shadow`] and [`lighting`]),
+//! [`radiosity`] (ISR + SSAO), [`blur`], [`upsample`]. The coarse buffers come from
+//! scene-core's downsampling ([`downsample()`], `shaders/scene-core/downsample.wgsl`).
+//! [`shadow`] builds the maps on the CPU (they are view-independent).
 //! `docs/isr.md` has the design decisions, the readings of the thesis' equations and the
 //! measured errors and timings.
 
 pub mod blur;
-pub mod downsample;
 pub mod frame;
 pub mod geometry;
 pub mod gpu;
+pub mod light_set;
 pub mod lighting;
-pub mod lights;
 pub mod radiosity;
 pub mod settings;
 pub mod shadow;
 pub mod technique;
 pub mod upsample;
 
-pub use downsample::{coarse_size, downsample};
 pub use frame::{Frame, IsrInputs, PassTimings, render_cpu, render_image};
 pub use gpu::{GpuIsr, GpuIsrInputs};
-pub use lights::{IsrScene, Light, LightKind};
+pub use light_set::{Light, LightKind, LightSet, Part};
+pub use scene_core::gbuffer::downsample::{DownsampleMode, coarse_size, downsample};
 pub use settings::{Blur, Estimator, IsrSettings, Radius, Sender, ShadowSettings};
 pub use technique::{Backend, DlTechnique, IsrTechnique};
 
@@ -129,13 +131,15 @@ pub enum IsrError {
     Core(#[from] Box<scene_core::Error>),
 }
 
+/// Keeps the error's kind across the [`scene_core::Technique`] boundary: GPU and shared-layer
+/// errors become theirs, everything else travels whole as [`scene_core::Error::Method`]
+/// (recover it with `error.method_error::<IsrError>()`).
 impl From<IsrError> for scene_core::Error {
     fn from(e: IsrError) -> Self {
         match e {
             IsrError::Gpu(g) => scene_core::Error::Gpu(g),
             IsrError::Core(c) => *c,
-            IsrError::Budget(b) => scene_core::Error::Budget(b),
-            other => scene_core::Error::InvalidArgument(other.to_string()),
+            other => scene_core::Error::method("isr", other),
         }
     }
 }

@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use scene_core::{GBuffer, Image};
 
 use crate::geometry::{Screen, normal_or_viewer, pixel_uv, usable_normal};
-use crate::lights::IsrScene;
+use crate::light_set::{LightSet, Part};
 use crate::settings::IsrSettings;
 
 /// What the lighting pass computes.
@@ -30,8 +30,9 @@ pub enum Mode {
     Compose,
 }
 
-/// The direct radiance each pixel of `g` reflects (the coarse senders).
-pub fn senders(scene: &IsrScene, screen: &Screen, g: &GBuffer) -> Vec<Vec3> {
+/// The direct radiance each pixel of `g` reflects (the coarse senders), each light scaled
+/// by its indirect factor ([`Part::Indirect`]): the bounce it feeds is its indirect light.
+pub fn senders(scene: &LightSet, screen: &Screen, g: &GBuffer) -> Vec<Vec3> {
     let (w, h) = (g.width, g.height);
     (0..h)
         .into_par_iter()
@@ -44,7 +45,7 @@ pub fn senders(scene: &IsrScene, screen: &Screen, g: &GBuffer) -> Vec<Vec3> {
                 let uv = pixel_uv(x, y, w, h);
                 let p = screen.world(uv, g.depth[i]);
                 let n = normal_or_viewer(g.normal[i], screen, uv);
-                g.albedo[i].truncate() * FRAC_1_PI * scene.irradiance(p, n)
+                g.albedo[i].truncate() * FRAC_1_PI * scene.irradiance(p, n, Part::Indirect)
             })
         })
         .collect()
@@ -53,7 +54,7 @@ pub fn senders(scene: &IsrScene, screen: &Screen, g: &GBuffer) -> Vec<Vec3> {
 /// Eq. 29 over the full-resolution buffer `g`. `isr` is the upsampled ISR/SSAO buffer
 /// (indirect `rgb`, accessibility `a`), `None` for direct light only.
 pub fn compose(
-    scene: &IsrScene,
+    scene: &LightSet,
     screen: &Screen,
     g: &GBuffer,
     isr: Option<&[Vec4]>,
@@ -73,7 +74,7 @@ pub fn compose(
                 let to_viewer = screen.to_viewer(uv);
                 let n = usable_normal(g.normal[i], to_viewer);
                 let c0 = g.albedo[i].truncate();
-                let direct = c0 * FRAC_1_PI * scene.irradiance(p, n) * settings.k_dl;
+                let direct = c0 * FRAC_1_PI * scene.irradiance(p, n, Part::Direct) * settings.k_dl;
                 let emission = scene.emitters.emission(g.triangle_id[i], to_viewer);
                 let v = isr.map_or(Vec4::new(0.0, 0.0, 0.0, 1.0), |b| b[i]);
                 let ao = if settings.ssao {
@@ -102,84 +103,130 @@ pub fn compose(
     }
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `lighting.wgsl`); its output is
-/// `rgba32float`, replaced by `rgba16float` for the second pipeline.
+/// WGSL source of the GPU pass writing `Rgba32Float`: `shaders/isr/common.wgsl`, then the
+/// light set and shadow parts the pass shares with [`crate::light_set`] and
+/// [`crate::shadow`], the output declaration, and `lighting.wgsl`.
 pub const WGSL: &str = concat!(
     include_str!("../../../shaders/isr/common.wgsl"),
+    include_str!("../../../shaders/isr/light_set.wgsl"),
+    include_str!("../../../shaders/isr/shadow.wgsl"),
+    include_str!("../../../shaders/isr/lighting_target.wgsl"),
     include_str!("../../../shaders/isr/lighting.wgsl")
 );
 
-/// The scene's storage buffers the lighting pass reads.
-pub(crate) struct SceneBuffers<'a> {
+/// The same writing `Rgba16Float` (WGSL cannot make a storage format overridable, so the
+/// pass is composed with the other output declaration).
+pub const WGSL_RGBA16F: &str = concat!(
+    include_str!("../../../shaders/isr/common.wgsl"),
+    include_str!("../../../shaders/isr/light_set.wgsl"),
+    include_str!("../../../shaders/isr/shadow.wgsl"),
+    include_str!("../../../shaders/isr/lighting_target16.wgsl"),
+    include_str!("../../../shaders/isr/lighting.wgsl")
+);
+
+/// The light set's storage buffers the lighting pass reads.
+pub(crate) struct LightBuffers<'a> {
     pub lights: &'a wgpu::Buffer,
     pub shadow_texels: &'a wgpu::Buffer,
     pub emitter_of: &'a wgpu::Buffer,
     pub emitters: &'a wgpu::Buffer,
 }
 
-/// The GPU pass, one pipeline per output format (`Rgba32Float`, `Rgba16Float`).
+/// Which pipeline of the pass: its `MODE` and `HAS_ISR` constants and output format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Variant {
+    /// The `Lit` senders on the coarse buffer (`Rgba32Float`).
+    Senders,
+    /// Eq. 29 into `format`, with or without the upsampled ISR/SSAO buffer.
+    Compose { with_isr: bool, half: bool },
+}
+
+impl Variant {
+    fn slot(self) -> usize {
+        match self {
+            Variant::Senders => 0,
+            Variant::Compose { with_isr, half } => {
+                1 + usize::from(with_isr) + 2 * usize::from(half)
+            }
+        }
+    }
+}
+
+/// The GPU pass: one pipeline per [`Variant`], compiled when first used (the two output
+/// formats share nothing but their source).
 pub(crate) struct GpuPass {
-    pipelines: [crate::gpu::Pipeline; 2],
+    modules: [wgpu::ShaderModule; 2],
+    pipelines: [std::sync::OnceLock<scene_core::gpu::ComputePass>; 5],
 }
 
 impl GpuPass {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let make = |format: wgpu::TextureFormat, name: &str| {
-            use crate::gpu::{
-                storage_buffer_entry, storage_texture_entry, texture_entry, uniform_entry,
+        let module = |source: &'static str| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("isr lighting"),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+        };
+        Self {
+            modules: [module(WGSL), module(WGSL_RGBA16F)],
+            pipelines: Default::default(),
+        }
+    }
+
+    /// The pipeline of `variant`.
+    pub(crate) fn pipeline(
+        &self,
+        device: &wgpu::Device,
+        variant: Variant,
+    ) -> &scene_core::gpu::ComputePass {
+        use crate::gpu::{
+            storage_buffer_entry, storage_texture_entry, texture_entry, uniform_entry,
+        };
+        self.pipelines[variant.slot()].get_or_init(|| {
+            let (mode, with_isr, half) = match variant {
+                Variant::Senders => (0.0, false, false),
+                Variant::Compose { with_isr, half } => (1.0, with_isr, half),
             };
-            let source = WGSL.replace(
-                "texture_storage_2d<rgba32float, write>",
-                &format!("texture_storage_2d<{name}, write>"),
-            );
-            crate::gpu::Pipeline::new(
+            let format = if half {
+                wgpu::TextureFormat::Rgba16Float
+            } else {
+                wgpu::TextureFormat::Rgba32Float
+            };
+            scene_core::gpu::ComputePass::from_module(
                 device,
                 "isr lighting",
-                &source,
+                &self.modules[usize::from(half)],
                 &[
                     uniform_entry(0),
-                    uniform_entry(1),
+                    texture_entry(1, false),
                     texture_entry(2, false),
                     texture_entry(3, false),
-                    texture_entry(4, false),
-                    texture_entry(5, true),
-                    texture_entry(6, false),
+                    texture_entry(4, true),
+                    texture_entry(5, false),
+                    storage_buffer_entry(6),
                     storage_buffer_entry(7),
                     storage_buffer_entry(8),
                     storage_buffer_entry(9),
-                    storage_buffer_entry(10),
-                    storage_texture_entry(11, format),
+                    storage_texture_entry(10, format),
+                ],
+                &[
+                    ("MODE", mode),
+                    ("HAS_ISR", if with_isr { 1.0 } else { 0.0 }),
                 ],
             )
-        };
-        Self {
-            pipelines: [
-                make(wgpu::TextureFormat::Rgba32Float, "rgba32float"),
-                make(wgpu::TextureFormat::Rgba16Float, "rgba16float"),
-            ],
-        }
-    }
-
-    /// The pipeline writing `format` (`Rgba16Float`, else `Rgba32Float`).
-    pub(crate) fn pipeline(&self, format: wgpu::TextureFormat) -> &crate::gpu::Pipeline {
-        if format == wgpu::TextureFormat::Rgba16Float {
-            &self.pipelines[1]
-        } else {
-            &self.pipelines[0]
-        }
+        })
     }
 }
 
-/// A bind group of `pipeline` (from [`GpuPass::pipeline`]) over G-buffer `g`.
+/// A bind group of `pipeline` over G-buffer `g`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn bind(
-    pipeline: &crate::gpu::Pipeline,
+    pipeline: &scene_core::gpu::ComputePass,
     device: &wgpu::Device,
     globals: &wgpu::Buffer,
-    params: &wgpu::Buffer,
     g: &scene_core::gpu::GpuGBuffer,
     isr: &wgpu::Texture,
-    scene: &SceneBuffers<'_>,
+    lights: &LightBuffers<'_>,
     out: &wgpu::TextureView,
 ) -> wgpu::BindGroup {
     let v = |t: &wgpu::Texture| t.create_view(&Default::default());
@@ -190,13 +237,13 @@ pub(crate) fn bind(
         v(&g.triangle_id),
         v(isr),
     ];
-    let mut res = vec![globals.as_entire_binding(), params.as_entire_binding()];
+    let mut res = vec![globals.as_entire_binding()];
     res.extend(views.iter().map(wgpu::BindingResource::TextureView));
     res.extend([
-        scene.lights.as_entire_binding(),
-        scene.shadow_texels.as_entire_binding(),
-        scene.emitter_of.as_entire_binding(),
-        scene.emitters.as_entire_binding(),
+        lights.lights.as_entire_binding(),
+        lights.shadow_texels.as_entire_binding(),
+        lights.emitter_of.as_entire_binding(),
+        lights.emitters.as_entire_binding(),
         wgpu::BindingResource::TextureView(out),
     ]);
     pipeline.bind(device, &res)

@@ -229,7 +229,7 @@ pub const WGSL: &str = concat!(
 
 /// The GPU pass.
 pub(crate) struct GpuPass {
-    pub pipeline: crate::gpu::Pipeline,
+    pub pipeline: scene_core::gpu::ComputePass,
 }
 
 impl GpuPass {
@@ -238,7 +238,7 @@ impl GpuPass {
             storage_buffer_entry, storage_texture_entry, texture_entry, uniform_entry,
         };
         Self {
-            pipeline: crate::gpu::Pipeline::new(
+            pipeline: scene_core::gpu::ComputePass::new(
                 device,
                 "isr radiosity",
                 WGSL,
@@ -252,6 +252,7 @@ impl GpuPass {
                     texture_entry(6, false),
                     storage_texture_entry(7, wgpu::TextureFormat::Rgba32Float),
                 ],
+                &[],
             ),
         }
     }

@@ -1,6 +1,8 @@
 //! The parameters of one ISR frame ([`IsrSettings`]) and of the view-independent shadow
 //! maps ([`ShadowSettings`]).
 
+use scene_core::gbuffer::DownsampleMode;
+
 use crate::IsrError;
 
 /// How eq. 25 turns one neighbourhood sample into light arriving at the receiver.
@@ -110,6 +112,11 @@ pub struct IsrSettings {
     /// Apply ambient occlusion to the indirect term only instead of to the direct term (the
     /// thesis darkens the direct term, which shadows already account for).
     pub ao_indirect_only: bool,
+    /// How the coarse buffers are made from the full-resolution G-buffer (scene-core's one
+    /// downsampling). [`DownsampleMode::NearestSurface`] by default: the foreground at
+    /// silhouettes, averaged inside surfaces; the thesis averages every sample
+    /// ([`DownsampleMode::Average`]), which invents surfaces at silhouettes.
+    pub downsample: DownsampleMode,
 }
 
 impl Default for IsrSettings {
@@ -130,6 +137,7 @@ impl Default for IsrSettings {
             k_ssao: 0.5,
             k_isr: 0.5,
             ao_indirect_only: false,
+            downsample: DownsampleMode::NearestSurface,
         }
     }
 }
@@ -226,7 +234,7 @@ pub const MAX_SAMPLES: u32 = 256;
 pub const MAX_BLUR_RADIUS: u32 = 16;
 
 /// The exponential shadow maps (eq. 30, listing 8), built once per scene by
-/// [`crate::IsrScene::new`]: they do not depend on the camera.
+/// [`crate::LightSet::new`]: they do not depend on the camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowSettings {
     /// Shadows on; off, every light reaches every surface facing it.
@@ -253,7 +261,7 @@ pub struct ShadowSettings {
     /// Constant depth bias in shadow-map texels.
     pub depth_bias: f32,
     /// Budget of shadow-map texels over all maps. Cube maps are halved in resolution (down to
-    /// 16 texels) until they fit; beyond that [`crate::IsrScene::new`] fails.
+    /// 16 texels) until they fit; beyond that [`crate::LightSet::new`] fails.
     pub max_texels: u64,
 }
 

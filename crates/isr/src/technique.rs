@@ -2,12 +2,14 @@
 //! [`GBufferRenderer`], the coarse buffer by [`crate::downsample`], then the frame on the
 //! CPU or the GPU.
 
-use scene_core::{Camera, Error, GBufferRenderer, Image, Scene, Technique, View};
+use std::sync::Arc;
 
-use crate::downsample::downsample;
+use scene_core::{Error, FrameRequest, GBufferRenderer, Image, Scene, Technique};
+
 use crate::frame::{IsrInputs, PassTimings, render_cpu, timed};
-use crate::lights::IsrScene;
+use crate::light_set::LightSet;
 use crate::settings::{IsrSettings, ShadowSettings};
+use scene_core::gbuffer::downsample;
 
 /// Where a technique runs its frames.
 #[derive(Clone, Debug, Default)]
@@ -20,30 +22,11 @@ pub enum Backend {
     Gpu(scene_core::gpu::GpuContext),
 }
 
-/// What identifies the scene a technique was prepared for.
-#[derive(Clone, Debug, PartialEq)]
-struct Fingerprint {
-    name: String,
-    triangles: usize,
-    lights: (usize, usize),
-    bounds: [f32; 6],
-}
-
-impl Fingerprint {
-    fn of(scene: &Scene) -> Self {
-        let b = scene.bounds();
-        Self {
-            name: scene.name.clone(),
-            triangles: scene.triangle_count(),
-            lights: (scene.point_lights.len(), scene.directional_lights.len()),
-            bounds: [b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z],
-        }
-    }
-}
-
-/// Image-space radiosity as a [`Technique`]: `prepare` builds the lights and shadow maps
-/// ([`IsrScene`]), `render` renders the G-buffer with the renderer it holds, downsamples it
-/// (depth-aware, see [`crate::downsample`]) and runs one frame with its [`IsrSettings`].
+/// Image-space radiosity as a [`Technique`]: `prepare` hands the scene to its G-buffer
+/// renderer and builds the lights and shadow maps ([`LightSet`]); `render` applies the
+/// frame's [`scene_core::LightState`] to the lights (no rebuild), renders the G-buffer of
+/// the frame's view, downsamples it ([`IsrSettings::downsample`]) and runs one frame with
+/// its [`IsrSettings`].
 pub struct IsrTechnique {
     name: String,
     /// The frame parameters.
@@ -53,7 +36,7 @@ pub struct IsrTechnique {
     renderer: Box<dyn GBufferRenderer + Send>,
     backend: Backend,
     gpu: Option<crate::GpuIsr>,
-    prepared: Option<(Fingerprint, IsrScene)>,
+    prepared: Option<(Arc<Scene>, LightSet)>,
     timings: PassTimings,
 }
 
@@ -89,7 +72,7 @@ impl IsrTechnique {
         }
     }
 
-    /// The same with other shadow settings.
+    /// The same with other shadow settings (they take effect at the next `prepare`).
     pub fn with_shadows(mut self, shadows: ShadowSettings) -> Self {
         self.shadows = shadows;
         self.prepared = None;
@@ -115,19 +98,9 @@ impl IsrTechnique {
         self.timings
     }
 
-    /// The prepared scene, after `prepare` or the first `render`.
-    pub fn prepared(&self) -> Option<&IsrScene> {
+    /// The prepared lights, after `prepare`, with the last frame's light state applied.
+    pub fn prepared(&self) -> Option<&LightSet> {
         self.prepared.as_ref().map(|p| &p.1)
-    }
-
-    fn ensure_prepared(&mut self, scene: &Scene) -> Result<(), Error> {
-        let fp = Fingerprint::of(scene);
-        if self.prepared.as_ref().is_none_or(|(f, _)| *f != fp) {
-            let s = IsrScene::new(scene, &self.shadows)?;
-            self.prepared = Some((fp, s));
-            self.gpu = None;
-        }
-        Ok(())
     }
 }
 
@@ -136,19 +109,19 @@ impl Technique for IsrTechnique {
         &self.name
     }
 
-    fn prepare(&mut self, scene: &Scene) -> Result<(), Error> {
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
         self.prepared = None;
-        self.ensure_prepared(scene)
+        self.gpu = None;
+        self.renderer.prepare(scene.clone())?;
+        let lights = LightSet::new(&scene, &self.shadows)?;
+        self.prepared = Some((scene, lights));
+        Ok(())
     }
 
-    /// Renders `camera` (its aspect ratio replaced by `width / height`) at `width x height`.
-    fn render(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        width: u32,
-        height: u32,
-    ) -> Result<Image, Error> {
+    /// Renders `frame` with its light state: a changed light setting changes this frame;
+    /// nothing prepared depends on it.
+    fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
+        let (width, height) = (frame.width, frame.height);
         if width == 0 || height == 0 {
             return Err(crate::IsrError::ZeroSize {
                 which: "output",
@@ -157,34 +130,33 @@ impl Technique for IsrTechnique {
             }
             .into());
         }
-        self.ensure_prepared(scene)?;
-        let camera = camera.with_aspect(width as f32 / height as f32);
-        let view = View::from_camera(&camera);
-        let full = self.renderer.render(scene, &view, width, height)?;
-        let (coarse, t_down) = timed(|| downsample(&full));
-        let Some((_, prepared)) = self.prepared.as_ref() else {
-            return Err(Error::InvalidArgument("technique not prepared".into()));
+        let Some((_, lights)) = self.prepared.as_mut() else {
+            return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
         };
+        lights.apply(frame.lights);
+        let full = self.renderer.render_view(&frame.view, width, height)?;
         match &self.backend {
             Backend::Cpu => {
+                let (coarse, t_down) = timed(|| downsample(&full, self.settings.downsample));
                 let inputs = IsrInputs {
                     full: &full,
                     coarse: &coarse,
-                    view: &view,
+                    view: &frame.view,
                 };
-                let frame = render_cpu(prepared, &inputs, &self.settings)?;
-                self.timings = frame.timings;
+                let out = render_cpu(lights, &inputs, &self.settings)?;
+                self.timings = out.timings;
                 self.timings.downsample = t_down;
-                Ok(frame.image)
+                Ok(out.image)
             }
             Backend::Gpu(ctx) => {
                 if self.gpu.is_none() {
-                    self.gpu = Some(crate::GpuIsr::new(ctx, prepared)?);
+                    self.gpu = Some(crate::GpuIsr::new(ctx, lights)?);
                 }
                 let Some(gpu) = self.gpu.as_mut() else {
-                    return Err(Error::InvalidArgument("GPU state missing".into()));
+                    return Err(Error::NotPrepared("the GPU ISR pipelines".into()));
                 };
-                let (image, timings) = gpu.render_gbuffer(&full, &view, &self.settings)?;
+                gpu.apply(frame.lights);
+                let (image, timings) = gpu.render_gbuffer(&full, &frame.view, &self.settings)?;
                 self.timings = timings;
                 Ok(image)
             }
@@ -209,17 +181,11 @@ impl Technique for DlTechnique {
         "dl"
     }
 
-    fn prepare(&mut self, scene: &Scene) -> Result<(), Error> {
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
         self.0.prepare(scene)
     }
 
-    fn render(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        width: u32,
-        height: u32,
-    ) -> Result<Image, Error> {
-        self.0.render(scene, camera, width, height)
+    fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
+        self.0.render(frame)
     }
 }

@@ -128,14 +128,14 @@ pub const WGSL: &str = concat!(
 
 /// The GPU pass.
 pub(crate) struct GpuPass {
-    pub pipeline: crate::gpu::Pipeline,
+    pub pipeline: scene_core::gpu::ComputePass,
 }
 
 impl GpuPass {
     pub(crate) fn new(device: &wgpu::Device) -> Self {
         use crate::gpu::{storage_texture_entry, texture_entry, uniform_entry};
         Self {
-            pipeline: crate::gpu::Pipeline::new(
+            pipeline: scene_core::gpu::ComputePass::new(
                 device,
                 "isr upsample",
                 WGSL,
@@ -150,6 +150,7 @@ impl GpuPass {
                     texture_entry(7, false),
                     storage_texture_entry(8, wgpu::TextureFormat::Rgba32Float),
                 ],
+                &[],
             ),
         }
     }

@@ -8,6 +8,9 @@ use std::path::PathBuf;
 
 use common::{Setup, image_mean, mean_error, modes};
 use isr::{Blur, DlTechnique, IsrSettings, IsrTechnique};
+use std::sync::Arc;
+
+use scene_core::FrameRequest;
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::{Image, Technique, builtin};
 
@@ -64,24 +67,36 @@ fn golden_images_of_every_mode() {
 fn isr_and_dl_are_techniques() {
     let scene = builtin::scene("cornell-point").unwrap();
     let shadows = common::small_shadows();
-    let mut isr =
-        IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer)).with_shadows(shadows);
-    let mut dl = DlTechnique::new(Box::new(RayCastRenderer));
+    let mut isr = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer::new()))
+        .with_shadows(shadows);
+    let mut dl = DlTechnique::new(Box::new(RayCastRenderer::new()));
     dl.0.shadows = shadows;
     let techniques: [&mut dyn Technique; 2] = [&mut isr, &mut dl];
     let mut images = Vec::new();
     for t in techniques {
-        t.prepare(&scene).unwrap();
-        images.push(t.render(&scene, &scene.cameras[0], 40, 30).unwrap());
+        t.prepare(Arc::new(scene.clone())).unwrap();
+        images.push(
+            t.render(&FrameRequest::camera(&scene.cameras[0], 40, 30))
+                .unwrap(),
+        );
     }
     assert_eq!(isr.name(), "isr");
     assert_eq!(dl.name(), "dl");
     assert!(image_mean(&images[0]) > image_mean(&images[1]));
     let t = isr.last_timings();
     assert!(t.radiosity > std::time::Duration::ZERO && t.total() >= t.lighting);
-    // Rendering another scene without prepare prepares it.
+    // A technique renders only what it was prepared for: before `prepare`, a typed error.
     let other = builtin::scene("primitives").unwrap();
-    let img = isr.render(&other, &other.cameras[1], 40, 30).unwrap();
+    let mut fresh = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer::new()));
+    let e = fresh
+        .render(&FrameRequest::camera(&other.cameras[1], 40, 30))
+        .unwrap_err();
+    assert!(matches!(e, scene_core::Error::NotPrepared(_)), "{e}");
+    // Preparing another scene replaces the first.
+    isr.prepare(Arc::new(other.clone())).unwrap();
+    let img = isr
+        .render(&FrameRequest::camera(&other.cameras[1], 40, 30))
+        .unwrap();
     assert!(image_mean(&img) > 0.1);
     assert_eq!(isr.prepared().unwrap().lights.len(), 1);
 }

@@ -6,6 +6,9 @@ mod common;
 
 use common::{Setup, image_mean, max_difference, mean_error, modes, small_shadows};
 use isr::{Backend, Blur, GpuIsr, GpuIsrInputs, IsrError, IsrSettings, IsrTechnique, render_cpu};
+use std::sync::Arc;
+
+use scene_core::FrameRequest;
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{GpuContext, GpuGBuffer, gpu_test_context};
 use scene_core::{Technique, builtin};
@@ -244,15 +247,19 @@ fn the_technique_runs_on_the_gpu() {
         return;
     };
     let scene = builtin::scene("primitives").unwrap();
-    let mut cpu = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer))
+    let mut cpu = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer::new()))
         .with_shadows(small_shadows());
-    let mut gpu = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer))
+    let mut gpu = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer::new()))
         .with_shadows(small_shadows())
         .with_backend(Backend::Gpu(ctx));
-    cpu.prepare(&scene).unwrap();
-    gpu.prepare(&scene).unwrap();
-    let a = cpu.render(&scene, &scene.cameras[0], 48, 36).unwrap();
-    let b = gpu.render(&scene, &scene.cameras[0], 48, 36).unwrap();
+    cpu.prepare(Arc::new(scene.clone())).unwrap();
+    gpu.prepare(Arc::new(scene.clone())).unwrap();
+    let a = cpu
+        .render(&FrameRequest::camera(&scene.cameras[0], 48, 36))
+        .unwrap();
+    let b = gpu
+        .render(&FrameRequest::camera(&scene.cameras[0], 48, 36))
+        .unwrap();
     assert!(mean_error(&a, &b) < 1e-3 * image_mean(&a));
     assert!(gpu.last_timings().lighting > std::time::Duration::ZERO);
 }

@@ -5,8 +5,11 @@ mod common;
 use common::{Setup, image_mean, mean_error, modes, small_shadows};
 use glam::{Vec3, Vec4};
 use isr::{
-    Blur, IsrError, IsrInputs, IsrScene, IsrSettings, IsrTechnique, ShadowSettings, render_cpu,
+    Blur, IsrError, IsrInputs, IsrSettings, IsrTechnique, LightSet, ShadowSettings, render_cpu,
 };
+use std::sync::Arc;
+
+use scene_core::FrameRequest;
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::{
     Camera, GBuffer, Material, Mesh, PointLight, Projection, Scene, Technique, View, builtin,
@@ -126,7 +129,7 @@ fn neighbours_at_equal_depth_give_finite_light() {
             Vec3::new(1.0, 0.0, 1.0).normalize()
         };
     }
-    let coarse = isr::downsample(&g);
+    let coarse = isr::downsample(&g, isr::DownsampleMode::NearestSurface);
     let inputs = IsrInputs {
         full: &g,
         coarse: &coarse,
@@ -161,7 +164,7 @@ fn background_pixels_and_background_neighbourhoods() {
     one.normal[i] = setup.full.normal[i];
     one.depth[i] = setup.full.depth[i];
     one.triangle_id[i] = setup.full.triangle_id[i];
-    let coarse = isr::downsample(&one);
+    let coarse = isr::downsample(&one, isr::DownsampleMode::NearestSurface);
     let inputs = IsrInputs {
         full: &one,
         coarse: &coarse,
@@ -243,13 +246,18 @@ fn vanished_upsampling_weights_and_cancelled_normals() {
 fn one_pixel_images() {
     for name in ["cornell", "primitives"] {
         let scene = builtin::scene(name).unwrap();
-        let mut t = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer))
+        let mut t = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer::new()))
             .with_shadows(small_shadows());
-        t.prepare(&scene).unwrap();
-        let img = t.render(&scene, &scene.cameras[0], 1, 1).unwrap();
+        t.prepare(Arc::new(scene.clone())).unwrap();
+        let img = t
+            .render(&FrameRequest::camera(&scene.cameras[0], 1, 1))
+            .unwrap();
         assert_eq!(img.pixels.len(), 1);
         assert!(img.pixels[0].is_finite(), "{name}: {}", img.pixels[0]);
-        assert!(t.render(&scene, &scene.cameras[0], 0, 1).is_err());
+        assert!(
+            t.render(&FrameRequest::camera(&scene.cameras[0], 0, 1))
+                .is_err()
+        );
     }
 }
 
@@ -285,7 +293,7 @@ fn shadow_exponent_at_the_f32_limit() {
             esm_exponent: c,
             ..small_shadows()
         };
-        let prepared = IsrScene::new(&scene, &shadows).unwrap();
+        let prepared = LightSet::new(&scene, &shadows).unwrap();
         assert!(
             prepared.shadow_texels.iter().all(|t| t.is_finite()),
             "c = {c}"
@@ -331,7 +339,7 @@ fn shadow_exponent_at_the_f32_limit() {
             enabled: false,
             ..small_shadows()
         };
-        let prepared = IsrScene::new(&scene, &shadows).unwrap();
+        let prepared = LightSet::new(&scene, &shadows).unwrap();
         Setup::with_prepared(scene.clone(), prepared, 0, 48, 36).render(&IsrSettings::default())
     };
     let lit = mean_error(&unshadowed, &hard);
@@ -353,7 +361,7 @@ fn a_scene_without_lights_is_black() {
     }
     // Emitters with no samples only show themselves.
     let scene = builtin::scene("cornell").unwrap();
-    let prepared = IsrScene::new(
+    let prepared = LightSet::new(
         &scene,
         &ShadowSettings {
             emitter_samples: 0,
@@ -371,8 +379,11 @@ fn a_scene_without_lights_is_black() {
     empty
         .cameras
         .push(builtin::scene("cornell").unwrap().cameras[0].clone());
-    let mut t = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer));
-    let img = t.render(&empty, &empty.cameras[0], 8, 6).unwrap();
+    let mut t = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer::new()));
+    t.prepare(Arc::new(empty.clone())).unwrap();
+    let img = t
+        .render(&FrameRequest::camera(&empty.cameras[0], 8, 6))
+        .unwrap();
     assert!(img.pixels.iter().all(|p| *p == Vec3::ZERO));
 }
 
@@ -393,14 +404,14 @@ fn sixty_four_coincident_lights_equal_one() {
     };
     let a = Setup::with_prepared(
         one.clone(),
-        IsrScene::new(&one, &shadows).unwrap(),
+        LightSet::new(&one, &shadows).unwrap(),
         0,
         32,
         24,
     );
     let b = Setup::with_prepared(
         many.clone(),
-        IsrScene::new(&many, &shadows).unwrap(),
+        LightSet::new(&many, &shadows).unwrap(),
         0,
         32,
         24,
@@ -514,9 +525,9 @@ fn bad_input_gives_typed_errors() {
     let ortho = View::orthographic_fit(Vec3::new(0.28, 0.27, 0.28), Vec3::Z, 0.5);
     assert!(matches!(ortho.projection, Projection::Orthographic { .. }));
     let scene = builtin::scene("cornell-point").unwrap();
-    let mut r = RayCastRenderer;
+    let mut r = RayCastRenderer::new();
     let full = scene_core::GBufferRenderer::render(&mut r, &scene, &ortho, 24, 24).unwrap();
-    let coarse = isr::downsample(&full);
+    let coarse = isr::downsample(&full, isr::DownsampleMode::NearestSurface);
     let f = render_cpu(
         &setup.prepared,
         &IsrInputs {

@@ -1,11 +1,17 @@
 //! The G-buffer, the project's currency (thesis figure 4.1), and the trait of renderers
 //! that produce it.
 
+use std::sync::Arc;
+
 use glam::{Vec3, Vec4};
 
 use crate::Error;
 use crate::scene::Scene;
 use crate::view::{HemicubeFace, View};
+
+pub mod downsample;
+
+pub use downsample::{DownsampleMode, coarse_size, downsample};
 
 /// Triangle id stored for background pixels.
 pub const BACKGROUND_ID: u32 = u32::MAX;
@@ -103,32 +109,103 @@ pub fn check_hemicube(point: Vec3, normal: Vec3, resolution: u32) -> Result<(), 
     Ok(())
 }
 
-/// Something that renders a [`Scene`] seen from a [`View`] into a [`GBuffer`]. The `gbuffer`
+/// One view to render and the size of its image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ViewTarget {
+    /// Where from.
+    pub view: View,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
+impl ViewTarget {
+    /// `view` at `width x height`.
+    pub fn new(view: View, width: u32, height: u32) -> Self {
+        Self {
+            view,
+            width,
+            height,
+        }
+    }
+}
+
+/// Something that renders a [`Scene`] seen from [`View`]s into [`GBuffer`]s. The `gbuffer`
 /// crate implements it on the CPU and the GPU; `ibrr-ldc` and `relight-pr` take any
 /// implementation for their hemicube renders ([`GBufferRenderer::render_hemicube`]).
+///
+/// A renderer is prepared once for a scene ([`GBufferRenderer::prepare`]: the GPU one
+/// uploads it, the ray caster builds its BVH) and then renders batches of views of it
+/// ([`GBufferRenderer::render_views`]) with no per-frame work on the scene: nothing is
+/// hashed or uploaded again. A renderer draws whatever triangles it is given, and the
+/// triangle ids it writes are that scene's ([`Scene::mesh_offsets`]): a method that meshes
+/// the scene into elements prepares the renderer with the meshed scene and reads element
+/// ids back.
+///
+/// ```
+/// use std::sync::Arc;
+/// use scene_core::{builtin, GBufferRenderer, View, ViewTarget, gbuffer::RayCastRenderer};
+///
+/// let scene = Arc::new(builtin::scene("cornell").unwrap());
+/// let mut renderer = RayCastRenderer::default();
+/// renderer.prepare(scene.clone()).unwrap();
+/// let view = View::from_camera(&scene.cameras[0]);
+/// let g = renderer.render_views(&[ViewTarget::new(view, 16, 16), ViewTarget::new(view, 8, 8)]).unwrap();
+/// assert_eq!((g[0].len(), g[1].len()), (256, 64));
+/// ```
 pub trait GBufferRenderer {
     /// A short name for reports ("cpu", "gpu").
     fn name(&self) -> &str;
-    /// Renders `scene` from `view` at `width x height`.
+
+    /// Takes the scene to draw from now on (uploads it, builds acceleration structures),
+    /// replacing the one prepared before.
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error>;
+
+    /// The scene prepared last, if any.
+    fn prepared_scene(&self) -> Option<&Arc<Scene>>;
+
+    /// Renders every view of `views` of the prepared scene (a renderer that can batch them
+    /// records them into one submission). Errors with [`Error::NotPrepared`] before
+    /// [`GBufferRenderer::prepare`], on a zero-size target, and on whatever the renderer
+    /// reports.
+    fn render_views(&mut self, views: &[ViewTarget]) -> Result<Vec<GBuffer>, Error>;
+
+    /// Renders one view of the prepared scene.
+    fn render_view(&mut self, view: &View, width: u32, height: u32) -> Result<GBuffer, Error> {
+        self.render_views(&[ViewTarget::new(*view, width, height)])?
+            .pop()
+            .ok_or_else(|| Error::InvalidArgument(format!("{} rendered no view", self.name())))
+    }
+
+    /// A one-off render of `scene` from `view` at `width x height`. When `scene` is not the
+    /// prepared scene this prepares a copy of it first (the CPU renderers override it to
+    /// draw `scene` directly); for many views of one scene use [`GBufferRenderer::prepare`]
+    /// and [`GBufferRenderer::render_views`].
     fn render(
         &mut self,
         scene: &Scene,
         view: &View,
         width: u32,
         height: u32,
-    ) -> Result<GBuffer, Error>;
+    ) -> Result<GBuffer, Error> {
+        let same = self
+            .prepared_scene()
+            .is_some_and(|s| std::ptr::eq(Arc::as_ptr(s), scene));
+        if !same {
+            self.prepare(Arc::new(scene.clone()))?;
+        }
+        self.render_view(view, width, height)
+    }
 
     /// Renders the five faces of the hemicube of `resolution` at `point` with `normal`
-    /// ([`hemicube_views`]), in [`HemicubeFace::ALL`] order. The default renders the faces
-    /// one after the other with [`GBufferRenderer::render`]; a renderer that can batch
-    /// them overrides it (the GPU rasteriser records all five into one submission).
+    /// ([`hemicube_views`]) of the prepared scene, in [`HemicubeFace::ALL`] order, as one
+    /// batch ([`GBufferRenderer::render_views`]: one submission on the GPU).
     ///
     /// Errors on a zero resolution, a zero or non-finite normal or point
     /// ([`check_hemicube`]), and whatever the renderer reports.
-    #[allow(clippy::too_many_arguments)]
     fn render_hemicube(
         &mut self,
-        scene: &Scene,
         point: Vec3,
         normal: Vec3,
         resolution: u32,
@@ -136,30 +213,98 @@ pub trait GBufferRenderer {
         far: f32,
     ) -> Result<Vec<HemicubeFaceBuffer>, Error> {
         check_hemicube(point, normal, resolution)?;
-        hemicube_views(point, normal, near, far)
-            .into_iter()
+        let faces = hemicube_views(point, normal, near, far);
+        let targets: Vec<ViewTarget> = faces
+            .iter()
             .map(|(face, view)| {
                 let (w, h) = face.size(resolution);
-                Ok(HemicubeFaceBuffer {
-                    face,
-                    view,
-                    gbuffer: self.render(scene, &view, w, h)?,
-                })
+                ViewTarget::new(*view, w, h)
             })
-            .collect()
+            .collect();
+        let buffers = self.render_views(&targets)?;
+        Ok(faces
+            .into_iter()
+            .zip(buffers)
+            .map(|((face, view), gbuffer)| HemicubeFaceBuffer {
+                face,
+                view,
+                gbuffer,
+            })
+            .collect())
     }
+
+    /// Renders `views` of the prepared scene into G-buffers that stay on the GPU (no
+    /// readback), for renderers that can; `Ok(None)` for those that cannot (the default).
+    #[cfg(feature = "gpu")]
+    fn render_views_gpu(
+        &mut self,
+        views: &[ViewTarget],
+    ) -> Result<Option<Vec<crate::gpu::GpuGBuffer>>, Error> {
+        let _ = views;
+        Ok(None)
+    }
+}
+
+/// Checks a render target's size: non-zero on both sides.
+pub fn check_target_size(width: u32, height: u32) -> Result<(), Error> {
+    if width == 0 || height == 0 {
+        return Err(Error::InvalidArgument(format!(
+            "G-buffer size {width}x{height}: zero-size targets are not allowed"
+        )));
+    }
+    Ok(())
 }
 
 /// A [`GBufferRenderer`] that casts one primary ray through each pixel centre with the
 /// scene's BVH: the slow, simple reference that rasterisers are tested against, and a way
 /// for any crate's tests to get a G-buffer without a rasteriser. Normals are interpolated
 /// and flipped to face the viewer (two-sided surfaces); albedo includes the texture.
-#[derive(Debug, Default, Clone, Copy)]
-pub struct RayCastRenderer;
+/// [`GBufferRenderer::prepare`] builds the BVH once; the one-off
+/// [`GBufferRenderer::render`] builds it for that call.
+#[derive(Default)]
+pub struct RayCastRenderer {
+    prepared: Option<(Arc<Scene>, crate::ray::RayScene, Vec<u32>)>,
+}
+
+impl std::fmt::Debug for RayCastRenderer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RayCastRenderer")
+            .field("prepared", &self.prepared.as_ref().map(|p| &p.0.name))
+            .finish()
+    }
+}
+
+impl RayCastRenderer {
+    /// A renderer with no scene prepared.
+    pub fn new() -> Self {
+        Self::default()
+    }
+}
 
 impl GBufferRenderer for RayCastRenderer {
     fn name(&self) -> &str {
         "raycast"
+    }
+
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
+        let rays = crate::ray::RayScene::build(&scene);
+        let offsets = scene.mesh_offsets();
+        self.prepared = Some((scene, rays, offsets));
+        Ok(())
+    }
+
+    fn prepared_scene(&self) -> Option<&Arc<Scene>> {
+        self.prepared.as_ref().map(|p| &p.0)
+    }
+
+    fn render_views(&mut self, views: &[ViewTarget]) -> Result<Vec<GBuffer>, Error> {
+        let Some((scene, rays, offsets)) = self.prepared.as_ref() else {
+            return Err(Error::NotPrepared("the ray-cast G-buffer renderer".into()));
+        };
+        views
+            .iter()
+            .map(|t| raycast(scene, rays, offsets, &t.view, t.width, t.height))
+            .collect()
     }
 
     fn render(
@@ -169,80 +314,95 @@ impl GBufferRenderer for RayCastRenderer {
         width: u32,
         height: u32,
     ) -> Result<GBuffer, Error> {
-        use glam::Vec2;
-        use rayon::prelude::*;
-        let rays = crate::ray::RayScene::build(scene);
-        let offsets = scene.mesh_offsets();
-        let mut g = GBuffer::background(width, height);
-        let w = width.max(1) as usize;
-        let rows: Vec<Vec<(Vec4, Vec3, f32, u32)>> = (0..height as usize)
-            .into_par_iter()
-            .map(|y| {
-                (0..width as usize)
-                    .map(|x| {
-                        let uv = Vec2::new(
-                            (x as f32 + 0.5) / width as f32,
-                            (y as f32 + 0.5) / height as f32,
-                        );
-                        let (o, d) = view.ray(uv);
-                        let t_min = match view.projection {
-                            crate::view::Projection::Perspective { .. } => {
-                                view.near / d.dot(view.forward).max(1e-6)
-                            }
-                            crate::view::Projection::Orthographic { .. } => view.near,
-                        };
-                        let background = (Vec4::ZERO, Vec3::ZERO, 1.0, BACKGROUND_ID);
-                        let Some(hit) = rays.closest_hit(o, d, t_min, f32::INFINITY) else {
-                            return background;
-                        };
-                        let p = o + d * hit.t;
-                        let depth = view.linear_depth(p);
-                        if depth > 1.0 {
-                            return background;
-                        }
-                        let Some(r) = scene.triangle_ref(&offsets, hit.triangle) else {
-                            return background;
-                        };
-                        let mesh = &scene.meshes[r.mesh as usize];
-                        let tri = mesh.indices[r.local as usize];
-                        let (b1, b2) = (hit.barycentric.x, hit.barycentric.y);
-                        let b = [1.0 - b1 - b2, b1, b2];
-                        let pos = tri.map(|i| mesh.positions[i as usize]);
-                        let ng = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
-                        let mut n = (0..3)
-                            .map(|k| {
-                                mesh.normals.get(tri[k] as usize).copied().unwrap_or(ng) * b[k]
-                            })
-                            .sum::<Vec3>()
-                            .normalize_or_zero();
-                        if n == Vec3::ZERO {
-                            n = ng;
-                        }
-                        if ng.dot(d) > 0.0 {
-                            n = -n;
-                        }
-                        let uv = mesh
-                            .uvs
-                            .as_ref()
-                            .map(|uvs| (0..3).map(|k| uvs[tri[k] as usize] * b[k]).sum::<Vec2>());
-                        let material = mesh.material_ids[r.local as usize];
-                        let albedo = scene.albedo_at(material, uv);
-                        (albedo.extend(1.0), n, depth, hit.triangle)
-                    })
-                    .collect()
-            })
-            .collect();
-        for (y, row) in rows.into_iter().enumerate() {
-            for (x, (a, n, z, id)) in row.into_iter().enumerate() {
-                let i = y * w + x;
-                g.albedo[i] = a;
-                g.normal[i] = n;
-                g.depth[i] = z;
-                g.triangle_id[i] = id;
-            }
+        if let Some((s, rays, offsets)) = self.prepared.as_ref()
+            && std::ptr::eq(Arc::as_ptr(s), scene)
+        {
+            return raycast(s, rays, offsets, view, width, height);
         }
-        Ok(g)
+        let rays = crate::ray::RayScene::build(scene);
+        raycast(scene, &rays, &scene.mesh_offsets(), view, width, height)
     }
+}
+
+/// One primary ray per pixel centre of `view` through `rays` (built from `scene`).
+fn raycast(
+    scene: &Scene,
+    rays: &crate::ray::RayScene,
+    offsets: &[u32],
+    view: &View,
+    width: u32,
+    height: u32,
+) -> Result<GBuffer, Error> {
+    use glam::Vec2;
+    use rayon::prelude::*;
+    check_target_size(width, height)?;
+    let mut g = GBuffer::background(width, height);
+    let w = width as usize;
+    let rows: Vec<Vec<(Vec4, Vec3, f32, u32)>> = (0..height as usize)
+        .into_par_iter()
+        .map(|y| {
+            (0..w)
+                .map(|x| {
+                    let uv = Vec2::new(
+                        (x as f32 + 0.5) / width as f32,
+                        (y as f32 + 0.5) / height as f32,
+                    );
+                    let (o, d) = view.ray(uv);
+                    let t_min = match view.projection {
+                        crate::view::Projection::Perspective { .. } => {
+                            view.near / d.dot(view.forward).max(1e-6)
+                        }
+                        crate::view::Projection::Orthographic { .. } => view.near,
+                    };
+                    let background = (Vec4::ZERO, Vec3::ZERO, 1.0, BACKGROUND_ID);
+                    let Some(hit) = rays.closest_hit(o, d, t_min, f32::INFINITY) else {
+                        return background;
+                    };
+                    let p = o + d * hit.t;
+                    let depth = view.linear_depth(p);
+                    if depth > 1.0 {
+                        return background;
+                    }
+                    let Some(r) = scene.triangle_ref(offsets, hit.triangle) else {
+                        return background;
+                    };
+                    let mesh = &scene.meshes[r.mesh as usize];
+                    let tri = mesh.indices[r.local as usize];
+                    let (b1, b2) = (hit.barycentric.x, hit.barycentric.y);
+                    let b = [1.0 - b1 - b2, b1, b2];
+                    let pos = tri.map(|i| mesh.positions[i as usize]);
+                    let ng = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
+                    let mut n = (0..3)
+                        .map(|k| mesh.normals.get(tri[k] as usize).copied().unwrap_or(ng) * b[k])
+                        .sum::<Vec3>()
+                        .normalize_or_zero();
+                    if n == Vec3::ZERO {
+                        n = ng;
+                    }
+                    if ng.dot(d) > 0.0 {
+                        n = -n;
+                    }
+                    let uv = mesh
+                        .uvs
+                        .as_ref()
+                        .map(|uvs| (0..3).map(|k| uvs[tri[k] as usize] * b[k]).sum::<Vec2>());
+                    let material = mesh.material_ids[r.local as usize];
+                    let albedo = scene.albedo_at(material, uv);
+                    (albedo.extend(1.0), n, depth, hit.triangle)
+                })
+                .collect()
+        })
+        .collect();
+    for (y, row) in rows.into_iter().enumerate() {
+        for (x, (a, n, z, id)) in row.into_iter().enumerate() {
+            let i = y * w + x;
+            g.albedo[i] = a;
+            g.normal[i] = n;
+            g.depth[i] = z;
+            g.triangle_id[i] = id;
+        }
+    }
+    Ok(g)
 }
 
 #[cfg(test)]
@@ -253,7 +413,9 @@ mod tests {
     fn raycast_gbuffer_of_the_cornell_box() {
         let scene = crate::builtin::scene("cornell").unwrap();
         let view = View::from_camera(&scene.cameras[0]);
-        let g = RayCastRenderer.render(&scene, &view, 32, 32).unwrap();
+        let g = RayCastRenderer::new()
+            .render(&scene, &view, 32, 32)
+            .unwrap();
         // The published camera sees the box interior everywhere but at the open front edge.
         let bg = g.background_mask().iter().filter(|&&b| b).count();
         assert!(bg < 32 * 4, "{bg} background pixels");

@@ -20,12 +20,14 @@
 //! Tests of every crate get their context from [`gpu_test_context`], which skips (or, with
 //! `REQUIRE_GPU=1`, fails) when no adapter exists.
 
-use std::borrow::Cow;
 use std::sync::mpsc;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec3, Vec4};
 use wgpu::util::DeviceExt;
+
+pub mod compute;
+pub use compute::{ComputePass, PassTimer, WORKGROUP};
 
 use crate::gbuffer::GBuffer;
 use crate::image::Image;
@@ -33,9 +35,6 @@ use crate::scene::Scene;
 
 /// WGSL source of the luminance compute shader (thesis eq. 17), see [`luminance_gpu`].
 pub const LUMINANCE_WGSL: &str = include_str!("../../../shaders/scene-core/luminance.wgsl");
-
-/// Workgroup edge of [`LUMINANCE_WGSL`] (8 x 8 invocations).
-const LUMINANCE_WORKGROUP: u32 = 8;
 
 /// An error of the GPU layer.
 #[derive(Debug, thiserror::Error)]
@@ -807,8 +806,9 @@ pub struct GpuGBuffer {
     pub depth: wgpu::Texture,
     /// [`GpuGBuffer::TRIANGLE_ID_FORMAT`]: global triangle id, `u32::MAX` on background.
     pub triangle_id: wgpu::Texture,
-    /// [`GpuGBuffer::DEPTH_STENCIL_FORMAT`]: the rasteriser's depth attachment.
-    pub depth_stencil: wgpu::Texture,
+    /// [`GpuGBuffer::DEPTH_STENCIL_FORMAT`]: the rasteriser's depth attachment (`None` in a
+    /// G-buffer wrapped around an engine's textures, [`GpuGBuffer::from_textures`]).
+    pub depth_stencil: Option<wgpu::Texture>,
 }
 
 impl GpuGBuffer {
@@ -868,13 +868,88 @@ impl GpuGBuffer {
                 Self::TRIANGLE_ID_FORMAT,
                 color,
             ),
-            depth_stencil: ctx.create_texture_2d(
+            depth_stencil: Some(ctx.create_texture_2d(
                 "gbuffer depth-stencil",
                 width,
                 height,
                 Self::DEPTH_STENCIL_FORMAT,
                 depth_stencil,
+            )),
+        })
+    }
+
+    /// Wraps an engine's own G-buffer textures (no copy) after checking them: the same
+    /// size, single-sampled 2D, the formats of [`GpuGBuffer::COLOR_FORMATS`] (albedo and
+    /// radiation mask `Rgba32Float`, world normal `Rgba32Float`, linear depth divided by the
+    /// far plane `R32Float` with 1 on background, triangle id `R32Uint` with `u32::MAX` on
+    /// background) and `TEXTURE_BINDING` usage. The result has no depth-stencil attachment.
+    ///
+    /// Errors name the texture and what is wrong with it.
+    pub fn from_textures(
+        albedo: wgpu::Texture,
+        normal: wgpu::Texture,
+        depth: wgpu::Texture,
+        triangle_id: wgpu::Texture,
+    ) -> Result<Self, GpuError> {
+        let (width, height) = (albedo.width(), albedo.height());
+        let named = [
+            ("albedo", &albedo, Self::ALBEDO_FORMAT, "Rgba32Float"),
+            ("normal", &normal, Self::NORMAL_FORMAT, "Rgba32Float"),
+            ("depth", &depth, Self::DEPTH_FORMAT, "R32Float"),
+            (
+                "triangle id",
+                &triangle_id,
+                Self::TRIANGLE_ID_FORMAT,
+                "R32Uint",
             ),
+        ];
+        for (name, t, format, expected) in named {
+            if t.format() != format {
+                return Err(GpuError::WrongFormat {
+                    expected,
+                    found: t.format(),
+                });
+            }
+            if (t.width(), t.height()) != (width, height) {
+                return Err(GpuError::InvalidSize {
+                    width: t.width(),
+                    height: t.height(),
+                    reason: format!("the {name} texture must match albedo's {width}x{height}"),
+                });
+            }
+            if t.dimension() != wgpu::TextureDimension::D2
+                || t.sample_count() != 1
+                || t.depth_or_array_layers() != 1
+            {
+                return Err(GpuError::Validation(format!(
+                    "the {name} texture must be a single-sampled, single-layer 2D texture"
+                )));
+            }
+            if !t.usage().contains(wgpu::TextureUsages::TEXTURE_BINDING) {
+                return Err(GpuError::Validation(format!(
+                    "the {name} texture needs TEXTURE_BINDING usage (has {:?})",
+                    t.usage()
+                )));
+            }
+        }
+        Ok(Self {
+            width,
+            height,
+            albedo,
+            normal,
+            depth,
+            triangle_id,
+            depth_stencil: None,
+        })
+    }
+
+    /// The rasteriser's depth attachment, or an error naming what lacks it.
+    pub fn depth_attachment(&self) -> Result<&wgpu::Texture, GpuError> {
+        self.depth_stencil.as_ref().ok_or_else(|| {
+            GpuError::Validation(
+                "this G-buffer wraps an engine's textures and has no depth-stencil attachment"
+                    .into(),
+            )
         })
     }
 
@@ -954,62 +1029,21 @@ pub fn luminance_gpu(ctx: &GpuContext, img: &Image) -> Result<Vec<f32>, GpuError
     );
     let device = &ctx.device;
     ctx.validated(|| {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("luminance.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(LUMINANCE_WGSL)),
-        });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("luminance"),
-            entries: &[
+        let pass = ComputePass::new(
+            device,
+            "luminance",
+            LUMINANCE_WGSL,
+            &[
                 layout::float_texture(0),
                 layout::storage_texture(1, wgpu::TextureFormat::R32Float),
             ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("luminance"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("luminance"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let src_view = src.create_view(&Default::default());
-        let dst_view = dst.create_view(&Default::default());
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("luminance"),
-            layout: &layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::TextureView(&src_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&dst_view),
-                },
-            ],
-        });
+            &[],
+        );
+        let bind_group = pass.bind_buffers_then_textures(device, &[], &[&src, &dst]);
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("luminance"),
         });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("luminance"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(
-                img.width.div_ceil(LUMINANCE_WORKGROUP),
-                img.height.div_ceil(LUMINANCE_WORKGROUP),
-                1,
-            );
-        }
+        pass.dispatch(&mut encoder, &bind_group, img.width, img.height, None);
         ctx.queue.submit([encoder.finish()]);
     })?;
     ctx.read_texture_r32f(&dst)
@@ -1113,7 +1147,9 @@ mod tests {
         let back = gpu.read_back(&ctx).unwrap();
         assert_eq!(back, cpu);
         // The depth attachment reads back too (cleared to zero by wgpu).
-        let depth = ctx.read_texture_r32f(&gpu.depth_stencil).unwrap();
+        let depth = ctx
+            .read_texture_r32f(gpu.depth_attachment().unwrap())
+            .unwrap();
         assert_eq!(depth.len(), cpu.len());
     }
 

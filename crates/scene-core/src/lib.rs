@@ -35,11 +35,13 @@ pub mod view;
 
 pub use budget::{Budget, BudgetError};
 pub use error::{GltfError, ImageError, SceneError};
-pub use gbuffer::{BACKGROUND_ID, GBuffer, GBufferRenderer, HemicubeFaceBuffer, hemicube_views};
+pub use gbuffer::{
+    BACKGROUND_ID, GBuffer, GBufferRenderer, HemicubeFaceBuffer, ViewTarget, hemicube_views,
+};
 pub use image::{Image, luminance};
 pub use lights::{LightId, LightSetting, LightState};
 pub use scene::{Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture};
-pub use technique::{Metric, MetricValue, Technique};
+pub use technique::{FrameRequest, Metric, MetricValue, Refinement, Technique};
 pub use view::{FrustumCorners, HemicubeFace, Projection, View};
 
 pub use glam;
@@ -69,4 +71,38 @@ pub enum Error {
     /// An argument is out of range.
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
+    /// A frame was asked of a technique or renderer before it was prepared for a scene.
+    #[error("{0} has not been prepared for a scene (call prepare first)")]
+    NotPrepared(String),
+    /// An error of one method's crate (ISR, relighting, IBRR...), kept whole: its kind
+    /// survives the trait boundary and can be recovered with [`Error::method_error`].
+    #[error("{method}: {source}")]
+    Method {
+        /// The method's short name ("isr", "relight-pr"...).
+        method: &'static str,
+        /// The method's own error.
+        source: Box<dyn std::error::Error + Send + Sync + 'static>,
+    },
+}
+
+impl Error {
+    /// Wraps a method crate's own error, keeping its type.
+    pub fn method<E: std::error::Error + Send + Sync + 'static>(
+        method: &'static str,
+        e: E,
+    ) -> Self {
+        Error::Method {
+            method,
+            source: Box::new(e),
+        }
+    }
+
+    /// The method crate's error of type `E` inside an [`Error::Method`], if that is what
+    /// this is.
+    pub fn method_error<E: std::error::Error + 'static>(&self) -> Option<&E> {
+        match self {
+            Error::Method { source, .. } => source.downcast_ref::<E>(),
+            _ => None,
+        }
+    }
 }

@@ -157,6 +157,13 @@ pub struct LightState {
 }
 
 impl LightState {
+    /// The default state: every light as the scene describes it.
+    pub const fn new() -> Self {
+        Self {
+            settings: BTreeMap::new(),
+        }
+    }
+
     /// Every light of `scene` off but `id`.
     pub fn only(scene: &Scene, id: LightId) -> Self {
         let mut s = Self::default();

@@ -1,25 +1,106 @@
 //! The traits the bench harness composes: a [`Technique`] renders images, a [`Metric`]
 //! compares them.
+//!
+//! A technique is prepared once for a scene ([`Technique::prepare`], which may do all its
+//! precomputation or leave some to [`Technique::refine`]), then renders any number of
+//! frames ([`Technique::render`]), each from a [`View`] with that frame's [`LightState`].
+//! A technique never serves a frame from data prepared for another scene: it holds the
+//! scene it was prepared for (an [`Arc`]), and everything a frame may change (the view,
+//! the light settings) comes with the frame. Moving a light or editing geometry makes a
+//! new scene, which is prepared again.
+
+use std::sync::Arc;
+use std::time::Duration;
 
 use crate::Error;
 use crate::image::Image;
+use crate::lights::LightState;
 use crate::scene::{Camera, Scene};
+use crate::view::View;
 
-/// A global-illumination method. Precomputation ([`Technique::prepare`]) is timed apart from
-/// one frame ([`Technique::render`]).
+/// One frame to render: where from, at what size, with which light settings.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameRequest<'a> {
+    /// The view (its aspect ratio should be `width / height`).
+    pub view: View,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// The frame's per-light settings ([`LightState::default`]: the scene as it is).
+    pub lights: &'a LightState,
+}
+
+/// The default light state, for frames that light the scene as it is.
+static SCENE_LIGHTS: LightState = LightState::new();
+
+impl FrameRequest<'static> {
+    /// The frame seen by `camera` at `width x height` with the scene's own lights (the
+    /// default [`LightState`]).
+    pub fn camera(camera: &Camera, width: u32, height: u32) -> Self {
+        Self::from_camera(camera, width, height, &SCENE_LIGHTS)
+    }
+}
+
+impl<'a> FrameRequest<'a> {
+    /// The frame seen by `camera`, its aspect ratio replaced by `width / height`.
+    pub fn from_camera(camera: &Camera, width: u32, height: u32, lights: &'a LightState) -> Self {
+        let aspect = if height > 0 {
+            width as f32 / height as f32
+        } else {
+            camera.aspect
+        };
+        Self {
+            view: View::from_camera(&camera.with_aspect(aspect)),
+            width,
+            height,
+            lights,
+        }
+    }
+}
+
+/// What one [`Technique::refine`] step left.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refinement {
+    /// True when nothing is left to refine.
+    pub done: bool,
+    /// Steps taken so far (shots, light paths...), for reports.
+    pub steps: u64,
+    /// The method's own estimate of what is left, in its own unit (for progressive
+    /// radiosity, the unshot fraction of the emitted energy), when it has one.
+    pub remaining: Option<f64>,
+}
+
+impl Refinement {
+    /// Nothing to refine (what techniques that precompute everything in `prepare` report).
+    pub const DONE: Refinement = Refinement {
+        done: true,
+        steps: 0,
+        remaining: None,
+    };
+}
+
+/// A global-illumination method. Precomputation ([`Technique::prepare`], then optionally
+/// [`Technique::refine`]) is timed apart from frames ([`Technique::render`]).
 pub trait Technique {
     /// A short name for reports.
     fn name(&self) -> &str;
+
     /// View-independent precomputation for `scene` (form factors, LDC, shadow maps...).
-    fn prepare(&mut self, scene: &Scene) -> Result<(), Error>;
-    /// Renders one frame of `scene` from `camera` at `width x height`.
-    fn render(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        width: u32,
-        height: u32,
-    ) -> Result<Image, Error>;
+    /// Replaces whatever was prepared before.
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error>;
+
+    /// Continues a progressive precomputation for about `budget` of wall-clock time, so
+    /// that error can be reported against time. Techniques that finish in `prepare` report
+    /// [`Refinement::DONE`] (the default).
+    fn refine(&mut self, budget: Duration) -> Result<Refinement, Error> {
+        let _ = budget;
+        Ok(Refinement::DONE)
+    }
+
+    /// Renders one frame of the prepared scene. Errors with
+    /// [`Error::NotPrepared`] before [`Technique::prepare`].
+    fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error>;
 }
 
 /// The outcome of a comparison.

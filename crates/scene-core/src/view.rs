@@ -6,7 +6,7 @@
 //! `far` (the thesis' stored depth), so it lies in [near/far, 1] for visible points.
 //! Image coordinates `(u, v)` are in [0, 1]², `(0, 0)` the top-left corner.
 
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3};
 
 use crate::scene::Camera;
 
@@ -226,6 +226,138 @@ impl View {
             near: camera.near,
             far: camera.far,
         }
+    }
+
+    /// The view of an engine's own matrices: `view` maps world to view space (right-handed,
+    /// looking down -Z, +Y up, no scale) and `projection` maps view space to clip space in
+    /// wgpu's convention (depth in [0, 1]: glam's `perspective_rh`, `orthographic_rh` and
+    /// their off-axis forms). OpenGL-style matrices (depth in [-1, 1]) must be converted
+    /// first.
+    ///
+    /// Errors name what does not fit: a view matrix that is not a rotation and a
+    /// translation, a projection that is neither perspective nor orthographic, or planes
+    /// that do not satisfy `0 < near < far` (`0 <= near` for orthographic).
+    pub fn from_matrices(view: Mat4, projection: Mat4) -> Result<View, crate::Error> {
+        let bad = |why: String| {
+            Err(crate::Error::InvalidArgument(format!(
+                "View::from_matrices: {why}"
+            )))
+        };
+        if !(view.is_finite() && projection.is_finite()) {
+            return bad("the matrices must be finite".into());
+        }
+        let (r, u, b) = (
+            view.row(0).truncate(),
+            view.row(1).truncate(),
+            view.row(2).truncate(),
+        );
+        let orthonormal = [r, u, b].iter().all(|v| (v.length() - 1.0).abs() < 1e-3)
+            && r.dot(u).abs() < 1e-3
+            && r.dot(b).abs() < 1e-3
+            && u.dot(b).abs() < 1e-3
+            && view.row(3).abs_diff_eq(glam::Vec4::W, 1e-6);
+        if !orthonormal {
+            return bad(
+                "the view matrix must be a rotation and a translation (no scale, no shear)".into(),
+            );
+        }
+        if r.cross(u).dot(b) < 0.0 {
+            return bad("the view matrix is left-handed; a right-handed one looks down -Z".into());
+        }
+        let eye = -(Mat3::from_cols(r, u, b) * view.w_axis.truncate());
+        let p = projection;
+        let (a, bb) = (p.x_axis.x, p.y_axis.y);
+        if a == 0.0 || bb == 0.0 {
+            return bad("the projection has a zero scale".into());
+        }
+        let (proj, near, far) = if p.z_axis.w == -1.0 && p.w_axis.w == 0.0 {
+            let (c, d) = (p.z_axis.x, p.z_axis.y);
+            let (m22, m32) = (p.z_axis.z, p.w_axis.z);
+            if m22 == 0.0 || 1.0 + m22 == 0.0 {
+                return bad("the perspective projection has no finite depth range".into());
+            }
+            // In f64: with far/near large, 1 + m22 is a small difference.
+            let near = m32 / m22;
+            let far = (m22 as f64 * near as f64 / (1.0 + m22 as f64)) as f32;
+            (
+                Projection::Perspective {
+                    left: (c - 1.0) / a,
+                    right: (c + 1.0) / a,
+                    bottom: (d - 1.0) / bb,
+                    top: (d + 1.0) / bb,
+                },
+                near,
+                far,
+            )
+        } else if p.z_axis.w == 0.0 && p.w_axis.w == 1.0 {
+            let (e, g) = (p.w_axis.x, p.w_axis.y);
+            let (m22, m32) = (p.z_axis.z, p.w_axis.z);
+            if m22 == 0.0 {
+                return bad("the orthographic projection has no depth range".into());
+            }
+            let near = m32 / m22;
+            let far = near - 1.0 / m22;
+            (
+                Projection::Orthographic {
+                    left: (-1.0 - e) / a,
+                    right: (1.0 - e) / a,
+                    bottom: (-1.0 - g) / bb,
+                    top: (1.0 - g) / bb,
+                },
+                near,
+                far,
+            )
+        } else {
+            return bad(
+                "the projection is neither perspective (w = -z) nor orthographic (w = 1)".into(),
+            );
+        };
+        let near_ok = match proj {
+            Projection::Perspective { .. } => near > 0.0,
+            Projection::Orthographic { .. } => near >= 0.0,
+        };
+        if !(near_ok && far > near && far.is_finite()) {
+            return bad(format!(
+                "near {near} and far {far} do not satisfy 0 < near < far"
+            ));
+        }
+        Ok(View {
+            eye,
+            forward: -b.normalize(),
+            up: u.normalize(),
+            projection: proj,
+            near,
+            far,
+        })
+    }
+
+    /// The camera of a symmetric perspective view (`None` for off-axis or orthographic
+    /// views), named `name`: the inverse of [`View::from_camera`].
+    pub fn to_camera(&self, name: &str) -> Option<Camera> {
+        let Projection::Perspective {
+            left,
+            right,
+            bottom,
+            top,
+        } = self.projection
+        else {
+            return None;
+        };
+        let symmetric =
+            (left + right).abs() <= 1e-5 * right.abs() && (bottom + top).abs() <= 1e-5 * top.abs();
+        if !symmetric || top <= 0.0 {
+            return None;
+        }
+        Some(Camera {
+            name: name.into(),
+            position: self.eye,
+            target: self.eye + self.forward,
+            up: self.up,
+            fov_y: 2.0 * top.atan(),
+            aspect: right / top,
+            near: self.near,
+            far: self.far,
+        })
     }
 
     /// An orthographic view looking along `direction` that contains the sphere of radius

@@ -1,7 +1,7 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
-use isr::{Estimator, IsrInputs, IsrScene, IsrSettings, Sender, ShadowSettings, downsample};
+use isr::{Estimator, IsrInputs, IsrSettings, LightSet, Sender, ShadowSettings, downsample};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::{GBuffer, GBufferRenderer, Image, Scene, View, builtin};
 
@@ -19,7 +19,7 @@ pub fn small_shadows() -> ShadowSettings {
 /// A scene's G-buffers from camera `camera` at `w x h`.
 pub struct Setup {
     pub scene: Scene,
-    pub prepared: IsrScene,
+    pub prepared: LightSet,
     pub view: View,
     pub full: GBuffer,
     pub coarse: GBuffer,
@@ -27,7 +27,7 @@ pub struct Setup {
 
 impl Setup {
     pub fn new(scene: Scene, camera: usize, w: u32, h: u32) -> Self {
-        let prepared = IsrScene::new(&scene, &small_shadows()).unwrap();
+        let prepared = LightSet::new(&scene, &small_shadows()).unwrap();
         Self::with_prepared(scene, prepared, camera, w, h)
     }
 
@@ -35,11 +35,11 @@ impl Setup {
         Self::new(builtin::scene(name).unwrap(), camera, w, h)
     }
 
-    pub fn with_prepared(scene: Scene, prepared: IsrScene, camera: usize, w: u32, h: u32) -> Self {
+    pub fn with_prepared(scene: Scene, prepared: LightSet, camera: usize, w: u32, h: u32) -> Self {
         let cam = scene.cameras[camera].with_aspect(w as f32 / h as f32);
         let view = View::from_camera(&cam);
-        let full = RayCastRenderer.render(&scene, &view, w, h).unwrap();
-        let coarse = downsample(&full);
+        let full = RayCastRenderer::new().render(&scene, &view, w, h).unwrap();
+        let coarse = downsample(&full, isr::DownsampleMode::NearestSurface);
         Self {
             scene,
             prepared,

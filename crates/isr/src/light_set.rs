@@ -1,12 +1,15 @@
-//! What the lighting phase needs from a [`Scene`]: its lights (point, directional, and
-//! point samples standing in for emissive triangles), their shadow maps and a table of
-//! emissive triangles, prepared once per scene ([`IsrScene`]).
+//! The set of lights the lighting phase shades with ([`LightSet`]): lights (point,
+//! directional, and point samples standing in for emissive triangles), their shadow maps and
+//! a table of emissive triangles, prepared once, from a scene-core [`Scene`]
+//! ([`LightSet::new`]) or from an engine's own light list and shadow-casting triangles
+//! ([`LightSet::from_lights`]). Per frame, a [`LightState`] scales each light's direct and
+//! indirect light ([`LightSet::apply`]) without rebuilding anything.
 
 use glam::{Vec2, Vec3};
-use scene_core::Scene;
-use scene_core::lights::{Emitters, LightState};
+use scene_core::lights::{Emitters, LightId, LightState};
 use scene_core::ray::RayScene;
 use scene_core::sampling::{r2, uniform_triangle};
+use scene_core::{Bounds, Scene};
 
 use crate::IsrError;
 use crate::settings::ShadowSettings;
@@ -25,9 +28,22 @@ pub enum LightKind {
     EmitterSample,
 }
 
+/// Which part of a light's contribution a sum is for: what reaches a surface straight from
+/// the light (the lighting pass) or what it then reflects on as a sender of the ISR bounce.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Part {
+    /// Direct light: scaled by [`Light::direct`].
+    Direct,
+    /// Light that goes on to be reflected (the `Lit` senders): scaled by [`Light::indirect`].
+    Indirect,
+}
+
 /// One light of the lighting phase.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
+    /// The light source it belongs to (an emitter sample: its emissive mesh). Engines
+    /// number their own lights with [`LightId::Point`] and [`LightId::Directional`].
+    pub id: LightId,
     /// Its kind.
     pub kind: LightKind,
     /// Position (point lights and emitter samples).
@@ -43,9 +59,47 @@ pub struct Light {
     pub area: f32,
     /// Its shadow map, when shadows are on.
     pub shadow: Option<ShadowMap>,
+    /// The frame's factor on its direct light (from a [`LightState`]; 1 by default).
+    pub direct: Vec3,
+    /// The frame's factor on the light it sends on to be reflected (1 by default).
+    pub indirect: Vec3,
 }
 
 impl Light {
+    /// A point light of `intensity` at `position`, inverse-square falloff (set
+    /// [`Light::radius`] for eq. 16's window), no shadow map yet.
+    pub fn point(id: LightId, position: Vec3, intensity: Vec3) -> Self {
+        Self {
+            id,
+            kind: LightKind::Point,
+            position,
+            direction: Vec3::ZERO,
+            color: intensity,
+            radius: 0.0,
+            area: 0.0,
+            shadow: None,
+            direct: Vec3::ONE,
+            indirect: Vec3::ONE,
+        }
+    }
+
+    /// A directional light of `irradiance` travelling along `direction` (normalised here).
+    pub fn directional(id: LightId, direction: Vec3, irradiance: Vec3) -> Self {
+        Self {
+            kind: LightKind::Directional,
+            direction: direction.normalize_or_zero(),
+            ..Self::point(id, Vec3::ZERO, irradiance)
+        }
+    }
+
+    /// The factor of `part`.
+    pub fn factor(&self, part: Part) -> Vec3 {
+        match part {
+            Part::Direct => self.direct,
+            Part::Indirect => self.indirect,
+        }
+    }
+
     /// Unshadowed irradiance at `p` on a surface of unit normal `n` (two-sided surfaces:
     /// `n` faces the viewer): the `k_dl` factor of listing 7 before shadowing, with eq. 16's
     /// falloff for point lights that have a radius.
@@ -102,6 +156,10 @@ pub struct EmitterTable {
     pub per_triangle: Vec<u32>,
     /// `(emitted radiance, unit geometric normal of the emitting side)`.
     pub entries: Vec<(Vec3, Vec3)>,
+    /// The light source (emissive mesh) of each entry.
+    pub ids: Vec<LightId>,
+    /// The frame's factor on each entry's emission seen directly (1 by default).
+    pub direct: Vec<Vec3>,
 }
 
 impl EmitterTable {
@@ -112,7 +170,7 @@ impl EmitterTable {
             Some(&e) if e != u32::MAX => {
                 let (l, n) = self.entries[e as usize];
                 if n.dot(to_viewer) > 0.0 {
-                    l
+                    l * self.direct.get(e as usize).copied().unwrap_or(Vec3::ONE)
                 } else {
                     Vec3::ZERO
                 }
@@ -122,11 +180,11 @@ impl EmitterTable {
     }
 }
 
-/// A scene prepared for ISR: lights, shadow maps and emissive triangles. View-independent;
+/// The lights ISR shades with: lights, shadow maps and emissive triangles. View-independent;
 /// build it once per scene ([`crate::Technique::prepare`](scene_core::Technique::prepare)
-/// does).
+/// does) or once per engine light rig, and [`LightSet::apply`] each frame's [`LightState`].
 #[derive(Clone, Debug, PartialEq)]
-pub struct IsrScene {
+pub struct LightSet {
     /// The scene's extent (diagonal of its bounds; 1 when empty): the unit of relative
     /// radii and of shadow-map depths.
     pub extent: f32,
@@ -141,9 +199,11 @@ pub struct IsrScene {
     /// The cube-map resolution actually used after fitting [`ShadowSettings::max_texels`]
     /// (point lights, emitter samples).
     pub cube_resolutions: (u32, u32),
+    /// The bounds the shadow maps cover (the scene's, or the engine's casters and lights).
+    pub bounds: Bounds,
 }
 
-impl IsrScene {
+impl LightSet {
     /// Prepares `scene` (which should be validated): resolves lights, places
     /// `shadows.emitter_samples` stratified point samples on the emissive triangles (each
     /// sample picks a triangle by the stratum `(k + 1/2)/S` of the power distribution and a
@@ -163,16 +223,15 @@ impl IsrScene {
                 )));
             }
             lights.push(Light {
-                kind: LightKind::Point,
-                position: l.position,
-                direction: Vec3::ZERO,
-                color: l.intensity.max(Vec3::ZERO),
                 radius: l
                     .radius
                     .filter(|r| *r > 0.0 && r.is_finite())
                     .unwrap_or(0.0),
-                area: 0.0,
-                shadow: None,
+                ..Light::point(
+                    LightId::Point(i as u32),
+                    l.position,
+                    l.intensity.max(Vec3::ZERO),
+                )
             });
         }
         for (i, l) in scene.directional_lights.iter().enumerate() {
@@ -183,15 +242,11 @@ impl IsrScene {
                     l.name
                 )));
             }
-            lights.push(Light {
-                kind: LightKind::Directional,
-                position: Vec3::ZERO,
-                direction: d,
-                color: l.irradiance.max(Vec3::ZERO),
-                radius: 0.0,
-                area: 0.0,
-                shadow: None,
-            });
+            lights.push(Light::directional(
+                LightId::Directional(i as u32),
+                d,
+                l.irradiance.max(Vec3::ZERO),
+            ));
         }
         let (emitters, samples) = emitters(scene, shadows.emitter_samples, extent);
         lights.extend(samples);
@@ -203,14 +258,108 @@ impl IsrScene {
             emitters,
             shadows: *shadows,
             cube_resolutions: (shadows.cube_resolution, shadows.emitter_cube_resolution),
+            bounds: scene.bounds(),
         };
         if shadows.enabled && !this.lights.is_empty() {
-            this.build_shadow_maps(scene)?;
+            this.build_shadow_maps(|| RayScene::build(scene))?;
         }
         Ok(this)
     }
 
-    fn build_shadow_maps(&mut self, scene: &Scene) -> Result<(), IsrError> {
+    /// A light set from an engine's own lights (made with [`Light::point`] and
+    /// [`Light::directional`]; [`LightKind::EmitterSample`]s are accepted too) and the
+    /// triangles that cast their shadows, with no [`Scene`]. The shadow maps are rendered
+    /// over `casters` by ISR's own ray-cast pass; with no casters, or with
+    /// `shadows.enabled` off, the lights are unshadowed. The extent (the unit of ISR's
+    /// relative radii and of shadow depths) is the diagonal of the bounds of the casters and
+    /// the point lights.
+    ///
+    /// Errors on invalid settings, a non-finite light or caster, a directional light with
+    /// no direction, and shadow maps over `shadows.max_texels`.
+    pub fn from_lights(
+        lights: Vec<Light>,
+        casters: &[[Vec3; 3]],
+        shadows: &ShadowSettings,
+    ) -> Result<Self, IsrError> {
+        shadows.validate()?;
+        let mut bounds = Bounds::EMPTY;
+        for (i, l) in lights.iter().enumerate() {
+            let finite = l.position.is_finite()
+                && l.direction.is_finite()
+                && l.color.is_finite()
+                && l.radius.is_finite()
+                && l.area.is_finite();
+            if !finite {
+                return Err(IsrError::BadScene(format!(
+                    "light #{i} ({:?}) is not finite",
+                    l.id
+                )));
+            }
+            if l.kind == LightKind::Directional && l.direction == Vec3::ZERO {
+                return Err(IsrError::BadScene(format!(
+                    "directional light #{i} ({:?}) has no direction",
+                    l.id
+                )));
+            }
+            if l.kind != LightKind::Directional {
+                bounds.grow(l.position);
+            }
+        }
+        for (i, t) in casters.iter().enumerate() {
+            if !t.iter().all(|p| p.is_finite()) {
+                return Err(IsrError::BadScene(format!(
+                    "shadow caster #{i} is not finite"
+                )));
+            }
+            t.iter().for_each(|p| bounds.grow(*p));
+        }
+        let extent = if bounds.is_empty() {
+            1.0
+        } else {
+            bounds.diagonal().max(f32::MIN_POSITIVE)
+        };
+        let mut this = Self {
+            extent,
+            lights: lights
+                .into_iter()
+                .map(|l| Light {
+                    color: l.color.max(Vec3::ZERO),
+                    direction: l.direction.normalize_or_zero(),
+                    shadow: None,
+                    ..l
+                })
+                .collect(),
+            shadow_texels: Vec::new(),
+            emitters: EmitterTable::default(),
+            shadows: *shadows,
+            cube_resolutions: (shadows.cube_resolution, shadows.emitter_cube_resolution),
+            bounds,
+        };
+        if shadows.enabled && !casters.is_empty() && !this.lights.is_empty() {
+            this.build_shadow_maps(|| RayScene::from_triangles(casters))?;
+        } else {
+            this.shadows.enabled = false;
+        }
+        Ok(this)
+    }
+
+    /// Sets every light's direct and indirect factors from `state` (lights it does not
+    /// mention: 1). Cheap (no shadow map is touched): call it every frame.
+    pub fn apply(&mut self, state: &LightState) {
+        for l in &mut self.lights {
+            let s = state.get(l.id);
+            l.direct = s.direct_factor();
+            l.indirect = s.indirect_factor();
+        }
+        self.emitters.direct = self
+            .emitters
+            .ids
+            .iter()
+            .map(|id| state.get(*id).direct_factor())
+            .collect();
+    }
+
+    fn build_shadow_maps(&mut self, rays: impl FnOnce() -> RayScene) -> Result<(), IsrError> {
         let s = &self.shadows;
         let count = |kind: LightKind| self.lights.iter().filter(|l| l.kind == kind).count() as u64;
         let (n_point, n_dir, n_emit) = (
@@ -236,8 +385,8 @@ impl IsrScene {
             )));
         }
         self.cube_resolutions = (cube, emit);
-        let rays = RayScene::build(scene);
-        let bounds = scene.bounds();
+        let rays = rays();
+        let bounds = self.bounds;
         let extent = self.extent;
         let center = if bounds.is_empty() {
             Vec3::ZERO
@@ -313,11 +462,12 @@ impl IsrScene {
     }
 
     /// The shadowed irradiance at `p` (unit normal `n`) from all lights: listing 7's direct
-    /// lighting times listing 8's shadow factor (eq. 30) per light.
-    pub fn irradiance(&self, p: Vec3, n: Vec3) -> Vec3 {
+    /// lighting times listing 8's shadow factor (eq. 30) per light, each light scaled by its
+    /// factor for `part`.
+    pub fn irradiance(&self, p: Vec3, n: Vec3, part: Part) -> Vec3 {
         let mut e = Vec3::ZERO;
         for light in &self.lights {
-            let l = light.irradiance(p, n);
+            let l = light.irradiance(p, n) * light.factor(part);
             if l == Vec3::ZERO {
                 continue;
             }
@@ -344,6 +494,12 @@ fn emitters(scene: &Scene, count: u32, extent: f32) -> (EmitterTable, Vec<Light>
             .iter()
             .map(|t| (t.emission, t.normal))
             .collect(),
+        ids: power
+            .triangles
+            .iter()
+            .map(|t| LightId::Emissive(t.mesh))
+            .collect(),
+        direct: vec![Vec3::ONE; power.triangles.len()],
     };
     let mut samples = Vec::new();
     if count == 0 || power.is_empty() {
@@ -362,6 +518,9 @@ fn emitters(scene: &Scene, count: u32, extent: f32) -> (EmitterTable, Vec<Light>
         // samples is an unbiased estimate of the emitters' light.
         let share = (t.area as f64 * power.total_weight / t.weight / count as f64) as f32;
         samples.push(Light {
+            id: LightId::Emissive(t.mesh),
+            direct: Vec3::ONE,
+            indirect: Vec3::ONE,
             kind: LightKind::EmitterSample,
             // Off the emitter's surface, so its own triangle does not shadow it.
             position: q + t.normal * (1e-4 * extent),
@@ -383,7 +542,7 @@ mod tests {
     #[test]
     fn emitter_samples_carry_the_emitters_power() {
         let scene = builtin::scene("cornell").unwrap();
-        let s = IsrScene::new(
+        let s = LightSet::new(
             &scene,
             &ShadowSettings {
                 enabled: false,
@@ -403,7 +562,7 @@ mod tests {
         assert!((area - 0.13 * 0.105).abs() < 1e-3 * area, "{area}");
         // Far from the light the samples act like a point of intensity L A cos.
         let p = Vec3::new(0.278, -10.0, 0.28);
-        let e = s.irradiance(p, Vec3::Y);
+        let e = s.irradiance(p, Vec3::Y, Part::Direct);
         let d2 = (samples[0].position - p).length_squared();
         let expect = samples[0].color * area / d2;
         assert!((e - expect).abs().max_element() < 1e-2 * expect.max_element());
@@ -413,7 +572,7 @@ mod tests {
     #[test]
     fn point_light_shadows_in_the_cornell_box() {
         let scene = builtin::scene("cornell-point").unwrap();
-        let s = IsrScene::new(
+        let s = LightSet::new(
             &scene,
             &ShadowSettings {
                 cube_resolution: 64,
@@ -423,13 +582,13 @@ mod tests {
         .unwrap();
         // Open floor is lit as without shadows; the floor enclosed by the tall block is dark.
         let open = Vec3::new(0.45, 0.0, 0.1);
-        let lit = s.irradiance(open, Vec3::Y);
+        let lit = s.irradiance(open, Vec3::Y, Part::Direct);
         let unshadowed = s.lights[0].irradiance(open, Vec3::Y);
         assert!(
             (lit - unshadowed).abs().max_element() < 0.05 * unshadowed.max_element(),
             "{lit} vs {unshadowed}"
         );
-        let under = s.irradiance(Vec3::new(0.37, 0.0, 0.35), Vec3::Y);
+        let under = s.irradiance(Vec3::new(0.37, 0.0, 0.35), Vec3::Y, Part::Direct);
         assert!(
             under.max_element() < 1e-3 * unshadowed.max_element(),
             "{under}"
@@ -445,7 +604,7 @@ mod tests {
         for _ in 0..63 {
             scene.point_lights.push(l.clone());
         }
-        let s = IsrScene::new(
+        let s = LightSet::new(
             &scene,
             &ShadowSettings {
                 cube_resolution: 256,
@@ -455,7 +614,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(s.cube_resolutions.0, 32);
-        let e = IsrScene::new(
+        let e = LightSet::new(
             &scene,
             &ShadowSettings {
                 max_texels: 1000,

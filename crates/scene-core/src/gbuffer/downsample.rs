@@ -1,6 +1,8 @@
 //! Coarse G-buffers: downsampling by 2 in each direction ("4 times smaller buffers",
 //! thesis section 4.2), on the CPU ([`downsample`]) and the GPU ([`GpuDownsampler`],
-//! shader `shaders/gbuffer/downsample.wgsl`, [`DOWNSAMPLE_WGSL`]), with the same results.
+//! shader `shaders/scene-core/downsample.wgsl`, [`DOWNSAMPLE_WGSL`]), with the same results.
+//! The one downsampling of the toolkit: the gbuffer crate re-exports it and ISR's coarse
+//! buffers come from it ([`DownsampleMode::NearestSurface`] by default).
 //!
 //! Coarse pixel `(X, Y)` covers the fine block `(2X..2X+1, 2Y..2Y+1)`; for odd sizes the
 //! coarse buffer is `ceil(w/2) x ceil(h/2)` and the last row or column of blocks has fewer
@@ -18,6 +20,12 @@
 //!   (relative) and whose normals are within `acos(`[`SURFACE_NORMAL_COS`]`)` of its
 //!   normal. Smooth inside surfaces, no averaging across silhouettes or creases.
 //!
+//! * [`DownsampleMode::NearestSurface`], ISR's default: the nearest geometry sample of the
+//!   block represents it, and the geometry samples within [`NEAREST_DEPTH_TOLERANCE`] of its
+//!   depth (relative) are averaged. Across a silhouette it keeps the foreground (what the
+//!   viewer sees in front is what bounces light to its neighbours); a block with any
+//!   geometry is geometry.
+//!
 //! Normals whose sum cancels (shorter than `1e-6` per sample) take the representative
 //! sample's normal, so no coarse normal is ever NaN; background stays zero.
 //!
@@ -25,17 +33,17 @@
 //! at the coarse resolution; `docs/gbuffer.md` has the figures and the recommendation for
 //! ISR.
 
-use std::borrow::Cow;
-
-use bytemuck::{Pod, Zeroable};
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
-use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
-use scene_core::{BACKGROUND_ID, GBuffer};
-use wgpu::util::DeviceExt;
 
-/// WGSL source of the downsampling pass.
-pub const DOWNSAMPLE_WGSL: &str = include_str!("../../../shaders/gbuffer/downsample.wgsl");
+use crate::gbuffer::{BACKGROUND_ID, GBuffer};
+
+/// WGSL source of the downsampling pass (the mode is its overridable constant `MODE`).
+pub const DOWNSAMPLE_WGSL: &str = include_str!("../../../../shaders/scene-core/downsample.wgsl");
+
+/// Relative depth tolerance of [`DownsampleMode::NearestSurface`]: samples whose linear
+/// depth differs from the nearest sample's by more than 5 % of it are another surface.
+pub const NEAREST_DEPTH_TOLERANCE: f32 = 0.05;
 
 /// Relative depth tolerance of [`DownsampleMode::SurfaceAverage`]: samples whose linear
 /// depth differs from the representative's by more than 2 % of it are another surface.
@@ -55,14 +63,17 @@ pub enum DownsampleMode {
     NearestToMedian,
     /// Average the median sample's surface only.
     SurfaceAverage,
+    /// Average the nearest sample's surface only (ISR's default).
+    NearestSurface,
 }
 
 impl DownsampleMode {
     /// All modes, in shader order.
-    pub const ALL: [DownsampleMode; 3] = [
+    pub const ALL: [DownsampleMode; 4] = [
         DownsampleMode::Average,
         DownsampleMode::NearestToMedian,
         DownsampleMode::SurfaceAverage,
+        DownsampleMode::NearestSurface,
     ];
 
     /// A short name for reports.
@@ -71,14 +82,17 @@ impl DownsampleMode {
             DownsampleMode::Average => "average (thesis)",
             DownsampleMode::NearestToMedian => "nearest-to-median",
             DownsampleMode::SurfaceAverage => "surface-average",
+            DownsampleMode::NearestSurface => "nearest-surface",
         }
     }
 
-    fn shader_code(self) -> u32 {
+    /// The value of the shader's `MODE` constant.
+    pub fn shader_code(self) -> u32 {
         match self {
             DownsampleMode::Average => 0,
             DownsampleMode::NearestToMedian => 1,
             DownsampleMode::SurfaceAverage => 2,
+            DownsampleMode::NearestSurface => 3,
         }
     }
 }
@@ -172,6 +186,44 @@ fn reduce(s: &[Sample], mode: DownsampleMode) -> Sample {
                 id: r.id,
             }
         }
+        DownsampleMode::NearestSurface => {
+            // The nearest geometry sample (ties: the first in raster order).
+            let mut near: Option<usize> = None;
+            for (i, q) in s.iter().enumerate() {
+                if q.id != BACKGROUND_ID && near.is_none_or(|k| q.depth < s[k].depth) {
+                    near = Some(i);
+                }
+            }
+            let Some(k) = near else {
+                return Sample {
+                    albedo: Vec4::ZERO,
+                    normal: Vec3::ZERO,
+                    depth: 1.0,
+                    id: BACKGROUND_ID,
+                };
+            };
+            let r = s[k];
+            let mut a = Vec4::ZERO;
+            let mut nsum = Vec3::ZERO;
+            let mut dsum = 0.0f32;
+            let mut m = 0.0f32;
+            for q in s {
+                if q.id != BACKGROUND_ID
+                    && (q.depth - r.depth).abs() <= NEAREST_DEPTH_TOLERANCE * r.depth
+                {
+                    a += q.albedo;
+                    nsum += q.normal;
+                    dsum += q.depth;
+                    m += 1.0;
+                }
+            }
+            Sample {
+                albedo: a / m,
+                normal: renormalise(nsum, m, r.normal),
+                depth: dsum / m,
+                id: r.id,
+            }
+        }
     }
 }
 
@@ -219,158 +271,150 @@ pub fn downsample(fine: &GBuffer, mode: DownsampleMode) -> GBuffer {
     out
 }
 
-/// The uniform of `downsample.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct Params {
-    mode: u32,
-    depth_tolerance: f32,
-    normal_cos: f32,
-    pad: u32,
-}
+#[cfg(feature = "gpu")]
+pub use gpu_pass::GpuDownsampler;
 
-/// Workgroup edge of the downsampling shader.
-const WORKGROUP: u32 = 8;
+#[cfg(feature = "gpu")]
+mod gpu_pass {
+    use std::sync::OnceLock;
 
-/// The GPU downsampling pass (a compute shader from one [`GpuGBuffer`] into another of
-/// [`coarse_size`]; the coarse buffer's depth-stencil attachment is not written).
-#[derive(Debug)]
-pub struct GpuDownsampler {
-    ctx: GpuContext,
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
-}
+    use super::{
+        DOWNSAMPLE_WGSL, DownsampleMode, NEAREST_DEPTH_TOLERANCE, SURFACE_DEPTH_TOLERANCE,
+        SURFACE_NORMAL_COS, coarse_size,
+    };
+    use crate::gpu::layout::{float_texture, storage_texture, texture};
+    use crate::gpu::{ComputePass, GpuContext, GpuError, GpuGBuffer};
 
-impl GpuDownsampler {
-    /// Compiles the pipeline.
-    pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
-        let device = &ctx.device;
-        let (layout, pipeline) = ctx.validated(|| {
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("downsample.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(DOWNSAMPLE_WGSL)),
-            });
-            use scene_core::gpu::layout::{float_texture, storage_texture, texture, uniform};
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("gbuffer downsample"),
-                entries: &[
-                    float_texture(0),
-                    float_texture(1),
-                    float_texture(2),
-                    texture(3, wgpu::TextureSampleType::Uint),
-                    storage_texture(4, GpuGBuffer::ALBEDO_FORMAT),
-                    storage_texture(5, GpuGBuffer::NORMAL_FORMAT),
-                    storage_texture(6, GpuGBuffer::DEPTH_FORMAT),
-                    storage_texture(7, GpuGBuffer::TRIANGLE_ID_FORMAT),
-                    uniform(8),
-                ],
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("gbuffer downsample"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("gbuffer downsample"),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some("main"),
-                compilation_options: Default::default(),
-                cache: None,
-            });
-            (layout, pipeline)
-        })?;
-        Ok(Self {
-            ctx: ctx.clone(),
-            layout,
-            pipeline,
-        })
+    /// The GPU downsampling pass (a compute shader from one [`GpuGBuffer`] into another of
+    /// [`coarse_size`]; the coarse buffer's depth-stencil attachment is not written). One
+    /// pipeline per [`DownsampleMode`], compiled when first used.
+    pub struct GpuDownsampler {
+        ctx: GpuContext,
+        module: wgpu::ShaderModule,
+        passes: [OnceLock<ComputePass>; 4],
     }
 
-    /// Records the pass from `fine` into `coarse` (which must have [`coarse_size`]).
-    pub fn encode(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        fine: &GpuGBuffer,
-        coarse: &GpuGBuffer,
-        mode: DownsampleMode,
-    ) -> Result<(), GpuError> {
-        let (cw, ch) = coarse_size(fine.width, fine.height);
-        if (coarse.width, coarse.height) != (cw, ch) {
-            return Err(GpuError::InvalidSize {
-                width: coarse.width,
-                height: coarse.height,
-                reason: format!(
-                    "the coarse buffer of a {}x{} G-buffer is {cw}x{ch}",
-                    fine.width, fine.height
-                ),
-            });
+    impl std::fmt::Debug for GpuDownsampler {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.debug_struct("GpuDownsampler").finish_non_exhaustive()
         }
-        let device = &self.ctx.device;
-        self.ctx.validated(|| {
-            let params = Params {
-                mode: mode.shader_code(),
-                depth_tolerance: SURFACE_DEPTH_TOLERANCE,
-                normal_cos: SURFACE_NORMAL_COS,
-                pad: 0,
-            };
-            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("downsample params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
-            let textures = [
-                &fine.albedo,
-                &fine.normal,
-                &fine.depth,
-                &fine.triangle_id,
-                &coarse.albedo,
-                &coarse.normal,
-                &coarse.depth,
-                &coarse.triangle_id,
-            ];
-            let views = textures.map(|t| t.create_view(&Default::default()));
-            let mut entries: Vec<wgpu::BindGroupEntry<'_>> = views
-                .iter()
-                .enumerate()
-                .map(|(i, v)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: wgpu::BindingResource::TextureView(v),
-                })
-                .collect();
-            entries.push(wgpu::BindGroupEntry {
-                binding: 8,
-                resource: uniform.as_entire_binding(),
-            });
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("gbuffer downsample"),
-                layout: &self.layout,
-                entries: &entries,
-            });
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("gbuffer downsample"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(cw.div_ceil(WORKGROUP), ch.div_ceil(WORKGROUP), 1);
-        })
     }
 
-    /// Creates the coarse buffer, records and submits the pass (without waiting).
-    pub fn run(&self, fine: &GpuGBuffer, mode: DownsampleMode) -> Result<GpuGBuffer, GpuError> {
-        let (cw, ch) = coarse_size(fine.width, fine.height);
-        let coarse = GpuGBuffer::new(&self.ctx, cw, ch)?;
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("gbuffer downsample"),
-            });
-        self.encode(&mut encoder, fine, &coarse, mode)?;
-        self.ctx
-            .validated(|| self.ctx.queue.submit([encoder.finish()]))?;
-        Ok(coarse)
+    impl GpuDownsampler {
+        /// Compiles the shader module (pipelines follow per mode).
+        pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
+            let module = ctx.validated(|| {
+                ctx.device
+                    .create_shader_module(wgpu::ShaderModuleDescriptor {
+                        label: Some("downsample.wgsl"),
+                        source: wgpu::ShaderSource::Wgsl(DOWNSAMPLE_WGSL.into()),
+                    })
+            })?;
+            Ok(Self {
+                ctx: ctx.clone(),
+                module,
+                passes: Default::default(),
+            })
+        }
+
+        fn pass(&self, mode: DownsampleMode) -> Result<&ComputePass, GpuError> {
+            let slot = &self.passes[mode.shader_code() as usize];
+            if let Some(p) = slot.get() {
+                return Ok(p);
+            }
+            let pass = self.ctx.validated(|| {
+                ComputePass::from_module(
+                    &self.ctx.device,
+                    "gbuffer downsample",
+                    &self.module,
+                    &[
+                        float_texture(0),
+                        float_texture(1),
+                        float_texture(2),
+                        texture(3, wgpu::TextureSampleType::Uint),
+                        storage_texture(4, GpuGBuffer::ALBEDO_FORMAT),
+                        storage_texture(5, GpuGBuffer::NORMAL_FORMAT),
+                        storage_texture(6, GpuGBuffer::DEPTH_FORMAT),
+                        storage_texture(7, GpuGBuffer::TRIANGLE_ID_FORMAT),
+                    ],
+                    &[
+                        ("MODE", mode.shader_code() as f64),
+                        ("SURFACE_DEPTH_TOLERANCE", SURFACE_DEPTH_TOLERANCE as f64),
+                        ("SURFACE_NORMAL_COS", SURFACE_NORMAL_COS as f64),
+                        ("NEAREST_DEPTH_TOLERANCE", NEAREST_DEPTH_TOLERANCE as f64),
+                    ],
+                )
+            })?;
+            Ok(slot.get_or_init(|| pass))
+        }
+
+        /// Records the pass from `fine` into `coarse` (which must have [`coarse_size`]),
+        /// with optional timestamp writes around it.
+        pub fn encode_timed(
+            &self,
+            encoder: &mut wgpu::CommandEncoder,
+            fine: &GpuGBuffer,
+            coarse: &GpuGBuffer,
+            mode: DownsampleMode,
+            timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+        ) -> Result<(), GpuError> {
+            let (cw, ch) = coarse_size(fine.width, fine.height);
+            if (coarse.width, coarse.height) != (cw, ch) {
+                return Err(GpuError::InvalidSize {
+                    width: coarse.width,
+                    height: coarse.height,
+                    reason: format!(
+                        "the coarse buffer of a {}x{} G-buffer is {cw}x{ch}",
+                        fine.width, fine.height
+                    ),
+                });
+            }
+            let pass = self.pass(mode)?;
+            self.ctx.validated(|| {
+                let bind_group = pass.bind_buffers_then_textures(
+                    &self.ctx.device,
+                    &[],
+                    &[
+                        &fine.albedo,
+                        &fine.normal,
+                        &fine.depth,
+                        &fine.triangle_id,
+                        &coarse.albedo,
+                        &coarse.normal,
+                        &coarse.depth,
+                        &coarse.triangle_id,
+                    ],
+                );
+                pass.dispatch(encoder, &bind_group, cw, ch, timestamps);
+            })
+        }
+
+        /// Records the pass from `fine` into `coarse` (which must have [`coarse_size`]).
+        pub fn encode(
+            &self,
+            encoder: &mut wgpu::CommandEncoder,
+            fine: &GpuGBuffer,
+            coarse: &GpuGBuffer,
+            mode: DownsampleMode,
+        ) -> Result<(), GpuError> {
+            self.encode_timed(encoder, fine, coarse, mode, None)
+        }
+
+        /// Creates the coarse buffer, records and submits the pass (without waiting).
+        pub fn run(&self, fine: &GpuGBuffer, mode: DownsampleMode) -> Result<GpuGBuffer, GpuError> {
+            let (cw, ch) = coarse_size(fine.width, fine.height);
+            let coarse = GpuGBuffer::new(&self.ctx, cw, ch)?;
+            let mut encoder =
+                self.ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("gbuffer downsample"),
+                    });
+            self.encode(&mut encoder, fine, &coarse, mode)?;
+            self.ctx
+                .validated(|| self.ctx.queue.submit([encoder.finish()]))?;
+            Ok(coarse)
+        }
     }
 }
 
@@ -490,4 +534,63 @@ pub fn compare_with_direct(coarse: &GBuffer, direct: &GBuffer, fine: &GBuffer) -
         s.mean_albedo_error = asum / both as f64;
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_surface_keeps_the_foreground_and_averages_flat_blocks() {
+        let mut g = GBuffer::background(4, 2);
+        // Block 0: two foreground (depth 0.2), two background wall (depth 0.8).
+        for (i, z) in [(0usize, 0.2f32), (1, 0.8), (4, 0.2), (5, 0.8)] {
+            g.depth[i] = z;
+            g.normal[i] = Vec3::Z;
+            g.albedo[i] = Vec4::new(z, 0.0, 0.0, 1.0);
+            g.triangle_id[i] = (z * 10.0) as u32;
+        }
+        // Block 1: a flat surface with slightly varying depth.
+        for (i, z) in [(2usize, 0.5f32), (3, 0.51), (6, 0.5), (7, 0.51)] {
+            g.depth[i] = z;
+            g.normal[i] = Vec3::Y;
+            g.albedo[i] = Vec4::new(0.5, 0.5, 0.5, 1.0);
+            g.triangle_id[i] = 7;
+        }
+        let c = downsample(&g, DownsampleMode::NearestSurface);
+        assert_eq!((c.width, c.height), (2, 1));
+        assert_eq!(c.depth[0], 0.2);
+        assert_eq!(c.albedo[0].x, 0.2);
+        assert_eq!(c.triangle_id[0], 2);
+        assert!((c.depth[1] - 0.505).abs() < 1e-6);
+        assert_eq!(c.triangle_id[1], 7);
+        // The thesis' average invents a surface between the two at block 0.
+        let avg = downsample(&g, DownsampleMode::Average);
+        assert!((avg.depth[0] - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn nearest_surface_falls_back_on_cancelled_normals_and_keeps_geometry_over_background() {
+        let mut g = GBuffer::background(3, 1);
+        for (i, n) in [(0usize, Vec3::X), (1, -Vec3::X)] {
+            g.depth[i] = 0.5;
+            g.normal[i] = n;
+            g.triangle_id[i] = i as u32 + 1;
+            g.albedo[i] = Vec4::ONE;
+        }
+        let c = downsample(&g, DownsampleMode::NearestSurface);
+        assert_eq!((c.width, c.height), (2, 1));
+        // The normals cancel: the representative's (the first) is kept, never NaN.
+        assert_eq!(c.normal[0], Vec3::X);
+        assert_eq!(c.triangle_id[0], 1);
+        // The odd column: a background-only block stays background.
+        assert!(c.is_background(1));
+        // One geometry sample among background makes the block geometry.
+        let mut h = GBuffer::background(2, 2);
+        h.depth[3] = 0.3;
+        h.normal[3] = Vec3::Y;
+        h.triangle_id[3] = 9;
+        let c = downsample(&h, DownsampleMode::NearestSurface);
+        assert_eq!((c.triangle_id[0], c.depth[0]), (9, 0.3));
+    }
 }

@@ -1,12 +1,13 @@
 // Coarse G-buffer: 2x downsampling in each direction ("4 times smaller", thesis section
-// 4.2), mirroring crates/gbuffer/src/downsample.rs sample for sample.
+// 4.2), mirroring crates/scene-core/src/gbuffer/downsample.rs sample for sample: the one
+// downsampling of the toolkit (the gbuffer crate and ISR both use it).
 //
 // One invocation per coarse pixel (8x8 workgroups). Coarse pixel (X, Y) covers the fine
 // block (2X..2X+1, 2Y..2Y+1), clipped at the fine buffer's edge for odd sizes, so a block
 // has 1, 2 or 4 samples, visited in raster order (top-left, top-right, bottom-left,
 // bottom-right).
 //
-// Modes (uniform `mode`):
+// Modes (the pipeline-overridable constant MODE; one pipeline per mode):
 //   0 AVERAGE         the thesis: every channel averaged over the block (background
 //                     included), the normal renormalised; triangle id of the sample whose
 //                     depth is nearest the mean depth.
@@ -15,6 +16,10 @@
 //   2 SURFACE_AVERAGE the lower-median sample's surface: the average of the samples that
 //                     share its background status, lie within a relative depth tolerance
 //                     and have normals within an angle of its normal.
+//   3 NEAREST_SURFACE ISR's choice: the nearest non-background sample represents the block;
+//                     the non-background samples within NEAREST_DEPTH_TOLERANCE of its
+//                     depth (relative) are averaged. A block without geometry is
+//                     background.
 // Normals that cancel (sum shorter than CANCEL * samples) take the representative sample's
 // normal (zero on background).
 
@@ -27,14 +32,12 @@
 @group(0) @binding(6) var dst_depth: texture_storage_2d<r32float, write>;
 @group(0) @binding(7) var dst_id: texture_storage_2d<r32uint, write>;
 
-struct Params {
-    mode: u32,
-    // Relative depth tolerance and minimum normal cosine of SURFACE_AVERAGE.
-    depth_tolerance: f32,
-    normal_cos: f32,
-    pad: u32,
-}
-@group(0) @binding(8) var<uniform> params: Params;
+override MODE: u32 = 0u;
+// Relative depth tolerance and minimum normal cosine of SURFACE_AVERAGE.
+override SURFACE_DEPTH_TOLERANCE: f32 = 0.02;
+override SURFACE_NORMAL_COS: f32 = 0.9;
+// Relative depth tolerance of NEAREST_SURFACE.
+override NEAREST_DEPTH_TOLERANCE: f32 = 0.05;
 
 const BACKGROUND: u32 = 0xffffffffu;
 const CANCEL: f32 = 1e-6;
@@ -106,7 +109,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var depth = s[rep].depth;
     var id = s[rep].id;
 
-    if (params.mode == 0u) {
+    if (MODE == 0u) {
         var a = vec4<f32>(0.0);
         var nsum = vec3<f32>(0.0);
         var dsum = 0.0;
@@ -125,7 +128,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         albedo = a / count;
         id = s[best].id;
         normal = renormalise(nsum, count, s[best].normal);
-    } else if (params.mode == 2u) {
+    } else if (MODE == 2u) {
         let r = s[rep];
         let is_bg = r.id == BACKGROUND;
         var a = vec4<f32>(0.0);
@@ -136,8 +139,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let q = s[i];
             var same = (q.id == BACKGROUND) == is_bg;
             if (!is_bg && i != rep) {
-                same = same && abs(q.depth - r.depth) <= params.depth_tolerance * r.depth
-                    && dot(q.normal, r.normal) >= params.normal_cos;
+                same = same && abs(q.depth - r.depth) <= SURFACE_DEPTH_TOLERANCE * r.depth
+                    && dot(q.normal, r.normal) >= SURFACE_NORMAL_COS;
             }
             if (same) {
                 a += q.albedo;
@@ -149,6 +152,39 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         albedo = a / m;
         depth = dsum / m;
         normal = renormalise(nsum, m, r.normal);
+    } else if (MODE == 3u) {
+        // The nearest geometry sample (ties: the first in raster order).
+        var near = n;
+        for (var i = 0u; i < n; i++) {
+            if (s[i].id != BACKGROUND && (near == n || s[i].depth < s[near].depth)) {
+                near = i;
+            }
+        }
+        if (near == n) {
+            albedo = vec4<f32>(0.0);
+            normal = vec3<f32>(0.0);
+            depth = 1.0;
+            id = BACKGROUND;
+        } else {
+            let r = s[near];
+            var a = vec4<f32>(0.0);
+            var nsum = vec3<f32>(0.0);
+            var dsum = 0.0;
+            var m = 0.0;
+            for (var i = 0u; i < n; i++) {
+                let q = s[i];
+                if (q.id != BACKGROUND && abs(q.depth - r.depth) <= NEAREST_DEPTH_TOLERANCE * r.depth) {
+                    a += q.albedo;
+                    nsum += q.normal;
+                    dsum += q.depth;
+                    m += 1.0;
+                }
+            }
+            albedo = a / m;
+            depth = dsum / m;
+            normal = renormalise(nsum, m, r.normal);
+            id = r.id;
+        }
     }
 
     let c = vec2<i32>(gid.xy);

@@ -1,0 +1,192 @@
+//! ISR without a scene-core `Scene`, as an engine runs it: its own light list and shadow
+//! casters ([`LightSet::from_lights`]), its own G-buffer textures
+//! ([`GpuGBuffer::from_textures`]), several views per submission.
+
+mod common;
+
+use common::{Setup, image_mean, max_difference, small_shadows};
+use glam::Vec3;
+use isr::{GpuIsr, GpuIsrInputs, IsrSettings, Light, LightSet, ShadowSettings};
+use scene_core::gpu::{GpuError, GpuGBuffer, gpu_test_context};
+use scene_core::lights::LightId;
+use scene_core::{Image, Scene, builtin};
+
+/// The scene's triangles, as an engine would hand them over.
+fn triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
+    scene
+        .meshes
+        .iter()
+        .flat_map(|m| m.indices.iter().map(|t| t.map(|i| m.positions[i as usize])))
+        .collect()
+}
+
+/// The scene's point lights, as an engine's light list.
+fn engine_lights(scene: &Scene) -> Vec<Light> {
+    scene
+        .point_lights
+        .iter()
+        .enumerate()
+        .map(|(i, l)| Light::point(LightId::Point(i as u32), l.position, l.intensity))
+        .collect()
+}
+
+#[test]
+fn an_engine_light_list_and_casters_give_the_scene_path_s_frame() {
+    let scene = builtin::scene("cornell-point").unwrap();
+    let shadows = small_shadows();
+    let from_scene = Setup::with_prepared(
+        scene.clone(),
+        LightSet::new(&scene, &shadows).unwrap(),
+        0,
+        48,
+        36,
+    );
+    let engine =
+        LightSet::from_lights(engine_lights(&scene), &triangles(&scene), &shadows).unwrap();
+    assert_eq!(engine.extent, from_scene.prepared.extent);
+    assert_eq!(engine.shadow_texels, from_scene.prepared.shadow_texels);
+    let a = from_scene.render(&IsrSettings::default());
+    let b = Setup::with_prepared(scene.clone(), engine, 0, 48, 36).render(&IsrSettings::default());
+    assert_eq!(a.pixels, b.pixels);
+
+    // No casters: unshadowed, as the scene path with shadows off.
+    let off = ShadowSettings {
+        enabled: false,
+        ..shadows
+    };
+    let unshadowed = LightSet::from_lights(engine_lights(&scene), &[], &shadows).unwrap();
+    assert!(!unshadowed.shadows.enabled && unshadowed.shadow_texels.is_empty());
+    // The extent differs (the light's position alone against the box), which scales ISR's
+    // sampling radius, so the direct-light image is the one to compare exactly.
+    let dl = IsrSettings::dl();
+    let c = Setup::with_prepared(scene.clone(), unshadowed, 0, 48, 36).render(&dl);
+    let d = Setup::with_prepared(
+        scene.clone(),
+        LightSet::new(&scene, &off).unwrap(),
+        0,
+        48,
+        36,
+    )
+    .render(&dl);
+    assert_eq!(c.pixels, d.pixels);
+    // Unshadowed light reaches the floor under the blocks: brighter than with shadows.
+    let shadowed = from_scene.render(&dl);
+    assert!(image_mean(&c) > image_mean(&shadowed));
+}
+
+#[test]
+fn bad_engine_lights_are_refused_by_name() {
+    let nan = Light::point(LightId::Point(3), Vec3::new(f32::NAN, 0.0, 0.0), Vec3::ONE);
+    let e = LightSet::from_lights(vec![nan], &[], &ShadowSettings::default()).unwrap_err();
+    assert!(e.to_string().contains("Point(3)"), "{e}");
+    let nodir = Light::directional(LightId::Directional(0), Vec3::ZERO, Vec3::ONE);
+    let e = LightSet::from_lights(vec![nodir], &[], &ShadowSettings::default()).unwrap_err();
+    assert!(e.to_string().contains("no direction"), "{e}");
+    let bad_caster = [[Vec3::ZERO, Vec3::X, Vec3::splat(f32::INFINITY)]];
+    let ok = Light::point(LightId::Point(0), Vec3::Y, Vec3::ONE);
+    let e = LightSet::from_lights(vec![ok], &bad_caster, &ShadowSettings::default()).unwrap_err();
+    assert!(e.to_string().contains("caster #0"), "{e}");
+}
+
+fn texture(
+    ctx: &scene_core::gpu::GpuContext,
+    format: wgpu::TextureFormat,
+    w: u32,
+    h: u32,
+) -> wgpu::Texture {
+    ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("engine texture"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+#[test]
+fn engine_textures_are_checked_and_two_views_share_one_submission() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    use wgpu::TextureFormat as F;
+    // Formats are checked, naming the expected one.
+    let wrong = GpuGBuffer::from_textures(
+        texture(&ctx, F::Rgba8Unorm, 8, 8),
+        texture(&ctx, F::Rgba32Float, 8, 8),
+        texture(&ctx, F::R32Float, 8, 8),
+        texture(&ctx, F::R32Uint, 8, 8),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            wrong,
+            GpuError::WrongFormat {
+                expected: "Rgba32Float",
+                ..
+            }
+        ),
+        "{wrong}"
+    );
+    let size = GpuGBuffer::from_textures(
+        texture(&ctx, F::Rgba32Float, 8, 8),
+        texture(&ctx, F::Rgba32Float, 8, 8),
+        texture(&ctx, F::R32Float, 8, 4),
+        texture(&ctx, F::R32Uint, 8, 8),
+    )
+    .unwrap_err();
+    assert!(size.to_string().contains("depth"), "{size}");
+
+    // Two cameras of one scene, encoded into one command buffer, each with its own
+    // uniforms: each output equals that view rendered alone.
+    let mut scene = builtin::scene("cornell-point").unwrap();
+    let mut moved = scene.cameras[0].clone();
+    moved.position += Vec3::new(0.08, 0.03, -0.05);
+    scene.cameras.push(moved);
+    let prepared = LightSet::new(&scene, &small_shadows()).unwrap();
+    let setups = [0, 1].map(|c| Setup::with_prepared(scene.clone(), prepared.clone(), c, 40, 30));
+    assert_ne!(setups[0].full, setups[1].full);
+    let mut isr = GpuIsr::new(&ctx, &prepared).unwrap();
+    let alone: Vec<Image> = setups
+        .iter()
+        .map(|s| {
+            isr.render_gbuffer(&s.full, &s.view, &IsrSettings::default())
+                .unwrap()
+                .0
+        })
+        .collect();
+    let fulls: Vec<GpuGBuffer> = setups
+        .iter()
+        .map(|s| GpuGBuffer::upload(&ctx, &s.full).unwrap())
+        .collect();
+    let outputs: Vec<wgpu::Texture> = (0..2)
+        .map(|_| isr.output_texture(40, 30).unwrap())
+        .collect();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    for ((s, g), out) in setups.iter().zip(&fulls).zip(&outputs) {
+        let inputs = GpuIsrInputs {
+            full: g,
+            coarse: None,
+            view: &s.view,
+        };
+        isr.encode(&mut encoder, &inputs, &IsrSettings::default(), out)
+            .unwrap();
+    }
+    ctx.queue.submit([encoder.finish()]);
+    for (k, out) in outputs.iter().enumerate() {
+        let texels = ctx.read_texture_rgba32f(out).unwrap();
+        let img = Image {
+            width: 40,
+            height: 30,
+            pixels: texels.iter().map(|t| Vec3::new(t[0], t[1], t[2])).collect(),
+        };
+        let (d, at) = max_difference(&img, &alone[k]);
+        assert!(d == 0.0, "view {k}: batched differs by {d} at {at}");
+    }
+}
