@@ -1,3 +1,4 @@
+// after: ../scene-core/reconstruct.wgsl
 // World-space position reconstruction from a G-buffer's depth (thesis section 4.3),
 // mirroring crates/gbuffer/src/reconstruct.rs. Three entry points, one per method, so a
 // micro-benchmark can time them apart:
@@ -18,12 +19,8 @@
 // taps = 1 the output is the pixel's own position.
 
 struct Params {
-    base0: vec4<f32>,
-    base_u: vec4<f32>,
-    base_v: vec4<f32>,
-    ray0: vec4<f32>,
-    ray_u: vec4<f32>,
-    ray_v: vec4<f32>,
+    // Eq. 24's vectors (scene-core/reconstruct.wgsl, prepended).
+    frustum: FrustumReconstruction,
     // Inverse of the linear-depth clip transform (see InverseMatrixReconstruction).
     inv_linear: mat4x4<f32>,
     // Inverse of the standard view-projection matrix.
@@ -59,11 +56,9 @@ fn uv_of(p: vec2<i32>, size: vec2<i32>) -> vec2<f32> {
     return (vec2<f32>(p) + vec2<f32>(0.5)) / vec2<f32>(size);
 }
 
-// Eq. 24, generalised to orthographic views.
+// Eq. 24, generalised to orthographic views (scene-core's one WGSL reconstruction).
 fn reconstruct_frustum(uv: vec2<f32>, d: f32) -> vec3<f32> {
-    let base = params.base0.xyz + uv.x * params.base_u.xyz + uv.y * params.base_v.xyz;
-    let ray = params.ray0.xyz + uv.x * params.ray_u.xyz + uv.y * params.ray_v.xyz;
-    return base + ray * d;
+    return reconstruct(params.frustum, uv, d);
 }
 
 fn reconstruct_inverse(uv: vec2<f32>, d: f32) -> vec3<f32> {

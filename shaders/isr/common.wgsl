@@ -1,8 +1,8 @@
+// after: ../scene-core/reconstruct.wgsl
 // Declarations shared by every ISR shader in this directory (blur, radiosity, upsample,
 // lighting). WGSL has no #include: crates/isr/src/*.rs build each pass's source as
-// `concat!(common.wgsl, <pass>.wgsl)` and `cargo xtask shaders` prepends this file to every
-// other .wgsl in the same directory before validating it (and validates it on its own).
-// downsample.wgsl binds textures at group(0) binding(0) and so lives in standalone/.
+// `concat!(scene-core/reconstruct.wgsl, common.wgsl, <parts>, <pass>.wgsl)` and
+// `cargo xtask shaders` composes the same from the files' `// after:` lines.
 
 // Per-frame parameters; crates/isr/src/gpu.rs `Globals` writes them.
 struct Globals {
@@ -26,6 +26,8 @@ struct Globals {
     filters: vec4<f32>,
     // Shadow normal offset and depth bias (texels); unused; unused.
     shadow: vec4<f32>,
+    // Eq. 24's vectors (scene-core/reconstruct.wgsl, prepended).
+    frustum: FrustumReconstruction,
 }
 
 const FLAG_INDIRECT: u32 = 1u;
@@ -54,13 +56,10 @@ fn pixel_uv(p: vec2<i32>, size: vec2<u32>) -> vec2<f32> {
     return (vec2<f32>(p) + vec2<f32>(0.5)) / vec2<f32>(size);
 }
 
-// Eq. 24: world position from image coordinates and linear depth.
+// Eq. 24: world position from image coordinates and linear depth (scene-core's one
+// reconstruction).
 fn world(uv: vec2<f32>, depth: f32) -> vec3<f32> {
-    if (is_ortho()) {
-        return g.corner_ortho.xyz + g.du_span.xyz * uv.x + g.dv_span.xyz * uv.y
-            + g.forward_extent.xyz * (depth * g.eye_far.w);
-    }
-    return g.eye_far.xyz + (g.corner_ortho.xyz + g.du_span.xyz * uv.x + g.dv_span.xyz * uv.y) * depth;
+    return reconstruct(g.frustum, uv, depth);
 }
 
 // The view ray at uv, scaled to a unit component along the view direction.

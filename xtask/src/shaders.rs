@@ -8,9 +8,11 @@
 //! `concat!(include_str!(".../common.wgsl"), include_str!(".../pass.wgsl"))`; a pass that
 //! must not get the common part goes in a subdirectory.
 //!
-//! A pass made of several files (one per Rust module it mirrors) says so on its first line,
-//! `// after: a.wgsl b.wgsl`: those files of its directory come between `common.wgsl` and
-//! it, in that order (not transitively), and the embedding crate concatenates the same.
+//! A pass made of several files (one per Rust module it mirrors, or a part shared across
+//! crates such as `scene-core/reconstruct.wgsl`) says so on its first line,
+//! `// after: a.wgsl ../other/b.wgsl`: those files (paths relative to its directory) come
+//! before it, in that order (not transitively; a `common.wgsl`'s parts come before the
+//! common file), and the embedding crate concatenates the same.
 
 use std::path::{Path, PathBuf};
 
@@ -79,16 +81,19 @@ pub const COMMON: &str = "common.wgsl";
 /// The source to validate for `file`: its text, after its directory's `common.wgsl` unless it
 /// is that file or there is none.
 fn source_of(file: &Path, rel: &str) -> Result<String, String> {
-    let own = std::fs::read_to_string(file).map_err(|e| format!("{rel}: {e}"))?;
-    if file.file_name().is_some_and(|n| n == COMMON) {
-        return Ok(own);
-    }
+    let mut source = String::new();
     let common = file.with_file_name(COMMON);
-    let mut source = if common.is_file() {
-        std::fs::read_to_string(&common).map_err(|e| format!("{}: {e}", common.display()))?
-    } else {
-        String::new()
-    };
+    if common.is_file() && file.file_name().is_some_and(|n| n != COMMON) {
+        source = with_parts(&common, rel)?;
+    }
+    Ok(source + &with_parts(file, rel)?)
+}
+
+/// `file`'s text after the parts its `// after:` line names (paths relative to its
+/// directory, e.g. `../scene-core/reconstruct.wgsl`).
+fn with_parts(file: &Path, rel: &str) -> Result<String, String> {
+    let own = std::fs::read_to_string(file).map_err(|e| format!("{}: {e}", file.display()))?;
+    let mut source = String::new();
     for part in after(&own) {
         let path = file.with_file_name(part);
         let text = std::fs::read_to_string(&path)

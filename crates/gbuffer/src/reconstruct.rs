@@ -28,7 +28,10 @@ use scene_core::view::Projection;
 use wgpu::util::DeviceExt;
 
 /// WGSL source of the reconstruction passes.
-pub const RECONSTRUCT_WGSL: &str = include_str!("../../../shaders/gbuffer/reconstruct.wgsl");
+pub const RECONSTRUCT_WGSL: &str = concat!(
+    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
+    include_str!("../../../shaders/gbuffer/reconstruct.wgsl")
+);
 
 pub use scene_core::view::FrustumReconstruction;
 
@@ -285,8 +288,7 @@ pub fn reconstruct_into(
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct Params {
-    base: [[f32; 4]; 3],
-    ray: [[f32; 4]; 3],
+    frustum: [[f32; 4]; 6],
     inv_linear: [f32; 16],
     inv_view_proj: [f32; 16],
     lin_a: [f32; 4],
@@ -394,10 +396,8 @@ impl GpuReconstructor {
         }
         let f = FrustumReconstruction::new(view);
         let inv = InverseMatrixReconstruction::new(view);
-        let v4 = |v: Vec3| [v.x, v.y, v.z, 0.0];
         let params = Params {
-            base: f.base.map(v4),
-            ray: f.ray.map(v4),
+            frustum: f.uniform(),
             inv_linear: inv.inv_linear.to_cols_array(),
             inv_view_proj: inv.inv_view_proj.to_cols_array(),
             lin_a: [inv.lin[0], inv.lin[1], inv.lin[2], inv.lin[3]],

@@ -106,6 +106,7 @@ pub fn blur_pass(
 
 /// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `blur.wgsl`), one direction per dispatch.
 pub const WGSL: &str = concat!(
+    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
     include_str!("../../../shaders/isr/common.wgsl"),
     include_str!("../../../shaders/isr/blur.wgsl")
 );

@@ -71,6 +71,8 @@ pub struct Globals {
     pub filters: [f32; 4],
     /// Shadow normal offset, depth bias (texels), unused, unused.
     pub shadow: [f32; 4],
+    /// Eq. 24's vectors ([`scene_core::view::FrustumReconstruction::uniform`]).
+    pub frustum: [[f32; 4]; 6],
 }
 
 /// Flag bits of [`Globals::config`]`[1]`.
@@ -140,6 +142,7 @@ impl Globals {
                 0.0,
                 0.0,
             ],
+            frustum: screen.reconstruction.uniform(),
         }
     }
 }

@@ -107,6 +107,7 @@ pub fn compose(
 /// light set and shadow parts the pass shares with [`crate::light_set`] and
 /// [`crate::shadow`], the output declaration, and `lighting.wgsl`.
 pub const WGSL: &str = concat!(
+    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
     include_str!("../../../shaders/isr/common.wgsl"),
     include_str!("../../../shaders/isr/light_set.wgsl"),
     include_str!("../../../shaders/isr/shadow.wgsl"),
@@ -117,6 +118,7 @@ pub const WGSL: &str = concat!(
 /// The same writing `Rgba16Float` (WGSL cannot make a storage format overridable, so the
 /// pass is composed with the other output declaration).
 pub const WGSL_RGBA16F: &str = concat!(
+    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
     include_str!("../../../shaders/isr/common.wgsl"),
     include_str!("../../../shaders/isr/light_set.wgsl"),
     include_str!("../../../shaders/isr/shadow.wgsl"),

@@ -223,6 +223,7 @@ fn gather(
 
 /// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `radiosity.wgsl`).
 pub const WGSL: &str = concat!(
+    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
     include_str!("../../../shaders/isr/common.wgsl"),
     include_str!("../../../shaders/isr/radiosity.wgsl")
 );

@@ -122,6 +122,7 @@ fn upsample_pixel(
 
 /// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `upsample.wgsl`).
 pub const WGSL: &str = concat!(
+    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
     include_str!("../../../shaders/isr/common.wgsl"),
     include_str!("../../../shaders/isr/upsample.wgsl")
 );

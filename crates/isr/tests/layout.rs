@@ -44,6 +44,7 @@ fn globals_match_common_wgsl() {
         ("k", std::mem::offset_of!(Globals, k)),
         ("filters", std::mem::offset_of!(Globals, filters)),
         ("shadow", std::mem::offset_of!(Globals, shadow)),
+        ("frustum", std::mem::offset_of!(Globals, frustum)),
     ];
     assert_eq!(fields.len(), rust.len(), "{fields:?}");
     for ((wname, woff), (rname, roff)) in fields.iter().zip(rust) {

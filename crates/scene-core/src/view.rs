@@ -141,6 +141,15 @@ impl FrustumReconstruction {
         base + ray * depth
     }
 
+    /// The world-space vectors as the `FrustumReconstruction` struct of
+    /// `shaders/scene-core/reconstruct.wgsl` (six `vec4`s, `w` = 0): `base0, base_u, base_v,
+    /// ray0, ray_u, ray_v`.
+    pub fn uniform(&self) -> [[f32; 4]; 6] {
+        let [b0, bu, bv] = self.base;
+        let [r0, ru, rv] = self.ray;
+        [b0, bu, bv, r0, ru, rv].map(|v| v.extend(0.0).to_array())
+    }
+
     /// View-space position at image coordinates `uv` with linear depth `depth`.
     #[inline]
     pub fn view_space(&self, uv: Vec2, depth: f32) -> Vec3 {
