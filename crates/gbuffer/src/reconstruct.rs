@@ -23,7 +23,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use scene_core::View;
-use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
+use scene_core::gpu::{ComputePass, GpuContext, GpuError, GpuGBuffer};
 use scene_core::view::Projection;
 use wgpu::util::DeviceExt;
 
@@ -297,57 +297,44 @@ struct Params {
     pad: u32,
 }
 
-/// Workgroup edge of the reconstruction shader.
-const WORKGROUP: u32 = 8;
-
-/// The WGSL reconstruction passes: three compute pipelines sharing one layout.
+/// The WGSL reconstruction passes: one module, one compute pass per method (scene-core's
+/// [`ComputePass`]).
 #[derive(Debug)]
 pub struct GpuReconstructor {
     ctx: GpuContext,
-    layout: wgpu::BindGroupLayout,
-    pipelines: [wgpu::ComputePipeline; 3],
+    passes: [ComputePass; 3],
 }
 
 impl GpuReconstructor {
     /// Compiles the three pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         let device = &ctx.device;
-        let (layout, pipelines) = ctx.validated(|| {
+        let passes = ctx.validated(|| {
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("reconstruct.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(RECONSTRUCT_WGSL)),
             });
             use scene_core::gpu::layout::{float_texture, storage_texture, texture, uniform};
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("gbuffer reconstruct"),
-                entries: &[
-                    float_texture(0),
-                    texture(1, wgpu::TextureSampleType::Depth),
-                    storage_texture(2, wgpu::TextureFormat::Rgba32Float),
-                    uniform(3),
-                ],
-            });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("gbuffer reconstruct"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipelines = ReconstructionMethod::ALL.map(|m| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(m.entry_point()),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some(m.entry_point()),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            });
-            (layout, pipelines)
+            let entries = [
+                float_texture(0),
+                texture(1, wgpu::TextureSampleType::Depth),
+                storage_texture(2, wgpu::TextureFormat::Rgba32Float),
+                uniform(3),
+            ];
+            ReconstructionMethod::ALL.map(|m| {
+                ComputePass::from_entry_point(
+                    device,
+                    m.entry_point(),
+                    &module,
+                    m.entry_point(),
+                    &entries,
+                    &[],
+                )
+            })
         })?;
         Ok(Self {
             ctx: ctx.clone(),
-            layout,
-            pipelines,
+            passes,
         })
     }
 
@@ -420,39 +407,17 @@ impl GpuReconstructor {
             let linear = gbuffer.depth.create_view(&Default::default());
             let hw = hw_depth.create_view(&Default::default());
             let out_view = out.create_view(&Default::default());
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("gbuffer reconstruct"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::TextureView(&linear),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::TextureView(&hw),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: wgpu::BindingResource::TextureView(&out_view),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: uniform.as_entire_binding(),
-                    },
+            let pass = &self.passes[index];
+            let bind_group = pass.bind(
+                device,
+                &[
+                    wgpu::BindingResource::TextureView(&linear),
+                    wgpu::BindingResource::TextureView(&hw),
+                    wgpu::BindingResource::TextureView(&out_view),
+                    uniform.as_entire_binding(),
                 ],
-            });
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("gbuffer reconstruct"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&self.pipelines[index]);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(
-                gbuffer.width.div_ceil(WORKGROUP),
-                gbuffer.height.div_ceil(WORKGROUP),
-                1,
             );
+            pass.dispatch(encoder, &bind_group, gbuffer.width, gbuffer.height, None);
         })
     }
 

@@ -369,3 +369,48 @@ fn gpu_a_million_triangles() {
         "many-boxes 10^6 triangles",
     );
 }
+
+/// Prepared once, a renderer draws batches of views with no further upload: the batch
+/// equals one-off renders view by view, the GPU batch can stay on the GPU, and nothing
+/// renders before `prepare`.
+#[test]
+fn prepared_batches_equal_one_off_renders_and_can_stay_on_the_gpu() {
+    let Some((ctx, mut gpu)) = context() else {
+        return;
+    };
+    let scene = std::sync::Arc::new(builtin::scene("cornell").unwrap());
+    let e = gpu
+        .render_views(&[scene_core::ViewTarget::new(
+            View::from_camera(&scene.cameras[0]),
+            8,
+            8,
+        )])
+        .unwrap_err();
+    assert!(matches!(e, Error::NotPrepared(_)), "{e}");
+    gpu.prepare(scene.clone()).unwrap();
+    let camera = View::from_camera(&scene.cameras[0]);
+    let face = View::hemicube(
+        Vec3::new(0.3, 0.001, 0.25),
+        Vec3::Y,
+        HemicubeFace::Up,
+        1e-3,
+        2.0,
+    );
+    let targets = [
+        scene_core::ViewTarget::new(camera, 40, 30),
+        scene_core::ViewTarget::new(face, 32, 16),
+        scene_core::ViewTarget::new(camera, 17, 9),
+    ];
+    let batch = gpu.render_views(&targets).unwrap();
+    let on_gpu = gpu
+        .render_views_gpu(&targets)
+        .unwrap()
+        .expect("the GPU keeps its G-buffers");
+    let mut cpu = CpuRasterizer::new();
+    assert!(cpu.render_views_gpu(&targets).unwrap().is_none());
+    for ((t, b), g) in targets.iter().zip(&batch).zip(&on_gpu) {
+        let alone = gpu.render(&scene, &t.view, t.width, t.height).unwrap();
+        assert_eq!(b, &alone, "{}x{}", t.width, t.height);
+        assert_eq!(&g.read_back(&ctx).unwrap(), b);
+    }
+}

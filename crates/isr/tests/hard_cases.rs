@@ -540,3 +540,24 @@ fn bad_input_gives_typed_errors() {
     .unwrap();
     assert_eq!(f.image.non_finite_count(), 0);
 }
+
+#[test]
+fn errors_keep_their_kind_across_the_technique_trait() {
+    let scene = Arc::new(builtin::scene("cornell-point").unwrap());
+    let bad = IsrSettings {
+        samples: 0,
+        ..Default::default()
+    };
+    let mut t =
+        IsrTechnique::new(bad, Box::new(RayCastRenderer::new())).with_shadows(small_shadows());
+    t.prepare(scene.clone()).unwrap();
+    let e = t
+        .render(&FrameRequest::camera(&scene.cameras[0], 16, 12))
+        .unwrap_err();
+    // A scene_core::Error on the outside, ISR's own error inside, kind intact.
+    match e.method_error::<IsrError>() {
+        Some(IsrError::InvalidSetting { name, .. }) => assert_eq!(*name, "samples"),
+        other => panic!("expected ISR's InvalidSetting, got {other:?} from {e}"),
+    }
+    assert!(e.to_string().contains("samples"), "{e}");
+}

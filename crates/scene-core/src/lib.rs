@@ -16,22 +16,33 @@
 //! assert!(out.image.pixels.iter().all(|p| p.is_finite()));
 //! ```
 
-pub mod budget;
-pub mod builtin;
+//! ## Layers
+//!
+//! | layer | modules | what lives there |
+//! |---|---|---|
+//! | scene model | [`model`]: [`scene`], [`builtin`], [`lights`], [`view`] | meshes, materials, lights and their ids and state, cameras and views |
+//! | files | [`files`]: [`gltf_io`], [`image`], [`budget`] | glTF, EXR and PNG in and out, budgets against hostile files |
+//! | rays | [`rays`]: [`ray`], [`reference`], [`sampling`] | the BVH, the reference path tracer, sampling |
+//! | G-buffer | [`gbuffer`] (with [`gbuffer::downsample`]) | the currency of the screen-space methods, the renderer trait, operations on G-buffers (CPU and WGSL) |
+//! | GPU | [`gpu`] (with [`gpu::compute`]) | the headless context, uploads and readbacks, GPU G-buffers, the compute-pass helper and pass timer |
+//! | methods | [`technique`], [`error`], [`hash`] | the traits the methods implement, errors, scene identity |
+//!
+//! Each module of a layer is also reachable at the crate root (`scene_core::scene`,
+//! `scene_core::gltf_io`, ...), the paths the rest of the workspace uses.
+
 pub mod error;
+pub mod files;
 pub mod gbuffer;
-pub mod gltf_io;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod hash;
-pub mod image;
-pub mod lights;
-pub mod ray;
-pub mod reference;
-pub mod sampling;
-pub mod scene;
+pub mod model;
+pub mod rays;
 pub mod technique;
-pub mod view;
+
+pub use files::{budget, gltf_io, image};
+pub use model::{builtin, lights, scene, view};
+pub use rays::{ray, reference, sampling};
 
 pub use budget::{Budget, BudgetError};
 pub use error::{GltfError, ImageError, SceneError};

@@ -46,6 +46,18 @@ impl ComputePass {
         entries: &[wgpu::BindGroupLayoutEntry],
         constants: &[(&str, f64)],
     ) -> Self {
+        Self::from_entry_point(device, label, module, "main", entries, constants)
+    }
+
+    /// The same with another entry point than `main` (one module holding several passes).
+    pub fn from_entry_point(
+        device: &wgpu::Device,
+        label: &str,
+        module: &wgpu::ShaderModule,
+        entry_point: &str,
+        entries: &[wgpu::BindGroupLayoutEntry],
+        constants: &[(&str, f64)],
+    ) -> Self {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some(label),
             entries,
@@ -59,7 +71,7 @@ impl ComputePass {
             label: Some(label),
             layout: Some(&pipeline_layout),
             module,
-            entry_point: Some("main"),
+            entry_point: Some(entry_point),
             compilation_options: wgpu::PipelineCompilationOptions {
                 constants,
                 ..Default::default()

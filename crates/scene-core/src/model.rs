@@ -1,0 +1,9 @@
+//! The scene model: what diffuse transport needs of a scene ([`scene`]: meshes, diffuse
+//! materials, albedo textures, lights, cameras), the built-in test scenes ([`builtin`]),
+//! light sources with stable ids and their per-frame state ([`lights`]), and views
+//! ([`view`]: cameras, hemicube faces, shadow-map views, engine matrices).
+
+pub mod builtin;
+pub mod lights;
+pub mod scene;
+pub mod view;
