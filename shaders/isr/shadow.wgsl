@@ -12,7 +12,8 @@ fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
     if (d <= 0.0) {
         return 1.0;
     }
-    return exp(-min(c * d, 100.0));
+    // Capped at 80 (exp(-80) is still a normal f32), as crates/isr/src/shadow.rs.
+    return exp(-min(c * d, 80.0));
 }
 
 // Bilinear PCF of eq. 30 over the four texels around uv of the face starting at `start`.

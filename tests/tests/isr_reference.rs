@@ -22,8 +22,8 @@
 //! --test isr_reference -- --nocapture` (`ISR_REF_BOUNCES=inf` for the unlimited reference).
 
 use isr::{
-    Blur, Estimator, IsrInputs, IsrSettings, LightSet, Sender, ShadowSettings, downsample,
-    render_image,
+    Blur, DownsampleMode, Estimator, IsrInputs, IsrSettings, LightSet, Sender, ShadowSettings,
+    downsample, render_image,
 };
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::reference::{Bounces, ReferenceSettings, render};
@@ -99,6 +99,20 @@ fn configurations() -> Vec<(&'static str, IsrSettings)> {
                 ..base
             },
         ),
+        (
+            "+surface-avg down",
+            IsrSettings {
+                downsample: DownsampleMode::SurfaceAverage,
+                ..base
+            },
+        ),
+        (
+            "+thesis avg down",
+            IsrSettings {
+                downsample: DownsampleMode::Average,
+                ..base
+            },
+        ),
     ]);
     v
 }
@@ -135,7 +149,7 @@ fn isr_is_closer_to_the_reference_than_dl_on_every_default_camera() {
             };
             let reference = render(&scene, &view, &settings, None).image;
             let full = RayCastRenderer::new().render(&scene, &view, w, h).unwrap();
-            let coarse = downsample(&full, isr::DownsampleMode::NearestSurface);
+            let coarse = downsample(&full, IsrSettings::default().downsample);
             let inputs = IsrInputs {
                 full: &full,
                 coarse: &coarse,
@@ -147,6 +161,12 @@ fn isr_is_closer_to_the_reference_than_dl_on_every_default_camera() {
             views.push(label.clone());
             let mut line = format!("{label:<17} {e_dl:>9.5}");
             for (k, (_, s)) in configs.iter().enumerate() {
+                // Each configuration's own coarse buffer (its downsampling mode).
+                let own = downsample(&full, s.downsample);
+                let inputs = IsrInputs {
+                    coarse: &own,
+                    ..inputs
+                };
                 let img = render_image(&prepared, &inputs, s).unwrap();
                 let q = imalyzer::quality(&reference, &dl, &img).unwrap();
                 let gain = q.linear.gain.unwrap_or(0.0);

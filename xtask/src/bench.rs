@@ -158,12 +158,17 @@ pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
                     whole.push(ms(start.elapsed()));
                 }
             }
-            row(&format!("GPU {label}"), medians(&frames));
+            let source = if frames.first().is_some_and(|t| t.gpu_timestamps) {
+                "timestamps"
+            } else {
+                "wall clock"
+            };
+            row(&format!("GPU {label} ({source})"), medians(&frames));
             println!("{:<26} one submit per frame: {:.2}", "", median(whole));
         }
     }
     println!(
-        "\n(GPU per-pass figures submit and wait for each pass; 'one submit per frame' is the whole frame in one command buffer.)"
+        "\n(GPU per-pass figures come from timestamp queries where the adapter has them, else from submitting and waiting for each pass; 'one submit per frame' is the wall-clock time of the whole frame in one command buffer.)"
     );
     Ok(())
 }
@@ -255,7 +260,7 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
         "GPU readback",
         "GPU upload",
         "GPU trait+read",
-        "fingerprint"
+        "scene hash"
     );
     let rast = match &gpu {
         Some(ctx) => Some(GpuRasterizer::new(ctx).map_err(gerr)?),
@@ -294,11 +299,11 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
             })?;
             let read_ms = time_ms(repeats, || target.read_back(ctx).map(|_| ()).map_err(gerr))?;
             let mut trait_rast = GpuRasterizer::new(ctx).map_err(gerr)?;
+            trait_rast
+                .prepare(std::sync::Arc::new(scene.clone()))
+                .map_err(err)?;
             let trait_ms = time_ms(repeats, || {
-                trait_rast
-                    .render(&scene, &view, w, h)
-                    .map(|_| ())
-                    .map_err(err)
+                trait_rast.render_view(&view, w, h).map(|_| ()).map_err(err)
             })?;
             cols.push(format!("{gpu_ms:>12.2}"));
             cols.push(format!("{read_ms:>14.2}"));
@@ -325,7 +330,7 @@ pub fn gbuffer(threads: usize, repeats: usize) -> Result<(), String> {
         .install(|| CpuRasterizer::new().render_gbuffer(&scene, &view, w, h))
         .map_err(err)?;
     println!(
-        "(CPU ms: render_into a reused target; CPU trait: GBufferRenderer::render, a new G-buffer per frame; GPU ms: the MRT pass into a reused GpuGBuffer, waited for; GPU readback: GpuGBuffer::read_back; GPU upload: scene upload, once; GPU trait+read: GBufferRenderer::render with the cached upload, incl. fingerprint, new targets and readback; fingerprint: the cache key, CPU)"
+        "(CPU ms: render_into a reused target; CPU trait: GBufferRenderer::render, a new G-buffer per frame; GPU ms: the MRT pass into a reused GpuGBuffer, waited for; GPU readback: GpuGBuffer::read_back; GPU upload: scene upload, once; GPU trait+read: GBufferRenderer::render_view after prepare (the scene uploaded once), new targets and readback; scene hash: scene_core::hash::scene_content_hash, CPU)"
     );
     println!();
     println!("downsampling {w}x{h} -> {}x{} (corridor)", w / 2, h / 2);
@@ -395,10 +400,11 @@ fn downsampling_quality(pool: &rayon::ThreadPool, w: u32, h: u32) -> Result<(), 
         format!("many-boxes {}", builtin::MAX_BOXES),
     ];
     let pct = |n: usize, d: usize| 100.0 * n as f64 / d.max(1) as f64;
-    let mut totals = vec![(DownsampleStats::default(), 0.0f64, 0.0f64); 3];
+    let mut totals = vec![(DownsampleStats::default(), 0.0f64, 0.0f64); DownsampleMode::ALL.len()];
     for name in &scenes {
         let scene = builtin::scene(name).map_err(|e| e.to_string())?;
-        let mut per_scene = vec![(DownsampleStats::default(), 0.0f64, 0.0f64); 3];
+        let mut per_scene =
+            vec![(DownsampleStats::default(), 0.0f64, 0.0f64); DownsampleMode::ALL.len()];
         for cam in &scene.cameras {
             let view = View::from_camera(&cam.with_aspect(w as f32 / h as f32));
             let (fine, direct) = pool.install(|| {

@@ -58,8 +58,16 @@ fn matrices(eye: Vec3, target: Vec3) -> (Mat4, Mat4) {
     (view, proj)
 }
 
-/// The engine's G-buffer pass (here: rays against the two planes), in ISR's formats.
-fn gbuffer(view: &View) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<f32>, Vec<u32>) {
+/// The engine's G-buffer texels in ISR's formats.
+struct EngineGBuffer {
+    albedo: Vec<[f32; 4]>,
+    normal: Vec<[f32; 4]>,
+    depth: Vec<f32>,
+    id: Vec<u32>,
+}
+
+/// The engine's G-buffer pass (here: rays against the two planes).
+fn gbuffer(view: &View) -> EngineGBuffer {
     let n = (W * H) as usize;
     let (mut albedo, mut normal) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
     let (mut depth, mut id) = (vec![1.0f32; n], vec![BACKGROUND_ID; n]);
@@ -86,7 +94,12 @@ fn gbuffer(view: &View) -> (Vec<[f32; 4]>, Vec<[f32; 4]>, Vec<f32>, Vec<u32>) {
             }
         }
     }
-    (albedo, normal, depth, id)
+    EngineGBuffer {
+        albedo,
+        normal,
+        depth,
+        id,
+    }
 }
 
 fn texture(
@@ -138,32 +151,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // Per frame: the engine's matrices and G-buffer textures.
     let (view_m, proj_m) = matrices(Vec3::new(0.0, 1.6, 5.5), Vec3::new(0.0, 0.8, 0.0));
     let view = View::from_matrices(view_m, proj_m)?;
-    let (albedo, normal, depth, id) = gbuffer(&view);
+    let e = gbuffer(&view);
+    use wgpu::TextureFormat as F;
     let g = GpuGBuffer::from_textures(
-        texture(
-            &ctx,
-            wgpu::TextureFormat::Rgba32Float,
-            16,
-            bytemuck::cast_slice(&albedo),
-        ),
-        texture(
-            &ctx,
-            wgpu::TextureFormat::Rgba32Float,
-            16,
-            bytemuck::cast_slice(&normal),
-        ),
-        texture(
-            &ctx,
-            wgpu::TextureFormat::R32Float,
-            4,
-            bytemuck::cast_slice(&depth),
-        ),
-        texture(
-            &ctx,
-            wgpu::TextureFormat::R32Uint,
-            4,
-            bytemuck::cast_slice(&id),
-        ),
+        texture(&ctx, F::Rgba32Float, 16, bytemuck::cast_slice(&e.albedo)),
+        texture(&ctx, F::Rgba32Float, 16, bytemuck::cast_slice(&e.normal)),
+        texture(&ctx, F::R32Float, 4, bytemuck::cast_slice(&e.depth)),
+        texture(&ctx, F::R32Uint, 4, bytemuck::cast_slice(&e.id)),
     )?;
     // The engine's HDR target (Rgba16Float works too; Rgba32Float here to read it back).
     let target = isr.output_texture(W, H)?;

@@ -40,10 +40,8 @@ pub enum Part {
 
 /// One light of the lighting phase.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Light {
-    /// The light source it belongs to (an emitter sample: its emissive mesh). Engines
-    /// number their own lights with [`LightId::Point`] and [`LightId::Directional`].
-    pub id: LightId,
     /// Its kind.
     pub kind: LightKind,
     /// Position (point lights and emitter samples).
@@ -63,6 +61,9 @@ pub struct Light {
     pub direct: Vec3,
     /// The frame's factor on the light it sends on to be reflected (1 by default).
     pub indirect: Vec3,
+    /// The light source it belongs to (an emitter sample: its emissive mesh). Engines
+    /// number their own lights with [`LightId::Point`] and [`LightId::Directional`].
+    pub id: LightId,
 }
 
 impl Light {
@@ -443,11 +444,7 @@ impl LightSet {
                 1
             };
             shadow::log_filter(&mut map, res, faces, filter, c);
-            light.shadow = Some(ShadowMap {
-                offset: texels.len(),
-                resolution: res,
-                kind,
-            });
+            light.shadow = Some(ShadowMap::new(texels.len(), res, kind));
             texels.extend_from_slice(&map);
         }
         self.shadow_texels = texels;
@@ -467,10 +464,11 @@ impl LightSet {
     pub fn irradiance(&self, p: Vec3, n: Vec3, part: Part) -> Vec3 {
         let mut e = Vec3::ZERO;
         for light in &self.lights {
-            let l = light.irradiance(p, n) * light.factor(part);
+            let l = light.irradiance(p, n);
             if l == Vec3::ZERO {
                 continue;
             }
+            let l = l * light.factor(part);
             let v = match (&light.shadow, self.shadows.enabled) {
                 (Some(map), true) => {
                     shadow::visibility(&self.shadow_texels, map, p, n, self.extent, &self.shadows)

@@ -128,7 +128,8 @@ mod tests {
         s.name = "renamed".into();
         s.cameras.clear();
         assert_eq!(hash(&s), h0, "name and cameras are not content");
-        let edits: [(&str, fn(&mut crate::Scene)); 5] = [
+        type Edit = (&'static str, fn(&mut crate::Scene));
+        let edits: [Edit; 5] = [
             ("a vertex", |s| s.meshes[0].positions[0].x += 1e-3),
             ("an albedo", |s| s.materials[0].albedo.y *= 0.5),
             ("a light position", |s| s.point_lights[0].position.y -= 0.01),
