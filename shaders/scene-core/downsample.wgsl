@@ -67,6 +67,45 @@ fn renormalise(sum: vec3<f32>, count: f32, fallback: vec3<f32>) -> vec3<f32> {
     return sum * (1.0 / len);
 }
 
+// Whether sample q (index i) belongs to the surface of the representative r (index rep):
+// SURFACE_AVERAGE's or NEAREST_SURFACE's rule, by MODE.
+fn in_surface(q: Sample, i: u32, r: Sample, rep: u32) -> bool {
+    if (MODE == 3u) {
+        return q.id != BACKGROUND && abs(q.depth - r.depth) <= NEAREST_DEPTH_TOLERANCE * r.depth;
+    }
+    let is_bg = r.id == BACKGROUND;
+    let same = (q.id == BACKGROUND) == is_bg;
+    if (is_bg || i == rep) {
+        return same;
+    }
+    return same && abs(q.depth - r.depth) <= SURFACE_DEPTH_TOLERANCE * r.depth
+        && dot(q.normal, r.normal) >= SURFACE_NORMAL_COS;
+}
+
+// The average of the n samples in the representative's surface (in_surface), with its id
+// and, if the normals cancel, its normal.
+fn surface_average(s: array<Sample, 4>, n: u32, rep: u32) -> Sample {
+    let r = s[rep];
+    var a = vec4<f32>(0.0);
+    var nsum = vec3<f32>(0.0);
+    var dsum = 0.0;
+    var m = 0.0;
+    for (var i = 0u; i < n; i++) {
+        if (in_surface(s[i], i, r, rep)) {
+            a += s[i].albedo;
+            nsum += s[i].normal;
+            dsum += s[i].depth;
+            m += 1.0;
+        }
+    }
+    var out: Sample;
+    out.albedo = a / m;
+    out.normal = renormalise(nsum, m, r.normal);
+    out.depth = dsum / m;
+    out.id = r.id;
+    return out;
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let coarse = textureDimensions(dst_depth);
@@ -129,29 +168,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         id = s[best].id;
         normal = renormalise(nsum, count, s[best].normal);
     } else if (MODE == 2u) {
-        let r = s[rep];
-        let is_bg = r.id == BACKGROUND;
-        var a = vec4<f32>(0.0);
-        var nsum = vec3<f32>(0.0);
-        var dsum = 0.0;
-        var m = 0.0;
-        for (var i = 0u; i < n; i++) {
-            let q = s[i];
-            var same = (q.id == BACKGROUND) == is_bg;
-            if (!is_bg && i != rep) {
-                same = same && abs(q.depth - r.depth) <= SURFACE_DEPTH_TOLERANCE * r.depth
-                    && dot(q.normal, r.normal) >= SURFACE_NORMAL_COS;
-            }
-            if (same) {
-                a += q.albedo;
-                nsum += q.normal;
-                dsum += q.depth;
-                m += 1.0;
-            }
-        }
-        albedo = a / m;
-        depth = dsum / m;
-        normal = renormalise(nsum, m, r.normal);
+        let r = surface_average(s, n, rep);
+        albedo = r.albedo;
+        normal = r.normal;
+        depth = r.depth;
     } else if (MODE == 3u) {
         // The nearest geometry sample (ties: the first in raster order).
         var near = n;
@@ -166,23 +186,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             depth = 1.0;
             id = BACKGROUND;
         } else {
-            let r = s[near];
-            var a = vec4<f32>(0.0);
-            var nsum = vec3<f32>(0.0);
-            var dsum = 0.0;
-            var m = 0.0;
-            for (var i = 0u; i < n; i++) {
-                let q = s[i];
-                if (q.id != BACKGROUND && abs(q.depth - r.depth) <= NEAREST_DEPTH_TOLERANCE * r.depth) {
-                    a += q.albedo;
-                    nsum += q.normal;
-                    dsum += q.depth;
-                    m += 1.0;
-                }
-            }
-            albedo = a / m;
-            depth = dsum / m;
-            normal = renormalise(nsum, m, r.normal);
+            let r = surface_average(s, n, near);
+            albedo = r.albedo;
+            normal = r.normal;
+            depth = r.depth;
             id = r.id;
         }
     }

@@ -108,20 +108,8 @@ fn texture(
     texel: u32,
     data: &[u8],
 ) -> wgpu::Texture {
-    let t = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("engine gbuffer"),
-        size: wgpu::Extent3d {
-            width: W,
-            height: H,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+    let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
+    let t = ctx.create_texture_2d("engine gbuffer", W, H, format, usage);
     ctx.queue.write_texture(
         t.as_image_copy(),
         data,

@@ -227,23 +227,13 @@ pub fn gpu_lights(scene: &LightSet) -> Vec<GpuLight> {
             if let (Some(map), true) = (&l.shadow, scene.shadows.enabled) {
                 g.map_res = map.resolution;
                 g.map_offset = map.offset as u32;
-                match map.kind {
-                    MapKind::Cube { .. } => g.map_kind = 0,
-                    MapKind::Ortho {
-                        eye,
-                        right,
-                        up,
-                        forward,
-                        half_extent,
-                    } => {
-                        g.map_kind = 1;
-                        g.eye = eye.to_array();
-                        g.right = right.to_array();
-                        g.up = up.to_array();
-                        g.forward = forward.to_array();
-                        g.half_extent = half_extent;
-                    }
-                }
+                let (eye, right, up, forward, half_extent) = map.frame();
+                g.map_kind = u32::from(matches!(map.kind, MapKind::Ortho { .. }));
+                g.eye = eye.to_array();
+                g.right = right.to_array();
+                g.up = up.to_array();
+                g.forward = forward.to_array();
+                g.half_extent = half_extent;
             }
             g
         })

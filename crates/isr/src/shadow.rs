@@ -98,6 +98,18 @@ impl ShadowMap {
         }
     }
 
+    /// The map's frame: the cube's centre or the orthographic view's eye, then the
+    /// orthographic right, up and forward vectors and half width (zero for cube maps).
+    pub fn frame(&self) -> (Vec3, Vec3, Vec3, Vec3, f32) {
+        (
+            self.origin,
+            self.right,
+            self.up,
+            self.forward,
+            self.half_extent,
+        )
+    }
+
     /// Number of texels.
     pub fn len(&self) -> usize {
         let face = self.resolution as usize * self.resolution as usize;

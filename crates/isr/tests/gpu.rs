@@ -30,20 +30,8 @@ fn all_settings() -> Vec<(&'static str, IsrSettings)> {
 }
 
 fn output(ctx: &GpuContext, w: u32, h: u32, format: wgpu::TextureFormat) -> wgpu::Texture {
-    ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("test output"),
-        size: wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    })
+    let usage = wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC;
+    ctx.create_texture_2d("test output", w, h, format, usage)
 }
 
 #[test]

@@ -28,6 +28,14 @@ fn wgsl_layout(source: &str, name: &str) -> (Vec<(String, u32)>, u32) {
     panic!("no struct {name} in the source");
 }
 
+/// The WGSL members, in order, have the Rust names and offsets.
+fn assert_same_members(wgsl: &[(String, u32)], rust: &[(&str, usize)]) {
+    assert_eq!(wgsl.len(), rust.len(), "{wgsl:?}");
+    for ((wname, woff), (rname, roff)) in wgsl.iter().zip(rust) {
+        assert_eq!((wname.as_str(), *woff as usize), (*rname, *roff));
+    }
+}
+
 #[test]
 fn globals_match_common_wgsl() {
     let (fields, size) = wgsl_layout(isr::lighting::WGSL, "Globals");
@@ -46,10 +54,7 @@ fn globals_match_common_wgsl() {
         ("shadow", std::mem::offset_of!(Globals, shadow)),
         ("frustum", std::mem::offset_of!(Globals, frustum)),
     ];
-    assert_eq!(fields.len(), rust.len(), "{fields:?}");
-    for ((wname, woff), (rname, roff)) in fields.iter().zip(rust) {
-        assert_eq!((wname.as_str(), *woff as usize), (rname, roff));
-    }
+    assert_same_members(&fields, &rust);
 }
 
 #[test]
@@ -76,10 +81,7 @@ fn lights_match_light_set_wgsl() {
         ("indirect", std::mem::offset_of!(GpuLight, indirect)),
         ("pad1", std::mem::offset_of!(GpuLight, pad1)),
     ];
-    assert_eq!(fields.len(), rust.len(), "{fields:?}");
-    for ((wname, woff), (rname, roff)) in fields.iter().zip(rust) {
-        assert_eq!((wname.as_str(), *woff as usize), (rname, roff));
-    }
+    assert_same_members(&fields, &rust);
 }
 
 #[test]

@@ -291,8 +291,9 @@ impl GpuContext {
         Ok(texture)
     }
 
-    /// Creates a single-mip, single-sample 2D texture (no size checks).
-    fn create_texture_2d(
+    /// Creates a single-mip, single-sample 2D texture (no size checks: see
+    /// [`GpuContext::check_texture_size`]).
+    pub fn create_texture_2d(
         &self,
         label: &str,
         width: u32,

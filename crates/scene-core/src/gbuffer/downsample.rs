@@ -161,30 +161,14 @@ fn reduce(s: &[Sample], mode: DownsampleMode) -> Sample {
         DownsampleMode::SurfaceAverage => {
             let r = s[rep];
             let is_bg = r.id == BACKGROUND_ID;
-            let mut a = Vec4::ZERO;
-            let mut nsum = Vec3::ZERO;
-            let mut dsum = 0.0f32;
-            let mut m = 0.0f32;
-            for (i, q) in s.iter().enumerate() {
-                let mut same = (q.id == BACKGROUND_ID) == is_bg;
-                if !is_bg && i != rep {
-                    same = same
-                        && (q.depth - r.depth).abs() <= SURFACE_DEPTH_TOLERANCE * r.depth
-                        && q.normal.dot(r.normal) >= SURFACE_NORMAL_COS;
+            surface_average(s, rep, |i, q| {
+                let same = (q.id == BACKGROUND_ID) == is_bg;
+                if is_bg || i == rep {
+                    return same;
                 }
-                if same {
-                    a += q.albedo;
-                    nsum += q.normal;
-                    dsum += q.depth;
-                    m += 1.0;
-                }
-            }
-            Sample {
-                albedo: a / m,
-                normal: renormalise(nsum, m, r.normal),
-                depth: dsum / m,
-                id: r.id,
-            }
+                same && (q.depth - r.depth).abs() <= SURFACE_DEPTH_TOLERANCE * r.depth
+                    && q.normal.dot(r.normal) >= SURFACE_NORMAL_COS
+            })
         }
         DownsampleMode::NearestSurface => {
             // The nearest geometry sample (ties: the first in raster order).
@@ -202,28 +186,38 @@ fn reduce(s: &[Sample], mode: DownsampleMode) -> Sample {
                     id: BACKGROUND_ID,
                 };
             };
-            let r = s[k];
-            let mut a = Vec4::ZERO;
-            let mut nsum = Vec3::ZERO;
-            let mut dsum = 0.0f32;
-            let mut m = 0.0f32;
-            for q in s {
-                if q.id != BACKGROUND_ID
-                    && (q.depth - r.depth).abs() <= NEAREST_DEPTH_TOLERANCE * r.depth
-                {
-                    a += q.albedo;
-                    nsum += q.normal;
-                    dsum += q.depth;
-                    m += 1.0;
-                }
-            }
-            Sample {
-                albedo: a / m,
-                normal: renormalise(nsum, m, r.normal),
-                depth: dsum / m,
-                id: r.id,
-            }
+            let z = s[k].depth;
+            surface_average(s, k, |_, q| {
+                q.id != BACKGROUND_ID && (q.depth - z).abs() <= NEAREST_DEPTH_TOLERANCE * z
+            })
         }
+    }
+}
+
+/// The average of the samples of `s` that `in_surface(index, sample)` accepts (the
+/// representative `rep` among them), with `rep`'s id and, if the normals cancel, its normal.
+fn surface_average(
+    s: &[Sample],
+    rep: usize,
+    in_surface: impl Fn(usize, &Sample) -> bool,
+) -> Sample {
+    let mut a = Vec4::ZERO;
+    let mut nsum = Vec3::ZERO;
+    let mut dsum = 0.0f32;
+    let mut m = 0.0f32;
+    for (i, q) in s.iter().enumerate() {
+        if in_surface(i, q) {
+            a += q.albedo;
+            nsum += q.normal;
+            dsum += q.depth;
+            m += 1.0;
+        }
+    }
+    Sample {
+        albedo: a / m,
+        normal: renormalise(nsum, m, s[rep].normal),
+        depth: dsum / m,
+        id: s[rep].id,
     }
 }
 
