@@ -209,4 +209,39 @@ mod tests {
         );
         std::fs::remove_dir_all(&root).unwrap();
     }
+
+    #[test]
+    fn after_parts_come_before_a_file_across_directories() {
+        let root = std::env::temp_dir().join(format!("xtask-after-wgsl-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        std::fs::create_dir_all(root.join("a")).unwrap();
+        std::fs::create_dir_all(root.join("b")).unwrap();
+        std::fs::write(
+            root.join("a").join("part.wgsl"),
+            "fn half(v: f32) -> f32 { return 0.5 * v; }\n",
+        )
+        .unwrap();
+        let pass = "@compute @workgroup_size(1) fn main() { let x: f32 = half(1.0); }\n";
+        // Without its `// after:` line the pass does not know `half`.
+        std::fs::write(root.join("b").join("pass.wgsl"), pass).unwrap();
+        assert!(validate_all(&root, None).unwrap_err().contains("pass.wgsl"));
+        std::fs::write(
+            root.join("b").join("pass.wgsl"),
+            format!("// after: ../a/part.wgsl\n{pass}"),
+        )
+        .unwrap();
+        assert_eq!(validate_all(&root, None), Ok(2));
+        // A part that does not exist is named.
+        std::fs::write(
+            root.join("b").join("pass.wgsl"),
+            format!("// after: ../a/missing.wgsl\n{pass}"),
+        )
+        .unwrap();
+        assert!(
+            validate_all(&root, None)
+                .unwrap_err()
+                .contains("missing.wgsl")
+        );
+        std::fs::remove_dir_all(&root).unwrap();
+    }
 }
