@@ -1,22 +1,62 @@
 //! # relight-pr
 //!
-//! Radiosity relighting: progressive-refinement radiosity whose energy is tagged with the emitting light, so k single-light solutions are computed at once and relit in real time as B_j = sum_m B_jm E_m.
-//!
-//! **Status: skeleton.** Nothing is implemented yet (see the project's issues); this crate compiles so the
-//! workspace and its dependency rule hold. It integrates hemicube G-buffers (any `scene_core::GBufferRenderer`) by triangle id into form factors and implements `scene_core::Technique`.
-//!
-//! What it will consume already exists in `scene-core`:
+//! Radiosity relighting (the paper in `shared/papers/003`): progressive-refinement
+//! radiosity whose energy is tagged with the light it came from, so k single-light
+//! solutions are computed with one row of form factors per shot, and relit in real time
+//! as `B_j = sum_m B_jm E_m` (eq. 1) with each light's direct and indirect parts scaled
+//! apart.
 //!
 //! ```
-//! use scene_core::{builtin, View};
+//! use relight_pr::{mesh::{MeshSettings, Meshing}, relight, solver::{self, SolverSettings}};
+//! use scene_core::{builtin, lights::{LightId, LightState}, ray::RayScene};
 //!
-//! let scene = builtin::scene("cornell").unwrap();
-//! let view = View::from_camera(&scene.cameras[0]);
-//! assert!(view.frustum_corners().is_some());
-//! assert_eq!(relight_pr::STATUS, "skeleton");
+//! let scene = builtin::scene("cornell-point").unwrap();
+//! let meshing = Meshing::new(&scene, &MeshSettings { target_elements: 256, ..Default::default() }, 1).unwrap();
+//! let rays = RayScene::build(&scene);
+//! let settings = SolverSettings { max_unshot: 0.05, visibility_samples: 4, ..Default::default() };
+//! let solution = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
+//! // Relight: the point light at half power, in red.
+//! let mut state = LightState::default();
+//! state.set_color(LightId::Point(0), glam::Vec3::new(0.5, 0.0, 0.0));
+//! let red = relight::radiance(&meshing, &solution, &state);
+//! assert!(red.iter().all(|c| c.y == 0.0 && c.z == 0.0));
 //! ```
+//!
+//! The pieces: [`mesh`] (patches and elements sized from the scene), [`form_factor`]
+//! (closed-form point-to-polygon form factors with ray-cast visibility), [`solver`] (the
+//! figure 2 loop, the two baselines of Table 1, direct and indirect apart, ambient term),
+//! [`relight`] (eq. 1 for any light state). `docs/relight-pr.md` has the design, the tests
+//! and the measured figures.
+
+pub mod form_factor;
+pub mod mesh;
+pub mod relight;
+pub mod solver;
+
+pub use mesh::{MeshBudget, MeshSettings, Meshing};
+pub use solver::{Solution, SolverSettings, Strategy, solve};
 
 /// Implementation status of this crate.
-pub const STATUS: &str = "skeleton";
+pub const STATUS: &str = "in progress: solver and CPU relighting";
 
 pub use scene_core;
+
+/// An error of the relighting crate.
+#[derive(Debug, thiserror::Error)]
+pub enum RelightError {
+    /// A parameter is out of range.
+    #[error("invalid relighting setting: {0}")]
+    InvalidSetting(String),
+    /// A light id the scene does not have.
+    #[error("unknown light {0}")]
+    UnknownLight(String),
+    /// The meshing or the solution would exceed its budget (nothing was allocated).
+    #[error("budget exceeded: {0}")]
+    Budget(String),
+}
+
+impl From<RelightError> for scene_core::Error {
+    fn from(e: RelightError) -> Self {
+        scene_core::Error::method("relight-pr", e)
+    }
+}

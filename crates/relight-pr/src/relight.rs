@@ -1,0 +1,75 @@
+//! Reconstruction, the paper's eq. 1: `B_j = sum_m B_jm E_m` for any set of emissions, here
+//! with the direct and indirect parts of each source scaled apart (scene-core's
+//! [`LightState`]: on/off, colour, direct and indirect multipliers). A relight never
+//! re-solves: it is one pass over the k x n solution.
+
+use glam::Vec3;
+use rayon::prelude::*;
+use scene_core::lights::{LightSetting, LightState};
+
+use crate::mesh::Meshing;
+use crate::solver::Solution;
+
+/// The direct and indirect factors of each source of `solution` under `state`. A bank
+/// follows the setting of its first light.
+pub fn factors(solution: &Solution, state: &LightState) -> Vec<(Vec3, Vec3)> {
+    solution
+        .sources
+        .iter()
+        .map(|s| {
+            let setting = s
+                .lights
+                .first()
+                .map_or(LightSetting::default(), |&id| state.get(id));
+            (setting.direct_factor(), setting.indirect_factor())
+        })
+        .collect()
+}
+
+/// Each element's irradiance under `state`:
+/// `E_j = sum_m d_m E_direct,jm + i_m (E_indirect,jm + ambient_m)`.
+pub fn irradiance(solution: &Solution, state: &LightState) -> Vec<Vec3> {
+    let k = solution.k();
+    if k == 0 {
+        return vec![Vec3::ZERO; solution.direct.len()];
+    }
+    let f = factors(solution, state);
+    let ambient: Vec<Vec3> = solution
+        .ambient
+        .iter()
+        .zip(&f)
+        .map(|(a, (_, i))| *a * *i)
+        .collect();
+    let base: Vec3 = ambient.iter().sum();
+    solution
+        .direct
+        .par_chunks(k)
+        .zip(solution.indirect.par_chunks(k))
+        .map(|(d, i)| {
+            let mut e = base;
+            for m in 0..k {
+                e += d[m] * f[m].0 + i[m] * f[m].1;
+            }
+            e
+        })
+        .collect()
+}
+
+/// Each element's outgoing radiance under `state`: `albedo E / pi`, plus its emission
+/// times its light's direct factor.
+pub fn radiance(meshing: &Meshing, solution: &Solution, state: &LightState) -> Vec<Vec3> {
+    let e = irradiance(solution, state);
+    let f = factors(solution, state);
+    meshing
+        .elements
+        .par_iter()
+        .zip(e.par_iter())
+        .map(|(el, e)| {
+            let glow = meshing.patches[el.patch as usize]
+                .light
+                .and_then(|id| solution.source_of(id))
+                .map_or(Vec3::ZERO, |m| el.emission * f[m].0);
+            el.albedo * *e * std::f32::consts::FRAC_1_PI + glow
+        })
+        .collect()
+}

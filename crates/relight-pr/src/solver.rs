@@ -1,0 +1,423 @@
+//! Light-tagged progressive refinement (the paper's figure 2) with substructuring, direct
+//! and indirect energy stored apart (section 2.4) and an ambient term per light (section
+//! 2.3, after Cohen et al.), and the two baselines of the paper's Table 1 in the same code
+//! path: standard progressive refinement on the combined emission, and k separate solves.
+//!
+//! Units: each element stores the irradiance `E` (W/m^2) it has received from each light
+//! source, directly and after reflections; its radiosity is `rho E` (plus its emission),
+//! its radiance `rho E / pi` (plus its emitted radiance). Patches carry unshot radiosity.
+//! A source is solved with its emission as the scene gives it (multiplier 1, the paper's
+//! unit emission with the colour pulled out: [`crate::relight`] multiplies it back).
+
+use std::time::{Duration, Instant};
+
+use glam::Vec3;
+use rayon::prelude::*;
+use scene_core::lights::{LightId, falloff, light_ids};
+use scene_core::ray::RayScene;
+use scene_core::{Scene, luminance};
+
+use crate::RelightError;
+use crate::form_factor::point_to_triangle;
+use crate::mesh::Meshing;
+
+/// Bytes of a `k`-source solution over `n` elements and `p` patches (direct and indirect
+/// per element, two unshot values per patch, RGB f32).
+pub fn solution_bytes(n: usize, p: usize, k: usize) -> u64 {
+    (n as u64 * 2 + p as u64 * 2) * k as u64 * 12
+}
+
+/// How the energy of the lights is organised while solving (the paper's Table 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Strategy {
+    /// The paper's method: one shot distributes every source's unshot energy with one row
+    /// of form factors; k solutions at once.
+    Tagged,
+    /// Standard progressive refinement of the combined emission (one solution: it cannot
+    /// be relit per light).
+    Combined,
+    /// One progressive refinement per source, one after the other.
+    Separate,
+}
+
+/// Solver parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolverSettings {
+    /// Stratified visibility rays per form factor (receiver to patch). Default 16.
+    pub visibility_samples: u32,
+    /// Stop when the unshot fraction of the emitted energy (luminance-weighted) is below
+    /// this. Default 1e-3.
+    pub max_unshot: f64,
+    /// Stop after this many shots anyway. Default 200 000.
+    pub max_shots: usize,
+    /// Add Cohen's ambient term per source (the unshot energy spread uniformly).
+    /// Default on.
+    pub ambient: bool,
+    /// Light banks (Dorsey et al.): groups of lights solved as one source. Lights not in a
+    /// bank are sources of their own. Default none.
+    pub banks: Vec<Vec<LightId>>,
+    /// The strategy. Default [`Strategy::Tagged`].
+    pub strategy: Strategy,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        Self {
+            visibility_samples: 16,
+            max_unshot: 1e-3,
+            max_shots: 200_000,
+            ambient: true,
+            banks: Vec::new(),
+            strategy: Strategy::Tagged,
+        }
+    }
+}
+
+/// One light source of a solution: a light, or a bank of lights.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Source {
+    /// The lights it holds (one unless it is a bank).
+    pub lights: Vec<LightId>,
+}
+
+/// What a solve did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SolveStats {
+    /// Patches shot.
+    pub shots: usize,
+    /// Rows of form factors computed (one per shot and, for separate solves, per source).
+    pub form_factor_rows: usize,
+    /// The unshot fraction left (the largest over sources for separate solves).
+    pub unshot_fraction: f64,
+    /// Wall-clock time.
+    pub time: Duration,
+}
+
+/// k single-source solutions over one meshing.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Solution {
+    /// The sources, in solution order.
+    pub sources: Vec<Source>,
+    /// Irradiance received straight from each source, element-major: `direct[j * k + m]`.
+    pub direct: Vec<Vec3>,
+    /// Irradiance received after one or more reflections, the same layout.
+    pub indirect: Vec<Vec3>,
+    /// Cohen's ambient irradiance per source (zero when off).
+    pub ambient: Vec<Vec3>,
+    /// What the solve did.
+    pub stats: SolveStats,
+}
+
+impl Solution {
+    /// Number of sources.
+    pub fn k(&self) -> usize {
+        self.sources.len()
+    }
+
+    /// The source holding light `id`.
+    pub fn source_of(&self, id: LightId) -> Option<usize> {
+        self.sources.iter().position(|s| s.lights.contains(&id))
+    }
+}
+
+/// The sources of `scene` under `banks`: each bank, then every light in no bank.
+pub fn sources(scene: &Scene, banks: &[Vec<LightId>]) -> Result<Vec<Source>, RelightError> {
+    let ids = light_ids(scene);
+    let mut out: Vec<Source> = Vec::new();
+    for bank in banks {
+        for id in bank {
+            if !ids.contains(id) {
+                return Err(RelightError::UnknownLight(format!(
+                    "{id:?} (the scene's lights: {ids:?})"
+                )));
+            }
+            if out.iter().any(|s| s.lights.contains(id)) {
+                return Err(RelightError::InvalidSetting(format!(
+                    "{id:?} is in two banks"
+                )));
+            }
+        }
+        if !bank.is_empty() {
+            out.push(Source {
+                lights: bank.clone(),
+            });
+        }
+    }
+    for id in ids {
+        if !out.iter().any(|s| s.lights.contains(&id)) {
+            out.push(Source { lights: vec![id] });
+        }
+    }
+    Ok(out)
+}
+
+/// Solves `meshing` of `scene` with `settings` (its strategy and banks). `rays` must be
+/// built from `scene` (the visibility of form factors and of point and directional
+/// lights). `progress` is called after each shot with the unshot fraction.
+pub fn solve(
+    scene: &Scene,
+    meshing: &Meshing,
+    rays: &RayScene,
+    settings: &SolverSettings,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Solution, RelightError> {
+    if settings.visibility_samples == 0 || settings.max_unshot.is_nan() || settings.max_unshot < 0.0
+    {
+        return Err(RelightError::InvalidSetting(format!(
+            "visibility_samples {} (at least 1), max_unshot {} (at least 0)",
+            settings.visibility_samples, settings.max_unshot
+        )));
+    }
+    let start = Instant::now();
+    let sources = sources(scene, &settings.banks)?;
+    let mut solution = match settings.strategy {
+        Strategy::Tagged => solve_tagged(scene, meshing, rays, sources, settings, progress)?,
+        Strategy::Combined => {
+            let all = Source {
+                lights: sources.iter().flat_map(|s| s.lights.clone()).collect(),
+            };
+            solve_tagged(scene, meshing, rays, vec![all], settings, progress)?
+        }
+        Strategy::Separate => {
+            let n = meshing.elements.len();
+            let k = sources.len();
+            let mut direct = vec![Vec3::ZERO; n * k];
+            let mut indirect = vec![Vec3::ZERO; n * k];
+            let mut ambient = vec![Vec3::ZERO; k];
+            let mut stats = SolveStats::default();
+            for (m, source) in sources.iter().enumerate() {
+                let one = solve_tagged(
+                    scene,
+                    meshing,
+                    rays,
+                    vec![source.clone()],
+                    settings,
+                    progress,
+                )?;
+                for j in 0..n {
+                    direct[j * k + m] = one.direct[j];
+                    indirect[j * k + m] = one.indirect[j];
+                }
+                ambient[m] = one.ambient[0];
+                stats.shots += one.stats.shots;
+                stats.form_factor_rows += one.stats.form_factor_rows;
+                stats.unshot_fraction = stats.unshot_fraction.max(one.stats.unshot_fraction);
+            }
+            Solution {
+                sources,
+                direct,
+                indirect,
+                ambient,
+                stats,
+            }
+        }
+    };
+    solution.stats.time = start.elapsed();
+    Ok(solution)
+}
+
+/// The figure 2 loop for `sources` at once.
+fn solve_tagged(
+    scene: &Scene,
+    meshing: &Meshing,
+    rays: &RayScene,
+    sources: Vec<Source>,
+    settings: &SolverSettings,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Solution, RelightError> {
+    let (n, np, k) = (meshing.elements.len(), meshing.patches.len(), sources.len());
+    let els = &meshing.elements;
+    let patches = &meshing.patches;
+    let source_of = |id: LightId| sources.iter().position(|s| s.lights.contains(&id));
+    let mut direct = vec![Vec3::ZERO; n * k];
+    let mut indirect = vec![Vec3::ZERO; n * k];
+    // Unshot radiosity per patch and source: emission (shot as direct light) and reflected.
+    let mut unshot_emit = vec![Vec3::ZERO; np * k];
+    let mut unshot_refl = vec![Vec3::ZERO; np * k];
+    for (p, patch) in patches.iter().enumerate() {
+        if let Some(m) = patch.light.and_then(source_of) {
+            let e = els[patch.first_element as usize].emission;
+            unshot_emit[p * k + m] = e * std::f32::consts::PI;
+        }
+    }
+    // Point and directional lights shoot their first energy analytically, with rays.
+    let extent = scene.extent();
+    for (m, source) in sources.iter().enumerate() {
+        for &id in &source.lights {
+            let shoot: Box<dyn Fn(&crate::mesh::Element) -> Vec3 + Sync> = match id {
+                LightId::Point(i) => {
+                    let l = scene.point_lights[i as usize].clone();
+                    Box::new(move |e| {
+                        let d = l.position - e.centroid;
+                        let dist = d.length();
+                        if dist.is_nan() || dist <= 0.0 {
+                            return Vec3::ZERO;
+                        }
+                        let w = d / dist;
+                        let cos = e.normal.dot(w);
+                        if cos <= 0.0 {
+                            return Vec3::ZERO;
+                        }
+                        let eps = 1e-4 * dist.max(1e-6);
+                        if rays.occluded(e.centroid + e.normal * eps, w, eps, dist - eps) {
+                            return Vec3::ZERO;
+                        }
+                        l.intensity * (falloff(l.radius, dist) * cos)
+                    })
+                }
+                LightId::Directional(i) => {
+                    let l = scene.directional_lights[i as usize].clone();
+                    let w = -l.direction.normalize_or_zero();
+                    Box::new(move |e| {
+                        let cos = e.normal.dot(w);
+                        if cos <= 0.0 || w == Vec3::ZERO {
+                            return Vec3::ZERO;
+                        }
+                        let eps = 1e-4 * extent;
+                        if rays.occluded(e.centroid + e.normal * eps, w, eps, 4.0 * extent) {
+                            return Vec3::ZERO;
+                        }
+                        l.irradiance * cos
+                    })
+                }
+                LightId::Emissive(_) => continue,
+            };
+            let received: Vec<Vec3> = els.par_iter().map(&shoot).collect();
+            for (j, r) in received.into_iter().enumerate() {
+                direct[j * k + m] += r;
+            }
+        }
+    }
+    // What the analytic shots left on the patches to reflect.
+    for (p, patch) in patches.iter().enumerate() {
+        let first = patch.first_element as usize;
+        for m in 0..k {
+            let mut sum = Vec3::ZERO;
+            for e in first..first + 4 {
+                sum += els[e].albedo * direct[e * k + m] * els[e].area;
+            }
+            unshot_refl[p * k + m] += sum / patch.area;
+        }
+    }
+    let power = |u: &[Vec3], p: usize| -> f64 {
+        (0..k).map(|m| luminance(u[p * k + m]) as f64).sum::<f64>() * patches[p].area as f64
+    };
+    let unshot_power =
+        |ue: &[Vec3], ur: &[Vec3]| -> f64 { (0..np).map(|p| power(ue, p) + power(ur, p)).sum() };
+    // The emitted energy the fraction is measured against: the emitters' radiosity and
+    // what the point and directional lights delivered, reflected or not.
+    let emitted = {
+        let received: f64 = (0..n)
+            .map(|j| {
+                (0..k)
+                    .map(|m| luminance(direct[j * k + m]) as f64)
+                    .sum::<f64>()
+                    * els[j].area as f64
+            })
+            .sum();
+        (0..np).map(|p| power(&unshot_emit, p)).sum::<f64>() + received
+    };
+    let mut stats = SolveStats {
+        unshot_fraction: if emitted > 0.0 { 1.0 } else { 0.0 },
+        ..Default::default()
+    };
+    let samples = settings.visibility_samples;
+    let mut form = vec![0.0f32; n];
+    while emitted > 0.0 && stats.shots < settings.max_shots {
+        let fraction = unshot_power(&unshot_emit, &unshot_refl) / emitted;
+        stats.unshot_fraction = fraction;
+        if fraction <= settings.max_unshot {
+            break;
+        }
+        // The patch with the most unshot energy over all sources (ties: the first).
+        let mut best = (0usize, -1.0f64);
+        for p in 0..np {
+            let w = power(&unshot_emit, p) + power(&unshot_refl, p);
+            if w > best.1 {
+                best = (p, w);
+            }
+        }
+        let p = best.0;
+        let patch = patches[p];
+        form.par_iter_mut().enumerate().for_each(|(j, f)| {
+            let e = &els[j];
+            *f = if e.patch as usize == p {
+                0.0
+            } else {
+                point_to_triangle(
+                    e.centroid,
+                    e.normal,
+                    &patch.corners,
+                    patch.normal,
+                    Some(rays),
+                    samples,
+                    ((p as u64) << 32) | j as u64,
+                )
+            };
+        });
+        stats.form_factor_rows += 1;
+        let ue: Vec<Vec3> = unshot_emit[p * k..p * k + k].to_vec();
+        let ur: Vec<Vec3> = unshot_refl[p * k..p * k + k].to_vec();
+        for m in 0..k {
+            unshot_emit[p * k + m] = Vec3::ZERO;
+            unshot_refl[p * k + m] = Vec3::ZERO;
+        }
+        direct
+            .par_chunks_mut(k)
+            .zip(indirect.par_chunks_mut(k))
+            .zip(form.par_iter())
+            .for_each(|((d, i), &f)| {
+                if f > 0.0 {
+                    for m in 0..k {
+                        d[m] += ue[m] * f;
+                        i[m] += ur[m] * f;
+                    }
+                }
+            });
+        // Receivers' reflected energy onto their patches, patch by patch (deterministic).
+        unshot_refl
+            .par_chunks_mut(k)
+            .enumerate()
+            .for_each(|(q, u)| {
+                let first = patches[q].first_element as usize;
+                let inv = 1.0 / patches[q].area;
+                for e in first..first + 4 {
+                    let f = form[e];
+                    if f > 0.0 {
+                        let w = els[e].albedo * (f * els[e].area * inv);
+                        for m in 0..k {
+                            u[m] += w * (ue[m] + ur[m]);
+                        }
+                    }
+                }
+            });
+        stats.shots += 1;
+        progress(fraction);
+    }
+    if emitted > 0.0 {
+        stats.unshot_fraction = unshot_power(&unshot_emit, &unshot_refl) / emitted;
+    }
+    // Cohen's ambient term: the unshot radiosity spread over the scene, reflected
+    // R = 1 / (1 - rho_avg) times.
+    let mut ambient = vec![Vec3::ZERO; k];
+    if settings.ambient {
+        let total_area: f32 = els.iter().map(|e| e.area).sum();
+        if total_area > 0.0 {
+            let rho: Vec3 = els.iter().map(|e| e.albedo * e.area).sum::<Vec3>() / total_area;
+            let r = Vec3::ONE / (Vec3::ONE - rho).max(Vec3::splat(1e-3));
+            for (m, a) in ambient.iter_mut().enumerate() {
+                let u: Vec3 = (0..np)
+                    .map(|p| (unshot_emit[p * k + m] + unshot_refl[p * k + m]) * patches[p].area)
+                    .sum();
+                *a = r * u / total_area;
+            }
+        }
+    }
+    Ok(Solution {
+        sources,
+        direct,
+        indirect,
+        ambient,
+        stats,
+    })
+}

@@ -1,0 +1,386 @@
+//! The solver against values nobody here wrote: Howell's catalogue of form factors, the
+//! furnace (a closed box converges to `E / (1 - rho)`), and linearity: tagged, separate and
+//! combined solves agree, and a relit solution equals a re-solve with the new emissions.
+
+use std::f32::consts::PI;
+
+use glam::Vec3;
+use relight_pr::RelightError;
+use relight_pr::form_factor::point_to_triangle;
+use relight_pr::mesh::{MeshBudget, MeshSettings, Meshing};
+use relight_pr::relight;
+use relight_pr::solver::{self, SolverSettings, Strategy};
+use scene_core::lights::{LightId, LightState};
+use scene_core::ray::RayScene;
+use scene_core::scene::{Material, Mesh, PointLight};
+use scene_core::{Scene, builtin};
+
+fn material(albedo: f32, emission: f32) -> Material {
+    Material {
+        name: "m".into(),
+        albedo: Vec3::splat(albedo),
+        albedo_texture: None,
+        emission: Vec3::splat(emission),
+    }
+}
+
+/// A scene of two meshes, `a` and `b`, each a list of triangles (counter-clockwise seen
+/// from the side that faces the other).
+fn two_surfaces(a: &[[Vec3; 3]], b: &[[Vec3; 3]]) -> Scene {
+    let mut scene = Scene::new("pair");
+    scene.materials.push(material(0.5, 0.0));
+    for tris in [a, b] {
+        let mut mesh = Mesh {
+            name: "surface".into(),
+            ..Default::default()
+        };
+        for t in tris {
+            mesh.push_triangle(*t, 0);
+        }
+        scene.meshes.push(mesh);
+    }
+    scene
+}
+
+fn quad(a: Vec3, b: Vec3, c: Vec3, d: Vec3) -> Vec<[Vec3; 3]> {
+    vec![[a, b, c], [a, c, d]]
+}
+
+fn disk(centre: Vec3, r: f32, up: bool, segments: usize) -> Vec<[Vec3; 3]> {
+    (0..segments)
+        .map(|i| {
+            let angle = |k: usize| 2.0 * PI * k as f32 / segments as f32;
+            let p = |k: usize| centre + Vec3::new(r * angle(k).cos(), r * angle(k).sin(), 0.0);
+            if up {
+                [centre, p(i), p(i + 1)]
+            } else {
+                [centre, p(i + 1), p(i)]
+            }
+        })
+        .collect()
+}
+
+/// `F_{A -> B}` of mesh 0 to mesh 1 from the meshing: the area-weighted mean over A's
+/// elements of the point-to-B form factor (summed over B's patches).
+fn area_form_factor(scene: &Scene, rays: Option<&RayScene>) -> f64 {
+    let meshing = Meshing::new(scene, &MeshSettings::default(), 1).unwrap();
+    let a_triangles = scene.meshes[0].triangle_count() as u32;
+    let (mut sum, mut area) = (0.0f64, 0.0f64);
+    for e in meshing
+        .elements
+        .iter()
+        .filter(|e| e.source_triangle < a_triangles)
+    {
+        let f: f64 = meshing
+            .patches
+            .iter()
+            .filter(|p| meshing.elements[p.first_element as usize].source_triangle >= a_triangles)
+            .map(|p| {
+                point_to_triangle(e.centroid, e.normal, &p.corners, p.normal, rays, 16, 1) as f64
+            })
+            .sum();
+        sum += f * e.area as f64;
+        area += e.area as f64;
+    }
+    sum / area
+}
+
+#[test]
+fn form_factors_match_howell_within_half_a_percent() {
+    let parallel = two_surfaces(
+        &quad(Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y),
+        &quad(
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+        ),
+    );
+    let perpendicular = two_surfaces(
+        // y = 0, facing +y.
+        &quad(Vec3::ZERO, Vec3::Z, Vec3::new(1.0, 0.0, 1.0), Vec3::X),
+        // x = 0, facing +x.
+        &quad(Vec3::ZERO, Vec3::Y, Vec3::new(0.0, 1.0, 1.0), Vec3::Z),
+    );
+    let disks = two_surfaces(
+        &disk(Vec3::ZERO, 0.1, true, 256),
+        &disk(Vec3::new(0.0, 0.0, 0.5), 0.2, false, 256),
+    );
+    for (name, scene, expect) in [
+        ("parallel unit squares, distance 1", parallel, 0.19982),
+        (
+            "perpendicular unit squares, shared edge",
+            perpendicular,
+            0.20004,
+        ),
+        ("coaxial disks r 0.1 -> 0.2, distance 0.5", disks, 0.1339),
+    ] {
+        let rays = RayScene::build(&scene);
+        for (method, r) in [("closed form", None), ("with visibility rays", Some(&rays))] {
+            let f = area_form_factor(&scene, r);
+            let err = (f - expect).abs() / expect;
+            eprintln!(
+                "{name} ({method}): {f:.5} vs Howell {expect} ({:.3} %)",
+                100.0 * err
+            );
+            assert!(err < 5e-3, "{name} ({method}): {f} vs {expect}");
+        }
+    }
+}
+
+/// A closed unit box, every wall of albedo `rho` emitting radiance `l`, inward normals.
+fn furnace(rho: f32, l: f32) -> Scene {
+    let mut scene = Scene::new("furnace");
+    scene.materials.push(material(rho, l));
+    let mut mesh = Mesh {
+        name: "box".into(),
+        ..Default::default()
+    };
+    let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    // Counter-clockwise seen from inside.
+    for q in [
+        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)], // floor, +y
+        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)], // ceiling, -y
+        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)], // z = 0, +z
+        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)], // z = 1, -z
+        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)], // x = 0, +x
+        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)], // x = 1, -x
+    ] {
+        mesh.push_quad(q, 0);
+    }
+    scene.meshes.push(mesh);
+    scene
+}
+
+#[test]
+fn the_furnace_converges_to_e_over_one_minus_rho() {
+    for rho in [0.5f32, 0.9] {
+        let scene = furnace(rho, 1.0);
+        let meshing = Meshing::new(
+            &scene,
+            &MeshSettings {
+                target_elements: 384,
+                ..Default::default()
+            },
+            1,
+        )
+        .unwrap();
+        let rays = RayScene::build(&scene);
+        // Without the ambient term, to the limit of the shots; with it, the remainder is
+        // spread as Cohen does.
+        for ambient in [false, true] {
+            let settings = SolverSettings {
+                ambient,
+                max_unshot: if ambient { 1e-2 } else { 1e-4 },
+                visibility_samples: 4,
+                ..Default::default()
+            };
+            let s = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
+            let out = relight::radiance(&meshing, &s, &LightState::default());
+            let expect = 1.0 / (1.0 - rho);
+            let total: f32 = meshing.elements.iter().map(|e| e.area).sum();
+            let mean: f32 = out
+                .iter()
+                .zip(&meshing.elements)
+                .map(|(c, e)| c.x * e.area)
+                .sum::<f32>()
+                / total;
+            let worst = out
+                .iter()
+                .map(|c| (c.x - expect).abs())
+                .fold(0.0f32, f32::max);
+            eprintln!(
+                "rho {rho}, ambient {ambient}: mean {mean:.5}, worst element off by {worst:.5}, \
+                 expected {expect:.5}, {} shots, unshot {:.2e}",
+                s.stats.shots, s.stats.unshot_fraction
+            );
+            // The mean: the unshot fraction left (none with the ambient term), plus the
+            // closed-form form factors' few 1e-4 of quadrature error.
+            let tol = if ambient {
+                2e-3
+            } else {
+                2e-3 + s.stats.unshot_fraction as f32 * expect
+            };
+            assert!(
+                (mean - expect).abs() <= tol * expect,
+                "rho {rho} ambient {ambient}: {mean}"
+            );
+            assert!(
+                worst <= 0.02 * expect,
+                "rho {rho} ambient {ambient}: {worst}"
+            );
+        }
+    }
+}
+
+fn corridor_setup(elements: usize) -> (Scene, Meshing, RayScene) {
+    let scene = builtin::scene("corridor").unwrap();
+    let meshing = Meshing::new(
+        &scene,
+        &MeshSettings {
+            target_elements: elements,
+            ..Default::default()
+        },
+        4,
+    )
+    .unwrap();
+    let rays = RayScene::build(&scene);
+    (scene, meshing, rays)
+}
+
+fn tight() -> SolverSettings {
+    SolverSettings {
+        max_unshot: 1e-7,
+        visibility_samples: 4,
+        ..Default::default()
+    }
+}
+
+fn max_relative(a: &[Vec3], b: &[Vec3]) -> f32 {
+    let peak = b.iter().map(|v| v.max_element()).fold(0.0f32, f32::max);
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).abs().max_element())
+        .fold(0.0, f32::max)
+        / peak
+}
+
+#[test]
+fn tagged_separate_and_combined_agree() {
+    let (scene, meshing, rays) = corridor_setup(400);
+    let solve = |strategy| {
+        solver::solve(
+            &scene,
+            &meshing,
+            &rays,
+            &SolverSettings {
+                strategy,
+                ..tight()
+            },
+            &mut |_| {},
+        )
+        .unwrap()
+    };
+    let tagged = solve(Strategy::Tagged);
+    let separate = solve(Strategy::Separate);
+    let combined = solve(Strategy::Combined);
+    assert_eq!((tagged.k(), separate.k(), combined.k()), (4, 4, 1));
+    let state = LightState::default();
+    let (t, s, c) = (
+        relight::irradiance(&tagged, &state),
+        relight::irradiance(&separate, &state),
+        relight::irradiance(&combined, &state),
+    );
+    eprintln!(
+        "shots: tagged {}, separate {}, combined {}; form-factor rows {} / {} / {}",
+        tagged.stats.shots,
+        separate.stats.shots,
+        combined.stats.shots,
+        tagged.stats.form_factor_rows,
+        separate.stats.form_factor_rows,
+        combined.stats.form_factor_rows
+    );
+    assert!(
+        max_relative(&t, &c) < 1e-5,
+        "tagged vs combined {}",
+        max_relative(&t, &c)
+    );
+    assert!(
+        max_relative(&s, &c) < 1e-5,
+        "separate vs combined {}",
+        max_relative(&s, &c)
+    );
+    // Per light, tagged and separate hold the same single-light solutions.
+    for id in [LightId::Point(0), LightId::Point(3)] {
+        let only = LightState::only(&scene, id);
+        let (a, b) = (
+            relight::irradiance(&tagged, &only),
+            relight::irradiance(&separate, &only),
+        );
+        assert!(
+            max_relative(&a, &b) < 1e-5,
+            "{id:?}: {}",
+            max_relative(&a, &b)
+        );
+    }
+    // The tagged solve computes a row of form factors per shot, for all four lights.
+    assert!(tagged.stats.form_factor_rows < separate.stats.form_factor_rows);
+}
+
+#[test]
+fn relit_equals_a_re_solve_with_the_new_emissions() {
+    let (scene, meshing, rays) = corridor_setup(400);
+    let solution = solver::solve(&scene, &meshing, &rays, &tight(), &mut |_| {}).unwrap();
+    let colours = [
+        Vec3::new(0.3, 0.5, 2.0),
+        Vec3::ZERO,
+        Vec3::new(1.0, 0.1, 0.1),
+        Vec3::splat(4.0),
+    ];
+    let mut state = LightState::default();
+    let mut changed = scene.clone();
+    for (i, c) in colours.iter().enumerate() {
+        state.set_color(LightId::Point(i as u32), *c);
+        changed.point_lights[i] = PointLight {
+            intensity: changed.point_lights[i].intensity * *c,
+            ..changed.point_lights[i].clone()
+        };
+    }
+    let relit = relight::radiance(&meshing, &solution, &state);
+    let resolved = solver::solve(&changed, &meshing, &rays, &tight(), &mut |_| {}).unwrap();
+    let direct = relight::radiance(&meshing, &resolved, &LightState::default());
+    let e = max_relative(&relit, &direct);
+    assert!(e < 1e-5, "relit vs re-solved: {e}");
+}
+
+#[test]
+fn no_lights_is_black_and_the_budget_is_checked_first() {
+    let mut scene = builtin::scene("cornell-point").unwrap();
+    scene.point_lights.clear();
+    let meshing = Meshing::new(
+        &scene,
+        &MeshSettings {
+            target_elements: 64,
+            ..Default::default()
+        },
+        1,
+    )
+    .unwrap();
+    let rays = RayScene::build(&scene);
+    let s = solver::solve(
+        &scene,
+        &meshing,
+        &rays,
+        &SolverSettings::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    let out = relight::radiance(&meshing, &s, &LightState::default());
+    assert!(out.iter().all(|c| *c == Vec3::ZERO));
+    let e = Meshing::new(
+        &scene,
+        &MeshSettings {
+            target_elements: 1 << 20,
+            budget: MeshBudget {
+                max_elements: 1000,
+                ..Default::default()
+            },
+        },
+        1,
+    )
+    .unwrap_err();
+    assert!(matches!(e, RelightError::Budget(_)), "{e}");
+    let e = Meshing::new(
+        &scene,
+        &MeshSettings {
+            target_elements: 1 << 16,
+            budget: MeshBudget {
+                max_solution_bytes: 1 << 20,
+                ..Default::default()
+            },
+        },
+        64,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("64-light"), "{e}");
+}
