@@ -25,16 +25,21 @@
 //! The pieces: [`mesh`] (patches and elements sized from the scene), [`form_factor`]
 //! (closed-form point-to-polygon form factors with ray-cast visibility), [`solver`] (the
 //! figure 2 loop, the two baselines of Table 1, direct and indirect apart, ambient term),
-//! [`relight`] (eq. 1 for any light state). `docs/relight-pr.md` has the design, the tests
+//! [`relight`] (eq. 1 for any light state), [`display`] (smooth interpolation over a
+//! camera G-buffer of the element scene), [`technique`] (`RelightTechnique`, a
+//! `scene_core::Technique`). `docs/relight-pr.md` has the design, the tests
 //! and the measured figures.
 
+pub mod display;
 pub mod form_factor;
 pub mod mesh;
 pub mod relight;
 pub mod solver;
+pub mod technique;
 
 pub use mesh::{MeshBudget, MeshSettings, Meshing};
 pub use solver::{Solution, SolverSettings, Strategy, solve};
+pub use technique::RelightTechnique;
 
 /// Implementation status of this crate.
 pub const STATUS: &str = "in progress: solver and CPU relighting";

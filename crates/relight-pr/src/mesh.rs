@@ -69,6 +69,26 @@ pub struct Element {
     pub patch: u32,
     /// Global id of the scene triangle it was cut from.
     pub source_triangle: u32,
+    /// The scene material of that triangle.
+    pub material: u32,
+    /// Texture coordinates of the corners, when the scene triangle has them.
+    pub uvs: Option<[Vec2; 3]>,
+}
+
+impl Element {
+    /// Where the element receives: the centroids of its four midpoint-subdivision
+    /// children, equal weights (exact for irradiance that varies linearly over it). Four
+    /// points instead of the centroid alone make an element's value its average, which
+    /// matters where irradiance changes fast (a point light near a wall).
+    pub fn receiver_points(&self) -> [Vec3; 4] {
+        let [a, b, c] = self.corners;
+        [
+            (a * 4.0 + b + c) / 6.0,
+            (a + b * 4.0 + c) / 6.0,
+            (a + b + c * 4.0) / 6.0,
+            self.centroid,
+        ]
+    }
 }
 
 /// One shooting patch: four consecutive elements.
@@ -240,6 +260,10 @@ impl Meshing {
                                 .sum::<Vec3>())
                             * 0.25;
                         let corners = e.bary.map(at);
+                        let uv_of = |b: Vec2| {
+                            uvs.map(|q| q[0] * (1.0 - b.x - b.y) + q[1] * b.x + q[2] * b.y)
+                        };
+                        let corner_uvs = uvs.map(|_| e.bary.map(|b| uv_of(b).unwrap_or_default()));
                         elements.push(Element {
                             corners,
                             centroid: at(c),
@@ -249,6 +273,8 @@ impl Meshing {
                             emission,
                             patch,
                             source_triangle: id,
+                            material,
+                            uvs: corner_uvs,
                         });
                     }
                 }
@@ -260,6 +286,37 @@ impl Meshing {
             patch_area,
             skipped_triangles: skipped,
         })
+    }
+
+    /// The elements as a scene of their own (one mesh, element `j` is triangle `j`, the
+    /// scene's materials and textures, flat element normals): what a G-buffer renderer
+    /// draws so that its triangle ids are element ids.
+    pub fn element_scene(&self, scene: &Scene) -> Scene {
+        let mut mesh = scene_core::Mesh {
+            name: "elements".into(),
+            ..Default::default()
+        };
+        let textured = self.elements.iter().any(|e| e.uvs.is_some());
+        let mut uvs = Vec::new();
+        for (j, e) in self.elements.iter().enumerate() {
+            mesh.positions.extend_from_slice(&e.corners);
+            mesh.normals.extend_from_slice(&[e.normal; 3]);
+            if textured {
+                uvs.extend_from_slice(&e.uvs.unwrap_or([Vec2::ZERO; 3]));
+            }
+            let b = 3 * j as u32;
+            mesh.indices.push([b, b + 1, b + 2]);
+            mesh.material_ids.push(e.material);
+        }
+        if textured {
+            mesh.uvs = Some(uvs);
+        }
+        let mut out = Scene::new(&format!("{} (elements)", scene.name));
+        out.materials = scene.materials.clone();
+        out.textures = scene.textures.clone();
+        out.cameras = scene.cameras.clone();
+        out.meshes.push(mesh);
+        out
     }
 
     /// The elements of patch `p`.

@@ -248,21 +248,25 @@ fn solve_tagged(
                 LightId::Point(i) => {
                     let l = scene.point_lights[i as usize].clone();
                     Box::new(move |e| {
-                        let d = l.position - e.centroid;
-                        let dist = d.length();
-                        if dist.is_nan() || dist <= 0.0 {
-                            return Vec3::ZERO;
+                        let mut sum = Vec3::ZERO;
+                        for x in e.receiver_points() {
+                            let d = l.position - x;
+                            let dist = d.length();
+                            if dist.is_nan() || dist <= 0.0 {
+                                continue;
+                            }
+                            let w = d / dist;
+                            let cos = e.normal.dot(w);
+                            if cos <= 0.0 {
+                                continue;
+                            }
+                            let eps = 1e-4 * dist.max(1e-6);
+                            if rays.occluded(x + e.normal * eps, w, eps, dist - eps) {
+                                continue;
+                            }
+                            sum += l.intensity * (falloff(l.radius, dist) * cos);
                         }
-                        let w = d / dist;
-                        let cos = e.normal.dot(w);
-                        if cos <= 0.0 {
-                            return Vec3::ZERO;
-                        }
-                        let eps = 1e-4 * dist.max(1e-6);
-                        if rays.occluded(e.centroid + e.normal * eps, w, eps, dist - eps) {
-                            return Vec3::ZERO;
-                        }
-                        l.intensity * (falloff(l.radius, dist) * cos)
+                        sum * 0.25
                     })
                 }
                 LightId::Directional(i) => {
@@ -274,10 +278,12 @@ fn solve_tagged(
                             return Vec3::ZERO;
                         }
                         let eps = 1e-4 * extent;
-                        if rays.occluded(e.centroid + e.normal * eps, w, eps, 4.0 * extent) {
-                            return Vec3::ZERO;
-                        }
-                        l.irradiance * cos
+                        let seen = e
+                            .receiver_points()
+                            .iter()
+                            .filter(|&&x| !rays.occluded(x + e.normal * eps, w, eps, 4.0 * extent))
+                            .count();
+                        l.irradiance * (cos * seen as f32 * 0.25)
                     })
                 }
                 LightId::Emissive(_) => continue,
@@ -344,15 +350,25 @@ fn solve_tagged(
             *f = if e.patch as usize == p {
                 0.0
             } else {
-                point_to_triangle(
-                    e.centroid,
-                    e.normal,
-                    &patch.corners,
-                    patch.normal,
-                    Some(rays),
-                    samples,
-                    ((p as u64) << 32) | j as u64,
-                )
+                // The element's average over its four receiver points, the visibility rays
+                // shared out among them.
+                let per_point = samples.div_ceil(4);
+                e.receiver_points()
+                    .iter()
+                    .enumerate()
+                    .map(|(r, &x)| {
+                        point_to_triangle(
+                            x,
+                            e.normal,
+                            &patch.corners,
+                            patch.normal,
+                            Some(rays),
+                            per_point,
+                            ((p as u64) << 34) | ((j as u64) << 2) | r as u64,
+                        )
+                    })
+                    .sum::<f32>()
+                    * 0.25
             };
         });
         stats.form_factor_rows += 1;

@@ -1,0 +1,140 @@
+//! Display: element irradiance interpolated smoothly over a camera G-buffer. Elements are
+//! welded into vertices (corners at the same place with the same normal); a vertex takes the
+//! area-weighted mean irradiance of its elements; a pixel interpolates its element's three
+//! vertices at its reconstructed position and multiplies by the G-buffer's (textured)
+//! albedo, `L = albedo E / pi`, plus the element's emission times its light's direct
+//! factor. The G-buffer must be of [`crate::Meshing::element_scene`], so that triangle ids
+//! are element ids.
+
+use std::collections::HashMap;
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use scene_core::{GBuffer, Image, View};
+
+use crate::mesh::Meshing;
+
+/// Elements welded into shared vertices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Welding {
+    /// The vertex of each element corner, `3 j + c`.
+    pub corner_vertex: Vec<u32>,
+    /// Number of vertices.
+    pub vertices: usize,
+}
+
+impl Welding {
+    /// Welds corners closer than `1e-5` of `extent` with normals within about 25 degrees.
+    pub fn new(meshing: &Meshing, extent: f32) -> Self {
+        let cell = (extent * 1e-5).max(f32::MIN_POSITIVE);
+        let mut map: HashMap<([i64; 3], [i8; 3]), u32> = HashMap::new();
+        let mut corner_vertex = Vec::with_capacity(3 * meshing.elements.len());
+        for e in &meshing.elements {
+            let n = (e.normal * 2.0).round();
+            let nk = [n.x as i8, n.y as i8, n.z as i8];
+            for c in e.corners {
+                let q = (c / cell).round();
+                let key = ([q.x as i64, q.y as i64, q.z as i64], nk);
+                let next = map.len() as u32;
+                corner_vertex.push(*map.entry(key).or_insert(next));
+            }
+        }
+        Self {
+            corner_vertex,
+            vertices: map.len(),
+        }
+    }
+
+    /// Per-vertex area-weighted mean of per-element values.
+    pub fn vertex_values(&self, meshing: &Meshing, values: &[Vec3]) -> Vec<Vec3> {
+        let mut sum = vec![Vec3::ZERO; self.vertices];
+        let mut weight = vec![0.0f32; self.vertices];
+        for (j, e) in meshing.elements.iter().enumerate() {
+            for c in 0..3 {
+                let v = self.corner_vertex[3 * j + c] as usize;
+                sum[v] += values[j] * e.area;
+                weight[v] += e.area;
+            }
+        }
+        sum.iter()
+            .zip(&weight)
+            .map(|(s, w)| if *w > 0.0 { *s / *w } else { Vec3::ZERO })
+            .collect()
+    }
+}
+
+/// How element values reach the pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Shading {
+    /// Interpolated between welded vertices (the default).
+    #[default]
+    Smooth,
+    /// One value per element.
+    Flat,
+}
+
+/// The image of `g` (a G-buffer of the element scene seen from `view`): see the module
+/// documentation. `irradiance` and `glow` are per element; `vertex_irradiance` per welded
+/// vertex (used with [`Shading::Smooth`]).
+#[allow(clippy::too_many_arguments)]
+pub fn compose(
+    meshing: &Meshing,
+    welding: &Welding,
+    g: &GBuffer,
+    view: &View,
+    irradiance: &[Vec3],
+    vertex_irradiance: &[Vec3],
+    glow: &[Vec3],
+    shading: Shading,
+) -> Image {
+    let (w, h) = (g.width, g.height);
+    let pixels = (0..g.len())
+        .into_par_iter()
+        .map(|i| {
+            let id = g.triangle_id[i] as usize;
+            if g.is_background(i) || id >= meshing.elements.len() {
+                return Vec3::ZERO;
+            }
+            let e = match shading {
+                Shading::Flat => irradiance[id],
+                Shading::Smooth => {
+                    let uv = Vec2::new(
+                        ((i as u32 % w) as f32 + 0.5) / w as f32,
+                        ((i as u32 / w) as f32 + 0.5) / h as f32,
+                    );
+                    let p = view.reconstruct_world(uv, g.depth[i]);
+                    let b = barycentric(&meshing.elements[id].corners, p);
+                    (0..3)
+                        .map(|c| {
+                            vertex_irradiance[welding.corner_vertex[3 * id + c] as usize] * b[c]
+                        })
+                        .sum()
+                }
+            };
+            let out = g.albedo[i].truncate() * e * std::f32::consts::FRAC_1_PI + glow[id];
+            if out.is_finite() { out } else { Vec3::ZERO }
+        })
+        .collect();
+    Image {
+        width: w,
+        height: h,
+        pixels,
+    }
+}
+
+/// Barycentric coordinates of `p` (projected into the triangle's plane) in `t`, clamped
+/// to the triangle and summing to 1.
+pub fn barycentric(t: &[Vec3; 3], p: Vec3) -> [f32; 3] {
+    let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], p - t[0]);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (d1, d2) = (d.dot(e1), d.dot(e2));
+    let den = d11 * d22 - d12 * d12;
+    if den.is_nan() || den == 0.0 {
+        return [1.0 / 3.0; 3];
+    }
+    let v = ((d22 * d1 - d12 * d2) / den).clamp(0.0, 1.0);
+    let w = ((d11 * d2 - d12 * d1) / den).clamp(0.0, 1.0);
+    let s = (v + w).max(1.0);
+    let (v, w) = (v / s, w / s);
+    [1.0 - v - w, v, w]
+}
