@@ -107,6 +107,76 @@ pub fn point_to_triangle(
     f * visible as f32 / tried as f32
 }
 
+/// The hemicube's delta form factors of a face rendered from `view` at `width x height`
+/// (the paper's method, after Cohen and Greenberg): a pixel whose centre is seen along
+/// direction `p` (scaled to unit distance along the face's axis) covers the face-plane area
+/// `dA` and has `dF = max(p . n, 0) dA / (pi |p|^4)`, `n` the hemicube's normal: the top
+/// face's `dA / (pi (1 + x^2 + y^2)^2)` and the side faces' `z dA / (pi (1 + x^2 + z^2)^2)`
+/// in one formula. Over the five faces they sum to 1.
+pub fn delta_form_factors(
+    view: &scene_core::View,
+    normal: Vec3,
+    width: u32,
+    height: u32,
+) -> Vec<f32> {
+    let scene_core::Projection::Perspective {
+        left,
+        right,
+        bottom,
+        top,
+    } = view.projection
+    else {
+        return vec![0.0; width as usize * height as usize];
+    };
+    let da = (right - left) * (top - bottom) / (width as f32 * height as f32);
+    let f = view.forward;
+    (0..height)
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let uv = glam::Vec2::new(
+                (x as f32 + 0.5) / width as f32,
+                (y as f32 + 0.5) / height as f32,
+            );
+            let (_, d) = view.ray(uv);
+            let along = d.dot(f);
+            if along <= 0.0 {
+                return 0.0;
+            }
+            let p = d / along;
+            let r2 = p.length_squared();
+            (p.dot(normal).max(0.0) * da / (std::f32::consts::PI * r2 * r2)).max(0.0)
+        })
+        .collect()
+}
+
+/// One row of form factors by the hemicube: `F[j]`, the form factor from a differential
+/// area at `point` with unit `normal` to element `j`, from the five faces of a hemicube of
+/// `resolution` rendered by `renderer` (prepared with the element scene, so triangle ids
+/// are element ids) and their delta form factors. Visibility is the renderer's depth test.
+pub fn hemicube_row(
+    renderer: &mut dyn scene_core::GBufferRenderer,
+    point: Vec3,
+    normal: Vec3,
+    resolution: u32,
+    near: f32,
+    far: f32,
+    elements: usize,
+) -> Result<Vec<f32>, scene_core::Error> {
+    let faces = renderer.render_hemicube(point, normal, resolution, near, far)?;
+    let mut row = vec![0.0f32; elements];
+    for face in &faces {
+        let g = &face.gbuffer;
+        let delta = delta_form_factors(&face.view, normal, g.width, g.height);
+        for (i, df) in delta.iter().enumerate() {
+            let id = g.triangle_id[i] as usize;
+            if !g.is_background(i) && id < elements {
+                row[id] += df;
+            }
+        }
+    }
+    Ok(row)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -38,7 +38,7 @@ pub mod solver;
 pub mod technique;
 
 pub use mesh::{MeshBudget, MeshSettings, Meshing};
-pub use solver::{Solution, SolverSettings, Strategy, solve};
+pub use solver::{FormFactorMethod, Solution, SolverSettings, Strategy, solve, solve_with};
 pub use technique::RelightTechnique;
 
 /// Implementation status of this crate.
@@ -58,10 +58,16 @@ pub enum RelightError {
     /// The meshing or the solution would exceed its budget (nothing was allocated).
     #[error("budget exceeded: {0}")]
     Budget(String),
+    /// The G-buffer renderer of the hemicube failed.
+    #[error("hemicube rendering failed: {0}")]
+    Render(Box<scene_core::Error>),
 }
 
 impl From<RelightError> for scene_core::Error {
     fn from(e: RelightError) -> Self {
-        scene_core::Error::method("relight-pr", e)
+        match e {
+            RelightError::Render(inner) => *inner,
+            other => scene_core::Error::method("relight-pr", other),
+        }
     }
 }

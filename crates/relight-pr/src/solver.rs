@@ -40,9 +40,26 @@ pub enum Strategy {
     Separate,
 }
 
+/// How a shot's row of form factors is computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FormFactorMethod {
+    /// Closed-form point-to-patch form factors at each element's receiver points, with
+    /// ray-cast visibility ([`crate::form_factor::point_to_triangle`]): the accurate one.
+    Rays,
+    /// The paper's hemicube at the shooting patch's centre: five faces of `resolution`
+    /// rendered by a `scene_core::GBufferRenderer`, integrated with delta form factors
+    /// ([`crate::form_factor::hemicube_row`]).
+    Hemicube {
+        /// Pixels along the top face (128 in the paper).
+        resolution: u32,
+    },
+}
+
 /// Solver parameters.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolverSettings {
+    /// How form factors are computed. Default [`FormFactorMethod::Rays`].
+    pub form_factors: FormFactorMethod,
     /// Stratified visibility rays per form factor (receiver to patch). Default 16.
     pub visibility_samples: u32,
     /// Stop when the unshot fraction of the emitted energy (luminance-weighted) is below
@@ -63,6 +80,7 @@ pub struct SolverSettings {
 impl Default for SolverSettings {
     fn default() -> Self {
         Self {
+            form_factors: FormFactorMethod::Rays,
             visibility_samples: 16,
             max_unshot: 1e-3,
             max_shots: 200_000,
@@ -153,7 +171,8 @@ pub fn sources(scene: &Scene, banks: &[Vec<LightId>]) -> Result<Vec<Source>, Rel
 
 /// Solves `meshing` of `scene` with `settings` (its strategy and banks). `rays` must be
 /// built from `scene` (the visibility of form factors and of point and directional
-/// lights). `progress` is called after each shot with the unshot fraction.
+/// lights). `progress` is called after each shot with the unshot fraction. The ray-cast
+/// method needs no renderer; for [`FormFactorMethod::Hemicube`] use [`solve_with`].
 pub fn solve(
     scene: &Scene,
     meshing: &Meshing,
@@ -161,6 +180,31 @@ pub fn solve(
     settings: &SolverSettings,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Solution, RelightError> {
+    solve_with(scene, meshing, rays, None, settings, progress)
+}
+
+/// [`solve`] with a G-buffer renderer for hemicube form factors (it is prepared here with
+/// the element scene, [`Meshing::element_scene`]).
+pub fn solve_with(
+    scene: &Scene,
+    meshing: &Meshing,
+    rays: &RayScene,
+    mut renderer: Option<&mut (dyn scene_core::GBufferRenderer + Send)>,
+    settings: &SolverSettings,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Solution, RelightError> {
+    if let FormFactorMethod::Hemicube { resolution } = settings.form_factors {
+        if resolution == 0 {
+            return Err(RelightError::InvalidSetting("hemicube resolution 0".into()));
+        }
+        let Some(r) = renderer.as_deref_mut() else {
+            return Err(RelightError::InvalidSetting(
+                "hemicube form factors need a G-buffer renderer (solve_with)".into(),
+            ));
+        };
+        r.prepare(std::sync::Arc::new(meshing.element_scene(scene)))
+            .map_err(|e| RelightError::Render(Box::new(e)))?;
+    }
     if settings.visibility_samples == 0 || settings.max_unshot.is_nan() || settings.max_unshot < 0.0
     {
         return Err(RelightError::InvalidSetting(format!(
@@ -171,12 +215,28 @@ pub fn solve(
     let start = Instant::now();
     let sources = sources(scene, &settings.banks)?;
     let mut solution = match settings.strategy {
-        Strategy::Tagged => solve_tagged(scene, meshing, rays, sources, settings, progress)?,
+        Strategy::Tagged => solve_tagged(
+            scene,
+            meshing,
+            rays,
+            &mut renderer,
+            sources,
+            settings,
+            progress,
+        )?,
         Strategy::Combined => {
             let all = Source {
                 lights: sources.iter().flat_map(|s| s.lights.clone()).collect(),
             };
-            solve_tagged(scene, meshing, rays, vec![all], settings, progress)?
+            solve_tagged(
+                scene,
+                meshing,
+                rays,
+                &mut renderer,
+                vec![all],
+                settings,
+                progress,
+            )?
         }
         Strategy::Separate => {
             let n = meshing.elements.len();
@@ -190,6 +250,7 @@ pub fn solve(
                     scene,
                     meshing,
                     rays,
+                    &mut renderer,
                     vec![source.clone()],
                     settings,
                     progress,
@@ -221,6 +282,7 @@ fn solve_tagged(
     scene: &Scene,
     meshing: &Meshing,
     rays: &RayScene,
+    renderer: &mut Option<&mut (dyn scene_core::GBufferRenderer + Send)>,
     sources: Vec<Source>,
     settings: &SolverSettings,
     progress: &mut dyn FnMut(f64),
@@ -345,32 +407,56 @@ fn solve_tagged(
         }
         let p = best.0;
         let patch = patches[p];
-        form.par_iter_mut().enumerate().for_each(|(j, f)| {
-            let e = &els[j];
-            *f = if e.patch as usize == p {
-                0.0
-            } else {
-                // The element's average over its four receiver points, the visibility rays
-                // shared out among them.
-                let per_point = samples.div_ceil(4);
-                e.receiver_points()
-                    .iter()
-                    .enumerate()
-                    .map(|(r, &x)| {
-                        point_to_triangle(
-                            x,
-                            e.normal,
-                            &patch.corners,
-                            patch.normal,
-                            Some(rays),
-                            per_point,
-                            ((p as u64) << 34) | ((j as u64) << 2) | r as u64,
-                        )
-                    })
-                    .sum::<f32>()
-                    * 0.25
-            };
-        });
+        if let (FormFactorMethod::Hemicube { resolution }, Some(r)) =
+            (settings.form_factors, renderer.as_deref_mut())
+        {
+            let centre = (patch.corners[0] + patch.corners[1] + patch.corners[2]) / 3.0;
+            let row = crate::form_factor::hemicube_row(
+                r,
+                centre + patch.normal * (1e-5 * extent),
+                patch.normal,
+                resolution,
+                1e-5 * extent,
+                2.0 * extent,
+                n,
+            )
+            .map_err(|e| RelightError::Render(Box::new(e)))?;
+            // Patch-to-element form factors to the receivers' form: F_ji = F_ij A_i / A_j.
+            for (j, f) in form.iter_mut().enumerate() {
+                *f = if els[j].patch as usize == p {
+                    0.0
+                } else {
+                    row[j] * patch.area / els[j].area
+                };
+            }
+        } else {
+            form.par_iter_mut().enumerate().for_each(|(j, f)| {
+                let e = &els[j];
+                *f = if e.patch as usize == p {
+                    0.0
+                } else {
+                    // The element's average over its four receiver points, the visibility rays
+                    // shared out among them.
+                    let per_point = samples.div_ceil(4);
+                    e.receiver_points()
+                        .iter()
+                        .enumerate()
+                        .map(|(r, &x)| {
+                            point_to_triangle(
+                                x,
+                                e.normal,
+                                &patch.corners,
+                                patch.normal,
+                                Some(rays),
+                                per_point,
+                                ((p as u64) << 34) | ((j as u64) << 2) | r as u64,
+                            )
+                        })
+                        .sum::<f32>()
+                        * 0.25
+                };
+            });
+        }
         stats.form_factor_rows += 1;
         let ue: Vec<Vec3> = unshot_emit[p * k..p * k + k].to_vec();
         let ur: Vec<Vec3> = unshot_refl[p * k..p * k + k].to_vec();

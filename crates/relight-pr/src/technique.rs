@@ -108,7 +108,14 @@ impl Technique for RelightTechnique {
         let k = solver::sources(&scene, &self.solver.banks)?.len();
         let meshing = Meshing::new(&scene, &self.mesh, k)?;
         let rays = RayScene::build(&scene);
-        let solution = solver::solve(&scene, &meshing, &rays, &self.solver, &mut |_| {})?;
+        let solution = solver::solve_with(
+            &scene,
+            &meshing,
+            &rays,
+            Some(self.renderer.as_mut()),
+            &self.solver,
+            &mut |_| {},
+        )?;
         self.renderer
             .prepare(Arc::new(meshing.element_scene(&scene)))?;
         let welding = Welding::new(&meshing, scene.extent());

@@ -384,3 +384,150 @@ fn no_lights_is_black_and_the_budget_is_checked_first() {
     .unwrap_err();
     assert!(e.to_string().contains("64-light"), "{e}");
 }
+
+#[test]
+fn hemicube_delta_form_factors_sum_to_one() {
+    use relight_pr::form_factor::delta_form_factors;
+    use scene_core::gbuffer::hemicube_views;
+    for res in [16u32, 128] {
+        let n = Vec3::new(0.3, 1.0, -0.2).normalize();
+        let sum: f64 = hemicube_views(Vec3::ZERO, n, 1e-3, 10.0)
+            .iter()
+            .map(|(face, view)| {
+                let (w, h) = face.size(res);
+                delta_form_factors(view, n, w, h)
+                    .iter()
+                    .map(|&f| f as f64)
+                    .sum::<f64>()
+            })
+            .sum();
+        eprintln!("resolution {res}: delta form factors sum to {sum:.6}");
+        // The midpoint rule over each face: an error falling as 1 / res^2 (measured
+        // 2.1e-3 at 16).
+        let tol = 0.6 / (res * res) as f64;
+        assert!((sum - 1.0).abs() < tol, "resolution {res}: {sum}");
+    }
+}
+
+/// `F_{A -> B}` by the hemicube at the centres of A's patches (area-weighted).
+fn hemicube_area_form_factor(scene: &Scene, resolution: u32) -> f64 {
+    use scene_core::GBufferRenderer;
+    let settings = MeshSettings {
+        target_elements: 1024,
+        ..Default::default()
+    };
+    let meshing = Meshing::new(scene, &settings, 1).unwrap();
+    let mut renderer = scene_core::gbuffer::RayCastRenderer::new();
+    renderer
+        .prepare(std::sync::Arc::new(meshing.element_scene(scene)))
+        .unwrap();
+    let a_triangles = scene.meshes[0].triangle_count() as u32;
+    let (mut sum, mut area) = (0.0f64, 0.0f64);
+    for p in meshing
+        .patches
+        .iter()
+        .filter(|p| meshing.elements[p.first_element as usize].source_triangle < a_triangles)
+    {
+        let centre = (p.corners[0] + p.corners[1] + p.corners[2]) / 3.0;
+        let row = relight_pr::form_factor::hemicube_row(
+            &mut renderer,
+            centre,
+            p.normal,
+            resolution,
+            1e-5,
+            10.0,
+            meshing.elements.len(),
+        )
+        .unwrap();
+        let f: f64 = row
+            .iter()
+            .zip(&meshing.elements)
+            .filter(|(_, e)| e.source_triangle >= a_triangles)
+            .map(|(f, _)| *f as f64)
+            .sum();
+        sum += f * p.area as f64;
+        area += p.area as f64;
+    }
+    sum / area
+}
+
+#[test]
+fn hemicube_form_factors_match_howell() {
+    let parallel = two_surfaces(
+        &quad(Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y),
+        &quad(
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+        ),
+    );
+    let perpendicular = two_surfaces(
+        &quad(Vec3::ZERO, Vec3::Z, Vec3::new(1.0, 0.0, 1.0), Vec3::X),
+        &quad(Vec3::ZERO, Vec3::Y, Vec3::new(0.0, 1.0, 1.0), Vec3::Z),
+    );
+    for (name, scene, expect) in [
+        ("parallel unit squares", parallel, 0.19982),
+        ("perpendicular unit squares", perpendicular, 0.20004),
+    ] {
+        let f = hemicube_area_form_factor(&scene, 128);
+        let err = (f - expect).abs() / expect;
+        eprintln!(
+            "{name} (hemicube 128): {f:.5} vs Howell {expect} ({:.3} %)",
+            100.0 * err
+        );
+        assert!(err < 5e-3, "{name}: {f} vs {expect}");
+    }
+}
+
+#[test]
+fn hemicube_solutions_keep_the_furnace_s_energy() {
+    let scene = furnace(0.5, 1.0);
+    let meshing = Meshing::new(
+        &scene,
+        &MeshSettings {
+            target_elements: 96,
+            ..Default::default()
+        },
+        1,
+    )
+    .unwrap();
+    let rays = RayScene::build(&scene);
+    let mut renderer = scene_core::gbuffer::RayCastRenderer::new();
+    let settings = SolverSettings {
+        form_factors: relight_pr::FormFactorMethod::Hemicube { resolution: 64 },
+        max_unshot: 1e-2,
+        ..Default::default()
+    };
+    let s = solver::solve_with(
+        &scene,
+        &meshing,
+        &rays,
+        Some(&mut renderer),
+        &settings,
+        &mut |_| {},
+    )
+    .unwrap();
+    let out = relight::radiance(&meshing, &s, &LightState::default());
+    let worst = out.iter().map(|c| (c.x - 2.0).abs()).fold(0.0f32, f32::max);
+    let total: f32 = meshing.elements.iter().map(|e| e.area).sum();
+    let mean: f32 = out
+        .iter()
+        .zip(&meshing.elements)
+        .map(|(c, e)| c.x * e.area)
+        .sum::<f32>()
+        / total;
+    eprintln!(
+        "hemicube furnace: mean {mean:.4}, worst element {worst:.4} off 2.0 ({} shots)",
+        s.stats.shots
+    );
+    // Every hemicube sees the whole closed box (its row sums to 1), so energy is kept and
+    // the mean is right; single elements are not (a point at the patch centre stands for
+    // the patch, reciprocity moves the error to small receivers near edges: measured 15 %
+    // at 96 elements, the hemicube's known weakness that the ray-cast method avoids).
+    assert!((mean - 2.0).abs() < 0.01 * 2.0, "{mean}");
+    assert!(worst < 0.25 * 2.0, "{worst}");
+    // Without a renderer the hemicube is a typed error.
+    let e = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap_err();
+    assert!(e.to_string().contains("renderer"), "{e}");
+}
