@@ -85,8 +85,8 @@ fn area_form_factor(scene: &Scene, rays: Option<&RayScene>) -> f64 {
     sum / area
 }
 
-#[test]
-fn form_factors_match_howell_within_half_a_percent() {
+/// Howell's cases: two surfaces (mesh 0 sees mesh 1) and the form factor between them.
+fn howell_cases() -> Vec<(&'static str, Scene, f64)> {
     let parallel = two_surfaces(
         &quad(Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y),
         &quad(
@@ -106,7 +106,7 @@ fn form_factors_match_howell_within_half_a_percent() {
         &disk(Vec3::ZERO, 0.1, true, 256),
         &disk(Vec3::new(0.0, 0.0, 0.5), 0.2, false, 256),
     );
-    for (name, scene, expect) in [
+    vec![
         ("parallel unit squares, distance 1", parallel, 0.19982),
         (
             "perpendicular unit squares, shared edge",
@@ -114,7 +114,12 @@ fn form_factors_match_howell_within_half_a_percent() {
             0.20004,
         ),
         ("coaxial disks r 0.1 -> 0.2, distance 0.5", disks, 0.1339),
-    ] {
+    ]
+}
+
+#[test]
+fn form_factors_match_howell_within_half_a_percent() {
+    for (name, scene, expect) in howell_cases() {
         let rays = RayScene::build(&scene);
         for (method, r) in [("closed form", None), ("with visibility rays", Some(&rays))] {
             let f = area_form_factor(&scene, r);
@@ -453,23 +458,9 @@ fn hemicube_area_form_factor(scene: &Scene, resolution: u32) -> f64 {
 
 #[test]
 fn hemicube_form_factors_match_howell() {
-    let parallel = two_surfaces(
-        &quad(Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y),
-        &quad(
-            Vec3::new(0.0, 0.0, 1.0),
-            Vec3::new(0.0, 1.0, 1.0),
-            Vec3::new(1.0, 1.0, 1.0),
-            Vec3::new(1.0, 0.0, 1.0),
-        ),
-    );
-    let perpendicular = two_surfaces(
-        &quad(Vec3::ZERO, Vec3::Z, Vec3::new(1.0, 0.0, 1.0), Vec3::X),
-        &quad(Vec3::ZERO, Vec3::Y, Vec3::new(0.0, 1.0, 1.0), Vec3::Z),
-    );
-    for (name, scene, expect) in [
-        ("parallel unit squares", parallel, 0.19982),
-        ("perpendicular unit squares", perpendicular, 0.20004),
-    ] {
+    // The two squares (the disks' fans are slivers at the centre, where a patch centre
+    // poorly stands for its patch).
+    for (name, scene, expect) in howell_cases().into_iter().take(2) {
         let f = hemicube_area_form_factor(&scene, 128);
         let err = (f - expect).abs() / expect;
         eprintln!(
