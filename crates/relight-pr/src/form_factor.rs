@@ -67,7 +67,10 @@ pub fn point_to_triangle(
     seed: u64,
 ) -> f32 {
     let centre = (tri[0] + tri[1] + tri[2]) / 3.0;
-    if tri_n.dot(x - centre) <= 0.0 {
+    // In front of the patch by more than rounding: a receiver in the patch's plane (on the
+    // same wall) sees it edge-on, whatever the last bits of a scaled position say.
+    let size = (tri[1] - tri[0]).length().max((tri[2] - tri[0]).length());
+    if tri_n.dot(x - centre) <= 1e-5 * size {
         return 0.0;
     }
     let f = point_to_polygon(x, n, tri);

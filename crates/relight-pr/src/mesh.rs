@@ -139,11 +139,13 @@ impl Piece {
     }
 }
 
-/// The subdivision level of a triangle of `area` for patches of at most `patch_area`.
+/// The subdivision level of a triangle of `area` for patches of at most `patch_area`
+/// (with a relative slack of 1e-4, so that rounding in a scaled copy of the scene does not
+/// change the level of a triangle whose area is right at a boundary).
 fn level(area: f32, patch_area: f32) -> u32 {
     let mut l = 0;
     let mut a = area;
-    while a > patch_area && l < 12 {
+    while a > patch_area * (1.0 + 1e-4) && l < 12 {
         a *= 0.25;
         l += 1;
     }

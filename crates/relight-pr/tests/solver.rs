@@ -522,3 +522,62 @@ fn hemicube_solutions_keep_the_furnace_s_energy() {
     let e = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap_err();
     assert!(e.to_string().contains("renderer"), "{e}");
 }
+
+fn radiance_of(scene: &Scene, elements: usize) -> Vec<Vec3> {
+    let meshing = Meshing::new(
+        scene,
+        &MeshSettings {
+            target_elements: elements,
+            ..Default::default()
+        },
+        64,
+    )
+    .unwrap();
+    let rays = RayScene::build(scene);
+    let settings = SolverSettings {
+        max_unshot: 1e-4,
+        visibility_samples: 4,
+        ..Default::default()
+    };
+    let s = solver::solve(scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
+    relight::radiance(&meshing, &s, &LightState::default())
+}
+
+#[test]
+fn scaled_scenes_and_sixty_four_lights_give_the_same_radiosity() {
+    let base = builtin::scene("cornell-point").unwrap();
+    let reference = radiance_of(&base, 256);
+    // Millimetres and kilometres: the meshing follows the extent, so the same elements.
+    for k in [1e-3f32, 1e4] {
+        let scaled = base.clone().scaled(k);
+        let out = radiance_of(&scaled, 256);
+        let e = max_relative(&out, &reference);
+        let mean_diff: f32 = out
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| (*a - *b).abs().element_sum())
+            .sum::<f32>()
+            / reference.iter().map(|b| b.element_sum()).sum::<f32>();
+        eprintln!(
+            "scaled x{k}: largest difference {e:.2e} of the peak, mean {mean_diff:.2e} of the mean"
+        );
+        // Rounding of f32 geometry scaled by a non-power of two moves a few visibility rays
+        // past an edge: measured 2.7e-4 of the peak at most, 8e-5 of the mean. (Before the
+        // BVH stored its geometry rescaled, obvhs' absolute 1e-4 clamp lost the near hits of
+        // the millimetre scene: 3.9e-3 of the mean.)
+        assert!(mean_diff < 5e-4, "x{k}: mean {mean_diff}");
+        assert!(e < 2e-3, "x{k}: {e}");
+    }
+    // 64 coincident lights of 1/64 the intensity: 64 sources, the same picture.
+    let mut many = base.clone();
+    let l = many.point_lights.remove(0);
+    for _ in 0..64 {
+        many.point_lights.push(PointLight {
+            intensity: l.intensity / 64.0,
+            ..l.clone()
+        });
+    }
+    let e = max_relative(&radiance_of(&many, 256), &reference);
+    eprintln!("64 lights: largest difference {e:.2e} of the peak");
+    assert!(e < 1e-4, "64 lights: {e}");
+}

@@ -87,8 +87,27 @@ pub struct RayScene {
     global_ids: Vec<u32>,
     /// Number of distinct triangles.
     count: usize,
+    /// The power of two the geometry is stored scaled by (see [`RayScene::from_triangles`]).
+    scale: f32,
     /// Time the BVH build took.
     pub build_time: Duration,
+}
+
+/// The power of two that brings a scene of diagonal `diagonal` to about 10^4 units.
+///
+/// obvhs' wide-BVH traversal clamps every node's entry distance to at least 1e-4 (an
+/// absolute constant), so in a scene measured in millimetres it skipped every hit closer
+/// than 0.1 mm: visibility between neighbouring surfaces, and results that changed with
+/// the scene's unit. Storing the geometry scaled to about 10^4 units puts that clamp at
+/// 1e-8 of the scene, whatever its unit, and a power of two scales every coordinate and
+/// every distance exactly, so hits, barycentrics and distances are the same bits in any
+/// unit (rays are scaled on the way in, distances on the way out).
+fn scale_for(diagonal: f32) -> f32 {
+    if !(diagonal.is_finite() && diagonal > 0.0) {
+        return 1.0;
+    }
+    let e = (1e4f32 / diagonal).log2().round().clamp(-60.0, 60.0) as i32;
+    2f32.powi(e)
 }
 
 impl RayScene {
@@ -111,10 +130,17 @@ impl RayScene {
     /// as an engine handing ISR its shadow casters); hit ids are indices into `triangles`.
     pub fn from_triangles(triangles: &[[Vec3; 3]]) -> Self {
         let start = std::time::Instant::now();
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for p in triangles.iter().flatten().filter(|p| p.is_finite()) {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        let scale = scale_for((hi - lo).length());
         let tris: Vec<BvhTriangle> = triangles
             .iter()
             .map(|t| {
-                let [a, b, c] = t.map(Vec3A::from);
+                let [a, b, c] = t.map(|p| Vec3A::from(p * scale));
                 BvhTriangle {
                     v0: a,
                     v1: b,
@@ -128,6 +154,7 @@ impl RayScene {
                 triangles: Vec::new(),
                 global_ids: Vec::new(),
                 count: 0,
+                scale,
                 build_time: start.elapsed(),
             };
         }
@@ -150,6 +177,7 @@ impl RayScene {
             triangles,
             global_ids,
             count: tris.len(),
+            scale,
             build_time: start.elapsed(),
         }
     }
@@ -171,7 +199,9 @@ impl RayScene {
         if !origin.is_finite() || !direction.is_finite() || direction == Vec3::ZERO {
             return None;
         }
-        let (o, d) = (Vec3A::from(origin), Vec3A::from(direction));
+        let s = self.scale;
+        let (o, d) = (Vec3A::from(origin * s), Vec3A::from(direction));
+        let (t_min, t_max) = (t_min * s, t_max * s);
         let ray = BvhRay::new(o, d, t_min, t_max);
         let mut hit = RayHit::none();
         let mut best = (0.0f32, 0.0f32);
@@ -195,7 +225,7 @@ impl RayScene {
             .unwrap_or((hit.t, best.0, best.1));
         Some(Hit {
             triangle: self.global_ids[id],
-            t,
+            t: t / s,
             barycentric: Vec2::new(u, v),
         })
     }
@@ -208,7 +238,8 @@ impl RayScene {
         if !origin.is_finite() || !direction.is_finite() || direction == Vec3::ZERO {
             return false;
         }
-        let ray = BvhRay::new(origin.into(), direction.into(), t_min, t_max);
+        let s = self.scale;
+        let ray = BvhRay::new((origin * s).into(), direction.into(), t_min * s, t_max * s);
         !bvh.ray_traverse_miss(ray, |r, id| {
             self.triangles[id]
                 .intersect(r.origin, r.direction, r.tmin, r.tmax)
@@ -358,5 +389,51 @@ mod tests {
         let rs = RayScene::build(&random_scene(1, 10));
         assert_eq!(rs.closest_hit(Vec3::NAN, Vec3::X, 0.0, 1e9), None);
         assert_eq!(rs.closest_hit(Vec3::ZERO, Vec3::ZERO, 0.0, 1e9), None);
+    }
+
+    /// obvhs skips box entries closer than an absolute 1e-4: a millimetre-scale scene lost
+    /// every hit nearer than 0.1 mm. The geometry is now stored scaled by a power of two,
+    /// so the same rays in any unit give the same hits (bit for bit when the unit changes
+    /// by a power of two; to rounding otherwise).
+    #[test]
+    fn near_hits_are_found_in_any_unit() {
+        let base = crate::builtin::scene("cornell-point").unwrap();
+        let mut rng = Rng::new(11, 0);
+        for k in [1e-4f32, 1e-3, 2f32.powi(-12), 1.0, 1e3] {
+            let exact = k.log2().fract() == 0.0;
+            let scene = base.clone().scaled(k);
+            let rays = RayScene::build(&scene);
+            let unit = RayScene::build(&base);
+            for _ in 0..200 {
+                // From a point near the floor towards a random direction, short range.
+                let o = Vec3::new(
+                    0.1 + 0.35 * rng.next_f32(),
+                    1e-3,
+                    0.1 + 0.35 * rng.next_f32(),
+                );
+                let d = uniform_sphere(rng.next_vec2());
+                let a = unit.closest_hit(o, d, 0.0, f32::INFINITY);
+                let b = rays.closest_hit(o * k, d, 0.0, f32::INFINITY);
+                let brute = brute_force_closest(&scene, o * k, d, 0.0, f32::INFINITY);
+                assert_eq!(b.map(|h| h.triangle), brute.map(|h| h.triangle), "x{k}");
+                assert_eq!(a.map(|h| h.triangle), b.map(|h| h.triangle), "x{k}");
+                if let (Some(a), Some(b)) = (a, b) {
+                    if exact {
+                        assert_eq!(b.t / k, a.t, "x{k}");
+                    }
+                    assert!(
+                        (b.t / k - a.t).abs() <= 1e-4 * a.t.max(1e-3),
+                        "x{k}: {} vs {}",
+                        b.t / k,
+                        a.t
+                    );
+                    assert!(
+                        rays.occluded(o * k, d, 0.0, b.t * 1.001),
+                        "x{k}: a hit at {} is not an occluder",
+                        b.t
+                    );
+                }
+            }
+        }
     }
 }
