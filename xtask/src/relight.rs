@@ -1,0 +1,279 @@
+//! `cargo xtask relight`: mesh and solve a scene with light-tagged progressive refinement
+//! (relight-pr), relight it with the lights given on the command line, and write the view
+//! from a scene camera and a summary.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::Vec3;
+use relight_pr::{FormFactorMethod, MeshSettings, Meshing, SolverSettings};
+use scene_core::lights::{LightId, LightState, light_ids};
+use scene_core::ray::RayScene;
+use scene_core::{FrameRequest, GBufferRenderer, Scene};
+
+/// The options of `xtask relight`.
+pub struct Options {
+    /// Built-in scene or glTF path.
+    pub scene: String,
+    /// Output directory.
+    pub out: std::path::PathBuf,
+    /// Target element count.
+    pub elements: usize,
+    /// `rays` or `hemicube`.
+    pub form_factors: String,
+    /// Hemicube resolution.
+    pub hemicube_resolution: u32,
+    /// `ID=R,G,B` settings.
+    pub lights: Vec<String>,
+    /// Scene camera.
+    pub camera: usize,
+    /// Image size.
+    pub width: u32,
+    /// Image size.
+    pub height: u32,
+    /// Stop at this unshot fraction.
+    pub max_unshot: f64,
+    /// PNG exposure in stops.
+    pub exposure: f32,
+}
+
+/// A light id as the command line writes it: `point:N`, `directional:N`, `emissive:N`
+/// (N a mesh index).
+pub fn id_text(id: LightId) -> String {
+    match id {
+        LightId::Point(i) => format!("point:{i}"),
+        LightId::Directional(i) => format!("directional:{i}"),
+        LightId::Emissive(m) => format!("emissive:{m}"),
+    }
+}
+
+/// The emission a light has in the scene, in its own units (intensity, irradiance, or the
+/// radiance of the mesh's first emissive triangle).
+fn scene_emission(scene: &Scene, id: LightId) -> Vec3 {
+    match id {
+        LightId::Point(i) => scene.point_lights[i as usize].intensity,
+        LightId::Directional(i) => scene.directional_lights[i as usize].irradiance,
+        LightId::Emissive(m) => scene.meshes[m as usize]
+            .material_ids
+            .iter()
+            .map(|&mat| scene.materials[mat as usize].emission)
+            .find(|e| e.max_element() > 0.0)
+            .unwrap_or(Vec3::ZERO),
+    }
+}
+
+/// Parses `ID=R,G,B` settings into a light state (multipliers of the scene's emission).
+fn light_state(scene: &Scene, settings: &[String]) -> Result<LightState, String> {
+    let ids = light_ids(scene);
+    let known = || {
+        ids.iter()
+            .map(|&i| id_text(i))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut state = LightState::default();
+    for s in settings {
+        let (id, rgb) = s
+            .split_once('=')
+            .ok_or_else(|| format!("--light {s}: expected ID=R,G,B"))?;
+        let id = ids
+            .iter()
+            .copied()
+            .find(|&i| id_text(i) == id)
+            .ok_or_else(|| {
+                format!(
+                    "--light {s}: no light '{id}' (the scene's lights: {})",
+                    known()
+                )
+            })?;
+        let v: Vec<f32> = rgb
+            .split(',')
+            .map(|x| x.trim().parse::<f32>())
+            .collect::<Result<_, _>>()
+            .map_err(|e| format!("--light {s}: {e}"))?;
+        let [r, g, b] = v[..] else {
+            return Err(format!("--light {s}: expected three numbers R,G,B"));
+        };
+        let want = Vec3::new(r, g, b);
+        if !want.is_finite() || want.min_element() < 0.0 {
+            return Err(format!(
+                "--light {s}: emission must be finite and non-negative"
+            ));
+        }
+        let have = scene_emission(scene, id);
+        let mut factor = Vec3::ZERO;
+        for c in 0..3 {
+            if have[c] > 0.0 {
+                factor[c] = want[c] / have[c];
+            } else if want[c] > 0.0 {
+                return Err(format!(
+                    "--light {s}: the scene's {} emits nothing in channel {c}, so relighting \
+                     cannot make it (its emission is {have})",
+                    id_text(id)
+                ));
+            }
+        }
+        state.set_color(id, factor);
+    }
+    Ok(state)
+}
+
+/// Runs the command.
+pub fn run(o: &Options) -> Result<(), String> {
+    if o.width == 0 || o.height == 0 {
+        return Err(format!(
+            "--width and --height must be positive (got {}x{})",
+            o.width, o.height
+        ));
+    }
+    let scene = Arc::new(crate::load_scene(&o.scene)?);
+    let state = light_state(&scene, &o.lights)?;
+    let camera = scene.cameras.get(o.camera).ok_or_else(|| {
+        format!(
+            "scene '{}' has {} camera(s); --camera {} does not exist",
+            scene.name,
+            scene.cameras.len(),
+            o.camera
+        )
+    })?;
+    let form_factors = match o.form_factors.as_str() {
+        "rays" => FormFactorMethod::Rays,
+        "hemicube" => FormFactorMethod::Hemicube {
+            resolution: o.hemicube_resolution,
+        },
+        other => return Err(format!("--form-factors {other}: expected rays or hemicube")),
+    };
+    let settings = SolverSettings {
+        form_factors,
+        max_unshot: o.max_unshot,
+        ..Default::default()
+    };
+    let ids = light_ids(&scene);
+    let meshing = Meshing::new(
+        &scene,
+        &MeshSettings {
+            target_elements: o.elements,
+            ..Default::default()
+        },
+        ids.len(),
+    )
+    .map_err(|e| e.to_string())?;
+    eprintln!(
+        "{}: {} lights, {} patches, {} elements",
+        scene.name,
+        ids.len(),
+        meshing.patches.len(),
+        meshing.elements.len()
+    );
+    let rays = RayScene::build(&scene);
+    let mut renderer = gbuffer::CpuRasterizer::new();
+    let bar = crate::progress_bar(1000, "solving (unshot fraction, log scale)");
+    let target = o.max_unshot.max(1e-12).log10();
+    let t0 = Instant::now();
+    let solution = relight_pr::solve_with(
+        &scene,
+        &meshing,
+        &rays,
+        Some(&mut renderer),
+        &settings,
+        &mut |f| {
+            let done = (f.max(1e-12).log10() / target).clamp(0.0, 1.0);
+            bar.set_position((done * 1000.0) as u64);
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    bar.finish_and_clear();
+    let solve_s = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let _ = relight_pr::relight::irradiance(&solution, &state);
+    let relight_ms = t1.elapsed().as_secs_f64() * 1e3;
+    // The view, through the relighting technique's display (element scene G-buffer).
+    renderer
+        .prepare(Arc::new(meshing.element_scene(&scene)))
+        .map_err(|e| e.to_string())?;
+    let frame = FrameRequest::from_camera(camera, o.width, o.height, &state);
+    let g = renderer
+        .render_view(&frame.view, o.width, o.height)
+        .map_err(|e| e.to_string())?;
+    let welding = relight_pr::display::Welding::new(&meshing, scene.extent());
+    let irradiance = relight_pr::relight::irradiance(&solution, &state);
+    let vertex = welding.vertex_values(&meshing, &irradiance);
+    let radiance = relight_pr::relight::radiance(&meshing, &solution, &state);
+    let glow: Vec<Vec3> = radiance
+        .iter()
+        .zip(&meshing.elements)
+        .zip(&irradiance)
+        .map(|((r, e), ir)| *r - e.albedo * *ir * std::f32::consts::FRAC_1_PI)
+        .collect();
+    let image = relight_pr::display::compose(
+        &meshing,
+        &welding,
+        &g,
+        &frame.view,
+        &irradiance,
+        &vertex,
+        &glow,
+        relight_pr::display::Shading::Smooth,
+    );
+    std::fs::create_dir_all(&o.out).map_err(|e| format!("{}: {e}", o.out.display()))?;
+    let stem = Path::new(&scene.name)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    let exr = o.out.join(format!("{stem}.exr"));
+    let png = o.out.join(format!("{stem}.png"));
+    image.write_exr(&exr).map_err(|e| e.to_string())?;
+    image
+        .write_png(&png, o.exposure)
+        .map_err(|e| e.to_string())?;
+    let lights: Vec<serde_json::Value> = ids
+        .iter()
+        .map(|&id| {
+            let (kind, index) = match id {
+                LightId::Point(i) => ("point", i),
+                LightId::Directional(i) => ("directional", i),
+                LightId::Emissive(m) => ("emissive mesh", m),
+            };
+            let e = scene_emission(&scene, id) * state.get(id).color;
+            serde_json::json!({
+                "id": id_text(id),
+                "kind": kind,
+                "index": index,
+                "name": id.label(&scene),
+                "emission": [e.x, e.y, e.z],
+                "enabled": state.get(id).enabled,
+            })
+        })
+        .collect();
+    let summary = serde_json::json!({
+        "scene": scene.name,
+        "lights": lights,
+        "sources": solution.k(),
+        "elements": meshing.elements.len(),
+        "patches": meshing.patches.len(),
+        "form_factors": o.form_factors,
+        "shots": solution.stats.shots,
+        "form_factor_rows": solution.stats.form_factor_rows,
+        "unshot_fraction": solution.stats.unshot_fraction,
+        "solve_seconds": solve_s,
+        "relight_ms": relight_ms,
+        "solution_bytes": relight_pr::solver::solution_bytes(meshing.elements.len(), meshing.patches.len(), solution.k()),
+        "camera": camera.name,
+        "width": o.width,
+        "height": o.height,
+    });
+    let json = o.out.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    scene_core::image::write_via_temp(
+        &json,
+        |path| std::fs::write(path, &text).map_err(|e| format!("{}: {e}", path.display())),
+        |e| format!("{}: {e}", json.display()),
+    )?;
+    eprintln!(
+        "solved in {solve_s:.2} s ({} shots, unshot {:.1e}); relight {relight_ms:.2} ms",
+        solution.stats.shots, solution.stats.unshot_fraction
+    );
+    println!("{}\n{}\n{}", exr.display(), png.display(), json.display());
+    Ok(())
+}

@@ -1,0 +1,62 @@
+//! `cargo xtask relight`: writes the view and a summary with the lights it was given, a
+//! switched-off light leaves the picture black, and an unknown light id is an error that
+//! lists the scene's ids.
+
+use std::process::Command;
+
+fn xtask() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_xtask"));
+    c.env("CI", "1");
+    c
+}
+
+#[test]
+fn relight_writes_the_view_and_the_summary_with_the_given_lights() {
+    let out = std::env::temp_dir().join(format!("xtask-relight-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let run = |light: &str| {
+        let o = xtask()
+            .args(["relight", "--scene", "cornell-point", "--elements", "128"])
+            .args(["--width", "32", "--height", "24", "--max-unshot", "0.01"])
+            .args(["--light", light, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        let image = scene_core::Image::read(&out.join("cornell-point.exr")).unwrap();
+        (summary, image)
+    };
+    let (summary, lit) = run("point:0=3,2,1");
+    assert_eq!(summary["lights"][0]["id"], "point:0");
+    assert_eq!(
+        summary["lights"][0]["emission"],
+        serde_json::json!([3.0, 2.0, 1.0])
+    );
+    assert!(summary["elements"].as_u64().unwrap() >= 128);
+    assert!(summary["unshot_fraction"].as_f64().unwrap() <= 0.01);
+    assert!(out.join("cornell-point.png").is_file());
+    let mean = |img: &scene_core::Image| img.mean();
+    // Red above green above blue, as the light.
+    let m = mean(&lit);
+    assert!(m.x > m.y && m.y > m.z && m.z > 0.0, "{m}");
+    let (_, dark) = run("point:0=0,0,0");
+    assert_eq!(mean(&dark), scene_core::glam::Vec3::ZERO);
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn an_unknown_light_id_lists_the_scene_s_lights() {
+    let o = xtask()
+        .args(["relight", "--scene", "corridor", "--light", "lamp=1,1,1"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("no light 'lamp'") && err.contains("point:0, point:1, point:2, point:3"),
+        "{err}"
+    );
+}
