@@ -89,42 +89,7 @@ enum Command {
     /// Radiosity relighting: mesh and solve a scene with light-tagged progressive
     /// refinement, relight it with the given light settings and write the view from a
     /// scene camera (EXR, PNG) and summary.json.
-    Relight {
-        /// Built-in scene name or a .gltf/.glb path.
-        #[arg(long, default_value = "cornell")]
-        scene: String,
-        /// Output directory.
-        #[arg(long, default_value = "out/relight")]
-        out: PathBuf,
-        /// Target element count (patches are a quarter of it).
-        #[arg(long, default_value_t = 4096)]
-        elements: usize,
-        /// Form factors: rays (closed form with ray-cast visibility) or hemicube.
-        #[arg(long, default_value = "rays")]
-        form_factors: String,
-        /// Hemicube resolution (with --form-factors hemicube).
-        #[arg(long, default_value_t = 128)]
-        hemicube_resolution: u32,
-        /// A light's emission in the scene's units: ID=R,G,B with ID point:N,
-        /// directional:N or emissive:N (a mesh index). Repeatable.
-        #[arg(long = "light")]
-        lights: Vec<String>,
-        /// Index of the scene camera to render.
-        #[arg(long, default_value_t = 0)]
-        camera: usize,
-        /// Image width.
-        #[arg(long, default_value_t = 256)]
-        width: u32,
-        /// Image height.
-        #[arg(long, default_value_t = 192)]
-        height: u32,
-        /// Stop when the unshot fraction of the emitted energy is below this.
-        #[arg(long, default_value_t = 1e-3)]
-        max_unshot: f64,
-        /// PNG exposure in stops.
-        #[arg(long, default_value_t = 0.0)]
-        exposure: f32,
-    },
+    Relight(relight::Options),
     /// Export a scene (built-in name or glTF path) as .gltf or .glb.
     ExportGltf {
         /// Built-in scene name or a .gltf/.glb path.
@@ -371,31 +336,7 @@ fn run(cli: Cli) -> Result<(), String> {
         } => reference(
             &scene, camera, width, height, spp, bounces, seed, exposure, &out,
         ),
-        Command::Relight {
-            scene,
-            out,
-            elements,
-            form_factors,
-            hemicube_resolution,
-            lights,
-            camera,
-            width,
-            height,
-            max_unshot,
-            exposure,
-        } => relight::run(&relight::Options {
-            scene,
-            out,
-            elements,
-            form_factors,
-            hemicube_resolution,
-            lights,
-            camera,
-            width,
-            height,
-            max_unshot,
-            exposure,
-        }),
+        Command::Relight(options) => relight::run(&options),
         Command::ExportGltf { scene, out } => {
             let s = load_scene(&scene)?;
             gltf_io::export(&s, &out).map_err(|e| e.to_string())?;

@@ -13,28 +13,41 @@ use scene_core::ray::RayScene;
 use scene_core::{FrameRequest, GBufferRenderer, Scene};
 
 /// The options of `xtask relight`.
+#[derive(Debug, clap::Args)]
 pub struct Options {
-    /// Built-in scene or glTF path.
+    /// Built-in scene name or a .gltf/.glb path.
+    #[arg(long, default_value = "cornell")]
     pub scene: String,
     /// Output directory.
+    #[arg(long, default_value = "out/relight")]
     pub out: std::path::PathBuf,
-    /// Target element count.
+    /// Target element count (patches are a quarter of it).
+    #[arg(long, default_value_t = 4096)]
     pub elements: usize,
-    /// `rays` or `hemicube`.
+    /// Form factors: rays (closed form with ray-cast visibility) or hemicube.
+    #[arg(long, default_value = "rays")]
     pub form_factors: String,
-    /// Hemicube resolution.
+    /// Hemicube resolution (with --form-factors hemicube).
+    #[arg(long, default_value_t = 128)]
     pub hemicube_resolution: u32,
-    /// `ID=R,G,B` settings.
+    /// A light's emission in the scene's units: ID=R,G,B with ID point:N, directional:N
+    /// or emissive:N (a mesh index). Repeatable.
+    #[arg(long = "light")]
     pub lights: Vec<String>,
-    /// Scene camera.
+    /// Index of the scene camera to render.
+    #[arg(long, default_value_t = 0)]
     pub camera: usize,
-    /// Image size.
+    /// Image width.
+    #[arg(long, default_value_t = 256)]
     pub width: u32,
-    /// Image size.
+    /// Image height.
+    #[arg(long, default_value_t = 192)]
     pub height: u32,
-    /// Stop at this unshot fraction.
+    /// Stop when the unshot fraction of the emitted energy is below this.
+    #[arg(long, default_value_t = 1e-3)]
     pub max_unshot: f64,
     /// PNG exposure in stops.
+    #[arg(long, default_value_t = 0.0)]
     pub exposure: f32,
 }
 
@@ -150,15 +163,8 @@ pub fn run(o: &Options) -> Result<(), String> {
         ..Default::default()
     };
     let ids = light_ids(&scene);
-    let meshing = Meshing::new(
-        &scene,
-        &MeshSettings {
-            target_elements: o.elements,
-            ..Default::default()
-        },
-        ids.len(),
-    )
-    .map_err(|e| e.to_string())?;
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(o.elements), ids.len())
+        .map_err(|e| e.to_string())?;
     eprintln!(
         "{}: {} lights, {} patches, {} elements",
         scene.name,
@@ -186,8 +192,9 @@ pub fn run(o: &Options) -> Result<(), String> {
     bar.finish_and_clear();
     let solve_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let _ = relight_pr::relight::irradiance(&solution, &state);
+    let irradiance = relight_pr::relight::irradiance(&solution, &state);
     let relight_ms = t1.elapsed().as_secs_f64() * 1e3;
+    let glow = relight_pr::relight::glow(&meshing, &solution, &state);
     // The view, through the relighting technique's display (element scene G-buffer).
     renderer
         .prepare(Arc::new(meshing.element_scene(&scene)))
@@ -197,15 +204,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         .render_view(&frame.view, o.width, o.height)
         .map_err(|e| e.to_string())?;
     let welding = relight_pr::display::Welding::new(&meshing, scene.extent());
-    let irradiance = relight_pr::relight::irradiance(&solution, &state);
     let vertex = welding.vertex_values(&meshing, &irradiance);
-    let radiance = relight_pr::relight::radiance(&meshing, &solution, &state);
-    let glow: Vec<Vec3> = radiance
-        .iter()
-        .zip(&meshing.elements)
-        .zip(&irradiance)
-        .map(|((r, e), ir)| *r - e.albedo * *ir * std::f32::consts::FRAC_1_PI)
-        .collect();
     let image = relight_pr::display::compose(
         &meshing,
         &welding,

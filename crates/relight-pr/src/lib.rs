@@ -11,7 +11,7 @@
 //! use scene_core::{builtin, lights::{LightId, LightState}, ray::RayScene};
 //!
 //! let scene = builtin::scene("cornell-point").unwrap();
-//! let meshing = Meshing::new(&scene, &MeshSettings { target_elements: 256, ..Default::default() }, 1).unwrap();
+//! let meshing = Meshing::new(&scene, &MeshSettings::elements(256), 1).unwrap();
 //! let rays = RayScene::build(&scene);
 //! let settings = SolverSettings { max_unshot: 0.05, visibility_samples: 4, ..Default::default() };
 //! let solution = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();

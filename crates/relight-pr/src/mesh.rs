@@ -21,6 +21,16 @@ pub struct MeshSettings {
     pub budget: MeshBudget,
 }
 
+impl MeshSettings {
+    /// Default settings aiming at `target_elements` elements.
+    pub fn elements(target_elements: usize) -> Self {
+        Self {
+            target_elements,
+            ..Default::default()
+        }
+    }
+}
+
 impl Default for MeshSettings {
     fn default() -> Self {
         Self {

@@ -55,21 +55,31 @@ pub fn irradiance(solution: &Solution, state: &LightState) -> Vec<Vec3> {
         .collect()
 }
 
-/// Each element's outgoing radiance under `state`: `albedo E / pi`, plus its emission
-/// times its light's direct factor.
-pub fn radiance(meshing: &Meshing, solution: &Solution, state: &LightState) -> Vec<Vec3> {
-    let e = irradiance(solution, state);
+/// Each element's emitted radiance under `state`: its emission times its light's direct
+/// factor (zero for non-emitters).
+pub fn glow(meshing: &Meshing, solution: &Solution, state: &LightState) -> Vec<Vec3> {
     let f = factors(solution, state);
     meshing
         .elements
         .par_iter()
-        .zip(e.par_iter())
-        .map(|(el, e)| {
-            let glow = meshing.patches[el.patch as usize]
+        .map(|el| {
+            meshing.patches[el.patch as usize]
                 .light
                 .and_then(|id| solution.source_of(id))
-                .map_or(Vec3::ZERO, |m| el.emission * f[m].0);
-            el.albedo * *e * std::f32::consts::FRAC_1_PI + glow
+                .map_or(Vec3::ZERO, |m| el.emission * f[m].0)
         })
+        .collect()
+}
+
+/// Each element's outgoing radiance under `state`: `albedo E / pi`, plus its emission
+/// times its light's direct factor ([`glow`]).
+pub fn radiance(meshing: &Meshing, solution: &Solution, state: &LightState) -> Vec<Vec3> {
+    let e = irradiance(solution, state);
+    let glow = glow(meshing, solution, state);
+    meshing
+        .elements
+        .par_iter()
+        .zip(e.par_iter().zip(glow.par_iter()))
+        .map(|(el, (e, g))| el.albedo * *e * std::f32::consts::FRAC_1_PI + *g)
         .collect()
 }

@@ -6,7 +6,6 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use glam::Vec3;
 use scene_core::ray::RayScene;
 use scene_core::{Error, FrameRequest, GBufferRenderer, Image, Scene, Technique};
 
@@ -134,18 +133,7 @@ impl Technique for RelightTechnique {
         };
         let t0 = std::time::Instant::now();
         let irradiance = relight::irradiance(&p.solution, frame.lights);
-        let factors = relight::factors(&p.solution, frame.lights);
-        let glow: Vec<Vec3> = p
-            .meshing
-            .elements
-            .iter()
-            .map(|e| {
-                p.meshing.patches[e.patch as usize]
-                    .light
-                    .and_then(|id| p.solution.source_of(id))
-                    .map_or(Vec3::ZERO, |m| e.emission * factors[m].0)
-            })
-            .collect();
+        let glow = relight::glow(&p.meshing, &p.solution, frame.lights);
         let relight_time = t0.elapsed();
         let t1 = std::time::Instant::now();
         let g = self

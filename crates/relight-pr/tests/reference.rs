@@ -27,10 +27,7 @@ fn reference(scene: &scene_core::Scene, state: &LightState) -> Image {
 
 fn relit(scene: &Arc<scene_core::Scene>, elements: usize, state: &LightState) -> Image {
     let mut t = RelightTechnique::new(
-        MeshSettings {
-            target_elements: elements,
-            ..Default::default()
-        },
+        MeshSettings::elements(elements),
         SolverSettings {
             max_unshot: 1e-3,
             visibility_samples: 8,

@@ -161,15 +161,7 @@ fn furnace(rho: f32, l: f32) -> Scene {
 fn the_furnace_converges_to_e_over_one_minus_rho() {
     for rho in [0.5f32, 0.9] {
         let scene = furnace(rho, 1.0);
-        let meshing = Meshing::new(
-            &scene,
-            &MeshSettings {
-                target_elements: 384,
-                ..Default::default()
-            },
-            1,
-        )
-        .unwrap();
+        let meshing = Meshing::new(&scene, &MeshSettings::elements(384), 1).unwrap();
         let rays = RayScene::build(&scene);
         // Without the ambient term, to the limit of the shots; with it, the remainder is
         // spread as Cohen does.
@@ -220,15 +212,7 @@ fn the_furnace_converges_to_e_over_one_minus_rho() {
 
 fn corridor_setup(elements: usize) -> (Scene, Meshing, RayScene) {
     let scene = builtin::scene("corridor").unwrap();
-    let meshing = Meshing::new(
-        &scene,
-        &MeshSettings {
-            target_elements: elements,
-            ..Default::default()
-        },
-        4,
-    )
-    .unwrap();
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(elements), 4).unwrap();
     let rays = RayScene::build(&scene);
     (scene, meshing, rays)
 }
@@ -342,15 +326,7 @@ fn relit_equals_a_re_solve_with_the_new_emissions() {
 fn no_lights_is_black_and_the_budget_is_checked_first() {
     let mut scene = builtin::scene("cornell-point").unwrap();
     scene.point_lights.clear();
-    let meshing = Meshing::new(
-        &scene,
-        &MeshSettings {
-            target_elements: 64,
-            ..Default::default()
-        },
-        1,
-    )
-    .unwrap();
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(64), 1).unwrap();
     let rays = RayScene::build(&scene);
     let s = solver::solve(
         &scene,
@@ -417,10 +393,7 @@ fn hemicube_delta_form_factors_sum_to_one() {
 /// `F_{A -> B}` by the hemicube at the centres of A's patches (area-weighted).
 fn hemicube_area_form_factor(scene: &Scene, resolution: u32) -> f64 {
     use scene_core::GBufferRenderer;
-    let settings = MeshSettings {
-        target_elements: 1024,
-        ..Default::default()
-    };
+    let settings = MeshSettings::elements(1024);
     let meshing = Meshing::new(scene, &settings, 1).unwrap();
     let mut renderer = scene_core::gbuffer::RayCastRenderer::new();
     renderer
@@ -474,15 +447,7 @@ fn hemicube_form_factors_match_howell() {
 #[test]
 fn hemicube_solutions_keep_the_furnace_s_energy() {
     let scene = furnace(0.5, 1.0);
-    let meshing = Meshing::new(
-        &scene,
-        &MeshSettings {
-            target_elements: 96,
-            ..Default::default()
-        },
-        1,
-    )
-    .unwrap();
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(96), 1).unwrap();
     let rays = RayScene::build(&scene);
     let mut renderer = scene_core::gbuffer::RayCastRenderer::new();
     let settings = SolverSettings {
@@ -524,15 +489,7 @@ fn hemicube_solutions_keep_the_furnace_s_energy() {
 }
 
 fn radiance_of(scene: &Scene, elements: usize) -> Vec<Vec3> {
-    let meshing = Meshing::new(
-        scene,
-        &MeshSettings {
-            target_elements: elements,
-            ..Default::default()
-        },
-        64,
-    )
-    .unwrap();
+    let meshing = Meshing::new(scene, &MeshSettings::elements(elements), 64).unwrap();
     let rays = RayScene::build(scene);
     let settings = SolverSettings {
         max_unshot: 1e-4,
