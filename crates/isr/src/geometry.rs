@@ -145,13 +145,8 @@ impl Screen {
     }
 }
 
-/// The centre of pixel `(x, y)` of a `width x height` image in image coordinates.
-pub fn pixel_uv(x: u32, y: u32, width: u32, height: u32) -> Vec2 {
-    Vec2::new(
-        (x as f32 + 0.5) / width as f32,
-        (y as f32 + 0.5) / height as f32,
-    )
-}
+/// The centre of a pixel in image coordinates: scene-core's [`scene_core::view::pixel_uv`].
+pub use scene_core::view::pixel_uv;
 
 /// `n` if it is a usable normal, otherwise `fallback` (a normal that cancelled in a
 /// downsample, or garbage).

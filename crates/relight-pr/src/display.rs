@@ -8,7 +8,7 @@
 
 use std::collections::HashMap;
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 use scene_core::{GBuffer, Image, View};
 
@@ -98,10 +98,7 @@ pub fn compose(
             let e = match shading {
                 Shading::Flat => irradiance[id],
                 Shading::Smooth => {
-                    let uv = Vec2::new(
-                        ((i as u32 % w) as f32 + 0.5) / w as f32,
-                        ((i as u32 / w) as f32 + 0.5) / h as f32,
-                    );
+                    let uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
                     let p = view.reconstruct_world(uv, g.depth[i]);
                     let b = barycentric(&meshing.elements[id].corners, p);
                     (0..3)

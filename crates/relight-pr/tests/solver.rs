@@ -157,6 +157,17 @@ fn furnace(rho: f32, l: f32) -> Scene {
     scene
 }
 
+/// The area-weighted mean of the red channel of per-element values.
+fn area_mean(meshing: &Meshing, values: &[Vec3]) -> f32 {
+    let total: f32 = meshing.elements.iter().map(|e| e.area).sum();
+    values
+        .iter()
+        .zip(&meshing.elements)
+        .map(|(c, e)| c.x * e.area)
+        .sum::<f32>()
+        / total
+}
+
 #[test]
 fn the_furnace_converges_to_e_over_one_minus_rho() {
     for rho in [0.5f32, 0.9] {
@@ -175,13 +186,7 @@ fn the_furnace_converges_to_e_over_one_minus_rho() {
             let s = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
             let out = relight::radiance(&meshing, &s, &LightState::default());
             let expect = 1.0 / (1.0 - rho);
-            let total: f32 = meshing.elements.iter().map(|e| e.area).sum();
-            let mean: f32 = out
-                .iter()
-                .zip(&meshing.elements)
-                .map(|(c, e)| c.x * e.area)
-                .sum::<f32>()
-                / total;
+            let mean = area_mean(&meshing, &out);
             let worst = out
                 .iter()
                 .map(|c| (c.x - expect).abs())
@@ -466,13 +471,7 @@ fn hemicube_solutions_keep_the_furnace_s_energy() {
     .unwrap();
     let out = relight::radiance(&meshing, &s, &LightState::default());
     let worst = out.iter().map(|c| (c.x - 2.0).abs()).fold(0.0f32, f32::max);
-    let total: f32 = meshing.elements.iter().map(|e| e.area).sum();
-    let mean: f32 = out
-        .iter()
-        .zip(&meshing.elements)
-        .map(|(c, e)| c.x * e.area)
-        .sum::<f32>()
-        / total;
+    let mean = area_mean(&meshing, &out);
     eprintln!(
         "hemicube furnace: mean {mean:.4}, worst element {worst:.4} off 2.0 ({} shots)",
         s.stats.shots

@@ -343,10 +343,7 @@ fn raycast(
         .map(|y| {
             (0..w)
                 .map(|x| {
-                    let uv = Vec2::new(
-                        (x as f32 + 0.5) / width as f32,
-                        (y as f32 + 0.5) / height as f32,
-                    );
+                    let uv = crate::view::pixel_uv(x as u32, y as u32, width, height);
                     let (o, d) = view.ray(uv);
                     let t_min = match view.projection {
                         crate::view::Projection::Perspective { .. } => {
@@ -425,10 +422,7 @@ mod tests {
             }
             // Normals face the viewer and are unit; depth is inside (near/far, 1].
             let p = view.reconstruct_world(
-                glam::Vec2::new(
-                    ((i % 32) as f32 + 0.5) / 32.0,
-                    ((i / 32) as f32 + 0.5) / 32.0,
-                ),
+                crate::view::pixel_uv(i as u32 % 32, i as u32 / 32, 32, 32),
                 g.depth[i],
             );
             assert!((g.normal[i].length() - 1.0).abs() < 1e-4);
@@ -440,10 +434,7 @@ mod tests {
         // albedo is that triangle's material's.
         let offsets = scene.mesh_offsets();
         for i in (0..g.len()).filter(|&i| !g.is_background(i)) {
-            let uv = glam::Vec2::new(
-                ((i % 32) as f32 + 0.5) / 32.0,
-                ((i / 32) as f32 + 0.5) / 32.0,
-            );
+            let uv = crate::view::pixel_uv(i as u32 % 32, i as u32 / 32, 32, 32);
             let p = view.reconstruct_world(uv, g.depth[i]);
             let r = scene.triangle_ref(&offsets, g.triangle_id[i]).unwrap();
             let mesh = &scene.meshes[r.mesh as usize];

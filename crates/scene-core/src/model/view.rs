@@ -56,6 +56,17 @@ pub struct View {
     pub far: f32,
 }
 
+/// The centre of pixel `(x, y)` of a `width x height` image in image coordinates
+/// (`(0, 0)` top-left, `(1, 1)` bottom-right): where every G-buffer renderer samples and
+/// every image-space pass reconstructs.
+#[inline]
+pub fn pixel_uv(x: u32, y: u32, width: u32, height: u32) -> Vec2 {
+    Vec2::new(
+        (x as f32 + 0.5) / width as f32,
+        (y as f32 + 0.5) / height as f32,
+    )
+}
+
 /// Far-plane frustum vectors of eq. 24: world-space position of the point seen at image
 /// coordinates `(u, v)` with linear depth `d` is `eye + (o + u * du + v * dv) * d`.
 #[derive(Clone, Copy, Debug, PartialEq)]
