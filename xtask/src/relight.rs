@@ -7,10 +7,10 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use glam::Vec3;
-use relight_pr::{FormFactorMethod, MeshSettings, Meshing, SolverSettings};
+use relight_pr::direct::DirectLight;
+use relight_pr::{FormFactorMethod, MeshSettings, RelightTechnique, SolverSettings};
 use scene_core::lights::{LightId, LightState, light_ids};
-use scene_core::ray::RayScene;
-use scene_core::{FrameRequest, GBufferRenderer, Scene};
+use scene_core::{FrameRequest, Scene, Technique};
 
 /// The options of `xtask relight`.
 #[derive(Debug, clap::Args)]
@@ -46,6 +46,16 @@ pub struct Options {
     /// Stop when the unshot fraction of the emitted energy is below this.
     #[arg(long, default_value_t = 1e-3)]
     pub max_unshot: f64,
+    /// Direct light at display: pixels (gathered per pixel, the default) or elements
+    /// (interpolated from the solution like the indirect light, the paper's display).
+    #[arg(long, default_value = "pixels")]
+    pub direct: String,
+    /// Points per pixel footprint for the direct light (with --direct pixels).
+    #[arg(long, default_value_t = 8)]
+    pub subpixels: u32,
+    /// Visibility rays per footprint point for each emissive source (with --direct pixels).
+    #[arg(long, default_value_t = 4)]
+    pub emitter_rays: u32,
     /// PNG exposure in stops.
     #[arg(long, default_value_t = 0.0)]
     pub exposure: f32,
@@ -162,58 +172,44 @@ pub fn run(o: &Options) -> Result<(), String> {
         max_unshot: o.max_unshot,
         ..Default::default()
     };
+    let direct = match o.direct.as_str() {
+        "pixels" => DirectLight::PerPixel {
+            subpixels: o.subpixels,
+            emitter_rays: o.emitter_rays,
+        },
+        "elements" => DirectLight::Elements,
+        other => return Err(format!("--direct {other}: expected pixels or elements")),
+    };
     let ids = light_ids(&scene);
-    let meshing = Meshing::new(&scene, &MeshSettings::elements(o.elements), ids.len())
+    let mut technique = RelightTechnique::new(
+        MeshSettings::elements(o.elements),
+        settings,
+        Box::new(gbuffer::CpuRasterizer::new()),
+    );
+    technique.direct = direct;
+    let bar = crate::progress_bar(1000, "solving (unshot fraction, log scale)");
+    let target = o.max_unshot.max(1e-12).log10();
+    let t0 = Instant::now();
+    technique
+        .prepare_with_progress(scene.clone(), &mut |f| {
+            let done = (f.max(1e-12).log10() / target).clamp(0.0, 1.0);
+            bar.set_position((done * 1000.0) as u64);
+        })
         .map_err(|e| e.to_string())?;
+    bar.finish_and_clear();
+    let solve_s = t0.elapsed().as_secs_f64();
+    let frame = FrameRequest::from_camera(camera, o.width, o.height, &state);
+    let image = technique.render(&frame).map_err(|e| e.to_string())?;
+    let timings = technique.last_timings();
+    let relight_ms = timings.relight.as_secs_f64() * 1e3;
+    let prepared = technique.prepared().expect("prepared above");
+    let (meshing, solution) = (&prepared.meshing, &prepared.solution);
     eprintln!(
         "{}: {} lights, {} patches, {} elements",
         scene.name,
         ids.len(),
         meshing.patches.len(),
         meshing.elements.len()
-    );
-    let rays = RayScene::build(&scene);
-    let mut renderer = gbuffer::CpuRasterizer::new();
-    let bar = crate::progress_bar(1000, "solving (unshot fraction, log scale)");
-    let target = o.max_unshot.max(1e-12).log10();
-    let t0 = Instant::now();
-    let solution = relight_pr::solve_with(
-        &scene,
-        &meshing,
-        &rays,
-        Some(&mut renderer),
-        &settings,
-        &mut |f| {
-            let done = (f.max(1e-12).log10() / target).clamp(0.0, 1.0);
-            bar.set_position((done * 1000.0) as u64);
-        },
-    )
-    .map_err(|e| e.to_string())?;
-    bar.finish_and_clear();
-    let solve_s = t0.elapsed().as_secs_f64();
-    let t1 = Instant::now();
-    let irradiance = relight_pr::relight::irradiance(&solution, &state);
-    let relight_ms = t1.elapsed().as_secs_f64() * 1e3;
-    let glow = relight_pr::relight::glow(&meshing, &solution, &state);
-    // The view, through the relighting technique's display (element scene G-buffer).
-    renderer
-        .prepare(Arc::new(meshing.element_scene(&scene)))
-        .map_err(|e| e.to_string())?;
-    let frame = FrameRequest::from_camera(camera, o.width, o.height, &state);
-    let g = renderer
-        .render_view(&frame.view, o.width, o.height)
-        .map_err(|e| e.to_string())?;
-    let welding = relight_pr::display::Welding::new(&meshing, scene.extent());
-    let vertex = welding.vertex_values(&meshing, &irradiance);
-    let image = relight_pr::display::compose(
-        &meshing,
-        &welding,
-        &g,
-        &frame.view,
-        &irradiance,
-        &vertex,
-        &glow,
-        relight_pr::display::Shading::Smooth,
     );
     std::fs::create_dir_all(&o.out).map_err(|e| format!("{}: {e}", o.out.display()))?;
     let stem = Path::new(&scene.name)
@@ -257,6 +253,9 @@ pub fn run(o: &Options) -> Result<(), String> {
         "unshot_fraction": solution.stats.unshot_fraction,
         "solve_seconds": solve_s,
         "relight_ms": relight_ms,
+        "direct": o.direct,
+        "direct_gather_ms": timings.direct.as_secs_f64() * 1e3,
+        "display_ms": timings.display.as_secs_f64() * 1e3,
         "solution_bytes": relight_pr::solver::solution_bytes(meshing.elements.len(), meshing.patches.len(), solution.k()),
         "camera": camera.name,
         "width": o.width,

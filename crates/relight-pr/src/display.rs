@@ -10,7 +10,11 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 use rayon::prelude::*;
+use scene_core::ray::RayScene;
+use scene_core::sampling::{hash_seed, r2};
 use scene_core::{GBuffer, Image, View};
+
+use crate::direct::DirectGather;
 
 use crate::mesh::Meshing;
 
@@ -73,9 +77,80 @@ pub enum Shading {
     Flat,
 }
 
+/// Direct light gathered per pixel, to be weighted per source.
+#[derive(Clone, Copy, Debug)]
+pub struct PixelDirect<'a> {
+    /// Irradiance from each source at each pixel, pixel-major: `values[i * k + m]`
+    /// ([`pixel_direct`]).
+    pub values: &'a [Vec3],
+    /// Each source's direct factor under the frame's light state.
+    pub factors: &'a [Vec3],
+}
+
+/// The direct irradiance from every source of `gather` at every pixel of `g` (a G-buffer
+/// seen from `view`), averaged over `subpixels` stratified points of the pixel's footprint
+/// (the pixel's sub-rays met with the plane of its surface point and normal; a sub-ray
+/// nearly parallel to the plane keeps the centre point), pixel-major (`i * k + m`); zero on
+/// background. Deterministic: a pixel's sample pattern is seeded by its index.
+pub fn pixel_direct(
+    gather: &DirectGather,
+    rays: &RayScene,
+    g: &GBuffer,
+    view: &View,
+    subpixels: u32,
+) -> Vec<Vec3> {
+    let k = gather.k();
+    let (w, h) = (g.width, g.height);
+    let mut out = vec![Vec3::ZERO; g.len() * k];
+    if k == 0 {
+        return out;
+    }
+    let subpixels = subpixels.max(1) as usize;
+    let pixel = glam::Vec2::new(1.0 / w as f32, 1.0 / h as f32);
+    out.par_chunks_mut(k).enumerate().for_each_init(
+        || Vec::with_capacity(subpixels),
+        |points, (i, o)| {
+            if g.is_background(i) {
+                return;
+            }
+            let centre_uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
+            let centre = view.reconstruct_world(centre_uv, g.depth[i]);
+            let n = g.normal[i];
+            // Where the ray through `uv` meets the pixel's plane (none when grazing).
+            let on_plane = |uv: glam::Vec2| {
+                let (origin, dir) = view.ray(uv);
+                let den = n.dot(dir);
+                let t = n.dot(centre - origin) / den;
+                (den.abs() > 1e-3 && t.is_finite() && t > 0.0).then(|| origin + dir * t)
+            };
+            let offset = r2(hash_seed(i as u64, 0xd1ec7, 0), glam::Vec2::ZERO);
+            points.clear();
+            points.push(centre);
+            if subpixels > 1 {
+                points.clear();
+                for s in 0..subpixels {
+                    let uv = centre_uv + (r2(s as u64, offset) - 0.5) * pixel;
+                    points.push(on_plane(uv).unwrap_or(centre));
+                }
+            }
+            let corners = [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)]
+                .map(|(a, b)| on_plane(centre_uv + glam::Vec2::new(a, b) * pixel));
+            let quad = match corners {
+                [Some(a), Some(b), Some(c), Some(d)] if subpixels > 1 => {
+                    Some([[a, b, c], [a, c, d]])
+                }
+                _ => None,
+            };
+            gather.mean_over(rays, points, quad.as_ref().map(|q| &q[..]), n, i as u64, o);
+        },
+    );
+    out
+}
+
 /// The image of `g` (a G-buffer of the element scene seen from `view`): see the module
 /// documentation. `irradiance` and `glow` are per element; `vertex_irradiance` per welded
-/// vertex (used with [`Shading::Smooth`]).
+/// vertex (used with [`Shading::Smooth`]). With `direct`, the element values must hold
+/// the indirect light only, and each pixel adds its own direct light.
 #[allow(clippy::too_many_arguments)]
 pub fn compose(
     meshing: &Meshing,
@@ -86,6 +161,7 @@ pub fn compose(
     vertex_irradiance: &[Vec3],
     glow: &[Vec3],
     shading: Shading,
+    direct: Option<PixelDirect<'_>>,
 ) -> Image {
     let (w, h) = (g.width, g.height);
     let pixels = (0..g.len())
@@ -95,7 +171,7 @@ pub fn compose(
             if g.is_background(i) || id >= meshing.elements.len() {
                 return Vec3::ZERO;
             }
-            let e = match shading {
+            let mut e = match shading {
                 Shading::Flat => irradiance[id],
                 Shading::Smooth => {
                     let uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
@@ -108,6 +184,12 @@ pub fn compose(
                         .sum()
                 }
             };
+            if let Some(d) = direct {
+                let k = d.factors.len();
+                for (v, f) in d.values[i * k..i * k + k].iter().zip(d.factors) {
+                    e += *v * *f;
+                }
+            }
             let out = g.albedo[i].truncate() * e * std::f32::consts::FRAC_1_PI + glow[id];
             if out.is_finite() { out } else { Vec3::ZERO }
         })

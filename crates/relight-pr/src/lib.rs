@@ -30,6 +30,7 @@
 //! `scene_core::Technique`). `docs/relight-pr.md` has the design, the tests
 //! and the measured figures.
 
+pub mod direct;
 pub mod display;
 pub mod form_factor;
 pub mod mesh;

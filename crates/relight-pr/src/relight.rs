@@ -29,11 +29,25 @@ pub fn factors(solution: &Solution, state: &LightState) -> Vec<(Vec3, Vec3)> {
 /// Each element's irradiance under `state`:
 /// `E_j = sum_m d_m E_direct,jm + i_m (E_indirect,jm + ambient_m)`.
 pub fn irradiance(solution: &Solution, state: &LightState) -> Vec<Vec3> {
+    weighted(solution, state, true)
+}
+
+/// Each element's irradiance under `state` without the direct part,
+/// `sum_m i_m (E_indirect,jm + ambient_m)`: what the display interpolates when the direct
+/// light is gathered per pixel ([`crate::direct::DirectLight::PerPixel`]).
+pub fn indirect_irradiance(solution: &Solution, state: &LightState) -> Vec<Vec3> {
+    weighted(solution, state, false)
+}
+
+fn weighted(solution: &Solution, state: &LightState, with_direct: bool) -> Vec<Vec3> {
     let k = solution.k();
     if k == 0 {
         return vec![Vec3::ZERO; solution.direct.len()];
     }
-    let f = factors(solution, state);
+    let mut f = factors(solution, state);
+    if !with_direct {
+        f.iter_mut().for_each(|(d, _)| *d = Vec3::ZERO);
+    }
     let ambient: Vec<Vec3> = solution
         .ambient
         .iter()

@@ -13,11 +13,12 @@ use std::time::{Duration, Instant};
 
 use glam::Vec3;
 use rayon::prelude::*;
-use scene_core::lights::{LightId, falloff, light_ids};
+use scene_core::lights::{LightId, light_ids};
 use scene_core::ray::RayScene;
 use scene_core::{Scene, luminance};
 
 use crate::RelightError;
+use crate::direct;
 use crate::form_factor::point_to_triangle;
 use crate::mesh::Meshing;
 
@@ -306,46 +307,29 @@ fn solve_tagged(
     let extent = scene.extent();
     for (m, source) in sources.iter().enumerate() {
         for &id in &source.lights {
+            // The element's mean irradiance (visibility at its four receiver points).
             let shoot: Box<dyn Fn(&crate::mesh::Element) -> Vec3 + Sync> = match id {
                 LightId::Point(i) => {
-                    let l = scene.point_lights[i as usize].clone();
+                    let l = &scene.point_lights[i as usize];
                     Box::new(move |e| {
-                        let mut sum = Vec3::ZERO;
-                        for x in e.receiver_points() {
-                            let d = l.position - x;
-                            let dist = d.length();
-                            if dist.is_nan() || dist <= 0.0 {
-                                continue;
-                            }
-                            let w = d / dist;
-                            let cos = e.normal.dot(w);
-                            if cos <= 0.0 {
-                                continue;
-                            }
-                            let eps = 1e-4 * dist.max(1e-6);
-                            if rays.occluded(x + e.normal * eps, w, eps, dist - eps) {
-                                continue;
-                            }
-                            sum += l.intensity * (falloff(l.radius, dist) * cos);
-                        }
-                        sum * 0.25
+                        direct::mean_from_point(
+                            l,
+                            rays,
+                            &[e.corners],
+                            e.normal,
+                            e.area,
+                            &e.receiver_points(),
+                        )
                     })
                 }
                 LightId::Directional(i) => {
-                    let l = scene.directional_lights[i as usize].clone();
-                    let w = -l.direction.normalize_or_zero();
+                    let l = &scene.directional_lights[i as usize];
                     Box::new(move |e| {
-                        let cos = e.normal.dot(w);
-                        if cos <= 0.0 || w == Vec3::ZERO {
-                            return Vec3::ZERO;
-                        }
-                        let eps = 1e-4 * extent;
-                        let seen = e
-                            .receiver_points()
+                        e.receiver_points()
                             .iter()
-                            .filter(|&&x| !rays.occluded(x + e.normal * eps, w, eps, 4.0 * extent))
-                            .count();
-                        l.irradiance * (cos * seen as f32 * 0.25)
+                            .map(|&x| direct::from_directional(l, rays, x, e.normal, extent))
+                            .sum::<Vec3>()
+                            * 0.25
                     })
                 }
                 LightId::Emissive(_) => continue,

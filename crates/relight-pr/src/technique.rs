@@ -9,7 +9,8 @@ use std::time::Duration;
 use scene_core::ray::RayScene;
 use scene_core::{Error, FrameRequest, GBufferRenderer, Image, Scene, Technique};
 
-use crate::display::{Shading, Welding, compose};
+use crate::direct::{DirectGather, DirectLight};
+use crate::display::{PixelDirect, Shading, Welding, compose, pixel_direct};
 use crate::mesh::{MeshSettings, Meshing};
 use crate::relight;
 use crate::solver::{self, Solution, SolverSettings};
@@ -25,6 +26,8 @@ pub struct Prepared {
     pub solution: Solution,
     /// Welded element corners for smooth display.
     pub welding: Welding,
+    /// The scene's rays (per-pixel direct light).
+    pub rays: RayScene,
 }
 
 /// Times of the last frame.
@@ -34,8 +37,20 @@ pub struct FrameTimings {
     pub relight: Duration,
     /// The G-buffer of the element scene.
     pub gbuffer: Duration,
+    /// The per-pixel direct light of every source ([`DirectLight::PerPixel`]); zero when
+    /// the view and size are those of the previous frame (the gather is reused).
+    pub direct: Duration,
     /// Vertex averaging and per-pixel interpolation.
     pub display: Duration,
+}
+
+/// The per-pixel direct light of one view.
+#[derive(Debug)]
+struct DirectCache {
+    view: scene_core::View,
+    size: (u32, u32),
+    settings: DirectLight,
+    values: Vec<glam::Vec3>,
 }
 
 /// Radiosity relighting as a [`Technique`].
@@ -46,8 +61,12 @@ pub struct RelightTechnique {
     pub solver: SolverSettings,
     /// Display shading.
     pub shading: Shading,
+    /// Where the display's direct light comes from. Default per pixel
+    /// ([`DirectLight::default`]).
+    pub direct: DirectLight,
     renderer: Box<dyn GBufferRenderer + Send>,
     prepared: Option<Prepared>,
+    cache: Option<DirectCache>,
     timings: FrameTimings,
     name: String,
 }
@@ -73,8 +92,10 @@ impl RelightTechnique {
             mesh,
             solver,
             shading: Shading::Smooth,
+            direct: DirectLight::default(),
             renderer,
             prepared: None,
+            cache: None,
             timings: FrameTimings::default(),
             name: "relight".into(),
         }
@@ -91,6 +112,39 @@ impl RelightTechnique {
         self.prepared.as_ref()
     }
 
+    /// [`Technique::prepare`] reporting the solver's unshot fraction to `progress` after
+    /// every shot.
+    pub fn prepare_with_progress(
+        &mut self,
+        scene: Arc<Scene>,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<(), Error> {
+        self.prepared = None;
+        self.cache = None;
+        let k = solver::sources(&scene, &self.solver.banks)?.len();
+        let meshing = Meshing::new(&scene, &self.mesh, k)?;
+        let rays = RayScene::build(&scene);
+        let solution = solver::solve_with(
+            &scene,
+            &meshing,
+            &rays,
+            Some(self.renderer.as_mut()),
+            &self.solver,
+            progress,
+        )?;
+        self.renderer
+            .prepare(Arc::new(meshing.element_scene(&scene)))?;
+        let welding = Welding::new(&meshing, scene.extent());
+        self.prepared = Some(Prepared {
+            scene,
+            meshing,
+            solution,
+            welding,
+            rays,
+        });
+        Ok(())
+    }
+
     /// The times of the last frame.
     pub fn last_timings(&self) -> FrameTimings {
         self.timings
@@ -103,28 +157,7 @@ impl Technique for RelightTechnique {
     }
 
     fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
-        self.prepared = None;
-        let k = solver::sources(&scene, &self.solver.banks)?.len();
-        let meshing = Meshing::new(&scene, &self.mesh, k)?;
-        let rays = RayScene::build(&scene);
-        let solution = solver::solve_with(
-            &scene,
-            &meshing,
-            &rays,
-            Some(self.renderer.as_mut()),
-            &self.solver,
-            &mut |_| {},
-        )?;
-        self.renderer
-            .prepare(Arc::new(meshing.element_scene(&scene)))?;
-        let welding = Welding::new(&meshing, scene.extent());
-        self.prepared = Some(Prepared {
-            scene,
-            meshing,
-            solution,
-            welding,
-        });
-        Ok(())
+        self.prepare_with_progress(scene, &mut |_| {})
     }
 
     fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
@@ -132,18 +165,54 @@ impl Technique for RelightTechnique {
             return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
         };
         let t0 = std::time::Instant::now();
-        let irradiance = relight::irradiance(&p.solution, frame.lights);
+        let irradiance = match self.direct {
+            DirectLight::Elements => relight::irradiance(&p.solution, frame.lights),
+            DirectLight::PerPixel { .. } => relight::indirect_irradiance(&p.solution, frame.lights),
+        };
         let glow = relight::glow(&p.meshing, &p.solution, frame.lights);
+        let factors: Vec<glam::Vec3> = relight::factors(&p.solution, frame.lights)
+            .into_iter()
+            .map(|(d, _)| d)
+            .collect();
         let relight_time = t0.elapsed();
         let t1 = std::time::Instant::now();
         let g = self
             .renderer
             .render_view(&frame.view, frame.width, frame.height)?;
         let gbuffer_time = t1.elapsed();
+        let t3 = std::time::Instant::now();
+        if let DirectLight::PerPixel {
+            subpixels,
+            emitter_rays,
+        } = self.direct
+        {
+            let size = (frame.width, frame.height);
+            let fresh = self.cache.as_ref().is_some_and(|c| {
+                c.view == frame.view && c.size == size && c.settings == self.direct
+            });
+            if !fresh {
+                let gather =
+                    DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, emitter_rays);
+                self.cache = Some(DirectCache {
+                    view: frame.view,
+                    size,
+                    settings: self.direct,
+                    values: pixel_direct(&gather, &p.rays, &g, &frame.view, subpixels),
+                });
+            }
+        }
+        let direct_time = t3.elapsed();
         let t2 = std::time::Instant::now();
         let vertex = match self.shading {
             Shading::Smooth => p.welding.vertex_values(&p.meshing, &irradiance),
             Shading::Flat => Vec::new(),
+        };
+        let direct = match (self.direct, &self.cache) {
+            (DirectLight::PerPixel { .. }, Some(c)) => Some(PixelDirect {
+                values: &c.values,
+                factors: &factors,
+            }),
+            _ => None,
         };
         let image = compose(
             &p.meshing,
@@ -154,10 +223,12 @@ impl Technique for RelightTechnique {
             &vertex,
             &glow,
             self.shading,
+            direct,
         );
         self.timings = FrameTimings {
             relight: relight_time,
             gbuffer: gbuffer_time,
+            direct: direct_time,
             display: t2.elapsed(),
         };
         Ok(image)

@@ -93,6 +93,16 @@ pub struct RayScene {
     pub build_time: Duration,
 }
 
+impl std::fmt::Debug for RayScene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RayScene")
+            .field("triangles", &self.count)
+            .field("scale", &self.scale)
+            .field("build_time", &self.build_time)
+            .finish_non_exhaustive()
+    }
+}
+
 /// The power of two that brings a scene of diagonal `diagonal` to about 10^4 units.
 ///
 /// obvhs' wide-BVH traversal clamps every node's entry distance to at least 1e-4 (an

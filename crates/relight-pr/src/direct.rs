@@ -1,0 +1,278 @@
+//! Direct light at a point, shared by the solver's first shots and the display's
+//! per-pixel gather.
+//!
+//! The solver shoots point and directional lights analytically onto the elements' receiver
+//! points (figure 2's first step, with ray-cast visibility); the same functions evaluated at
+//! each pixel's reconstructed position give the direct light at full image resolution
+//! ([`DirectLight::PerPixel`]). The solution keeps direct and indirect apart (section 2.4),
+//! so the display can take the direct part per pixel and the indirect part from the
+//! elements: the finite-element mesh then only carries the smooth, low-frequency light,
+//! and shadow edges and hot spots are exact. This goes beyond the paper, whose display
+//! interpolates the whole radiosity; `docs/relight-pr.md` measures both.
+
+use glam::Vec3;
+use scene_core::lights::{LightId, falloff};
+use scene_core::ray::RayScene;
+use scene_core::{DirectionalLight, PointLight, Scene};
+
+use crate::form_factor::point_to_triangle;
+use crate::mesh::Meshing;
+use crate::solver::Source;
+
+/// How the display gets the direct light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DirectLight {
+    /// From the elements, interpolated like the indirect light (the paper's display).
+    Elements,
+    /// Gathered at every pixel, averaged over `subpixels` stratified points of the pixel's
+    /// footprint on its surface's plane (what a pixel of the reference averages; a point
+    /// light's hot spot is narrower than a pixel). At each point: one shadow ray per point
+    /// or directional light; for each emissive source, the closed-form form factor of each
+    /// emitting patch times the visible fraction of `emitter_rays` rays shared among its
+    /// patches (at least one each). Computed once per view; a relight at the same view
+    /// only reweights.
+    PerPixel {
+        /// Points per pixel footprint.
+        subpixels: u32,
+        /// Visibility rays per footprint point for each emissive source.
+        emitter_rays: u32,
+    },
+}
+
+impl Default for DirectLight {
+    fn default() -> Self {
+        DirectLight::PerPixel {
+            subpixels: 8,
+            emitter_rays: 4,
+        }
+    }
+}
+
+/// Irradiance at `x` (unit normal `n`) from point light `l`: `I cos / d^2` (or the windowed
+/// falloff), zero behind the surface or when the segment to the light is blocked.
+pub fn from_point(l: &PointLight, rays: &RayScene, x: Vec3, n: Vec3) -> Vec3 {
+    let d = l.position - x;
+    let dist = d.length();
+    if dist.is_nan() || dist <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let w = d / dist;
+    let cos = n.dot(w);
+    if cos.is_nan() || cos <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let eps = 1e-4 * dist.max(1e-6);
+    if rays.occluded(x + n * eps, w, eps, dist - eps) {
+        return Vec3::ZERO;
+    }
+    l.intensity * (falloff(l.radius, dist) * cos)
+}
+
+/// The solid angle of triangle `t` seen from `p` (Van Oosterom and Strackee's formula),
+/// in steradians; zero for a degenerate triangle or `p` in its plane.
+pub fn solid_angle(p: Vec3, t: &[Vec3; 3]) -> f32 {
+    let (a, b, c) = (t[0] - p, t[1] - p, t[2] - p);
+    let (la, lb, lc) = (a.length(), b.length(), c.length());
+    let num = a.dot(b.cross(c)).abs();
+    let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+    let omega = 2.0 * num.atan2(den);
+    if omega.is_finite() {
+        omega.max(0.0)
+    } else {
+        0.0
+    }
+}
+
+/// The mean irradiance over a planar surface piece (the triangles `piece`, unit normal
+/// `n`, total area `area`) from point light `l`: for the inverse-square falloff, exactly
+/// `I Omega / A` (the power an isotropic source sends through the piece's solid angle,
+/// cosines included), times the fraction of `points` (on the piece) that see the light;
+/// for a windowed falloff, the mean of [`from_point`] at `points`. The closed form keeps a
+/// light a few millimetres from a wall from losing (or inventing) the energy of its hot
+/// spot between sample points. Used for elements (the solver's first shot) and for pixel
+/// footprints (the display).
+pub fn mean_from_point(
+    l: &PointLight,
+    rays: &RayScene,
+    piece: &[[Vec3; 3]],
+    n: Vec3,
+    area: f32,
+    points: &[Vec3],
+) -> Vec3 {
+    if points.is_empty() {
+        return Vec3::ZERO;
+    }
+    if l.radius.is_some() {
+        return points
+            .iter()
+            .map(|&x| from_point(l, rays, x, n))
+            .sum::<Vec3>()
+            / points.len() as f32;
+    }
+    let centre = piece[0].iter().sum::<Vec3>() / 3.0;
+    if n.dot(l.position - centre) <= 0.0 || area.is_nan() || area <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let seen = points
+        .iter()
+        .filter(|&&x| {
+            let d = l.position - x;
+            let dist = d.length();
+            let eps = 1e-4 * dist.max(1e-6);
+            dist > 0.0 && !rays.occluded(x + n * eps, d / dist, eps, dist - eps)
+        })
+        .count();
+    let omega: f32 = piece.iter().map(|t| solid_angle(l.position, t)).sum();
+    let e = l.intensity * (omega / area * seen as f32 / points.len() as f32);
+    if e.is_finite() { e } else { Vec3::ZERO }
+}
+
+/// Irradiance at `x` (unit normal `n`) from directional light `l` in a scene of size
+/// `extent`: `E cos`, zero when the ray towards the light hits anything.
+pub fn from_directional(
+    l: &DirectionalLight,
+    rays: &RayScene,
+    x: Vec3,
+    n: Vec3,
+    extent: f32,
+) -> Vec3 {
+    let w = -l.direction.normalize_or_zero();
+    let cos = n.dot(w);
+    if cos.is_nan() || cos <= 0.0 || w == Vec3::ZERO {
+        return Vec3::ZERO;
+    }
+    let eps = 1e-4 * extent;
+    if rays.occluded(x + n * eps, w, eps, 4.0 * extent) {
+        return Vec3::ZERO;
+    }
+    l.irradiance * cos
+}
+
+/// One emitting patch: its triangle, the normal of its emitting side and its radiosity
+/// (`pi` times its emitted radiance).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Emitter {
+    corners: [Vec3; 3],
+    normal: Vec3,
+    radiosity: Vec3,
+}
+
+/// The direct light of every source of a solution, ready to be evaluated at any point.
+#[derive(Clone, Debug)]
+pub struct DirectGather {
+    /// Per source: its point lights, directional lights and emitting patches.
+    sources: Vec<(Vec<PointLight>, Vec<DirectionalLight>, Vec<Emitter>)>,
+    extent: f32,
+    samples: u32,
+}
+
+impl DirectGather {
+    /// The direct light of `sources` in `scene` (emitters as `meshing`'s patches), with
+    /// `samples` visibility rays per point for each emissive source (at least one per
+    /// emitting patch).
+    pub fn new(scene: &Scene, meshing: &Meshing, sources: &[Source], samples: u32) -> Self {
+        let sources = sources
+            .iter()
+            .map(|s| {
+                let mut points = Vec::new();
+                let mut suns = Vec::new();
+                let mut emitters = Vec::new();
+                for &id in &s.lights {
+                    match id {
+                        LightId::Point(i) => points.push(scene.point_lights[i as usize].clone()),
+                        LightId::Directional(i) => {
+                            suns.push(scene.directional_lights[i as usize].clone())
+                        }
+                        LightId::Emissive(_) => {
+                            for p in meshing.patches.iter().filter(|p| p.light == Some(id)) {
+                                let e = meshing.elements[p.first_element as usize].emission;
+                                emitters.push(Emitter {
+                                    corners: p.corners,
+                                    normal: p.normal,
+                                    radiosity: e * std::f32::consts::PI,
+                                });
+                            }
+                        }
+                    }
+                }
+                (points, suns, emitters)
+            })
+            .collect();
+        Self {
+            sources,
+            extent: scene.extent(),
+            samples: samples.max(1),
+        }
+    }
+
+    /// Number of sources.
+    pub fn k(&self) -> usize {
+        self.sources.len()
+    }
+
+    /// The mean irradiance from each source over a surface piece with unit normal `n`,
+    /// written to `out` (length k): `points` are stratified points on the piece, and
+    /// `piece`, when given, its exact outline as triangles (point lights then use
+    /// [`mean_from_point`]'s closed form). `seed` fixes the sample pattern on the emitters.
+    pub fn mean_over(
+        &self,
+        rays: &RayScene,
+        points: &[Vec3],
+        piece: Option<&[[Vec3; 3]]>,
+        n: Vec3,
+        seed: u64,
+        out: &mut [Vec3],
+    ) {
+        // Off the surface by the reconstruction's rounding, relative to the scene.
+        let lift = n * (2e-5 * self.extent);
+        let inv = 1.0 / points.len().max(1) as f32;
+        for (m, (lights, suns, emitters)) in self.sources.iter().enumerate() {
+            let mut e = Vec3::ZERO;
+            for l in lights {
+                e += match piece {
+                    Some(piece) => {
+                        let area: f32 = piece
+                            .iter()
+                            .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
+                            .sum();
+                        let lifted: Vec<[Vec3; 3]> =
+                            piece.iter().map(|t| t.map(|c| c + lift)).collect();
+                        let at: Vec<Vec3> = points.iter().map(|&x| x + lift).collect();
+                        mean_from_point(l, rays, &lifted, n, area, &at)
+                    }
+                    None => {
+                        points
+                            .iter()
+                            .map(|&x| from_point(l, rays, x + lift, n))
+                            .sum::<Vec3>()
+                            * inv
+                    }
+                };
+            }
+            for (s, &x) in points.iter().enumerate() {
+                let x = x + lift;
+                for l in suns {
+                    e += from_directional(l, rays, x, n, self.extent) * inv;
+                }
+                if !emitters.is_empty() {
+                    let per = (self.samples as usize).div_ceil(emitters.len()) as u32;
+                    for (q, em) in emitters.iter().enumerate() {
+                        let f = point_to_triangle(
+                            x,
+                            n,
+                            &em.corners,
+                            em.normal,
+                            Some(rays),
+                            per,
+                            seed.wrapping_mul(0x9e37_79b9_7f4a_7c15)
+                                ^ ((s as u64) << 32)
+                                ^ q as u64,
+                        );
+                        e += em.radiosity * (f * inv);
+                    }
+                }
+            }
+            out[m] = if e.is_finite() { e } else { Vec3::ZERO };
+        }
+    }
+}
