@@ -67,6 +67,41 @@ impl Welding {
     }
 }
 
+impl Welding {
+    /// The per-source solution at the welded vertices (each the area-weighted mean of its
+    /// elements' values, source by source), vertex-major `v * k + m` like
+    /// [`crate::Solution`]: what the hardware display interpolates per light
+    /// ([`crate::gpu::GpuRelight::display`]). Direct and indirect apart.
+    pub fn vertex_solution(
+        &self,
+        meshing: &Meshing,
+        solution: &crate::Solution,
+    ) -> (Vec<Vec3>, Vec<Vec3>) {
+        let k = solution.k();
+        let mut direct = vec![Vec3::ZERO; self.vertices * k];
+        let mut indirect = vec![Vec3::ZERO; self.vertices * k];
+        let mut weight = vec![0.0f32; self.vertices];
+        for (j, e) in meshing.elements.iter().enumerate() {
+            for c in 0..3 {
+                let v = self.corner_vertex[3 * j + c] as usize;
+                for m in 0..k {
+                    direct[v * k + m] += solution.direct[j * k + m] * e.area;
+                    indirect[v * k + m] += solution.indirect[j * k + m] * e.area;
+                }
+                weight[v] += e.area;
+            }
+        }
+        for (v, w) in weight.iter().enumerate() {
+            let inv = if *w > 0.0 { 1.0 / *w } else { 0.0 };
+            for m in 0..k {
+                direct[v * k + m] *= inv;
+                indirect[v * k + m] *= inv;
+            }
+        }
+        (direct, indirect)
+    }
+}
+
 /// How element values reach the pixels.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Shading {

@@ -33,7 +33,9 @@
 pub mod direct;
 pub mod display;
 pub mod form_factor;
+pub mod gpu;
 pub mod mesh;
+pub mod packed;
 pub mod relight;
 pub mod solver;
 pub mod technique;
@@ -62,12 +64,16 @@ pub enum RelightError {
     /// The G-buffer renderer of the hemicube failed.
     #[error("hemicube rendering failed: {0}")]
     Render(Box<scene_core::Error>),
+    /// The GPU failed (device, validation, readback).
+    #[error("GPU relighting failed: {0}")]
+    Gpu(Box<scene_core::gpu::GpuError>),
 }
 
 impl From<RelightError> for scene_core::Error {
     fn from(e: RelightError) -> Self {
         match e {
             RelightError::Render(inner) => *inner,
+            RelightError::Gpu(inner) => scene_core::Error::Gpu(*inner),
             other => scene_core::Error::method("relight-pr", other),
         }
     }

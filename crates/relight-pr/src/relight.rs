@@ -39,22 +39,33 @@ pub fn indirect_irradiance(solution: &Solution, state: &LightState) -> Vec<Vec3>
     weighted(solution, state, false)
 }
 
+/// The weights of eq. 1 under `state`: each source's `(direct, indirect)` factor (the
+/// direct one zero unless `with_direct`) and the constant every element receives (the
+/// ambient terms times their indirect factors).
+pub fn weights(
+    solution: &Solution,
+    state: &LightState,
+    with_direct: bool,
+) -> (Vec<(Vec3, Vec3)>, Vec3) {
+    let mut f = factors(solution, state);
+    if !with_direct {
+        f.iter_mut().for_each(|(d, _)| *d = Vec3::ZERO);
+    }
+    let base = solution
+        .ambient
+        .iter()
+        .zip(&f)
+        .map(|(a, (_, i))| *a * *i)
+        .sum();
+    (f, base)
+}
+
 fn weighted(solution: &Solution, state: &LightState, with_direct: bool) -> Vec<Vec3> {
     let k = solution.k();
     if k == 0 {
         return vec![Vec3::ZERO; solution.direct.len()];
     }
-    let mut f = factors(solution, state);
-    if !with_direct {
-        f.iter_mut().for_each(|(d, _)| *d = Vec3::ZERO);
-    }
-    let ambient: Vec<Vec3> = solution
-        .ambient
-        .iter()
-        .zip(&f)
-        .map(|(a, (_, i))| *a * *i)
-        .collect();
-    let base: Vec3 = ambient.iter().sum();
+    let (f, base) = weights(solution, state, with_direct);
     solution
         .direct
         .par_chunks(k)

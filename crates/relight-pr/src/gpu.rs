@@ -1,0 +1,435 @@
+//! Relighting on the GPU (wgpu compute, `shaders/relight-pr/`): eq. 1 over the packed
+//! element solution ([`GpuRelight::relight`]), and the paper's "hardware" display: the
+//! per-light radiosity at the welded vertices combined with the frame's light factors per
+//! pixel in one pass over a G-buffer of the element scene ([`GpuRelight::display`]). The
+//! solution is uploaded once; a frame uploads only the k factor pairs.
+
+use glam::Vec3;
+use scene_core::gpu::compute::ComputePass;
+use scene_core::gpu::layout::{storage_buffer, uniform};
+use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
+use scene_core::view::FrustumReconstruction;
+use scene_core::{Image, View};
+use wgpu::util::DeviceExt;
+
+use crate::RelightError;
+use crate::display::Welding;
+use crate::mesh::Meshing;
+use crate::packed::{Packed, Precision};
+use crate::solver::Solution;
+
+/// WGSL of the relight pass (`common.wgsl` then `relight.wgsl`).
+pub const RELIGHT_WGSL: &str = concat!(
+    include_str!("../../../shaders/relight-pr/common.wgsl"),
+    include_str!("../../../shaders/relight-pr/relight.wgsl")
+);
+
+/// WGSL of the display pass (`common.wgsl`, scene-core's reconstruction, `display.wgsl`).
+pub const DISPLAY_WGSL: &str = concat!(
+    include_str!("../../../shaders/relight-pr/common.wgsl"),
+    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
+    include_str!("../../../shaders/relight-pr/display.wgsl")
+);
+
+const GROUP: u32 = 64;
+const MAX_GROUPS_X: u32 = 32768;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct RelightParams {
+    n: u32,
+    k: u32,
+    pad: [u32; 2],
+    base: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct DisplayParams {
+    frustum: [[f32; 4]; 6],
+    width: u32,
+    height: u32,
+    k: u32,
+    elements: u32,
+    base: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct GpuElement {
+    a: [f32; 4],
+    b: [f32; 4],
+    c: [f32; 4],
+    emission: [f32; 4],
+    vertex: [u32; 4],
+}
+
+/// A solution resident on the GPU, ready to relight and display.
+pub struct GpuRelight {
+    ctx: GpuContext,
+    k: usize,
+    elements: usize,
+    precision: Precision,
+    element_words: wgpu::Buffer,
+    vertex_words: wgpu::Buffer,
+    element_table: wgpu::Buffer,
+    irradiance: wgpu::Buffer,
+    relight_pass: ComputePass,
+    display_pass: ComputePass,
+    display_per_pixel: ComputePass,
+    bytes: u64,
+}
+
+impl std::fmt::Debug for GpuRelight {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuRelight")
+            .field("k", &self.k)
+            .field("elements", &self.elements)
+            .field("precision", &self.precision)
+            .field("bytes", &self.bytes)
+            .finish_non_exhaustive()
+    }
+}
+
+fn storage(ctx: &GpuContext, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    // Storage bindings may not be empty.
+    let bytes: &[u8] = if bytes.is_empty() { &[0u8; 16] } else { bytes };
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytes,
+            usage: wgpu::BufferUsages::STORAGE | extra,
+        })
+}
+
+fn rw_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: false },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl GpuRelight {
+    /// Uploads `solution` (over `meshing`, welded by `welding`) at `precision`. Fails with
+    /// [`RelightError::Budget`] before allocating when a buffer would exceed the adapter's
+    /// storage-binding or buffer size.
+    pub fn new(
+        ctx: &GpuContext,
+        meshing: &Meshing,
+        welding: &Welding,
+        solution: &Solution,
+        precision: Precision,
+    ) -> Result<Self, RelightError> {
+        let k = solution.k();
+        let n = meshing.elements.len();
+        let limits = ctx.device.limits();
+        let limit = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+        let words = (n * k * precision.words()) as u64 * 4;
+        let vertex_bytes = (welding.vertices * k * precision.words()) as u64 * 4;
+        for (what, bytes) in [
+            ("packed element solution", words),
+            ("packed vertex solution", vertex_bytes),
+            ("element table", n as u64 * 80),
+        ] {
+            if bytes > limit {
+                return Err(RelightError::Budget(format!(
+                    "the {what} needs {bytes} bytes; this adapter binds at most {limit} \
+                     (use Precision::F16 or fewer elements)"
+                )));
+            }
+        }
+        let packed = Packed::new(&solution.direct, &solution.indirect, k, precision);
+        let (vd, vi) = welding.vertex_solution(meshing, solution);
+        let vertex = Packed::new(&vd, &vi, k, precision);
+        let table: Vec<GpuElement> = meshing
+            .elements
+            .iter()
+            .enumerate()
+            .map(|(j, e)| {
+                let source = meshing.patches[e.patch as usize]
+                    .light
+                    .and_then(|id| solution.source_of(id))
+                    .map_or(0.0, |m| (m + 1) as f32);
+                let v = |c: usize| welding.corner_vertex[3 * j + c];
+                GpuElement {
+                    a: e.corners[0].extend(source).to_array(),
+                    b: e.corners[1].extend(0.0).to_array(),
+                    c: e.corners[2].extend(0.0).to_array(),
+                    emission: e.emission.extend(0.0).to_array(),
+                    vertex: [v(0), v(1), v(2), 0],
+                }
+            })
+            .collect();
+        let constants: &[(&str, f64)] = &[("F16", (precision == Precision::F16) as u8 as f64)];
+        let relight_pass = ComputePass::new(
+            &ctx.device,
+            "relight-pr relight",
+            RELIGHT_WGSL,
+            &[
+                uniform(0),
+                storage_buffer(1),
+                storage_buffer(2),
+                rw_entry(3),
+            ],
+            constants,
+        );
+        let display_entries = [
+            uniform(0),
+            storage_buffer(1),
+            storage_buffer(2),
+            storage_buffer(3),
+            storage_buffer(4),
+            rw_entry(5),
+            scene_core::gpu::layout::float_texture(6),
+            scene_core::gpu::layout::float_texture(7),
+            scene_core::gpu::layout::texture(8, wgpu::TextureSampleType::Uint),
+        ];
+        let display = |per_pixel: bool| {
+            ComputePass::new(
+                &ctx.device,
+                "relight-pr display",
+                DISPLAY_WGSL,
+                &display_entries,
+                &[constants[0], ("PER_PIXEL_DIRECT", per_pixel as u8 as f64)],
+            )
+        };
+        let (display_pass, display_per_pixel) = (display(false), display(true));
+        let this = ctx
+            .validated(|| Self {
+                ctx: ctx.clone(),
+                k,
+                elements: n,
+                precision,
+                element_words: storage(
+                    ctx,
+                    "packed solution",
+                    bytemuck::cast_slice(&packed.words),
+                    wgpu::BufferUsages::empty(),
+                ),
+                vertex_words: storage(
+                    ctx,
+                    "packed vertex solution",
+                    bytemuck::cast_slice(&vertex.words),
+                    wgpu::BufferUsages::empty(),
+                ),
+                element_table: storage(
+                    ctx,
+                    "element table",
+                    bytemuck::cast_slice(&table),
+                    wgpu::BufferUsages::empty(),
+                ),
+                irradiance: storage(
+                    ctx,
+                    "relit irradiance",
+                    &vec![0u8; n.max(1) * 16],
+                    wgpu::BufferUsages::COPY_SRC,
+                ),
+                relight_pass,
+                display_pass,
+                display_per_pixel,
+                bytes: words + vertex_bytes + n as u64 * (80 + 16),
+            })
+            .map_err(gpu)?;
+        Ok(this)
+    }
+
+    /// Bytes resident on the GPU (solutions, element table, relit irradiance).
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+
+    /// Storage precision.
+    pub fn precision(&self) -> Precision {
+        self.precision
+    }
+
+    fn factor_buffer(&self, factors: &[(Vec3, Vec3)]) -> wgpu::Buffer {
+        let data: Vec<[f32; 4]> = factors
+            .iter()
+            .flat_map(|(d, i)| [d.extend(0.0).to_array(), i.extend(0.0).to_array()])
+            .collect();
+        storage(
+            &self.ctx,
+            "light factors",
+            bytemuck::cast_slice(&data),
+            wgpu::BufferUsages::empty(),
+        )
+    }
+
+    fn check_factors(&self, factors: &[(Vec3, Vec3)]) -> Result<(), RelightError> {
+        if factors.len() != self.k {
+            return Err(RelightError::InvalidSetting(format!(
+                "{} light factors for a solution of {} sources",
+                factors.len(),
+                self.k
+            )));
+        }
+        Ok(())
+    }
+
+    /// Records eq. 1 over every element into `encoder` (result in the GPU buffer read by
+    /// [`GpuRelight::read_irradiance`]); `factors` and `base` as [`Packed::relight`].
+    pub fn encode_relight(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        factors: &[(Vec3, Vec3)],
+        base: Vec3,
+        timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) -> Result<(), RelightError> {
+        self.check_factors(factors)?;
+        let params = RelightParams {
+            n: self.elements as u32,
+            k: self.k as u32,
+            pad: [0; 2],
+            base: base.extend(0.0).to_array(),
+        };
+        let uniform = self
+            .ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("relight params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let f = self.factor_buffer(factors);
+        let bind = self.relight_pass.bind(
+            &self.ctx.device,
+            &[
+                uniform.as_entire_binding(),
+                self.element_words.as_entire_binding(),
+                f.as_entire_binding(),
+                self.irradiance.as_entire_binding(),
+            ],
+        );
+        let groups = (self.elements as u32).div_ceil(GROUP).max(1);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("relight-pr relight"),
+            timestamp_writes: timestamps,
+        });
+        pass.set_pipeline(&self.relight_pass.pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(groups.min(MAX_GROUPS_X), groups.div_ceil(MAX_GROUPS_X), 1);
+        Ok(())
+    }
+
+    /// Eq. 1 on the GPU, read back: each element's irradiance.
+    pub fn relight(&self, factors: &[(Vec3, Vec3)], base: Vec3) -> Result<Vec<Vec3>, RelightError> {
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        self.encode_relight(&mut encoder, factors, base, None)?;
+        self.ctx.queue.submit([encoder.finish()]);
+        self.read_irradiance()
+    }
+
+    /// The irradiance the last relight pass wrote.
+    pub fn read_irradiance(&self) -> Result<Vec<Vec3>, RelightError> {
+        let v: Vec<[f32; 4]> = self.ctx.read_buffer_as(&self.irradiance).map_err(gpu)?;
+        Ok(v.iter()
+            .take(self.elements)
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect())
+    }
+
+    /// The hardware display: the image of `g` (a G-buffer of [`Meshing::element_scene`]
+    /// seen from `view`), each pixel combining the per-light vertex radiosity with
+    /// `factors` and `base` ([`crate::relight::weights`] with the direct part), times its
+    /// albedo, plus its element's glow; with `pixel_direct` (pixel-major, k per pixel,
+    /// [`crate::display::pixel_direct`]) the vertices' direct part is left out and each
+    /// pixel adds its own direct light times the direct factors. Equals
+    /// [`crate::display::compose`] with smooth shading.
+    pub fn display(
+        &self,
+        g: &GpuGBuffer,
+        view: &View,
+        factors: &[(Vec3, Vec3)],
+        base: Vec3,
+        pixel_direct: Option<&[Vec3]>,
+    ) -> Result<Image, RelightError> {
+        self.check_factors(factors)?;
+        let (w, h) = (g.width, g.height);
+        let pixels = w as usize * h as usize;
+        let params = DisplayParams {
+            frustum: FrustumReconstruction::new(view).uniform(),
+            width: w,
+            height: h,
+            k: self.k as u32,
+            elements: self.elements as u32,
+            base: base.extend(0.0).to_array(),
+        };
+        let ctx = &self.ctx;
+        let uniform = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("display params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let (pass, direct): (_, Vec<[f32; 4]>) = match pixel_direct {
+            Some(values) => {
+                if values.len() != pixels * self.k {
+                    return Err(RelightError::InvalidSetting(format!(
+                        "per-pixel direct light of {} values for {pixels} pixels and {} sources",
+                        values.len(),
+                        self.k
+                    )));
+                }
+                (
+                    &self.display_per_pixel,
+                    values.iter().map(|v| v.extend(0.0).to_array()).collect(),
+                )
+            }
+            None => (&self.display_pass, Vec::new()),
+        };
+        let f = self.factor_buffer(factors);
+        let direct_buf = storage(
+            ctx,
+            "pixel direct",
+            bytemuck::cast_slice(&direct),
+            wgpu::BufferUsages::empty(),
+        );
+        let image = storage(
+            ctx,
+            "relight image",
+            &vec![0u8; pixels.max(1) * 16],
+            wgpu::BufferUsages::COPY_SRC,
+        );
+        let views =
+            [&g.albedo, &g.depth, &g.triangle_id].map(|t| t.create_view(&Default::default()));
+        let bind = pass.bind(
+            &ctx.device,
+            &[
+                uniform.as_entire_binding(),
+                self.vertex_words.as_entire_binding(),
+                f.as_entire_binding(),
+                self.element_table.as_entire_binding(),
+                direct_buf.as_entire_binding(),
+                image.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&views[0]),
+                wgpu::BindingResource::TextureView(&views[1]),
+                wgpu::BindingResource::TextureView(&views[2]),
+            ],
+        );
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        pass.dispatch(&mut encoder, &bind, w, h, None);
+        ctx.queue.submit([encoder.finish()]);
+        let v: Vec<[f32; 4]> = ctx.read_buffer_as(&image).map_err(gpu)?;
+        Ok(Image {
+            width: w,
+            height: h,
+            pixels: v
+                .iter()
+                .take(pixels)
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect(),
+        })
+    }
+}
+
+fn gpu(e: GpuError) -> RelightError {
+    RelightError::Gpu(Box::new(e))
+}

@@ -1,0 +1,197 @@
+//! The packed layout and the GPU passes against the CPU: eq. 1 from packed f32 words equals
+//! the solution's own relight, f16 storage stays within half-float rounding, the GPU
+//! relight pass equals the CPU one at both precisions, and the hardware display equals
+//! the CPU display (with direct light from the elements and per pixel).
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use relight_pr::direct::DirectGather;
+use relight_pr::display::{PixelDirect, Shading, Welding, compose, pixel_direct};
+use relight_pr::gpu::GpuRelight;
+use relight_pr::packed::{Packed, Precision};
+use relight_pr::{MeshSettings, Meshing, Solution, SolverSettings, relight, solve};
+use scene_core::gbuffer::RayCastRenderer;
+use scene_core::gpu::{GpuGBuffer, gpu_test_context};
+use scene_core::lights::{LightId, LightState};
+use scene_core::ray::RayScene;
+use scene_core::{GBufferRenderer, Scene, View, builtin};
+
+fn solved() -> (Arc<Scene>, Meshing, Solution, RayScene) {
+    let scene = Arc::new(builtin::scene("corridor").unwrap());
+    let k = scene_core::lights::light_ids(&scene).len();
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(400), k).unwrap();
+    let rays = RayScene::build(&scene);
+    let settings = SolverSettings {
+        max_unshot: 0.02,
+        visibility_samples: 4,
+        ..Default::default()
+    };
+    let solution = solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
+    (scene, meshing, solution, rays)
+}
+
+/// A light state that recolours, dims and switches lights, direct and indirect apart.
+fn edited(scene: &Scene) -> LightState {
+    let mut state = LightState::default();
+    state.set_color(LightId::Point(0), Vec3::new(2.0, 0.5, 0.1));
+    state.set_enabled(LightId::Point(1), false);
+    if let Some(id) = scene_core::lights::light_ids(scene).get(2) {
+        let setting = state.get(*id);
+        state.set(
+            *id,
+            scene_core::lights::LightSetting {
+                indirect: 3.0,
+                direct: 0.5,
+                ..setting
+            },
+        );
+    }
+    state
+}
+
+/// Largest difference relative to the largest magnitude of `b`.
+fn rel_max(a: &[Vec3], b: &[Vec3]) -> f32 {
+    let scale = b.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);
+    assert!(scale > 0.0);
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).abs().max_element())
+        .fold(0.0, f32::max)
+        / scale
+}
+
+#[test]
+fn packed_relight_equals_the_solution_relight_and_f16_stays_within_rounding() {
+    let (scene, _, solution, _) = solved();
+    let state = edited(&scene);
+    let want = relight::irradiance(&solution, &state);
+    let (f, base) = relight::weights(&solution, &state, true);
+    let f32s = Packed::new(
+        &solution.direct,
+        &solution.indirect,
+        solution.k(),
+        Precision::F32,
+    );
+    let f16s = Packed::new(
+        &solution.direct,
+        &solution.indirect,
+        solution.k(),
+        Precision::F16,
+    );
+    assert_eq!(f16s.bytes() * 2, f32s.bytes());
+    assert_eq!(
+        f32s.relight(&f, base),
+        want,
+        "f32 words are the same numbers, summed in the same order"
+    );
+    // Each stored value rounds to 2^-11 relative; factors are non-negative, so the sum
+    // does too (plus f32 rounding).
+    let got = f16s.relight(&f, base);
+    for (g, w) in got.iter().zip(&want) {
+        assert!(
+            (*g - *w).abs().max_element() <= 5e-4 * w.abs().max_element() + 1e-30,
+            "{g} vs {w}"
+        );
+    }
+    // And a relight with a factor beyond half range stays finite: values saturate.
+    let huge = Packed::new(&[Vec3::splat(1e9)], &[Vec3::splat(-1e9)], 1, Precision::F16);
+    let (d, i) = huge.get(0, 0);
+    assert_eq!((d, i), (Vec3::splat(65504.0), Vec3::splat(-65504.0)));
+}
+
+#[test]
+fn gpu_relight_equals_cpu_at_both_precisions() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let (scene, meshing, solution, _) = solved();
+    let welding = Welding::new(&meshing, scene.extent());
+    let state = edited(&scene);
+    let (f, base) = relight::weights(&solution, &state, true);
+    for precision in [Precision::F32, Precision::F16] {
+        let cpu = Packed::new(
+            &solution.direct,
+            &solution.indirect,
+            solution.k(),
+            precision,
+        )
+        .relight(&f, base);
+        let gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, precision).unwrap();
+        let got = gpu.relight(&f, base).unwrap();
+        let e = rel_max(&got, &cpu);
+        eprintln!("{precision:?}: GPU relight differs from the CPU by {e:.2e} of the peak");
+        assert!(e < 1e-5, "{precision:?}: {e}");
+        // A factor list of the wrong length is a typed error.
+        assert!(gpu.relight(&f[1..], base).is_err());
+    }
+}
+
+#[test]
+fn hardware_display_equals_the_cpu_display() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let (scene, meshing, solution, rays) = solved();
+    let welding = Welding::new(&meshing, scene.extent());
+    let state = edited(&scene);
+    let (w, h) = (64, 48);
+    let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
+    let mut renderer = RayCastRenderer::new();
+    renderer
+        .prepare(Arc::new(meshing.element_scene(&scene)))
+        .unwrap();
+    let g = renderer.render_view(&view, w, h).unwrap();
+    let gg = GpuGBuffer::upload(&ctx, &g).unwrap();
+    let gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
+    let glow = relight::glow(&meshing, &solution, &state);
+    let (f, base) = relight::weights(&solution, &state, true);
+    let direct_factors: Vec<Vec3> = f.iter().map(|(d, _)| *d).collect();
+
+    // Direct light from the elements (the paper's display).
+    let e = relight::irradiance(&solution, &state);
+    let vertex = welding.vertex_values(&meshing, &e);
+    let cpu = compose(
+        &meshing,
+        &welding,
+        &g,
+        &view,
+        &e,
+        &vertex,
+        &glow,
+        Shading::Smooth,
+        None,
+    );
+    let got = gpu.display(&gg, &view, &f, base, None).unwrap();
+    let err = rel_max(&got.pixels, &cpu.pixels);
+    eprintln!("hardware display, direct from elements: {err:.2e} of the peak");
+    assert!(err < 1e-4, "{err}");
+
+    // Direct light per pixel.
+    let gather = DirectGather::new(&scene, &meshing, &solution.sources, 4);
+    let values = pixel_direct(&gather, &rays, &g, &view, 4);
+    let e = relight::indirect_irradiance(&solution, &state);
+    let vertex = welding.vertex_values(&meshing, &e);
+    let cpu = compose(
+        &meshing,
+        &welding,
+        &g,
+        &view,
+        &e,
+        &vertex,
+        &glow,
+        Shading::Smooth,
+        Some(PixelDirect {
+            values: &values,
+            factors: &direct_factors,
+        }),
+    );
+    let got = gpu.display(&gg, &view, &f, base, Some(&values)).unwrap();
+    let err = rel_max(&got.pixels, &cpu.pixels);
+    eprintln!("hardware display, direct per pixel: {err:.2e} of the peak");
+    assert!(err < 1e-4, "{err}");
+    assert!(
+        gpu.display(&gg, &view, &f, base, Some(&values[1..]))
+            .is_err()
+    );
+}
