@@ -63,7 +63,7 @@ impl Packed {
     /// Packs `direct` and `indirect` (item-major, `j * k + m`, the layout of
     /// [`crate::Solution`]).
     pub fn new(direct: &[Vec3], indirect: &[Vec3], k: usize, precision: Precision) -> Self {
-        let n = if k == 0 { 0 } else { direct.len() / k };
+        let n = direct.len().checked_div(k).unwrap_or(0);
         let w = precision.words();
         let mut words = vec![0u32; n * k * w];
         words
