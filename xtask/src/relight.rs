@@ -222,6 +222,17 @@ pub fn run(o: &Options) -> Result<(), String> {
     image
         .write_png(&png, o.exposure)
         .map_err(|e| e.to_string())?;
+    let gltf = o.out.join(format!("{stem}.gltf"));
+    relight_pr::export::gltf(
+        &scene,
+        meshing,
+        &prepared.welding,
+        solution,
+        &state,
+        o.exposure,
+        &gltf,
+    )
+    .map_err(|e| e.to_string())?;
     let lights: Vec<serde_json::Value> = ids
         .iter()
         .map(|&id| {
@@ -256,6 +267,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "direct": o.direct,
         "direct_gather_ms": timings.direct.as_secs_f64() * 1e3,
         "display_ms": timings.display.as_secs_f64() * 1e3,
+        "gltf": gltf.file_name().map(|f| f.to_string_lossy().into_owned()),
         "solution_bytes": relight_pr::solver::solution_bytes(meshing.elements.len(), meshing.patches.len(), solution.k()),
         "camera": camera.name,
         "width": o.width,
@@ -272,6 +284,12 @@ pub fn run(o: &Options) -> Result<(), String> {
         "solved in {solve_s:.2} s ({} shots, unshot {:.1e}); relight {relight_ms:.2} ms",
         solution.stats.shots, solution.stats.unshot_fraction
     );
-    println!("{}\n{}\n{}", exr.display(), png.display(), json.display());
+    println!(
+        "{}\n{}\n{}\n{}",
+        exr.display(),
+        png.display(),
+        gltf.display(),
+        json.display()
+    );
     Ok(())
 }

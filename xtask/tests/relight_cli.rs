@@ -1,4 +1,5 @@
-//! `cargo xtask relight`: writes the view and a summary with the lights it was given, a
+//! `cargo xtask relight`: writes the view, the glTF export (validated) and a summary with
+//! the lights it was given, a
 //! switched-off light leaves the picture black, and an unknown light id is an error that
 //! lists the scene's ids.
 
@@ -38,6 +39,21 @@ fn relight_writes_the_view_and_the_summary_with_the_given_lights() {
     assert!(summary["elements"].as_u64().unwrap() >= 128);
     assert!(summary["unshot_fraction"].as_f64().unwrap() <= 0.01);
     assert!(out.join("cornell-point.png").is_file());
+    // The engine export: per-light radiosity and a preview colour per vertex, one
+    // triangle per element, accepted by Khronos' validator.
+    let gltf = out.join("cornell-point.gltf");
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&gltf).unwrap()).unwrap();
+    let attributes = &doc["meshes"][0]["primitives"][0]["attributes"];
+    assert!(attributes["_RADIOSITY_POINT_0"].is_u64(), "{attributes}");
+    assert!(attributes["COLOR_0"].is_u64(), "{attributes}");
+    let back = scene_core::gltf_io::import(&gltf).unwrap().scene;
+    assert_eq!(
+        back.triangle_count() as u64,
+        summary["elements"].as_u64().unwrap()
+    );
+    assert_eq!(back.point_lights.len(), 1);
+    scene_core::gltf_io::validator::assert_valid(&[gltf.as_path()]);
     let mean = |img: &scene_core::Image| img.mean();
     // Red above green above blue, as the light.
     let m = mean(&lit);

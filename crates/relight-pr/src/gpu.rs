@@ -129,7 +129,9 @@ impl GpuRelight {
         let k = solution.k();
         let n = meshing.elements.len();
         let limits = ctx.device.limits();
-        let limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        let limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
         let words = (n * k * precision.words()) as u64 * 4;
         let vertex_bytes = (welding.vertices * k * precision.words()) as u64 * 4;
         for (what, bytes) in [

@@ -29,6 +29,64 @@ const GL_REPEAT: u32 = 10497;
 /// the [module documentation](self) for the layout. I/O failures and an unknown extension
 /// give [`GltfError::Write`]; a failed write leaves no partial file at `path`.
 pub fn export(scene: &Scene, path: &Path) -> Result<(), GltfError> {
+    export_with(scene, path, &[])
+}
+
+/// Extra per-vertex data to export with a mesh: `values[v]` for vertex `v` of
+/// `scene.meshes[mesh]`, written as a float `VEC3` attribute `name` on each of the mesh's
+/// primitives. `name` is `COLOR_0` (values in [0, 1], as the glTF specification requires
+/// of colours) or an application-specific name starting with `_` (e.g. `_RADIOSITY_POINT_0`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct VertexAttribute {
+    /// The attribute's semantic name.
+    pub name: String,
+    /// The mesh it belongs to.
+    pub mesh: usize,
+    /// One value per vertex of that mesh.
+    pub values: Vec<Vec3>,
+}
+
+/// [`export`] with extra per-vertex attributes. A name that is neither `COLOR_0` nor
+/// `_`-prefixed, a mesh that does not exist, a value count that is not the mesh's vertex
+/// count, a non-finite value or a `COLOR_0` value outside [0, 1] is a [`GltfError::Write`]
+/// naming it, and nothing is written.
+pub fn export_with(
+    scene: &Scene,
+    path: &Path,
+    attributes: &[VertexAttribute],
+) -> Result<(), GltfError> {
+    for a in attributes {
+        let fault = if a.name != "COLOR_0" && !(a.name.starts_with('_') && a.name.len() > 1) {
+            Some("the name must be COLOR_0 or start with '_'".to_string())
+        } else if let Some(mesh) = scene.meshes.get(a.mesh) {
+            if a.values.len() != mesh.positions.len() {
+                Some(format!(
+                    "{} values for mesh {} with {} vertices",
+                    a.values.len(),
+                    a.mesh,
+                    mesh.positions.len()
+                ))
+            } else if a.values.iter().any(|v| !v.is_finite()) {
+                Some("a value is not finite".into())
+            } else if a.name == "COLOR_0"
+                && a.values
+                    .iter()
+                    .any(|v| v.min_element() < 0.0 || v.max_element() > 1.0)
+            {
+                Some("a colour is outside [0, 1]".into())
+            } else {
+                None
+            }
+        } else {
+            Some(format!("mesh {} does not exist", a.mesh))
+        };
+        if let Some(fault) = fault {
+            return Err(write_error(
+                path,
+                format!("vertex attribute '{}': {fault}", a.name),
+            ));
+        }
+    }
     let binary = match path
         .extension()
         .and_then(|e| e.to_str())
@@ -52,7 +110,8 @@ pub fn export(scene: &Scene, path: &Path) -> Result<(), GltfError> {
         path: path.to_path_buf(),
         source,
     })?;
-    let (mut root, bin) = build_document(scene, &checked).map_err(|m| write_error(path, m))?;
+    let (mut root, bin) =
+        build_document(scene, &checked, attributes).map_err(|m| write_error(path, m))?;
     let bytes = if binary {
         if !bin.is_empty() {
             root["buffers"] = json!([{ "byteLength": bin.len() }]);
@@ -205,7 +264,11 @@ fn named(mut v: Value, name: &str) -> Value {
 
 /// Builds the glTF JSON (without `buffers`) and the binary buffer. `checked` is the
 /// validated copy of `scene` (same vertices, repaired normals).
-fn build_document(scene: &Scene, checked: &Scene) -> Result<(Value, Vec<u8>), String> {
+fn build_document(
+    scene: &Scene,
+    checked: &Scene,
+    extra: &[VertexAttribute],
+) -> Result<(Value, Vec<u8>), String> {
     let mut w = BinWriter::default();
     let mut extensions_used: BTreeSet<&str> = BTreeSet::new();
 
@@ -261,7 +324,7 @@ fn build_document(scene: &Scene, checked: &Scene) -> Result<(Value, Vec<u8>), St
 
     let mut meshes = Vec::new();
     let mut nodes = Vec::new();
-    for (mesh, fixed) in scene.meshes.iter().zip(&checked.meshes) {
+    for (mesh_index, (mesh, fixed)) in scene.meshes.iter().zip(&checked.meshes).enumerate() {
         if mesh.indices.is_empty() {
             continue;
         }
@@ -293,6 +356,10 @@ fn build_document(scene: &Scene, checked: &Scene) -> Result<(Value, Vec<u8>), St
             if let Some(uvs) = uvs {
                 let uv: Vec<Vec2> = used.iter().map(|&v| uvs[v as usize]).collect();
                 attributes["TEXCOORD_0"] = json!(w.vec2(&uv));
+            }
+            for a in extra.iter().filter(|a| a.mesh == mesh_index) {
+                let values: Vec<Vec3> = used.iter().map(|&v| a.values[v as usize]).collect();
+                attributes[a.name.as_str()] = json!(w.vec3(&values, false));
             }
             primitives.push(json!({
                 "attributes": attributes,
