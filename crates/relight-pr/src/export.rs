@@ -6,8 +6,8 @@
 //! - `_RADIOSITY_<SOURCE>` (float VEC3, one per source, e.g. `_RADIOSITY_POINT_0`,
 //!   `_RADIOSITY_DIRECTIONAL_1`, `_RADIOSITY_EMISSIVE_3`; a bank is named after its first
 //!   light with `BANK_` in front): the radiosity `rho E` (W/m^2 in the scene's units) that
-//!   source gives at the vertex with its emission as the scene has it, direct, indirect and
-//!   ambient together, welded vertices taking the area-weighted mean of their elements. An
+//!   source gives at the vertex with its emission as the scene has it, direct and indirect
+//!   (with the ambient term) together, welded vertices taking the area-weighted mean of their elements. An
 //!   engine's radiance is `sum_m c_m _RADIOSITY_m / pi` (plus emission) for colours `c_m`;
 //! - `COLOR_0`: the radiance under the light state given, times `2^exposure`, clamped to
 //!   [0, 1] as glTF requires of colours: a preview, not data (the HDR values are in the
@@ -65,8 +65,7 @@ pub fn gltf(
     for (m, source) in solution.sources.iter().enumerate() {
         let radiosity: Vec<Vec3> = (0..n)
             .map(|j| {
-                let e =
-                    solution.direct[j * k + m] + solution.indirect[j * k + m] + solution.ambient[m];
+                let e = solution.direct[j * k + m] + solution.indirect[j * k + m];
                 meshing.elements[j].albedo * e
             })
             .collect();

@@ -156,6 +156,12 @@ pub fn delta_form_factors(
 /// area at `point` with unit `normal` to element `j`, from the five faces of a hemicube of
 /// `resolution` rendered by `renderer` (prepared with the element scene, so triangle ids
 /// are element ids) and their delta form factors. Visibility is the renderer's depth test.
+/// `receiver_normals[j]` is element `j`'s unit normal: a pixel that sees an element from
+/// behind gives it nothing (elements are one-sided, and G-buffer normals are flipped to
+/// face the viewer, so the element's own normal decides). Without this rule a thin wall
+/// leaks: the back of the neighbouring room's wall, seen through the rasteriser's or ray
+/// caster's cracks, would receive.
+#[allow(clippy::too_many_arguments)]
 pub fn hemicube_row(
     renderer: &mut dyn scene_core::GBufferRenderer,
     point: Vec3,
@@ -163,8 +169,9 @@ pub fn hemicube_row(
     resolution: u32,
     near: f32,
     far: f32,
-    elements: usize,
+    receiver_normals: &[Vec3],
 ) -> Result<Vec<f32>, scene_core::Error> {
+    let elements = receiver_normals.len();
     let faces = renderer.render_hemicube(point, normal, resolution, near, far)?;
     let mut row = vec![0.0f32; elements];
     for face in &faces {
@@ -172,7 +179,17 @@ pub fn hemicube_row(
         let delta = delta_form_factors(&face.view, normal, g.width, g.height);
         for (i, df) in delta.iter().enumerate() {
             let id = g.triangle_id[i] as usize;
-            if !g.is_background(i) && id < elements {
+            if g.is_background(i) || id >= elements {
+                continue;
+            }
+            let uv = scene_core::view::pixel_uv(
+                i as u32 % g.width,
+                i as u32 / g.width,
+                g.width,
+                g.height,
+            );
+            let (_, dir) = face.view.ray(uv);
+            if receiver_normals[id].dot(dir) < 0.0 {
                 row[id] += df;
             }
         }

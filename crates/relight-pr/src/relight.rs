@@ -27,21 +27,23 @@ pub fn factors(solution: &Solution, state: &LightState) -> Vec<(Vec3, Vec3)> {
 }
 
 /// Each element's irradiance under `state`:
-/// `E_j = sum_m d_m E_direct,jm + i_m (E_indirect,jm + ambient_m)`.
+/// `E_j = sum_m d_m E_direct,jm + i_m E_indirect,jm` (the indirect part holds the ambient
+/// term, [`Solution::ambient`]).
 pub fn irradiance(solution: &Solution, state: &LightState) -> Vec<Vec3> {
     weighted(solution, state, true)
 }
 
 /// Each element's irradiance under `state` without the direct part,
-/// `sum_m i_m (E_indirect,jm + ambient_m)`: what the display interpolates when the direct
+/// `sum_m i_m E_indirect,jm`: what the display interpolates when the direct
 /// light is gathered per pixel ([`crate::direct::DirectLight::PerPixel`]).
 pub fn indirect_irradiance(solution: &Solution, state: &LightState) -> Vec<Vec3> {
     weighted(solution, state, false)
 }
 
 /// The weights of eq. 1 under `state`: each source's `(direct, indirect)` factor (the
-/// direct one zero unless `with_direct`) and the constant every element receives (the
-/// ambient terms times their indirect factors).
+/// direct one zero unless `with_direct`), and the constant term every element receives
+/// besides: zero, since the ambient term is part of the solution's indirect light
+/// (an engine may add its own constant to [`crate::packed::Packed::relight`]).
 pub fn weights(
     solution: &Solution,
     state: &LightState,
@@ -51,13 +53,7 @@ pub fn weights(
     if !with_direct {
         f.iter_mut().for_each(|(d, _)| *d = Vec3::ZERO);
     }
-    let base = solution
-        .ambient
-        .iter()
-        .zip(&f)
-        .map(|(a, (_, i))| *a * *i)
-        .sum();
-    (f, base)
+    (f, Vec3::ZERO)
 }
 
 fn weighted(solution: &Solution, state: &LightState, with_direct: bool) -> Vec<Vec3> {

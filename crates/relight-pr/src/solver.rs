@@ -121,7 +121,9 @@ pub struct Solution {
     pub direct: Vec<Vec3>,
     /// Irradiance received after one or more reflections, the same layout.
     pub indirect: Vec<Vec3>,
-    /// Cohen's ambient irradiance per source (zero when off).
+    /// Cohen's ambient irradiance per source (zero when off), for reporting: it is already
+    /// added to the indirect irradiance of every element the source reached (directly or
+    /// after reflections), and to no other.
     pub ambient: Vec<Vec3>,
     /// What the solve did.
     pub stats: SolveStats,
@@ -374,6 +376,7 @@ fn solve_tagged(
         ..Default::default()
     };
     let samples = settings.visibility_samples;
+    let normals: Vec<Vec3> = els.iter().map(|e| e.normal).collect();
     let mut form = vec![0.0f32; n];
     while emitted > 0.0 && stats.shots < settings.max_shots {
         let fraction = unshot_power(&unshot_emit, &unshot_refl) / emitted;
@@ -402,7 +405,7 @@ fn solve_tagged(
                 resolution,
                 1e-5 * extent,
                 2.0 * extent,
-                n,
+                &normals,
             )
             .map_err(|e| RelightError::Render(Box::new(e)))?;
             // Patch-to-element form factors to the receivers' form: F_ji = F_ij A_i / A_j.
@@ -498,6 +501,21 @@ fn solve_tagged(
                 *a = r * u / total_area;
             }
         }
+    }
+    // The ambient term goes into the indirect light of the elements the source reached,
+    // not to every element: a room the source cannot see stays dark (a global term would
+    // leak the unshot fraction through every wall).
+    if ambient.iter().any(|a| *a != Vec3::ZERO) {
+        indirect
+            .par_chunks_mut(k)
+            .zip(direct.par_chunks(k))
+            .for_each(|(i, d)| {
+                for m in 0..k {
+                    if d[m] != Vec3::ZERO || i[m] != Vec3::ZERO {
+                        i[m] += ambient[m];
+                    }
+                }
+            });
     }
     Ok(Solution {
         sources,

@@ -406,6 +406,7 @@ fn hemicube_area_form_factor(scene: &Scene, resolution: u32) -> f64 {
         .unwrap();
     let a_triangles = scene.meshes[0].triangle_count() as u32;
     let (mut sum, mut area) = (0.0f64, 0.0f64);
+    let normals: Vec<Vec3> = meshing.elements.iter().map(|e| e.normal).collect();
     for p in meshing
         .patches
         .iter()
@@ -419,7 +420,7 @@ fn hemicube_area_form_factor(scene: &Scene, resolution: u32) -> f64 {
             resolution,
             1e-5,
             10.0,
-            meshing.elements.len(),
+            &normals,
         )
         .unwrap();
         let f: f64 = row
