@@ -7,7 +7,7 @@ use scene_core::View;
 use scene_core::builtin;
 use scene_core::reference::{Accumulator, Bounces, PathTracer};
 
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
     let n = v.len();
     if n == 0 {
@@ -20,7 +20,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// The rayon pool a benchmark runs its CPU work in.
-fn worker_pool(threads: usize) -> Result<rayon::ThreadPool, String> {
+pub(crate) fn worker_pool(threads: usize) -> Result<rayon::ThreadPool, String> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads.max(1))
         .build()
@@ -28,7 +28,7 @@ fn worker_pool(threads: usize) -> Result<rayon::ThreadPool, String> {
 }
 
 /// A GPU context for the GPU columns, or `None` after printing why there are none.
-fn gpu_or_say_why() -> Option<scene_core::gpu::GpuContext> {
+pub(crate) fn gpu_or_say_why() -> Option<scene_core::gpu::GpuContext> {
     scene_core::gpu::GpuContext::new()
         .map_err(|e| println!("no GPU figures: {e}"))
         .ok()
@@ -221,7 +221,10 @@ pub fn reference(threads: usize, repeats: usize) -> Result<(), String> {
 }
 
 /// Milliseconds of `f`, median of `repeats` runs after one warm-up run.
-fn time_ms(repeats: usize, mut f: impl FnMut() -> Result<(), String>) -> Result<f64, String> {
+pub(crate) fn time_ms(
+    repeats: usize,
+    mut f: impl FnMut() -> Result<(), String>,
+) -> Result<f64, String> {
     f()?;
     let mut times = Vec::with_capacity(repeats);
     for _ in 0..repeats.max(1) {

@@ -14,8 +14,11 @@
 //!   inputs are kept under `tests/fuzz-regressions/` and replayed by the tests.
 //! - `bench gbuffer`: G-buffer ms per frame (CPU and GPU), downsampling passes and quality,
 //!   position reconstruction micro-benchmark.
+//! - `bench relight`: the radiosity relighting paper's Tables 1 and 2 and the solve time
+//!   for 10^4 elements.
 
 mod bench;
+mod bench_relight;
 mod checks;
 mod experiment;
 mod fuzz;
@@ -186,7 +189,7 @@ enum Command {
     },
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
-        /// What to benchmark: `reference`, `gbuffer` or `isr`.
+        /// What to benchmark: `reference`, `gbuffer`, `isr` or `relight`.
         what: String,
         /// Worker threads.
         #[arg(long, default_value_t = 2)]
@@ -402,8 +405,9 @@ fn run(cli: Cli) -> Result<(), String> {
             "reference" => bench::reference(threads, repeats),
             "isr" => bench::isr(threads, repeats),
             "gbuffer" => bench::gbuffer(threads, repeats),
+            "relight" => bench_relight::run(threads, repeats),
             other => Err(format!(
-                "unknown benchmark '{other}' (known: reference, gbuffer, isr)"
+                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight)"
             )),
         },
     }

@@ -181,17 +181,7 @@ impl GpuRelight {
             ],
             constants,
         );
-        let display_entries = [
-            uniform(0),
-            storage_buffer(1),
-            storage_buffer(2),
-            storage_buffer(3),
-            storage_buffer(4),
-            rw_entry(5),
-            scene_core::gpu::layout::float_texture(6),
-            scene_core::gpu::layout::float_texture(7),
-            scene_core::gpu::layout::texture(8, wgpu::TextureSampleType::Uint),
-        ];
+        let display_entries = Self::display_entries();
         let display = |per_pixel: bool| {
             ComputePass::new(
                 &ctx.device,
@@ -239,6 +229,118 @@ impl GpuRelight {
             })
             .map_err(gpu)?;
         Ok(this)
+    }
+
+    /// A GPU copy of `packed` for [`GpuRelight::relight`] only (no display data): what a
+    /// benchmark of eq. 1 alone needs. Budget checks as [`GpuRelight::new`].
+    pub fn relight_only(ctx: &GpuContext, packed: &Packed) -> Result<Self, RelightError> {
+        let limits = ctx.device.limits();
+        let limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if packed.bytes() > limit {
+            return Err(RelightError::Budget(format!(
+                "the packed element solution needs {} bytes; this adapter binds at most {limit} \
+                 (use Precision::F16 or fewer elements)",
+                packed.bytes()
+            )));
+        }
+        let constants: &[(&str, f64)] =
+            &[("F16", (packed.precision == Precision::F16) as u8 as f64)];
+        let relight_pass = ComputePass::new(
+            &ctx.device,
+            "relight-pr relight",
+            RELIGHT_WGSL,
+            &[
+                uniform(0),
+                storage_buffer(1),
+                storage_buffer(2),
+                rw_entry(3),
+            ],
+            constants,
+        );
+        let display_entries = Self::display_entries();
+        let display = |per_pixel: bool| {
+            ComputePass::new(
+                &ctx.device,
+                "relight-pr display",
+                DISPLAY_WGSL,
+                &display_entries,
+                &[constants[0], ("PER_PIXEL_DIRECT", per_pixel as u8 as f64)],
+            )
+        };
+        let (display_pass, display_per_pixel) = (display(false), display(true));
+        let n = packed.n;
+        ctx.validated(|| Self {
+            ctx: ctx.clone(),
+            k: packed.k,
+            elements: n,
+            precision: packed.precision,
+            element_words: storage(
+                ctx,
+                "packed solution",
+                bytemuck::cast_slice(&packed.words),
+                wgpu::BufferUsages::empty(),
+            ),
+            vertex_words: storage(ctx, "no vertex solution", &[], wgpu::BufferUsages::empty()),
+            element_table: storage(ctx, "no element table", &[], wgpu::BufferUsages::empty()),
+            irradiance: storage(
+                ctx,
+                "relit irradiance",
+                &vec![0u8; n.max(1) * 16],
+                wgpu::BufferUsages::COPY_SRC,
+            ),
+            relight_pass,
+            display_pass,
+            display_per_pixel,
+            bytes: packed.bytes() + n as u64 * 16,
+        })
+        .map_err(gpu)
+    }
+
+    fn display_entries() -> [wgpu::BindGroupLayoutEntry; 9] {
+        [
+            uniform(0),
+            storage_buffer(1),
+            storage_buffer(2),
+            storage_buffer(3),
+            storage_buffer(4),
+            rw_entry(5),
+            scene_core::gpu::layout::float_texture(6),
+            scene_core::gpu::layout::float_texture(7),
+            scene_core::gpu::layout::texture(8, wgpu::TextureSampleType::Uint),
+        ]
+    }
+
+    /// The time of one relight pass (eq. 1 over every element, no readback): GPU
+    /// timestamps where the adapter has them, else the wall clock from submission to the
+    /// device going idle.
+    pub fn time_relight(
+        &self,
+        factors: &[(Vec3, Vec3)],
+    ) -> Result<std::time::Duration, RelightError> {
+        let mut timer = scene_core::gpu::compute::PassTimer::new(&self.ctx, 1);
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        let writes = timer.as_mut().and_then(|t| t.writes("relight"));
+        self.encode_relight(&mut encoder, factors, Vec3::ZERO, writes)?;
+        if let Some(t) = &timer {
+            t.resolve(&mut encoder);
+        }
+        let t0 = std::time::Instant::now();
+        self.ctx.queue.submit([encoder.finish()]);
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| gpu(GpuError::Readback(e.to_string())))?;
+        let wall = t0.elapsed();
+        match &timer {
+            Some(t) => Ok(t
+                .read(&self.ctx)
+                .map_err(gpu)?
+                .first()
+                .map_or(wall, |(_, d)| *d)),
+            None => Ok(wall),
+        }
     }
 
     /// Bytes resident on the GPU (solutions, element table, relit irradiance).

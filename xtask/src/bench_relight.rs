@@ -1,0 +1,220 @@
+//! `cargo xtask bench relight`: the radiosity relighting paper's two tables, measured here.
+//!
+//! - Table 1: solve time of 100 shots on the corridor with 1, 3 and 8 point lights:
+//!   standard progressive refinement on the combined emission, k separate solves, and the
+//!   light-tagged solve; hemicube 128 (the CPU rasteriser) and ray-cast form factors. One
+//!   run of each (a solve is seconds long); the ratios come from the same run.
+//! - Table 2: relight frame time (eq. 1 over every element) for 960, 10^4, 10^5 and 10^6
+//!   elements x 1, 3, 8 sources, CPU (the given threads, f32 and f16) and GPU (whatever
+//!   adapter wgpu picks), with the bytes streamed per second beside the machine's measured
+//!   memory bandwidth (a parallel sum over 512 MiB). Synthetic solutions of the right
+//!   shape: the time of eq. 1 does not depend on the values.
+//! - The solve time to 1e-3 unshot for about 10^4 elements (ray-cast form factors).
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::Vec3;
+use relight_pr::packed::{Packed, Precision};
+use relight_pr::{FormFactorMethod, MeshSettings, Meshing, SolverSettings, Strategy};
+use scene_core::ray::RayScene;
+use scene_core::{PointLight, Scene, builtin};
+
+use crate::bench::{gpu_or_say_why, median, time_ms, worker_pool};
+
+/// The corridor with `k` point lights (its own four, then copies moved along the corridor).
+fn corridor_with(k: usize) -> Result<Scene, String> {
+    let mut scene = builtin::scene("corridor").map_err(|e| e.to_string())?;
+    let own = scene.point_lights.clone();
+    let extent = scene.extent();
+    scene.point_lights = (0..k)
+        .map(|i| {
+            let base = &own[i % own.len()];
+            PointLight {
+                name: format!("{} #{i}", base.name),
+                position: base.position
+                    + Vec3::new(0.0, 0.0, 0.05 * extent * (i / own.len()) as f32),
+                ..base.clone()
+            }
+        })
+        .collect();
+    Ok(scene)
+}
+
+fn table1(pool: &rayon::ThreadPool) -> Result<(), String> {
+    println!("Table 1: 100 shots on the corridor (seconds; one run each)");
+    println!(
+        "{:<14} {:>3} {:>9} {:>10} {:>10} {:>9} {:>16}",
+        "form factors", "k", "elements", "combined", "separate", "tagged", "separate/tagged"
+    );
+    for method in [
+        FormFactorMethod::Hemicube { resolution: 128 },
+        FormFactorMethod::Rays,
+    ] {
+        for k in [1usize, 3, 8] {
+            let scene = corridor_with(k)?;
+            let meshing = Meshing::new(&scene, &MeshSettings::elements(1024), k)
+                .map_err(|e| e.to_string())?;
+            let rays = RayScene::build(&scene);
+            let mut times = Vec::new();
+            for strategy in [Strategy::Combined, Strategy::Separate, Strategy::Tagged] {
+                let settings = SolverSettings {
+                    form_factors: method,
+                    max_unshot: 0.0,
+                    max_shots: 100,
+                    strategy,
+                    ..Default::default()
+                };
+                let mut renderer = gbuffer::CpuRasterizer::new();
+                let t0 = Instant::now();
+                pool.install(|| {
+                    relight_pr::solve_with(
+                        &scene,
+                        &meshing,
+                        &rays,
+                        Some(&mut renderer),
+                        &settings,
+                        &mut |_| {},
+                    )
+                })
+                .map_err(|e| e.to_string())?;
+                times.push(t0.elapsed().as_secs_f64());
+            }
+            let name = match method {
+                FormFactorMethod::Rays => "rays 16".to_string(),
+                FormFactorMethod::Hemicube { resolution } => format!("hemicube {resolution}"),
+            };
+            println!(
+                "{name:<14} {k:>3} {:>9} {:>10.2} {:>10.2} {:>9.2} {:>15.2}x",
+                meshing.elements.len(),
+                times[0],
+                times[1],
+                times[2],
+                times[1] / times[2]
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Memory bandwidth: a parallel sum over 512 MiB of f32, median of `repeats`, in bytes/s.
+fn bandwidth(pool: &rayon::ThreadPool, repeats: usize) -> Result<f64, String> {
+    use rayon::prelude::*;
+    let data = vec![1.0f32; 128 << 20];
+    let mut sink = 0.0f32;
+    let ms = time_ms(repeats, || {
+        sink += pool.install(|| {
+            data.par_chunks(1 << 16)
+                .map(|c| c.iter().sum::<f32>())
+                .sum::<f32>()
+        });
+        Ok(())
+    })?;
+    std::hint::black_box(sink);
+    Ok((data.len() * 4) as f64 / (ms * 1e-3))
+}
+
+fn table2(pool: &rayon::ThreadPool, threads: usize, repeats: usize) -> Result<(), String> {
+    let bw = bandwidth(pool, repeats)?;
+    println!(
+        "\nTable 2: relight frame (eq. 1 over every element), ms; CPU {threads} threads; memory bandwidth measured {:.1} GB/s",
+        bw / 1e9
+    );
+    let gpu = gpu_or_say_why();
+    if let Some(ctx) = &gpu {
+        println!("GPU: {}", ctx.adapter_summary());
+    }
+    println!(
+        "{:>9} {:>3} {:>10} {:>9} {:>8} {:>9} {:>8} {:>9} {:>9}",
+        "elements", "k", "f32 bytes", "CPU f32", "GB/s", "CPU f16", "GB/s", "GPU f32", "GPU f16"
+    );
+    for n in [960usize, 10_000, 100_000, 1_000_000] {
+        for k in [1usize, 3, 8] {
+            // Synthetic values of the solution's shape (a fixed pattern; values do not
+            // change the time).
+            let values: Vec<Vec3> = (0..n * k)
+                .map(|i| Vec3::new((i % 7) as f32, (i % 5) as f32, (i % 3) as f32) * 0.1)
+                .collect();
+            let factors: Vec<(Vec3, Vec3)> = (0..k)
+                .map(|m| (Vec3::splat(1.0 + m as f32), Vec3::ONE))
+                .collect();
+            let mut row = format!("{n:>9} {k:>3}");
+            let cpu = |precision| -> Result<(u64, f64), String> {
+                let packed = Packed::new(&values, &values, k, precision);
+                let mut out = vec![Vec3::ZERO; n];
+                let ms = time_ms(repeats, || {
+                    pool.install(|| packed.relight_into(&factors, Vec3::ZERO, &mut out));
+                    Ok(())
+                })?;
+                Ok((packed.bytes(), ms))
+            };
+            let (b32, ms32) = cpu(Precision::F32)?;
+            let (b16, ms16) = cpu(Precision::F16)?;
+            row += &format!(
+                " {b32:>10} {ms32:>9.3} {:>8.1} {ms16:>9.3} {:>8.1}",
+                b32 as f64 / (ms32 * 1e-3) / 1e9,
+                b16 as f64 / (ms16 * 1e-3) / 1e9
+            );
+            for precision in [Precision::F32, Precision::F16] {
+                let cell = match &gpu {
+                    None => "-".to_string(),
+                    Some(ctx) => {
+                        let packed = Packed::new(&values, &values, k, precision);
+                        match relight_pr::gpu::GpuRelight::relight_only(ctx, &packed) {
+                            Err(e) => {
+                                eprintln!("GPU {n} x {k} {precision:?}: {e}");
+                                "budget".to_string()
+                            }
+                            Ok(g) => {
+                                g.time_relight(&factors).map_err(|e| e.to_string())?;
+                                let mut t = Vec::new();
+                                for _ in 0..repeats.max(1) {
+                                    t.push(
+                                        g.time_relight(&factors)
+                                            .map_err(|e| e.to_string())?
+                                            .as_secs_f64()
+                                            * 1e3,
+                                    );
+                                }
+                                format!("{:.3}", median(t))
+                            }
+                        }
+                    }
+                };
+                row += &format!(" {cell:>9}");
+            }
+            println!("{row}");
+        }
+    }
+    Ok(())
+}
+
+fn solve_1e4(pool: &rayon::ThreadPool) -> Result<(), String> {
+    let scene = Arc::new(builtin::scene("corridor").map_err(|e| e.to_string())?);
+    let k = scene_core::lights::light_ids(&scene).len();
+    let meshing =
+        Meshing::new(&scene, &MeshSettings::elements(10_000), k).map_err(|e| e.to_string())?;
+    let rays = RayScene::build(&scene);
+    let settings = SolverSettings::default();
+    let t0 = Instant::now();
+    let solution = pool
+        .install(|| relight_pr::solve(&scene, &meshing, &rays, &settings, &mut |_| {}))
+        .map_err(|e| e.to_string())?;
+    println!(
+        "\nSolve to 1e-3 unshot: corridor, {} elements, {} sources, rays 16: {:.1} s ({} shots, unshot {:.1e})",
+        meshing.elements.len(),
+        k,
+        t0.elapsed().as_secs_f64(),
+        solution.stats.shots,
+        solution.stats.unshot_fraction
+    );
+    Ok(())
+}
+
+/// Runs the benchmark.
+pub fn run(threads: usize, repeats: usize) -> Result<(), String> {
+    let pool = worker_pool(threads)?;
+    table1(&pool)?;
+    table2(&pool, threads, repeats)?;
+    solve_1e4(&pool)
+}
