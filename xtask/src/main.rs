@@ -406,8 +406,9 @@ fn run(cli: Cli) -> Result<(), String> {
             "isr" => bench::isr(threads, repeats),
             "gbuffer" => bench::gbuffer(threads, repeats),
             "relight" => bench_relight::run(threads, repeats),
+            "relight-frames" => bench_relight::frames(threads, repeats),
             other => Err(format!(
-                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight)"
+                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames)"
             )),
         },
     }

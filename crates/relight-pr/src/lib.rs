@@ -46,7 +46,8 @@ pub use solver::{FormFactorMethod, Solution, SolverSettings, Strategy, solve, so
 pub use technique::RelightTechnique;
 
 /// Implementation status of this crate.
-pub const STATUS: &str = "in progress: solver and CPU relighting";
+pub const STATUS: &str =
+    "in progress: solver, CPU and GPU relighting, display, export; dynamic scenes to do";
 
 pub use scene_core;
 

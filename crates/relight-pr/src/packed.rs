@@ -139,13 +139,21 @@ impl Packed {
                     }
                 }
                 Precision::F16 => {
-                    for (o, item) in out.iter_mut().zip(words.chunks_exact(k * w)) {
+                    // Decode the chunk's halves with the slice conversion (hardware F16C
+                    // where the CPU has it, detected at run time), then sum as f32. A word
+                    // holds value 2c in its low half: on a little-endian machine that is
+                    // the first u16 of the pair.
+                    let halves: &[u16] = bytemuck::cast_slice(words);
+                    let mut v = vec![0.0f32; halves.len()];
+                    half::slice::HalfFloatSliceExt::convert_to_f32_slice(
+                        bytemuck::cast_slice::<u16, half::f16>(halves),
+                        &mut v,
+                    );
+                    for (o, item) in out.iter_mut().zip(v.chunks_exact(6 * k)) {
                         let mut e = base;
-                        for (s, (d, i)) in item.chunks_exact(3).zip(factors) {
-                            let lo = |c: usize| half_value(s[c] & 0xffff);
-                            let hi = |c: usize| half_value(s[c] >> 16);
-                            e += Vec3::new(lo(0), hi(0), lo(1)) * *d
-                                + Vec3::new(hi(1), lo(2), hi(2)) * *i;
+                        for (s, (d, i)) in item.chunks_exact(6).zip(factors) {
+                            e +=
+                                Vec3::new(s[0], s[1], s[2]) * *d + Vec3::new(s[3], s[4], s[5]) * *i;
                         }
                         *o = e;
                     }
