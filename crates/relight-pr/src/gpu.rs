@@ -168,82 +168,40 @@ impl GpuRelight {
                 }
             })
             .collect();
-        let constants: &[(&str, f64)] = &[("F16", (precision == Precision::F16) as u8 as f64)];
-        let relight_pass = ComputePass::new(
-            &ctx.device,
-            "relight-pr relight",
-            RELIGHT_WGSL,
-            &[
-                uniform(0),
-                storage_buffer(1),
-                storage_buffer(2),
-                rw_entry(3),
-            ],
-            constants,
-        );
-        let display_entries = Self::display_entries();
-        let display = |per_pixel: bool| {
-            ComputePass::new(
-                &ctx.device,
-                "relight-pr display",
-                DISPLAY_WGSL,
-                &display_entries,
-                &[constants[0], ("PER_PIXEL_DIRECT", per_pixel as u8 as f64)],
-            )
-        };
-        let (display_pass, display_per_pixel) = (display(false), display(true));
-        let this = ctx
-            .validated(|| Self {
-                ctx: ctx.clone(),
-                k,
-                elements: n,
-                precision,
-                element_words: storage(
-                    ctx,
-                    "packed solution",
-                    bytemuck::cast_slice(&packed.words),
-                    wgpu::BufferUsages::empty(),
-                ),
-                vertex_words: storage(
-                    ctx,
-                    "packed vertex solution",
-                    bytemuck::cast_slice(&vertex.words),
-                    wgpu::BufferUsages::empty(),
-                ),
-                element_table: storage(
-                    ctx,
-                    "element table",
-                    bytemuck::cast_slice(&table),
-                    wgpu::BufferUsages::empty(),
-                ),
-                irradiance: storage(
-                    ctx,
-                    "relit irradiance",
-                    &vec![0u8; n.max(1) * 16],
-                    wgpu::BufferUsages::COPY_SRC,
-                ),
-                relight_pass,
-                display_pass,
-                display_per_pixel,
-                bytes: words + vertex_bytes + n as u64 * (80 + 16),
-            })
-            .map_err(gpu)?;
-        Ok(this)
+        Self::assemble(ctx, &packed, Some(&vertex), &table)
     }
 
     /// A GPU copy of `packed` for [`GpuRelight::relight`] only (no display data): what a
     /// benchmark of eq. 1 alone needs. Budget checks as [`GpuRelight::new`].
     pub fn relight_only(ctx: &GpuContext, packed: &Packed) -> Result<Self, RelightError> {
+        Self::assemble(ctx, packed, None, &[])
+    }
+
+    /// Checks every buffer against the adapter's limits, then builds the passes and
+    /// uploads.
+    fn assemble(
+        ctx: &GpuContext,
+        packed: &Packed,
+        vertex: Option<&Packed>,
+        table: &[GpuElement],
+    ) -> Result<Self, RelightError> {
         let limits = ctx.device.limits();
         let limit = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
-        if packed.bytes() > limit {
-            return Err(RelightError::Budget(format!(
-                "the packed element solution needs {} bytes; this adapter binds at most {limit} \
-                 (use Precision::F16 or fewer elements)",
-                packed.bytes()
-            )));
+        let vertex_bytes = vertex.map_or(0, Packed::bytes);
+        let table_bytes = std::mem::size_of_val(table) as u64;
+        for (what, bytes) in [
+            ("packed element solution", packed.bytes()),
+            ("packed vertex solution", vertex_bytes),
+            ("element table", table_bytes),
+        ] {
+            if bytes > limit {
+                return Err(RelightError::Budget(format!(
+                    "the {what} needs {bytes} bytes; this adapter binds at most {limit} \
+                     (use Precision::F16 or fewer elements)"
+                )));
+            }
         }
         let constants: &[(&str, f64)] =
             &[("F16", (packed.precision == Precision::F16) as u8 as f64)];
@@ -271,6 +229,7 @@ impl GpuRelight {
         };
         let (display_pass, display_per_pixel) = (display(false), display(true));
         let n = packed.n;
+        let vertex_words: &[u32] = vertex.map_or(&[], |v| &v.words);
         ctx.validated(|| Self {
             ctx: ctx.clone(),
             k: packed.k,
@@ -282,8 +241,18 @@ impl GpuRelight {
                 bytemuck::cast_slice(&packed.words),
                 wgpu::BufferUsages::empty(),
             ),
-            vertex_words: storage(ctx, "no vertex solution", &[], wgpu::BufferUsages::empty()),
-            element_table: storage(ctx, "no element table", &[], wgpu::BufferUsages::empty()),
+            vertex_words: storage(
+                ctx,
+                "packed vertex solution",
+                bytemuck::cast_slice(vertex_words),
+                wgpu::BufferUsages::empty(),
+            ),
+            element_table: storage(
+                ctx,
+                "element table",
+                bytemuck::cast_slice(table),
+                wgpu::BufferUsages::empty(),
+            ),
             irradiance: storage(
                 ctx,
                 "relit irradiance",
@@ -293,7 +262,7 @@ impl GpuRelight {
             relight_pass,
             display_pass,
             display_per_pixel,
-            bytes: packed.bytes() + n as u64 * 16,
+            bytes: packed.bytes() + vertex_bytes + table_bytes + n as u64 * 16,
         })
         .map_err(gpu)
     }
