@@ -39,6 +39,37 @@ pub enum DirectLight {
     },
 }
 
+/// Anything that answers shadow rays: the scene's BVH ([`RayScene`]), or the scene with
+/// dynamic objects inserted ([`WithDynamic`], section 2.4).
+pub trait Occlusion: Sync {
+    /// Whether anything lies along `origin + t direction` for `t` in `[t_min, t_max]`.
+    fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool;
+}
+
+impl Occlusion for RayScene {
+    fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool {
+        RayScene::occluded(self, origin, direction, t_min, t_max)
+    }
+}
+
+/// The static scene's rays with dynamic objects' rays (the paper's section 2.4: objects
+/// inserted after the solve shadow the direct light only): a ray is blocked when either
+/// blocks it. The objects' BVH is small and rebuilt when they move; the scene's is not.
+#[derive(Clone, Copy, Debug)]
+pub struct WithDynamic<'a> {
+    /// The static scene.
+    pub scene: &'a RayScene,
+    /// The dynamic objects (e.g. [`RayScene::from_triangles`]).
+    pub objects: &'a RayScene,
+}
+
+impl Occlusion for WithDynamic<'_> {
+    fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool {
+        self.objects.occluded(origin, direction, t_min, t_max)
+            || self.scene.occluded(origin, direction, t_min, t_max)
+    }
+}
+
 impl Default for DirectLight {
     fn default() -> Self {
         DirectLight::PerPixel {
@@ -50,7 +81,7 @@ impl Default for DirectLight {
 
 /// Irradiance at `x` (unit normal `n`) from point light `l`: `I cos / d^2` (or the windowed
 /// falloff), zero behind the surface or when the segment to the light is blocked.
-pub fn from_point(l: &PointLight, rays: &RayScene, x: Vec3, n: Vec3) -> Vec3 {
+pub fn from_point<O: Occlusion + ?Sized>(l: &PointLight, rays: &O, x: Vec3, n: Vec3) -> Vec3 {
     let d = l.position - x;
     let dist = d.length();
     if dist.is_nan() || dist <= 0.0 {
@@ -91,9 +122,9 @@ pub fn solid_angle(p: Vec3, t: &[Vec3; 3]) -> f32 {
 /// light a few millimetres from a wall from losing (or inventing) the energy of its hot
 /// spot between sample points. Used for elements (the solver's first shot) and for pixel
 /// footprints (the display).
-pub fn mean_from_point(
+pub fn mean_from_point<O: Occlusion + ?Sized>(
     l: &PointLight,
-    rays: &RayScene,
+    rays: &O,
     piece: &[[Vec3; 3]],
     n: Vec3,
     area: f32,
@@ -129,9 +160,9 @@ pub fn mean_from_point(
 
 /// Irradiance at `x` (unit normal `n`) from directional light `l` in a scene of size
 /// `extent`: `E cos`, zero when the ray towards the light hits anything.
-pub fn from_directional(
+pub fn from_directional<O: Occlusion + ?Sized>(
     l: &DirectionalLight,
-    rays: &RayScene,
+    rays: &O,
     x: Vec3,
     n: Vec3,
     extent: f32,
@@ -146,6 +177,39 @@ pub fn from_directional(
         return Vec3::ZERO;
     }
     l.irradiance * cos
+}
+
+/// The mean irradiance over element `e` from point light `l` (the solver's first shot):
+/// [`mean_from_point`] over the element's triangle, visibility at its four receiver points
+/// through `rays`.
+pub fn element_from_point<O: Occlusion + ?Sized>(
+    l: &PointLight,
+    rays: &O,
+    e: &crate::mesh::Element,
+) -> Vec3 {
+    mean_from_point(
+        l,
+        rays,
+        &[e.corners],
+        e.normal,
+        e.area,
+        &e.receiver_points(),
+    )
+}
+
+/// The mean irradiance over element `e` from directional light `l` in a scene of size
+/// `extent`: [`from_directional`] averaged over its four receiver points.
+pub fn element_from_directional<O: Occlusion + ?Sized>(
+    l: &DirectionalLight,
+    rays: &O,
+    e: &crate::mesh::Element,
+    extent: f32,
+) -> Vec3 {
+    e.receiver_points()
+        .iter()
+        .map(|&x| from_directional(l, rays, x, e.normal, extent))
+        .sum::<Vec3>()
+        * 0.25
 }
 
 /// One emitting patch: its triangle, the normal of its emitting side and its radiosity
@@ -214,9 +278,9 @@ impl DirectGather {
     /// written to `out` (length k): `points` are stratified points on the piece, and
     /// `piece`, when given, its exact outline as triangles (point lights then use
     /// [`mean_from_point`]'s closed form). `seed` fixes the sample pattern on the emitters.
-    pub fn mean_over(
+    pub fn mean_over<O: Occlusion + ?Sized>(
         &self,
-        rays: &RayScene,
+        rays: &O,
         points: &[Vec3],
         piece: Option<&[[Vec3; 3]]>,
         n: Vec3,

@@ -10,7 +10,6 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 use rayon::prelude::*;
-use scene_core::ray::RayScene;
 use scene_core::sampling::{hash_seed, r2};
 use scene_core::{GBuffer, Image, View};
 
@@ -127,9 +126,9 @@ pub struct PixelDirect<'a> {
 /// (the pixel's sub-rays met with the plane of its surface point and normal; a sub-ray
 /// nearly parallel to the plane keeps the centre point), pixel-major (`i * k + m`); zero on
 /// background. Deterministic: a pixel's sample pattern is seeded by its index.
-pub fn pixel_direct(
+pub fn pixel_direct<O: crate::direct::Occlusion + ?Sized>(
     gather: &DirectGather,
-    rays: &RayScene,
+    rays: &O,
     g: &GBuffer,
     view: &View,
     subpixels: u32,

@@ -9,7 +9,6 @@
 //! coincident elements), where point-sampled `cos cos / (pi r^2)` diverges.
 
 use glam::Vec3;
-use scene_core::ray::RayScene;
 use scene_core::sampling::{hash_seed, r2, uniform_triangle};
 
 /// The unoccluded form factor from a differential area at `x` with unit normal `n` to the
@@ -57,12 +56,12 @@ pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &[Vec3]) -> f32 {
 /// triangle visible from `x` through `rays` (no rays when `rays` is `None`). `seed` fixes
 /// the sample pattern of this receiver-patch pair, so the value does not depend on the
 /// order in which patches shoot.
-pub fn point_to_triangle(
+pub fn point_to_triangle<O: crate::direct::Occlusion + ?Sized>(
     x: Vec3,
     n: Vec3,
     tri: &[Vec3; 3],
     tri_n: Vec3,
-    rays: Option<&RayScene>,
+    rays: Option<&O>,
     samples: u32,
     seed: u64,
 ) -> f32 {

@@ -32,6 +32,7 @@
 
 pub mod direct;
 pub mod display;
+pub mod dynamic;
 pub mod export;
 pub mod form_factor;
 pub mod gpu;

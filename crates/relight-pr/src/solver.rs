@@ -295,7 +295,7 @@ fn solve_tagged(
     let patches = &meshing.patches;
     let source_of = |id: LightId| sources.iter().position(|s| s.lights.contains(&id));
     let mut direct = vec![Vec3::ZERO; n * k];
-    let mut indirect = vec![Vec3::ZERO; n * k];
+    let indirect = vec![Vec3::ZERO; n * k];
     // Unshot radiosity per patch and source: emission (shot as direct light) and reflected.
     let mut unshot_emit = vec![Vec3::ZERO; np * k];
     let mut unshot_refl = vec![Vec3::ZERO; np * k];
@@ -313,26 +313,11 @@ fn solve_tagged(
             let shoot: Box<dyn Fn(&crate::mesh::Element) -> Vec3 + Sync> = match id {
                 LightId::Point(i) => {
                     let l = &scene.point_lights[i as usize];
-                    Box::new(move |e| {
-                        direct::mean_from_point(
-                            l,
-                            rays,
-                            &[e.corners],
-                            e.normal,
-                            e.area,
-                            &e.receiver_points(),
-                        )
-                    })
+                    Box::new(move |e| direct::element_from_point(l, rays, e))
                 }
                 LightId::Directional(i) => {
                     let l = &scene.directional_lights[i as usize];
-                    Box::new(move |e| {
-                        e.receiver_points()
-                            .iter()
-                            .map(|&x| direct::from_directional(l, rays, x, e.normal, extent))
-                            .sum::<Vec3>()
-                            * 0.25
-                    })
+                    Box::new(move |e| direct::element_from_directional(l, rays, e, extent))
                 }
                 LightId::Emissive(_) => continue,
             };
@@ -343,7 +328,50 @@ fn solve_tagged(
         }
     }
     // What the analytic shots left on the patches to reflect.
-    for (p, patch) in patches.iter().enumerate() {
+    reflect_onto_patches(meshing, &direct, k, &mut unshot_refl);
+    let mut state = Shooting {
+        k,
+        direct,
+        indirect,
+        unshot_emit,
+        unshot_refl,
+    };
+    let (stats, ambient) = propagate(
+        meshing, rays, extent, renderer, &mut state, settings, progress,
+    )?;
+    let Shooting {
+        direct, indirect, ..
+    } = state;
+    Ok(Solution {
+        sources,
+        direct,
+        indirect,
+        ambient,
+        stats,
+    })
+}
+
+/// The state of a progressive refinement with `k` tagged sources: irradiance received
+/// (direct and indirect, element-major `j * k + m`) and unshot radiosity per patch
+/// (emitted and reflected, patch-major `p * k + m`).
+pub(crate) struct Shooting {
+    pub(crate) k: usize,
+    pub(crate) direct: Vec<Vec3>,
+    pub(crate) indirect: Vec<Vec3>,
+    pub(crate) unshot_emit: Vec<Vec3>,
+    pub(crate) unshot_refl: Vec<Vec3>,
+}
+
+/// Adds what the elements' `direct` irradiance reflects to their patches' unshot radiosity:
+/// `sum_e rho_e E_e A_e / A_p` per patch and source.
+pub(crate) fn reflect_onto_patches(
+    meshing: &Meshing,
+    direct: &[Vec3],
+    k: usize,
+    unshot_refl: &mut [Vec3],
+) {
+    let els = &meshing.elements;
+    for (p, patch) in meshing.patches.iter().enumerate() {
         let first = patch.first_element as usize;
         for m in 0..k {
             let mut sum = Vec3::ZERO;
@@ -353,6 +381,31 @@ fn solve_tagged(
             unshot_refl[p * k + m] += sum / patch.area;
         }
     }
+}
+
+/// Figure 2's loop from `state` until the unshot fraction (of the energy emitted and
+/// received directly at the start) is below the settings' limit or the shot cap is met;
+/// then Cohen's ambient term per source, added to the elements each source reached.
+/// Returns the stats and the ambient irradiance per source.
+pub(crate) fn propagate(
+    meshing: &Meshing,
+    rays: &RayScene,
+    extent: f32,
+    renderer: &mut Option<&mut (dyn scene_core::GBufferRenderer + Send)>,
+    state: &mut Shooting,
+    settings: &SolverSettings,
+    progress: &mut dyn FnMut(f64),
+) -> Result<(SolveStats, Vec<Vec3>), RelightError> {
+    let (n, np, k) = (meshing.elements.len(), meshing.patches.len(), state.k);
+    let els = &meshing.elements;
+    let patches = &meshing.patches;
+    let Shooting {
+        direct,
+        indirect,
+        unshot_emit,
+        unshot_refl,
+        ..
+    } = state;
     let power = |u: &[Vec3], p: usize| -> f64 {
         (0..k).map(|m| luminance(u[p * k + m]) as f64).sum::<f64>() * patches[p].area as f64
     };
@@ -369,7 +422,7 @@ fn solve_tagged(
                     * els[j].area as f64
             })
             .sum();
-        (0..np).map(|p| power(&unshot_emit, p)).sum::<f64>() + received
+        (0..np).map(|p| power(unshot_emit, p)).sum::<f64>() + received
     };
     let mut stats = SolveStats {
         unshot_fraction: if emitted > 0.0 { 1.0 } else { 0.0 },
@@ -379,7 +432,7 @@ fn solve_tagged(
     let normals: Vec<Vec3> = els.iter().map(|e| e.normal).collect();
     let mut form = vec![0.0f32; n];
     while emitted > 0.0 && stats.shots < settings.max_shots {
-        let fraction = unshot_power(&unshot_emit, &unshot_refl) / emitted;
+        let fraction = unshot_power(unshot_emit, unshot_refl) / emitted;
         stats.unshot_fraction = fraction;
         if fraction <= settings.max_unshot {
             break;
@@ -387,7 +440,7 @@ fn solve_tagged(
         // The patch with the most unshot energy over all sources (ties: the first).
         let mut best = (0usize, -1.0f64);
         for p in 0..np {
-            let w = power(&unshot_emit, p) + power(&unshot_refl, p);
+            let w = power(unshot_emit, p) + power(unshot_refl, p);
             if w > best.1 {
                 best = (p, w);
             }
@@ -484,7 +537,7 @@ fn solve_tagged(
         progress(fraction);
     }
     if emitted > 0.0 {
-        stats.unshot_fraction = unshot_power(&unshot_emit, &unshot_refl) / emitted;
+        stats.unshot_fraction = unshot_power(unshot_emit, unshot_refl) / emitted;
     }
     // Cohen's ambient term: the unshot radiosity spread over the scene, reflected
     // R = 1 / (1 - rho_avg) times.
@@ -517,11 +570,5 @@ fn solve_tagged(
                 }
             });
     }
-    Ok(Solution {
-        sources,
-        direct,
-        indirect,
-        ambient,
-        stats,
-    })
+    Ok((stats, ambient))
 }
