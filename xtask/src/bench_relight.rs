@@ -10,6 +10,10 @@
 //!   memory bandwidth (a parallel sum over 512 MiB). Synthetic solutions of the right
 //!   shape: the time of eq. 1 does not depend on the values.
 //! - The solve time to 1e-3 unshot for about 10^4 elements (ray-cast form factors).
+//! - Dynamic scenes (section 2.4, `cargo xtask bench relight-dynamic` alone): the patch
+//!   transfer's solve time and memory, and the frame time of moving point lights (direct
+//!   shot plus blend) and of a dynamic object's shadows, beside a full re-solve with the
+//!   light at its new place; cornell-point without its own light, two element counts.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -53,8 +57,12 @@ fn table1(pool: &rayon::ThreadPool) -> Result<(), String> {
     ] {
         for k in [1usize, 3, 8] {
             let scene = corridor_with(k)?;
-            let meshing = Meshing::new(&scene, &MeshSettings::elements(1024), k)
-                .map_err(|e| e.to_string())?;
+            // Uniform meshing, as in the paper's Table 1.
+            let uniform = MeshSettings {
+                split_depth: 0,
+                ..MeshSettings::elements(1024)
+            };
+            let meshing = Meshing::new(&scene, &uniform, k).map_err(|e| e.to_string())?;
             let rays = RayScene::build(&scene);
             let mut times = Vec::new();
             for strategy in [Strategy::Combined, Strategy::Separate, Strategy::Tagged] {
@@ -193,8 +201,11 @@ fn table2(pool: &rayon::ThreadPool, threads: usize, repeats: usize) -> Result<()
 fn solve_1e4(pool: &rayon::ThreadPool) -> Result<(), String> {
     let scene = Arc::new(builtin::scene("corridor").map_err(|e| e.to_string())?);
     let k = scene_core::lights::light_ids(&scene).len();
-    let meshing =
-        Meshing::new(&scene, &MeshSettings::elements(10_000), k).map_err(|e| e.to_string())?;
+    let uniform = MeshSettings {
+        split_depth: 0,
+        ..MeshSettings::elements(10_000)
+    };
+    let meshing = Meshing::new(&scene, &uniform, k).map_err(|e| e.to_string())?;
     let rays = RayScene::build(&scene);
     let settings = SolverSettings::default();
     let t0 = Instant::now();
@@ -217,10 +228,104 @@ pub fn frames(threads: usize, repeats: usize) -> Result<(), String> {
     table2(&worker_pool(threads)?, threads, repeats)
 }
 
+fn dynamic(pool: &rayon::ThreadPool, repeats: usize) -> Result<(), String> {
+    use relight_pr::dynamic::{DynamicScene, Transfer};
+    println!("\nDynamic scenes (section 2.4): cornell-point, its light moving");
+    println!(
+        "{:>8} {:>7} {:>10} {:>7} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "elements",
+        "patches",
+        "transfer s",
+        "shots",
+        "memory MB",
+        "1 light ms",
+        "4 lights ms",
+        "object ms",
+        "re-solve ms"
+    );
+    let lit = builtin::scene("cornell-point").map_err(|e| e.to_string())?;
+    let mut dark = lit.clone();
+    let light = dark.point_lights.remove(0);
+    let settings = SolverSettings::default();
+    for target in [256usize, 1024] {
+        let meshing =
+            Meshing::new(&dark, &MeshSettings::elements(target), 1).map_err(|e| e.to_string())?;
+        let rays = RayScene::build(&dark);
+        let t0 = Instant::now();
+        let transfer = pool
+            .install(|| Transfer::solve(&dark, &meshing, &rays, &settings, 16 << 30, &mut |_| {}))
+            .map_err(|e| e.to_string())?;
+        let transfer_s = t0.elapsed().as_secs_f64();
+        let (shots, bytes) = (transfer.stats.shots, transfer.bytes());
+        let empty = relight_pr::solve(&dark, &meshing, &rays, &settings, &mut |_| {})
+            .map_err(|e| e.to_string())?;
+        let mut scene = DynamicScene::with_transfer(transfer);
+        let state = scene_core::LightState::default();
+        let extent = lit.extent();
+        let frame_ms = |scene: &DynamicScene| -> Result<f64, String> {
+            let mut t = Vec::new();
+            for _ in 0..=repeats {
+                let t0 = Instant::now();
+                pool.install(|| scene.frame(&dark, &meshing, &empty, &rays, &state))
+                    .map_err(|e| e.to_string())?;
+                t.push(t0.elapsed().as_secs_f64() * 1e3);
+            }
+            t.remove(0);
+            Ok(median(t))
+        };
+        scene.moving = vec![light.clone()];
+        let one = frame_ms(&scene)?;
+        scene.moving = (0..4)
+            .map(|i| PointLight {
+                position: light.position + Vec3::new(0.05 * i as f32, -0.05, 0.0) * extent,
+                ..light.clone()
+            })
+            .collect();
+        let four = frame_ms(&scene)?;
+        let b = lit.bounds();
+        let c = (b.min + b.max) * 0.5;
+        let h = 0.08 * extent;
+        let q = |x: f32, z: f32| c + Vec3::new(x * h, 0.0, z * h);
+        scene.set_objects(&[
+            [q(-1.0, -1.0), q(1.0, -1.0), q(1.0, 1.0)],
+            [q(-1.0, -1.0), q(1.0, 1.0), q(-1.0, 1.0)],
+        ]);
+        scene.moving = vec![light.clone()];
+        let object = frame_ms(&scene)?;
+        let t0 = Instant::now();
+        let combined = SolverSettings {
+            strategy: Strategy::Combined,
+            ..settings.clone()
+        };
+        pool.install(|| relight_pr::solve(&lit, &meshing, &rays, &combined, &mut |_| {}))
+            .map_err(|e| e.to_string())?;
+        let resolve = t0.elapsed().as_secs_f64() * 1e3;
+        println!(
+            "{:>8} {:>7} {:>10.2} {:>7} {:>10.2} {:>10.3} {:>10.3} {:>10.3} {:>10.1}",
+            meshing.elements.len(),
+            meshing.patches.len(),
+            transfer_s,
+            shots,
+            bytes as f64 / 1e6,
+            one,
+            four,
+            object,
+            resolve
+        );
+    }
+    Ok(())
+}
+
+/// The dynamic-scene rows alone (`cargo xtask bench relight-dynamic`).
+pub fn dynamic_only(threads: usize, repeats: usize) -> Result<(), String> {
+    dynamic(&worker_pool(threads)?, repeats)
+}
+
 /// Runs the benchmark.
 pub fn run(threads: usize, repeats: usize) -> Result<(), String> {
     let pool = worker_pool(threads)?;
     table1(&pool)?;
     table2(&pool, threads, repeats)?;
+    dynamic(&pool, repeats)?;
     solve_1e4(&pool)
 }

@@ -407,8 +407,9 @@ fn run(cli: Cli) -> Result<(), String> {
             "gbuffer" => bench::gbuffer(threads, repeats),
             "relight" => bench_relight::run(threads, repeats),
             "relight-frames" => bench_relight::frames(threads, repeats),
+            "relight-dynamic" => bench_relight::dynamic_only(threads, repeats),
             other => Err(format!(
-                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames)"
+                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic)"
             )),
         },
     }

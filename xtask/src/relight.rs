@@ -24,6 +24,10 @@ pub struct Options {
     /// Target element count (patches are a quarter of it).
     #[arg(long, default_value_t = 4096)]
     pub elements: usize,
+    /// Extra subdivision levels for patches that straddle other geometry (a floor under a
+    /// wall); 0 meshes uniformly.
+    #[arg(long, default_value_t = 6)]
+    pub split_depth: u32,
     /// Form factors: rays (closed form with ray-cast visibility) or hemicube.
     #[arg(long, default_value = "rays")]
     pub form_factors: String,
@@ -182,7 +186,10 @@ pub fn run(o: &Options) -> Result<(), String> {
     };
     let ids = light_ids(&scene);
     let mut technique = RelightTechnique::new(
-        MeshSettings::elements(o.elements),
+        MeshSettings {
+            split_depth: o.split_depth,
+            ..MeshSettings::elements(o.elements)
+        },
         settings,
         Box::new(gbuffer::CpuRasterizer::new()),
     );
@@ -258,6 +265,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "sources": solution.k(),
         "elements": meshing.elements.len(),
         "patches": meshing.patches.len(),
+        "split_patches": meshing.split_patches,
         "form_factors": o.form_factors,
         "shots": solution.stats.shots,
         "form_factor_rows": solution.stats.form_factor_rows,

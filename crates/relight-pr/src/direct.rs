@@ -180,36 +180,33 @@ pub fn from_directional<O: Occlusion + ?Sized>(
 }
 
 /// The mean irradiance over element `e` from point light `l` (the solver's first shot):
-/// [`mean_from_point`] over the element's triangle, visibility at its four receiver points
-/// through `rays`.
+/// [`mean_from_point`] over the element's triangle, visibility at its open receiver points
+/// through `rays` (zero for a hidden element).
 pub fn element_from_point<O: Occlusion + ?Sized>(
     l: &PointLight,
     rays: &O,
     e: &crate::mesh::Element,
 ) -> Vec3 {
-    mean_from_point(
-        l,
-        rays,
-        &[e.corners],
-        e.normal,
-        e.area,
-        &e.receiver_points(),
-    )
+    let (points, count) = e.open_receiver_points();
+    let points: [Vec3; 4] = points.map(|(_, x)| x);
+    mean_from_point(l, rays, &[e.corners], e.normal, e.area, &points[..count])
 }
 
 /// The mean irradiance over element `e` from directional light `l` in a scene of size
-/// `extent`: [`from_directional`] averaged over its four receiver points.
+/// `extent`: [`from_directional`] averaged over its open receiver points (zero for a
+/// hidden element).
 pub fn element_from_directional<O: Occlusion + ?Sized>(
     l: &DirectionalLight,
     rays: &O,
     e: &crate::mesh::Element,
     extent: f32,
 ) -> Vec3 {
-    e.receiver_points()
+    let (points, count) = e.open_receiver_points();
+    points[..count]
         .iter()
-        .map(|&x| from_directional(l, rays, x, e.normal, extent))
+        .map(|&(_, x)| from_directional(l, rays, x, e.normal, extent))
         .sum::<Vec3>()
-        * 0.25
+        / count.max(1) as f32
 }
 
 /// One emitting patch: its triangle, the normal of its emitting side and its radiosity

@@ -14,6 +14,7 @@ use scene_core::sampling::{hash_seed, r2};
 use scene_core::{GBuffer, Image, View};
 
 use crate::direct::DirectGather;
+use scene_core::ray::RayScene;
 
 use crate::mesh::Meshing;
 
@@ -48,15 +49,47 @@ impl Welding {
         }
     }
 
+    /// [`Welding::new`], then every element corner that its element's centre cannot reach
+    /// over the surface (the segment from the centroid to the corner, both lifted by
+    /// `1e-4` of `extent` along the element's normal, is blocked by `rays`) gets a vertex of
+    /// its own: a corner under a wall (the floor's elements on either side of it meet
+    /// there) then carries only its own element's value, and light does not spread through
+    /// the wall by interpolation.
+    pub fn with_visibility(meshing: &Meshing, extent: f32, rays: &RayScene) -> Self {
+        let mut welding = Self::new(meshing, extent);
+        let lift = 1e-4 * extent;
+        let blocked: Vec<bool> = meshing
+            .elements
+            .par_iter()
+            .flat_map_iter(|e| {
+                let from = e.centroid + e.normal * lift;
+                e.corners.map(|c| {
+                    let to = c + e.normal * lift;
+                    let d = to - from;
+                    let len = d.length();
+                    len > 0.0 && len.is_finite() && rays.occluded(from, d / len, 0.0, len)
+                })
+            })
+            .collect();
+        for (corner, b) in welding.corner_vertex.iter_mut().zip(blocked) {
+            if b {
+                *corner = welding.vertices as u32;
+                welding.vertices += 1;
+            }
+        }
+        welding
+    }
+
     /// Per-vertex area-weighted mean of per-element values.
     pub fn vertex_values(&self, meshing: &Meshing, values: &[Vec3]) -> Vec<Vec3> {
         let mut sum = vec![Vec3::ZERO; self.vertices];
         let mut weight = vec![0.0f32; self.vertices];
         for (j, e) in meshing.elements.iter().enumerate() {
+            let w = vertex_weight(e);
             for c in 0..3 {
                 let v = self.corner_vertex[3 * j + c] as usize;
-                sum[v] += values[j] * e.area;
-                weight[v] += e.area;
+                sum[v] += values[j] * w;
+                weight[v] += w;
             }
         }
         sum.iter()
@@ -81,13 +114,14 @@ impl Welding {
         let mut indirect = vec![Vec3::ZERO; self.vertices * k];
         let mut weight = vec![0.0f32; self.vertices];
         for (j, e) in meshing.elements.iter().enumerate() {
+            let w = vertex_weight(e);
             for c in 0..3 {
                 let v = self.corner_vertex[3 * j + c] as usize;
                 for m in 0..k {
-                    direct[v * k + m] += solution.direct[j * k + m] * e.area;
-                    indirect[v * k + m] += solution.indirect[j * k + m] * e.area;
+                    direct[v * k + m] += solution.direct[j * k + m] * w;
+                    indirect[v * k + m] += solution.indirect[j * k + m] * w;
                 }
-                weight[v] += e.area;
+                weight[v] += w;
             }
         }
         for (v, w) in weight.iter().enumerate() {
@@ -99,6 +133,14 @@ impl Welding {
         }
         (direct, indirect)
     }
+}
+
+/// An element's weight in the averages at its vertices: its area, or a millionth of it
+/// when it is hidden ([`crate::mesh::Element::hidden`]), so that a vertex on the edge of a
+/// box resting on the floor takes the open floor's value, and one with only hidden
+/// elements still has one.
+fn vertex_weight(e: &crate::mesh::Element) -> f32 {
+    if e.hidden { e.area * 1e-6 } else { e.area }
 }
 
 /// How element values reach the pixels.

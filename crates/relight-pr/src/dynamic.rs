@@ -261,8 +261,12 @@ pub fn emitter_visibility(
             }
             let kernel = ci * co / dist2;
             all += kernel;
-            let eps = 1e-4 * dist;
-            if !objects.occluded(x + e.normal * eps, w, eps, dist - 2.0 * eps) {
+            // From the lifted receiver to just short of the sample point (see
+            // `point_to_triangle`).
+            let from = x + e.normal * (1e-4 * dist);
+            let seg = q - from;
+            let len = seg.length();
+            if !objects.occluded(from, seg / len, 0.0, len * (1.0 - 2e-4)) {
                 seen += kernel;
             }
         }

@@ -26,8 +26,8 @@
 //! (closed-form point-to-polygon form factors with ray-cast visibility), [`solver`] (the
 //! figure 2 loop, the two baselines of Table 1, direct and indirect apart, ambient term),
 //! [`relight`] (eq. 1 for any light state), [`display`] (smooth interpolation over a
-//! camera G-buffer of the element scene), [`technique`] (`RelightTechnique`, a
-//! `scene_core::Technique`). `docs/relight-pr.md` has the design, the tests
+//! camera G-buffer of the element scene), [`dynamic`] (moving lights and dynamic objects,
+//! section 2.4), [`technique`] (`RelightTechnique`, a `scene_core::Technique`). `docs/relight-pr.md` has the design, the tests
 //! and the measured figures.
 
 pub mod direct;
@@ -47,8 +47,8 @@ pub use solver::{FormFactorMethod, Solution, SolverSettings, Strategy, solve, so
 pub use technique::RelightTechnique;
 
 /// Implementation status of this crate.
-pub const STATUS: &str =
-    "in progress: solver, CPU and GPU relighting, display, export; dynamic scenes to do";
+pub const STATUS: &str = "in progress: solver, CPU and GPU relighting, display, export, \
+     dynamic scenes; open items in docs/relight-pr.md";
 
 pub use scene_core;
 

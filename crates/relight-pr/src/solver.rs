@@ -373,12 +373,15 @@ pub(crate) fn reflect_onto_patches(
     let els = &meshing.elements;
     for (p, patch) in meshing.patches.iter().enumerate() {
         let first = patch.first_element as usize;
+        if patch.open_area <= 0.0 {
+            continue;
+        }
         for m in 0..k {
             let mut sum = Vec3::ZERO;
-            for e in first..first + 4 {
+            for e in (first..first + 4).filter(|&e| !els[e].hidden) {
                 sum += els[e].albedo * direct[e * k + m] * els[e].area;
             }
-            unshot_refl[p * k + m] += sum / patch.area;
+            unshot_refl[p * k + m] += sum / patch.open_area;
         }
     }
 }
@@ -407,7 +410,7 @@ pub(crate) fn propagate(
         ..
     } = state;
     let power = |u: &[Vec3], p: usize| -> f64 {
-        (0..k).map(|m| luminance(u[p * k + m]) as f64).sum::<f64>() * patches[p].area as f64
+        (0..k).map(|m| luminance(u[p * k + m]) as f64).sum::<f64>() * patches[p].open_area as f64
     };
     let unshot_power =
         |ue: &[Vec3], ur: &[Vec3]| -> f64 { (0..np).map(|p| power(ue, p) + power(ur, p)).sum() };
@@ -475,13 +478,13 @@ pub(crate) fn propagate(
                 *f = if e.patch as usize == p {
                     0.0
                 } else {
-                    // The element's average over its four receiver points, the visibility rays
-                    // shared out among them.
-                    let per_point = samples.div_ceil(4);
-                    e.receiver_points()
+                    // The element's average over its open receiver points, the visibility
+                    // rays shared out among them.
+                    let (points, count) = e.open_receiver_points();
+                    let per_point = samples.div_ceil(count.max(1) as u32);
+                    points[..count]
                         .iter()
-                        .enumerate()
-                        .map(|(r, &x)| {
+                        .map(|&(r, x)| {
                             point_to_triangle(
                                 x,
                                 e.normal,
@@ -493,7 +496,7 @@ pub(crate) fn propagate(
                             )
                         })
                         .sum::<f32>()
-                        * 0.25
+                        / count.max(1) as f32
                 };
             });
         }
@@ -522,8 +525,11 @@ pub(crate) fn propagate(
             .enumerate()
             .for_each(|(q, u)| {
                 let first = patches[q].first_element as usize;
-                let inv = 1.0 / patches[q].area;
-                for e in first..first + 4 {
+                if patches[q].open_area <= 0.0 {
+                    return;
+                }
+                let inv = 1.0 / patches[q].open_area;
+                for e in (first..first + 4).filter(|&e| !els[e].hidden) {
                     let f = form[e];
                     if f > 0.0 {
                         let w = els[e].albedo * (f * els[e].area * inv);
@@ -543,13 +549,16 @@ pub(crate) fn propagate(
     // R = 1 / (1 - rho_avg) times.
     let mut ambient = vec![Vec3::ZERO; k];
     if settings.ambient {
-        let total_area: f32 = els.iter().map(|e| e.area).sum();
+        let open = || els.iter().filter(|e| !e.hidden);
+        let total_area: f32 = open().map(|e| e.area).sum();
         if total_area > 0.0 {
-            let rho: Vec3 = els.iter().map(|e| e.albedo * e.area).sum::<Vec3>() / total_area;
+            let rho: Vec3 = open().map(|e| e.albedo * e.area).sum::<Vec3>() / total_area;
             let r = Vec3::ONE / (Vec3::ONE - rho).max(Vec3::splat(1e-3));
             for (m, a) in ambient.iter_mut().enumerate() {
                 let u: Vec3 = (0..np)
-                    .map(|p| (unshot_emit[p * k + m] + unshot_refl[p * k + m]) * patches[p].area)
+                    .map(|p| {
+                        (unshot_emit[p * k + m] + unshot_refl[p * k + m]) * patches[p].open_area
+                    })
                     .sum();
                 *a = r * u / total_area;
             }

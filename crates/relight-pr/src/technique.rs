@@ -134,7 +134,7 @@ impl RelightTechnique {
         )?;
         self.renderer
             .prepare(Arc::new(meshing.element_scene(&scene)))?;
-        let welding = Welding::new(&meshing, scene.extent());
+        let welding = Welding::with_visibility(&meshing, scene.extent(), &rays);
         self.prepared = Some(Prepared {
             scene,
             meshing,

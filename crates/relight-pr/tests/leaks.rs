@@ -58,6 +58,11 @@ fn room(mesh: &mut Mesh, lo: Vec3, hi: Vec3) {
 }
 
 fn two_rooms() -> Scene {
+    two_rooms_to(2.01)
+}
+
+/// The two rooms, the second one reaching `right` along x.
+fn two_rooms_to(right: f32) -> Scene {
     let mut scene = Scene::new("two rooms");
     scene.materials.push(Material {
         name: "white".into(),
@@ -74,7 +79,7 @@ fn two_rooms() -> Scene {
     room(
         &mut mesh,
         Vec3::new(1.01, 0.0, 0.0),
-        Vec3::new(2.01, 1.0, 1.0),
+        Vec3::new(right, 1.0, 1.0),
     );
     scene.meshes.push(mesh);
     scene.point_lights.push(PointLight {
@@ -131,5 +136,155 @@ fn the_dark_room_stays_dark_with_both_form_factor_methods() {
         eprintln!("{method:?}: lit room mean {lit:.4e}, dark room mean {dark:.3e}");
         assert!(lit > 0.0);
         assert!(dark < 1e-4 * lit, "{method:?}: {dark} against {lit}");
+    }
+}
+
+/// The two rooms standing on one floor that runs under the shared wall (the floor's
+/// elements straddle the wall unless the meshing splits them), the wall a closed slab. The
+/// second room is longer, so that the floor's subdivision lines do not fall inside the
+/// wall.
+fn rooms_on_one_floor() -> Scene {
+    let right = 2.5;
+    let mut scene = two_rooms_to(right);
+    let mesh = &mut scene.meshes[0];
+    // Drop both rooms' floors (the first face of each room: two triangles each).
+    let keep: Vec<usize> = (0..mesh.indices.len())
+        .filter(|&t| {
+            let y = mesh.indices[t].map(|i| mesh.positions[i as usize].y);
+            !(y.iter().all(|&v| v == 0.0))
+        })
+        .collect();
+    mesh.indices = keep.iter().map(|&t| mesh.indices[t]).collect();
+    mesh.material_ids = keep.iter().map(|&t| mesh.material_ids[t]).collect();
+    // Close the slab between the rooms (x from 1 to 1.01): a top and two ends, facing out.
+    let (x0, x1) = (1.0, 1.01);
+    mesh.push_quad(
+        [
+            Vec3::new(x0, 1.0, 0.0),
+            Vec3::new(x0, 1.0, 1.0),
+            Vec3::new(x1, 1.0, 1.0),
+            Vec3::new(x1, 1.0, 0.0),
+        ],
+        0,
+    );
+    mesh.push_quad(
+        [
+            Vec3::new(x0, 0.0, 0.0),
+            Vec3::new(x0, 1.0, 0.0),
+            Vec3::new(x1, 1.0, 0.0),
+            Vec3::new(x1, 0.0, 0.0),
+        ],
+        0,
+    );
+    mesh.push_quad(
+        [
+            Vec3::new(x0, 0.0, 1.0),
+            Vec3::new(x1, 0.0, 1.0),
+            Vec3::new(x1, 1.0, 1.0),
+            Vec3::new(x0, 1.0, 1.0),
+        ],
+        0,
+    );
+    // One floor under both, facing up.
+    mesh.push_quad(
+        [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(right, 0.0, 1.0),
+            Vec3::new(right, 0.0, 0.0),
+        ],
+        0,
+    );
+    scene
+}
+
+/// The mean of an image over its non-black pixels' count (all pixels see surfaces here).
+fn image_mean(img: &scene_core::Image) -> f64 {
+    img.pixels
+        .iter()
+        .map(|p| p.element_sum() as f64)
+        .sum::<f64>()
+        / img.pixels.len() as f64
+}
+
+#[test]
+fn a_floor_running_under_the_wall_does_not_carry_light_through_it() {
+    use relight_pr::RelightTechnique;
+    use scene_core::{Camera, FrameRequest, Technique};
+    let scene = Arc::new(rooms_on_one_floor());
+    // Cameras in each room looking down at the floor along the wall.
+    let camera = |x: f32, towards: f32| Camera {
+        name: "floor".into(),
+        position: Vec3::new(x, 0.6, 0.5),
+        target: Vec3::new(towards, 0.0, 0.5),
+        up: Vec3::Y,
+        fov_y: 0.9,
+        aspect: 1.0,
+        near: 1e-3,
+        far: 10.0,
+    };
+    let (lit_camera, dark_camera) = (camera(0.6, 0.98), camera(1.41, 1.03));
+    let mut leaks = Vec::new();
+    for split_depth in [0, 6] {
+        let mut t = RelightTechnique::new(
+            MeshSettings {
+                split_depth,
+                ..MeshSettings::elements(768)
+            },
+            SolverSettings {
+                max_unshot: 1e-2,
+                visibility_samples: 8,
+                ..Default::default()
+            },
+            Box::new(RayCastRenderer::new()),
+        );
+        t.prepare(scene.clone()).unwrap();
+        let p = t.prepared().unwrap();
+        let radiance = relight::radiance(&p.meshing, &p.solution, &LightState::default());
+        let (mut lit, mut dark) = ((0.0f64, 0.0f64), (0.0f64, 0.0f64));
+        for (e, r) in p.meshing.elements.iter().zip(&radiance) {
+            if e.centroid.x < 1.0 {
+                lit.0 += (r.element_sum() * e.area) as f64;
+                lit.1 += e.area as f64;
+            } else if e.centroid.x > 1.01 {
+                dark.0 += (r.element_sum() * e.area) as f64;
+                dark.1 += e.area as f64;
+            }
+        }
+        let (lit, dark) = (lit.0 / lit.1, dark.0 / dark.1);
+        let (elements, splits) = (p.meshing.elements.len(), p.meshing.split_patches);
+        let state = LightState::default();
+        let mut images = Vec::new();
+        for direct in [
+            relight_pr::direct::DirectLight::Elements,
+            relight_pr::direct::DirectLight::default(),
+        ] {
+            t.direct = direct;
+            let lit_img = t
+                .render(&FrameRequest::from_camera(&lit_camera, 32, 32, &state))
+                .unwrap();
+            let dark_img = t
+                .render(&FrameRequest::from_camera(&dark_camera, 32, 32, &state))
+                .unwrap();
+            images.push((image_mean(&lit_img), image_mean(&dark_img)));
+        }
+        eprintln!(
+            "split depth {split_depth}: {elements} elements ({splits} patches split); elements: \
+             lit {lit:.4e}, dark {dark:.3e}; images (elements, per-pixel direct): {images:?}"
+        );
+        leaks.push((dark / lit, images));
+    }
+    // Without splitting, the floor's elements under the wall carry light into the dark
+    // room's image (the case this test is about); with it, nothing reaches it.
+    let unsplit = &leaks[0].1;
+    assert!(
+        unsplit.iter().all(|(lit, dark)| *dark > 1e-3 * lit),
+        "the unsplit floor leaks: {unsplit:?}"
+    );
+    let (elements, images) = &leaks[1];
+    assert!(*elements < 1e-4, "elements: {elements}");
+    for (lit, dark) in images {
+        assert!(*lit > 0.0);
+        assert!(*dark < 1e-4 * lit, "display: dark {dark} against lit {lit}");
     }
 }

@@ -1,0 +1,259 @@
+//! Hard cases of the solver, each against the furnace (a closed enclosure where every
+//! surface emits `L` and reflects `rho` has radiance `L / (1 - rho)` wherever a point sees
+//! only such surfaces): sliver and degenerate triangles, surfaces touching face to face
+//! (1/r^2 at zero distance), albedo near and at 1. Never a NaN, never a panic.
+
+use glam::Vec3;
+use relight_pr::mesh::{MeshSettings, Meshing};
+use relight_pr::relight;
+use relight_pr::solver::{self, SolverSettings};
+use scene_core::Scene;
+use scene_core::lights::LightState;
+use scene_core::ray::RayScene;
+use scene_core::scene::{Material, Mesh};
+
+fn v(x: f32, y: f32, z: f32) -> Vec3 {
+    Vec3::new(x, y, z)
+}
+
+/// The unit furnace box's walls but the floor (counter-clockwise seen from inside).
+fn walls(mesh: &mut Mesh) {
+    for q in [
+        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
+        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
+        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
+        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
+        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
+    ] {
+        mesh.push_quad(q, 0);
+    }
+}
+
+fn furnace_scene(rho: f32, mesh: Mesh) -> Scene {
+    let mut scene = Scene::new("furnace");
+    scene.materials.push(Material {
+        name: "m".into(),
+        albedo: Vec3::splat(rho),
+        albedo_texture: None,
+        emission: Vec3::ONE,
+    });
+    scene.meshes.push(mesh);
+    scene
+}
+
+fn push_triangle(mesh: &mut Mesh, t: [Vec3; 3]) {
+    let b = mesh.positions.len() as u32;
+    let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+    mesh.positions.extend_from_slice(&t);
+    mesh.normals.extend_from_slice(&[n; 3]);
+    mesh.indices.push([b, b + 1, b + 2]);
+    mesh.material_ids.push(0);
+}
+
+fn solve(scene: &Scene, elements: usize, settings: &SolverSettings) -> (Meshing, Vec<Vec3>) {
+    let meshing = Meshing::new(scene, &MeshSettings::elements(elements), 1).unwrap();
+    let rays = RayScene::build(scene);
+    let s = solver::solve(scene, &meshing, &rays, settings, &mut |_| {}).unwrap();
+    let out = relight::radiance(&meshing, &s, &LightState::default());
+    (meshing, out)
+}
+
+fn ambient() -> SolverSettings {
+    SolverSettings {
+        max_unshot: 1e-2,
+        visibility_samples: 4,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn slivers_and_degenerate_triangles_keep_the_furnace() {
+    // The floor as a fan around a point 1e-6 from a corner: two slivers of aspect ~1e6 and
+    // two large triangles; plus a zero-area triangle and one with a NaN-free but collinear
+    // corner, both skipped.
+    let mut mesh = Mesh::default();
+    walls(&mut mesh);
+    let c = v(1e-6, 0.0, 1e-6);
+    for (a, b) in [
+        (v(0., 0., 0.), v(0., 0., 1.)),
+        (v(0., 0., 1.), v(1., 0., 1.)),
+        (v(1., 0., 1.), v(1., 0., 0.)),
+        (v(1., 0., 0.), v(0., 0., 0.)),
+    ] {
+        push_triangle(&mut mesh, [c, a, b]);
+    }
+    push_triangle(&mut mesh, [v(0.5, 0.0, 0.5); 3]);
+    push_triangle(
+        &mut mesh,
+        [v(0.2, 0.0, 0.2), v(0.4, 0.0, 0.4), v(0.6, 0.0, 0.6)],
+    );
+    let rho = 0.5;
+    let scene = furnace_scene(rho, mesh);
+    let (meshing, out) = solve(&scene, 384, &ambient());
+    assert_eq!(meshing.skipped_triangles, 2);
+    let expect = 1.0 / (1.0 - rho);
+    let slivers: Vec<usize> = (0..meshing.elements.len())
+        .filter(|&j| meshing.elements[j].area < 1e-5)
+        .collect();
+    assert!(!slivers.is_empty(), "the fan makes sliver elements");
+    for (j, c) in out.iter().enumerate() {
+        assert!(c.is_finite(), "element {j}: {c}");
+        assert!(
+            (c.x - expect).abs() <= 0.02 * expect,
+            "element {j} (area {:.1e}): {} against {expect}",
+            meshing.elements[j].area,
+            c.x
+        );
+    }
+}
+
+#[test]
+fn surfaces_touching_face_to_face_stay_finite() {
+    // A box resting on the floor and a slab pressed against a wall: faces at zero distance
+    // from the floor and the wall, facing them (a 1/r^2 kernel would blow up there).
+    let mut mesh = Mesh::default();
+    walls(&mut mesh);
+    mesh.push_quad(
+        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
+        0,
+    );
+    let cuboid = |mesh: &mut Mesh, lo: Vec3, hi: Vec3| {
+        let (a, b) = (lo, hi);
+        // Outward faces.
+        for q in [
+            [
+                v(a.x, a.y, a.z),
+                v(b.x, a.y, a.z),
+                v(b.x, a.y, b.z),
+                v(a.x, a.y, b.z),
+            ],
+            [
+                v(a.x, b.y, a.z),
+                v(a.x, b.y, b.z),
+                v(b.x, b.y, b.z),
+                v(b.x, b.y, a.z),
+            ],
+            [
+                v(a.x, a.y, a.z),
+                v(a.x, b.y, a.z),
+                v(b.x, b.y, a.z),
+                v(b.x, a.y, a.z),
+            ],
+            [
+                v(a.x, a.y, b.z),
+                v(b.x, a.y, b.z),
+                v(b.x, b.y, b.z),
+                v(a.x, b.y, b.z),
+            ],
+            [
+                v(a.x, a.y, a.z),
+                v(a.x, a.y, b.z),
+                v(a.x, b.y, b.z),
+                v(a.x, b.y, a.z),
+            ],
+            [
+                v(b.x, a.y, a.z),
+                v(b.x, b.y, a.z),
+                v(b.x, b.y, b.z),
+                v(b.x, a.y, b.z),
+            ],
+        ] {
+            mesh.push_quad(q, 0);
+        }
+    };
+    let solids = [
+        (v(0.3, 0.0, 0.3), v(0.6, 0.25, 0.6)),
+        (v(0.0, 0.5, 0.2), v(0.1, 0.9, 0.7)),
+    ];
+    for (lo, hi) in solids {
+        cuboid(&mut mesh, lo, hi);
+    }
+    let rho = 0.5;
+    let scene = furnace_scene(rho, mesh);
+    let settings = SolverSettings {
+        visibility_samples: 64,
+        ..ambient()
+    };
+    let (meshing, out) = solve(&scene, 768, &settings);
+    let expect = 1.0 / (1.0 - rho);
+    let mut hidden = 0;
+    let (mut sum, mut area) = (0.0f32, 0.0f32);
+    for (j, (e, c)) in meshing.elements.iter().zip(&out).enumerate() {
+        assert!(c.is_finite(), "element {j}: {c}");
+        // Hidden: pressed against another surface (the floor under the box, the wall
+        // behind the slab), or facing out of the enclosure through it (the box's bottom):
+        // no light reaches it; only its own emission.
+        let x = e.centroid + e.normal * 1e-4;
+        let outside = !(x.cmpge(Vec3::ZERO).all() && x.cmple(Vec3::ONE).all());
+        let pressed = solids
+            .iter()
+            .any(|(lo, hi)| x.cmpgt(*lo).all() && x.cmplt(*hi).all());
+        if outside || pressed {
+            hidden += 1;
+            assert!(
+                c.x >= 1.0 / std::f32::consts::PI && c.x <= expect * 1.02,
+                "{j}: {c}"
+            );
+        } else {
+            // Measured: the worst elements, 8 % low, are on the ceiling right above the
+            // slab's top, 0.1 below it, next to the wall the slab is pressed against (not
+            // explained yet; docs/relight-pr.md); the mean is within 0.5 %.
+            assert!(
+                (c.x - expect).abs() <= 0.1 * expect,
+                "visible element {j} at {}: {} against {expect}",
+                e.centroid,
+                c.x
+            );
+            sum += c.x * e.area;
+            area += e.area;
+        }
+    }
+    let mean = sum / area;
+    eprintln!("visible mean {mean} against {expect}");
+    assert!(
+        (mean - expect).abs() <= 0.01 * expect,
+        "visible mean {mean}"
+    );
+    assert!(hidden > 0, "some elements are pressed against others");
+}
+
+#[test]
+fn albedo_near_and_at_one() {
+    let mut mesh = Mesh::default();
+    walls(&mut mesh);
+    mesh.push_quad(
+        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
+        0,
+    );
+    // 0.99: slow (about 100 reflections), the ambient term carries what is left.
+    let scene = furnace_scene(0.99, mesh.clone());
+    let settings = SolverSettings {
+        max_shots: 3000,
+        ..ambient()
+    };
+    let (meshing, out) = solve(&scene, 96, &settings);
+    let expect = 1.0 / (1.0 - 0.99);
+    let total: f32 = meshing.elements.iter().map(|e| e.area).sum();
+    let mean = out
+        .iter()
+        .zip(&meshing.elements)
+        .map(|(c, e)| c.x * e.area)
+        .sum::<f32>()
+        / total;
+    assert!((mean - expect).abs() <= 0.01 * expect, "rho 0.99: {mean}");
+    // 1 (refused by Scene::validate, so only an unvalidated scene gets here): no
+    // convergence; the shot cap stops it and every value stays finite.
+    let mut scene = furnace_scene(1.0, mesh);
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(96), 1).unwrap();
+    let rays = RayScene::build(&scene);
+    let settings = SolverSettings {
+        max_shots: 500,
+        ..ambient()
+    };
+    let s = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
+    assert_eq!(s.stats.shots, 500);
+    assert!(s.stats.unshot_fraction > 0.5, "{}", s.stats.unshot_fraction);
+    let out = relight::radiance(&meshing, &s, &LightState::default());
+    assert!(out.iter().all(|c| c.is_finite() && c.min_element() > 0.0));
+    assert!(scene.validate().is_err(), "validation refuses albedo 1");
+}
