@@ -62,8 +62,9 @@ fn table1(pool: &rayon::ThreadPool) -> Result<(), String> {
                 split_depth: 0,
                 ..MeshSettings::elements(1024)
             };
-            let meshing = Meshing::new(&scene, &uniform, k).map_err(|e| e.to_string())?;
             let rays = RayScene::build(&scene);
+            let meshing =
+                Meshing::with_rays(&scene, &uniform, k, &rays).map_err(|e| e.to_string())?;
             let mut times = Vec::new();
             for strategy in [Strategy::Combined, Strategy::Separate, Strategy::Tagged] {
                 let settings = SolverSettings {
@@ -205,8 +206,8 @@ fn solve_1e4(pool: &rayon::ThreadPool) -> Result<(), String> {
         split_depth: 0,
         ..MeshSettings::elements(10_000)
     };
-    let meshing = Meshing::new(&scene, &uniform, k).map_err(|e| e.to_string())?;
     let rays = RayScene::build(&scene);
+    let meshing = Meshing::with_rays(&scene, &uniform, k, &rays).map_err(|e| e.to_string())?;
     let settings = SolverSettings::default();
     let t0 = Instant::now();
     let solution = pool
@@ -247,10 +248,10 @@ fn dynamic(pool: &rayon::ThreadPool, repeats: usize) -> Result<(), String> {
     let mut dark = lit.clone();
     let light = dark.point_lights.remove(0);
     let settings = SolverSettings::default();
+    let rays = RayScene::build(&dark);
     for target in [256usize, 1024] {
-        let meshing =
-            Meshing::new(&dark, &MeshSettings::elements(target), 1).map_err(|e| e.to_string())?;
-        let rays = RayScene::build(&dark);
+        let meshing = Meshing::with_rays(&dark, &MeshSettings::elements(target), 1, &rays)
+            .map_err(|e| e.to_string())?;
         let t0 = Instant::now();
         let transfer = pool
             .install(|| Transfer::solve(&dark, &meshing, &rays, &settings, 16 << 30, &mut |_| {}))

@@ -63,12 +63,8 @@ impl Welding {
             .par_iter()
             .flat_map_iter(|e| {
                 let from = e.centroid + e.normal * lift;
-                e.corners.map(|c| {
-                    let to = c + e.normal * lift;
-                    let d = to - from;
-                    let len = d.length();
-                    len > 0.0 && len.is_finite() && rays.occluded(from, d / len, 0.0, len)
-                })
+                e.corners
+                    .map(|c| crate::direct::segment_blocked(rays, from, c + e.normal * lift))
             })
             .collect();
         for (corner, b) in welding.corner_vertex.iter_mut().zip(blocked) {

@@ -41,7 +41,7 @@ use crate::RelightError;
 use crate::direct::{self, Occlusion, WithDynamic};
 use crate::mesh::Meshing;
 use crate::relight;
-use crate::solver::{self, FormFactorMethod, Shooting, Solution, SolveStats, SolverSettings};
+use crate::solver::{self, Shooting, Solution, SolveStats, SolverSettings};
 
 /// Peak bytes of a patch transfer solution over `n` elements and `p` patches while it is
 /// solved: direct and indirect irradiance per element and patch, two unshot values per
@@ -81,7 +81,7 @@ impl Transfer {
 
     /// Solves the transfer of `meshing` of `scene`: figure 2's tagged loop with one source
     /// per patch, `settings` giving the form factors (a renderer is needed for
-    /// [`FormFactorMethod::Hemicube`]; it is prepared here with the element scene), the
+    /// [`crate::FormFactorMethod::Hemicube`]; it is prepared here with the element scene), the
     /// convergence and the ambient term (its strategy and banks do not apply). Errors with
     /// [`RelightError::Budget`] before allocating when [`transfer_bytes`] exceeds
     /// `max_bytes`. `progress` gets the unshot fraction after every shot.
@@ -102,24 +102,7 @@ impl Transfer {
                  while solving, over the budget of {max_bytes}"
             )));
         }
-        if settings.visibility_samples == 0 || settings.max_unshot.is_nan() {
-            return Err(RelightError::InvalidSetting(format!(
-                "visibility_samples {} (at least 1), max_unshot {}",
-                settings.visibility_samples, settings.max_unshot
-            )));
-        }
-        if let FormFactorMethod::Hemicube { resolution } = settings.form_factors {
-            let Some(r) = renderer.as_deref_mut() else {
-                return Err(RelightError::InvalidSetting(
-                    "hemicube form factors need a G-buffer renderer (solve_with)".into(),
-                ));
-            };
-            if resolution == 0 {
-                return Err(RelightError::InvalidSetting("hemicube resolution 0".into()));
-            }
-            r.prepare(std::sync::Arc::new(meshing.element_scene(scene)))
-                .map_err(|e| RelightError::Render(Box::new(e)))?;
-        }
+        solver::check_and_prepare(scene, meshing, &mut renderer, settings)?;
         let start = Instant::now();
         let k = np;
         let mut unshot_emit = vec![Vec3::ZERO; np * k];
@@ -175,6 +158,9 @@ impl Transfer {
     /// `E_ind,j = sum_p T_jp B_p` (per channel).
     pub fn indirect(&self, meshing: &Meshing, direct: &[Vec3]) -> Vec<Vec3> {
         let np = self.patches;
+        if np == 0 {
+            return vec![Vec3::ZERO; meshing.elements.len()];
+        }
         let mut emit = vec![Vec3::ZERO; np];
         solver::reflect_onto_patches(meshing, direct, 1, &mut emit);
         let active: Vec<(usize, Vec3)> = emit
@@ -183,9 +169,6 @@ impl Transfer {
             .filter(|(_, b)| **b != Vec3::ZERO && b.is_finite())
             .map(|(p, b)| (p, *b))
             .collect();
-        if np == 0 {
-            return vec![Vec3::ZERO; meshing.elements.len()];
-        }
         self.values
             .par_chunks(np)
             .map(|row| active.iter().map(|&(p, b)| row[p] * b).sum())
@@ -261,12 +244,7 @@ pub fn emitter_visibility(
             }
             let kernel = ci * co / dist2;
             all += kernel;
-            // From the lifted receiver to just short of the sample point (see
-            // `point_to_triangle`).
-            let from = x + e.normal * (1e-4 * dist);
-            let seg = q - from;
-            let len = seg.length();
-            if !objects.occluded(from, seg / len, 0.0, len * (1.0 - 2e-4)) {
+            if direct::sees_surface_point(objects, x, e.normal, q, dist) {
                 seen += kernel;
             }
         }

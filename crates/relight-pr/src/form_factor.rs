@@ -101,14 +101,7 @@ pub fn point_to_triangle<O: crate::direct::Occlusion + ?Sized>(
             continue;
         }
         tried += 1;
-        // The segment from the receiver, lifted off its surface, to the sample point, short
-        // of the patch by a relative margin: measured from the lifted origin, so that a
-        // lift towards the patch's plane cannot reach it first (a grazing ray from the slab
-        // under a ceiling lost 6 % of the ceiling's form factor that way).
-        let from = x + n * (1e-4 * dist);
-        let seg = q - from;
-        let len = seg.length();
-        if !rays.occluded(from, seg / len, 0.0, len * (1.0 - 2e-4)) {
+        if crate::direct::sees_surface_point(rays, x, n, q, dist) {
             visible += 1;
         }
     }

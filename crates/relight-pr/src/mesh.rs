@@ -258,22 +258,32 @@ fn straddles(rays: &RayScene, face_normals: &[Vec3], c: [Vec3; 3], n: Vec3, lift
     }
     let points = &points[..kept];
     points.iter().enumerate().any(|(i, &a)| {
-        points[i + 1..].iter().any(|&b| {
-            let d = b - a;
-            let len = d.length();
-            len > 0.0 && len.is_finite() && rays.occluded(a, d / len, 0.0, len)
-        })
+        points[i + 1..]
+            .iter()
+            .any(|&b| crate::direct::segment_blocked(rays, a, b))
     })
 }
 
 impl Meshing {
     /// Meshes `scene` (which should be validated). Errors with [`RelightError::Budget`]
     /// before allocating when the element count or a `lights`-light solution would exceed
-    /// `settings.budget`.
+    /// `settings.budget`. Builds the scene's rays (for the splits at walls and the hidden
+    /// elements); a caller that has them already uses [`Meshing::with_rays`].
     pub fn new(
         scene: &Scene,
         settings: &MeshSettings,
         lights: usize,
+    ) -> Result<Self, RelightError> {
+        Self::with_rays(scene, settings, lights, &RayScene::build(scene))
+    }
+
+    /// [`Meshing::new`] with the scene's rays already built (`rays` from `scene`; the
+    /// solver needs the same).
+    pub fn with_rays(
+        scene: &Scene,
+        settings: &MeshSettings,
+        lights: usize,
+        rays: &RayScene,
     ) -> Result<Self, RelightError> {
         if settings.target_elements < 4 {
             return Err(RelightError::InvalidSetting(format!(
@@ -314,7 +324,7 @@ impl Meshing {
         }
         // The patches of each triangle: its uniform pieces, those that straddle other
         // geometry split again. Every split adds 12 elements, counted before it is kept.
-        let rays = (count > 0).then(|| RayScene::build(scene));
+        let rays = (count > 0).then_some(rays);
         let face_normals: Vec<Vec3> = match rays {
             Some(_) => scene
                 .meshes

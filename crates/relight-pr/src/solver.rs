@@ -196,25 +196,7 @@ pub fn solve_with(
     settings: &SolverSettings,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Solution, RelightError> {
-    if let FormFactorMethod::Hemicube { resolution } = settings.form_factors {
-        if resolution == 0 {
-            return Err(RelightError::InvalidSetting("hemicube resolution 0".into()));
-        }
-        let Some(r) = renderer.as_deref_mut() else {
-            return Err(RelightError::InvalidSetting(
-                "hemicube form factors need a G-buffer renderer (solve_with)".into(),
-            ));
-        };
-        r.prepare(std::sync::Arc::new(meshing.element_scene(scene)))
-            .map_err(|e| RelightError::Render(Box::new(e)))?;
-    }
-    if settings.visibility_samples == 0 || settings.max_unshot.is_nan() || settings.max_unshot < 0.0
-    {
-        return Err(RelightError::InvalidSetting(format!(
-            "visibility_samples {} (at least 1), max_unshot {} (at least 0)",
-            settings.visibility_samples, settings.max_unshot
-        )));
-    }
+    check_and_prepare(scene, meshing, &mut renderer, settings)?;
     let start = Instant::now();
     let sources = sources(scene, &settings.banks)?;
     let mut solution = match settings.strategy {
@@ -278,6 +260,37 @@ pub fn solve_with(
     };
     solution.stats.time = start.elapsed();
     Ok(solution)
+}
+
+/// Checks `settings` (visibility samples, unshot limit, hemicube resolution and renderer)
+/// and, for hemicube form factors, prepares the renderer with `meshing`'s element scene:
+/// what every solve over a meshing does first.
+pub(crate) fn check_and_prepare(
+    scene: &Scene,
+    meshing: &Meshing,
+    renderer: &mut Option<&mut (dyn scene_core::GBufferRenderer + Send)>,
+    settings: &SolverSettings,
+) -> Result<(), RelightError> {
+    if let FormFactorMethod::Hemicube { resolution } = settings.form_factors {
+        if resolution == 0 {
+            return Err(RelightError::InvalidSetting("hemicube resolution 0".into()));
+        }
+        let Some(r) = renderer.as_deref_mut() else {
+            return Err(RelightError::InvalidSetting(
+                "hemicube form factors need a G-buffer renderer (solve_with)".into(),
+            ));
+        };
+        r.prepare(std::sync::Arc::new(meshing.element_scene(scene)))
+            .map_err(|e| RelightError::Render(Box::new(e)))?;
+    }
+    if settings.visibility_samples == 0 || settings.max_unshot.is_nan() || settings.max_unshot < 0.0
+    {
+        return Err(RelightError::InvalidSetting(format!(
+            "visibility_samples {} (at least 1), max_unshot {} (at least 0)",
+            settings.visibility_samples, settings.max_unshot
+        )));
+    }
+    Ok(())
 }
 
 /// The figure 2 loop for `sources` at once.

@@ -122,8 +122,8 @@ impl RelightTechnique {
         self.prepared = None;
         self.cache = None;
         let k = solver::sources(&scene, &self.solver.banks)?.len();
-        let meshing = Meshing::new(&scene, &self.mesh, k)?;
         let rays = RayScene::build(&scene);
+        let meshing = Meshing::with_rays(&scene, &self.mesh, k, &rays)?;
         let solution = solver::solve_with(
             &scene,
             &meshing,

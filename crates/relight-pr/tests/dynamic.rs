@@ -4,12 +4,23 @@
 //! indirect light of the static lights; the transfer's memory is budgeted before it is
 //! allocated.
 
+mod common;
+use common::max_relative;
 use glam::Vec3;
 use relight_pr::dynamic::{DynamicScene, Transfer, transfer_bytes};
 use relight_pr::{MeshSettings, Meshing, RelightError, SolverSettings, Strategy, solve};
-use scene_core::builtin;
 use scene_core::lights::LightState;
 use scene_core::ray::RayScene;
+use scene_core::{Scene, builtin};
+
+/// A built-in scene meshed at 256 elements and solved tight, for the object tests.
+fn solved(name: &str) -> (Scene, Meshing, RayScene, relight_pr::Solution) {
+    let scene = builtin::scene(name).unwrap();
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(256), 1).unwrap();
+    let rays = RayScene::build(&scene);
+    let solution = solve(&scene, &meshing, &rays, &tight(), &mut |_| {}).unwrap();
+    (scene, meshing, rays, solution)
+}
 
 fn tight() -> SolverSettings {
     SolverSettings {
@@ -20,60 +31,10 @@ fn tight() -> SolverSettings {
     }
 }
 
-/// The largest difference between `a` and `b` over the largest value of `b`.
-fn max_relative(a: &[Vec3], b: &[Vec3]) -> f32 {
-    let peak = b.iter().map(|v| v.max_element()).fold(0.0f32, f32::max);
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (*x - *y).abs().max_element())
-        .fold(0.0f32, f32::max)
-        / peak
-}
-
-/// A closed cube of half size `h` centred at `c` (outward faces).
+/// A closed cube of half size `h` centred at `c` (outward faces), as triangles.
 fn cube(c: Vec3, h: f32) -> Vec<[Vec3; 3]> {
     let mut mesh = scene_core::Mesh::default();
-    let v = |x: f32, y: f32, z: f32| c + Vec3::new(x, y, z) * h;
-    for q in [
-        [
-            v(-1., -1., -1.),
-            v(1., -1., -1.),
-            v(1., -1., 1.),
-            v(-1., -1., 1.),
-        ],
-        [
-            v(-1., 1., -1.),
-            v(-1., 1., 1.),
-            v(1., 1., 1.),
-            v(1., 1., -1.),
-        ],
-        [
-            v(-1., -1., -1.),
-            v(-1., 1., -1.),
-            v(1., 1., -1.),
-            v(1., -1., -1.),
-        ],
-        [
-            v(-1., -1., 1.),
-            v(1., -1., 1.),
-            v(1., 1., 1.),
-            v(-1., 1., 1.),
-        ],
-        [
-            v(-1., -1., -1.),
-            v(-1., -1., 1.),
-            v(-1., 1., 1.),
-            v(-1., 1., -1.),
-        ],
-        [
-            v(1., -1., -1.),
-            v(1., 1., -1.),
-            v(1., 1., 1.),
-            v(1., -1., 1.),
-        ],
-    ] {
-        mesh.push_quad(q, 0);
-    }
+    mesh.push_box(c, Vec3::splat(h), 0.0, 0);
     mesh.indices
         .iter()
         .map(|t| t.map(|i| mesh.positions[i as usize]))
@@ -152,10 +113,7 @@ fn a_moving_light_blended_from_the_transfer_equals_a_re_solve() {
 
 #[test]
 fn dynamic_objects_shadow_the_direct_light_only() {
-    let scene = builtin::scene("cornell-point").unwrap();
-    let meshing = Meshing::new(&scene, &MeshSettings::elements(256), 1).unwrap();
-    let rays = RayScene::build(&scene);
-    let solution = solve(&scene, &meshing, &rays, &tight(), &mut |_| {}).unwrap();
+    let (scene, meshing, rays, solution) = solved("cornell-point");
     // Objects only: no transfer, no moving lights.
     let mut dynamic = DynamicScene::new();
     let state = LightState::default();
@@ -178,10 +136,7 @@ fn dynamic_objects_shadow_the_direct_light_only() {
     let mut with_object = scene.clone();
     let mut mesh = scene_core::Mesh::default();
     for t in &object {
-        let b = mesh.positions.len() as u32;
-        mesh.positions.extend_from_slice(t);
-        mesh.indices.push([b, b + 1, b + 2]);
-        mesh.material_ids.push(0);
+        mesh.push_triangle(*t, 0);
     }
     with_object.meshes.push(mesh);
     let rays_with = RayScene::build(&with_object);
@@ -217,10 +172,7 @@ fn dynamic_objects_shadow_the_direct_light_only() {
 
 #[test]
 fn dynamic_objects_shadow_an_area_light() {
-    let scene = builtin::scene("cornell").unwrap();
-    let meshing = Meshing::new(&scene, &MeshSettings::elements(256), 1).unwrap();
-    let rays = RayScene::build(&scene);
-    let solution = solve(&scene, &meshing, &rays, &tight(), &mut |_| {}).unwrap();
+    let (scene, meshing, rays, solution) = solved("cornell");
     let mut dynamic = DynamicScene::new();
     let state = LightState::default();
     let plain = dynamic

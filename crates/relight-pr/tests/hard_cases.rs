@@ -41,15 +41,6 @@ fn furnace_scene(rho: f32, mesh: Mesh) -> Scene {
     scene
 }
 
-fn push_triangle(mesh: &mut Mesh, t: [Vec3; 3]) {
-    let b = mesh.positions.len() as u32;
-    let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
-    mesh.positions.extend_from_slice(&t);
-    mesh.normals.extend_from_slice(&[n; 3]);
-    mesh.indices.push([b, b + 1, b + 2]);
-    mesh.material_ids.push(0);
-}
-
 fn solve(scene: &Scene, elements: usize, settings: &SolverSettings) -> (Meshing, Vec<Vec3>) {
     let meshing = Meshing::new(scene, &MeshSettings::elements(elements), 1).unwrap();
     let rays = RayScene::build(scene);
@@ -80,13 +71,10 @@ fn slivers_and_degenerate_triangles_keep_the_furnace() {
         (v(1., 0., 1.), v(1., 0., 0.)),
         (v(1., 0., 0.), v(0., 0., 0.)),
     ] {
-        push_triangle(&mut mesh, [c, a, b]);
+        mesh.push_triangle([c, a, b], 0);
     }
-    push_triangle(&mut mesh, [v(0.5, 0.0, 0.5); 3]);
-    push_triangle(
-        &mut mesh,
-        [v(0.2, 0.0, 0.2), v(0.4, 0.0, 0.4), v(0.6, 0.0, 0.6)],
-    );
+    mesh.push_triangle([v(0.5, 0.0, 0.5); 3], 0);
+    mesh.push_triangle([v(0.2, 0.0, 0.2), v(0.4, 0.0, 0.4), v(0.6, 0.0, 0.6)], 0);
     let rho = 0.5;
     let scene = furnace_scene(rho, mesh);
     let (meshing, out) = solve(&scene, 384, &ambient());
@@ -117,56 +105,12 @@ fn surfaces_touching_face_to_face_stay_finite() {
         [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
         0,
     );
-    let cuboid = |mesh: &mut Mesh, lo: Vec3, hi: Vec3| {
-        let (a, b) = (lo, hi);
-        // Outward faces.
-        for q in [
-            [
-                v(a.x, a.y, a.z),
-                v(b.x, a.y, a.z),
-                v(b.x, a.y, b.z),
-                v(a.x, a.y, b.z),
-            ],
-            [
-                v(a.x, b.y, a.z),
-                v(a.x, b.y, b.z),
-                v(b.x, b.y, b.z),
-                v(b.x, b.y, a.z),
-            ],
-            [
-                v(a.x, a.y, a.z),
-                v(a.x, b.y, a.z),
-                v(b.x, b.y, a.z),
-                v(b.x, a.y, a.z),
-            ],
-            [
-                v(a.x, a.y, b.z),
-                v(b.x, a.y, b.z),
-                v(b.x, b.y, b.z),
-                v(a.x, b.y, b.z),
-            ],
-            [
-                v(a.x, a.y, a.z),
-                v(a.x, a.y, b.z),
-                v(a.x, b.y, b.z),
-                v(a.x, b.y, a.z),
-            ],
-            [
-                v(b.x, a.y, a.z),
-                v(b.x, b.y, a.z),
-                v(b.x, b.y, b.z),
-                v(b.x, a.y, b.z),
-            ],
-        ] {
-            mesh.push_quad(q, 0);
-        }
-    };
     let solids = [
         (v(0.3, 0.0, 0.3), v(0.6, 0.25, 0.6)),
         (v(0.0, 0.5, 0.2), v(0.1, 0.9, 0.7)),
     ];
     for (lo, hi) in solids {
-        cuboid(&mut mesh, lo, hi);
+        mesh.push_box((lo + hi) * 0.5, (hi - lo) * 0.5, 0.0, 0);
     }
     let rho = 0.5;
     let scene = furnace_scene(rho, mesh);

@@ -2,6 +2,8 @@
 //! furnace (a closed box converges to `E / (1 - rho)`), and linearity: tagged, separate and
 //! combined solves agree, and a relit solution equals a re-solve with the new emissions.
 
+mod common;
+use common::max_relative;
 use std::f32::consts::PI;
 
 use glam::Vec3;
@@ -233,15 +235,6 @@ fn tight() -> SolverSettings {
         visibility_samples: 4,
         ..Default::default()
     }
-}
-
-fn max_relative(a: &[Vec3], b: &[Vec3]) -> f32 {
-    let peak = b.iter().map(|v| v.max_element()).fold(0.0f32, f32::max);
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (*x - *y).abs().max_element())
-        .fold(0.0, f32::max)
-        / peak
 }
 
 #[test]

@@ -103,17 +103,6 @@ fn camera(
     }
 }
 
-/// Pushes a quad given in any winding, oriented so its normal points towards `inside`.
-fn quad_facing(mesh: &mut Mesh, c: [Vec3; 4], material: u32, inside: Vec3) {
-    let n = (c[1] - c[0]).cross(c[2] - c[0]);
-    let centre = (c[0] + c[1] + c[2] + c[3]) * 0.25;
-    if n.dot(inside - centre) < 0.0 {
-        mesh.push_quad([c[3], c[2], c[1], c[0]], material);
-    } else {
-        mesh.push_quad(c, material);
-    }
-}
-
 /// The measured Cornell box geometry without its light: walls and the two blocks, in metres.
 fn cornell_geometry(s: &mut Scene) -> (u32, u32, u32) {
     let white = s.materials.len() as u32;
@@ -182,7 +171,7 @@ fn cornell_geometry(s: &mut Scene) -> (u32, u32, u32) {
         ),
     ];
     for (c, m) in walls {
-        quad_facing(&mut room, c, m, room_centre);
+        room.push_quad_facing(c, m, room_centre);
     }
     s.meshes.push(room);
 
@@ -259,7 +248,7 @@ fn cornell_geometry(s: &mut Scene) -> (u32, u32, u32) {
         for c in faces {
             // Outward: normal away from the block's centre.
             let face_centre = (c[0] + c[1] + c[2] + c[3]) * 0.25;
-            quad_facing(&mut mesh, c, white, 2.0 * face_centre - centre);
+            mesh.push_quad_facing(c, white, 2.0 * face_centre - centre);
         }
         s.meshes.push(mesh);
     }
@@ -350,54 +339,6 @@ pub fn cornell_point() -> Scene {
     s
 }
 
-/// Appends an axis-aligned box (outward normals) rotated by `yaw` about +Y.
-fn push_box(mesh: &mut Mesh, centre: Vec3, half: Vec3, yaw: f32, material: u32) {
-    let rot = glam::Quat::from_rotation_y(yaw);
-    let corner = |sx: f32, sy: f32, sz: f32| centre + rot * (half * Vec3::new(sx, sy, sz));
-    let faces = [
-        [
-            corner(1., -1., -1.),
-            corner(1., 1., -1.),
-            corner(1., 1., 1.),
-            corner(1., -1., 1.),
-        ],
-        [
-            corner(-1., -1., 1.),
-            corner(-1., 1., 1.),
-            corner(-1., 1., -1.),
-            corner(-1., -1., -1.),
-        ],
-        [
-            corner(-1., 1., -1.),
-            corner(-1., 1., 1.),
-            corner(1., 1., 1.),
-            corner(1., 1., -1.),
-        ],
-        [
-            corner(-1., -1., 1.),
-            corner(-1., -1., -1.),
-            corner(1., -1., -1.),
-            corner(1., -1., 1.),
-        ],
-        [
-            corner(-1., -1., 1.),
-            corner(1., -1., 1.),
-            corner(1., 1., 1.),
-            corner(-1., 1., 1.),
-        ],
-        [
-            corner(1., -1., -1.),
-            corner(-1., -1., -1.),
-            corner(-1., 1., -1.),
-            corner(1., 1., -1.),
-        ],
-    ];
-    for f in faces {
-        let fc = (f[0] + f[1] + f[2] + f[3]) * 0.25;
-        quad_facing(mesh, f, material, 2.0 * fc - centre);
-    }
-}
-
 /// Appends a UV sphere with smooth normals.
 fn push_sphere(
     mesh: &mut Mesh,
@@ -479,27 +420,14 @@ pub fn primitives() -> Scene {
         name: "boxes".into(),
         ..Default::default()
     };
-    push_box(
-        &mut boxes,
-        Vec3::new(-1.2, 0.5, -0.5),
-        Vec3::splat(0.5),
-        0.4,
-        1,
-    );
-    push_box(
-        &mut boxes,
+    boxes.push_box(Vec3::new(-1.2, 0.5, -0.5), Vec3::splat(0.5), 0.4, 1);
+    boxes.push_box(
         Vec3::new(1.3, 0.75, -1.0),
         Vec3::new(0.4, 0.75, 0.4),
         -0.3,
         3,
     );
-    push_box(
-        &mut boxes,
-        Vec3::new(0.2, 0.25, 1.2),
-        Vec3::new(0.8, 0.25, 0.3),
-        0.1,
-        5,
-    );
+    boxes.push_box(Vec3::new(0.2, 0.25, 1.2), Vec3::new(0.8, 0.25, 0.3), 0.1, 5);
     s.meshes.push(boxes);
     let mut spheres = Mesh {
         name: "spheres".into(),
@@ -563,38 +491,32 @@ pub fn corridor() -> Scene {
         ..Default::default()
     };
     let p = Vec3::new;
-    quad_facing(
-        &mut room,
+    room.push_quad_facing(
         [p(-w, 0., 0.), p(w, 0., 0.), p(w, 0., -l), p(-w, 0., -l)],
         0,
         inside,
     );
-    quad_facing(
-        &mut room,
+    room.push_quad_facing(
         [p(-w, h, 0.), p(w, h, 0.), p(w, h, -l), p(-w, h, -l)],
         1,
         inside,
     );
-    quad_facing(
-        &mut room,
+    room.push_quad_facing(
         [p(-w, 0., 0.), p(-w, h, 0.), p(-w, h, -l), p(-w, 0., -l)],
         2,
         inside,
     );
-    quad_facing(
-        &mut room,
+    room.push_quad_facing(
         [p(w, 0., 0.), p(w, h, 0.), p(w, h, -l), p(w, 0., -l)],
         3,
         inside,
     );
-    quad_facing(
-        &mut room,
+    room.push_quad_facing(
         [p(-w, 0., -l), p(w, 0., -l), p(w, h, -l), p(-w, h, -l)],
         4,
         inside,
     );
-    quad_facing(
-        &mut room,
+    room.push_quad_facing(
         [p(-w, 0., 0.), p(w, 0., 0.), p(w, h, 0.), p(-w, h, 0.)],
         4,
         inside,
@@ -607,7 +529,7 @@ pub fn corridor() -> Scene {
     for i in 0..6 {
         let z = -2.5 - 3.0 * i as f32;
         for x in [-1.4f32, 1.4] {
-            push_box(&mut pillars, p(x, h * 0.5, z), p(0.2, h * 0.5, 0.2), 0.0, 5);
+            pillars.push_box(p(x, h * 0.5, z), p(0.2, h * 0.5, 0.2), 0.0, 5);
         }
     }
     s.meshes.push(pillars);
@@ -694,7 +616,7 @@ pub fn many_boxes(n: u32, seed: u64) -> Scene {
             (rng.next_f32() * 2.0 - 1.0) * half,
         );
         let yaw = rng.next_f32() * std::f32::consts::TAU;
-        push_box(&mut boxes, c, size, yaw, 1 + rng.below(8));
+        boxes.push_box(c, size, yaw, 1 + rng.below(8));
     }
     s.meshes.push(boxes);
     s.directional_lights.push(DirectionalLight {

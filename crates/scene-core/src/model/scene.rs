@@ -55,6 +55,67 @@ impl Mesh {
         self.material_ids.extend_from_slice(&[material, material]);
     }
 
+    /// Appends a box of half extents `half` about `centre`, rotated by `yaw` radians about
+    /// +Y, with outward faces (six quads, flat normals).
+    pub fn push_box(&mut self, centre: Vec3, half: Vec3, yaw: f32, material: u32) {
+        let rot = glam::Quat::from_rotation_y(yaw);
+        let corner = |sx: f32, sy: f32, sz: f32| centre + rot * (half * Vec3::new(sx, sy, sz));
+        let faces = [
+            [
+                corner(1., -1., -1.),
+                corner(1., 1., -1.),
+                corner(1., 1., 1.),
+                corner(1., -1., 1.),
+            ],
+            [
+                corner(-1., -1., 1.),
+                corner(-1., 1., 1.),
+                corner(-1., 1., -1.),
+                corner(-1., -1., -1.),
+            ],
+            [
+                corner(-1., 1., -1.),
+                corner(-1., 1., 1.),
+                corner(1., 1., 1.),
+                corner(1., 1., -1.),
+            ],
+            [
+                corner(-1., -1., 1.),
+                corner(-1., -1., -1.),
+                corner(1., -1., -1.),
+                corner(1., -1., 1.),
+            ],
+            [
+                corner(-1., -1., 1.),
+                corner(1., -1., 1.),
+                corner(1., 1., 1.),
+                corner(-1., 1., 1.),
+            ],
+            [
+                corner(1., -1., -1.),
+                corner(-1., -1., -1.),
+                corner(-1., 1., -1.),
+                corner(1., 1., -1.),
+            ],
+        ];
+        for c in faces {
+            let fc = (c[0] + c[1] + c[2] + c[3]) * 0.25;
+            self.push_quad_facing(c, material, 2.0 * fc - centre);
+        }
+    }
+
+    /// Appends a planar quad with one material, wound so that its normal points towards
+    /// `towards` (either winding given).
+    pub fn push_quad_facing(&mut self, c: [Vec3; 4], material: u32, towards: Vec3) {
+        let n = (c[1] - c[0]).cross(c[2] - c[0]);
+        let centre = (c[0] + c[1] + c[2] + c[3]) * 0.25;
+        if n.dot(towards - centre) < 0.0 {
+            self.push_quad([c[3], c[2], c[1], c[0]], material);
+        } else {
+            self.push_quad(c, material);
+        }
+    }
+
     /// Appends a single triangle with flat normal.
     pub fn push_triangle(&mut self, p: [Vec3; 3], material: u32) {
         let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
