@@ -1,22 +1,42 @@
 //! # ibrr-ldc
 //!
-//! Image-based radiosity representation: instant-radiosity point lights from particle walks, hemicube G-buffers from each, accumulated in a layered depth cube whose pixels are planes; reconstruction warps the camera view into the cube.
-//!
-//! **Status: skeleton.** Nothing is implemented yet (see the project's issues); this crate compiles so the
-//! workspace and its dependency rule hold. It takes any `scene_core::GBufferRenderer` for its hemicube renders and implements `scene_core::Technique`.
-//!
-//! What it will consume already exists in `scene-core`:
+//! The image-based radiosity representation (IBRR) of the paper in
+//! `shared/papers/000_b5e2d0ef7a9e18c4.txt`: Keller's instant radiosity made
+//! view-independent. Particle walks place instant-radiosity point lights (IRPLs,
+//! [`irpl`]); the scene is rendered around each through any
+//! [`scene_core::GBufferRenderer`] and every pixel's irradiance from that IRPL (eq. 2) is
+//! warped into a layered depth cube whose pixels are planes ([`ldc`], [`construct`]); a
+//! camera view is then shaded by warping its pixels into the cube ([`reconstruct`]), at a
+//! cost that depends on the image, not on the triangles.
 //!
 //! ```
-//! use scene_core::{builtin, View};
+//! use std::sync::Arc;
+//! use ibrr_ldc::{IbrrSettings, IbrrTechnique};
+//! use scene_core::{builtin, gbuffer::RayCastRenderer, FrameRequest, Technique};
 //!
-//! let scene = builtin::scene("cornell").unwrap();
-//! let view = View::from_camera(&scene.cameras[0]);
-//! assert!(view.frustum_corners().is_some());
-//! assert_eq!(ibrr_ldc::STATUS, "skeleton");
+//! let scene = Arc::new(builtin::scene("cornell").unwrap());
+//! let settings = IbrrSettings { resolution: 32, irpls: 8, ..Default::default() };
+//! let mut ibrr = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+//! ibrr.prepare(scene.clone()).unwrap();
+//! let image = ibrr.render(&FrameRequest::camera(&scene.cameras[0], 16, 16)).unwrap();
+//! assert!(image.pixels.iter().all(|p| p.is_finite()));
+//! assert!(ibrr.ldc().unwrap().layer_count() > 0);
 //! ```
 
-/// Implementation status of this crate.
-pub const STATUS: &str = "skeleton";
+pub mod construct;
+pub mod error;
+pub mod irpl;
+pub mod ldc;
+pub mod reconstruct;
+pub mod settings;
+pub mod technique;
+
+pub use construct::{Construction, ConstructionStats};
+pub use error::IbrrError;
+pub use irpl::{Irpl, IrplKind, IrplSet};
+pub use ldc::{Ldc, LdcFrame};
+pub use reconstruct::{Reconstruction, lookup, reconstruct, shade};
+pub use settings::{IbrrSettings, Lookup, Splat};
+pub use technique::{FrameTimings, IbrrTechnique};
 
 pub use scene_core;

@@ -1,0 +1,423 @@
+//! Construction (paper section 4, figure 4 left): for every IRPL, render the scene around
+//! it through a [`GBufferRenderer`] (hemicube sampling, section 4.1), compute each pixel's
+//! irradiance from the IRPL in software while warping (eq. 2, the paper's accurate
+//! option), and splat it into the LDC (section 4.3).
+//!
+//! Splatting: a hemicube pixel's footprint on its surface is its solid angle times `r^2 /
+//! cos_x`, projected onto the LDI; the sample is copied to every LDI pixel whose centre
+//! lies within the footprint (the paper's nearest-neighbour copies, "sized by distance and
+//! orientation") or weighted by a Gaussian of the footprint's size (the kernel the paper
+//! planned, section 6.2). Overlapping splats of one IRPL in one layer are combined (nearest
+//! sample, or weighted mean), never summed twice. Beyond the paper, a copy is kept only if
+//! the IRPL's own render sees it on the same plane (the render is its own shadow map), so
+//! a splat never crosses a wall or spills under an occluder.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use scene_core::gbuffer::hemicube_views;
+use scene_core::ray::RayScene;
+use scene_core::view::{FrustumReconstruction, Projection, pixel_uv};
+use scene_core::{GBuffer, GBufferRenderer, LightState, Scene, View, ViewTarget};
+
+use crate::error::IbrrError;
+use crate::irpl::{Irpl, IrplKind, IrplSet, WalkSettings, generate};
+use crate::ldc::{Channel, Combine, Ldc, LdcBuilder, LdcFrame, axes_of};
+use crate::settings::{IbrrSettings, Splat};
+
+/// One surface sample of an IRPL's render.
+#[derive(Clone, Copy, Debug)]
+struct Sample {
+    p: Vec3,
+    n: Vec3,
+    /// How the surface point moves for one pixel step right and down in the render: the
+    /// pixel's footprint on its surface (a parallelogram), by distance and orientation.
+    du: Vec3,
+    dv: Vec3,
+}
+
+impl Sample {
+    /// The larger side of the footprint (world units).
+    fn footprint(&self) -> f32 {
+        self.du.length().max(self.dv.length())
+    }
+}
+
+/// Figures of a construction.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ConstructionStats {
+    /// IRPLs warped so far.
+    pub irpls_done: usize,
+    /// IRPLs in all.
+    pub irpls_total: usize,
+    /// Complete particle paths warped so far (the divisor of path sums).
+    pub paths_done: u64,
+    /// Surface samples warped.
+    pub samples: u64,
+    /// Splat copies refused because the IRPL's render does not see them.
+    pub copies_hidden: u64,
+    /// Time in the G-buffer renderer.
+    pub render_time: Duration,
+    /// Time warping and splatting.
+    pub warp_time: Duration,
+    /// Time generating the IRPLs.
+    pub walk_time: Duration,
+}
+
+/// An LDC being built, IRPL by IRPL, viewable at any point ([`Construction::ldc`]).
+#[derive(Debug)]
+pub struct Construction {
+    /// The scene.
+    pub scene: Arc<Scene>,
+    /// The settings it was started with.
+    pub settings: IbrrSettings,
+    /// The IRPLs.
+    pub irpls: IrplSet,
+    /// The light state the IRPLs were made for.
+    pub lights: LightState,
+    builder: LdcBuilder,
+    next: usize,
+    stats: ConstructionStats,
+}
+
+impl Construction {
+    /// Generates the IRPLs of `scene` under `lights` and an empty LDC. Errors on invalid
+    /// settings and when the empty LDC exceeds the memory budget.
+    pub fn new(scene: Arc<Scene>, lights: &LightState, settings: &IbrrSettings) -> Result<Self, IbrrError> {
+        settings.check()?;
+        lights.check(&scene).map_err(|e| IbrrError::Settings(format!("light state: {e}")))?;
+        let t = Instant::now();
+        let rays = RayScene::build(&scene);
+        let irpls = generate(
+            &scene,
+            &rays,
+            lights,
+            &WalkSettings {
+                irpls: settings.irpls,
+                seed: settings.seed,
+                max_depth: settings.max_depth,
+            },
+        );
+        let walk_time = t.elapsed();
+        let mut c = Self::with_irpls(scene, irpls, settings)?;
+        c.lights = lights.clone();
+        c.stats.walk_time = walk_time;
+        Ok(c)
+    }
+
+    /// A construction over given IRPLs (for experiments and tests: one IRPL above a
+    /// plane, hand-placed lights), built for the default light state.
+    pub fn with_irpls(scene: Arc<Scene>, irpls: IrplSet, settings: &IbrrSettings) -> Result<Self, IbrrError> {
+        settings.check()?;
+        let b = scene.bounds();
+        let frame = if b.is_empty() {
+            LdcFrame::around(Vec3::ZERO, Vec3::ZERO, settings.resolution, settings.eps_distance_px, settings.eps_normal, settings.band)
+        } else {
+            LdcFrame::around(b.min, b.max, settings.resolution, settings.eps_distance_px, settings.eps_normal, settings.band)
+        };
+        let builder = LdcBuilder::new(frame, settings.max_bytes)?;
+        Ok(Self {
+            stats: ConstructionStats {
+                irpls_total: irpls.irpls.len(),
+                ..Default::default()
+            },
+            scene,
+            settings: *settings,
+            irpls,
+            lights: LightState::default(),
+            builder,
+            next: 0,
+        })
+    }
+
+    /// True when every IRPL has been warped.
+    pub fn is_done(&self) -> bool {
+        self.next >= self.irpls.irpls.len()
+    }
+
+    /// Figures so far.
+    pub fn stats(&self) -> ConstructionStats {
+        self.stats
+    }
+
+    /// Layers so far.
+    pub fn layer_count(&self) -> usize {
+        self.builder.layer_count()
+    }
+
+    /// Warps up to `count` more IRPLs, rendering through `renderer` (prepared with this
+    /// construction's scene by the caller, see [`Construction::prepare_renderer`]).
+    /// Returns the number warped. On an error (budget, renderer) the construction stays
+    /// as it was before the failing IRPL's splats were finished... except for layers the
+    /// failing IRPL inserted; callers drop it on error.
+    pub fn step(&mut self, renderer: &mut dyn GBufferRenderer, count: usize) -> Result<usize, IbrrError> {
+        let end = (self.next + count).min(self.irpls.irpls.len());
+        let mut done = 0;
+        // Render in batches of a few IRPLs (one submission each on the GPU).
+        const BATCH: usize = 8;
+        while self.next < end {
+            let batch_end = (self.next + BATCH).min(end);
+            let irpls: Vec<Irpl> = self.irpls.irpls[self.next..batch_end].to_vec();
+            let t = Instant::now();
+            let mut targets = Vec::new();
+            let mut counts = Vec::new();
+            for irpl in &irpls {
+                let views = self.views_of(irpl);
+                counts.push(views.len());
+                targets.extend(views);
+            }
+            let buffers = renderer.render_views(&targets)?;
+            if buffers.len() != targets.len() {
+                return Err(IbrrError::Core(scene_core::Error::InvalidArgument(format!(
+                    "renderer '{}' returned {} images for {} views",
+                    renderer.name(),
+                    buffers.len(),
+                    targets.len()
+                ))));
+            }
+            self.stats.render_time += t.elapsed();
+            let t = Instant::now();
+            let mut at = 0;
+            for (irpl, &c) in irpls.iter().zip(&counts) {
+                self.warp(irpl, &targets[at..at + c], &buffers[at..at + c])?;
+                at += c;
+                self.next += 1;
+                done += 1;
+            }
+            self.stats.warp_time += t.elapsed();
+        }
+        self.stats.irpls_done = self.next;
+        let exact = self.irpls.exact;
+        self.stats.paths_done = if self.next <= exact {
+            0
+        } else {
+            self.irpls.path_ends.partition_point(|&e| e <= self.next) as u64
+        };
+        if self.is_done() {
+            self.stats.paths_done = self.irpls.paths;
+        }
+        Ok(done)
+    }
+
+    /// Prepares `renderer` with this construction's scene (once, before [`Construction::step`]).
+    pub fn prepare_renderer(&self, renderer: &mut dyn GBufferRenderer) -> Result<(), IbrrError> {
+        let same = renderer
+            .prepared_scene()
+            .is_some_and(|s| Arc::ptr_eq(s, &self.scene));
+        if !same {
+            renderer.prepare(self.scene.clone())?;
+        }
+        Ok(())
+    }
+
+    /// The LDC so far: path sums divided by the complete paths warped (progressive
+    /// viewing; partially warped paths count once complete).
+    pub fn ldc(&self) -> Result<Ldc, IbrrError> {
+        let paths = if self.is_done() {
+            self.irpls.paths
+        } else {
+            self.stats.paths_done
+        };
+        self.builder.compact(paths)
+    }
+
+    /// The views an IRPL renders: a hemicube (a full cube for a point light, an
+    /// orthographic view for a directional light).
+    fn views_of(&self, irpl: &Irpl) -> Vec<ViewTarget> {
+        let extent = self.scene.extent();
+        let (near, far) = (extent * 1e-5, extent * 2.0);
+        let s = &self.settings;
+        let res = if irpl.is_direct() { s.direct_resolution() } else { s.indirect_resolution() };
+        let hemicube = |normal: Vec3| {
+            hemicube_views(irpl.position, normal, near, far)
+                .into_iter()
+                .map(|(face, view)| {
+                    let (w, h) = face.size(res);
+                    ViewTarget::new(view, w, h)
+                })
+                .collect::<Vec<_>>()
+        };
+        match irpl.kind {
+            IrplKind::PointSource { .. } => {
+                let mut v = hemicube(Vec3::Z);
+                v.extend(hemicube(-Vec3::Z));
+                v
+            }
+            IrplKind::DirectionalSource { direction } => {
+                let b = self.scene.bounds();
+                let centre = if b.is_empty() { Vec3::ZERO } else { b.center() };
+                let view = View::orthographic_fit(centre, direction, 0.5 * extent * 1.01);
+                vec![ViewTarget::new(view, res, res)]
+            }
+            IrplKind::EmitterSample | IrplKind::Bounce => hemicube(irpl.normal),
+        }
+    }
+
+    /// Warps one IRPL's renders into the LDC.
+    fn warp(&mut self, irpl: &Irpl, targets: &[ViewTarget], buffers: &[GBuffer]) -> Result<(), IbrrError> {
+        let frame = self.builder.frame;
+        let h = frame.pixel_size();
+        let (combine, gaussian) = match self.settings.splat {
+            Splat::Nearest => (Combine::Nearest, false),
+            Splat::Gaussian => (Combine::Weighted, true),
+        };
+        let max_r = self.settings.max_splat_px;
+        let recon: Vec<FrustumReconstruction> = targets.iter().map(|t| FrustumReconstruction::new(&t.view)).collect();
+        self.builder.begin();
+        for (k, (t, g)) in targets.iter().zip(buffers).enumerate() {
+            let samples = samples_of(t, &recon[k], g);
+            self.stats.samples += samples.len() as u64;
+            for s in samples {
+                let plane_d = s.p.dot(s.n);
+                for (axis, w) in axes_of(s.n, frame.band) {
+                    if w <= 0.0 {
+                        continue;
+                    }
+                    let (ua, va) = LdcFrame::image_axes(axis);
+                    let c = frame.pixel_coords(axis, s.p);
+                    // The footprint in LDI pixels as an ellipse: covariance of half a render
+                    // pixel along each footprint axis, widened by half an LDI pixel so that a
+                    // footprint smaller than an LDI pixel still reaches its own pixel.
+                    let a = Vec2::new(s.du[ua], s.du[va]) / h;
+                    let b = Vec2::new(s.dv[ua], s.dv[va]) / h;
+                    let cov = [
+                        0.25 * (a.x * a.x + b.x * b.x) + 0.25,
+                        0.25 * (a.x * a.y + b.x * b.y),
+                        0.25 * (a.y * a.y + b.y * b.y) + 0.25,
+                    ];
+                    let det = cov[0] * cov[2] - cov[1] * cov[1];
+                    if !(det > 0.0 && det.is_finite()) {
+                        continue;
+                    }
+                    let inv = [cov[2] / det, -cov[1] / det, cov[0] / det];
+                    // Nearest: the footprint itself (Mahalanobis 1); Gaussian: 3 sigma.
+                    let k2 = if gaussian { 9.0 } else { 1.0 };
+                    let ru = (k2 * cov[0]).sqrt().min(max_r);
+                    let rv = (k2 * cov[2]).sqrt().min(max_r);
+                    let (i0, i1) = ((c.x - ru).floor() as i64, (c.x + ru).floor() as i64);
+                    let (j0, j1) = ((c.y - rv).floor() as i64, (c.y + rv).floor() as i64);
+                    let home = (c.x.floor() as i64, c.y.floor() as i64);
+                    for j in j0..=j1 {
+                        for i in i0..=i1 {
+                            let d = Vec2::new(i as f32 + 0.5, j as f32 + 0.5) - c;
+                            let m2 = d.x * d.x * inv[0] + 2.0 * d.x * d.y * inv[1] + d.y * d.y * inv[2];
+                            let is_home = (i, j) == home;
+                            if !is_home && m2 > k2 {
+                                continue;
+                            }
+                            let Some(q) = frame.point_on_plane(axis, i, j, s.n.extend(plane_d)) else {
+                                continue;
+                            };
+                            if !is_home
+                                && !seen_on_plane(q, s.n, s.footprint(), frame.eps_distance, frame.eps_normal, targets, &recon, buffers)
+                            {
+                                self.stats.copies_hidden += 1;
+                                continue;
+                            }
+                            let weight = if gaussian { (-0.5 * m2).exp() } else { 1.0 };
+                            // The geometry term at the copy itself (the render decides only
+                            // visibility), so no copy repeats its sample's value.
+                            let value = irpl.irradiance_at(q, s.n);
+                            let value = if value.is_finite() { value } else { Vec3::ZERO };
+                            self.builder.splat(axis, i, j, q, s.n, value, m2, weight, combine)?;
+                        }
+                    }
+                }
+            }
+        }
+        let channel = match irpl.kind {
+            IrplKind::PointSource { .. } | IrplKind::DirectionalSource { .. } => Channel::Exact,
+            IrplKind::EmitterSample => Channel::Direct,
+            IrplKind::Bounce => Channel::Indirect,
+        };
+        self.builder.finish(channel);
+        Ok(())
+    }
+}
+
+/// The surface samples of one render of an IRPL: position, normal, irradiance and
+/// footprint of every pixel that hit geometry.
+fn samples_of(target: &ViewTarget, recon: &FrustumReconstruction, g: &GBuffer) -> Vec<Sample> {
+    let (w, hgt) = (g.width, g.height);
+    let view = &target.view;
+    let (right, up) = (view.right(), view.up);
+    let (dx, dy, perspective) = match view.projection {
+        Projection::Perspective { left, right, bottom, top } => ((right - left) / w as f32, (top - bottom) / hgt as f32, true),
+        Projection::Orthographic { left, right, bottom, top } => ((right - left) / w as f32, (top - bottom) / hgt as f32, false),
+    };
+    (0..hgt)
+        .into_par_iter()
+        .flat_map_iter(|y| {
+            (0..w).filter_map(move |x| {
+                let i = (y * w + x) as usize;
+                if g.is_background(i) {
+                    return None;
+                }
+                let n = g.normal[i];
+                let uv = pixel_uv(x, y, w, hgt);
+                let p = recon.world(uv, g.depth[i]);
+                if !p.is_finite() || n == Vec3::ZERO {
+                    return None;
+                }
+                // Ray differentials on the surface's plane: a step of one pixel moves the
+                // ray (direction `dir`, length `t` per unit `dir`) by `dx right` or `dy up`;
+                // the hit moves by `t (e - dir (n . e) / (n . dir))`, floored at a grazing
+                // cosine of 1e-3.
+                let (dir, t) = if perspective {
+                    let dir = p - view.eye;
+                    let tf = dir.dot(view.forward);
+                    (dir / tf.max(1e-30), tf)
+                } else {
+                    (view.forward, 1.0)
+                };
+                let nd = n.dot(dir);
+                let nd = if nd.abs() < 1e-3 * dir.length() { (1e-3 * dir.length()).copysign(nd) } else { nd };
+                let step = |e: Vec3| (e - dir * (n.dot(e) / nd)) * t;
+                Some(Sample {
+                    p,
+                    n,
+                    du: step(right * dx),
+                    dv: step(up * dy),
+                })
+            })
+        })
+        .collect()
+}
+
+/// True when the IRPL's renders see `q` on the plane with normal `n` (its own shadow map).
+#[allow(clippy::too_many_arguments)]
+fn seen_on_plane(
+    q: Vec3,
+    n: Vec3,
+    footprint: f32,
+    eps_distance: f32,
+    eps_normal: f32,
+    targets: &[ViewTarget],
+    recon: &[FrustumReconstruction],
+    buffers: &[GBuffer],
+) -> bool {
+    for ((t, r), g) in targets.iter().zip(recon).zip(buffers) {
+        let view = &t.view;
+        if matches!(view.projection, Projection::Perspective { .. }) && (q - view.eye).dot(view.forward) <= 0.0 {
+            continue;
+        }
+        let Some(uv) = view.project_uv(q) else {
+            continue;
+        };
+        if !(0.0..1.0).contains(&uv.x) || !(0.0..1.0).contains(&uv.y) {
+            continue;
+        }
+        let x = ((uv.x * g.width as f32) as u32).min(g.width - 1);
+        let y = ((uv.y * g.height as f32) as u32).min(g.height - 1);
+        let i = (y * g.width + x) as usize;
+        if g.is_background(i) {
+            return false;
+        }
+        let np = g.normal[i];
+        let pp = r.world(pixel_uv(x, y, g.width, g.height), g.depth[i]);
+        return np.dot(n) > 1.0 - eps_normal && (q - pp).dot(np).abs() < eps_distance + footprint;
+    }
+    false
+}

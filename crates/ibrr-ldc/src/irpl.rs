@@ -1,0 +1,384 @@
+//! Instant-radiosity point lights (IRPLs) from particle walks (paper section 4.2, after
+//! Keller).
+//!
+//! Every light source emits particles in proportion to its power under the frame's
+//! [`LightState`]: start points are quasi-random (scrambled Halton, dimensions 0 to 4:
+//! which light, where on it, which direction), bounces are cosine-weighted with a seeded
+//! generator per path, and a particle survives a bounce with probability equal to the
+//! largest channel of the albedo there (capped at 0.95, at most
+//! [`crate::IbrrSettings::max_depth`] bounces), its power divided by that probability.
+//!
+//! Each surface a particle reaches holds an IRPL: a Lambertian point emitter of power
+//! `Phi` (RGB, W), whose irradiance at `x` is `Phi cos_i cos_x / (pi r^2)`, eq. 2's
+//! `I_i g_i(x)`. Powers are per path: the LDC divides their sum by the number of paths.
+//!
+//! Point and directional lights are not sampled for their direct light: each gets one
+//! exact "node 0" ([`IrplKind::PointSource`], [`IrplKind::DirectionalSource`]) rendered
+//! once (a full cube around a point light, an orthographic view for a directional one).
+//! Emissive surfaces give every path its own node 0 on the emitter
+//! ([`IrplKind::EmitterSample`]).
+
+use glam::{Vec2, Vec3};
+use scene_core::lights::{Emitters, LightId, LightState};
+use scene_core::ray::{Hit, RayScene};
+use scene_core::sampling::{Rng, cosine_hemisphere, halton, uniform_sphere, uniform_triangle};
+use scene_core::{Scene, luminance};
+
+/// What an IRPL is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum IrplKind {
+    /// A point light's own direct light (exact, once): intensity `power` W/sr, the
+    /// scene's falloff.
+    PointSource {
+        /// The light's falloff radius (`None`: inverse square).
+        radius: Option<f32>,
+    },
+    /// A directional light's own direct light: irradiance `power` on a surface facing
+    /// it, travelling along `direction`.
+    DirectionalSource {
+        /// Unit direction the light travels.
+        direction: Vec3,
+    },
+    /// A point on an emissive surface, the first node of one path (direct light).
+    EmitterSample,
+    /// A surface reached by a particle after one or more steps (indirect light).
+    Bounce,
+}
+
+/// One instant-radiosity point light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Irpl {
+    /// Where (lifted off its surface by a tiny distance).
+    pub position: Vec3,
+    /// Unit normal of the side it emits from (zero for point and directional sources).
+    pub normal: Vec3,
+    /// Power (W, per path), intensity (point source) or irradiance (directional source).
+    pub power: Vec3,
+    /// What it is.
+    pub kind: IrplKind,
+    /// The light source the particle came from.
+    pub light: LightId,
+    /// The path it belongs to (`u32::MAX` for exact sources).
+    pub path: u32,
+    /// Bounces since the light (0: on the light).
+    pub depth: u32,
+}
+
+impl Irpl {
+    /// True for the first node of a path or an exact source (direct light).
+    pub fn is_direct(&self) -> bool {
+        self.depth == 0
+    }
+
+    /// Irradiance this IRPL gives a point `p` with unit normal `n` facing it, ignoring
+    /// visibility (the hemicube render decides that): eq. 2's `I_i g_i(x)` with
+    /// `g = cos_i cos_x / (pi r^2)`, computed in full precision (never clamped).
+    #[inline]
+    pub fn irradiance_at(&self, p: Vec3, n: Vec3) -> Vec3 {
+        match self.kind {
+            IrplKind::DirectionalSource { direction } => {
+                self.power * (-n.dot(direction)).max(0.0)
+            }
+            IrplKind::PointSource { radius } => {
+                let d = self.position - p;
+                let r = d.length();
+                if r <= 0.0 {
+                    return Vec3::ZERO;
+                }
+                let cos_x = (n.dot(d) / r).max(0.0);
+                self.power * (scene_core::lights::falloff(radius, r) * cos_x)
+            }
+            IrplKind::EmitterSample | IrplKind::Bounce => {
+                let d = p - self.position;
+                let r2 = d.length_squared();
+                if r2 <= 0.0 {
+                    return Vec3::ZERO;
+                }
+                let r = r2.sqrt();
+                let cos_i = (self.normal.dot(d) / r).max(0.0);
+                let cos_x = (-n.dot(d) / r).max(0.0);
+                let g = cos_i * cos_x * std::f32::consts::FRAC_1_PI / r2;
+                if g.is_finite() {
+                    self.power * g
+                } else {
+                    Vec3::ZERO
+                }
+            }
+        }
+    }
+}
+
+/// The IRPLs of a scene.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IrplSet {
+    /// Exact sources first, then the paths' nodes path by path.
+    pub irpls: Vec<Irpl>,
+    /// Number of particle paths started (the divisor of path sums).
+    pub paths: u64,
+    /// For each path, the index one past its last IRPL.
+    pub path_ends: Vec<usize>,
+    /// Number of exact sources at the front of `irpls`.
+    pub exact: usize,
+}
+
+/// A light's share of the particles.
+#[derive(Clone, Copy, Debug)]
+enum Start {
+    Point { light: u32 },
+    Directional { light: u32 },
+    Emitter { triangle: usize },
+}
+
+/// Surface properties where a ray hit.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Surface {
+    pub p: Vec3,
+    /// Geometric normal facing the incoming ray.
+    pub ng: Vec3,
+    /// Shading normal on the same side.
+    pub ns: Vec3,
+    pub albedo: Vec3,
+}
+
+/// The surface at `hit` of a ray travelling along `d`.
+pub(crate) fn surface_at(scene: &Scene, offsets: &[u32], hit: &Hit, o: Vec3, d: Vec3) -> Option<Surface> {
+    let r = scene.triangle_ref(offsets, hit.triangle)?;
+    let mesh = &scene.meshes[r.mesh as usize];
+    let tri = mesh.indices[r.local as usize];
+    let b = [1.0 - hit.barycentric.x - hit.barycentric.y, hit.barycentric.x, hit.barycentric.y];
+    let pos = tri.map(|i| mesh.positions[i as usize]);
+    let mut ng = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
+    if ng == Vec3::ZERO {
+        return None;
+    }
+    if ng.dot(d) > 0.0 {
+        ng = -ng;
+    }
+    let ns = (0..3)
+        .map(|k| mesh.normals.get(tri[k] as usize).copied().unwrap_or(ng) * b[k])
+        .sum::<Vec3>()
+        .normalize_or_zero();
+    let ns = if ns == Vec3::ZERO {
+        ng
+    } else if ns.dot(ng) < 0.0 {
+        -ns
+    } else {
+        ns
+    };
+    let uv = mesh
+        .uvs
+        .as_ref()
+        .map(|uvs| (0..3).map(|k| uvs[tri[k] as usize] * b[k]).sum::<Vec2>());
+    let albedo = scene.albedo_at(mesh.material_ids[r.local as usize], uv);
+    Some(Surface {
+        p: o + d * hit.t,
+        ng,
+        ns,
+        albedo,
+    })
+}
+
+/// Settings of the particle walks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WalkSettings {
+    /// Stop starting paths once this many IRPLs exist (exact sources included).
+    pub irpls: u32,
+    /// Seed of the Halton scrambling and the bounce generators.
+    pub seed: u64,
+    /// Most bounces a particle makes.
+    pub max_depth: u32,
+}
+
+/// Generates the IRPLs of `scene` under `lights`. Deterministic for a seed.
+pub fn generate(scene: &Scene, rays: &RayScene, lights: &LightState, settings: &WalkSettings) -> IrplSet {
+    let mut set = IrplSet::default();
+    let extent = scene.extent();
+    let lift = extent * 1e-5;
+    let bounds = scene.bounds();
+    let centre = if bounds.is_empty() { Vec3::ZERO } else { bounds.center() };
+    let radius = 0.5 * extent * 1.01;
+    // Exact sources and the particle budget of each light: (start, rgb power, weight).
+    let mut starts: Vec<(Start, Vec3, LightId)> = Vec::new();
+    for (i, l) in scene.point_lights.iter().enumerate() {
+        let id = LightId::Point(i as u32);
+        let s = lights.get(id);
+        if !s.enabled {
+            continue;
+        }
+        let direct = l.intensity * s.direct_factor();
+        if direct.max_element() > 0.0 {
+            set.irpls.push(Irpl {
+                position: l.position,
+                normal: Vec3::ZERO,
+                power: direct,
+                kind: IrplKind::PointSource { radius: l.radius },
+                light: id,
+                path: u32::MAX,
+                depth: 0,
+            });
+        }
+        starts.push((
+            Start::Point { light: i as u32 },
+            l.intensity * s.color * (4.0 * std::f32::consts::PI) * s.indirect,
+            id,
+        ));
+    }
+    for (i, l) in scene.directional_lights.iter().enumerate() {
+        let id = LightId::Directional(i as u32);
+        let s = lights.get(id);
+        let dir = l.direction.normalize_or_zero();
+        if !s.enabled || dir == Vec3::ZERO {
+            continue;
+        }
+        let direct = l.irradiance * s.direct_factor();
+        if direct.max_element() > 0.0 {
+            set.irpls.push(Irpl {
+                position: centre - dir * (2.0 * radius),
+                normal: Vec3::ZERO,
+                power: direct,
+                kind: IrplKind::DirectionalSource { direction: dir },
+                light: id,
+                path: u32::MAX,
+                depth: 0,
+            });
+        }
+        starts.push((
+            Start::Directional { light: i as u32 },
+            l.irradiance * s.color * (std::f32::consts::PI * radius * radius) * s.indirect,
+            id,
+        ));
+    }
+    set.exact = set.irpls.len();
+    let emitters = Emitters::new(scene, lights);
+    for (k, t) in emitters.triangles.iter().enumerate() {
+        let s = lights.get(LightId::Emissive(t.mesh));
+        if !s.enabled || t.area <= 0.0 || t.normal == Vec3::ZERO {
+            continue;
+        }
+        // Emitted power pi Le A; paths carry both its direct and its indirect part.
+        let power = t.emission * s.color * (std::f32::consts::PI * t.area) * s.direct.max(s.indirect);
+        starts.push((Start::Emitter { triangle: k }, power, LightId::Emissive(t.mesh)));
+    }
+    let weights: Vec<f64> = starts
+        .iter()
+        .map(|(_, p, _)| {
+            let w = f64::from(luminance(*p).max(p.max_element() * 1e-3));
+            if w.is_finite() && w > 0.0 { w } else { 0.0 }
+        })
+        .collect();
+    let total: f64 = weights.iter().sum();
+    if total <= 0.0 || settings.irpls as usize <= set.irpls.len() {
+        return set;
+    }
+    let mut cdf = Vec::with_capacity(weights.len());
+    let mut acc = 0.0;
+    for w in &weights {
+        acc += w / total;
+        cdf.push(acc);
+    }
+    let offsets = scene.mesh_offsets();
+    let seed = Some(settings.seed);
+    let mut path = 0u64;
+    // A generous cap on paths so that a scene whose particles all escape still ends.
+    let max_paths = u64::from(settings.irpls) * 64 + 64;
+    while set.irpls.len() < settings.irpls as usize && path < max_paths {
+        let u0 = f64::from(halton(path, 0, seed));
+        let k = cdf.partition_point(|&c| c <= u0).min(starts.len() - 1);
+        let pick = weights[k] / total;
+        if pick <= 0.0 {
+            path += 1;
+            continue;
+        }
+        let (start, power, id) = starts[k];
+        let power = power / pick as f32;
+        let (u1, u2) = (halton(path, 1, seed), halton(path, 2, seed));
+        let (u3, u4) = (halton(path, 3, seed), halton(path, 4, seed));
+        let mut rng = Rng::new(settings.seed, path);
+        let path_id = path as u32;
+        // The particle: origin, direction, carried power (before reflection).
+        let (mut o, mut d, mut carried) = match start {
+            Start::Point { light } => {
+                let l = &scene.point_lights[light as usize];
+                (l.position, uniform_sphere(Vec2::new(u1, u2)), power)
+            }
+            Start::Directional { light } => {
+                let l = &scene.directional_lights[light as usize];
+                let dir = l.direction.normalize();
+                let (t, b) = scene_core::view::orthonormal_basis(dir);
+                let disk = scene_core::sampling::concentric_disk(Vec2::new(u1, u2)) * radius;
+                (centre - dir * (2.0 * radius) + t * disk.x + b * disk.y, dir, power)
+            }
+            Start::Emitter { triangle } => {
+                let t = &emitters.triangles[triangle];
+                let s = lights.get(id);
+                let bary = uniform_triangle(Vec2::new(u1, u2));
+                let p = t.corners[0] * (1.0 - bary.x - bary.y) + t.corners[1] * bary.x + t.corners[2] * bary.y;
+                let position = p + t.normal * lift;
+                // Node 0 carries the direct part, the particle the indirect part.
+                let scale = s.direct.max(s.indirect);
+                let (fd, fi) = if scale > 0.0 { (s.direct / scale, s.indirect / scale) } else { (0.0, 0.0) };
+                if fd > 0.0 {
+                    set.irpls.push(Irpl {
+                        position,
+                        normal: t.normal,
+                        power: power * fd,
+                        kind: IrplKind::EmitterSample,
+                        light: id,
+                        path: path_id,
+                        depth: 0,
+                    });
+                }
+                (position, cosine_hemisphere(t.normal, Vec2::new(u3, u4)), power * fi)
+            }
+        };
+        let mut depth = 0;
+        let mut t_min = 0.0;
+        while depth < settings.max_depth && carried.max_element() > 0.0 {
+            let Some(hit) = rays.closest_hit(o, d, t_min, f32::INFINITY) else {
+                break;
+            };
+            let Some(s) = surface_at(scene, &offsets, &hit, o, d) else {
+                break;
+            };
+            // A point light with a falloff radius delivers falloff(r) r^2 of the
+            // inverse-square power along the first segment.
+            if depth == 0
+                && let Start::Point { light } = start
+            {
+                let l = &scene.point_lights[light as usize];
+                carried *= scene_core::lights::falloff(l.radius, hit.t) * hit.t * hit.t;
+            }
+            depth += 1;
+            let reflected = carried * s.albedo;
+            if reflected.max_element() <= 0.0 || !reflected.is_finite() {
+                break;
+            }
+            let position = s.p + s.ng * lift;
+            set.irpls.push(Irpl {
+                position,
+                normal: s.ns,
+                power: reflected,
+                kind: IrplKind::Bounce,
+                light: id,
+                path: path_id,
+                depth,
+            });
+            let q = s.albedo.max_element().min(0.95);
+            if q <= 0.0 || rng.next_f32() >= q {
+                break;
+            }
+            carried = reflected / q;
+            let nd = cosine_hemisphere(s.ns, rng.next_vec2());
+            if nd.dot(s.ng) <= 0.0 {
+                break;
+            }
+            o = position;
+            d = nd;
+            t_min = 0.0;
+        }
+        path += 1;
+        set.path_ends.push(set.irpls.len());
+    }
+    set.paths = path;
+    set
+}

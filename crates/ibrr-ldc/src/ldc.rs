@@ -1,0 +1,483 @@
+//! The layered depth cube (paper section 3): three layered depth images on the scene's
+//! bounding cube, one per axis, whose pixels are planes (section 3.1).
+//!
+//! A surface sample goes to the LDI whose axis is most parallel to its normal (figure 2),
+//! and, when its normal lies near the boundary between two or three LDIs (within
+//! [`LdcFrame::band`] of the dominant component), to each of them, so that a lookup can
+//! blend across LDIs without a seam (the interpolation "across different LDIs" of section
+//! 6.2). Within an LDI pixel a sample is matched against the layers already there by the
+//! plane test of section 3.1,
+//!
+//! `|p' . n - d| < eps_d` and `n' . n > 1 - eps_n`,
+//!
+//! and accumulated into the matching layer, else inserted as a new layer. The paper uses
+//! one `eps` for both conditions; a distance and a cosine have different units, so here
+//! they are two thresholds: `eps_d` a fraction of the LDI pixel size (which follows the
+//! scene's extent), `eps_n` a pure number.
+//!
+//! [`LdcBuilder`] grows the layers in an arena with a linked list per pixel; [`Ldc`] is the
+//! compact layout for lookup (per pixel a range into flat arrays of planes and values).
+
+use glam::{Vec2, Vec3, Vec4};
+
+use crate::error::IbrrError;
+
+/// Bytes per layer of the compact [`Ldc`]: a plane (4 x f32) and direct and indirect
+/// irradiance (2 x 3 x f32).
+pub const LAYER_BYTES: u64 = 40;
+
+/// Bytes per layer while building (plane, three accumulators, list link, per-IRPL scratch).
+pub const BUILD_LAYER_BYTES: u64 = 16 + 36 + 4 + 4 + 16 + 4;
+
+/// The geometry of an LDC: its cube, resolution and matching thresholds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LdcFrame {
+    /// The cube's minimum corner.
+    pub origin: Vec3,
+    /// The cube's side.
+    pub side: f32,
+    /// Pixels along each side of every LDI.
+    pub resolution: u32,
+    /// Plane-distance threshold `eps_d` (world units).
+    pub eps_distance: f32,
+    /// Normal threshold `eps_n`: layers match when `n' . n > 1 - eps_n`.
+    pub eps_normal: f32,
+    /// Normals whose component along an axis is within `band` of the largest component
+    /// also go to that axis' LDI.
+    pub band: f32,
+}
+
+/// Which LDIs a normal goes to, with blend weights (1 for the dominant axis, falling
+/// linearly to 0 at `band` below it).
+pub fn axes_of(n: Vec3, band: f32) -> [(usize, f32); 3] {
+    let a = n.abs();
+    let m = a.max_element();
+    let mut out = [(0usize, 0.0f32); 3];
+    for (k, o) in out.iter_mut().enumerate() {
+        let w = if band > 0.0 {
+            ((a[k] - (m - band)) / band).clamp(0.0, 1.0)
+        } else if a[k] == m {
+            1.0
+        } else {
+            0.0
+        };
+        *o = (k, w);
+    }
+    // Exactly one axis when the band is zero and components tie: keep the first.
+    if band <= 0.0 {
+        let mut seen = false;
+        for o in &mut out {
+            if o.1 > 0.0 {
+                if seen {
+                    o.1 = 0.0;
+                }
+                seen = true;
+            }
+        }
+    }
+    out
+}
+
+impl LdcFrame {
+    /// The frame of a cube around `min..max` (a margin of 1e-3 of the side on every face)
+    /// at `resolution`, with thresholds `eps_distance_px` (in LDI pixels), `eps_normal` and
+    /// `band`. An empty or degenerate box gets a unit cube.
+    pub fn around(
+        min: Vec3,
+        max: Vec3,
+        resolution: u32,
+        eps_distance_px: f32,
+        eps_normal: f32,
+        band: f32,
+    ) -> Self {
+        let size = max - min;
+        let valid = min.is_finite() && max.is_finite() && size.min_element() >= 0.0;
+        let (centre, mut side) = if valid {
+            ((min + max) * 0.5, size.max_element())
+        } else {
+            (Vec3::ZERO, 1.0)
+        };
+        if side <= 0.0 || !side.is_finite() {
+            side = 1.0;
+        }
+        side *= 1.0 + 2e-3;
+        let pixel = side / resolution.max(1) as f32;
+        Self {
+            origin: centre - Vec3::splat(side * 0.5),
+            side,
+            resolution: resolution.max(1),
+            eps_distance: eps_distance_px * pixel,
+            eps_normal,
+            band,
+        }
+    }
+
+    /// The side of an LDI pixel (world units).
+    pub fn pixel_size(&self) -> f32 {
+        self.side / self.resolution as f32
+    }
+
+    /// The two axes spanning LDI `axis`' image plane.
+    #[inline]
+    pub fn image_axes(axis: usize) -> (usize, usize) {
+        ((axis + 1) % 3, (axis + 2) % 3)
+    }
+
+    /// Continuous pixel coordinates of `p` in LDI `axis` (pixel `(i, j)` covers
+    /// `[i, i+1) x [j, j+1)`).
+    #[inline]
+    pub fn pixel_coords(&self, axis: usize, p: Vec3) -> Vec2 {
+        let (u, v) = Self::image_axes(axis);
+        let inv = self.resolution as f32 / self.side;
+        Vec2::new((p[u] - self.origin[u]) * inv, (p[v] - self.origin[v]) * inv)
+    }
+
+    /// Index of pixel `(i, j)` of LDI `axis`, if inside.
+    #[inline]
+    pub fn pixel_index(&self, axis: usize, i: i64, j: i64) -> Option<usize> {
+        let r = self.resolution as i64;
+        (i >= 0 && j >= 0 && i < r && j < r).then(|| (axis as i64 * r * r + j * r + i) as usize)
+    }
+
+    /// Number of pixels over the three LDIs.
+    pub fn pixel_count(&self) -> usize {
+        3 * self.resolution as usize * self.resolution as usize
+    }
+
+    /// The point of `plane` (`n . x = d`) seen along LDI `axis` through the centre of pixel
+    /// `(i, j)`; `None` when the plane is parallel to the axis.
+    pub fn point_on_plane(&self, axis: usize, i: i64, j: i64, plane: Vec4) -> Option<Vec3> {
+        let n = plane.truncate();
+        if n[axis].abs() < 1e-6 {
+            return None;
+        }
+        let (u, v) = Self::image_axes(axis);
+        let h = self.pixel_size();
+        let mut p = Vec3::ZERO;
+        p[u] = self.origin[u] + (i as f32 + 0.5) * h;
+        p[v] = self.origin[v] + (j as f32 + 0.5) * h;
+        p[axis] = (plane.w - n[u] * p[u] - n[v] * p[v]) / n[axis];
+        Some(p)
+    }
+
+    /// The plane test of section 3.1 between a stored `plane` and a point `p` with normal
+    /// `n`: `Some(distance)` when they match.
+    #[inline]
+    pub fn matches(&self, plane: Vec4, p: Vec3, n: Vec3) -> Option<f32> {
+        let dist = (p.dot(plane.truncate()) - plane.w).abs();
+        (dist < self.eps_distance && n.dot(plane.truncate()) > 1.0 - self.eps_normal)
+            .then_some(dist)
+    }
+}
+
+/// One layer while building.
+#[derive(Clone, Copy, Debug)]
+struct BuildLayer {
+    plane: Vec4,
+    /// Exact direct light (point and directional lights' own renders).
+    exact: Vec3,
+    /// Sum over paths of direct light from emitter samples (divided by the path count).
+    direct: Vec3,
+    /// Sum over paths of indirect light (divided by the path count).
+    indirect: Vec3,
+    next: u32,
+    /// The IRPL (plus one) whose splats are held in `scratch`.
+    stamp: u32,
+    /// Per-IRPL splat accumulation: weighted value and weight (Gaussian) or the value and
+    /// the distance of the nearest sample so far (nearest).
+    scratch: Vec4,
+    scratch_w: f32,
+}
+
+const NONE: u32 = u32::MAX;
+
+/// Where an IRPL's light goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Channel {
+    /// Direct light computed exactly once (point and directional lights).
+    Exact,
+    /// Direct light from one emitter sample of one path.
+    Direct,
+    /// Light after one or more reflections, from one path.
+    Indirect,
+}
+
+/// How splats from one IRPL combine in a layer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Combine {
+    /// The sample nearest the pixel centre wins (the paper's nearest-neighbour copies).
+    Nearest,
+    /// Weighted mean (Gaussian kernel, section 6.2).
+    Weighted,
+}
+
+/// An LDC under construction.
+#[derive(Debug)]
+pub struct LdcBuilder {
+    /// Its geometry.
+    pub frame: LdcFrame,
+    heads: Vec<u32>,
+    layers: Vec<BuildLayer>,
+    touched: Vec<u32>,
+    stamp: u32,
+    max_bytes: u64,
+}
+
+impl LdcBuilder {
+    /// An empty LDC. Errors with [`IbrrError::Budget`] when the per-pixel heads alone (4
+    /// bytes a pixel) exceed `max_bytes`, before allocating them.
+    pub fn new(frame: LdcFrame, max_bytes: u64) -> Result<Self, IbrrError> {
+        let heads = frame.pixel_count() as u64 * 4;
+        if heads > max_bytes {
+            return Err(IbrrError::Budget {
+                needed: heads,
+                limit: max_bytes,
+                what: format!("per-pixel layer lists of 3 x {0} x {0} LDIs", frame.resolution),
+            });
+        }
+        Ok(Self {
+            frame,
+            heads: vec![NONE; frame.pixel_count()],
+            layers: Vec::new(),
+            touched: Vec::new(),
+            stamp: 0,
+            max_bytes,
+        })
+    }
+
+    /// Bytes held now (heads plus layers at their building size).
+    pub fn bytes(&self) -> u64 {
+        self.heads.len() as u64 * 4 + self.layers.len() as u64 * BUILD_LAYER_BYTES
+    }
+
+    /// Number of layers.
+    pub fn layer_count(&self) -> usize {
+        self.layers.len()
+    }
+
+    /// Starts the splats of a new IRPL.
+    pub fn begin(&mut self) {
+        self.stamp = self.stamp.wrapping_add(1);
+        if self.stamp == 0 {
+            for l in &mut self.layers {
+                l.stamp = 0;
+            }
+            self.stamp = 1;
+        }
+        self.touched.clear();
+    }
+
+    /// Finds the layer of pixel `index` matching `(p, n)`, inserting one with `plane` when
+    /// none does (only when `insert`).
+    fn find_or_insert(
+        &mut self,
+        index: usize,
+        p: Vec3,
+        n: Vec3,
+        plane: Vec4,
+        insert: bool,
+    ) -> Result<Option<u32>, IbrrError> {
+        let mut best: Option<(u32, f32)> = None;
+        let mut l = self.heads[index];
+        while l != NONE {
+            let layer = &self.layers[l as usize];
+            if let Some(d) = self.frame.matches(layer.plane, p, n)
+                && best.is_none_or(|(_, b)| d < b)
+            {
+                best = Some((l, d));
+            }
+            l = layer.next;
+        }
+        if let Some((l, _)) = best {
+            return Ok(Some(l));
+        }
+        if !insert {
+            return Ok(None);
+        }
+        let needed = self.bytes() + BUILD_LAYER_BYTES;
+        if needed > self.max_bytes {
+            return Err(IbrrError::Budget {
+                needed,
+                limit: self.max_bytes,
+                what: format!("layer {} of the LDC", self.layers.len() + 1),
+            });
+        }
+        let id = self.layers.len() as u32;
+        self.layers.push(BuildLayer {
+            plane,
+            exact: Vec3::ZERO,
+            direct: Vec3::ZERO,
+            indirect: Vec3::ZERO,
+            next: self.heads[index],
+            stamp: 0,
+            scratch: Vec4::ZERO,
+            scratch_w: 0.0,
+        });
+        self.heads[index] = id;
+        Ok(Some(id))
+    }
+
+    /// Splats `value` of the current IRPL at pixel `(i, j)` of LDI `axis` onto the surface
+    /// `plane` (through `p` with normal `n`), `dist` being the distance (in LDI pixels)
+    /// from the sample to the pixel's centre and `weight` its kernel weight.
+    #[allow(clippy::too_many_arguments)]
+    pub fn splat(
+        &mut self,
+        axis: usize,
+        i: i64,
+        j: i64,
+        p: Vec3,
+        n: Vec3,
+        value: Vec3,
+        dist: f32,
+        weight: f32,
+        combine: Combine,
+    ) -> Result<(), IbrrError> {
+        let Some(index) = self.frame.pixel_index(axis, i, j) else {
+            return Ok(());
+        };
+        let plane = n.extend(p.dot(n));
+        let Some(l) = self.find_or_insert(index, p, n, plane, true)? else {
+            return Ok(());
+        };
+        let stamp = self.stamp;
+        let layer = &mut self.layers[l as usize];
+        if layer.stamp != stamp {
+            layer.stamp = stamp;
+            layer.scratch = Vec4::ZERO;
+            layer.scratch_w = match combine {
+                Combine::Nearest => f32::INFINITY,
+                Combine::Weighted => 0.0,
+            };
+            self.touched.push(l);
+        }
+        match combine {
+            Combine::Nearest => {
+                if dist < layer.scratch_w {
+                    layer.scratch_w = dist;
+                    layer.scratch = value.extend(1.0);
+                }
+            }
+            Combine::Weighted => {
+                layer.scratch += (value * weight).extend(weight);
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds the current IRPL's splats to `channel`: one value per layer it reached (its
+    /// overlapping splats combined, never summed).
+    pub fn finish(&mut self, channel: Channel) {
+        for &l in &self.touched {
+            let layer = &mut self.layers[l as usize];
+            let v = if layer.scratch.w > 0.0 {
+                layer.scratch.truncate() / layer.scratch.w
+            } else {
+                Vec3::ZERO
+            };
+            match channel {
+                Channel::Exact => layer.exact += v,
+                Channel::Direct => layer.direct += v,
+                Channel::Indirect => layer.indirect += v,
+            }
+        }
+        self.touched.clear();
+    }
+
+    /// The compact LDC of what was built, with path sums divided by `paths` (at least 1).
+    /// Errors when the compact copy would exceed the budget.
+    pub fn compact(&self, paths: u64) -> Result<Ldc, IbrrError> {
+        let needed = Ldc::bytes_for(self.frame.pixel_count(), self.layers.len());
+        if needed > self.max_bytes {
+            return Err(IbrrError::Budget {
+                needed,
+                limit: self.max_bytes,
+                what: format!("compact LDC of {} layers", self.layers.len()),
+            });
+        }
+        let inv = 1.0 / paths.max(1) as f32;
+        let mut offsets = Vec::with_capacity(self.heads.len() + 1);
+        let mut planes = Vec::with_capacity(self.layers.len());
+        let mut direct = Vec::with_capacity(self.layers.len());
+        let mut indirect = Vec::with_capacity(self.layers.len());
+        let mut stack = Vec::new();
+        for &h in &self.heads {
+            offsets.push(planes.len() as u32);
+            // Layers in insertion order (the list holds them newest first).
+            stack.clear();
+            let mut l = h;
+            while l != NONE {
+                stack.push(l);
+                l = self.layers[l as usize].next;
+            }
+            for &l in stack.iter().rev() {
+                let layer = &self.layers[l as usize];
+                planes.push(layer.plane);
+                direct.push(layer.exact + layer.direct * inv);
+                indirect.push(layer.indirect * inv);
+            }
+        }
+        offsets.push(planes.len() as u32);
+        Ok(Ldc {
+            frame: self.frame,
+            offsets,
+            planes,
+            direct,
+            indirect,
+        })
+    }
+}
+
+/// A built LDC in its compact layout: for LDI pixel `k` (axis-major, then row, then
+/// column) its layers are `offsets[k]..offsets[k + 1]` of the flat arrays.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ldc {
+    /// Geometry and thresholds.
+    pub frame: LdcFrame,
+    /// Per pixel, the first layer; one more entry at the end.
+    pub offsets: Vec<u32>,
+    /// Per layer, its plane `(n, d)` with `n . x = d`.
+    pub planes: Vec<Vec4>,
+    /// Per layer, direct irradiance (W/m^2 in the scene's units).
+    pub direct: Vec<Vec3>,
+    /// Per layer, indirect irradiance.
+    pub indirect: Vec<Vec3>,
+}
+
+impl Ldc {
+    /// Bytes of a compact LDC with `pixels` pixels and `layers` layers.
+    pub fn bytes_for(pixels: usize, layers: usize) -> u64 {
+        (pixels as u64 + 1) * 4 + layers as u64 * LAYER_BYTES
+    }
+
+    /// Bytes this LDC holds (the paper's "LDC pixels times the size of such a pixel", plus
+    /// the per-pixel ranges).
+    pub fn bytes(&self) -> u64 {
+        Self::bytes_for(self.offsets.len().saturating_sub(1), self.planes.len())
+    }
+
+    /// Number of layers over all pixels.
+    pub fn layer_count(&self) -> usize {
+        self.planes.len()
+    }
+
+    /// The layers of pixel `index`.
+    #[inline]
+    pub fn range(&self, index: usize) -> std::ops::Range<usize> {
+        self.offsets[index] as usize..self.offsets[index + 1] as usize
+    }
+
+    /// The layer of pixel `index` matching `(p, n)` best (smallest plane distance).
+    #[inline]
+    pub fn find(&self, index: usize, p: Vec3, n: Vec3) -> Option<usize> {
+        let mut best: Option<(usize, f32)> = None;
+        for l in self.range(index) {
+            if let Some(d) = self.frame.matches(self.planes[l], p, n)
+                && best.is_none_or(|(_, b)| d < b)
+            {
+                best = Some((l, d));
+            }
+        }
+        best.map(|(l, _)| l)
+    }
+}

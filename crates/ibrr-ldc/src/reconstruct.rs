@@ -1,0 +1,216 @@
+//! Reconstruction (paper section 5, figure 4 right): every camera pixel is unprojected
+//! from its G-buffer depth, warped into the LDI most parallel to its normal, matched to a
+//! layer by the plane test, and shaded `albedo x r` (here `albedo / pi x E`, the radiance
+//! of a Lambertian surface under irradiance `E`; emissive surfaces add their emission).
+//!
+//! Three kernels ([`Lookup`]): the LDI pixel the point falls in; the paper's averaging
+//! kernel; and bilinear interpolation over the four nearest LDI pixel centres, blended
+//! across the LDIs a normal near their boundary belongs to (section 6.2). A pixel that finds
+//! no matching layer searches rings of LDI pixels up to
+//! [`crate::IbrrSettings::fallback_radius`]; if none is found it is black and counted
+//! ([`Reconstruction::missing`]), never NaN.
+
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use scene_core::lights::LightId;
+use scene_core::view::{FrustumReconstruction, pixel_uv};
+use scene_core::{GBuffer, Image, LightState, Scene, View};
+
+use crate::ldc::{Ldc, LdcFrame, axes_of};
+use crate::settings::Lookup;
+
+/// Irradiance read from the LDC for one view.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Reconstruction {
+    /// Per pixel, direct irradiance (zero on background and where nothing matched).
+    pub direct: Vec<Vec3>,
+    /// Per pixel, indirect irradiance.
+    pub indirect: Vec<Vec3>,
+    /// Pixels with geometry that found no matching layer even in the fallback search.
+    pub missing: u64,
+    /// Pixels served by the fallback search.
+    pub fallback: u64,
+}
+
+/// How one lookup went.
+enum Found {
+    Direct((Vec3, Vec3)),
+    Fallback((Vec3, Vec3)),
+    Missing,
+}
+
+/// The layer values of `ldc` at `p` with normal `n`.
+pub fn lookup(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32) -> Option<(Vec3, Vec3)> {
+    match lookup_inner(ldc, p, n, mode, fallback_radius) {
+        Found::Direct(v) | Found::Fallback(v) => Some(v),
+        Found::Missing => None,
+    }
+}
+
+fn lookup_inner(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32) -> Found {
+    let frame = &ldc.frame;
+    let mut sum = (Vec3::ZERO, Vec3::ZERO);
+    let mut total = 0.0f32;
+    let mut dominant = (0usize, -1.0f32);
+    for (axis, w_axis) in axes_of(n, frame.band) {
+        if w_axis <= 0.0 {
+            continue;
+        }
+        if w_axis > dominant.1 {
+            dominant = (axis, w_axis);
+        }
+        if let Some((v, w)) = in_ldi(ldc, frame, axis, p, n, mode) {
+            sum.0 += v.0 * w_axis;
+            sum.1 += v.1 * w_axis;
+            total += w_axis * w;
+        }
+    }
+    if total > 0.0 {
+        return Found::Direct((sum.0 / total, sum.1 / total));
+    }
+    // Fallback: the nearest matching layer in rings around the point, dominant LDI.
+    let axis = dominant.0;
+    let c = frame.pixel_coords(axis, p);
+    let (ci, cj) = (c.x.floor() as i64, c.y.floor() as i64);
+    for r in 1..=fallback_radius as i64 {
+        let mut best: Option<(f32, usize)> = None;
+        for j in cj - r..=cj + r {
+            for i in ci - r..=ci + r {
+                if (i - ci).abs() != r && (j - cj).abs() != r {
+                    continue;
+                }
+                let Some(index) = frame.pixel_index(axis, i, j) else { continue };
+                // Relaxed distance: the layer's plane at its own pixel, not at p.
+                for l in ldc.range(index) {
+                    let plane = ldc.planes[l];
+                    if n.dot(plane.truncate()) <= 1.0 - frame.eps_normal {
+                        continue;
+                    }
+                    let Some(q) = frame.point_on_plane(axis, i, j, plane) else { continue };
+                    let d2 = (q - p).length_squared();
+                    if (p.dot(plane.truncate()) - plane.w).abs() < frame.eps_distance * (r as f32 + 1.0)
+                        && best.is_none_or(|(b, _)| d2 < b)
+                    {
+                        best = Some((d2, l));
+                    }
+                }
+            }
+        }
+        if let Some((_, l)) = best {
+            return Found::Fallback((ldc.direct[l], ldc.indirect[l]));
+        }
+    }
+    Found::Missing
+}
+
+/// Kernel-weighted values in one LDI: `((direct, indirect) already divided by the weight
+/// of matches, fraction of the kernel's weight that matched > 0)`.
+fn in_ldi(ldc: &Ldc, frame: &LdcFrame, axis: usize, p: Vec3, n: Vec3, mode: Lookup) -> Option<((Vec3, Vec3), f32)> {
+    let c = frame.pixel_coords(axis, p);
+    let mut acc = (Vec3::ZERO, Vec3::ZERO);
+    let mut wsum = 0.0f32;
+    let add = |i: i64, j: i64, w: f32, acc: &mut (Vec3, Vec3), wsum: &mut f32| {
+        if w <= 0.0 {
+            return;
+        }
+        if let Some(index) = frame.pixel_index(axis, i, j)
+            && let Some(l) = ldc.find(index, p, n)
+        {
+            acc.0 += ldc.direct[l] * w;
+            acc.1 += ldc.indirect[l] * w;
+            *wsum += w;
+        }
+    };
+    match mode {
+        Lookup::Nearest => add(c.x.floor() as i64, c.y.floor() as i64, 1.0, &mut acc, &mut wsum),
+        Lookup::Average { radius } => {
+            let (ci, cj) = (c.x.floor() as i64, c.y.floor() as i64);
+            let r = radius as i64;
+            for j in cj - r..=cj + r {
+                for i in ci - r..=ci + r {
+                    add(i, j, 1.0, &mut acc, &mut wsum);
+                }
+            }
+        }
+        Lookup::Bilinear => {
+            let f = c - Vec2::splat(0.5);
+            let (i0, j0) = (f.x.floor() as i64, f.y.floor() as i64);
+            let t = f - Vec2::new(i0 as f32, j0 as f32);
+            add(i0, j0, (1.0 - t.x) * (1.0 - t.y), &mut acc, &mut wsum);
+            add(i0 + 1, j0, t.x * (1.0 - t.y), &mut acc, &mut wsum);
+            add(i0, j0 + 1, (1.0 - t.x) * t.y, &mut acc, &mut wsum);
+            add(i0 + 1, j0 + 1, t.x * t.y, &mut acc, &mut wsum);
+        }
+    }
+    (wsum > 0.0).then(|| ((acc.0 / wsum, acc.1 / wsum), 1.0))
+}
+
+/// Reads `ldc` for every pixel of `g` (seen from `view`).
+pub fn reconstruct(ldc: &Ldc, g: &GBuffer, view: &View, mode: Lookup, fallback_radius: u32) -> Reconstruction {
+    let recon = FrustumReconstruction::new(view);
+    let (w, h) = (g.width, g.height);
+    let found: Vec<(Vec3, Vec3, u8)> = (0..g.len())
+        .into_par_iter()
+        .map(|i| {
+            if g.is_background(i) || g.normal[i] == Vec3::ZERO {
+                return (Vec3::ZERO, Vec3::ZERO, 0);
+            }
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            let p = recon.world(pixel_uv(x, y, w, h), g.depth[i]);
+            match lookup_inner(ldc, p, g.normal[i], mode, fallback_radius) {
+                Found::Direct((d, ind)) => (d, ind, 0),
+                Found::Fallback((d, ind)) => (d, ind, 1),
+                Found::Missing => (Vec3::ZERO, Vec3::ZERO, 2),
+            }
+        })
+        .collect();
+    let mut r = Reconstruction {
+        direct: Vec::with_capacity(found.len()),
+        indirect: Vec::with_capacity(found.len()),
+        missing: 0,
+        fallback: 0,
+    };
+    for (d, ind, k) in found {
+        r.direct.push(d);
+        r.indirect.push(ind);
+        match k {
+            1 => r.fallback += 1,
+            2 => r.missing += 1,
+            _ => {}
+        }
+    }
+    r
+}
+
+/// The displayed radiance: `albedo / pi x (direct + indirect)` plus the emission of
+/// emissive surfaces seen directly from their emitting side (times their light's direct
+/// factor under `lights`), as the reference path tracer counts it.
+pub fn shade(scene: &Scene, g: &GBuffer, view: &View, r: &Reconstruction, lights: &LightState) -> Image {
+    let offsets = scene.mesh_offsets();
+    let recon = FrustumReconstruction::new(view);
+    let mut img = Image::new(g.width, g.height);
+    for i in 0..g.len() {
+        if g.is_background(i) {
+            continue;
+        }
+        let albedo = g.albedo[i].truncate();
+        let mut l = albedo * std::f32::consts::FRAC_1_PI * (r.direct[i] + r.indirect[i]);
+        if let Some(t) = scene.triangle_ref(&offsets, g.triangle_id[i]) {
+            let mesh = &scene.meshes[t.mesh as usize];
+            let m = mesh.material_ids[t.local as usize];
+            let tri = mesh.indices[t.local as usize].map(|k| mesh.positions[k as usize]);
+            let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+            let (x, y) = (i as u32 % g.width, i as u32 / g.width);
+            let p = recon.world(pixel_uv(x, y, g.width, g.height), g.depth[i]);
+            let (eye, _) = view.ray(pixel_uv(x, y, g.width, g.height));
+            if let Some(mat) = scene.materials.get(m as usize)
+                && mat.is_emissive()
+                && ng.dot(p - eye) < 0.0
+            {
+                l += mat.emission * lights.get(LightId::Emissive(t.mesh)).direct_factor();
+            }
+        }
+        img.pixels[i] = if l.is_finite() { l } else { Vec3::ZERO };
+    }
+    img
+}

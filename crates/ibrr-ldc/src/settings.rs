@@ -1,0 +1,156 @@
+//! Settings of construction and reconstruction, with the paper's defaults.
+
+use crate::error::IbrrError;
+
+/// How a hemicube sample is spread over LDI pixels (section 4.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Splat {
+    /// Nearest-neighbour copies over the sample's footprint (the paper's method).
+    Nearest,
+    /// A Gaussian of the footprint's size, normalised per layer (section 6.2).
+    Gaussian,
+}
+
+impl std::str::FromStr for Splat {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "nearest" => Ok(Splat::Nearest),
+            "gaussian" => Ok(Splat::Gaussian),
+            _ => Err(format!("splat must be 'nearest' or 'gaussian', got '{s}'")),
+        }
+    }
+}
+
+/// How a camera pixel reads the LDC (section 5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lookup {
+    /// The LDI pixel the point falls in.
+    Nearest,
+    /// The mean of matching layers in a `(2 radius + 1)^2` block (the paper's averaging
+    /// kernel).
+    Average {
+        /// Half-width of the block in LDI pixels.
+        radius: u32,
+    },
+    /// Bilinear over the four nearest LDI pixel centres, blended across LDIs near their
+    /// boundaries (section 6.2).
+    Bilinear,
+}
+
+impl std::str::FromStr for Lookup {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "nearest" => Ok(Lookup::Nearest),
+            "average" => Ok(Lookup::Average { radius: 1 }),
+            "bilinear" => Ok(Lookup::Bilinear),
+            _ => Err(format!("lookup must be 'nearest', 'average' or 'bilinear', got '{s}'")),
+        }
+    }
+}
+
+/// Everything that shapes an IBRR.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IbrrSettings {
+    /// LDI resolution along each side of the bounding cube (paper: 128 to 512).
+    pub resolution: u32,
+    /// Stop starting particle paths once this many IRPLs exist (paper: 184).
+    pub irpls: u32,
+    /// Hemicube resolution of the first node of each path (direct light); `0`: the LDC
+    /// resolution, as in the paper's Table 1.
+    pub direct_hemicube: u32,
+    /// Hemicube resolution of later nodes (section 4.1 lowers it); `0`: half the direct one.
+    pub indirect_hemicube: u32,
+    /// Splat kernel.
+    pub splat: Splat,
+    /// Reconstruction kernel.
+    pub lookup: Lookup,
+    /// Plane-distance threshold in LDI pixels.
+    pub eps_distance_px: f32,
+    /// Normal threshold: layers match when `n' . n > 1 - eps_normal`.
+    pub eps_normal: f32,
+    /// Normals within this of the dominant component also go to the other LDIs (the blend
+    /// across LDIs).
+    pub band: f32,
+    /// Largest splat radius in LDI pixels (grazing samples).
+    pub max_splat_px: f32,
+    /// Pixels with no matching layer search this many LDI pixels around them.
+    pub fallback_radius: u32,
+    /// Seed of the particle walks.
+    pub seed: u64,
+    /// Most bounces of a particle.
+    pub max_depth: u32,
+    /// Memory budget of the LDC in bytes (construction fails with a typed error before
+    /// exceeding it).
+    pub max_bytes: u64,
+}
+
+impl Default for IbrrSettings {
+    fn default() -> Self {
+        Self {
+            resolution: 256,
+            irpls: 184,
+            direct_hemicube: 0,
+            indirect_hemicube: 0,
+            splat: Splat::Gaussian,
+            lookup: Lookup::Bilinear,
+            eps_distance_px: 0.5,
+            eps_normal: 0.05,
+            band: 0.1,
+            max_splat_px: 16.0,
+            fallback_radius: 4,
+            seed: 1,
+            max_depth: 32,
+            max_bytes: 2 << 30,
+        }
+    }
+}
+
+impl IbrrSettings {
+    /// The direct hemicube resolution in effect.
+    pub fn direct_resolution(&self) -> u32 {
+        if self.direct_hemicube == 0 { self.resolution } else { self.direct_hemicube }
+    }
+
+    /// The indirect hemicube resolution in effect.
+    pub fn indirect_resolution(&self) -> u32 {
+        if self.indirect_hemicube == 0 {
+            self.direct_resolution().div_ceil(2).max(1)
+        } else {
+            self.indirect_hemicube
+        }
+    }
+
+    /// Checks every setting, naming the first one out of range.
+    pub fn check(&self) -> Result<(), IbrrError> {
+        let bad = |m: String| Err(IbrrError::Settings(m));
+        if self.resolution == 0 || self.resolution > 16384 {
+            return bad(format!("resolution must be in 1..=16384, got {}", self.resolution));
+        }
+        if self.direct_resolution() > 8192 || self.indirect_resolution() > 8192 {
+            return bad("hemicube resolutions must be at most 8192".into());
+        }
+        if !(self.eps_distance_px > 0.0 && self.eps_distance_px.is_finite()) {
+            return bad(format!("eps_distance_px must be positive, got {}", self.eps_distance_px));
+        }
+        if !(self.eps_normal > 0.0 && self.eps_normal < 2.0) {
+            return bad(format!("eps_normal must be in (0, 2), got {}", self.eps_normal));
+        }
+        if !(0.0..1.0).contains(&self.band) {
+            return bad(format!("band must be in [0, 1), got {}", self.band));
+        }
+        if !(self.max_splat_px >= 0.5 && self.max_splat_px <= 64.0) {
+            return bad(format!("max_splat_px must be in [0.5, 64], got {}", self.max_splat_px));
+        }
+        if let Lookup::Average { radius } = self.lookup
+            && radius > 16
+        {
+            return bad(format!("averaging radius must be at most 16, got {radius}"));
+        }
+        if self.fallback_radius > 64 {
+            return bad(format!("fallback_radius must be at most 64, got {}", self.fallback_radius));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,181 @@
+//! The IBRR as a [`Technique`]: `prepare` constructs the LDC (or, with
+//! [`IbrrTechnique::progressive`], only starts it and lets [`Technique::refine`] add IRPLs
+//! while frames show the LDC so far); `render` reconstructs a frame from the camera's
+//! G-buffer.
+//!
+//! The IBRR bakes the lights in: a frame whose [`scene_core::LightState`] differs from the
+//! one the LDC was built for is rebuilt first (the cost is reported in
+//! [`IbrrTechnique::last_timings`]); it cannot relight.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use scene_core::{Error, FrameRequest, GBufferRenderer, Image, LightState, Scene, Technique};
+
+use crate::construct::Construction;
+use crate::error::IbrrError;
+use crate::ldc::Ldc;
+use crate::reconstruct::{Reconstruction, reconstruct, shade};
+use crate::settings::IbrrSettings;
+
+/// Times and counts of the last frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameTimings {
+    /// Rebuilding for a new light state (zero when the lights were unchanged).
+    pub rebuild: Duration,
+    /// The camera's G-buffer.
+    pub gbuffer: Duration,
+    /// Warping the pixels into the LDC and shading.
+    pub lookup: Duration,
+    /// Pixels with geometry but no matching layer.
+    pub missing: u64,
+    /// Pixels served by the fallback search.
+    pub fallback: u64,
+}
+
+/// The IBRR as a [`Technique`].
+pub struct IbrrTechnique {
+    /// Construction and reconstruction settings (used by the next `prepare`).
+    pub settings: IbrrSettings,
+    /// When true, `prepare` only starts the construction and [`Technique::refine`] adds
+    /// IRPLs; frames show the LDC so far.
+    pub progressive: bool,
+    renderer: Box<dyn GBufferRenderer + Send>,
+    construction: Option<Construction>,
+    ldc: Option<Ldc>,
+    timings: FrameTimings,
+    name: String,
+}
+
+impl std::fmt::Debug for IbrrTechnique {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("IbrrTechnique")
+            .field("settings", &self.settings)
+            .field("renderer", &self.renderer.name())
+            .finish()
+    }
+}
+
+impl IbrrTechnique {
+    /// An IBRR with `settings`, hemicube and camera G-buffers from `renderer`.
+    pub fn new(settings: IbrrSettings, renderer: Box<dyn GBufferRenderer + Send>) -> Self {
+        Self {
+            settings,
+            progressive: false,
+            renderer,
+            construction: None,
+            ldc: None,
+            timings: FrameTimings::default(),
+            name: "ibrr".into(),
+        }
+    }
+
+    /// The same with another report name.
+    pub fn named(mut self, name: &str) -> Self {
+        self.name = name.into();
+        self
+    }
+
+    /// The construction (IRPLs, figures), once prepared.
+    pub fn construction(&self) -> Option<&Construction> {
+        self.construction.as_ref()
+    }
+
+    /// The LDC as last compacted.
+    pub fn ldc(&self) -> Option<&Ldc> {
+        self.ldc.as_ref()
+    }
+
+    /// The figures of the last frame.
+    pub fn last_timings(&self) -> FrameTimings {
+        self.timings
+    }
+
+    /// [`Technique::prepare`] under a light state, reporting `(IRPLs done, IRPLs total)`
+    /// to `progress` as it goes.
+    pub fn prepare_lit(
+        &mut self,
+        scene: Arc<Scene>,
+        lights: &LightState,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<(), IbrrError> {
+        self.construction = None;
+        self.ldc = None;
+        let mut c = Construction::new(scene, lights, &self.settings)?;
+        c.prepare_renderer(self.renderer.as_mut())?;
+        if !self.progressive {
+            while !c.is_done() {
+                c.step(self.renderer.as_mut(), 16)?;
+                let s = c.stats();
+                progress(s.irpls_done, s.irpls_total);
+            }
+        }
+        self.ldc = Some(c.ldc()?);
+        self.construction = Some(c);
+        Ok(())
+    }
+}
+
+impl Technique for IbrrTechnique {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
+        Ok(self.prepare_lit(scene, &LightState::default(), &mut |_, _| {})?)
+    }
+
+    fn refine(&mut self, budget: Duration) -> Result<scene_core::Refinement, Error> {
+        let Some(c) = self.construction.as_mut() else {
+            return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
+        };
+        let start = Instant::now();
+        let mut steps = 0;
+        while !c.is_done() && start.elapsed() < budget {
+            steps += c.step(self.renderer.as_mut(), 1)? as u64;
+        }
+        if steps > 0 {
+            self.ldc = Some(c.ldc()?);
+        }
+        let s = c.stats();
+        Ok(scene_core::Refinement {
+            done: c.is_done(),
+            steps,
+            remaining: Some((s.irpls_total - s.irpls_done) as f64 / s.irpls_total.max(1) as f64),
+        })
+    }
+
+    fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
+        let Some(c) = self.construction.as_ref() else {
+            return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
+        };
+        let mut rebuild = Duration::ZERO;
+        if c.lights.fingerprint() != frame.lights.fingerprint() {
+            let t = Instant::now();
+            let scene = c.scene.clone();
+            let progressive = std::mem::replace(&mut self.progressive, false);
+            let r = self.prepare_lit(scene, frame.lights, &mut |_, _| {});
+            self.progressive = progressive;
+            r?;
+            rebuild = t.elapsed();
+        }
+        let (Some(c), Some(ldc)) = (self.construction.as_ref(), self.ldc.as_ref()) else {
+            return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
+        };
+        let t = Instant::now();
+        c.prepare_renderer(self.renderer.as_mut())?;
+        let g = self.renderer.render_view(&frame.view, frame.width, frame.height)?;
+        let gbuffer = t.elapsed();
+        let t = Instant::now();
+        let r: Reconstruction = reconstruct(ldc, &g, &frame.view, self.settings.lookup, self.settings.fallback_radius);
+        let image = shade(&c.scene, &g, &frame.view, &r, frame.lights);
+        self.timings = FrameTimings {
+            rebuild,
+            gbuffer,
+            lookup: t.elapsed(),
+            missing: r.missing,
+            fallback: r.fallback,
+        };
+        Ok(image)
+    }
+}

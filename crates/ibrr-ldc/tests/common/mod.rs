@@ -1,0 +1,72 @@
+//! Helpers shared by the IBRR tests.
+#![allow(dead_code)]
+
+use std::sync::Arc;
+
+use ibrr_ldc::{IbrrSettings, IbrrTechnique};
+use scene_core::gbuffer::RayCastRenderer;
+use scene_core::reference::{Bounces, ReferenceSettings, render};
+use scene_core::{FrameRequest, Image, Scene, Technique, View, luminance};
+
+/// Relative mean absolute error and relative bias of `a` against `b` (luminance, over all
+/// pixels): `sum |a - b| / sum b` and `sum (a - b) / sum b`.
+pub fn errors(a: &Image, b: &Image) -> (f64, f64) {
+    let (mut abs, mut bias, mut tot) = (0.0f64, 0.0f64, 0.0f64);
+    for (x, y) in a.pixels.iter().zip(&b.pixels) {
+        let (la, lb) = (f64::from(luminance(*x)), f64::from(luminance(*y)));
+        abs += (la - lb).abs();
+        bias += la - lb;
+        tot += lb;
+    }
+    (abs / tot, bias / tot)
+}
+
+/// The mean luminance of an image.
+pub fn mean(a: &Image) -> f64 {
+    a.pixels.iter().map(|p| f64::from(luminance(*p))).sum::<f64>() / a.pixels.len().max(1) as f64
+}
+
+/// The IBRR of `scene` with `settings`, seen from camera 0 at `size x size`, each pixel
+/// the mean of 4 x 4 G-buffer samples (the reference jitters over the pixel, so edge
+/// pixels mix surfaces; one G-buffer sample per pixel would count that aliasing as the
+/// method's error).
+pub fn ibrr_image(scene: &Arc<Scene>, settings: IbrrSettings, size: u32) -> (Image, IbrrTechnique) {
+    let mut t = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+    t.prepare(scene.clone()).unwrap();
+    const SS: u32 = 4;
+    let big = t
+        .render(&FrameRequest::camera(&scene.cameras[0], size * SS, size * SS))
+        .unwrap();
+    (box_down(&big, SS), t)
+}
+
+/// Box-filters `img` by `k` in each direction.
+pub fn box_down(img: &Image, k: u32) -> Image {
+    let (w, h) = (img.width / k, img.height / k);
+    let mut out = Image::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let mut s = glam::Vec3::ZERO;
+            for dy in 0..k {
+                for dx in 0..k {
+                    s += img.pixels[((y * k + dy) * img.width + x * k + dx) as usize];
+                }
+            }
+            out.pixels[(y * w + x) as usize] = s / (k * k) as f32;
+        }
+    }
+    out
+}
+
+/// The reference of `scene` from camera 0.
+pub fn reference(scene: &Scene, size: u32, spp: u32, bounces: Bounces) -> Image {
+    let frame = FrameRequest::camera(&scene.cameras[0], size, size);
+    let view: View = frame.view;
+    render(
+        scene,
+        &view,
+        &ReferenceSettings { width: size, height: size, spp, bounces, seed: 7 },
+        None,
+    )
+    .image
+}
