@@ -32,6 +32,8 @@ use crate::settings::{IbrrSettings, Splat};
 struct Sample {
     p: Vec3,
     n: Vec3,
+    /// The IRPL's irradiance at `p`.
+    value: Vec3,
     /// How the surface point moves for one pixel step right and down in the render: the
     /// pixel's footprint on its surface (a parallelogram), by distance and orientation.
     du: Vec3,
@@ -98,6 +100,7 @@ impl Construction {
                 irpls: settings.irpls,
                 seed: settings.seed,
                 max_depth: settings.max_depth,
+                paths: settings.paths,
             },
         );
         let walk_time = t.elapsed();
@@ -264,10 +267,12 @@ impl Construction {
             Splat::Gaussian => (Combine::Weighted, true),
         };
         let max_r = self.settings.max_splat_px;
+        let exact = self.settings.exact_geometry;
         let recon: Vec<FrustumReconstruction> = targets.iter().map(|t| FrustumReconstruction::new(&t.view)).collect();
+        let vps: Vec<glam::Mat4> = targets.iter().map(|t| t.view.view_projection()).collect();
         self.builder.begin();
         for (k, (t, g)) in targets.iter().zip(buffers).enumerate() {
-            let samples = samples_of(t, &recon[k], g);
+            let samples = samples_of(irpl, t, &recon[k], g);
             self.stats.samples += samples.len() as u64;
             for s in samples {
                 let plane_d = s.p.dot(s.n);
@@ -310,16 +315,24 @@ impl Construction {
                             let Some(q) = frame.point_on_plane(axis, i, j, s.n.extend(plane_d)) else {
                                 continue;
                             };
-                            if !is_home
-                                && !seen_on_plane(q, s.n, s.footprint(), frame.eps_distance, frame.eps_normal, targets, &recon, buffers)
+                            // A layer this IRPL already reached passed the visibility test
+                            // at its centre: with exact values there is nothing to add.
+                            let reached = self.builder.stamped(axis, i, j, q, s.n).is_some();
+                            if reached && exact {
+                                continue;
+                            }
+                            if !reached
+                                && !is_home
+                                && !seen_on_plane(q, s.n, s.footprint(), frame.eps_distance, frame.eps_normal, &vps, &recon, buffers)
                             {
                                 self.stats.copies_hidden += 1;
                                 continue;
                             }
                             let weight = if gaussian { (-0.5 * m2).exp() } else { 1.0 };
-                            // The geometry term at the copy itself (the render decides only
-                            // visibility), so no copy repeats its sample's value.
-                            let value = irpl.irradiance_at(q, s.n);
+                            // Exact: the geometry term at the LDI pixel's centre itself (the
+                            // render decides only visibility); else the sample's own value,
+                            // as the paper copies it.
+                            let value = if exact { irpl.irradiance_at(q, s.n) } else { s.value };
                             let value = if value.is_finite() { value } else { Vec3::ZERO };
                             self.builder.splat(axis, i, j, q, s.n, value, m2, weight, combine)?;
                         }
@@ -339,7 +352,7 @@ impl Construction {
 
 /// The surface samples of one render of an IRPL: position, normal, irradiance and
 /// footprint of every pixel that hit geometry.
-fn samples_of(target: &ViewTarget, recon: &FrustumReconstruction, g: &GBuffer) -> Vec<Sample> {
+fn samples_of(irpl: &Irpl, target: &ViewTarget, recon: &FrustumReconstruction, g: &GBuffer) -> Vec<Sample> {
     let (w, hgt) = (g.width, g.height);
     let view = &target.view;
     let (right, up) = (view.right(), view.up);
@@ -375,9 +388,11 @@ fn samples_of(target: &ViewTarget, recon: &FrustumReconstruction, g: &GBuffer) -
                 let nd = n.dot(dir);
                 let nd = if nd.abs() < 1e-3 * dir.length() { (1e-3 * dir.length()).copysign(nd) } else { nd };
                 let step = |e: Vec3| (e - dir * (n.dot(e) / nd)) * t;
+                let value = irpl.irradiance_at(p, n);
                 Some(Sample {
                     p,
                     n,
+                    value: if value.is_finite() { value } else { Vec3::ZERO },
                     du: step(right * dx),
                     dv: step(up * dy),
                 })
@@ -386,7 +401,8 @@ fn samples_of(target: &ViewTarget, recon: &FrustumReconstruction, g: &GBuffer) -
         .collect()
 }
 
-/// True when the IRPL's renders see `q` on the plane with normal `n` (its own shadow map).
+/// True when the IRPL's renders see `q` on the plane with normal `n` (its own shadow map,
+/// [`render_sees`]); false when no render covers `q`.
 #[allow(clippy::too_many_arguments)]
 fn seen_on_plane(
     q: Vec3,
@@ -394,30 +410,54 @@ fn seen_on_plane(
     footprint: f32,
     eps_distance: f32,
     eps_normal: f32,
-    targets: &[ViewTarget],
+    vps: &[glam::Mat4],
     recon: &[FrustumReconstruction],
     buffers: &[GBuffer],
 ) -> bool {
-    for ((t, r), g) in targets.iter().zip(recon).zip(buffers) {
-        let view = &t.view;
-        if matches!(view.projection, Projection::Perspective { .. }) && (q - view.eye).dot(view.forward) <= 0.0 {
-            continue;
+    let tol = eps_distance + 0.05 * footprint;
+    for ((vp, r), g) in vps.iter().zip(recon).zip(buffers) {
+        if let Some(seen) = render_sees(vp, r, g, q, n, tol, eps_normal) {
+            return seen;
         }
-        let Some(uv) = view.project_uv(q) else {
-            continue;
-        };
-        if !(0.0..1.0).contains(&uv.x) || !(0.0..1.0).contains(&uv.y) {
-            continue;
-        }
-        let x = ((uv.x * g.width as f32) as u32).min(g.width - 1);
-        let y = ((uv.y * g.height as f32) as u32).min(g.height - 1);
+    }
+    false
+}
+
+/// Whether the render `g` (view-projection `vp`, reconstruction `r`) sees the point `q` on
+/// the plane with normal `n`: the four pixels whose centres surround `q`'s projection all
+/// hit geometry with a normal within `eps_normal` of `n` and a plane within `tol` of `q`.
+/// A pixel straddling an edge sees one surface at its centre, so asking the neighbours
+/// too keeps a point hidden just behind a corner from passing. `None` when `q` is behind
+/// the view or outside its image.
+pub(crate) fn render_sees(
+    vp: &glam::Mat4,
+    r: &FrustumReconstruction,
+    g: &GBuffer,
+    q: Vec3,
+    n: Vec3,
+    tol: f32,
+    eps_normal: f32,
+) -> Option<bool> {
+    let clip = *vp * q.extend(1.0);
+    if clip.w <= 0.0 {
+        return None;
+    }
+    let (u, v) = (clip.x / clip.w * 0.5 + 0.5, 0.5 - clip.y / clip.w * 0.5);
+    if !(0.0..1.0).contains(&u) || !(0.0..1.0).contains(&v) {
+        return None;
+    }
+    let f = Vec2::new(u * g.width as f32 - 0.5, v * g.height as f32 - 0.5);
+    let (x0, y0) = (f.x.floor() as i64, f.y.floor() as i64);
+    let sees = |x: i64, y: i64| {
+        let x = x.clamp(0, g.width as i64 - 1) as u32;
+        let y = y.clamp(0, g.height as i64 - 1) as u32;
         let i = (y * g.width + x) as usize;
         if g.is_background(i) {
             return false;
         }
         let np = g.normal[i];
         let pp = r.world(pixel_uv(x, y, g.width, g.height), g.depth[i]);
-        return np.dot(n) > 1.0 - eps_normal && (q - pp).dot(np).abs() < eps_distance + footprint;
-    }
-    false
+        np.dot(n) > 1.0 - eps_normal && (q - pp).dot(np).abs() < tol
+    };
+    Some(sees(x0, y0) && sees(x0 + 1, y0) && sees(x0, y0 + 1) && sees(x0 + 1, y0 + 1))
 }

@@ -181,12 +181,15 @@ pub(crate) fn surface_at(scene: &Scene, offsets: &[u32], hit: &Hit, o: Vec3, d: 
 /// Settings of the particle walks.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WalkSettings {
-    /// Stop starting paths once this many IRPLs exist (exact sources included).
+    /// About this many IRPLs (exact sources included): the path count is the remainder
+    /// divided by the mean IRPLs per path of a pilot of 256 independent walks.
     pub irpls: u32,
     /// Seed of the Halton scrambling and the bounce generators.
     pub seed: u64,
     /// Most bounces a particle makes.
     pub max_depth: u32,
+    /// Number of paths; 0: from `irpls` and a pilot.
+    pub paths: u32,
 }
 
 /// Generates the IRPLs of `scene` under `lights`. Deterministic for a seed.
@@ -267,7 +270,7 @@ pub fn generate(scene: &Scene, rays: &RayScene, lights: &LightState, settings: &
         })
         .collect();
     let total: f64 = weights.iter().sum();
-    if total <= 0.0 || settings.irpls as usize <= set.irpls.len() {
+    if total <= 0.0 || (settings.paths == 0 && settings.irpls as usize <= set.irpls.len()) {
         return set;
     }
     let mut cdf = Vec::with_capacity(weights.len());
@@ -276,24 +279,82 @@ pub fn generate(scene: &Scene, rays: &RayScene, lights: &LightState, settings: &
         acc += w / total;
         cdf.push(acc);
     }
-    let offsets = scene.mesh_offsets();
-    let seed = Some(settings.seed);
-    let mut path = 0u64;
-    // A generous cap on paths so that a scene whose particles all escape still ends.
-    let max_paths = u64::from(settings.irpls) * 64 + 64;
-    while set.irpls.len() < settings.irpls as usize && path < max_paths {
+    let walker = Walker {
+        scene,
+        rays,
+        lights,
+        starts: &starts,
+        weights: &weights,
+        cdf: &cdf,
+        total,
+        emitters: &emitters,
+        offsets: scene.mesh_offsets(),
+        lift,
+        centre,
+        radius,
+        max_depth: settings.max_depth,
+    };
+    // The number of paths is fixed before the walks that count, from a pilot of
+    // independent walks: stopping once the IRPLs reach the target would make the path
+    // count depend on the paths' lengths and bias the mean.
+    const PILOT: u64 = 256;
+    let pilot_seed = scene_core::sampling::hash_seed(settings.seed, 0x9e37, 1);
+    let mut scratch = Vec::new();
+    for k in 0..PILOT {
+        walker.walk(k, pilot_seed, &mut scratch);
+    }
+    let per_path = scratch.len() as f64 / PILOT as f64;
+    let wanted = (settings.irpls as usize).saturating_sub(set.irpls.len()) as f64;
+    let paths = if settings.paths > 0 {
+        u64::from(settings.paths)
+    } else if per_path > 0.0 {
+        (wanted / per_path).round().max(1.0) as u64
+    } else {
+        1
+    };
+    for path in 0..paths {
+        walker.walk(path, settings.seed, &mut set.irpls);
+        set.path_ends.push(set.irpls.len());
+    }
+    set.paths = paths;
+    set
+}
+
+/// Everything one particle walk needs.
+struct Walker<'a> {
+    scene: &'a Scene,
+    rays: &'a RayScene,
+    lights: &'a LightState,
+    starts: &'a [(Start, Vec3, LightId)],
+    weights: &'a [f64],
+    cdf: &'a [f64],
+    total: f64,
+    emitters: &'a Emitters,
+    offsets: Vec<u32>,
+    lift: f32,
+    centre: Vec3,
+    radius: f32,
+    max_depth: u32,
+}
+
+impl Walker<'_> {
+    /// Walks path `path` (Halton index) with `seed`, pushing its IRPLs to `out`.
+    fn walk(&self, path: u64, seed_value: u64, out: &mut Vec<Irpl>) {
+        let (scene, lights, emitters) = (self.scene, self.lights, self.emitters);
+        let (starts, weights, cdf, total) = (self.starts, self.weights, self.cdf, self.total);
+        let (lift, centre, radius) = (self.lift, self.centre, self.radius);
+        let seed = Some(seed_value);
         let u0 = f64::from(halton(path, 0, seed));
         let k = cdf.partition_point(|&c| c <= u0).min(starts.len() - 1);
         let pick = weights[k] / total;
         if pick <= 0.0 {
-            path += 1;
-            continue;
+            return;
         }
         let (start, power, id) = starts[k];
         let power = power / pick as f32;
         let (u1, u2) = (halton(path, 1, seed), halton(path, 2, seed));
         let (u3, u4) = (halton(path, 3, seed), halton(path, 4, seed));
-        let mut rng = Rng::new(settings.seed, path);
+        let mut rng = Rng::new(seed_value, path);
         let path_id = path as u32;
         // The particle: origin, direction, carried power (before reflection).
         let (mut o, mut d, mut carried) = match start {
@@ -318,7 +379,7 @@ pub fn generate(scene: &Scene, rays: &RayScene, lights: &LightState, settings: &
                 let scale = s.direct.max(s.indirect);
                 let (fd, fi) = if scale > 0.0 { (s.direct / scale, s.indirect / scale) } else { (0.0, 0.0) };
                 if fd > 0.0 {
-                    set.irpls.push(Irpl {
+                    out.push(Irpl {
                         position,
                         normal: t.normal,
                         power: power * fd,
@@ -333,11 +394,11 @@ pub fn generate(scene: &Scene, rays: &RayScene, lights: &LightState, settings: &
         };
         let mut depth = 0;
         let mut t_min = 0.0;
-        while depth < settings.max_depth && carried.max_element() > 0.0 {
-            let Some(hit) = rays.closest_hit(o, d, t_min, f32::INFINITY) else {
+        while depth < self.max_depth && carried.max_element() > 0.0 {
+            let Some(hit) = self.rays.closest_hit(o, d, t_min, f32::INFINITY) else {
                 break;
             };
-            let Some(s) = surface_at(scene, &offsets, &hit, o, d) else {
+            let Some(s) = surface_at(scene, &self.offsets, &hit, o, d) else {
                 break;
             };
             // A point light with a falloff radius delivers falloff(r) r^2 of the
@@ -354,7 +415,7 @@ pub fn generate(scene: &Scene, rays: &RayScene, lights: &LightState, settings: &
                 break;
             }
             let position = s.p + s.ng * lift;
-            set.irpls.push(Irpl {
+            out.push(Irpl {
                 position,
                 normal: s.ns,
                 power: reflected,
@@ -376,9 +437,5 @@ pub fn generate(scene: &Scene, rays: &RayScene, lights: &LightState, settings: &
             d = nd;
             t_min = 0.0;
         }
-        path += 1;
-        set.path_ends.push(set.irpls.len());
     }
-    set.paths = path;
-    set
 }

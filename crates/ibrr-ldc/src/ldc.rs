@@ -317,6 +317,24 @@ impl LdcBuilder {
         Ok(Some(id))
     }
 
+    /// The layer of pixel `(i, j)` of LDI `axis` matching `(p, n)` if the current IRPL has
+    /// already splatted into it.
+    pub fn stamped(&self, axis: usize, i: i64, j: i64, p: Vec3, n: Vec3) -> Option<u32> {
+        let index = self.frame.pixel_index(axis, i, j)?;
+        let mut best: Option<(u32, f32)> = None;
+        let mut l = self.heads[index];
+        while l != NONE {
+            let layer = &self.layers[l as usize];
+            if let Some(d) = self.frame.matches(layer.plane, p, n)
+                && best.is_none_or(|(_, b)| d < b)
+            {
+                best = Some((l, d));
+            }
+            l = layer.next;
+        }
+        best.and_then(|(l, _)| (self.layers[l as usize].stamp == self.stamp).then_some(l))
+    }
+
     /// Splats `value` of the current IRPL at pixel `(i, j)` of LDI `axis` onto the surface
     /// `plane` (through `p` with normal `n`), `dist` being the distance (in LDI pixels)
     /// from the sample to the pixel's centre and `weight` its kernel weight.

@@ -39,15 +39,20 @@ enum Found {
     Missing,
 }
 
-/// The layer values of `ldc` at `p` with normal `n`.
+/// The layer values of `ldc` at `p` with normal `n` (every neighbouring layer on the plane
+/// counts; [`reconstruct`] also checks that the camera sees them).
 pub fn lookup(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32) -> Option<(Vec3, Vec3)> {
-    match lookup_inner(ldc, p, n, mode, fallback_radius) {
+    match lookup_inner(ldc, p, n, mode, fallback_radius, &|_, _| true) {
         Found::Direct(v) | Found::Fallback(v) => Some(v),
         Found::Missing => None,
     }
 }
 
-fn lookup_inner(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32) -> Found {
+/// Whether the point `q` of a neighbouring LDI pixel's layer (normal `n`) may shade a
+/// camera pixel.
+type Visible<'a> = dyn Fn(Vec3, Vec3) -> bool + Sync + 'a;
+
+fn lookup_inner(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32, visible: &Visible) -> Found {
     let frame = &ldc.frame;
     let mut sum = (Vec3::ZERO, Vec3::ZERO);
     let mut total = 0.0f32;
@@ -59,7 +64,7 @@ fn lookup_inner(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32)
         if w_axis > dominant.1 {
             dominant = (axis, w_axis);
         }
-        if let Some((v, w)) = in_ldi(ldc, frame, axis, p, n, mode) {
+        if let Some((v, w)) = in_ldi(ldc, frame, axis, p, n, mode, visible) {
             sum.0 += v.0 * w_axis;
             sum.1 += v.1 * w_axis;
             total += w_axis * w;
@@ -90,6 +95,7 @@ fn lookup_inner(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32)
                     let d2 = (q - p).length_squared();
                     if (p.dot(plane.truncate()) - plane.w).abs() < frame.eps_distance * (r as f32 + 1.0)
                         && best.is_none_or(|(b, _)| d2 < b)
+                        && visible(q, plane.truncate())
                     {
                         best = Some((d2, l));
                     }
@@ -105,7 +111,7 @@ fn lookup_inner(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32)
 
 /// Kernel-weighted values in one LDI: `((direct, indirect) already divided by the weight
 /// of matches, fraction of the kernel's weight that matched > 0)`.
-fn in_ldi(ldc: &Ldc, frame: &LdcFrame, axis: usize, p: Vec3, n: Vec3, mode: Lookup) -> Option<((Vec3, Vec3), f32)> {
+fn in_ldi(ldc: &Ldc, frame: &LdcFrame, axis: usize, p: Vec3, n: Vec3, mode: Lookup, visible: &Visible) -> Option<((Vec3, Vec3), f32)> {
     let c = frame.pixel_coords(axis, p);
     let mut acc = (Vec3::ZERO, Vec3::ZERO);
     let mut wsum = 0.0f32;
@@ -115,6 +121,9 @@ fn in_ldi(ldc: &Ldc, frame: &LdcFrame, axis: usize, p: Vec3, n: Vec3, mode: Look
         }
         if let Some(index) = frame.pixel_index(axis, i, j)
             && let Some(l) = ldc.find(index, p, n)
+            && frame
+                .point_on_plane(axis, i, j, ldc.planes[l])
+                .is_none_or(|q| visible(q, n))
         {
             acc.0 += ldc.direct[l] * w;
             acc.1 += ldc.indirect[l] * w;
@@ -146,9 +155,21 @@ fn in_ldi(ldc: &Ldc, frame: &LdcFrame, axis: usize, p: Vec3, n: Vec3, mode: Look
 }
 
 /// Reads `ldc` for every pixel of `g` (seen from `view`).
+///
+/// Beyond the paper: a neighbouring LDI pixel's layer shades a camera pixel only if the
+/// camera sees that layer's pixel centre on the layer's plane (the camera's G-buffer is
+/// its own visibility test, asked of the four pixels around the centre's projection), so
+/// a kernel never reaches through a wall thinner than an LDI pixel to the same plane on
+/// its other side. Centres off screen or behind the camera count as seen.
 pub fn reconstruct(ldc: &Ldc, g: &GBuffer, view: &View, mode: Lookup, fallback_radius: u32) -> Reconstruction {
     let recon = FrustumReconstruction::new(view);
     let (w, h) = (g.width, g.height);
+    let vp = view.view_projection();
+    let eps_d = 2.0 * ldc.frame.eps_distance;
+    let eps_n = ldc.frame.eps_normal;
+    let visible = move |q: Vec3, n: Vec3| -> bool {
+        crate::construct::render_sees(&vp, &recon, g, q, n, eps_d, eps_n).unwrap_or(true)
+    };
     let found: Vec<(Vec3, Vec3, u8)> = (0..g.len())
         .into_par_iter()
         .map(|i| {
@@ -157,7 +178,7 @@ pub fn reconstruct(ldc: &Ldc, g: &GBuffer, view: &View, mode: Lookup, fallback_r
             }
             let (x, y) = (i as u32 % w, i as u32 / w);
             let p = recon.world(pixel_uv(x, y, w, h), g.depth[i]);
-            match lookup_inner(ldc, p, g.normal[i], mode, fallback_radius) {
+            match lookup_inner(ldc, p, g.normal[i], mode, fallback_radius, &visible) {
                 Found::Direct((d, ind)) => (d, ind, 0),
                 Found::Fallback((d, ind)) => (d, ind, 1),
                 Found::Missing => (Vec3::ZERO, Vec3::ZERO, 2),

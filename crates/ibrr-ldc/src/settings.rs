@@ -55,8 +55,12 @@ impl std::str::FromStr for Lookup {
 pub struct IbrrSettings {
     /// LDI resolution along each side of the bounding cube (paper: 128 to 512).
     pub resolution: u32,
-    /// Stop starting particle paths once this many IRPLs exist (paper: 184).
+    /// About this many IRPLs (paper: 184): exact sources, plus as many particle paths as a
+    /// pilot walk says give the rest on average.
     pub irpls: u32,
+    /// Number of particle paths; `0` (the default): derived from `irpls` by a pilot walk.
+    /// Fixing it keeps the same paths when the geometry is cut differently.
+    pub paths: u32,
     /// Hemicube resolution of the first node of each path (direct light); `0`: the LDC
     /// resolution, as in the paper's Table 1.
     pub direct_hemicube: u32,
@@ -64,6 +68,10 @@ pub struct IbrrSettings {
     pub indirect_hemicube: u32,
     /// Splat kernel.
     pub splat: Splat,
+    /// Evaluate each IRPL's geometry term at every LDI pixel's centre it reaches (the
+    /// render deciding only visibility), rather than copying the hemicube sample's value
+    /// as the paper does. Beyond the paper; on by default (see `docs/ibrr-ldc.md`).
+    pub exact_geometry: bool,
     /// Reconstruction kernel.
     pub lookup: Lookup,
     /// Plane-distance threshold in LDI pixels.
@@ -91,9 +99,11 @@ impl Default for IbrrSettings {
         Self {
             resolution: 256,
             irpls: 184,
+            paths: 0,
             direct_hemicube: 0,
             indirect_hemicube: 0,
             splat: Splat::Gaussian,
+            exact_geometry: true,
             lookup: Lookup::Bilinear,
             eps_distance_px: 0.5,
             eps_normal: 0.05,
@@ -127,6 +137,9 @@ impl IbrrSettings {
         let bad = |m: String| Err(IbrrError::Settings(m));
         if self.resolution == 0 || self.resolution > 16384 {
             return bad(format!("resolution must be in 1..=16384, got {}", self.resolution));
+        }
+        if self.irpls > 10_000_000 || self.paths > 10_000_000 {
+            return bad(format!("irpls and paths must be at most 10^7, got {} and {}", self.irpls, self.paths));
         }
         if self.direct_resolution() > 8192 || self.indirect_resolution() > 8192 {
             return bad("hemicube resolutions must be at most 8192".into());

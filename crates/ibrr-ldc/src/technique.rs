@@ -131,7 +131,8 @@ impl Technique for IbrrTechnique {
         };
         let start = Instant::now();
         let mut steps = 0;
-        while !c.is_done() && start.elapsed() < budget {
+        // At least one IRPL per call, then as many as the budget allows.
+        while !c.is_done() && (steps == 0 || start.elapsed() < budget) {
             steps += c.step(self.renderer.as_mut(), 1)? as u64;
         }
         if steps > 0 {
