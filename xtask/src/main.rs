@@ -22,6 +22,7 @@ mod bench_relight;
 mod checks;
 mod experiment;
 mod fuzz;
+mod ibrr;
 mod relight;
 mod shaders;
 
@@ -93,6 +94,9 @@ enum Command {
     /// refinement, relight it with the given light settings and write the view from a
     /// scene camera (EXR, PNG) and summary.json.
     Relight(relight::Options),
+    /// Image-based radiosity: build a layered depth cube from instant-radiosity point lights
+    /// and write the view from a scene camera (EXR, PNG) and summary.json.
+    Ibrr(ibrr::Options),
     /// Export a scene (built-in name or glTF path) as .gltf or .glb.
     ExportGltf {
         /// Built-in scene name or a .gltf/.glb path.
@@ -340,6 +344,7 @@ fn run(cli: Cli) -> Result<(), String> {
             &scene, camera, width, height, spp, bounces, seed, exposure, &out,
         ),
         Command::Relight(options) => relight::run(&options),
+        Command::Ibrr(options) => ibrr::run(&options),
         Command::ExportGltf { scene, out } => {
             let s = load_scene(&scene)?;
             gltf_io::export(&s, &out).map_err(|e| e.to_string())?;

@@ -77,7 +77,7 @@ pub fn id_text(id: LightId) -> String {
 
 /// The emission a light has in the scene, in its own units (intensity, irradiance, or the
 /// radiance of the mesh's first emissive triangle).
-fn scene_emission(scene: &Scene, id: LightId) -> Vec3 {
+pub fn scene_emission(scene: &Scene, id: LightId) -> Vec3 {
     match id {
         LightId::Point(i) => scene.point_lights[i as usize].intensity,
         LightId::Directional(i) => scene.directional_lights[i as usize].irradiance,
@@ -91,7 +91,7 @@ fn scene_emission(scene: &Scene, id: LightId) -> Vec3 {
 }
 
 /// Parses `ID=R,G,B` settings into a light state (multipliers of the scene's emission).
-fn light_state(scene: &Scene, settings: &[String]) -> Result<LightState, String> {
+pub fn light_state(scene: &Scene, settings: &[String]) -> Result<LightState, String> {
     let ids = light_ids(scene);
     let known = || {
         ids.iter()

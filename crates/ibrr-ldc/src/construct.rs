@@ -87,9 +87,15 @@ pub struct Construction {
 impl Construction {
     /// Generates the IRPLs of `scene` under `lights` and an empty LDC. Errors on invalid
     /// settings and when the empty LDC exceeds the memory budget.
-    pub fn new(scene: Arc<Scene>, lights: &LightState, settings: &IbrrSettings) -> Result<Self, IbrrError> {
+    pub fn new(
+        scene: Arc<Scene>,
+        lights: &LightState,
+        settings: &IbrrSettings,
+    ) -> Result<Self, IbrrError> {
         settings.check()?;
-        lights.check(&scene).map_err(|e| IbrrError::Settings(format!("light state: {e}")))?;
+        lights
+            .check(&scene)
+            .map_err(|e| IbrrError::Settings(format!("light state: {e}")))?;
         let t = Instant::now();
         let rays = RayScene::build(&scene);
         let irpls = generate(
@@ -112,13 +118,31 @@ impl Construction {
 
     /// A construction over given IRPLs (for experiments and tests: one IRPL above a
     /// plane, hand-placed lights), built for the default light state.
-    pub fn with_irpls(scene: Arc<Scene>, irpls: IrplSet, settings: &IbrrSettings) -> Result<Self, IbrrError> {
+    pub fn with_irpls(
+        scene: Arc<Scene>,
+        irpls: IrplSet,
+        settings: &IbrrSettings,
+    ) -> Result<Self, IbrrError> {
         settings.check()?;
         let b = scene.bounds();
         let frame = if b.is_empty() {
-            LdcFrame::around(Vec3::ZERO, Vec3::ZERO, settings.resolution, settings.eps_distance_px, settings.eps_normal, settings.band)
+            LdcFrame::around(
+                Vec3::ZERO,
+                Vec3::ZERO,
+                settings.resolution,
+                settings.eps_distance_px,
+                settings.eps_normal,
+                settings.band,
+            )
         } else {
-            LdcFrame::around(b.min, b.max, settings.resolution, settings.eps_distance_px, settings.eps_normal, settings.band)
+            LdcFrame::around(
+                b.min,
+                b.max,
+                settings.resolution,
+                settings.eps_distance_px,
+                settings.eps_normal,
+                settings.band,
+            )
         };
         let builder = LdcBuilder::new(frame, settings.max_bytes)?;
         Ok(Self {
@@ -155,7 +179,11 @@ impl Construction {
     /// Returns the number warped. On an error (budget, renderer) the construction stays
     /// as it was before the failing IRPL's splats were finished... except for layers the
     /// failing IRPL inserted; callers drop it on error.
-    pub fn step(&mut self, renderer: &mut dyn GBufferRenderer, count: usize) -> Result<usize, IbrrError> {
+    pub fn step(
+        &mut self,
+        renderer: &mut dyn GBufferRenderer,
+        count: usize,
+    ) -> Result<usize, IbrrError> {
         let end = (self.next + count).min(self.irpls.irpls.len());
         let mut done = 0;
         // Render in batches of a few IRPLs (one submission each on the GPU).
@@ -173,12 +201,14 @@ impl Construction {
             }
             let buffers = renderer.render_views(&targets)?;
             if buffers.len() != targets.len() {
-                return Err(IbrrError::Core(scene_core::Error::InvalidArgument(format!(
-                    "renderer '{}' returned {} images for {} views",
-                    renderer.name(),
-                    buffers.len(),
-                    targets.len()
-                ))));
+                return Err(IbrrError::Core(scene_core::Error::InvalidArgument(
+                    format!(
+                        "renderer '{}' returned {} images for {} views",
+                        renderer.name(),
+                        buffers.len(),
+                        targets.len()
+                    ),
+                )));
             }
             self.stats.render_time += t.elapsed();
             let t = Instant::now();
@@ -232,7 +262,11 @@ impl Construction {
         let extent = self.scene.extent();
         let (near, far) = (extent * 1e-5, extent * 2.0);
         let s = &self.settings;
-        let res = if irpl.is_direct() { s.direct_resolution() } else { s.indirect_resolution() };
+        let res = if irpl.is_direct() {
+            s.direct_resolution()
+        } else {
+            s.indirect_resolution()
+        };
         let hemicube = |normal: Vec3| {
             hemicube_views(irpl.position, normal, near, far)
                 .into_iter()
@@ -259,16 +293,24 @@ impl Construction {
     }
 
     /// Warps one IRPL's renders into the LDC.
-    fn warp(&mut self, irpl: &Irpl, targets: &[ViewTarget], buffers: &[GBuffer]) -> Result<(), IbrrError> {
+    fn warp(
+        &mut self,
+        irpl: &Irpl,
+        targets: &[ViewTarget],
+        buffers: &[GBuffer],
+    ) -> Result<(), IbrrError> {
         let frame = self.builder.frame;
         let h = frame.pixel_size();
-        let (combine, gaussian) = match self.settings.splat {
-            Splat::Nearest => (Combine::Nearest, false),
-            Splat::Gaussian => (Combine::Weighted, true),
+        let (combine, gaussian, exact) = match self.settings.splat {
+            Splat::Nearest => (Combine::Nearest, false, false),
+            Splat::Gaussian => (Combine::Weighted, true, false),
+            Splat::Exact => (Combine::Nearest, false, true),
         };
         let max_r = self.settings.max_splat_px;
-        let exact = self.settings.exact_geometry;
-        let recon: Vec<FrustumReconstruction> = targets.iter().map(|t| FrustumReconstruction::new(&t.view)).collect();
+        let recon: Vec<FrustumReconstruction> = targets
+            .iter()
+            .map(|t| FrustumReconstruction::new(&t.view))
+            .collect();
         let vps: Vec<glam::Mat4> = targets.iter().map(|t| t.view.view_projection()).collect();
         self.builder.begin();
         for (k, (t, g)) in targets.iter().zip(buffers).enumerate() {
@@ -307,23 +349,37 @@ impl Construction {
                     for j in j0..=j1 {
                         for i in i0..=i1 {
                             let d = Vec2::new(i as f32 + 0.5, j as f32 + 0.5) - c;
-                            let m2 = d.x * d.x * inv[0] + 2.0 * d.x * d.y * inv[1] + d.y * d.y * inv[2];
+                            let m2 =
+                                d.x * d.x * inv[0] + 2.0 * d.x * d.y * inv[1] + d.y * d.y * inv[2];
                             let is_home = (i, j) == home;
                             if !is_home && m2 > k2 {
                                 continue;
                             }
-                            let Some(q) = frame.point_on_plane(axis, i, j, s.n.extend(plane_d)) else {
-                                continue;
-                            };
-                            // A layer this IRPL already reached passed the visibility test
-                            // at its centre: with exact values there is nothing to add.
-                            let reached = self.builder.stamped(axis, i, j, q, s.n).is_some();
-                            if reached && exact {
+                            // Exact values: a copy only creates layers where none is yet;
+                            // every layer the sample's home pixel did not reach is lit by
+                            // the gather below.
+                            if exact && !is_home && self.builder.has_layer(axis, i, j, s.p, s.n) {
                                 continue;
                             }
+                            let Some(q) = frame.point_on_plane(axis, i, j, s.n.extend(plane_d))
+                            else {
+                                continue;
+                            };
+                            let reached = !exact
+                                && !is_home
+                                && self.builder.stamped(axis, i, j, q, s.n).is_some();
                             if !reached
                                 && !is_home
-                                && !seen_on_plane(q, s.n, s.footprint(), frame.eps_distance, frame.eps_normal, &vps, &recon, buffers)
+                                && !seen_on_plane(
+                                    q,
+                                    s.n,
+                                    s.footprint(),
+                                    frame.eps_distance,
+                                    frame.eps_normal,
+                                    &vps,
+                                    &recon,
+                                    buffers,
+                                )
                             {
                                 self.stats.copies_hidden += 1;
                                 continue;
@@ -332,13 +388,35 @@ impl Construction {
                             // Exact: the geometry term at the LDI pixel's centre itself (the
                             // render decides only visibility); else the sample's own value,
                             // as the paper copies it.
-                            let value = if exact { irpl.irradiance_at(q, s.n) } else { s.value };
+                            let value = if exact {
+                                irpl.irradiance_at(q, s.n)
+                            } else {
+                                s.value
+                            };
                             let value = if value.is_finite() { value } else { Vec3::ZERO };
-                            self.builder.splat(axis, i, j, q, s.n, value, m2, weight, combine)?;
+                            self.builder
+                                .splat(axis, i, j, q, s.n, value, m2, weight, combine)?;
                         }
                     }
                 }
             }
+        }
+        if exact {
+            // Every layer not reached by a sample: lit when no surface of the IRPL's renders
+            // lies between the IRPL and the layer's centre.
+            let renders: Vec<Render> = targets
+                .iter()
+                .zip(&recon)
+                .zip(&vps)
+                .zip(buffers)
+                .map(|(((t, r), vp), g)| Render::new(&t.view, *r, *vp, g))
+                .collect();
+            let (eps_d, eps_n) = (frame.eps_distance, frame.eps_normal);
+            self.builder.gather(|q, n| {
+                let e = irpl.irradiance_at(q, n);
+                (e.max_element() > 0.0 && e.is_finite() && unoccluded(&renders, q, n, eps_d, eps_n))
+                    .then_some(e)
+            });
         }
         let channel = match irpl.kind {
             IrplKind::PointSource { .. } | IrplKind::DirectionalSource { .. } => Channel::Exact,
@@ -352,13 +430,32 @@ impl Construction {
 
 /// The surface samples of one render of an IRPL: position, normal, irradiance and
 /// footprint of every pixel that hit geometry.
-fn samples_of(irpl: &Irpl, target: &ViewTarget, recon: &FrustumReconstruction, g: &GBuffer) -> Vec<Sample> {
+fn samples_of(
+    irpl: &Irpl,
+    target: &ViewTarget,
+    recon: &FrustumReconstruction,
+    g: &GBuffer,
+) -> Vec<Sample> {
     let (w, hgt) = (g.width, g.height);
     let view = &target.view;
     let (right, up) = (view.right(), view.up);
     let (dx, dy, perspective) = match view.projection {
-        Projection::Perspective { left, right, bottom, top } => ((right - left) / w as f32, (top - bottom) / hgt as f32, true),
-        Projection::Orthographic { left, right, bottom, top } => ((right - left) / w as f32, (top - bottom) / hgt as f32, false),
+        Projection::Perspective {
+            left,
+            right,
+            bottom,
+            top,
+        } => ((right - left) / w as f32, (top - bottom) / hgt as f32, true),
+        Projection::Orthographic {
+            left,
+            right,
+            bottom,
+            top,
+        } => (
+            (right - left) / w as f32,
+            (top - bottom) / hgt as f32,
+            false,
+        ),
     };
     (0..hgt)
         .into_par_iter()
@@ -386,7 +483,11 @@ fn samples_of(irpl: &Irpl, target: &ViewTarget, recon: &FrustumReconstruction, g
                     (view.forward, 1.0)
                 };
                 let nd = n.dot(dir);
-                let nd = if nd.abs() < 1e-3 * dir.length() { (1e-3 * dir.length()).copysign(nd) } else { nd };
+                let nd = if nd.abs() < 1e-3 * dir.length() {
+                    (1e-3 * dir.length()).copysign(nd)
+                } else {
+                    nd
+                };
                 let step = |e: Vec3| (e - dir * (n.dot(e) / nd)) * t;
                 let value = irpl.irradiance_at(p, n);
                 Some(Sample {
@@ -460,4 +561,103 @@ pub(crate) fn render_sees(
         np.dot(n) > 1.0 - eps_normal && (q - pp).dot(np).abs() < tol
     };
     Some(sees(x0, y0) && sees(x0 + 1, y0) && sees(x0, y0 + 1) && sees(x0 + 1, y0 + 1))
+}
+
+/// One render of an IRPL, prepared for visibility queries.
+struct Render<'a> {
+    view: &'a View,
+    vp: glam::Mat4,
+    recon: FrustumReconstruction,
+    g: &'a GBuffer,
+    /// Pixel width: tangent units (perspective) or world units (orthographic).
+    pixel: f32,
+    perspective: bool,
+}
+
+impl<'a> Render<'a> {
+    fn new(view: &'a View, recon: FrustumReconstruction, vp: glam::Mat4, g: &'a GBuffer) -> Self {
+        let (pixel, perspective) = match view.projection {
+            Projection::Perspective { left, right, .. } => ((right - left) / g.width as f32, true),
+            Projection::Orthographic { left, right, .. } => {
+                ((right - left) / g.width as f32, false)
+            }
+        };
+        Self {
+            view,
+            vp,
+            recon,
+            g,
+            pixel,
+            perspective,
+        }
+    }
+}
+
+/// True when the first render covering `q` shows no surface between the IRPL and `q`
+/// (the renders as a shadow map of planes): each of the four pixels around `q`'s
+/// projection either sees `q`'s own plane, or sees a surface whose plane the segment from
+/// the IRPL to `q` does not cross before `q` near that pixel's point. Concave edges (a
+/// floor meeting a wall behind it) stay lit; a point just behind a thin wall's corner is
+/// hidden. False when no render covers `q`.
+fn unoccluded(renders: &[Render], q: Vec3, n: Vec3, eps_distance: f32, eps_normal: f32) -> bool {
+    for r in renders {
+        let clip = r.vp * q.extend(1.0);
+        if clip.w <= 0.0 {
+            continue;
+        }
+        let (u, v) = (clip.x / clip.w * 0.5 + 0.5, 0.5 - clip.y / clip.w * 0.5);
+        if !(0.0..1.0).contains(&u) || !(0.0..1.0).contains(&v) {
+            continue;
+        }
+        if r.perspective && (q - r.view.eye).dot(r.view.forward) <= 0.0 {
+            continue;
+        }
+        let g = r.g;
+        let origin = if r.perspective {
+            r.view.eye
+        } else {
+            q - r.view.forward * (q - r.view.eye).dot(r.view.forward)
+        };
+        let dq = q - origin;
+        let len = dq.length();
+        if len <= 0.0 {
+            return false;
+        }
+        let dir = dq / len;
+        let f = Vec2::new(u * g.width as f32 - 0.5, v * g.height as f32 - 0.5);
+        let (x0, y0) = (f.x.floor() as i64, f.y.floor() as i64);
+        for (x, y) in [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)] {
+            let x = x.clamp(0, g.width as i64 - 1) as u32;
+            let y = y.clamp(0, g.height as i64 - 1) as u32;
+            let i = (y * g.width + x) as usize;
+            if g.is_background(i) {
+                continue;
+            }
+            let np = g.normal[i];
+            let pp = r.recon.world(pixel_uv(x, y, g.width, g.height), g.depth[i]);
+            if np.dot(n) > 1.0 - eps_normal && (q - pp).dot(np).abs() < eps_distance {
+                continue;
+            }
+            let denom = dq.dot(np);
+            if denom.abs() <= 1e-12 * len {
+                continue;
+            }
+            let s = (pp - origin).dot(np) / denom;
+            if s <= 0.0 || s >= 1.0 - eps_distance / len {
+                continue;
+            }
+            let c = origin + dq * s;
+            let along = if r.perspective {
+                (pp - origin).length() * r.pixel
+            } else {
+                r.pixel
+            };
+            let reach = 2.0 * along / np.dot(dir).abs().max(0.1);
+            if (c - pp).length() < reach {
+                return false;
+            }
+        }
+        return true;
+    }
+    false
 }

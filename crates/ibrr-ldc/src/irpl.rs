@@ -76,9 +76,7 @@ impl Irpl {
     #[inline]
     pub fn irradiance_at(&self, p: Vec3, n: Vec3) -> Vec3 {
         match self.kind {
-            IrplKind::DirectionalSource { direction } => {
-                self.power * (-n.dot(direction)).max(0.0)
-            }
+            IrplKind::DirectionalSource { direction } => self.power * (-n.dot(direction)).max(0.0),
             IrplKind::PointSource { radius } => {
                 let d = self.position - p;
                 let r = d.length();
@@ -141,11 +139,21 @@ pub(crate) struct Surface {
 }
 
 /// The surface at `hit` of a ray travelling along `d`.
-pub(crate) fn surface_at(scene: &Scene, offsets: &[u32], hit: &Hit, o: Vec3, d: Vec3) -> Option<Surface> {
+pub(crate) fn surface_at(
+    scene: &Scene,
+    offsets: &[u32],
+    hit: &Hit,
+    o: Vec3,
+    d: Vec3,
+) -> Option<Surface> {
     let r = scene.triangle_ref(offsets, hit.triangle)?;
     let mesh = &scene.meshes[r.mesh as usize];
     let tri = mesh.indices[r.local as usize];
-    let b = [1.0 - hit.barycentric.x - hit.barycentric.y, hit.barycentric.x, hit.barycentric.y];
+    let b = [
+        1.0 - hit.barycentric.x - hit.barycentric.y,
+        hit.barycentric.x,
+        hit.barycentric.y,
+    ];
     let pos = tri.map(|i| mesh.positions[i as usize]);
     let mut ng = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
     if ng == Vec3::ZERO {
@@ -193,12 +201,21 @@ pub struct WalkSettings {
 }
 
 /// Generates the IRPLs of `scene` under `lights`. Deterministic for a seed.
-pub fn generate(scene: &Scene, rays: &RayScene, lights: &LightState, settings: &WalkSettings) -> IrplSet {
+pub fn generate(
+    scene: &Scene,
+    rays: &RayScene,
+    lights: &LightState,
+    settings: &WalkSettings,
+) -> IrplSet {
     let mut set = IrplSet::default();
     let extent = scene.extent();
     let lift = extent * 1e-5;
     let bounds = scene.bounds();
-    let centre = if bounds.is_empty() { Vec3::ZERO } else { bounds.center() };
+    let centre = if bounds.is_empty() {
+        Vec3::ZERO
+    } else {
+        bounds.center()
+    };
     let radius = 0.5 * extent * 1.01;
     // Exact sources and the particle budget of each light: (start, rgb power, weight).
     let mut starts: Vec<(Start, Vec3, LightId)> = Vec::new();
@@ -259,8 +276,13 @@ pub fn generate(scene: &Scene, rays: &RayScene, lights: &LightState, settings: &
             continue;
         }
         // Emitted power pi Le A; paths carry both its direct and its indirect part.
-        let power = t.emission * s.color * (std::f32::consts::PI * t.area) * s.direct.max(s.indirect);
-        starts.push((Start::Emitter { triangle: k }, power, LightId::Emissive(t.mesh)));
+        let power =
+            t.emission * s.color * (std::f32::consts::PI * t.area) * s.direct.max(s.indirect);
+        starts.push((
+            Start::Emitter { triangle: k },
+            power,
+            LightId::Emissive(t.mesh),
+        ));
     }
     let weights: Vec<f64> = starts
         .iter()
@@ -367,17 +389,27 @@ impl Walker<'_> {
                 let dir = l.direction.normalize();
                 let (t, b) = scene_core::view::orthonormal_basis(dir);
                 let disk = scene_core::sampling::concentric_disk(Vec2::new(u1, u2)) * radius;
-                (centre - dir * (2.0 * radius) + t * disk.x + b * disk.y, dir, power)
+                (
+                    centre - dir * (2.0 * radius) + t * disk.x + b * disk.y,
+                    dir,
+                    power,
+                )
             }
             Start::Emitter { triangle } => {
                 let t = &emitters.triangles[triangle];
                 let s = lights.get(id);
                 let bary = uniform_triangle(Vec2::new(u1, u2));
-                let p = t.corners[0] * (1.0 - bary.x - bary.y) + t.corners[1] * bary.x + t.corners[2] * bary.y;
+                let p = t.corners[0] * (1.0 - bary.x - bary.y)
+                    + t.corners[1] * bary.x
+                    + t.corners[2] * bary.y;
                 let position = p + t.normal * lift;
                 // Node 0 carries the direct part, the particle the indirect part.
                 let scale = s.direct.max(s.indirect);
-                let (fd, fi) = if scale > 0.0 { (s.direct / scale, s.indirect / scale) } else { (0.0, 0.0) };
+                let (fd, fi) = if scale > 0.0 {
+                    (s.direct / scale, s.indirect / scale)
+                } else {
+                    (0.0, 0.0)
+                };
                 if fd > 0.0 {
                     out.push(Irpl {
                         position,
@@ -389,7 +421,11 @@ impl Walker<'_> {
                         depth: 0,
                     });
                 }
-                (position, cosine_hemisphere(t.normal, Vec2::new(u3, u4)), power * fi)
+                (
+                    position,
+                    cosine_hemisphere(t.normal, Vec2::new(u3, u4)),
+                    power * fi,
+                )
             }
         };
         let mut depth = 0;

@@ -27,7 +27,7 @@ use crate::error::IbrrError;
 pub const LAYER_BYTES: u64 = 40;
 
 /// Bytes per layer while building (plane, three accumulators, list link, per-IRPL scratch).
-pub const BUILD_LAYER_BYTES: u64 = 16 + 36 + 4 + 4 + 16 + 4;
+pub const BUILD_LAYER_BYTES: u64 = 16 + 36 + 4 + 4 + 4 + 16 + 4;
 
 /// The geometry of an LDC: its cube, resolution and matching thresholds.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -181,6 +181,8 @@ struct BuildLayer {
     /// Sum over paths of indirect light (divided by the path count).
     indirect: Vec3,
     next: u32,
+    /// The LDI pixel it lies in.
+    pixel: u32,
     /// The IRPL (plus one) whose splats are held in `scratch`.
     stamp: u32,
     /// Per-IRPL splat accumulation: weighted value and weight (Gaussian) or the value and
@@ -232,7 +234,10 @@ impl LdcBuilder {
             return Err(IbrrError::Budget {
                 needed: heads,
                 limit: max_bytes,
-                what: format!("per-pixel layer lists of 3 x {0} x {0} LDIs", frame.resolution),
+                what: format!(
+                    "per-pixel layer lists of 3 x {0} x {0} LDIs",
+                    frame.resolution
+                ),
             });
         }
         Ok(Self {
@@ -309,6 +314,7 @@ impl LdcBuilder {
             direct: Vec3::ZERO,
             indirect: Vec3::ZERO,
             next: self.heads[index],
+            pixel: index as u32,
             stamp: 0,
             scratch: Vec4::ZERO,
             scratch_w: 0.0,
@@ -381,6 +387,59 @@ impl LdcBuilder {
             }
         }
         Ok(())
+    }
+
+    /// True when pixel `(i, j)` of LDI `axis` has a layer matching `(p, n)`.
+    pub fn has_layer(&self, axis: usize, i: i64, j: i64, p: Vec3, n: Vec3) -> bool {
+        let Some(index) = self.frame.pixel_index(axis, i, j) else {
+            return false;
+        };
+        let mut l = self.heads[index];
+        while l != NONE {
+            let layer = &self.layers[l as usize];
+            if self.frame.matches(layer.plane, p, n).is_some() {
+                return true;
+            }
+            l = layer.next;
+        }
+        false
+    }
+
+    /// Gives every layer the current IRPL has not reached yet the value `value(centre,
+    /// normal)` returns for its pixel centre on its plane (`None`: the IRPL does not light
+    /// it). Layers are evaluated in parallel; the result does not depend on the thread
+    /// count.
+    pub fn gather<F>(&mut self, value: F)
+    where
+        F: Fn(Vec3, Vec3) -> Option<Vec3> + Sync,
+    {
+        use rayon::prelude::*;
+        let frame = self.frame;
+        let stamp = self.stamp;
+        let r = frame.resolution as usize;
+        let found: Vec<Option<Vec3>> = self
+            .layers
+            .par_iter()
+            .map(|layer| {
+                if layer.stamp == stamp {
+                    return None;
+                }
+                let k = layer.pixel as usize;
+                let (axis, rest) = (k / (r * r), k % (r * r));
+                let (i, j) = ((rest % r) as i64, (rest / r) as i64);
+                let q = frame.point_on_plane(axis, i, j, layer.plane)?;
+                value(q, layer.plane.truncate())
+            })
+            .collect();
+        for (l, v) in found.into_iter().enumerate() {
+            if let Some(v) = v {
+                let layer = &mut self.layers[l];
+                layer.stamp = stamp;
+                layer.scratch = v.extend(1.0);
+                layer.scratch_w = 0.0;
+                self.touched.push(l as u32);
+            }
+        }
     }
 
     /// Adds the current IRPL's splats to `channel`: one value per layer it reached (its

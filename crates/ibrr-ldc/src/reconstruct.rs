@@ -41,7 +41,13 @@ enum Found {
 
 /// The layer values of `ldc` at `p` with normal `n` (every neighbouring layer on the plane
 /// counts; [`reconstruct`] also checks that the camera sees them).
-pub fn lookup(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32) -> Option<(Vec3, Vec3)> {
+pub fn lookup(
+    ldc: &Ldc,
+    p: Vec3,
+    n: Vec3,
+    mode: Lookup,
+    fallback_radius: u32,
+) -> Option<(Vec3, Vec3)> {
     match lookup_inner(ldc, p, n, mode, fallback_radius, &|_, _| true) {
         Found::Direct(v) | Found::Fallback(v) => Some(v),
         Found::Missing => None,
@@ -52,7 +58,14 @@ pub fn lookup(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32) -
 /// camera pixel.
 type Visible<'a> = dyn Fn(Vec3, Vec3) -> bool + Sync + 'a;
 
-fn lookup_inner(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32, visible: &Visible) -> Found {
+fn lookup_inner(
+    ldc: &Ldc,
+    p: Vec3,
+    n: Vec3,
+    mode: Lookup,
+    fallback_radius: u32,
+    visible: &Visible,
+) -> Found {
     let frame = &ldc.frame;
     let mut sum = (Vec3::ZERO, Vec3::ZERO);
     let mut total = 0.0f32;
@@ -84,16 +97,21 @@ fn lookup_inner(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32,
                 if (i - ci).abs() != r && (j - cj).abs() != r {
                     continue;
                 }
-                let Some(index) = frame.pixel_index(axis, i, j) else { continue };
+                let Some(index) = frame.pixel_index(axis, i, j) else {
+                    continue;
+                };
                 // Relaxed distance: the layer's plane at its own pixel, not at p.
                 for l in ldc.range(index) {
                     let plane = ldc.planes[l];
                     if n.dot(plane.truncate()) <= 1.0 - frame.eps_normal {
                         continue;
                     }
-                    let Some(q) = frame.point_on_plane(axis, i, j, plane) else { continue };
+                    let Some(q) = frame.point_on_plane(axis, i, j, plane) else {
+                        continue;
+                    };
                     let d2 = (q - p).length_squared();
-                    if (p.dot(plane.truncate()) - plane.w).abs() < frame.eps_distance * (r as f32 + 1.0)
+                    if (p.dot(plane.truncate()) - plane.w).abs()
+                        < frame.eps_distance * (r as f32 + 1.0)
                         && best.is_none_or(|(b, _)| d2 < b)
                         && visible(q, plane.truncate())
                     {
@@ -111,7 +129,15 @@ fn lookup_inner(ldc: &Ldc, p: Vec3, n: Vec3, mode: Lookup, fallback_radius: u32,
 
 /// Kernel-weighted values in one LDI: `((direct, indirect) already divided by the weight
 /// of matches, fraction of the kernel's weight that matched > 0)`.
-fn in_ldi(ldc: &Ldc, frame: &LdcFrame, axis: usize, p: Vec3, n: Vec3, mode: Lookup, visible: &Visible) -> Option<((Vec3, Vec3), f32)> {
+fn in_ldi(
+    ldc: &Ldc,
+    frame: &LdcFrame,
+    axis: usize,
+    p: Vec3,
+    n: Vec3,
+    mode: Lookup,
+    visible: &Visible,
+) -> Option<((Vec3, Vec3), f32)> {
     let c = frame.pixel_coords(axis, p);
     let mut acc = (Vec3::ZERO, Vec3::ZERO);
     let mut wsum = 0.0f32;
@@ -131,7 +157,13 @@ fn in_ldi(ldc: &Ldc, frame: &LdcFrame, axis: usize, p: Vec3, n: Vec3, mode: Look
         }
     };
     match mode {
-        Lookup::Nearest => add(c.x.floor() as i64, c.y.floor() as i64, 1.0, &mut acc, &mut wsum),
+        Lookup::Nearest => add(
+            c.x.floor() as i64,
+            c.y.floor() as i64,
+            1.0,
+            &mut acc,
+            &mut wsum,
+        ),
         Lookup::Average { radius } => {
             let (ci, cj) = (c.x.floor() as i64, c.y.floor() as i64);
             let r = radius as i64;
@@ -161,7 +193,13 @@ fn in_ldi(ldc: &Ldc, frame: &LdcFrame, axis: usize, p: Vec3, n: Vec3, mode: Look
 /// its own visibility test, asked of the four pixels around the centre's projection), so
 /// a kernel never reaches through a wall thinner than an LDI pixel to the same plane on
 /// its other side. Centres off screen or behind the camera count as seen.
-pub fn reconstruct(ldc: &Ldc, g: &GBuffer, view: &View, mode: Lookup, fallback_radius: u32) -> Reconstruction {
+pub fn reconstruct(
+    ldc: &Ldc,
+    g: &GBuffer,
+    view: &View,
+    mode: Lookup,
+    fallback_radius: u32,
+) -> Reconstruction {
     let recon = FrustumReconstruction::new(view);
     let (w, h) = (g.width, g.height);
     let vp = view.view_projection();
@@ -206,7 +244,13 @@ pub fn reconstruct(ldc: &Ldc, g: &GBuffer, view: &View, mode: Lookup, fallback_r
 /// The displayed radiance: `albedo / pi x (direct + indirect)` plus the emission of
 /// emissive surfaces seen directly from their emitting side (times their light's direct
 /// factor under `lights`), as the reference path tracer counts it.
-pub fn shade(scene: &Scene, g: &GBuffer, view: &View, r: &Reconstruction, lights: &LightState) -> Image {
+pub fn shade(
+    scene: &Scene,
+    g: &GBuffer,
+    view: &View,
+    r: &Reconstruction,
+    lights: &LightState,
+) -> Image {
     let offsets = scene.mesh_offsets();
     let recon = FrustumReconstruction::new(view);
     let mut img = Image::new(g.width, g.height);

@@ -2,13 +2,20 @@
 
 use crate::error::IbrrError;
 
-/// How a hemicube sample is spread over LDI pixels (section 4.3).
+/// How an IRPL's render becomes LDC values (section 4.3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Splat {
-    /// Nearest-neighbour copies over the sample's footprint (the paper's method).
+    /// The paper's method: each hemicube sample's value is copied to the LDI pixels its
+    /// footprint covers; in each layer the copy of the nearest sample wins.
     Nearest,
-    /// A Gaussian of the footprint's size, normalised per layer (section 6.2).
+    /// The kernel the paper planned (section 6.2): each sample's value weighted by a
+    /// Gaussian of its footprint over three standard deviations, normalised per layer.
     Gaussian,
+    /// Beyond the paper: the geometry term is evaluated at every LDI pixel centre, the
+    /// renders deciding only visibility; samples create the layers over their footprints,
+    /// and every layer no sample reached is lit when no rendered surface lies between the
+    /// IRPL and its centre (the renders as a shadow map of planes).
+    Exact,
 }
 
 impl std::str::FromStr for Splat {
@@ -17,7 +24,10 @@ impl std::str::FromStr for Splat {
         match s {
             "nearest" => Ok(Splat::Nearest),
             "gaussian" => Ok(Splat::Gaussian),
-            _ => Err(format!("splat must be 'nearest' or 'gaussian', got '{s}'")),
+            "exact" => Ok(Splat::Exact),
+            _ => Err(format!(
+                "splat must be 'nearest', 'gaussian' or 'exact', got '{s}'"
+            )),
         }
     }
 }
@@ -45,7 +55,9 @@ impl std::str::FromStr for Lookup {
             "nearest" => Ok(Lookup::Nearest),
             "average" => Ok(Lookup::Average { radius: 1 }),
             "bilinear" => Ok(Lookup::Bilinear),
-            _ => Err(format!("lookup must be 'nearest', 'average' or 'bilinear', got '{s}'")),
+            _ => Err(format!(
+                "lookup must be 'nearest', 'average' or 'bilinear', got '{s}'"
+            )),
         }
     }
 }
@@ -68,10 +80,6 @@ pub struct IbrrSettings {
     pub indirect_hemicube: u32,
     /// Splat kernel.
     pub splat: Splat,
-    /// Evaluate each IRPL's geometry term at every LDI pixel's centre it reaches (the
-    /// render deciding only visibility), rather than copying the hemicube sample's value
-    /// as the paper does. Beyond the paper; on by default (see `docs/ibrr-ldc.md`).
-    pub exact_geometry: bool,
     /// Reconstruction kernel.
     pub lookup: Lookup,
     /// Plane-distance threshold in LDI pixels.
@@ -102,8 +110,7 @@ impl Default for IbrrSettings {
             paths: 0,
             direct_hemicube: 0,
             indirect_hemicube: 0,
-            splat: Splat::Gaussian,
-            exact_geometry: true,
+            splat: Splat::Exact,
             lookup: Lookup::Bilinear,
             eps_distance_px: 0.5,
             eps_normal: 0.05,
@@ -120,7 +127,11 @@ impl Default for IbrrSettings {
 impl IbrrSettings {
     /// The direct hemicube resolution in effect.
     pub fn direct_resolution(&self) -> u32 {
-        if self.direct_hemicube == 0 { self.resolution } else { self.direct_hemicube }
+        if self.direct_hemicube == 0 {
+            self.resolution
+        } else {
+            self.direct_hemicube
+        }
     }
 
     /// The indirect hemicube resolution in effect.
@@ -136,25 +147,40 @@ impl IbrrSettings {
     pub fn check(&self) -> Result<(), IbrrError> {
         let bad = |m: String| Err(IbrrError::Settings(m));
         if self.resolution == 0 || self.resolution > 16384 {
-            return bad(format!("resolution must be in 1..=16384, got {}", self.resolution));
+            return bad(format!(
+                "resolution must be in 1..=16384, got {}",
+                self.resolution
+            ));
         }
         if self.irpls > 10_000_000 || self.paths > 10_000_000 {
-            return bad(format!("irpls and paths must be at most 10^7, got {} and {}", self.irpls, self.paths));
+            return bad(format!(
+                "irpls and paths must be at most 10^7, got {} and {}",
+                self.irpls, self.paths
+            ));
         }
         if self.direct_resolution() > 8192 || self.indirect_resolution() > 8192 {
             return bad("hemicube resolutions must be at most 8192".into());
         }
         if !(self.eps_distance_px > 0.0 && self.eps_distance_px.is_finite()) {
-            return bad(format!("eps_distance_px must be positive, got {}", self.eps_distance_px));
+            return bad(format!(
+                "eps_distance_px must be positive, got {}",
+                self.eps_distance_px
+            ));
         }
         if !(self.eps_normal > 0.0 && self.eps_normal < 2.0) {
-            return bad(format!("eps_normal must be in (0, 2), got {}", self.eps_normal));
+            return bad(format!(
+                "eps_normal must be in (0, 2), got {}",
+                self.eps_normal
+            ));
         }
         if !(0.0..1.0).contains(&self.band) {
             return bad(format!("band must be in [0, 1), got {}", self.band));
         }
         if !(self.max_splat_px >= 0.5 && self.max_splat_px <= 64.0) {
-            return bad(format!("max_splat_px must be in [0.5, 64], got {}", self.max_splat_px));
+            return bad(format!(
+                "max_splat_px must be in [0.5, 64], got {}",
+                self.max_splat_px
+            ));
         }
         if let Lookup::Average { radius } = self.lookup
             && radius > 16
@@ -162,7 +188,10 @@ impl IbrrSettings {
             return bad(format!("averaging radius must be at most 16, got {radius}"));
         }
         if self.fallback_radius > 64 {
-            return bad(format!("fallback_radius must be at most 64, got {}", self.fallback_radius));
+            return bad(format!(
+                "fallback_radius must be at most 64, got {}",
+                self.fallback_radius
+            ));
         }
         Ok(())
     }

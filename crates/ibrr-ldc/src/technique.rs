@@ -165,10 +165,18 @@ impl Technique for IbrrTechnique {
         };
         let t = Instant::now();
         c.prepare_renderer(self.renderer.as_mut())?;
-        let g = self.renderer.render_view(&frame.view, frame.width, frame.height)?;
+        let g = self
+            .renderer
+            .render_view(&frame.view, frame.width, frame.height)?;
         let gbuffer = t.elapsed();
         let t = Instant::now();
-        let r: Reconstruction = reconstruct(ldc, &g, &frame.view, self.settings.lookup, self.settings.fallback_radius);
+        let r: Reconstruction = reconstruct(
+            ldc,
+            &g,
+            &frame.view,
+            self.settings.lookup,
+            self.settings.fallback_radius,
+        );
         let image = shade(&c.scene, &g, &frame.view, &r, frame.lights);
         self.timings = FrameTimings {
             rebuild,

@@ -17,11 +17,23 @@ fn tessellate(scene: &Scene, levels: u32) -> Scene {
     let mut s = scene.clone();
     for mesh in &mut s.meshes {
         for _ in 0..levels {
-            let mut out = Mesh { name: mesh.name.clone(), ..Default::default() };
+            let mut out = Mesh {
+                name: mesh.name.clone(),
+                ..Default::default()
+            };
             for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
                 let p = t.map(|i| mesh.positions[i as usize]);
-                let mid = [(p[0] + p[1]) * 0.5, (p[1] + p[2]) * 0.5, (p[2] + p[0]) * 0.5];
-                for tri in [[p[0], mid[0], mid[2]], [mid[0], p[1], mid[1]], [mid[2], mid[1], p[2]], [mid[0], mid[1], mid[2]]] {
+                let mid = [
+                    (p[0] + p[1]) * 0.5,
+                    (p[1] + p[2]) * 0.5,
+                    (p[2] + p[0]) * 0.5,
+                ];
+                for tri in [
+                    [p[0], mid[0], mid[2]],
+                    [mid[0], p[1], mid[1]],
+                    [mid[2], mid[1], p[2]],
+                    [mid[0], mid[1], mid[2]],
+                ] {
                     out.push_triangle(tri, m);
                 }
             }
@@ -39,7 +51,13 @@ fn build(scene: &Arc<Scene>, settings: IbrrSettings) -> IbrrTechnique {
 }
 
 fn frame(t: &mut IbrrTechnique, scene: &Scene, lights: &LightState) -> Image {
-    t.render(&FrameRequest::from_camera(&scene.cameras[0], 48, 48, lights)).unwrap()
+    t.render(&FrameRequest::from_camera(
+        &scene.cameras[0],
+        48,
+        48,
+        lights,
+    ))
+    .unwrap()
 }
 
 #[test]
@@ -52,24 +70,41 @@ fn tessellating_16x_keeps_memory_and_picture() {
     assert_eq!(fine.triangle_count(), 16 * base.triangle_count());
     // The same number of paths for both (a pilot's mean over other triangles can round
     // to one path more or less).
-    let settings = IbrrSettings { resolution: 96, paths: 16, ..Default::default() };
+    let settings = IbrrSettings {
+        resolution: 96,
+        paths: 16,
+        ..Default::default()
+    };
     let lights = LightState::default();
     let mut a = build(&Arc::new(base.clone()), settings);
     let mut b = build(&Arc::new(fine.clone()), settings);
     let (la, lb) = (a.ldc().unwrap().bytes(), b.ldc().unwrap().bytes());
     let (ia, ib) = (frame(&mut a, &base, &lights), frame(&mut b, &fine, &lights));
     let (mae, bias) = errors(&ib, &ia);
-    println!("{} -> {} triangles: {la} -> {lb} bytes, image mae {mae:.4}, bias {bias:.4}, paths {} and {}", base.triangle_count(), fine.triangle_count(), a.construction().unwrap().irpls.paths, b.construction().unwrap().irpls.paths);
+    println!(
+        "{} -> {} triangles: {la} -> {lb} bytes, image mae {mae:.4}, bias {bias:.4}, paths {} and {}",
+        base.triangle_count(),
+        fine.triangle_count(),
+        a.construction().unwrap().irpls.paths,
+        b.construction().unwrap().irpls.paths
+    );
     // The walks meet the same surfaces (the same planes; only f32 rounding of hits and
     // interpolated normals differ), so memory and picture barely move.
-    assert!((lb as f64 / la as f64 - 1.0).abs() < 0.02, "{la} vs {lb} bytes");
+    assert!(
+        (lb as f64 / la as f64 - 1.0).abs() < 0.02,
+        "{la} vs {lb} bytes"
+    );
     assert!(mae < 0.02 && bias.abs() < 0.01, "mae {mae}, bias {bias}");
 }
 
 #[test]
 fn the_same_ldc_whatever_the_thread_count() {
     let scene = Arc::new(builtin::scene("cornell").unwrap());
-    let settings = IbrrSettings { resolution: 48, irpls: 16, ..Default::default() };
+    let settings = IbrrSettings {
+        resolution: 48,
+        irpls: 16,
+        ..Default::default()
+    };
     let run = |threads| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -86,7 +121,11 @@ fn the_same_ldc_whatever_the_thread_count() {
 #[test]
 fn progressive_construction_is_viewable_and_ends_where_a_full_build_does() {
     let scene = Arc::new(builtin::scene("cornell").unwrap());
-    let settings = IbrrSettings { resolution: 48, irpls: 24, ..Default::default() };
+    let settings = IbrrSettings {
+        resolution: 48,
+        irpls: 24,
+        ..Default::default()
+    };
     let lights = LightState::default();
     let mut full = build(&scene, settings);
     let want = frame(&mut full, &scene, &lights);
@@ -101,7 +140,10 @@ fn progressive_construction_is_viewable_and_ends_where_a_full_build_does() {
         frames += 1;
         if r.done {
             assert_eq!(r.remaining, Some(0.0));
-            assert!(img == want, "the finished progressive LDC differs from a full build");
+            assert!(
+                img == want,
+                "the finished progressive LDC differs from a full build"
+            );
             break;
         }
         assert!(r.steps == 1 && r.remaining.unwrap() > 0.0);
@@ -112,19 +154,29 @@ fn progressive_construction_is_viewable_and_ends_where_a_full_build_does() {
 #[test]
 fn a_new_light_state_rebuilds_with_that_light() {
     let scene = Arc::new(builtin::scene("cornell").unwrap());
-    let settings = IbrrSettings { resolution: 48, irpls: 24, ..Default::default() };
+    let settings = IbrrSettings {
+        resolution: 48,
+        irpls: 24,
+        ..Default::default()
+    };
     let mut t = build(&scene, settings);
     let base = frame(&mut t, &scene, &LightState::default());
     assert_eq!(t.last_timings().rebuild, std::time::Duration::ZERO);
     let mut dim = LightState::default();
-    dim.set_color(LightId::Emissive(light_mesh(&scene)), Vec3::new(0.5, 0.25, 1.0));
+    dim.set_color(
+        LightId::Emissive(light_mesh(&scene)),
+        Vec3::new(0.5, 0.25, 1.0),
+    );
     let img = frame(&mut t, &scene, &dim);
     assert!(t.last_timings().rebuild > std::time::Duration::ZERO);
     // The walks pick lights by power: one light recoloured keeps every path, so the
     // picture is the old one times the colour, channel by channel.
     for (a, b) in img.pixels.iter().zip(&base.pixels) {
         let want = *b * Vec3::new(0.5, 0.25, 1.0);
-        assert!((*a - want).abs().max_element() <= 1e-5 * (1.0 + want.max_element()), "{a} vs {want}");
+        assert!(
+            (*a - want).abs().max_element() <= 1e-5 * (1.0 + want.max_element()),
+            "{a} vs {want}"
+        );
     }
     // Switched off: black but for nothing at all.
     let mut off = LightState::default();

@@ -31,19 +31,59 @@ fn figure_3_plane_matching() {
     let far_along = Vec3::new(0.5, 0.3, 0.5) + tilted.cross(Vec3::Z).normalize() * (3.0 * h);
     assert!(f.matches(plane_t, far_along, tilted).is_some());
     // A parallel surface one eps away does not match; just inside eps does.
-    assert!(f.matches(plane, Vec3::new(0.4, 0.3 + f.eps_distance * 1.01, 0.4), Vec3::Y).is_none());
-    assert!(f.matches(plane, Vec3::new(0.4, 0.3 + f.eps_distance * 0.9, 0.4), Vec3::Y).is_some());
+    assert!(
+        f.matches(
+            plane,
+            Vec3::new(0.4, 0.3 + f.eps_distance * 1.01, 0.4),
+            Vec3::Y
+        )
+        .is_none()
+    );
+    assert!(
+        f.matches(
+            plane,
+            Vec3::new(0.4, 0.3 + f.eps_distance * 0.9, 0.4),
+            Vec3::Y
+        )
+        .is_some()
+    );
     // The other side of a thin wall (opposite normal, same place) never matches.
-    assert!(f.matches(plane, Vec3::new(0.4, 0.3, 0.4), -Vec3::Y).is_none());
+    assert!(
+        f.matches(plane, Vec3::new(0.4, 0.3, 0.4), -Vec3::Y)
+            .is_none()
+    );
     // Small geometry with another normal in the same pixel gets its own layer.
     let mut b = LdcBuilder::new(f, 1 << 30).unwrap();
     b.begin();
     let p = Vec3::new(0.405, 0.3, 0.405);
-    b.splat(1, 40, 40, p, Vec3::Y, Vec3::ONE, 0.0, 1.0, Combine::Nearest).unwrap();
+    b.splat(1, 40, 40, p, Vec3::Y, Vec3::ONE, 0.0, 1.0, Combine::Nearest)
+        .unwrap();
     let n45 = Vec3::new(1.0, 1.0, 0.0).normalize();
-    b.splat(1, 40, 40, p, n45, Vec3::splat(2.0), 0.0, 1.0, Combine::Nearest).unwrap();
+    b.splat(
+        1,
+        40,
+        40,
+        p,
+        n45,
+        Vec3::splat(2.0),
+        0.0,
+        1.0,
+        Combine::Nearest,
+    )
+    .unwrap();
     // The same surface again merges.
-    b.splat(1, 40, 40, p + Vec3::new(0.001, 0.0, 0.0), Vec3::Y, Vec3::ONE, 0.1, 1.0, Combine::Nearest).unwrap();
+    b.splat(
+        1,
+        40,
+        40,
+        p + Vec3::new(0.001, 0.0, 0.0),
+        Vec3::Y,
+        Vec3::ONE,
+        0.1,
+        1.0,
+        Combine::Nearest,
+    )
+    .unwrap();
     b.finish(Channel::Exact);
     let ldc = b.compact(1).unwrap();
     assert_eq!(ldc.layer_count(), 2);
@@ -60,8 +100,12 @@ fn figure_3_plane_matching() {
 /// A square floor of side `2 half` at y = 0, one white-ish material.
 fn floor(half: f32) -> Scene {
     let mut s = Scene::new("floor");
-    s.materials.push(Material::diffuse("floor", Vec3::splat(0.5)));
-    let mut m = Mesh { name: "floor".into(), ..Default::default() };
+    s.materials
+        .push(Material::diffuse("floor", Vec3::splat(0.5)));
+    let mut m = Mesh {
+        name: "floor".into(),
+        ..Default::default()
+    };
     m.push_quad(
         [
             Vec3::new(-half, 0.0, -half),
@@ -90,9 +134,20 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
         path: 0,
         depth: 1,
     };
-    let set = IrplSet { irpls: vec![irpl], paths: 1, path_ends: vec![1], exact: 0 };
+    let set = IrplSet {
+        irpls: vec![irpl],
+        paths: 1,
+        path_ends: vec![1],
+        exact: 0,
+    };
     for splat in [Splat::Nearest, Splat::Gaussian] {
-        let settings = IbrrSettings { resolution: 128, direct_hemicube: 128, indirect_hemicube: 128, splat, ..Default::default() };
+        let settings = IbrrSettings {
+            resolution: 128,
+            direct_hemicube: 128,
+            indirect_hemicube: 128,
+            splat,
+            ..Default::default()
+        };
         let mut c = Construction::with_irpls(scene.clone(), set.clone(), &settings).unwrap();
         let mut r = RayCastRenderer::new();
         c.prepare_renderer(&mut r).unwrap();
@@ -100,15 +155,26 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
         let ldc = c.ldc().unwrap();
         let mut worst = [0.0f32; 3];
         for k in 0..400 {
-            let (x, z) = (-0.9 + 1.8 * ((k % 20) as f32 + 0.5) / 20.0, -0.9 + 1.8 * ((k / 20) as f32 + 0.5) / 20.0);
+            let (x, z) = (
+                -0.9 + 1.8 * ((k % 20) as f32 + 0.5) / 20.0,
+                -0.9 + 1.8 * ((k / 20) as f32 + 0.5) / 20.0,
+            );
             let p = Vec3::new(x, 0.0, z);
             // rho I cos cos / (pi r^2) with rho = 1 (the LDC holds irradiance).
             let d = irpl.position - p;
             let r2 = d.length_squared();
             let cos = height / r2.sqrt();
             let expected = power * (cos * cos / (std::f32::consts::PI * r2));
-            for (m, mode) in [Lookup::Nearest, Lookup::Bilinear, Lookup::Average { radius: 1 }].into_iter().enumerate() {
-                let (direct, indirect) = lookup(&ldc, p, Vec3::Y, mode, 0).expect("every floor point has a layer");
+            for (m, mode) in [
+                Lookup::Nearest,
+                Lookup::Bilinear,
+                Lookup::Average { radius: 1 },
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let (direct, indirect) =
+                    lookup(&ldc, p, Vec3::Y, mode, 0).expect("every floor point has a layer");
                 assert_eq!(direct, Vec3::ZERO);
                 let rel = ((indirect - expected).abs() / expected).max_element();
                 worst[m] = worst[m].max(rel);
@@ -122,13 +188,33 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
         // nearest's slope plus the curvature over +-1 pixel, 2 pixel^2 / h^2 x 2/3.
         let pixel = ldc.frame.pixel_size();
         let nearest_bound = 2.0 / height * pixel * std::f32::consts::FRAC_1_SQRT_2;
-        println!("{splat:?}: worst relative error nearest {:.4} (bound {nearest_bound:.4}), bilinear {:.4}, average {:.4}", worst[0], worst[1], worst[2]);
+        println!(
+            "{splat:?}: worst relative error nearest {:.4} (bound {nearest_bound:.4}), bilinear {:.4}, average {:.4}",
+            worst[0], worst[1], worst[2]
+        );
         assert!(worst[0] < nearest_bound, "{splat:?}: nearest {}", worst[0]);
         let curvature = (pixel / height).powi(2);
-        assert!(worst[1] < 0.5 * curvature + 1e-3, "{splat:?}: bilinear {}", worst[1]);
-        assert!(worst[2] < nearest_bound + 4.0 / 3.0 * curvature, "{splat:?}: average {}", worst[2]);
+        assert!(
+            worst[1] < 0.5 * curvature + 1e-3,
+            "{splat:?}: bilinear {}",
+            worst[1]
+        );
+        assert!(
+            worst[2] < nearest_bound + 4.0 / 3.0 * curvature,
+            "{splat:?}: average {}",
+            worst[2]
+        );
         // Nothing below the floor: a lookup from underneath finds no layer.
-        assert!(lookup(&ldc, Vec3::new(0.0, 0.0, 0.0), -Vec3::Y, Lookup::Bilinear, 2).is_none());
+        assert!(
+            lookup(
+                &ldc,
+                Vec3::new(0.0, 0.0, 0.0),
+                -Vec3::Y,
+                Lookup::Bilinear,
+                2
+            )
+            .is_none()
+        );
     }
 }
 
@@ -145,24 +231,55 @@ fn the_memory_budget_fails_typed_before_allocating() {
     }
     // Layers: a budget that holds the heads and a few layers fails on the next one.
     let scene = Arc::new(scene_core::builtin::scene("cornell").unwrap());
-    let settings = IbrrSettings { resolution: 32, irpls: 4, max_bytes: 3 * 32 * 32 * 4 + 1000, ..Default::default() };
+    let settings = IbrrSettings {
+        resolution: 32,
+        irpls: 4,
+        max_bytes: 3 * 32 * 32 * 4 + 1000,
+        ..Default::default()
+    };
     let mut t = ibrr_ldc::IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
     let err = scene_core::Technique::prepare(&mut t, scene).unwrap_err();
-    let e = err.method_error::<IbrrError>().expect("the IBRR's own error");
+    let e = err
+        .method_error::<IbrrError>()
+        .expect("the IBRR's own error");
     assert!(matches!(e, IbrrError::Budget { .. }), "{e}");
-    assert!(t.ldc().is_none() && t.construction().is_none(), "nothing half-built is kept");
+    assert!(
+        t.ldc().is_none() && t.construction().is_none(),
+        "nothing half-built is kept"
+    );
 }
 
 #[test]
 fn settings_out_of_range_are_named() {
     let bad = [
-        IbrrSettings { resolution: 0, ..Default::default() },
-        IbrrSettings { eps_distance_px: f32::NAN, ..Default::default() },
-        IbrrSettings { eps_normal: 0.0, ..Default::default() },
-        IbrrSettings { band: 1.0, ..Default::default() },
-        IbrrSettings { max_splat_px: 0.0, ..Default::default() },
+        IbrrSettings {
+            resolution: 0,
+            ..Default::default()
+        },
+        IbrrSettings {
+            eps_distance_px: f32::NAN,
+            ..Default::default()
+        },
+        IbrrSettings {
+            eps_normal: 0.0,
+            ..Default::default()
+        },
+        IbrrSettings {
+            band: 1.0,
+            ..Default::default()
+        },
+        IbrrSettings {
+            max_splat_px: 0.0,
+            ..Default::default()
+        },
     ];
-    let names = ["resolution", "eps_distance_px", "eps_normal", "band", "max_splat_px"];
+    let names = [
+        "resolution",
+        "eps_distance_px",
+        "eps_normal",
+        "band",
+        "max_splat_px",
+    ];
     for (s, name) in bad.iter().zip(names) {
         let e = s.check().unwrap_err();
         assert!(e.to_string().contains(name), "{e}");

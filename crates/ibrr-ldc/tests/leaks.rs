@@ -14,18 +14,73 @@ use scene_core::{Camera, FrameRequest, Material, Mesh, PointLight, Scene, Techni
 
 fn two_rooms() -> Scene {
     let mut s = Scene::new("two rooms");
-    s.materials.push(Material::diffuse("white", Vec3::splat(0.8)));
-    let mut m = Mesh { name: "rooms".into(), ..Default::default() };
+    s.materials
+        .push(Material::diffuse("white", Vec3::splat(0.8)));
+    let mut m = Mesh {
+        name: "rooms".into(),
+        ..Default::default()
+    };
     let (x1, wall) = (2.01f32, 0.01f32);
     let q = |m: &mut Mesh, c: [[f32; 3]; 4]| m.push_quad(c.map(Vec3::from), 0);
-    q(&mut m, [[0.0, 0.0, 0.0], [x1, 0.0, 0.0], [x1, 0.0, 1.0], [0.0, 0.0, 1.0]]); // floor
-    q(&mut m, [[0.0, 1.0, 0.0], [0.0, 1.0, 1.0], [x1, 1.0, 1.0], [x1, 1.0, 0.0]]); // ceiling
-    q(&mut m, [[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [x1, 1.0, 0.0], [x1, 0.0, 0.0]]); // back
-    q(&mut m, [[0.0, 0.0, 1.0], [x1, 0.0, 1.0], [x1, 1.0, 1.0], [0.0, 1.0, 1.0]]); // front
-    q(&mut m, [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [0.0, 1.0, 0.0]]); // left
-    q(&mut m, [[x1, 0.0, 0.0], [x1, 1.0, 0.0], [x1, 1.0, 1.0], [x1, 0.0, 1.0]]); // right
+    q(
+        &mut m,
+        [
+            [0.0, 0.0, 0.0],
+            [x1, 0.0, 0.0],
+            [x1, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+        ],
+    ); // floor
+    q(
+        &mut m,
+        [
+            [0.0, 1.0, 0.0],
+            [0.0, 1.0, 1.0],
+            [x1, 1.0, 1.0],
+            [x1, 1.0, 0.0],
+        ],
+    ); // ceiling
+    q(
+        &mut m,
+        [
+            [0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [x1, 1.0, 0.0],
+            [x1, 0.0, 0.0],
+        ],
+    ); // back
+    q(
+        &mut m,
+        [
+            [0.0, 0.0, 1.0],
+            [x1, 0.0, 1.0],
+            [x1, 1.0, 1.0],
+            [0.0, 1.0, 1.0],
+        ],
+    ); // front
+    q(
+        &mut m,
+        [
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [0.0, 1.0, 0.0],
+        ],
+    ); // left
+    q(
+        &mut m,
+        [
+            [x1, 0.0, 0.0],
+            [x1, 1.0, 0.0],
+            [x1, 1.0, 1.0],
+            [x1, 0.0, 1.0],
+        ],
+    ); // right
     for x in [1.0, 1.0 + wall] {
-        q(&mut m, [[x, 0.0, 0.0], [x, 1.0, 0.0], [x, 1.0, 1.0], [x, 0.0, 1.0]]); // the wall's faces
+        q(
+            &mut m,
+            [[x, 0.0, 0.0], [x, 1.0, 0.0], [x, 1.0, 1.0], [x, 0.0, 1.0]],
+        ); // the wall's faces
     }
     s.meshes.push(m);
     s.point_lights.push(PointLight {
@@ -55,14 +110,30 @@ fn two_rooms() -> Scene {
 fn the_dark_room_stays_dark() {
     let scene = Arc::new(two_rooms());
     for splat in [Splat::Nearest, Splat::Gaussian] {
-        let settings = IbrrSettings { resolution: 128, irpls: 64, splat, ..Default::default() };
+        let settings = IbrrSettings {
+            resolution: 128,
+            irpls: 64,
+            splat,
+            ..Default::default()
+        };
         let mut t = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
         t.prepare(scene.clone()).unwrap();
-        let lit = t.render(&FrameRequest::camera(&scene.cameras[0], 64, 64)).unwrap();
-        let dark = t.render(&FrameRequest::camera(&scene.cameras[1], 64, 64)).unwrap();
+        let lit = t
+            .render(&FrameRequest::camera(&scene.cameras[0], 64, 64))
+            .unwrap();
+        let dark = t
+            .render(&FrameRequest::camera(&scene.cameras[1], 64, 64))
+            .unwrap();
         let (l, d) = (mean(&lit), mean(&dark));
-        println!("{splat:?}: lit room mean {l:.4e}, dark room mean {d:.4e}, ratio {:.2e}", d / l);
+        println!(
+            "{splat:?}: lit room mean {l:.4e}, dark room mean {d:.4e}, ratio {:.2e}",
+            d / l
+        );
         assert!(l > 0.0);
-        assert!(d < 1e-3 * l, "{splat:?}: the dark room receives {:.2e} of the lit room's mean", d / l);
+        assert!(
+            d < 1e-3 * l,
+            "{splat:?}: the dark room receives {:.2e} of the lit room's mean",
+            d / l
+        );
     }
 }
