@@ -140,7 +140,7 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
         path_ends: vec![1],
         exact: 0,
     };
-    for splat in [Splat::Nearest, Splat::Gaussian] {
+    for splat in [Splat::Exact, Splat::Nearest, Splat::Gaussian] {
         let settings = IbrrSettings {
             resolution: 128,
             direct_hemicube: 128,
@@ -154,6 +154,13 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
         c.step(&mut r, 1).unwrap();
         let ldc = c.ldc().unwrap();
         let mut worst = [0.0f32; 3];
+        // The paper's kernels copy a sample's value over its footprint: their error at a
+        // point is bounded by the falloff's relative slope there, 4 s / (h^2 + s^2) at
+        // horizontal distance s, times the distance to the farthest sample that may serve it
+        // (a render pixel's footprint, 2 r (2 / 128) / cos at distance r, up to twice that
+        // at a hemicube face's edge, plus half an LDI pixel diagonal).
+        let mut paper_excess = [f32::NEG_INFINITY; 3];
+        let pixel = ldc.frame.pixel_size();
         for k in 0..400 {
             let (x, z) = (
                 -0.9 + 1.8 * ((k % 20) as f32 + 0.5) / 20.0,
@@ -178,15 +185,30 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
                 assert_eq!(direct, Vec3::ZERO);
                 let rel = ((indirect - expected).abs() / expected).max_element();
                 worst[m] = worst[m].max(rel);
+                let s = (p - Vec3::new(irpl.position.x, 0.0, irpl.position.z)).length();
+                let slope = 4.0 * s / (height * height + s * s) + 2.0 / height * 0.05;
+                let reach = 2.0 * 2.0 * r2.sqrt() * (2.0 / 128.0) / cos
+                    + pixel * if m == 2 { 2.2 } else { 1.0 };
+                paper_excess[m] = paper_excess[m].max(rel - slope * reach);
             }
         }
-        // Values are exact at LDI pixel centres. The nearest lookup is off by at most the
+        if splat != Splat::Exact {
+            println!(
+                "{splat:?}: worst relative error nearest {:.4}, bilinear {:.4}, average {:.4}; worst excess over the per-point bound {paper_excess:?}",
+                worst[0], worst[1], worst[2]
+            );
+            assert!(
+                paper_excess.iter().all(|&e| e < 0.0),
+                "{splat:?}: {paper_excess:?}"
+            );
+            continue;
+        }
+        // Exact values at LDI pixel centres. The nearest lookup is off by at most the
         // falloff's steepest relative slope, |d ln(h^2 / (h^2 + s^2)^2) / ds| <= 2 / h at
         // s = h, times half a pixel diagonal; bilinear interpolation by the curvature over a
         // pixel, (1/2) |f''| pixel^2 / 4 = pixel^2 / (2 h^2) relative at the peak; the 3 x 3
         // average (centred on the pixel holding the point, as the nearest lookup) by the
         // nearest's slope plus the curvature over +-1 pixel, 2 pixel^2 / h^2 x 2/3.
-        let pixel = ldc.frame.pixel_size();
         let nearest_bound = 2.0 / height * pixel * std::f32::consts::FRAC_1_SQRT_2;
         println!(
             "{splat:?}: worst relative error nearest {:.4} (bound {nearest_bound:.4}), bilinear {:.4}, average {:.4}",
