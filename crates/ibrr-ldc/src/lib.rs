@@ -25,6 +25,7 @@
 
 pub mod construct;
 pub mod error;
+pub mod gpu;
 pub mod irpl;
 pub mod ldc;
 pub mod reconstruct;
@@ -33,6 +34,7 @@ pub mod technique;
 
 pub use construct::{Construction, ConstructionStats};
 pub use error::IbrrError;
+pub use gpu::GpuLdc;
 pub use irpl::{Irpl, IrplKind, IrplSet};
 pub use ldc::{Ldc, LdcFrame};
 pub use reconstruct::{Reconstruction, lookup, reconstruct, shade};

@@ -14,9 +14,11 @@ use scene_core::{Error, FrameRequest, GBufferRenderer, Image, LightState, Scene,
 
 use crate::construct::Construction;
 use crate::error::IbrrError;
+use crate::gpu::GpuLdc;
 use crate::ldc::Ldc;
 use crate::reconstruct::{Reconstruction, reconstruct, shade};
 use crate::settings::IbrrSettings;
+use scene_core::gpu::GpuGBuffer;
 
 /// Times and counts of the last frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -43,6 +45,9 @@ pub struct IbrrTechnique {
     renderer: Box<dyn GBufferRenderer + Send>,
     construction: Option<Construction>,
     ldc: Option<Ldc>,
+    /// The GPU context frames reconstruct on, and the LDC uploaded there (dropped whenever
+    /// the LDC changes).
+    gpu: Option<(scene_core::gpu::GpuContext, Option<GpuLdc>)>,
     timings: FrameTimings,
     name: String,
 }
@@ -65,9 +70,18 @@ impl IbrrTechnique {
             renderer,
             construction: None,
             ldc: None,
+            gpu: None,
             timings: FrameTimings::default(),
             name: "ibrr".into(),
         }
+    }
+
+    /// Reconstructs frames on the GPU of `ctx` ([`GpuLdc`]): the LDC is uploaded once per
+    /// construction, and the camera's G-buffer stays on the GPU when the renderer can
+    /// render there (else it is uploaded). Construction stays on the CPU warp.
+    pub fn on_gpu(mut self, ctx: scene_core::gpu::GpuContext) -> Self {
+        self.gpu = Some((ctx, None));
+        self
     }
 
     /// The same with another report name.
@@ -101,6 +115,9 @@ impl IbrrTechnique {
     ) -> Result<(), IbrrError> {
         self.construction = None;
         self.ldc = None;
+        if let Some((_, uploaded)) = self.gpu.as_mut() {
+            *uploaded = None;
+        }
         let mut c = Construction::new(scene, lights, &self.settings)?;
         c.prepare_renderer(self.renderer.as_mut())?;
         if !self.progressive {
@@ -137,6 +154,9 @@ impl Technique for IbrrTechnique {
         }
         if steps > 0 {
             self.ldc = Some(c.ldc()?);
+            if let Some((_, uploaded)) = self.gpu.as_mut() {
+                *uploaded = None;
+            }
         }
         let s = c.stats();
         Ok(scene_core::Refinement {
@@ -165,6 +185,38 @@ impl Technique for IbrrTechnique {
         };
         let t = Instant::now();
         c.prepare_renderer(self.renderer.as_mut())?;
+        if let Some((ctx, uploaded)) = self.gpu.as_mut() {
+            if uploaded.is_none() {
+                *uploaded = Some(GpuLdc::new(
+                    ctx,
+                    ldc,
+                    self.settings.lookup,
+                    self.settings.fallback_radius,
+                )?);
+            }
+            let target = scene_core::ViewTarget::new(frame.view, frame.width, frame.height);
+            let g = match self.renderer.render_views_gpu(&[target])? {
+                Some(mut v) if v.len() == 1 => v.pop().expect("one view"),
+                _ => {
+                    let cpu = self
+                        .renderer
+                        .render_view(&frame.view, frame.width, frame.height)?;
+                    GpuGBuffer::upload(ctx, &cpu).map_err(scene_core::Error::from)?
+                }
+            };
+            let gbuffer = t.elapsed();
+            let t = Instant::now();
+            let gpu_ldc = uploaded.as_ref().expect("uploaded above");
+            let (image, counts) = gpu_ldc.render(&c.scene, &g, &frame.view, frame.lights)?;
+            self.timings = FrameTimings {
+                rebuild,
+                gbuffer,
+                lookup: t.elapsed(),
+                missing: counts.missing,
+                fallback: counts.fallback,
+            };
+            return Ok(image);
+        }
         let g = self
             .renderer
             .render_view(&frame.view, frame.width, frame.height)?;

@@ -1,0 +1,312 @@
+//! Reconstruction on the GPU (wgpu compute, `shaders/ibrr-ldc/reconstruct.wgsl`): the
+//! flattened LDC ([`Ldc`]'s offsets, planes and values) is uploaded once; a frame binds the
+//! camera's [`GpuGBuffer`] and runs one pass that mirrors [`crate::reconstruct`] and
+//! [`crate::shade`] pixel for pixel.
+
+use glam::Vec3;
+use scene_core::gpu::compute::ComputePass;
+use scene_core::gpu::layout::{float_texture, storage_buffer, texture, uniform};
+use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
+use scene_core::lights::LightId;
+use scene_core::view::{FrustumReconstruction, Projection};
+use scene_core::{Image, LightState, Scene, View};
+use wgpu::util::DeviceExt;
+
+use crate::error::IbrrError;
+use crate::ldc::Ldc;
+use crate::settings::Lookup;
+
+/// WGSL of the reconstruction pass (scene-core's reconstruction, then the pass).
+pub const RECONSTRUCT_WGSL: &str = concat!(
+    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
+    include_str!("../../../shaders/ibrr-ldc/reconstruct.wgsl")
+);
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    frustum: [[f32; 4]; 6],
+    view_projection: [[f32; 4]; 4],
+    origin: [f32; 4],
+    eye: [f32; 4],
+    width: u32,
+    height: u32,
+    resolution: u32,
+    fallback_radius: u32,
+    eps_distance: f32,
+    eps_normal: f32,
+    band: f32,
+    triangles: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct GpuTriangle {
+    glow: [f32; 4],
+    normal: [f32; 4],
+}
+
+/// How a GPU frame went.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GpuFrameCounts {
+    /// Pixels with geometry and no matching layer.
+    pub missing: u64,
+    /// Pixels served by the fallback search.
+    pub fallback: u64,
+}
+
+/// An LDC resident on the GPU.
+pub struct GpuLdc {
+    ctx: GpuContext,
+    ldc_frame: crate::ldc::LdcFrame,
+    offsets: wgpu::Buffer,
+    planes: wgpu::Buffer,
+    values: wgpu::Buffer,
+    pass: ComputePass,
+    lookup: Lookup,
+    fallback_radius: u32,
+    bytes: u64,
+}
+
+impl std::fmt::Debug for GpuLdc {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuLdc")
+            .field("bytes", &self.bytes)
+            .field("lookup", &self.lookup)
+            .finish_non_exhaustive()
+    }
+}
+
+fn gpu(e: GpuError) -> IbrrError {
+    IbrrError::Core(e.into())
+}
+
+fn storage(ctx: &GpuContext, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    // Storage bindings may not be empty.
+    let bytes: &[u8] = if bytes.is_empty() { &[0u8; 32] } else { bytes };
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytes,
+            usage: wgpu::BufferUsages::STORAGE | extra,
+        })
+}
+
+impl GpuLdc {
+    /// Uploads `ldc` for lookups with `lookup` and `fallback_radius`. Fails with
+    /// [`IbrrError::Budget`] before allocating when a buffer exceeds the adapter's
+    /// storage-binding or buffer size.
+    pub fn new(
+        ctx: &GpuContext,
+        ldc: &Ldc,
+        lookup: Lookup,
+        fallback_radius: u32,
+    ) -> Result<Self, IbrrError> {
+        let limits = ctx.device.limits();
+        let limit = u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+        let layers = ldc.layer_count() as u64;
+        for (what, bytes) in [
+            ("per-pixel layer offsets", ldc.offsets.len() as u64 * 4),
+            ("layer planes", layers * 16),
+            ("layer values", layers * 32),
+        ] {
+            if bytes > limit {
+                return Err(IbrrError::Budget {
+                    needed: bytes,
+                    limit,
+                    what: format!("the {what} on this adapter (a lower LDC resolution fits)"),
+                });
+            }
+        }
+        let values: Vec<[f32; 4]> = ldc
+            .direct
+            .iter()
+            .zip(&ldc.indirect)
+            .flat_map(|(d, i)| [d.extend(0.0).to_array(), i.extend(0.0).to_array()])
+            .collect();
+        let planes: Vec<[f32; 4]> = ldc.planes.iter().map(|p| p.to_array()).collect();
+        let (mode, radius) = match lookup {
+            Lookup::Nearest => (0.0, 0.0),
+            Lookup::Average { radius } => (1.0, f64::from(radius)),
+            Lookup::Bilinear => (2.0, 0.0),
+        };
+        let pass = ComputePass::new(
+            &ctx.device,
+            "ibrr-ldc reconstruct",
+            RECONSTRUCT_WGSL,
+            &[
+                uniform(0),
+                storage_buffer(1),
+                storage_buffer(2),
+                storage_buffer(3),
+                storage_buffer(4),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 5,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                float_texture(6),
+                float_texture(7),
+                float_texture(8),
+                texture(9, wgpu::TextureSampleType::Uint),
+            ],
+            &[("LOOKUP", mode), ("AVERAGE_RADIUS", radius)],
+        );
+        ctx.validated(|| Self {
+            ctx: ctx.clone(),
+            ldc_frame: ldc.frame,
+            offsets: storage(
+                ctx,
+                "LDC offsets",
+                bytemuck::cast_slice(&ldc.offsets),
+                wgpu::BufferUsages::empty(),
+            ),
+            planes: storage(
+                ctx,
+                "LDC planes",
+                bytemuck::cast_slice(&planes),
+                wgpu::BufferUsages::empty(),
+            ),
+            values: storage(
+                ctx,
+                "LDC values",
+                bytemuck::cast_slice(&values),
+                wgpu::BufferUsages::empty(),
+            ),
+            pass,
+            lookup,
+            fallback_radius,
+            bytes: ldc.offsets.len() as u64 * 4 + layers * 48,
+        })
+        .map_err(gpu)
+    }
+
+    /// Bytes resident on the GPU.
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+
+    /// The per-triangle glow table of `scene` under `lights` (emission times the light's
+    /// direct factor, and the emitting side's normal).
+    fn triangles(scene: &Scene, lights: &LightState) -> Vec<GpuTriangle> {
+        let mut out = Vec::with_capacity(scene.triangle_count());
+        for (mi, mesh) in scene.meshes.iter().enumerate() {
+            let factor = lights.get(LightId::Emissive(mi as u32)).direct_factor();
+            for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
+                let mat = &scene.materials[m as usize];
+                let (glow, normal) = if mat.is_emissive() {
+                    let p = t.map(|i| mesh.positions[i as usize]);
+                    (mat.emission * factor, (p[1] - p[0]).cross(p[2] - p[0]))
+                } else {
+                    (Vec3::ZERO, Vec3::ZERO)
+                };
+                out.push(GpuTriangle {
+                    glow: glow.extend(0.0).to_array(),
+                    normal: normal.extend(0.0).to_array(),
+                });
+            }
+        }
+        out
+    }
+
+    /// The image of `g` (the camera's G-buffer of `scene` from `view`) under `lights`, and
+    /// the pixel counts of the fallback and of pixels without a layer.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        g: &GpuGBuffer,
+        view: &View,
+        lights: &LightState,
+    ) -> Result<(Image, GpuFrameCounts), IbrrError> {
+        let (w, h) = (g.width, g.height);
+        let pixels = w as usize * h as usize;
+        let f = &self.ldc_frame;
+        let eye = match view.projection {
+            Projection::Perspective { .. } => view.eye.extend(1.0),
+            Projection::Orthographic { .. } => view.forward.extend(0.0),
+        };
+        let table = Self::triangles(scene, lights);
+        let params = Params {
+            frustum: FrustumReconstruction::new(view).uniform(),
+            view_projection: view.view_projection().to_cols_array_2d(),
+            origin: f.origin.extend(f.side).to_array(),
+            eye: eye.to_array(),
+            width: w,
+            height: h,
+            resolution: f.resolution,
+            fallback_radius: self.fallback_radius,
+            eps_distance: f.eps_distance,
+            eps_normal: f.eps_normal,
+            band: f.band,
+            triangles: table.len() as u32,
+        };
+        let ctx = &self.ctx;
+        let uniform = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("ibrr params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let tri = storage(
+            ctx,
+            "ibrr triangles",
+            bytemuck::cast_slice(&table),
+            wgpu::BufferUsages::empty(),
+        );
+        let image = storage(
+            ctx,
+            "ibrr image",
+            &vec![0u8; pixels.max(1) * 16],
+            wgpu::BufferUsages::COPY_SRC,
+        );
+        let views = [&g.albedo, &g.normal, &g.depth, &g.triangle_id]
+            .map(|t| t.create_view(&Default::default()));
+        let bind = self.pass.bind(
+            &ctx.device,
+            &[
+                uniform.as_entire_binding(),
+                self.offsets.as_entire_binding(),
+                self.planes.as_entire_binding(),
+                self.values.as_entire_binding(),
+                tri.as_entire_binding(),
+                image.as_entire_binding(),
+                wgpu::BindingResource::TextureView(&views[0]),
+                wgpu::BindingResource::TextureView(&views[1]),
+                wgpu::BindingResource::TextureView(&views[2]),
+                wgpu::BindingResource::TextureView(&views[3]),
+            ],
+        );
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.pass.dispatch(&mut encoder, &bind, w, h, None);
+        ctx.queue.submit([encoder.finish()]);
+        let v: Vec<[f32; 4]> = ctx.read_buffer_as(&image).map_err(gpu)?;
+        let mut counts = GpuFrameCounts::default();
+        let pixels_out = v
+            .iter()
+            .take(pixels)
+            .map(|p| {
+                match p[3] as u32 {
+                    1 => counts.fallback += 1,
+                    2 => counts.missing += 1,
+                    _ => {}
+                }
+                let l = Vec3::new(p[0], p[1], p[2]);
+                if l.is_finite() { l } else { Vec3::ZERO }
+            })
+            .collect();
+        Ok((
+            Image {
+                width: w,
+                height: h,
+                pixels: pixels_out,
+            },
+            counts,
+        ))
+    }
+}

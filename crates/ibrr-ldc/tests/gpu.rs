@@ -1,0 +1,119 @@
+//! The GPU reconstruction against the CPU one: the same LDC read through the same camera
+//! G-buffer gives the same image (all three kernels, with the fallback and the camera's
+//! visibility test at work), and the same counts of pixels without a layer.
+
+use std::sync::Arc;
+
+use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup, reconstruct, shade};
+use scene_core::gbuffer::RayCastRenderer;
+use scene_core::gpu::{GpuGBuffer, gpu_test_context};
+use scene_core::lights::{LightId, LightState, light_ids};
+use scene_core::{FrameRequest, GBufferRenderer, Technique, builtin};
+
+#[test]
+fn gpu_reconstruction_equals_the_cpu_one() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    for name in ["cornell", "primitives"] {
+        let scene = Arc::new(builtin::scene(name).unwrap());
+        // A coarse LDC and few IRPLs, so that the fallback and missing pixels occur.
+        let settings = IbrrSettings {
+            resolution: 48,
+            irpls: 24,
+            ..Default::default()
+        };
+        let mut t = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+        t.prepare(scene.clone()).unwrap();
+        let ldc = t.ldc().unwrap();
+        let frame = FrameRequest::camera(&scene.cameras[0], 96, 72);
+        let g = RayCastRenderer::new()
+            .render(&scene, &frame.view, 96, 72)
+            .unwrap();
+        let gg = GpuGBuffer::upload(&ctx, &g).unwrap();
+        let mut lights = LightState::default();
+        // The glow follows the light state (the LDC itself was built for the default).
+        if let Some(&LightId::Emissive(m)) = light_ids(&scene)
+            .iter()
+            .find(|i| matches!(i, LightId::Emissive(_)))
+        {
+            lights.set_color(LightId::Emissive(m), glam::Vec3::new(0.5, 1.0, 2.0));
+        }
+        for lookup in [
+            Lookup::Nearest,
+            Lookup::Average { radius: 1 },
+            Lookup::Bilinear,
+        ] {
+            let r = reconstruct(ldc, &g, &frame.view, lookup, settings.fallback_radius);
+            let cpu = shade(&scene, &g, &frame.view, &r, &lights);
+            let gpu_ldc = GpuLdc::new(&ctx, ldc, lookup, settings.fallback_radius).unwrap();
+            let (gpu, counts) = gpu_ldc.render(&scene, &gg, &frame.view, &lights).unwrap();
+            let peak = cpu
+                .pixels
+                .iter()
+                .map(|p| p.max_element())
+                .fold(0.0f32, f32::max);
+            let mut off = 0;
+            let mut worst = 0.0f32;
+            for (a, b) in cpu.pixels.iter().zip(&gpu.pixels) {
+                let d = (*a - *b).abs().max_element();
+                worst = worst.max(d);
+                // f32 rounding may flip a plane or visibility threshold on a pixel or two.
+                if d > 1e-4 * peak {
+                    off += 1;
+                }
+            }
+            println!(
+                "{name} {lookup:?}: {off} of {} pixels differ, worst {worst:.2e} of peak {peak:.2e}; missing {} / {}, fallback {} / {}",
+                cpu.pixels.len(),
+                r.missing,
+                counts.missing,
+                r.fallback,
+                counts.fallback
+            );
+            assert!(
+                off <= cpu.pixels.len() / 500,
+                "{name} {lookup:?}: {off} pixels differ"
+            );
+            assert!(
+                r.missing.abs_diff(counts.missing) <= 2
+                    && r.fallback.abs_diff(counts.fallback) <= 2
+            );
+        }
+    }
+}
+
+#[test]
+fn the_technique_on_the_gpu_renders_what_it_renders_on_the_cpu() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let scene = Arc::new(builtin::scene("cornell-point").unwrap());
+    let settings = IbrrSettings {
+        resolution: 48,
+        irpls: 16,
+        ..Default::default()
+    };
+    let mut cpu = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+    let mut gpu = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new())).on_gpu(ctx);
+    cpu.prepare(scene.clone()).unwrap();
+    gpu.prepare(scene.clone()).unwrap();
+    let frame = FrameRequest::camera(&scene.cameras[0], 64, 48);
+    let (a, b) = (cpu.render(&frame).unwrap(), gpu.render(&frame).unwrap());
+    let peak = a
+        .pixels
+        .iter()
+        .map(|p| p.max_element())
+        .fold(0.0f32, f32::max);
+    let off = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .filter(|(x, y)| (**x - **y).abs().max_element() > 1e-4 * peak)
+        .count();
+    assert!(
+        peak > 0.0 && off <= a.pixels.len() / 500,
+        "{off} pixels differ"
+    );
+    assert_eq!(cpu.last_timings().missing, gpu.last_timings().missing);
+}
