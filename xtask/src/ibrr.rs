@@ -31,6 +31,10 @@ pub struct Options {
     /// Reconstruction kernel: nearest, average (3x3, the paper's) or bilinear.
     #[arg(long, default_value = "bilinear")]
     pub lookup: String,
+    /// Clamp of path IRPLs' geometry term as a fraction of the scene's extent, with the
+    /// clamped energy restored (0: unclamped, the paper's accurate option).
+    #[arg(long, default_value_t = 0.0)]
+    pub clamp: f32,
     /// Seed of the particle walks.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -77,6 +81,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         irpls: o.irpls,
         splat,
         lookup,
+        clamp: o.clamp,
         seed: o.seed,
         ..Default::default()
     };
@@ -119,6 +124,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "splat": o.splat,
         "lookup": o.lookup,
         "seed": o.seed,
+        "clamp": o.clamp,
         "irpls": c.irpls.irpls.len(),
         "exact_sources": c.irpls.exact,
         "paths": c.irpls.paths,

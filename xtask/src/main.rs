@@ -18,6 +18,7 @@
 //!   for 10^4 elements.
 
 mod bench;
+mod bench_ibrr;
 mod bench_relight;
 mod checks;
 mod experiment;
@@ -193,7 +194,8 @@ enum Command {
     },
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
-        /// What to benchmark: `reference`, `gbuffer`, `isr` or `relight`.
+        /// What to benchmark: `reference`, `gbuffer`, `isr`, `relight`, `relight-frames`,
+        /// `relight-dynamic` or `ibrr`.
         what: String,
         /// Worker threads.
         #[arg(long, default_value_t = 2)]
@@ -413,8 +415,9 @@ fn run(cli: Cli) -> Result<(), String> {
             "relight" => bench_relight::run(threads, repeats),
             "relight-frames" => bench_relight::frames(threads, repeats),
             "relight-dynamic" => bench_relight::dynamic_only(threads, repeats),
+            "ibrr" => bench_ibrr::run(threads, repeats),
             other => Err(format!(
-                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic)"
+                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, ibrr)"
             )),
         },
     }

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use scene_core::gbuffer::hemicube_views;
 use scene_core::ray::RayScene;
 use scene_core::view::{FrustumReconstruction, Projection, pixel_uv};
-use scene_core::{GBuffer, GBufferRenderer, LightState, Scene, View, ViewTarget};
+use scene_core::{GBuffer, GBufferRenderer, LightState, Scene, View, ViewTarget, luminance};
 
 use crate::error::IbrrError;
 use crate::irpl::{Irpl, IrplKind, IrplSet, WalkSettings, generate};
@@ -312,11 +312,43 @@ impl Construction {
             .map(|t| FrustumReconstruction::new(&t.view))
             .collect();
         let vps: Vec<glam::Mat4> = targets.iter().map(|t| t.view.view_projection()).collect();
+        // The clamp and its compensation: the power the renders receive, unclamped over
+        // clamped, scales every value of this IRPL.
+        let extent = self.scene.extent();
+        let g_max = if self.settings.clamp > 0.0 && irpl.is_path_node() {
+            let r = self.settings.clamp * extent;
+            std::f32::consts::FRAC_1_PI / (r * r)
+        } else {
+            f32::INFINITY
+        };
+        let all: Vec<Vec<Sample>> = targets
+            .iter()
+            .enumerate()
+            .map(|(k, t)| samples_of(irpl, t, &recon[k], &buffers[k]))
+            .collect();
+        let scale = if g_max.is_finite() {
+            let (mut full, mut clamped) = (0.0f64, 0.0f64);
+            for s in all.iter().flatten() {
+                let area = f64::from(s.du.cross(s.dv).length());
+                full += f64::from(luminance(irpl.irradiance_at(s.p, s.n))) * area;
+                clamped += f64::from(luminance(irpl.irradiance_clamped(s.p, s.n, g_max))) * area;
+            }
+            if clamped > 0.0 && full.is_finite() {
+                (full / clamped) as f32
+            } else {
+                1.0
+            }
+        } else {
+            1.0
+        };
+        let value_at = |q: Vec3, n: Vec3| irpl.irradiance_clamped(q, n, g_max) * scale;
         self.builder.begin();
-        for (k, (t, g)) in targets.iter().zip(buffers).enumerate() {
-            let samples = samples_of(irpl, t, &recon[k], g);
+        for samples in all {
             self.stats.samples += samples.len() as u64;
-            for s in samples {
+            for mut s in samples {
+                if g_max.is_finite() {
+                    s.value = value_at(s.p, s.n);
+                }
                 let plane_d = s.p.dot(s.n);
                 for (axis, w) in axes_of(s.n, frame.band) {
                     if w <= 0.0 {
@@ -388,11 +420,7 @@ impl Construction {
                             // Exact: the geometry term at the LDI pixel's centre itself (the
                             // render decides only visibility); else the sample's own value,
                             // as the paper copies it.
-                            let value = if exact {
-                                irpl.irradiance_at(q, s.n)
-                            } else {
-                                s.value
-                            };
+                            let value = if exact { value_at(q, s.n) } else { s.value };
                             let value = if value.is_finite() { value } else { Vec3::ZERO };
                             self.builder
                                 .splat(axis, i, j, q, s.n, value, m2, weight, combine)?;
@@ -413,7 +441,7 @@ impl Construction {
                 .collect();
             let (eps_d, eps_n) = (frame.eps_distance, frame.eps_normal);
             self.builder.gather(|q, n| {
-                let e = irpl.irradiance_at(q, n);
+                let e = value_at(q, n);
                 (e.max_element() > 0.0 && e.is_finite() && unoccluded(&renders, q, n, eps_d, eps_n))
                     .then_some(e)
             });

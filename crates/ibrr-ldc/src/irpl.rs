@@ -65,6 +65,12 @@ pub struct Irpl {
 }
 
 impl Irpl {
+    /// True for the nodes of particle paths (emitter samples and bounces), whose geometry
+    /// term may be clamped.
+    pub fn is_path_node(&self) -> bool {
+        matches!(self.kind, IrplKind::EmitterSample | IrplKind::Bounce)
+    }
+
     /// True for the first node of a path or an exact source (direct light).
     pub fn is_direct(&self) -> bool {
         self.depth == 0
@@ -75,6 +81,14 @@ impl Irpl {
     /// `g = cos_i cos_x / (pi r^2)`, computed in full precision (never clamped).
     #[inline]
     pub fn irradiance_at(&self, p: Vec3, n: Vec3) -> Vec3 {
+        self.irradiance_clamped(p, n, f32::INFINITY)
+    }
+
+    /// [`Irpl::irradiance_at`] with the geometry term of path nodes
+    /// ([`IrplKind::EmitterSample`], [`IrplKind::Bounce`]) clamped to `g_max`; the exact
+    /// sources are never clamped.
+    #[inline]
+    pub fn irradiance_clamped(&self, p: Vec3, n: Vec3, g_max: f32) -> Vec3 {
         match self.kind {
             IrplKind::DirectionalSource { direction } => self.power * (-n.dot(direction)).max(0.0),
             IrplKind::PointSource { radius } => {
@@ -95,7 +109,7 @@ impl Irpl {
                 let r = r2.sqrt();
                 let cos_i = (self.normal.dot(d) / r).max(0.0);
                 let cos_x = (-n.dot(d) / r).max(0.0);
-                let g = cos_i * cos_x * std::f32::consts::FRAC_1_PI / r2;
+                let g = (cos_i * cos_x * std::f32::consts::FRAC_1_PI / r2).min(g_max);
                 if g.is_finite() {
                     self.power * g
                 } else {

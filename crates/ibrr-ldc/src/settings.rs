@@ -80,6 +80,12 @@ pub struct IbrrSettings {
     pub indirect_hemicube: u32,
     /// Splat kernel.
     pub splat: Splat,
+    /// Clamp of the geometry term of path IRPLs, as a distance: `g <= 1 / (pi (clamp x
+    /// extent)^2)`; 0 (the default) leaves it unclamped, the paper's accurate option. With
+    /// a clamp, each IRPL's contributions are scaled so that the power its renders receive
+    /// is what it was unclamped (bias compensation: the clamped energy is restored over what
+    /// the IRPL lights, not at the hot spot). Beyond the paper.
+    pub clamp: f32,
     /// Reconstruction kernel.
     pub lookup: Lookup,
     /// Plane-distance threshold in LDI pixels.
@@ -111,6 +117,7 @@ impl Default for IbrrSettings {
             direct_hemicube: 0,
             indirect_hemicube: 0,
             splat: Splat::Exact,
+            clamp: 0.0,
             lookup: Lookup::Bilinear,
             eps_distance_px: 0.5,
             eps_normal: 0.05,
@@ -171,6 +178,12 @@ impl IbrrSettings {
             return bad(format!(
                 "eps_normal must be in (0, 2), got {}",
                 self.eps_normal
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.clamp) {
+            return bad(format!(
+                "clamp must be in [0, 1] (a fraction of the scene's extent), got {}",
+                self.clamp
             ));
         }
         if !(0.0..1.0).contains(&self.band) {

@@ -307,3 +307,83 @@ fn settings_out_of_range_are_named() {
         assert!(e.to_string().contains(name), "{e}");
     }
 }
+
+#[test]
+fn a_clamped_irpl_keeps_its_power_and_loses_its_hot_spot() {
+    let scene = Arc::new(floor(1.0));
+    // Near-singular: 2.5% of the floor's side above it.
+    let height = 0.05f32;
+    let irpl = Irpl {
+        position: Vec3::new(0.0, height, 0.0),
+        normal: -Vec3::Y,
+        power: Vec3::ONE,
+        kind: IrplKind::Bounce,
+        light: LightId::Point(0),
+        path: 0,
+        depth: 1,
+    };
+    let set = IrplSet {
+        irpls: vec![irpl],
+        paths: 1,
+        path_ends: vec![1],
+        exact: 0,
+    };
+    let integrate = |clamp: f32| {
+        let settings = IbrrSettings {
+            resolution: 256,
+            direct_hemicube: 256,
+            indirect_hemicube: 256,
+            clamp,
+            ..Default::default()
+        };
+        let mut c = Construction::with_irpls(scene.clone(), set.clone(), &settings).unwrap();
+        let mut r = RayCastRenderer::new();
+        c.prepare_renderer(&mut r).unwrap();
+        c.step(&mut r, 1).unwrap();
+        let ldc = c.ldc().unwrap();
+        // Power received by the floor (a 400 x 400 grid of lookups) and the peak.
+        let (n, mut power, mut peak) = (400, 0.0f64, 0.0f32);
+        let cell = 2.0 / n as f32;
+        for j in 0..n {
+            for i in 0..n {
+                let p = Vec3::new(
+                    -1.0 + (i as f32 + 0.5) * cell,
+                    0.0,
+                    -1.0 + (j as f32 + 0.5) * cell,
+                );
+                let e = lookup(&ldc, p, Vec3::Y, Lookup::Bilinear, 2).map_or(0.0, |v| v.1.x);
+                power += f64::from(e * cell * cell);
+                peak = peak.max(e);
+            }
+        }
+        (power, peak)
+    };
+    let (free, free_peak) = integrate(0.0);
+    // Analytic: the floor of half-side 1 at height h receives 1 - h^2 / (h^2 + 1)... of a
+    // Lambertian emitter's power through the square; the disk of radius 1 gets
+    // 1 / (1 + h^2) of it, the square a little more.
+    assert!(
+        free > 1.0 / (1.0 + f64::from(height * height)) * 0.97 && free < 1.0,
+        "unclamped floor power {free}"
+    );
+    // Clamped at 5% of the extent (0.14, about 3 h): the peak falls to about 1 / (pi r^2)
+    // times the compensation, and the power stays.
+    let (kept, kept_peak) = integrate(0.05);
+    let r = 0.05 * scene.extent();
+    println!(
+        "unclamped: power {free:.4}, peak {free_peak:.2}; clamped: power {kept:.4}, peak {kept_peak:.2} (bound {:.2})",
+        1.0 / (std::f32::consts::PI * r * r)
+    );
+    // Unclamped the peak is 1 / (pi h^2); clamped, k / (pi r^2) with the compensation k < 2
+    // (more than half the power arrives where g is below the clamp), so the ratio is below
+    // 2 (h / r)^2.
+    let bound = 2.0 * (height / r).powi(2);
+    assert!(
+        kept_peak < bound * free_peak,
+        "the hot spot stays: {kept_peak} vs {free_peak} (ratio bound {bound})"
+    );
+    assert!(
+        (kept / free - 1.0).abs() < 0.01,
+        "clamped power {kept} vs {free}"
+    );
+}
