@@ -5,7 +5,8 @@
 //!   frames per second at 512 x 512 (median of the repeats after a warm-up), memory.
 //!   Construction renders its hemicubes with the CPU rasteriser and, in the GPU rows, the
 //!   GPU rasteriser; frames are the CPU lookup (the given threads) over a CPU G-buffer, and
-//!   the GPU lookup over a GPU G-buffer.
+//!   the GPU lookup over a GPU G-buffer; the lookup alone is its own column (the frame
+//!   adds the camera's G-buffer, which does depend on the triangles).
 //! - 200, 371, 589 and 751 IRPLs at LDC 256 on a field of about 26k triangles (scene C):
 //!   memory and layers (CPU construction).
 
@@ -25,6 +26,7 @@ fn field(triangles: u32) -> Scene {
 struct Row {
     build_s: f64,
     fps: f64,
+    lookup_ms: f64,
     bytes: u64,
     layers: usize,
     irpls: usize,
@@ -50,16 +52,18 @@ fn measure(
     let build_s = t0.elapsed().as_secs_f64();
     let frame = FrameRequest::camera(&scene.cameras[0], 512, 512);
     t.render(&frame).map_err(|e| e.to_string())?;
-    let mut times = Vec::new();
+    let (mut times, mut lookups) = (Vec::new(), Vec::new());
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
         t.render(&frame).map_err(|e| e.to_string())?;
         times.push(t0.elapsed().as_secs_f64());
+        lookups.push(t.last_timings().lookup.as_secs_f64() * 1e3);
     }
     let ldc = t.ldc().expect("prepared");
     Ok(Row {
         build_s,
         fps: 1.0 / median(times),
+        lookup_ms: median(lookups),
         bytes: ldc.bytes(),
         layers: ldc.layer_count(),
         irpls: t.construction().map_or(0, |c| c.irpls.irpls.len()),
@@ -78,7 +82,7 @@ pub fn run(threads: usize, repeats: usize) -> Result<(), String> {
         "Table 1 (A, B): 184 IRPLs, frames at 512x512; CPU with {threads} threads; construction one run, frames median of {repeats}"
     );
     println!(
-        "{:<6} {:>9} {:>5} {:>4} {:>6} {:>11} {:>9} {:>10} {:>9} {:>8}",
+        "{:<6} {:>9} {:>5} {:>4} {:>6} {:>11} {:>9} {:>9} {:>10} {:>9} {:>8}",
         "scene",
         "triangles",
         "LDC",
@@ -86,6 +90,7 @@ pub fn run(threads: usize, repeats: usize) -> Result<(), String> {
         "IRPLs",
         "construct s",
         "frame fps",
+        "lookup ms",
         "memory KB",
         "layers",
         "no layer"
@@ -110,11 +115,12 @@ pub fn run(threads: usize, repeats: usize) -> Result<(), String> {
             }
             for (on, r) in rows {
                 println!(
-                    "{label:<6} {:>9} {res:>5} {on:>4} {:>6} {:>11.2} {:>9.2} {:>10.0} {:>9} {:>8}",
+                    "{label:<6} {:>9} {res:>5} {on:>4} {:>6} {:>11.2} {:>9.2} {:>9.2} {:>10.0} {:>9} {:>8}",
                     scene.triangle_count(),
                     r.irpls,
                     r.build_s,
                     r.fps,
+                    r.lookup_ms,
                     r.bytes as f64 / 1024.0,
                     r.layers,
                     r.missing
