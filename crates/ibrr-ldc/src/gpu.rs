@@ -103,7 +103,9 @@ impl GpuLdc {
         fallback_radius: u32,
     ) -> Result<Self, IbrrError> {
         let limits = ctx.device.limits();
-        let limit = u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+        let limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
         let layers = ldc.layer_count() as u64;
         for (what, bytes) in [
             ("per-pixel layer offsets", ldc.offsets.len() as u64 * 4),
