@@ -82,6 +82,8 @@ pub struct Construction {
     builder: LdcBuilder,
     next: usize,
     stats: ConstructionStats,
+    /// The exact mode's gather on the GPU, when asked for ([`Construction::gather_on_gpu`]).
+    gpu: Option<crate::gpu::GpuGather>,
 }
 
 impl Construction {
@@ -156,7 +158,16 @@ impl Construction {
             lights: LightState::default(),
             builder,
             next: 0,
+            gpu: None,
         })
+    }
+
+    /// Runs the exact mode's gather (every layer an IRPL's samples did not reach, tested
+    /// against its renders) on the GPU of `ctx`; the scatter stays on the CPU. The values
+    /// agree with the CPU gather's but for f32 rounding at a visibility threshold.
+    pub fn gather_on_gpu(&mut self, ctx: &scene_core::gpu::GpuContext) -> Result<(), IbrrError> {
+        self.gpu = Some(crate::gpu::GpuGather::new(ctx)?);
+        Ok(())
     }
 
     /// True when every IRPL has been warped.
@@ -440,11 +451,18 @@ impl Construction {
                 .map(|(((t, r), vp), g)| Render::new(&t.view, *r, *vp, g))
                 .collect();
             let (eps_d, eps_n) = (frame.eps_distance, frame.eps_normal);
-            self.builder.gather(|q, n| {
-                let e = value_at(q, n);
-                (e.max_element() > 0.0 && e.is_finite() && unoccluded(&renders, q, n, eps_d, eps_n))
+            if let Some(g) = self.gpu.as_mut() {
+                let values = g.gather(&self.builder, irpl, g_max, scale, targets, buffers)?;
+                self.builder.apply_gathered(&values);
+            } else {
+                self.builder.gather(|q, n| {
+                    let e = value_at(q, n);
+                    (e.max_element() > 0.0
+                        && e.is_finite()
+                        && unoccluded(&renders, q, n, eps_d, eps_n))
                     .then_some(e)
-            });
+                });
+            }
         }
         let channel = match irpl.kind {
             IrplKind::PointSource { .. } | IrplKind::DirectionalSource { .. } => Channel::Exact,

@@ -312,3 +312,270 @@ impl GpuLdc {
         ))
     }
 }
+
+/// WGSL of the gather pass (scene-core's reconstruction, then the pass).
+pub const GATHER_WGSL: &str = concat!(
+    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
+    include_str!("../../../shaders/ibrr-ldc/gather.wgsl")
+);
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct GatherParams {
+    origin: [f32; 4],
+    irpl_position: [f32; 4],
+    irpl_normal: [f32; 4],
+    irpl_power: [f32; 4],
+    resolution: u32,
+    layers: u32,
+    renders: u32,
+    groups_x: u32,
+    eps_distance: f32,
+    eps_normal: f32,
+    scale: f32,
+    has_radius: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct GpuRender {
+    view_projection: [[f32; 4]; 4],
+    frustum: [[f32; 4]; 6],
+    eye: [f32; 4],
+    forward: [f32; 4],
+    size: [u32; 4],
+}
+
+const GATHER_GROUP: u32 = 64;
+const MAX_GROUPS_X: u32 = 32768;
+
+/// The exact mode's gather on the GPU ([`crate::construct`]: every layer an IRPL's
+/// samples did not reach is lit when nothing of its renders lies between the IRPL and the
+/// layer's centre). Layers are uploaded as they appear; each IRPL uploads its renders'
+/// normals and depths and reads back one value per layer.
+pub struct GpuGather {
+    ctx: GpuContext,
+    pass: ComputePass,
+    planes: Option<wgpu::Buffer>,
+    pixels: Option<wgpu::Buffer>,
+    capacity: usize,
+    uploaded: usize,
+    limit: u64,
+}
+
+impl std::fmt::Debug for GpuGather {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuGather")
+            .field("capacity", &self.capacity)
+            .field("uploaded", &self.uploaded)
+            .finish_non_exhaustive()
+    }
+}
+
+impl GpuGather {
+    /// The pass on `ctx`.
+    pub fn new(ctx: &GpuContext) -> Result<Self, IbrrError> {
+        let rw = wgpu::BindGroupLayoutEntry {
+            binding: 5,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: false },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let pass = ctx
+            .validated(|| {
+                ComputePass::new(
+                    &ctx.device,
+                    "ibrr-ldc gather",
+                    GATHER_WGSL,
+                    &[
+                        uniform(0),
+                        storage_buffer(1),
+                        storage_buffer(2),
+                        storage_buffer(3),
+                        storage_buffer(4),
+                        rw,
+                    ],
+                    &[],
+                )
+            })
+            .map_err(gpu)?;
+        let limits = ctx.device.limits();
+        Ok(Self {
+            ctx: ctx.clone(),
+            pass,
+            planes: None,
+            pixels: None,
+            capacity: 0,
+            uploaded: 0,
+            limit: limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size),
+        })
+    }
+
+    /// Values for every layer of `builder` lit by `irpl` (geometry term clamped at `g_max`,
+    /// times `scale`) as seen by its renders (`targets`, `buffers`); `None` where unlit.
+    pub(crate) fn gather(
+        &mut self,
+        builder: &crate::ldc::LdcBuilder,
+        irpl: &crate::irpl::Irpl,
+        g_max: f32,
+        scale: f32,
+        targets: &[scene_core::ViewTarget],
+        buffers: &[scene_core::GBuffer],
+    ) -> Result<Vec<Option<Vec3>>, IbrrError> {
+        use crate::irpl::IrplKind;
+        let n = builder.layer_count();
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let ctx = self.ctx.clone();
+        // Layers: grow the buffers by doubling (re-uploading all), else append.
+        if n > self.capacity {
+            let capacity = n.next_power_of_two().max(1024);
+            let bytes = capacity as u64 * 16;
+            if bytes > self.limit {
+                return Err(IbrrError::Budget {
+                    needed: bytes,
+                    limit: self.limit,
+                    what: "layer planes for the GPU gather on this adapter".into(),
+                });
+            }
+            let make = |label: &str, size: u64| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            };
+            self.planes = Some(make("gather planes", bytes));
+            self.pixels = Some(make("gather pixels", capacity as u64 * 4));
+            self.capacity = capacity;
+            self.uploaded = 0;
+        }
+        let (Some(planes_buf), Some(pixels_buf)) = (&self.planes, &self.pixels) else {
+            return Ok(vec![None; n]);
+        };
+        if self.uploaded < n {
+            let new = builder.layers_from(self.uploaded);
+            let planes: Vec<[f32; 4]> = new.iter().map(|(p, _)| p.to_array()).collect();
+            let pixels: Vec<u32> = new.iter().map(|(_, k)| *k).collect();
+            ctx.queue.write_buffer(
+                planes_buf,
+                self.uploaded as u64 * 16,
+                bytemuck::cast_slice(&planes),
+            );
+            ctx.queue.write_buffer(
+                pixels_buf,
+                self.uploaded as u64 * 4,
+                bytemuck::cast_slice(&pixels),
+            );
+            self.uploaded = n;
+        }
+        // The renders: per pixel (normal, depth), background negative.
+        let mut records = Vec::with_capacity(targets.len());
+        let mut texels: Vec<[f32; 4]> = Vec::new();
+        for (t, g) in targets.iter().zip(buffers) {
+            let (perspective, pixel) = match t.view.projection {
+                Projection::Perspective { left, right, .. } => {
+                    (1.0, (right - left) / g.width as f32)
+                }
+                Projection::Orthographic { left, right, .. } => {
+                    (0.0, (right - left) / g.width as f32)
+                }
+            };
+            records.push(GpuRender {
+                view_projection: t.view.view_projection().to_cols_array_2d(),
+                frustum: FrustumReconstruction::new(&t.view).uniform(),
+                eye: t.view.eye.extend(perspective).to_array(),
+                forward: t.view.forward.extend(pixel).to_array(),
+                size: [g.width, g.height, texels.len() as u32, 0],
+            });
+            texels.extend((0..g.len()).map(|i| {
+                if g.is_background(i) {
+                    [0.0, 0.0, 0.0, -1.0]
+                } else {
+                    g.normal[i].extend(g.depth[i]).to_array()
+                }
+            }));
+        }
+        let (kind, normal, radius) = match irpl.kind {
+            IrplKind::PointSource { radius } => (0.0, Vec3::ZERO, radius),
+            IrplKind::DirectionalSource { direction } => (1.0, direction, None),
+            IrplKind::EmitterSample | IrplKind::Bounce => (2.0, irpl.normal, None),
+        };
+        let groups = (n as u32).div_ceil(GATHER_GROUP);
+        let groups_x = groups.min(MAX_GROUPS_X);
+        let params = GatherParams {
+            origin: builder.frame.origin.extend(builder.frame.side).to_array(),
+            irpl_position: irpl.position.extend(kind).to_array(),
+            irpl_normal: normal.extend(radius.unwrap_or(0.0)).to_array(),
+            irpl_power: irpl.power.extend(g_max.min(f32::MAX)).to_array(),
+            resolution: builder.frame.resolution,
+            layers: n as u32,
+            renders: records.len() as u32,
+            groups_x,
+            eps_distance: builder.frame.eps_distance,
+            eps_normal: builder.frame.eps_normal,
+            scale,
+            has_radius: radius.is_some() as u32,
+        };
+        let uniform = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("gather params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let renders = storage(
+            &ctx,
+            "gather renders",
+            bytemuck::cast_slice(&records),
+            wgpu::BufferUsages::empty(),
+        );
+        let texel_buf = storage(
+            &ctx,
+            "gather render pixels",
+            bytemuck::cast_slice(&texels),
+            wgpu::BufferUsages::empty(),
+        );
+        let out = storage(
+            &ctx,
+            "gather values",
+            &vec![0u8; n * 16],
+            wgpu::BufferUsages::COPY_SRC,
+        );
+        let bind = self.pass.bind(
+            &ctx.device,
+            &[
+                uniform.as_entire_binding(),
+                planes_buf.as_entire_binding(),
+                pixels_buf.as_entire_binding(),
+                renders.as_entire_binding(),
+                texel_buf.as_entire_binding(),
+                out.as_entire_binding(),
+            ],
+        );
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("ibrr-ldc gather"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pass.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(groups_x, groups.div_ceil(groups_x), 1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        let v: Vec<[f32; 4]> = ctx.read_buffer_as(&out).map_err(gpu)?;
+        Ok(v.iter()
+            .take(n)
+            .map(|x| (x[3] > 0.0).then(|| Vec3::new(x[0], x[1], x[2])))
+            .collect())
+    }
+}

@@ -431,9 +431,28 @@ impl LdcBuilder {
                 value(q, layer.plane.truncate())
             })
             .collect();
-        for (l, v) in found.into_iter().enumerate() {
-            if let Some(v) = v {
+        self.apply_gathered(&found);
+    }
+
+    /// The planes and LDI pixels of layers `from..` (what a GPU gather uploads as layers
+    /// appear).
+    pub fn layers_from(&self, from: usize) -> Vec<(Vec4, u32)> {
+        self.layers[from.min(self.layers.len())..]
+            .iter()
+            .map(|l| (l.plane, l.pixel))
+            .collect()
+    }
+
+    /// Gives each layer `l` the current IRPL has not reached yet the value `values[l]`
+    /// (computed elsewhere, e.g. on the GPU, for every layer).
+    pub fn apply_gathered(&mut self, values: &[Option<Vec3>]) {
+        let stamp = self.stamp;
+        for (l, v) in values.iter().enumerate().take(self.layers.len()) {
+            if let Some(v) = *v {
                 let layer = &mut self.layers[l];
+                if layer.stamp == stamp {
+                    continue;
+                }
                 layer.stamp = stamp;
                 layer.scratch = v.extend(1.0);
                 layer.scratch_w = 0.0;

@@ -78,7 +78,9 @@ impl IbrrTechnique {
 
     /// Reconstructs frames on the GPU of `ctx` ([`GpuLdc`]): the LDC is uploaded once per
     /// construction, and the camera's G-buffer stays on the GPU when the renderer can
-    /// render there (else it is uploaded). Construction stays on the CPU warp.
+    /// render there (else it is uploaded). Construction runs the exact mode's gather there
+    /// too ([`Construction::gather_on_gpu`]); the scatter stays on the CPU, the renders on
+    /// whichever renderer was given.
     pub fn on_gpu(mut self, ctx: scene_core::gpu::GpuContext) -> Self {
         self.gpu = Some((ctx, None));
         self
@@ -119,6 +121,9 @@ impl IbrrTechnique {
             *uploaded = None;
         }
         let mut c = Construction::new(scene, lights, &self.settings)?;
+        if let Some((ctx, _)) = self.gpu.as_ref() {
+            c.gather_on_gpu(ctx)?;
+        }
         c.prepare_renderer(self.renderer.as_mut())?;
         if !self.progressive {
             while !c.is_done() {

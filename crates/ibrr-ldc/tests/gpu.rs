@@ -117,3 +117,58 @@ fn the_technique_on_the_gpu_renders_what_it_renders_on_the_cpu() {
     );
     assert_eq!(cpu.last_timings().missing, gpu.last_timings().missing);
 }
+
+#[test]
+fn the_gpu_gather_builds_the_ldc_the_cpu_gather_builds() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    for name in ["cornell-point", "primitives"] {
+        let scene = Arc::new(builtin::scene(name).unwrap());
+        let settings = IbrrSettings {
+            resolution: 48,
+            irpls: 12,
+            clamp: 0.02,
+            ..Default::default()
+        };
+        let build = |on_gpu: bool| {
+            let mut c =
+                ibrr_ldc::Construction::new(scene.clone(), &LightState::default(), &settings)
+                    .unwrap();
+            if on_gpu {
+                c.gather_on_gpu(&ctx).unwrap();
+            }
+            let mut r = RayCastRenderer::new();
+            c.prepare_renderer(&mut r).unwrap();
+            while !c.is_done() {
+                c.step(&mut r, 4).unwrap();
+            }
+            c.ldc().unwrap()
+        };
+        let (cpu, gpu) = (build(false), build(true));
+        assert_eq!(
+            cpu.layer_count(),
+            gpu.layer_count(),
+            "{name}: the scatter is the same"
+        );
+        assert!(cpu.layer_count() > 0);
+        let peak = cpu
+            .indirect
+            .iter()
+            .chain(&cpu.direct)
+            .map(|v| v.max_element())
+            .fold(0.0f32, f32::max);
+        let off = (0..cpu.layer_count())
+            .filter(|&l| {
+                (cpu.direct[l] - gpu.direct[l]).abs().max_element() > 1e-4 * peak
+                    || (cpu.indirect[l] - gpu.indirect[l]).abs().max_element() > 1e-4 * peak
+            })
+            .count();
+        println!("{name}: {off} of {} layers differ", cpu.layer_count());
+        // f32 rounding may flip a visibility threshold on a layer or two.
+        assert!(
+            off <= cpu.layer_count() / 1000,
+            "{name}: {off} layers differ"
+        );
+    }
+}
