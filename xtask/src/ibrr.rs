@@ -2,7 +2,6 @@
 //! from particle walks warped into a layered depth cube) and write the view from a scene
 //! camera and a summary.
 
-use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -105,17 +104,7 @@ pub fn run(o: &Options) -> Result<(), String> {
     let c = technique.construction().expect("built above");
     let stats = c.stats();
     let ldc = technique.ldc().expect("built above");
-    std::fs::create_dir_all(&o.out).map_err(|e| format!("{}: {e}", o.out.display()))?;
-    let stem = Path::new(&scene.name)
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "scene".into());
-    let exr = o.out.join(format!("{stem}.exr"));
-    let png = o.out.join(format!("{stem}.png"));
-    image.write_exr(&exr).map_err(|e| e.to_string())?;
-    image
-        .write_png(&png, o.exposure)
-        .map_err(|e| e.to_string())?;
+    let (exr, png) = crate::write_view(&o.out, &scene, &image, o.exposure)?;
     let frame_ms = (timings.gbuffer + timings.lookup).as_secs_f64() * 1e3;
     let summary = serde_json::json!({
         "scene": scene.name,
@@ -144,13 +133,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "width": o.width,
         "height": o.height,
     });
-    let json = o.out.join("summary.json");
-    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
-    scene_core::image::write_via_temp(
-        &json,
-        |path| std::fs::write(path, &text).map_err(|e| format!("{}: {e}", path.display())),
-        |e| format!("{}: {e}", json.display()),
-    )?;
+    let json = crate::write_summary(&o.out, &summary)?;
     eprintln!(
         "{}: {} IRPLs ({} paths), {} layers, {:.1} MB, built in {build_s:.2} s; frame {frame_ms:.2} ms, {} pixels without a layer",
         scene.name,

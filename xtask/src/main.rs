@@ -230,6 +230,38 @@ pub fn load_scene(spec: &str) -> Result<Scene, String> {
     }
 }
 
+/// Writes a command's view of `scene` as `DIR/<scene>.exr` and `.png` (creating `DIR`);
+/// returns both paths.
+pub fn write_view(
+    out: &Path,
+    scene: &Scene,
+    image: &scene_core::Image,
+    exposure: f32,
+) -> Result<(PathBuf, PathBuf), String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let stem = Path::new(&scene.name)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scene".into());
+    let exr = out.join(format!("{stem}.exr"));
+    let png = out.join(format!("{stem}.png"));
+    image.write_exr(&exr).map_err(|e| e.to_string())?;
+    image.write_png(&png, exposure).map_err(|e| e.to_string())?;
+    Ok((exr, png))
+}
+
+/// Writes `DIR/summary.json` (through a temporary file, so a reader never sees half of it).
+pub fn write_summary(out: &Path, summary: &serde_json::Value) -> Result<PathBuf, String> {
+    let json = out.join("summary.json");
+    let text = serde_json::to_string_pretty(summary).map_err(|e| e.to_string())?;
+    scene_core::image::write_via_temp(
+        &json,
+        |path| std::fs::write(path, &text).map_err(|e| format!("{}: {e}", path.display())),
+        |e| format!("{}: {e}", json.display()),
+    )?;
+    Ok(json)
+}
+
 fn progress_bar(len: u64, what: &str) -> ProgressBar {
     let bar = if std::env::var_os("CI").is_some() {
         ProgressBar::hidden()

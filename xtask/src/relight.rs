@@ -2,7 +2,6 @@
 //! (relight-pr), relight it with the lights given on the command line, and write the view
 //! from a scene camera and a summary.
 
-use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -218,17 +217,11 @@ pub fn run(o: &Options) -> Result<(), String> {
         meshing.patches.len(),
         meshing.elements.len()
     );
-    std::fs::create_dir_all(&o.out).map_err(|e| format!("{}: {e}", o.out.display()))?;
-    let stem = Path::new(&scene.name)
+    let (exr, png) = crate::write_view(&o.out, &scene, &image, o.exposure)?;
+    let stem = exr
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "scene".into());
-    let exr = o.out.join(format!("{stem}.exr"));
-    let png = o.out.join(format!("{stem}.png"));
-    image.write_exr(&exr).map_err(|e| e.to_string())?;
-    image
-        .write_png(&png, o.exposure)
-        .map_err(|e| e.to_string())?;
     let gltf = o.out.join(format!("{stem}.gltf"));
     relight_pr::export::gltf(
         &scene,
@@ -281,13 +274,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "width": o.width,
         "height": o.height,
     });
-    let json = o.out.join("summary.json");
-    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
-    scene_core::image::write_via_temp(
-        &json,
-        |path| std::fs::write(path, &text).map_err(|e| format!("{}: {e}", path.display())),
-        |e| format!("{}: {e}", json.display()),
-    )?;
+    let json = crate::write_summary(&o.out, &summary)?;
     eprintln!(
         "solved in {solve_s:.2} s ({} shots, unshot {:.1e}); relight {relight_ms:.2} ms",
         solution.stats.shots, solution.stats.unshot_fraction

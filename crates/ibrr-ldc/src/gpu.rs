@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 use scene_core::gpu::compute::ComputePass;
-use scene_core::gpu::layout::{float_texture, storage_buffer, texture, uniform};
+use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, texture, uniform};
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
 use scene_core::lights::LightId;
 use scene_core::view::{FrustumReconstruction, Projection};
@@ -81,17 +81,6 @@ fn gpu(e: GpuError) -> IbrrError {
     IbrrError::Core(e.into())
 }
 
-fn storage(ctx: &GpuContext, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
-    // Storage bindings may not be empty.
-    let bytes: &[u8] = if bytes.is_empty() { &[0u8; 32] } else { bytes };
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytes,
-            usage: wgpu::BufferUsages::STORAGE | extra,
-        })
-}
-
 impl GpuLdc {
     /// Uploads `ldc` for lookups with `lookup` and `fallback_radius`. Fails with
     /// [`IbrrError::Budget`] before allocating when a buffer exceeds the adapter's
@@ -142,16 +131,7 @@ impl GpuLdc {
                 storage_buffer(2),
                 storage_buffer(3),
                 storage_buffer(4),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 5,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: false },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                storage_buffer_rw(5),
                 float_texture(6),
                 float_texture(7),
                 float_texture(8),
@@ -162,20 +142,17 @@ impl GpuLdc {
         ctx.validated(|| Self {
             ctx: ctx.clone(),
             ldc_frame: ldc.frame,
-            offsets: storage(
-                ctx,
+            offsets: ctx.storage_with(
                 "LDC offsets",
                 bytemuck::cast_slice(&ldc.offsets),
                 wgpu::BufferUsages::empty(),
             ),
-            planes: storage(
-                ctx,
+            planes: ctx.storage_with(
                 "LDC planes",
                 bytemuck::cast_slice(&planes),
                 wgpu::BufferUsages::empty(),
             ),
-            values: storage(
-                ctx,
+            values: ctx.storage_with(
                 "LDC values",
                 bytemuck::cast_slice(&values),
                 wgpu::BufferUsages::empty(),
@@ -255,14 +232,12 @@ impl GpuLdc {
                 contents: bytemuck::bytes_of(&params),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-        let tri = storage(
-            ctx,
+        let tri = ctx.storage_with(
             "ibrr triangles",
             bytemuck::cast_slice(&table),
             wgpu::BufferUsages::empty(),
         );
-        let image = storage(
-            ctx,
+        let image = ctx.storage_with(
             "ibrr image",
             &vec![0u8; pixels.max(1) * 16],
             wgpu::BufferUsages::COPY_SRC,
@@ -375,16 +350,6 @@ impl std::fmt::Debug for GpuGather {
 impl GpuGather {
     /// The pass on `ctx`.
     pub fn new(ctx: &GpuContext) -> Result<Self, IbrrError> {
-        let rw = wgpu::BindGroupLayoutEntry {
-            binding: 5,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only: false },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         let pass = ctx
             .validated(|| {
                 ComputePass::new(
@@ -397,7 +362,7 @@ impl GpuGather {
                         storage_buffer(2),
                         storage_buffer(3),
                         storage_buffer(4),
-                        rw,
+                        storage_buffer_rw(5),
                     ],
                     &[],
                 )
@@ -532,20 +497,17 @@ impl GpuGather {
                 contents: bytemuck::bytes_of(&params),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-        let renders = storage(
-            &ctx,
+        let renders = ctx.storage_with(
             "gather renders",
             bytemuck::cast_slice(&records),
             wgpu::BufferUsages::empty(),
         );
-        let texel_buf = storage(
-            &ctx,
+        let texel_buf = ctx.storage_with(
             "gather render pixels",
             bytemuck::cast_slice(&texels),
             wgpu::BufferUsages::empty(),
         );
-        let out = storage(
-            &ctx,
+        let out = ctx.storage_with(
             "gather values",
             &vec![0u8; n * 16],
             wgpu::BufferUsages::COPY_SRC,

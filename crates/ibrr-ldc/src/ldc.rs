@@ -272,16 +272,8 @@ impl LdcBuilder {
         self.touched.clear();
     }
 
-    /// Finds the layer of pixel `index` matching `(p, n)`, inserting one with `plane` when
-    /// none does (only when `insert`).
-    fn find_or_insert(
-        &mut self,
-        index: usize,
-        p: Vec3,
-        n: Vec3,
-        plane: Vec4,
-        insert: bool,
-    ) -> Result<Option<u32>, IbrrError> {
+    /// The layer of pixel `index` matching `(p, n)` best (smallest plane distance).
+    fn best_match(&self, index: usize, p: Vec3, n: Vec3) -> Option<u32> {
         let mut best: Option<(u32, f32)> = None;
         let mut l = self.heads[index];
         while l != NONE {
@@ -293,7 +285,20 @@ impl LdcBuilder {
             }
             l = layer.next;
         }
-        if let Some((l, _)) = best {
+        best.map(|(l, _)| l)
+    }
+
+    /// Finds the layer of pixel `index` matching `(p, n)`, inserting one with `plane` when
+    /// none does (only when `insert`).
+    fn find_or_insert(
+        &mut self,
+        index: usize,
+        p: Vec3,
+        n: Vec3,
+        plane: Vec4,
+        insert: bool,
+    ) -> Result<Option<u32>, IbrrError> {
+        if let Some(l) = self.best_match(index, p, n) {
             return Ok(Some(l));
         }
         if !insert {
@@ -327,18 +332,8 @@ impl LdcBuilder {
     /// already splatted into it.
     pub fn stamped(&self, axis: usize, i: i64, j: i64, p: Vec3, n: Vec3) -> Option<u32> {
         let index = self.frame.pixel_index(axis, i, j)?;
-        let mut best: Option<(u32, f32)> = None;
-        let mut l = self.heads[index];
-        while l != NONE {
-            let layer = &self.layers[l as usize];
-            if let Some(d) = self.frame.matches(layer.plane, p, n)
-                && best.is_none_or(|(_, b)| d < b)
-            {
-                best = Some((l, d));
-            }
-            l = layer.next;
-        }
-        best.and_then(|(l, _)| (self.layers[l as usize].stamp == self.stamp).then_some(l))
+        self.best_match(index, p, n)
+            .filter(|&l| self.layers[l as usize].stamp == self.stamp)
     }
 
     /// Splats `value` of the current IRPL at pixel `(i, j)` of LDI `axis` onto the surface
@@ -391,18 +386,9 @@ impl LdcBuilder {
 
     /// True when pixel `(i, j)` of LDI `axis` has a layer matching `(p, n)`.
     pub fn has_layer(&self, axis: usize, i: i64, j: i64, p: Vec3, n: Vec3) -> bool {
-        let Some(index) = self.frame.pixel_index(axis, i, j) else {
-            return false;
-        };
-        let mut l = self.heads[index];
-        while l != NONE {
-            let layer = &self.layers[l as usize];
-            if self.frame.matches(layer.plane, p, n).is_some() {
-                return true;
-            }
-            l = layer.next;
-        }
-        false
+        self.frame
+            .pixel_index(axis, i, j)
+            .is_some_and(|index| self.best_match(index, p, n).is_some())
     }
 
     /// Gives every layer the current IRPL has not reached yet the value `value(centre,

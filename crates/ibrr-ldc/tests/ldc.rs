@@ -120,6 +120,21 @@ fn floor(half: f32) -> Scene {
     s
 }
 
+/// The LDC built from `irpl` alone over `scene`.
+fn ldc_of_one(scene: &Arc<Scene>, irpl: Irpl, settings: &IbrrSettings) -> ibrr_ldc::Ldc {
+    let set = IrplSet {
+        irpls: vec![irpl],
+        paths: 1,
+        path_ends: vec![1],
+        exact: 0,
+    };
+    let mut c = Construction::with_irpls(scene.clone(), set, settings).unwrap();
+    let mut r = RayCastRenderer::new();
+    c.prepare_renderer(&mut r).unwrap();
+    c.step(&mut r, 1).unwrap();
+    c.ldc().unwrap()
+}
+
 #[test]
 fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
     let scene = Arc::new(floor(1.0));
@@ -134,12 +149,6 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
         path: 0,
         depth: 1,
     };
-    let set = IrplSet {
-        irpls: vec![irpl],
-        paths: 1,
-        path_ends: vec![1],
-        exact: 0,
-    };
     for splat in [Splat::Exact, Splat::Nearest, Splat::Gaussian] {
         let settings = IbrrSettings {
             resolution: 128,
@@ -148,11 +157,7 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
             splat,
             ..Default::default()
         };
-        let mut c = Construction::with_irpls(scene.clone(), set.clone(), &settings).unwrap();
-        let mut r = RayCastRenderer::new();
-        c.prepare_renderer(&mut r).unwrap();
-        c.step(&mut r, 1).unwrap();
-        let ldc = c.ldc().unwrap();
+        let ldc = ldc_of_one(&scene, irpl, &settings);
         let mut worst = [0.0f32; 3];
         // The paper's kernels copy a sample's value over its footprint: their error at a
         // point is bounded by the falloff's relative slope there, 4 s / (h^2 + s^2) at
@@ -322,12 +327,6 @@ fn a_clamped_irpl_keeps_its_power_and_loses_its_hot_spot() {
         path: 0,
         depth: 1,
     };
-    let set = IrplSet {
-        irpls: vec![irpl],
-        paths: 1,
-        path_ends: vec![1],
-        exact: 0,
-    };
     let integrate = |clamp: f32| {
         let settings = IbrrSettings {
             resolution: 256,
@@ -336,11 +335,7 @@ fn a_clamped_irpl_keeps_its_power_and_loses_its_hot_spot() {
             clamp,
             ..Default::default()
         };
-        let mut c = Construction::with_irpls(scene.clone(), set.clone(), &settings).unwrap();
-        let mut r = RayCastRenderer::new();
-        c.prepare_renderer(&mut r).unwrap();
-        c.step(&mut r, 1).unwrap();
-        let ldc = c.ldc().unwrap();
+        let ldc = ldc_of_one(&scene, irpl, &settings);
         // Power received by the floor (a 400 x 400 grid of lookups) and the peak.
         let (n, mut power, mut peak) = (400, 0.0f64, 0.0f32);
         let cell = 2.0 / n as f32;

@@ -6,7 +6,7 @@
 
 use glam::Vec3;
 use scene_core::gpu::compute::ComputePass;
-use scene_core::gpu::layout::{storage_buffer, uniform};
+use scene_core::gpu::layout::{storage_buffer, storage_buffer_rw, uniform};
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
 use scene_core::view::FrustumReconstruction;
 use scene_core::{Image, View};
@@ -88,30 +88,6 @@ impl std::fmt::Debug for GpuRelight {
             .field("precision", &self.precision)
             .field("bytes", &self.bytes)
             .finish_non_exhaustive()
-    }
-}
-
-fn storage(ctx: &GpuContext, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
-    // Storage bindings may not be empty.
-    let bytes: &[u8] = if bytes.is_empty() { &[0u8; 16] } else { bytes };
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytes,
-            usage: wgpu::BufferUsages::STORAGE | extra,
-        })
-}
-
-fn rw_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only: false },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
     }
 }
 
@@ -213,7 +189,7 @@ impl GpuRelight {
                 uniform(0),
                 storage_buffer(1),
                 storage_buffer(2),
-                rw_entry(3),
+                storage_buffer_rw(3),
             ],
             constants,
         );
@@ -235,26 +211,22 @@ impl GpuRelight {
             k: packed.k,
             elements: n,
             precision: packed.precision,
-            element_words: storage(
-                ctx,
+            element_words: ctx.storage_with(
                 "packed solution",
                 bytemuck::cast_slice(&packed.words),
                 wgpu::BufferUsages::empty(),
             ),
-            vertex_words: storage(
-                ctx,
+            vertex_words: ctx.storage_with(
                 "packed vertex solution",
                 bytemuck::cast_slice(vertex_words),
                 wgpu::BufferUsages::empty(),
             ),
-            element_table: storage(
-                ctx,
+            element_table: ctx.storage_with(
                 "element table",
                 bytemuck::cast_slice(table),
                 wgpu::BufferUsages::empty(),
             ),
-            irradiance: storage(
-                ctx,
+            irradiance: ctx.storage_with(
                 "relit irradiance",
                 &vec![0u8; n.max(1) * 16],
                 wgpu::BufferUsages::COPY_SRC,
@@ -274,7 +246,7 @@ impl GpuRelight {
             storage_buffer(2),
             storage_buffer(3),
             storage_buffer(4),
-            rw_entry(5),
+            storage_buffer_rw(5),
             scene_core::gpu::layout::float_texture(6),
             scene_core::gpu::layout::float_texture(7),
             scene_core::gpu::layout::texture(8, wgpu::TextureSampleType::Uint),
@@ -327,8 +299,7 @@ impl GpuRelight {
             .iter()
             .flat_map(|(d, i)| [d.extend(0.0).to_array(), i.extend(0.0).to_array()])
             .collect();
-        storage(
-            &self.ctx,
+        self.ctx.storage_with(
             "light factors",
             bytemuck::cast_slice(&data),
             wgpu::BufferUsages::empty(),
@@ -459,14 +430,12 @@ impl GpuRelight {
             None => (&self.display_pass, Vec::new()),
         };
         let f = self.factor_buffer(factors);
-        let direct_buf = storage(
-            ctx,
+        let direct_buf = ctx.storage_with(
             "pixel direct",
             bytemuck::cast_slice(&direct),
             wgpu::BufferUsages::empty(),
         );
-        let image = storage(
-            ctx,
+        let image = ctx.storage_with(
             "relight image",
             &vec![0u8; pixels.max(1) * 16],
             wgpu::BufferUsages::COPY_SRC,

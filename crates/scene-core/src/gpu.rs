@@ -474,6 +474,24 @@ impl GpuContext {
         self.submit_and_map(encoder, &staging)
     }
 
+    /// A storage buffer holding `bytes` (16 zero bytes when `bytes` is empty: storage
+    /// bindings may not be empty), with `STORAGE` and the `extra` usages.
+    pub fn storage_with(
+        &self,
+        label: &str,
+        bytes: &[u8],
+        extra: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        let bytes: &[u8] = if bytes.is_empty() { &[0u8; 16] } else { bytes };
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: wgpu::BufferUsages::STORAGE | extra,
+            })
+    }
+
     /// Reads a whole buffer back as elements of `T` (trailing bytes that do not fill a
     /// whole element are dropped).
     pub fn read_buffer_as<T: Pod>(&self, buffer: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
@@ -1373,6 +1391,14 @@ pub mod layout {
         buffer(
             binding,
             wgpu::BufferBindingType::Storage { read_only: true },
+        )
+    }
+
+    /// A read-write storage buffer (a pass' output).
+    pub fn storage_buffer_rw(binding: u32) -> wgpu::BindGroupLayoutEntry {
+        buffer(
+            binding,
+            wgpu::BufferBindingType::Storage { read_only: false },
         )
     }
 }

@@ -1,0 +1,79 @@
+//! `cargo xtask ibrr`: writes the view and a summary whose figures agree with the files and
+//! with each other, bakes a given light colour in, and refuses bad options with a message
+//! that names them.
+
+use std::process::Command;
+
+fn xtask() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_xtask"));
+    c.env("CI", "1");
+    c
+}
+
+#[test]
+fn ibrr_writes_the_view_and_the_summary() {
+    let out = std::env::temp_dir().join(format!("xtask-ibrr-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let run = |extra: &[&str]| {
+        let o = xtask()
+            .args([
+                "ibrr",
+                "--scene",
+                "cornell-point",
+                "--ldc",
+                "32",
+                "--irpls",
+                "12",
+            ])
+            .args(["--width", "32", "--height", "24"])
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
+                .unwrap();
+        let image = scene_core::Image::read(&out.join("cornell-point.exr")).unwrap();
+        (summary, image)
+    };
+    let (summary, white) = run(&[]);
+    assert!(out.join("cornell-point.png").is_file());
+    assert_eq!((white.width, white.height), (32, 24));
+    assert_eq!(summary["ldc_resolution"], 32);
+    let layers = summary["layers"].as_u64().unwrap();
+    // Memory: 4 bytes per pixel of the three LDIs (plus one) and 40 per layer.
+    assert_eq!(
+        summary["memory_bytes"].as_u64().unwrap(),
+        (3 * 32 * 32 + 1) * 4 + 40 * layers
+    );
+    assert!(summary["irpls"].as_u64().unwrap() >= 1);
+    assert!(summary["construction_seconds"].as_f64().unwrap() > 0.0);
+    assert!(summary["pixels_without_layer"].is_u64());
+    // The light's colour is baked in: red only.
+    let (_, red) = run(&["--light", "point:0=1,0,0"]);
+    let (w, r) = (white.mean(), red.mean());
+    assert!(r.x > 0.0 && r.y == 0.0 && r.z == 0.0, "{r}");
+    assert!(w.y > 0.0);
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn ibrr_refuses_bad_options_by_name() {
+    for (args, says) in [
+        (vec!["--splat", "round"], "--splat"),
+        (vec!["--ldc", "0"], "resolution"),
+        (vec!["--camera", "7"], "--camera 7"),
+        (vec!["--light", "point:9=1,1,1"], "point:0"),
+    ] {
+        let o = xtask()
+            .args(["ibrr", "--scene", "cornell-point"])
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "{args:?} succeeded");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+}
