@@ -269,7 +269,7 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
         ProgressBar::new(len)
     };
     bar.set_style(
-        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} rows, eta {eta}")
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len}, eta {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
@@ -321,7 +321,7 @@ fn reference(
     let mut acc = Accumulator::new(width, height);
     // Progressive passes of up to 64 spp so the bar moves on long renders.
     let passes = spp.div_ceil(64);
-    let bar = progress_bar(height as u64 * passes as u64, "rendering");
+    let bar = progress_bar(height as u64 * passes as u64, "rendering (rows)");
     let mut done = 0u32;
     for pass in 0..passes {
         let n = (spp - done).min(64);

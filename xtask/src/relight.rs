@@ -193,7 +193,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         Box::new(gbuffer::CpuRasterizer::new()),
     );
     technique.direct = direct;
-    let bar = crate::progress_bar(1000, "solving (unshot fraction, log scale)");
+    let bar = crate::progress_bar(1000, "solving (unshot fraction, log scale, per mille)");
     let target = o.max_unshot.max(1e-12).log10();
     let t0 = Instant::now();
     technique
