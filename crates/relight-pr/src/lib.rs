@@ -46,10 +46,6 @@ pub use mesh::{MeshBudget, MeshSettings, Meshing};
 pub use solver::{FormFactorMethod, Solution, SolverSettings, Strategy, solve, solve_with};
 pub use technique::RelightTechnique;
 
-/// Implementation status of this crate.
-pub const STATUS: &str = "in progress: solver, CPU and GPU relighting, display, export, \
-     dynamic scenes; open items in docs/relight-pr.md";
-
 pub use scene_core;
 
 /// An error of the relighting crate.
