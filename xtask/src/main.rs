@@ -115,7 +115,8 @@ enum Command {
         #[arg(long = "scene")]
         scenes: Vec<String>,
         /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
-        /// isr-N, isr-thesis-N; comma-separated.
+        /// isr-N, isr-thesis-N, relight (1024 and 4096 elements), relight-N, ibrr (LDC 128
+        /// with 64 IRPLs and LDC 256 with 184), ibrr-RES-N; comma-separated.
         #[arg(long, default_value = "dl,isr")]
         techniques: String,
         /// Views per scene: the scene's cameras first, then seeded random ones.
