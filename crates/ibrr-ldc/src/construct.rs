@@ -197,19 +197,39 @@ impl Construction {
     ) -> Result<usize, IbrrError> {
         let end = (self.next + count).min(self.irpls.irpls.len());
         let mut done = 0;
-        // Render in batches of a few IRPLs (one submission each on the GPU).
+        // Render in batches of up to 8 IRPLs (one submission each on the GPU) whose renders
+        // fit beside the LDC in the memory budget.
         const BATCH: usize = 8;
         while self.next < end {
-            let batch_end = (self.next + BATCH).min(end);
-            let irpls: Vec<Irpl> = self.irpls.irpls[self.next..batch_end].to_vec();
-            let t = Instant::now();
+            let room = self.settings.max_bytes.saturating_sub(self.builder.bytes());
+            let mut irpls: Vec<Irpl> = Vec::new();
             let mut targets = Vec::new();
             let mut counts = Vec::new();
-            for irpl in &irpls {
+            let mut bytes = 0u64;
+            for irpl in &self.irpls.irpls[self.next..(self.next + BATCH).min(end)] {
                 let views = self.views_of(irpl);
+                let need: u64 = views.iter().map(|v| render_bytes(v.width, v.height)).sum();
+                if bytes + need > room {
+                    if irpls.is_empty() {
+                        return Err(IbrrError::Budget {
+                            needed: self.builder.bytes() + need,
+                            limit: self.settings.max_bytes,
+                            what: format!(
+                                "the {} renders of one IRPL ({} x {} hemicube faces and up) beside the LDC",
+                                views.len(),
+                                views[0].width,
+                                views[0].height
+                            ),
+                        });
+                    }
+                    break;
+                }
+                bytes += need;
                 counts.push(views.len());
                 targets.extend(views);
+                irpls.push(*irpl);
             }
+            let t = Instant::now();
             let buffers = renderer.render_views(&targets)?;
             if buffers.len() != targets.len() {
                 return Err(IbrrError::Core(scene_core::Error::InvalidArgument(
@@ -607,6 +627,12 @@ pub(crate) fn render_sees(
         np.dot(n) > 1.0 - eps_normal && (q - pp).dot(np).abs() < tol
     };
     Some(sees(x0, y0) && sees(x0 + 1, y0) && sees(x0, y0 + 1) && sees(x0 + 1, y0 + 1))
+}
+
+/// Bytes of a `width x height` CPU G-buffer and the warp's copy of its samples (albedo,
+/// normal, depth, id: 36 bytes; a sample: 60).
+pub fn render_bytes(width: u32, height: u32) -> u64 {
+    u64::from(width) * u64::from(height) * (36 + 60)
 }
 
 /// One render of an IRPL, prepared for visibility queries.

@@ -274,6 +274,29 @@ fn the_memory_budget_fails_typed_before_allocating() {
         t.ldc().is_none() && t.construction().is_none(),
         "nothing half-built is kept"
     );
+    // Renders: hemicubes of 4096 (three faces' worth of 4096^2 pixels, 4.8 GB with the
+    // warp's samples) do not fit the default 2 GiB beside a small LDC: refused before any is
+    // rendered.
+    let settings = IbrrSettings {
+        resolution: 64,
+        irpls: 4,
+        direct_hemicube: 4096,
+        ..Default::default()
+    };
+    let mut t = ibrr_ldc::IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+    let scene = Arc::new(scene_core::builtin::scene("cornell-point").unwrap());
+    let err = scene_core::Technique::prepare(&mut t, scene).unwrap_err();
+    match err.method_error::<IbrrError>() {
+        Some(IbrrError::Budget {
+            what,
+            needed,
+            limit,
+        }) => {
+            assert!(what.contains("renders"), "{what}");
+            assert!(needed > limit);
+        }
+        other => panic!("expected a budget error for the renders, got {other:?}"),
+    }
 }
 
 #[test]
