@@ -2,13 +2,9 @@
 //! with each other, bakes a given light colour in, and refuses bad options with a message
 //! that names them.
 
-use std::process::Command;
+mod common;
 
-fn xtask() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_xtask"));
-    c.env("CI", "1");
-    c
-}
+use common::xtask;
 
 #[test]
 fn ibrr_writes_the_view_and_the_summary() {

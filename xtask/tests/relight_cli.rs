@@ -3,13 +3,9 @@
 //! switched-off light leaves the picture black, and an unknown light id is an error that
 //! lists the scene's ids.
 
-use std::process::Command;
+mod common;
 
-fn xtask() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_xtask"));
-    c.env("CI", "1");
-    c
-}
+use common::xtask;
 
 #[test]
 fn relight_writes_the_view_and_the_summary_with_the_given_lights() {

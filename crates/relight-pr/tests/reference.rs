@@ -184,24 +184,6 @@ fn one_light_relit_alone_matches_the_reference_with_only_that_light() {
     }
 }
 
-/// `img` box-filtered by `k` in each direction.
-fn box_down(img: &Image, k: u32) -> Image {
-    let (w, h) = (img.width / k, img.height / k);
-    let mut out = Image::new(w, h);
-    for y in 0..h {
-        for x in 0..w {
-            let mut s = glam::Vec3::ZERO;
-            for dy in 0..k {
-                for dx in 0..k {
-                    s += img.pixels[((y * k + dy) * img.width + x * k + dx) as usize];
-                }
-            }
-            out.pixels[(y * w + x) as usize] = s / (k * k) as f32;
-        }
-    }
-    out
-}
-
 #[test]
 fn the_image_mean_at_the_default_element_count_is_the_references_over_whole_pixels() {
     // The reference averages jittered samples over each pixel; a G-buffer samples its
@@ -211,30 +193,29 @@ fn the_image_mean_at_the_default_element_count_is_the_references_over_whole_pixe
     // pixel: 12.5 %, -4.4 %); cornell 2.5 %, +0.3 % (one sample: 36 %, -13.5 %, nearly all
     // of it the light's edges). Against this test's 512-spp reference: -0.57 % and +0.60 %
     // (cornell measured once, left out of the suite for its time).
-    for name in ["cornell-point"] {
-        let scene = Arc::new(builtin::scene(name).unwrap());
-        let truth = reference(&scene, &LightState::default());
-        let mut t = RelightTechnique::new(
-            MeshSettings::elements(4096),
-            SolverSettings {
-                max_unshot: 1e-3,
-                visibility_samples: 8,
-                ..Default::default()
-            },
-            Box::new(RayCastRenderer::new()),
-        );
-        t.prepare(scene.clone()).unwrap();
-        let big = t
-            .render(&FrameRequest::camera(&scene.cameras[0], 4 * W, 4 * H))
-            .unwrap();
-        let image = box_down(&big, 4);
-        let everything = vec![false; image.pixels.len()];
-        let (e, bias) = errors(&image, &truth, &everything);
-        eprintln!(
-            "{name}, 4096 elements, 4 x 4 samples per pixel: mean error {:.1} %, bias {:+.2} %",
-            100.0 * e,
-            100.0 * bias
-        );
-        assert!(bias.abs() < 0.02, "{name}: bias {bias}");
-    }
+    let name = "cornell-point";
+    let scene = Arc::new(builtin::scene(name).unwrap());
+    let truth = reference(&scene, &LightState::default());
+    let mut t = RelightTechnique::new(
+        MeshSettings::elements(4096),
+        SolverSettings {
+            max_unshot: 1e-3,
+            visibility_samples: 8,
+            ..Default::default()
+        },
+        Box::new(RayCastRenderer::new()),
+    );
+    t.prepare(scene.clone()).unwrap();
+    let big = t
+        .render(&FrameRequest::camera(&scene.cameras[0], 4 * W, 4 * H))
+        .unwrap();
+    let image = big.box_down(4);
+    let everything = vec![false; image.pixels.len()];
+    let (e, bias) = errors(&image, &truth, &everything);
+    eprintln!(
+        "{name}, 4096 elements, 4 x 4 samples per pixel: mean error {:.1} %, bias {:+.2} %",
+        100.0 * e,
+        100.0 * bias
+    );
+    assert!(bias.abs() < 0.02, "{name}: bias {bias}");
 }

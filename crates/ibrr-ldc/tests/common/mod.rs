@@ -64,25 +64,7 @@ pub fn ibrr_image(scene: &Arc<Scene>, settings: IbrrSettings, size: u32) -> (Ima
             size * SS,
         ))
         .unwrap();
-    (box_down(&big, SS), t)
-}
-
-/// Box-filters `img` by `k` in each direction.
-pub fn box_down(img: &Image, k: u32) -> Image {
-    let (w, h) = (img.width / k, img.height / k);
-    let mut out = Image::new(w, h);
-    for y in 0..h {
-        for x in 0..w {
-            let mut s = glam::Vec3::ZERO;
-            for dy in 0..k {
-                for dx in 0..k {
-                    s += img.pixels[((y * k + dy) * img.width + x * k + dx) as usize];
-                }
-            }
-            out.pixels[(y * w + x) as usize] = s / (k * k) as f32;
-        }
-    }
-    out
+    (big.box_down(SS), t)
 }
 
 /// The reference of `scene` from camera 0.

@@ -111,6 +111,36 @@ impl Image {
         (sum / self.pixels.len() as f64).as_vec3()
     }
 
+    /// The image box-filtered by `k` in each direction: pixel `(x, y)` is the mean of the
+    /// `k x k` block at `(k x, k y)` (a supersampled render brought to the size of a
+    /// reference that averages over each pixel); sides are divided by `k`, rounding down.
+    /// `k = 0` is taken as 1.
+    ///
+    /// ```
+    /// let mut img = scene_core::Image::new(4, 2);
+    /// img.pixels[0] = glam::Vec3::splat(4.0);
+    /// let small = img.box_down(2);
+    /// assert_eq!((small.width, small.height), (2, 1));
+    /// assert_eq!(small.pixels[0], glam::Vec3::ONE);
+    /// ```
+    pub fn box_down(&self, k: u32) -> Image {
+        let k = k.max(1);
+        let (w, h) = (self.width / k, self.height / k);
+        let mut out = Image::new(w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let mut s = Vec3::ZERO;
+                for dy in 0..k {
+                    for dx in 0..k {
+                        s += self.pixels[((y * k + dy) * self.width + x * k + dx) as usize];
+                    }
+                }
+                out.pixels[(y * w + x) as usize] = s / (k * k) as f32;
+            }
+        }
+        out
+    }
+
     /// Number of pixels with a NaN or infinite channel.
     pub fn non_finite_count(&self) -> usize {
         self.pixels.iter().filter(|p| !p.is_finite()).count()
