@@ -67,14 +67,7 @@ pub fn run(o: &Options) -> Result<(), String> {
     let lookup: Lookup = o.lookup.parse().map_err(|e| format!("--lookup: {e}"))?;
     let scene = Arc::new(crate::load_scene(&o.scene)?);
     let state = crate::relight::light_state(&scene, &o.lights)?;
-    let camera = scene.cameras.get(o.camera).ok_or_else(|| {
-        format!(
-            "scene '{}' has {} camera(s); --camera {} does not exist",
-            scene.name,
-            scene.cameras.len(),
-            o.camera
-        )
-    })?;
+    let camera = &crate::scene_camera(&scene, o.camera)?;
     let settings = IbrrSettings {
         resolution: o.ldc,
         irpls: o.irpls,

@@ -231,6 +231,27 @@ pub fn load_scene(spec: &str) -> Result<Scene, String> {
     }
 }
 
+/// Camera `index` of `scene`; a scene without cameras gets
+/// [`scene_core::rays::framing::framing_camera`] as camera 0 (said on stderr).
+pub fn scene_camera(scene: &Scene, index: usize) -> Result<scene_core::Camera, String> {
+    if scene.cameras.is_empty() && index == 0 {
+        let camera = scene_core::rays::framing::framing_camera(scene);
+        eprintln!(
+            "note: scene '{}' has no camera; using the default view '{}' (the candidate view \
+             that sees the most lit surface, docs/scene-core.md)",
+            scene.name, camera.name
+        );
+        return Ok(camera);
+    }
+    scene.cameras.get(index).cloned().ok_or_else(|| {
+        format!(
+            "scene '{}' has {} camera(s); --camera {index} does not exist",
+            scene.name,
+            scene.cameras.len()
+        )
+    })
+}
+
 /// Writes a command's view of `scene` as `DIR/<scene>.exr` and `.png` (creating `DIR`);
 /// returns both paths.
 pub fn write_view(
@@ -296,13 +317,7 @@ fn reference(
         ));
     }
     let scene = load_scene(scene_spec)?;
-    let cam = scene.cameras.get(camera).ok_or_else(|| {
-        format!(
-            "scene '{}' has {} camera(s); --camera {camera} does not exist",
-            scene.name,
-            scene.cameras.len()
-        )
-    })?;
+    let cam = scene_camera(&scene, camera)?;
     let cam = cam.with_aspect(width as f32 / height as f32);
     let view = View::from_camera(&cam);
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;

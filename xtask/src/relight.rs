@@ -155,14 +155,7 @@ pub fn run(o: &Options) -> Result<(), String> {
     }
     let scene = Arc::new(crate::load_scene(&o.scene)?);
     let state = light_state(&scene, &o.lights)?;
-    let camera = scene.cameras.get(o.camera).ok_or_else(|| {
-        format!(
-            "scene '{}' has {} camera(s); --camera {} does not exist",
-            scene.name,
-            scene.cameras.len(),
-            o.camera
-        )
-    })?;
+    let camera = &crate::scene_camera(&scene, o.camera)?;
     let form_factors = match o.form_factors.as_str() {
         "rays" => FormFactorMethod::Rays,
         "hemicube" => FormFactorMethod::Hemicube {

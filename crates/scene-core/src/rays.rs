@@ -1,6 +1,8 @@
 //! Rays: closest-hit and occlusion queries over a CWBVH ([`ray`]), the ground-truth path
-//! tracer built on them ([`reference`]), and the sampling it uses ([`sampling`]).
+//! tracer built on them ([`reference`]), the sampling it uses ([`sampling`]), and the
+//! default view of a scene without a camera ([`framing`]).
 
+pub mod framing;
 pub mod ray;
 pub mod reference;
 pub mod sampling;
