@@ -816,6 +816,25 @@ mod tests {
         eprintln!("mean error: dl {dl:.4}, relight {relight:.4}, ibrr {ibrr:.4}");
         assert!(relight < 0.8 * dl, "dl {dl}, relight {relight}");
         assert!(ibrr.is_finite() && ibrr > 0.0);
+        // The report's break-even table: a row per technique; DL (no precomputation) and
+        // the methods that precompute are compared, never a technique with itself.
+        let md = std::fs::read_to_string(o.out.join("report.md")).unwrap();
+        let table = md
+            .split("## Break-even")
+            .nth(1)
+            .expect("a break-even section");
+        for label in ["dl", "relight-64", "ibrr-64-48"] {
+            assert!(
+                table.contains(&format!("| {label} |")),
+                "{label} row missing"
+            );
+        }
+        assert!(
+            ["after ", "first ", "always", "never"]
+                .iter()
+                .any(|w| table.contains(w)),
+            "{table}"
+        );
         std::fs::remove_dir_all(&o.out).ok();
     }
 

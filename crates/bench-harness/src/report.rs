@@ -38,7 +38,65 @@ fn opt(x: Option<f64>) -> String {
     x.map(fmt_err).unwrap_or_else(|| "-".into())
 }
 
-/// The report in Markdown: settings, Table 2 (time), the summary statistics, speed against
+/// The break-even table: per scene, after how many frames each technique that
+/// precomputes costs less in total (precomputation + frames) than each other technique.
+/// Written only when some technique precomputes.
+fn break_even_table(o: &mut String, r: &Results) {
+    use crate::results::{BreakEven, break_even};
+    let mut scenes: Vec<&str> = r.views.iter().map(|v| v.scene.as_str()).collect();
+    scenes.sort_unstable();
+    scenes.dedup();
+    let n = scenes.len().max(1) as f64;
+    let rows: Vec<_> = r
+        .summary
+        .times
+        .iter()
+        .filter(|t| r.techniques.iter().any(|x| x.label == t.label))
+        .collect();
+    if !rows.iter().any(|t| t.prepare_s > 0.0) {
+        return;
+    }
+    let _ = writeln!(
+        o,
+        "\n## Break-even\n\nPer scene: precomputation (the mean over scenes) plus frames at the \
+         average frame time. \"after N\": the row's technique costs less than the column's \
+         from N frames on; \"first N\": for the first N frames only; \"always\" and \"never\" \
+         for any number of frames.\n"
+    );
+    let _ = write!(o, "| technique |");
+    for c in &rows {
+        let _ = write!(o, " {} |", c.label);
+    }
+    let _ = write!(o, "\n|---|");
+    for _ in &rows {
+        let _ = write!(o, "---|");
+    }
+    let _ = writeln!(o);
+    for a in &rows {
+        let _ = write!(o, "| {} |", a.label);
+        for b in &rows {
+            let cell = if a.label == b.label {
+                "".to_string()
+            } else {
+                match break_even(
+                    a.prepare_s / n,
+                    a.avg_frame_ms * 1e-3,
+                    b.prepare_s / n,
+                    b.avg_frame_ms * 1e-3,
+                ) {
+                    BreakEven::Always => "always".into(),
+                    BreakEven::Never => "never".into(),
+                    BreakEven::After(f) => format!("after {}", f.ceil()),
+                    BreakEven::Until(f) => format!("first {}", f.floor()),
+                }
+            };
+            let _ = write!(o, " {cell} |");
+        }
+        let _ = writeln!(o);
+    }
+}
+
+/// The report in Markdown: settings, Table 2 (time), the break-even frame counts, the summary statistics, speed against
 /// error per scene and the per-view errors of `headline` against the baseline.
 pub fn markdown(r: &Results, headline: Option<&str>) -> String {
     let s = &r.settings;
@@ -83,6 +141,7 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
             fmt_s(t.prepare_s)
         );
     }
+    break_even_table(&mut o, r);
     let _ = writeln!(
         o,
         "\n## Against the baseline (the thesis' summary statistics)\n\nGain = mean over views \

@@ -408,6 +408,34 @@ pub fn summarize(
     }
 }
 
+/// When technique A (precomputation `prepare_a` seconds, `frame_a` seconds a frame) costs
+/// less in total than technique B over `N` frames of one scene: `prepare + N frame`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BreakEven {
+    /// A is never dearer (no more precomputation, frames no slower).
+    Always,
+    /// A is never cheaper (no less precomputation, frames no faster).
+    Never,
+    /// A's faster frames pay for its longer precomputation after this many frames.
+    After(f64),
+    /// A's shorter precomputation keeps it cheaper for this many frames only.
+    Until(f64),
+}
+
+/// [`BreakEven`] of A against B.
+pub fn break_even(prepare_a: f64, frame_a: f64, prepare_b: f64, frame_b: f64) -> BreakEven {
+    let (dp, df) = (prepare_a - prepare_b, frame_b - frame_a);
+    if dp <= 0.0 && df >= 0.0 {
+        BreakEven::Always
+    } else if dp >= 0.0 && df <= 0.0 {
+        BreakEven::Never
+    } else if df > 0.0 {
+        BreakEven::After(dp / df)
+    } else {
+        BreakEven::Until(dp / df)
+    }
+}
+
 /// The thesis' quality gain `(e_baseline - e) / e_baseline` (0 when the baseline is exact).
 pub fn gain(baseline_error: f64, error: f64) -> f64 {
     if baseline_error > 0.0 {
@@ -438,5 +466,36 @@ pub fn mark_pareto(points: &mut [SpeedErrorPoint]) {
         p.pareto = !snapshot
             .iter()
             .any(|&(t, e)| t <= p.frame_ms && e <= p.error && (t < p.frame_ms || e < p.error));
+    }
+}
+
+#[cfg(test)]
+mod break_even_tests {
+    use super::*;
+
+    fn frames(b: BreakEven) -> f64 {
+        match b {
+            BreakEven::After(n) | BreakEven::Until(n) => n,
+            _ => f64::NAN,
+        }
+    }
+
+    #[test]
+    fn break_even_frames_follow_from_precomputation_and_frame_time() {
+        // 20 s of precomputation and 2 ms frames against none and 12 ms: 2000 frames, as
+        // 20 + 2000 x 0.002 = 2000 x 0.012.
+        let a = break_even(20.0, 0.002, 0.0, 0.012);
+        assert!(
+            matches!(a, BreakEven::After(_)) && (frames(a) - 2000.0).abs() < 1e-6,
+            "{a:?}"
+        );
+        let b = break_even(0.0, 0.012, 20.0, 0.002);
+        assert!(
+            matches!(b, BreakEven::Until(_)) && (frames(b) - 2000.0).abs() < 1e-6,
+            "{b:?}"
+        );
+        assert_eq!(break_even(0.0, 0.001, 1.0, 0.002), BreakEven::Always);
+        assert_eq!(break_even(1.0, 0.002, 0.0, 0.001), BreakEven::Never);
+        assert_eq!(break_even(1.0, 0.001, 1.0, 0.001), BreakEven::Always);
     }
 }
