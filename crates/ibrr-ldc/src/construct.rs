@@ -32,7 +32,8 @@ use crate::settings::{IbrrSettings, Splat};
 struct Sample {
     p: Vec3,
     n: Vec3,
-    /// The IRPL's irradiance at `p`.
+    /// The IRPL's irradiance at `p` (the paper's kernels copy it; zero until the warp
+    /// fills it in).
     value: Vec3,
     /// How the surface point moves for one pixel step right and down in the render: the
     /// pixel's footprint on its surface (a parallelogram), by distance and orientation.
@@ -355,7 +356,7 @@ impl Construction {
         let all: Vec<Vec<Sample>> = targets
             .iter()
             .enumerate()
-            .map(|(k, t)| samples_of(irpl, t, &recon[k], &buffers[k]))
+            .map(|(k, t)| samples_of(t, &recon[k], &buffers[k]))
             .collect();
         let scale = if g_max.is_finite() {
             let (mut full, mut clamped) = (0.0f64, 0.0f64);
@@ -377,7 +378,9 @@ impl Construction {
         for samples in all {
             self.stats.samples += samples.len() as u64;
             for mut s in samples {
-                if g_max.is_finite() {
+                // The paper's kernels copy the sample's own value (clamped and compensated
+                // like every other); the exact mode evaluates at each LDI pixel instead.
+                if !exact {
                     s.value = value_at(s.p, s.n);
                 }
                 let plane_d = s.p.dot(s.n);
@@ -463,18 +466,18 @@ impl Construction {
         if exact {
             // Every layer not reached by a sample: lit when no surface of the IRPL's renders
             // lies between the IRPL and the layer's centre.
-            let renders: Vec<Render> = targets
-                .iter()
-                .zip(&recon)
-                .zip(&vps)
-                .zip(buffers)
-                .map(|(((t, r), vp), g)| Render::new(&t.view, *r, *vp, g))
-                .collect();
             let (eps_d, eps_n) = (frame.eps_distance, frame.eps_normal);
             if let Some(g) = self.gpu.as_mut() {
                 let values = g.gather(&self.builder, irpl, g_max, scale, targets, buffers)?;
                 self.builder.apply_gathered(&values);
             } else {
+                let renders: Vec<Render> = targets
+                    .iter()
+                    .zip(&recon)
+                    .zip(&vps)
+                    .zip(buffers)
+                    .map(|(((t, r), vp), g)| Render::new(&t.view, *r, *vp, g))
+                    .collect();
                 self.builder.gather(|q, n| {
                     let e = value_at(q, n);
                     (e.max_element() > 0.0
@@ -494,14 +497,10 @@ impl Construction {
     }
 }
 
-/// The surface samples of one render of an IRPL: position, normal, irradiance and
-/// footprint of every pixel that hit geometry.
-fn samples_of(
-    irpl: &Irpl,
-    target: &ViewTarget,
-    recon: &FrustumReconstruction,
-    g: &GBuffer,
-) -> Vec<Sample> {
+/// The surface samples of one render of an IRPL: position, normal and footprint of every
+/// pixel that hit geometry (values are filled in by the warp, once the clamp's compensation
+/// is known).
+fn samples_of(target: &ViewTarget, recon: &FrustumReconstruction, g: &GBuffer) -> Vec<Sample> {
     let (w, hgt) = (g.width, g.height);
     let view = &target.view;
     let (right, up) = (view.right(), view.up);
@@ -555,11 +554,10 @@ fn samples_of(
                     nd
                 };
                 let step = |e: Vec3| (e - dir * (n.dot(e) / nd)) * t;
-                let value = irpl.irradiance_at(p, n);
                 Some(Sample {
                     p,
                     n,
-                    value: if value.is_finite() { value } else { Vec3::ZERO },
+                    value: Vec3::ZERO,
                     du: step(right * dx),
                     dv: step(up * dy),
                 })

@@ -66,6 +66,9 @@ pub struct GpuLdc {
     lookup: Lookup,
     fallback_radius: u32,
     bytes: u64,
+    /// The glow table of the last frame and what it was built for (scene address, triangle
+    /// count, light fingerprint): rebuilt and uploaded only when the lights change.
+    glow: Option<((usize, usize, u64), wgpu::Buffer, u32)>,
 }
 
 impl std::fmt::Debug for GpuLdc {
@@ -161,6 +164,7 @@ impl GpuLdc {
             lookup,
             fallback_radius,
             bytes: ldc.offsets.len() as u64 * 4 + layers * 48,
+            glow: None,
         })
         .map_err(gpu)
     }
@@ -196,7 +200,7 @@ impl GpuLdc {
     /// The image of `g` (the camera's G-buffer of `scene` from `view`) under `lights`, and
     /// the pixel counts of the fallback and of pixels without a layer.
     pub fn render(
-        &self,
+        &mut self,
         scene: &Scene,
         g: &GpuGBuffer,
         view: &View,
@@ -209,7 +213,21 @@ impl GpuLdc {
             Projection::Perspective { .. } => view.eye.extend(1.0),
             Projection::Orthographic { .. } => view.forward.extend(0.0),
         };
-        let table = Self::triangles(scene, lights);
+        let key = (
+            std::ptr::from_ref(scene) as usize,
+            scene.triangle_count(),
+            lights.fingerprint(),
+        );
+        if self.glow.as_ref().is_none_or(|(k, _, _)| *k != key) {
+            let table = Self::triangles(scene, lights);
+            let buffer = self.ctx.storage_with(
+                "ibrr triangles",
+                bytemuck::cast_slice(&table),
+                wgpu::BufferUsages::empty(),
+            );
+            self.glow = Some((key, buffer, table.len() as u32));
+        }
+        let (_, tri, triangles) = self.glow.as_ref().expect("built above");
         let params = Params {
             frustum: FrustumReconstruction::new(view).uniform(),
             view_projection: view.view_projection().to_cols_array_2d(),
@@ -222,7 +240,7 @@ impl GpuLdc {
             eps_distance: f.eps_distance,
             eps_normal: f.eps_normal,
             band: f.band,
-            triangles: table.len() as u32,
+            triangles: *triangles,
         };
         let ctx = &self.ctx;
         let uniform = ctx
@@ -232,11 +250,7 @@ impl GpuLdc {
                 contents: bytemuck::bytes_of(&params),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-        let tri = ctx.storage_with(
-            "ibrr triangles",
-            bytemuck::cast_slice(&table),
-            wgpu::BufferUsages::empty(),
-        );
+
         let image = ctx.storage_with(
             "ibrr image",
             &vec![0u8; pixels.max(1) * 16],

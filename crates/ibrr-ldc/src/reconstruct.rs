@@ -263,16 +263,15 @@ pub fn shade(
         if let Some(t) = scene.triangle_ref(&offsets, g.triangle_id[i]) {
             let mesh = &scene.meshes[t.mesh as usize];
             let m = mesh.material_ids[t.local as usize];
-            let tri = mesh.indices[t.local as usize].map(|k| mesh.positions[k as usize]);
-            let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
-            let (x, y) = (i as u32 % g.width, i as u32 / g.width);
-            let p = recon.world(pixel_uv(x, y, g.width, g.height), g.depth[i]);
-            let (eye, _) = view.ray(pixel_uv(x, y, g.width, g.height));
-            if let Some(mat) = scene.materials.get(m as usize)
-                && mat.is_emissive()
-                && ng.dot(p - eye) < 0.0
-            {
-                l += mat.emission * lights.get(LightId::Emissive(t.mesh)).direct_factor();
+            // Only emitters need their winding and the pixel's position.
+            if let Some(mat) = scene.materials.get(m as usize).filter(|m| m.is_emissive()) {
+                let tri = mesh.indices[t.local as usize].map(|k| mesh.positions[k as usize]);
+                let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+                let uv = pixel_uv(i as u32 % g.width, i as u32 / g.width, g.width, g.height);
+                let (eye, _) = view.ray(uv);
+                if ng.dot(recon.world(uv, g.depth[i]) - eye) < 0.0 {
+                    l += mat.emission * lights.get(LightId::Emissive(t.mesh)).direct_factor();
+                }
             }
         }
         img.pixels[i] = if l.is_finite() { l } else { Vec3::ZERO };

@@ -211,7 +211,7 @@ impl Technique for IbrrTechnique {
             };
             let gbuffer = t.elapsed();
             let t = Instant::now();
-            let gpu_ldc = uploaded.as_ref().expect("uploaded above");
+            let gpu_ldc = uploaded.as_mut().expect("uploaded above");
             let (image, counts) = gpu_ldc.render(&c.scene, &g, &frame.view, frame.lights)?;
             self.timings = FrameTimings {
                 rebuild,

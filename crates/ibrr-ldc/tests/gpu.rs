@@ -46,7 +46,7 @@ fn gpu_reconstruction_equals_the_cpu_one() {
         ] {
             let r = reconstruct(ldc, &g, &frame.view, lookup, settings.fallback_radius);
             let cpu = shade(&scene, &g, &frame.view, &r, &lights);
-            let gpu_ldc = GpuLdc::new(&ctx, ldc, lookup, settings.fallback_radius).unwrap();
+            let mut gpu_ldc = GpuLdc::new(&ctx, ldc, lookup, settings.fallback_radius).unwrap();
             let (gpu, counts) = gpu_ldc.render(&scene, &gg, &frame.view, &lights).unwrap();
             let peak = cpu
                 .pixels
