@@ -2,7 +2,6 @@
 //! from particle walks warped into a layered depth cube) and write the view from a scene
 //! camera and a summary.
 
-use std::sync::Arc;
 use std::time::Instant;
 
 use ibrr_ldc::{IbrrSettings, IbrrTechnique, Lookup, Splat};
@@ -11,9 +10,9 @@ use scene_core::{FrameRequest, Technique};
 /// The options of `xtask ibrr`.
 #[derive(Debug, clap::Args)]
 pub struct Options {
-    /// Built-in scene name or a .gltf/.glb path.
-    #[arg(long, default_value = "cornell")]
-    pub scene: String,
+    /// Scene, lights, camera, size and exposure.
+    #[command(flatten)]
+    pub view: crate::ViewArgs,
     /// Output directory.
     #[arg(long, default_value = "out/ibrr")]
     pub out: std::path::PathBuf,
@@ -37,37 +36,14 @@ pub struct Options {
     /// Seed of the particle walks.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// A light's emission in the scene's units: ID=R,G,B with ID point:N, directional:N
-    /// or emissive:N (a mesh index). Repeatable. The IBRR bakes it in.
-    #[arg(long = "light")]
-    pub lights: Vec<String>,
-    /// Index of the scene camera to render.
-    #[arg(long, default_value_t = 0)]
-    pub camera: usize,
-    /// Image width.
-    #[arg(long, default_value_t = 256)]
-    pub width: u32,
-    /// Image height.
-    #[arg(long, default_value_t = 192)]
-    pub height: u32,
-    /// PNG exposure in stops.
-    #[arg(long, default_value_t = 0.0)]
-    pub exposure: f32,
 }
 
 /// Runs the command.
 pub fn run(o: &Options) -> Result<(), String> {
-    if o.width == 0 || o.height == 0 {
-        return Err(format!(
-            "--width and --height must be positive (got {}x{})",
-            o.width, o.height
-        ));
-    }
     let splat: Splat = o.splat.parse().map_err(|e| format!("--splat: {e}"))?;
     let lookup: Lookup = o.lookup.parse().map_err(|e| format!("--lookup: {e}"))?;
-    let scene = Arc::new(crate::load_scene(&o.scene)?);
-    let state = crate::relight::light_state(&scene, &o.lights)?;
-    let camera = &crate::scene_camera(&scene, o.camera)?;
+    let (scene, state, camera) = o.view.open()?;
+    let camera = &camera;
     let settings = IbrrSettings {
         resolution: o.ldc,
         irpls: o.irpls,
@@ -89,7 +65,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         .map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     let build_s = t0.elapsed().as_secs_f64();
-    let frame = FrameRequest::from_camera(camera, o.width, o.height, &state);
+    let frame = FrameRequest::from_camera(camera, o.view.width, o.view.height, &state);
     // One frame to warm up, one timed.
     technique.render(&frame).map_err(|e| e.to_string())?;
     let image = technique.render(&frame).map_err(|e| e.to_string())?;
@@ -97,7 +73,7 @@ pub fn run(o: &Options) -> Result<(), String> {
     let c = technique.construction().expect("built above");
     let stats = c.stats();
     let ldc = technique.ldc().expect("built above");
-    let (exr, png) = crate::write_view(&o.out, &scene, &image, o.exposure)?;
+    let (exr, png) = crate::write_view(&o.out, &scene, &image, o.view.exposure)?;
     let frame_ms = (timings.gbuffer + timings.lookup).as_secs_f64() * 1e3;
     let summary = serde_json::json!({
         "scene": scene.name,
@@ -123,8 +99,8 @@ pub fn run(o: &Options) -> Result<(), String> {
         "pixels_without_layer": timings.missing,
         "pixels_from_fallback": timings.fallback,
         "camera": camera.name,
-        "width": o.width,
-        "height": o.height,
+        "width": o.view.width,
+        "height": o.view.height,
     });
     let json = crate::write_summary(&o.out, &summary)?;
     eprintln!(

@@ -34,6 +34,8 @@ use std::time::Instant;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use scene_core::reference::{Accumulator, Bounces, PathTracer};
+use std::sync::Arc;
+
 use scene_core::{Scene, View, builtin, gltf_io};
 
 #[derive(Parser)]
@@ -228,6 +230,46 @@ pub fn load_scene(spec: &str) -> Result<Scene, String> {
         Ok(imported.scene)
     } else {
         builtin::scene(spec).map_err(|e| e.to_string())
+    }
+}
+
+/// The options every command that renders one view of a scene takes.
+#[derive(Debug, clap::Args)]
+pub struct ViewArgs {
+    /// Built-in scene name or a .gltf/.glb path.
+    #[arg(long, default_value = "cornell")]
+    pub scene: String,
+    /// A light's emission in the scene's units: ID=R,G,B with ID point:N, directional:N
+    /// or emissive:N (a mesh index). Repeatable.
+    #[arg(long = "light")]
+    pub lights: Vec<String>,
+    /// Index of the scene camera to render (a scene without cameras: its default view).
+    #[arg(long, default_value_t = 0)]
+    pub camera: usize,
+    /// Image width.
+    #[arg(long, default_value_t = 256)]
+    pub width: u32,
+    /// Image height.
+    #[arg(long, default_value_t = 192)]
+    pub height: u32,
+    /// PNG exposure in stops.
+    #[arg(long, default_value_t = 0.0)]
+    pub exposure: f32,
+}
+
+impl ViewArgs {
+    /// Checks the size, loads the scene, parses the lights and picks the camera.
+    pub fn open(&self) -> Result<(Arc<Scene>, scene_core::LightState, scene_core::Camera), String> {
+        if self.width == 0 || self.height == 0 {
+            return Err(format!(
+                "--width and --height must be positive (got {}x{})",
+                self.width, self.height
+            ));
+        }
+        let scene = Arc::new(load_scene(&self.scene)?);
+        let state = relight::light_state(&scene, &self.lights)?;
+        let camera = scene_camera(&scene, self.camera)?;
+        Ok((scene, state, camera))
     }
 }
 

@@ -2,7 +2,6 @@
 //! (relight-pr), relight it with the lights given on the command line, and write the view
 //! from a scene camera and a summary.
 
-use std::sync::Arc;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -14,9 +13,9 @@ use scene_core::{FrameRequest, Scene, Technique};
 /// The options of `xtask relight`.
 #[derive(Debug, clap::Args)]
 pub struct Options {
-    /// Built-in scene name or a .gltf/.glb path.
-    #[arg(long, default_value = "cornell")]
-    pub scene: String,
+    /// Scene, lights, camera, size and exposure.
+    #[command(flatten)]
+    pub view: crate::ViewArgs,
     /// Output directory.
     #[arg(long, default_value = "out/relight")]
     pub out: std::path::PathBuf,
@@ -33,19 +32,6 @@ pub struct Options {
     /// Hemicube resolution (with --form-factors hemicube).
     #[arg(long, default_value_t = 128)]
     pub hemicube_resolution: u32,
-    /// A light's emission in the scene's units: ID=R,G,B with ID point:N, directional:N
-    /// or emissive:N (a mesh index). Repeatable.
-    #[arg(long = "light")]
-    pub lights: Vec<String>,
-    /// Index of the scene camera to render.
-    #[arg(long, default_value_t = 0)]
-    pub camera: usize,
-    /// Image width.
-    #[arg(long, default_value_t = 256)]
-    pub width: u32,
-    /// Image height.
-    #[arg(long, default_value_t = 192)]
-    pub height: u32,
     /// Stop when the unshot fraction of the emitted energy is below this.
     #[arg(long, default_value_t = 1e-3)]
     pub max_unshot: f64,
@@ -59,9 +45,6 @@ pub struct Options {
     /// Visibility rays per footprint point for each emissive source (with --direct pixels).
     #[arg(long, default_value_t = 4)]
     pub emitter_rays: u32,
-    /// PNG exposure in stops.
-    #[arg(long, default_value_t = 0.0)]
-    pub exposure: f32,
 }
 
 /// A light id as the command line writes it: `point:N`, `directional:N`, `emissive:N`
@@ -147,15 +130,8 @@ pub fn light_state(scene: &Scene, settings: &[String]) -> Result<LightState, Str
 
 /// Runs the command.
 pub fn run(o: &Options) -> Result<(), String> {
-    if o.width == 0 || o.height == 0 {
-        return Err(format!(
-            "--width and --height must be positive (got {}x{})",
-            o.width, o.height
-        ));
-    }
-    let scene = Arc::new(crate::load_scene(&o.scene)?);
-    let state = light_state(&scene, &o.lights)?;
-    let camera = &crate::scene_camera(&scene, o.camera)?;
+    let (scene, state, camera) = o.view.open()?;
+    let camera = &camera;
     let form_factors = match o.form_factors.as_str() {
         "rays" => FormFactorMethod::Rays,
         "hemicube" => FormFactorMethod::Hemicube {
@@ -197,7 +173,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         .map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     let solve_s = t0.elapsed().as_secs_f64();
-    let frame = FrameRequest::from_camera(camera, o.width, o.height, &state);
+    let frame = FrameRequest::from_camera(camera, o.view.width, o.view.height, &state);
     let image = technique.render(&frame).map_err(|e| e.to_string())?;
     let timings = technique.last_timings();
     let relight_ms = timings.relight.as_secs_f64() * 1e3;
@@ -210,7 +186,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         meshing.patches.len(),
         meshing.elements.len()
     );
-    let (exr, png) = crate::write_view(&o.out, &scene, &image, o.exposure)?;
+    let (exr, png) = crate::write_view(&o.out, &scene, &image, o.view.exposure)?;
     let stem = exr
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
@@ -222,7 +198,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         &prepared.welding,
         solution,
         &state,
-        o.exposure,
+        o.view.exposure,
         &gltf,
     )
     .map_err(|e| e.to_string())?;
@@ -264,8 +240,8 @@ pub fn run(o: &Options) -> Result<(), String> {
         "gltf": gltf.file_name().map(|f| f.to_string_lossy().into_owned()),
         "solution_bytes": relight_pr::solver::solution_bytes(meshing.elements.len(), meshing.patches.len(), solution.k()),
         "camera": camera.name,
-        "width": o.width,
-        "height": o.height,
+        "width": o.view.width,
+        "height": o.view.height,
     });
     let json = crate::write_summary(&o.out, &summary)?;
     eprintln!(
