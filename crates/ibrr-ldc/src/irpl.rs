@@ -19,10 +19,10 @@
 //! ([`IrplKind::EmitterSample`]).
 
 use glam::{Vec2, Vec3};
+use scene_core::Scene;
 use scene_core::lights::{Emitters, LightId, LightState};
 use scene_core::ray::{Hit, RayScene};
 use scene_core::sampling::{Rng, cosine_hemisphere, halton, uniform_sphere, uniform_triangle};
-use scene_core::{Scene, luminance};
 
 /// What an IRPL is.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -300,10 +300,7 @@ pub fn generate(
     }
     let weights: Vec<f64> = starts
         .iter()
-        .map(|(_, p, _)| {
-            let w = f64::from(luminance(*p).max(p.max_element() * 1e-3));
-            if w.is_finite() && w > 0.0 { w } else { 0.0 }
-        })
+        .map(|(_, p, _)| scene_core::lights::sampling_weight(*p))
         .collect();
     let total: f64 = weights.iter().sum();
     if total <= 0.0 || (settings.paths == 0 && settings.irpls as usize <= set.irpls.len()) {

@@ -259,6 +259,14 @@ pub fn falloff(radius: Option<f32>, distance: f32) -> f32 {
     }
 }
 
+/// The weight that picks a light source by its (RGB) power: its luminance, floored at
+/// 1e-3 of its brightest channel so that saturated colours keep some weight; 0 for
+/// non-finite or non-positive power. [`Emitters`] and ibrr-ldc's particle walks use it.
+pub fn sampling_weight(power: Vec3) -> f64 {
+    let w = f64::from(luminance(power).max(power.max_element() * 1e-3));
+    if w > 0.0 && w.is_finite() { w } else { 0.0 }
+}
+
 /// One emissive triangle.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EmissiveTriangle {
@@ -320,9 +328,7 @@ impl Emitters {
                     let p = t.map(|i| mesh.positions[i as usize]);
                     let c = (p[1] - p[0]).cross(p[2] - p[0]);
                     let area = 0.5 * c.length();
-                    let power = le * scale;
-                    let weight = f64::from(luminance(power).max(power.max_element() * 1e-3))
-                        * f64::from(area);
+                    let weight = sampling_weight(le * scale) * f64::from(area);
                     e.per_triangle.push(e.triangles.len() as u32);
                     e.triangles.push(EmissiveTriangle {
                         triangle: global,
