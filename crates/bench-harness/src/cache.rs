@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use scene_core::reference::{self, ReferenceSettings};
-use scene_core::{Camera, Image, Scene, View};
+use scene_core::{Camera, Image, LightState, Scene, View};
 use serde::{Deserialize, Serialize};
 
 use crate::HarnessError;
@@ -84,7 +84,34 @@ impl ReferenceCache {
         settings: &ReferenceSettings,
         progress: Option<&(dyn Fn(u64, u64) + Sync)>,
     ) -> Result<CachedReference, HarnessError> {
-        let key = reference_key(scene_hash, camera, settings);
+        self.get_or_render_lit(
+            scene,
+            scene_hash,
+            camera,
+            settings,
+            &LightState::default(),
+            progress,
+        )
+    }
+
+    /// [`get_or_render`](Self::get_or_render) under a light state (recoloured, dimmed or
+    /// switched lights): the state's fingerprint is part of the key, so each frame of a
+    /// relighting sequence has its own cached reference.
+    pub fn get_or_render_lit(
+        &self,
+        scene: &Scene,
+        scene_hash: u64,
+        camera: &Camera,
+        settings: &ReferenceSettings,
+        lights: &LightState,
+        progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+    ) -> Result<CachedReference, HarnessError> {
+        let mut key = reference_key(scene_hash, camera, settings);
+        if !lights.is_default() {
+            let mut h = Fnv::default();
+            h.u64(key).u64(lights.fingerprint());
+            key = h.finish();
+        }
         let exr = self.dir.join(format!("{key:016x}.exr"));
         let meta_path = self.dir.join(format!("{key:016x}.json"));
         let budget = scene_core::Budget::default();
@@ -102,7 +129,13 @@ impl ReferenceCache {
                 from_cache: true,
             });
         }
-        let out = reference::render(scene, &View::from_camera(camera), settings, progress);
+        let out = reference::render_lit(
+            scene,
+            &View::from_camera(camera),
+            settings,
+            lights,
+            progress,
+        );
         std::fs::create_dir_all(&self.dir).map_err(|e| HarnessError::io(&self.dir, e))?;
         out.image
             .write_exr(&exr)

@@ -13,12 +13,12 @@ use crate::HarnessError;
 use crate::cache::{Fnv, ReferenceCache, scene_hash};
 use crate::cameras::CameraSpec;
 use crate::results::{
-    ErrorSet, ReferenceResult, Results, RunSettings, TechniqueInfo, TechniqueResult, Timing,
+    ErrorSet, LadderPoint, ReferenceResult, Results, RunSettings, TechniqueInfo, TechniqueResult, Timing,
     ViewResult, summarize,
 };
 
 /// Version of the per-view result format; views written by another version are recomputed.
-pub const RESULTS_VERSION: u64 = 2;
+pub const RESULTS_VERSION: u64 = 3;
 
 /// A scene and the cameras to render it from.
 pub struct SceneSetup {
@@ -83,6 +83,27 @@ pub struct ExperimentSettings {
     pub exposure: f32,
     /// Write every image (EXR and PNG, and difference images); off keeps only the gallery.
     pub write_images: bool,
+    /// The equal-error ladder: sample counts (below `spp`) at which the path tracer also
+    /// renders each view with another seed, to find the spp at which its error equals each
+    /// technique's ([`crate::results::equal_error`]). Empty: no ladder.
+    pub ladder_spp: Vec<u32>,
+}
+
+/// The default equal-error ladder for a reference of `spp` samples: powers of two from 1 up
+/// to `spp / 8` (the rungs together cost about a quarter of the reference).
+pub fn default_ladder(spp: u32) -> Vec<u32> {
+    let mut v = Vec::new();
+    let mut n = 1u32;
+    while n <= spp / 8 {
+        v.push(n);
+        n *= 2;
+    }
+    v
+}
+
+/// The seed of the ladder's renders: independent of the reference's.
+pub fn ladder_seed(seed: u64) -> u64 {
+    seed ^ 0x1add_e5ee_d000_0001
 }
 
 impl Default for ExperimentSettings {
@@ -105,6 +126,7 @@ impl Default for ExperimentSettings {
             stop_after_views: None,
             exposure: 0.0,
             write_images: true,
+            ladder_spp: Vec::new(),
         }
     }
 }
@@ -250,6 +272,9 @@ impl Experiment {
             .str(&s.error_metric);
         for b in &s.bounces {
             h.str(&b.to_string());
+        }
+        for n in &s.ladder_spp {
+            h.u64(u64::from(*n));
         }
         for t in &self.techniques {
             h.str(&t.label)
@@ -446,6 +471,49 @@ impl Experiment {
         })
     }
 
+    /// The equal-error ladder of one view at bounce limit `b`: the path tracer at each
+    /// ladder spp below the reference's, with the ladder seed, measured against `reference`
+    /// by the error metric. Returns the rungs and the number of renders made (not cached).
+    fn ladder(
+        &self,
+        sc: &SceneSetup,
+        hash: u64,
+        cam: &Camera,
+        b: Bounces,
+        reference: &Image,
+        cache: &ReferenceCache,
+    ) -> Result<(Vec<LadderPoint>, u64), HarnessError> {
+        let s = &self.settings;
+        let Some(metric) = self.metrics.iter().find(|m| m.name() == s.error_metric) else {
+            return Ok((Vec::new(), 0));
+        };
+        let mut rungs = Vec::new();
+        let mut renders = 0;
+        for &spp in s.ladder_spp.iter().filter(|&&n| n > 0 && n < s.spp) {
+            let rs = ReferenceSettings {
+                width: s.width,
+                height: s.height,
+                spp,
+                bounces: b,
+                seed: ladder_seed(s.seed),
+            };
+            let r = cache.get_or_render(&sc.scene, hash, cam, &rs, None)?;
+            renders += u64::from(!r.from_cache);
+            let v = metric
+                .compare(reference, &r.image)
+                .map_err(|e| HarnessError::Metric {
+                    name: metric.name().to_string(),
+                    source: Box::new(e),
+                })?;
+            rungs.push(LadderPoint {
+                spp,
+                seconds: r.seconds,
+                error: v.value,
+            });
+        }
+        Ok((rungs, renders))
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn run_view(
         &mut self,
@@ -492,11 +560,14 @@ impl Experiment {
             }
             let stem = format!("reference-b{b}");
             write_image(&dir, &stem, &r.image, s.exposure, true)?;
+            let ladder = self.ladder(sc, hash, &cam, *b, &r.image, cache)?;
+            ref_renders += ladder.1;
             references.push(ReferenceResult {
                 bounces: b.to_string(),
                 spp: s.spp,
                 seconds: r.seconds,
                 key: format!("{:016x}", r.key),
+                ladder: ladder.0,
             });
             ref_images.push(r.image);
         }
@@ -588,6 +659,17 @@ impl Experiment {
                     }
                     (Some(c), Some(f))
                 };
+                let error = metrics
+                    .iter()
+                    .find(|(n, _)| n == &s.error_metric)
+                    .map(|m| m.1);
+                let equal_error = error.and_then(|e| {
+                    crate::results::equal_error(
+                        &references[ri].ladder,
+                        e,
+                        results[ti].frame.median_s,
+                    )
+                });
                 let label = &results[ti].label;
                 let diff = difference(reference, img);
                 // Difference images: every one when asked, the gallery's always.
@@ -604,6 +686,7 @@ impl Experiment {
                     pixels_closer: closer,
                     pixels_farther: farther,
                     pixels: reference.pixels.len() as u64,
+                    equal_error,
                 });
             }
         }

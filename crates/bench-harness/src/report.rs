@@ -96,6 +96,48 @@ fn break_even_table(o: &mut String, r: &Results) {
     }
 }
 
+/// The equal-error table: the path tracer's spp and time at each technique's error.
+fn equal_error_table(o: &mut String, r: &Results) {
+    if r.summary.equal_error.is_empty() {
+        return;
+    }
+    let ladder: Vec<String> = r
+        .views
+        .first()
+        .and_then(|v| v.references.first())
+        .map(|rf| rf.ladder.iter().map(|p| p.spp.to_string()).collect())
+        .unwrap_or_default();
+    let _ = writeln!(
+        o,
+        "\n## Equal error (why not just path trace)\n\nThe path tracer renders every view \
+         again at {} spp with another seed; its error against the reference, read in log-log \
+         between those rungs, gives the spp at which it is as close as each technique, and \
+         its seconds per sample give the time. Speedup: path-tracer seconds over the \
+         technique's frame time (precomputation not counted; above 1 the technique is \
+         faster at equal error). Extrapolated: views whose error lies outside the ladder.\n",
+        ladder.join(", ")
+    );
+    let _ = writeln!(
+        o,
+        "| technique | bounces | views | mean error | path tracer spp (median) | path tracer (s) | frame (ms) | speedup | extrapolated |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    for e in &r.summary.equal_error {
+        let _ = writeln!(
+            o,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            e.technique,
+            e.bounces,
+            e.views,
+            fmt_err(e.mean_error),
+            fmt_2(e.median_spp),
+            fmt_s(e.mean_path_tracer_s),
+            fmt_ms(e.mean_frame_s * 1e3),
+            fmt_2(e.speedup),
+            e.extrapolated
+        );
+    }
+}
+
 /// The report in Markdown: settings, Table 2 (time), the break-even frame counts, the summary statistics, speed against
 /// error per scene and the per-view errors of `headline` against the baseline.
 pub fn markdown(r: &Results, headline: Option<&str>) -> String {
@@ -142,6 +184,7 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
         );
     }
     break_even_table(&mut o, r);
+    equal_error_table(&mut o, r);
     let _ = writeln!(
         o,
         "\n## Against the baseline (the thesis' summary statistics)\n\nGain = mean over views \

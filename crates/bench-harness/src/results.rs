@@ -53,6 +53,82 @@ pub struct ErrorSet {
     pub pixels_farther: Option<u64>,
     /// Pixels compared.
     pub pixels: u64,
+    /// The path tracer's samples per pixel (and time) at which its own error equals this
+    /// technique's error (`None` without a ladder, or for the reference's bounce limit
+    /// when the ladder's error does not fall with the sample count).
+    #[serde(default)]
+    pub equal_error: Option<EqualError>,
+}
+
+/// One rung of the equal-error ladder: the path tracer at a lower sample count (another
+/// seed) against the high-spp reference.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LadderPoint {
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Seconds of the render.
+    pub seconds: f64,
+    /// Its error against the reference (the experiment's error metric).
+    pub error: f64,
+}
+
+/// The path tracer's cost at a technique's error.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EqualError {
+    /// Samples per pixel at which the path tracer's error equals the technique's
+    /// (interpolated in log-log between ladder rungs).
+    pub spp: f64,
+    /// Seconds the path tracer takes at that sample count (its measured seconds per spp).
+    pub seconds: f64,
+    /// `seconds` over the technique's median frame time: how many times faster the
+    /// technique is at equal error (above 1: the technique wins).
+    pub speedup: f64,
+    /// True when the error lies outside the ladder and the spp was extrapolated along the
+    /// nearest two rungs' slope.
+    pub extrapolated: bool,
+}
+
+/// The equal-error point of `error` on `ladder` for a technique whose frame takes
+/// `frame_s` seconds: the ladder is read as `log e = a + k log spp` between the two rungs
+/// that bracket `error` (the nearest two outside it, marked extrapolated). `None` with fewer
+/// than two rungs, a non-positive error, or a segment whose error does not fall.
+pub fn equal_error(ladder: &[LadderPoint], error: f64, frame_s: f64) -> Option<EqualError> {
+    let mut l: Vec<LadderPoint> = ladder
+        .iter()
+        .copied()
+        .filter(|p| p.spp > 0 && p.error > 0.0 && p.error.is_finite())
+        .collect();
+    l.sort_by_key(|p| p.spp);
+    if l.len() < 2 || !(error > 0.0 && error.is_finite()) {
+        return None;
+    }
+    let n = l.len();
+    // The segment: the first whose lower end is at or below `error`, else the last.
+    let (i, extrapolated) = match l.iter().position(|p| p.error <= error) {
+        Some(0) => (0, error > l[0].error),
+        Some(k) => (k - 1, false),
+        None => (n - 2, true),
+    };
+    let (a, b) = (l[i], l[i + 1]);
+    let (x0, x1) = ((a.spp as f64).ln(), (b.spp as f64).ln());
+    let (y0, y1) = (a.error.ln(), b.error.ln());
+    if y1 >= y0 {
+        return None;
+    }
+    let x = x0 + (error.ln() - y0) * (x1 - x0) / (y1 - y0);
+    let spp = x.exp();
+    let top = l[n - 1];
+    let seconds = spp * top.seconds / top.spp as f64;
+    Some(EqualError {
+        spp,
+        seconds,
+        speedup: if frame_s > 0.0 {
+            seconds / frame_s
+        } else {
+            f64::INFINITY
+        },
+        extrapolated,
+    })
 }
 
 impl ErrorSet {
@@ -86,6 +162,10 @@ pub struct ReferenceResult {
     pub seconds: f64,
     /// The cache key (hex).
     pub key: String,
+    /// The equal-error ladder: the path tracer at lower sample counts against this
+    /// reference (empty when not asked).
+    #[serde(default)]
+    pub ladder: Vec<LadderPoint>,
 }
 
 /// Everything measured on one view (scene and camera).
@@ -212,6 +292,29 @@ pub struct SceneSpeedError {
     pub points: Vec<SpeedErrorPoint>,
 }
 
+/// The path tracer at a technique's error, over the views of a run.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EqualErrorRow {
+    /// Technique label.
+    pub technique: String,
+    /// The reference's bounce limit.
+    pub bounces: String,
+    /// Views with an equal-error point.
+    pub views: usize,
+    /// Of those, views whose point was extrapolated beyond the ladder.
+    pub extrapolated: usize,
+    /// Mean over views of the technique's error.
+    pub mean_error: f64,
+    /// Median over views of the path tracer's spp at that error.
+    pub median_spp: f64,
+    /// Mean over views of the path tracer's seconds at that error.
+    pub mean_path_tracer_s: f64,
+    /// Mean over views of the technique's median frame time (seconds).
+    pub mean_frame_s: f64,
+    /// `mean_path_tracer_s / mean_frame_s`: above 1 the technique is faster at equal error.
+    pub speedup: f64,
+}
+
 /// Summary of a run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
@@ -219,8 +322,12 @@ pub struct Summary {
     pub times: Vec<TimeRow>,
     /// Every technique but the baseline against it, per bounce limit.
     pub comparisons: Vec<Comparison>,
-    /// Speed against error per scene (error at the first bounce limit).
+    /// Speed against error per scene and bounce limit.
     pub speed_error: Vec<SceneSpeedError>,
+    /// The path tracer's spp and time at each technique's error, per bounce limit (empty
+    /// without a ladder).
+    #[serde(default)]
+    pub equal_error: Vec<EqualErrorRow>,
 }
 
 /// The settings of a run, as recorded.
@@ -366,8 +473,44 @@ pub fn summarize(
         }
     }
 
+    let mut equal_error_rows = Vec::new();
+    for t in techniques {
+        for b in &settings.bounces {
+            let points: Vec<(f64, EqualError, f64)> = views
+                .iter()
+                .filter_map(|v| {
+                    let r = v.technique(&t.label)?;
+                    let set = r.errors.iter().find(|e| &e.bounces == b)?;
+                    Some((set.metric(em)?, set.equal_error?, r.frame.median_s))
+                })
+                .collect();
+            if points.is_empty() {
+                continue;
+            }
+            let mut spp: Vec<f64> = points.iter().map(|p| p.1.spp).collect();
+            spp.sort_by(f64::total_cmp);
+            let mean_pt = mean(points.iter().map(|p| p.1.seconds)).unwrap_or(0.0);
+            let mean_frame = mean(points.iter().map(|p| p.2)).unwrap_or(0.0);
+            equal_error_rows.push(EqualErrorRow {
+                technique: t.label.clone(),
+                bounces: b.clone(),
+                views: points.len(),
+                extrapolated: points.iter().filter(|p| p.1.extrapolated).count(),
+                mean_error: mean(points.iter().map(|p| p.0)).unwrap_or(0.0),
+                median_spp: Timing::from_samples(&spp).median_s,
+                mean_path_tracer_s: mean_pt,
+                mean_frame_s: mean_frame,
+                speedup: if mean_frame > 0.0 {
+                    mean_pt / mean_frame
+                } else {
+                    f64::INFINITY
+                },
+            });
+        }
+    }
+
     let mut speed_error = Vec::new();
-    if let Some(b) = settings.bounces.first() {
+    for b in &settings.bounces {
         let mut scenes: Vec<&str> = Vec::new();
         for v in views {
             if !scenes.contains(&v.scene.as_str()) {
@@ -405,6 +548,7 @@ pub fn summarize(
         times,
         comparisons,
         speed_error,
+        equal_error: equal_error_rows,
     }
 }
 

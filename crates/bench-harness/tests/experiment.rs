@@ -401,3 +401,132 @@ fn random_cameras_are_seeded_in_free_space_and_see_geometry() {
     assert!(random_cameras(&empty, 1, &s).is_err());
     let _ = Vec3::ZERO;
 }
+
+/// The reference path tracer itself at `spp` samples with its own seed: a technique whose
+/// image is the reference at a known lower sample count.
+struct PathTracerAt {
+    spp: u32,
+    seed: u64,
+    scene: Option<Arc<Scene>>,
+}
+
+impl Technique for PathTracerAt {
+    fn name(&self) -> &str {
+        "path-tracer"
+    }
+    fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
+        self.scene = Some(scene);
+        Ok(())
+    }
+    fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
+        let scene = self.scene.as_deref().ok_or(Error::NotPrepared("pt".into()))?;
+        let settings = scene_core::reference::ReferenceSettings {
+            width: frame.width,
+            height: frame.height,
+            spp: self.spp,
+            bounces: Bounces::Limited(1),
+            seed: self.seed,
+        };
+        Ok(scene_core::reference::render(scene, &frame.view, &settings, None).image)
+    }
+}
+
+#[test]
+fn the_equal_error_spp_of_a_path_tracer_at_a_lower_spp_is_that_spp() {
+    let out = temp_dir("equal-error");
+    // The sun-lit primitives: direct light without a hot spot, so the path tracer's error
+    // falls smoothly with the sample count (a point light's hot spot gives fireflies whose
+    // mean error is not monotone in the spp at these sizes).
+    let scene = builtin::scene("primitives").unwrap();
+    let pt = |label: &str, spp: u32, seed: u64| TechniqueSetup {
+        label: label.into(),
+        family: "pt".into(),
+        description: format!("path tracer, {spp} spp"),
+        technique: Box::new(PathTracerAt {
+            spp,
+            seed,
+            scene: None,
+        }),
+        single_frame: false,
+    };
+    let mut x = Experiment {
+        settings: ExperimentSettings {
+            width: 96,
+            height: 72,
+            spp: 256,
+            bounces: vec![Bounces::Limited(1)],
+            repeats: 1,
+            out_dir: out.clone(),
+            progress: false,
+            baseline: "pt-2".into(),
+            ladder_spp: bench_harness::experiment::default_ladder(256),
+            ..Default::default()
+        },
+        scenes: vec![SceneSetup {
+            id: "primitives".into(),
+            cameras: scene.cameras[..1].to_vec(),
+            scene: Arc::new(scene),
+        }],
+        // Seeds other than the reference's (1) and the ladder's.
+        techniques: vec![pt("pt-2", 2, 77), pt("pt-6", 6, 78), pt("pt-12", 12, 79)],
+        metrics: vec![Box::new(MeanError)],
+    };
+    let r = x.run().unwrap().results;
+    let ladder = &r.views[0].references[0].ladder;
+    assert_eq!(
+        ladder.iter().map(|p| p.spp).collect::<Vec<_>>(),
+        [1, 2, 4, 8, 16, 32]
+    );
+    // The ladder's error falls with the sample count.
+    assert!(ladder.windows(2).all(|w| w[1].error < w[0].error), "{ladder:?}");
+    for (label, spp) in [("pt-2", 2.0), ("pt-6", 6.0), ("pt-12", 12.0)] {
+        let e = r.views[0].technique(label).unwrap().errors[0]
+            .equal_error
+            .unwrap_or_else(|| panic!("{label}: no equal-error point"));
+        eprintln!("{label}: equal-error spp {:.2}", e.spp);
+        // Within the noise of one 96 x 72 image's mean error (measured 2.12, 5.79 and
+        // 12.05 for 2, 6 and 12 spp).
+        assert!(
+            (e.spp / spp - 1.0).abs() < 0.15 && !e.extrapolated,
+            "{label}: {e:?}"
+        );
+        // The path tracer's time at that spp, from its measured seconds per sample.
+        let top = ladder.last().unwrap();
+        let per_spp = top.seconds / top.spp as f64;
+        assert!((e.seconds - e.spp * per_spp).abs() < 1e-9 * e.seconds.max(1.0));
+    }
+    let rows = &r.summary.equal_error;
+    assert_eq!(rows.len(), 3);
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("## Equal error"), "no equal-error section");
+    std::fs::remove_dir_all(&out).ok();
+}
+
+#[test]
+fn equal_error_interpolates_in_log_log_and_marks_extrapolation() {
+    use bench_harness::results::{LadderPoint, equal_error};
+    // e = 0.4 / sqrt(spp), 0.01 s per sample.
+    let ladder: Vec<LadderPoint> = [1u32, 4, 16, 64]
+        .iter()
+        .map(|&spp| LadderPoint {
+            spp,
+            seconds: 0.01 * spp as f64,
+            error: 0.4 / (spp as f64).sqrt(),
+        })
+        .collect();
+    let e = equal_error(&ladder, 0.4 / 8f64.sqrt(), 0.002).unwrap();
+    assert!((e.spp - 8.0).abs() < 1e-9 && !e.extrapolated, "{e:?}");
+    assert!((e.seconds - 0.08).abs() < 1e-12 && (e.speedup - 40.0).abs() < 1e-9);
+    let below = equal_error(&ladder, 0.4 / 256f64.sqrt(), 0.002).unwrap();
+    assert!((below.spp - 256.0).abs() < 1e-6 && below.extrapolated);
+    let above = equal_error(&ladder, 0.8, 0.002).unwrap();
+    assert!((above.spp - 0.25).abs() < 1e-9 && above.extrapolated);
+    assert!(equal_error(&ladder[..1], 0.1, 0.002).is_none());
+    assert!(equal_error(&ladder, f64::NAN, 0.002).is_none());
+    // A ladder whose error does not fall gives no answer rather than a wrong one.
+    let flat: Vec<LadderPoint> = ladder
+        .iter()
+        .map(|p| LadderPoint { error: 0.1, ..*p })
+        .collect();
+    assert!(equal_error(&flat, 0.05, 0.002).is_none());
+}
