@@ -12,6 +12,7 @@ use scene_core::{Camera, FrameRequest, Image, LightState, Metric, Scene, Techniq
 use crate::HarnessError;
 use crate::cache::{Fnv, ReferenceCache, scene_hash};
 use crate::cameras::CameraSpec;
+use crate::sequence::{SequenceResult, SequenceSettings};
 use crate::results::{
     ErrorSet, LadderPoint, ReferenceResult, Results, RunSettings, TechniqueInfo, TechniqueResult, Timing,
     ViewResult, summarize,
@@ -87,6 +88,23 @@ pub struct ExperimentSettings {
     /// renders each view with another seed, to find the spp at which its error equals each
     /// technique's ([`crate::results::equal_error`]). Empty: no ladder.
     pub ladder_spp: Vec<u32>,
+    /// A relighting sequence to run after the views (see [`crate::sequence`]).
+    pub sequence: Option<SequenceSpec>,
+}
+
+/// Which relighting sequence an experiment runs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SequenceSpec {
+    /// The scene's id (one of the experiment's scenes).
+    pub scene: String,
+    /// The camera's index in that scene's list.
+    pub camera: usize,
+    /// Frames ([`crate::sequence::light_sequence`]).
+    pub frames: usize,
+    /// Samples per pixel of each frame's reference.
+    pub spp: u32,
+    /// The references' bounce limit.
+    pub bounces: Bounces,
 }
 
 /// The default equal-error ladder for a reference of `spp` samples: powers of two from 1 up
@@ -127,6 +145,7 @@ impl Default for ExperimentSettings {
             exposure: 0.0,
             write_images: true,
             ladder_spp: Vec::new(),
+            sequence: None,
         }
     }
 }
@@ -182,6 +201,40 @@ pub fn slug(s: &str) -> String {
         .collect();
     if out.is_empty() {
         out.push('_');
+    }
+    out
+}
+
+/// The top of the error maps' colour scale, as a share of the reference's mean value.
+pub const ERROR_MAP_TOP: f32 = 0.5;
+
+/// The error map of `test` against `reference`: per pixel the distance (sum over channels of
+/// the absolute difference) over three times the reference's mean channel value, so that
+/// [`ERROR_MAP_TOP`] (and above) is an error of half the image's mean, through the viridis
+/// colour map (perceptually uniform). Linear RGB, so the PNG shows viridis' colours.
+pub fn error_map(reference: &Image, test: &Image) -> Image {
+    let mut out = Image::new(reference.width, reference.height);
+    let mean = reference.mean().element_sum() / 3.0;
+    let scale = if mean > 0.0 && mean.is_finite() {
+        1.0 / (3.0 * mean * ERROR_MAP_TOP)
+    } else {
+        0.0
+    };
+    let lin = scene_core::image::srgb_to_linear;
+    for ((o, r), t) in out
+        .pixels
+        .iter_mut()
+        .zip(&reference.pixels)
+        .zip(&test.pixels)
+    {
+        let d = (*r - *t).abs().element_sum() * scale;
+        let d = if d.is_finite() { d } else { 1.0 };
+        let [cr, cg, cb] = crate::plots::viridis(f64::from(d));
+        *o = scene_core::glam::Vec3::new(
+            lin(f32::from(cr) / 255.0),
+            lin(f32::from(cg) / 255.0),
+            lin(f32::from(cb) / 255.0),
+        );
     }
     out
 }
@@ -426,6 +479,11 @@ impl Experiment {
         self.scenes = scenes;
         views_bar.finish_and_clear();
         result?;
+        let sequence = if interrupted {
+            None
+        } else {
+            self.sequence(&cache, &views_dir, &out, &mut renders)?
+        };
 
         let settings = self.run_settings();
         let infos = self.infos();
@@ -436,6 +494,7 @@ impl Experiment {
             metrics: self.metrics.iter().map(|m| m.name().to_string()).collect(),
             views: outcome_views,
             summary,
+            sequence,
         };
         let results_json = out.join("results.json");
         let report_md = out.join("report.md");
@@ -469,6 +528,88 @@ impl Experiment {
             report_html,
             seconds: start.elapsed().as_secs_f64(),
         })
+    }
+
+    /// Runs the relighting sequence, or reads it back from `views/sequence.json` when the
+    /// settings are unchanged.
+    fn sequence(
+        &mut self,
+        cache: &ReferenceCache,
+        views_dir: &Path,
+        out: &Path,
+        renders: &mut u64,
+    ) -> Result<Option<SequenceResult>, HarnessError> {
+        let Some(spec) = self.settings.sequence.clone() else {
+            return Ok(None);
+        };
+        let Some(sc) = self.scenes.iter().find(|s| s.id == spec.scene) else {
+            return Err(HarnessError::Invalid(format!(
+                "the sequence's scene '{}' is not in the run",
+                spec.scene
+            )));
+        };
+        let Some(camera) = sc.cameras.get(spec.camera).cloned() else {
+            return Err(HarnessError::Invalid(format!(
+                "the sequence's camera {} does not exist ({} camera(s) in '{}')",
+                spec.camera,
+                sc.cameras.len(),
+                spec.scene
+            )));
+        };
+        let scene = sc.scene.clone();
+        let config = format!(
+            "{}-{}-{}-{}-{}-{}",
+            self.config_key(scene_hash(&scene)),
+            spec.scene,
+            spec.camera,
+            spec.frames,
+            spec.spp,
+            spec.bounces
+        );
+        let file = views_dir.join("sequence.json");
+        if let Ok(bytes) =
+            scene_core::budget::read_file(&file, &scene_core::Budget::default())
+            && let Ok(saved) = serde_json::from_slice::<SavedSequence>(&bytes)
+            && saved.config == config
+        {
+            return Ok(Some(saved.result));
+        }
+        let Some(metric) = self
+            .metrics
+            .iter()
+            .find(|m| m.name() == self.settings.error_metric)
+        else {
+            return Ok(None);
+        };
+        let frames = crate::sequence::light_sequence(&scene, spec.frames);
+        let settings = SequenceSettings {
+            width: self.settings.width,
+            height: self.settings.height,
+            spp: spec.spp,
+            bounces: spec.bounces,
+            seed: self.settings.seed,
+        };
+        let images = out.join("sequence");
+        let result = crate::sequence::run_sequence(
+            &spec.scene,
+            &scene,
+            &camera,
+            &mut self.techniques,
+            metric.as_ref(),
+            &frames,
+            &settings,
+            cache,
+            Some(&images),
+        )?;
+        *renders += (self.techniques.len() * (frames.len() + 1)) as u64;
+        crate::write_json(
+            &file,
+            &SavedSequence {
+                config,
+                result: result.clone(),
+            },
+        )?;
+        Ok(Some(result))
     }
 
     /// The equal-error ladder of one view at bounce limit `b`: the path tracer at each
@@ -671,6 +812,9 @@ impl Experiment {
                     )
                 });
                 let label = &results[ti].label;
+                error_map(reference, img)
+                    .write_png(&dir.join(format!("errmap-{}-b{b}.png", slug(label))), 0.0)
+                    .map_err(|e| HarnessError::from(scene_core::Error::from(e)))?;
                 let diff = difference(reference, img);
                 // Difference images: every one when asked, the gallery's always.
                 write_image(
@@ -703,6 +847,12 @@ impl Experiment {
             ref_renders,
         ))
     }
+}
+
+#[derive(serde::Serialize, serde::Deserialize)]
+struct SavedSequence {
+    config: String,
+    result: SequenceResult,
 }
 
 /// A saved view result to resume from: read within the default file budget (never from a

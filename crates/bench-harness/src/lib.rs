@@ -67,9 +67,11 @@
 pub mod cache;
 pub mod cameras;
 pub mod experiment;
+pub mod plots;
 pub mod povray;
 pub mod report;
 pub mod results;
+pub mod sequence;
 
 use std::path::{Path, PathBuf};
 
@@ -78,7 +80,9 @@ pub use cameras::{
     CameraSpec, RandomCameraSettings, cameras_for, load_camera_list, parse_camera_list,
     random_cameras,
 };
-pub use experiment::{Experiment, ExperimentSettings, RunOutcome, SceneSetup, TechniqueSetup};
+pub use experiment::{
+    Experiment, ExperimentSettings, RunOutcome, SceneSetup, SequenceSpec, TechniqueSetup,
+};
 pub use results::{Comparison, Results, Summary, TimeRow, ViewResult};
 pub use scene_core;
 

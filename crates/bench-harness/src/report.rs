@@ -4,10 +4,8 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use base64::Engine as _;
-
 use crate::experiment::{slug, view_dir};
-use crate::results::{Results, SceneSpeedError, gain};
+use crate::results::{Results, gain};
 
 /// A time in seconds, 3 decimals.
 pub fn fmt_s(x: f64) -> String {
@@ -96,6 +94,81 @@ fn break_even_table(o: &mut String, r: &Results) {
     }
 }
 
+/// The ranking: techniques by mean error at the last bounce limit, closest first.
+pub fn ranking_section(r: &Results) -> String {
+    let mut o = String::new();
+    let Some(first) = r.summary.ranking.first() else {
+        return o;
+    };
+    let _ = writeln!(
+        o,
+        "## Ranking\n\nBy mean error over every view against the reference at bounce limit \
+         {}; Pareto: scenes where no other technique is both faster and closer; speedup: \
+         over the path tracer at equal error.\n",
+        first.bounces
+    );
+    let _ = writeln!(
+        o,
+        "| rank | technique | mean error | frame (ms) | precomputation (s) | Pareto scenes | speedup at equal error |\n|---|---|---|---|---|---|---|"
+    );
+    for k in &r.summary.ranking {
+        let _ = writeln!(
+            o,
+            "| {} | {} | {} | {} | {} | {} | {} |",
+            k.rank,
+            k.technique,
+            fmt_err(k.mean_error),
+            fmt_ms(k.frame_ms),
+            fmt_s(k.prepare_s),
+            k.pareto_scenes,
+            k.speedup.map(fmt_2).unwrap_or_else(|| "-".into())
+        );
+    }
+    o
+}
+
+/// The relighting sequence as a table: per frame the caption, each technique's error and
+/// frame time.
+pub fn sequence_section(r: &Results) -> String {
+    let mut o = String::new();
+    let Some(q) = &r.sequence else {
+        return o;
+    };
+    let _ = writeln!(
+        o,
+        "## Relighting sequence\n\n{} / {}, {} frames, references at {} spp (bounces {}), \
+         error `{}`. Each cell: error / frame time (ms). Precomputation (s): {}.\n",
+        q.scene,
+        q.camera,
+        q.frames.len(),
+        q.spp,
+        q.bounces,
+        q.metric,
+        q.prepare_s
+            .iter()
+            .map(|(l, t)| format!("{l} {}", fmt_s(*t)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let _ = write!(o, "| frame | lights |");
+    for (l, _) in &q.prepare_s {
+        let _ = write!(o, " {l} |");
+    }
+    let _ = write!(o, "\n|---|---|");
+    for _ in &q.prepare_s {
+        let _ = write!(o, "---|");
+    }
+    let _ = writeln!(o);
+    for (i, f) in q.frames.iter().enumerate() {
+        let _ = write!(o, "| {i} | {} |", f.caption);
+        for t in &f.techniques {
+            let _ = write!(o, " {} / {} |", fmt_err(t.error), fmt_ms(t.frame_s * 1e3));
+        }
+        let _ = writeln!(o);
+    }
+    o
+}
+
 /// The equal-error table: the path tracer's spp and time at each technique's error.
 fn equal_error_table(o: &mut String, r: &Results) {
     if r.summary.equal_error.is_empty() {
@@ -158,7 +231,8 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
         s.error_metric,
         s.baseline
     );
-    let _ = writeln!(o, "## Techniques\n");
+    o.push_str(&ranking_section(r));
+    let _ = writeln!(o, "\n## Techniques\n");
     let _ = writeln!(o, "| label | family | parameters |\n|---|---|---|");
     for t in &r.techniques {
         let _ = writeln!(o, "| {} | {} | {} |", t.label, t.family, t.description);
@@ -185,6 +259,10 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
     }
     break_even_table(&mut o, r);
     equal_error_table(&mut o, r);
+    if r.sequence.is_some() {
+        let _ = writeln!(o);
+        o.push_str(&sequence_section(r));
+    }
     let _ = writeln!(
         o,
         "\n## Against the baseline (the thesis' summary statistics)\n\nGain = mean over views \
@@ -267,10 +345,6 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
     o
 }
 
-const W: f64 = 520.0;
-const H: f64 = 300.0;
-const PAD: f64 = 50.0;
-
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
@@ -278,171 +352,8 @@ fn esc(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
-/// Axis range with a margin; never empty.
-fn range(v: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for x in v.filter(|x| x.is_finite()) {
-        lo = lo.min(x);
-        hi = hi.max(x);
-    }
-    if !lo.is_finite() {
-        return (0.0, 1.0);
-    }
-    let m = ((hi - lo) * 0.08).max(hi.abs().max(1e-9) * 0.02);
-    (lo - m, hi + m)
-}
-
-fn svg_open(o: &mut String, title: &str, xlabel: &str, ylabel: &str) {
-    let _ = write!(
-        o,
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" \
-         font-family=\"sans-serif\" font-size=\"11\">\
-         <rect width=\"{W}\" height=\"{H}\" fill=\"white\"/>\
-         <text x=\"{}\" y=\"16\" text-anchor=\"middle\" font-size=\"13\">{}</text>\
-         <line x1=\"{PAD}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>\
-         <line x1=\"{PAD}\" y1=\"{PAD}\" x2=\"{PAD}\" y2=\"{}\" stroke=\"black\"/>\
-         <text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>\
-         <text x=\"12\" y=\"{}\" transform=\"rotate(-90 12 {})\" text-anchor=\"middle\">{}</text>",
-        W / 2.0,
-        esc(title),
-        H - PAD,
-        W - 10.0,
-        H - PAD,
-        H - PAD,
-        W / 2.0,
-        H - 12.0,
-        esc(xlabel),
-        H / 2.0,
-        H / 2.0,
-        esc(ylabel)
-    );
-}
-
-fn ticks_y(o: &mut String, lo: f64, hi: f64) {
-    for i in 0..=4 {
-        let v = lo + (hi - lo) * i as f64 / 4.0;
-        let y = (H - PAD) - (H - 2.0 * PAD) * i as f64 / 4.0;
-        let _ = write!(
-            o,
-            "<text x=\"{}\" y=\"{}\" text-anchor=\"end\">{:.4}</text>\
-             <line x1=\"{PAD}\" y1=\"{y}\" x2=\"{}\" y2=\"{y}\" stroke=\"#ddd\"/>",
-            PAD - 3.0,
-            y + 4.0,
-            v,
-            W - 10.0
-        );
-    }
-}
-
-/// The speed-against-error plot of one scene: x = log10 of the frame time, y = mean error,
-/// the Pareto front as a line.
-pub fn speed_error_svg(se: &SceneSpeedError) -> String {
-    let mut o = String::new();
-    let (xl, xh) = range(se.points.iter().map(|p| p.frame_ms.max(1e-6).log10()));
-    let (yl, yh) = range(se.points.iter().map(|p| p.error));
-    let sx = |x: f64| PAD + (x - xl) / (xh - xl) * (W - PAD - 20.0);
-    let sy = |y: f64| (H - PAD) - (y - yl) / (yh - yl) * (H - 2.0 * PAD);
-    svg_open(
-        &mut o,
-        &format!("{}: speed against error", se.scene),
-        "log10 frame time (ms)",
-        &format!("mean error (bounces {})", se.bounces),
-    );
-    ticks_y(&mut o, yl, yh);
-    for i in 0..=4 {
-        let v = xl + (xh - xl) * i as f64 / 4.0;
-        let _ = write!(
-            o,
-            "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{:.2}</text>",
-            sx(v),
-            H - PAD + 14.0,
-            v
-        );
-    }
-    let mut front: Vec<_> = se.points.iter().filter(|p| p.pareto).collect();
-    front.sort_by(|a, b| a.frame_ms.total_cmp(&b.frame_ms));
-    let pts: Vec<String> = front
-        .iter()
-        .map(|p| format!("{:.1},{:.1}", sx(p.frame_ms.max(1e-6).log10()), sy(p.error)))
-        .collect();
-    let _ = write!(
-        o,
-        "<polyline points=\"{}\" fill=\"none\" stroke=\"#c33\" stroke-dasharray=\"4 3\"/>",
-        pts.join(" ")
-    );
-    for p in &se.points {
-        let (x, y) = (sx(p.frame_ms.max(1e-6).log10()), sy(p.error));
-        let colour = if p.pareto { "#c33" } else { "#36c" };
-        let _ = write!(
-            o,
-            "<circle cx=\"{x:.1}\" cy=\"{y:.1}\" r=\"4\" fill=\"{colour}\"><title>{}: {} ms, {}</title></circle>\
-             <text x=\"{:.1}\" y=\"{:.1}\">{}</text>",
-            esc(&p.label),
-            fmt_ms(p.frame_ms),
-            fmt_err(p.error),
-            x + 6.0,
-            y - 4.0,
-            esc(&p.label)
-        );
-    }
-    o.push_str("</svg>");
-    o
-}
-
-/// Per-view series plot: one polyline per series over the view index.
-fn series_svg(title: &str, ylabel: &str, series: &[(&str, &str, Vec<f64>)], zero: bool) -> String {
-    let mut o = String::new();
-    let n = series.iter().map(|s| s.2.len()).max().unwrap_or(0);
-    let (mut yl, yh) = range(series.iter().flat_map(|s| s.2.iter().copied()));
-    if zero {
-        yl = yl.min(0.0);
-    }
-    let sx = |i: usize| PAD + (i as f64 + 0.5) / n.max(1) as f64 * (W - PAD - 20.0);
-    let sy = |y: f64| (H - PAD) - (y - yl) / (yh - yl) * (H - 2.0 * PAD);
-    svg_open(&mut o, title, "view", ylabel);
-    ticks_y(&mut o, yl, yh);
-    if zero {
-        let _ = write!(
-            o,
-            "<line x1=\"{PAD}\" y1=\"{0:.1}\" x2=\"{1}\" y2=\"{0:.1}\" stroke=\"black\" stroke-dasharray=\"2 2\"/>",
-            sy(0.0),
-            W - 10.0
-        );
-    }
-    for (k, (name, colour, v)) in series.iter().enumerate() {
-        let pts: Vec<String> = v
-            .iter()
-            .enumerate()
-            .map(|(i, y)| format!("{:.1},{:.1}", sx(i), sy(*y)))
-            .collect();
-        let _ = write!(
-            o,
-            "<polyline points=\"{}\" fill=\"none\" stroke=\"{colour}\"/>",
-            pts.join(" ")
-        );
-        for (i, y) in v.iter().enumerate() {
-            let _ = write!(
-                o,
-                "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2.5\" fill=\"{colour}\"><title>view {i}: {}</title></circle>",
-                sx(i),
-                sy(*y),
-                fmt_err(*y)
-            );
-        }
-        let _ = write!(
-            o,
-            "<text x=\"{}\" y=\"{}\" fill=\"{colour}\">{}</text>",
-            W - 120.0,
-            PAD + 14.0 * k as f64,
-            esc(name)
-        );
-    }
-    o.push_str("</svg>");
-    o
-}
-
 /// The subset of Markdown the report uses (headings, pipe tables, paragraphs, `code`) as HTML.
-fn markdown_to_html(md: &str) -> String {
+pub fn markdown_to_html(md: &str) -> String {
     let inline = |t: &str| {
         let mut out = String::new();
         for (i, part) in esc(t).split('`').enumerate() {
@@ -495,35 +406,175 @@ fn markdown_to_html(md: &str) -> String {
     o
 }
 
-fn embed_png(out: &Path, rel: &Path) -> String {
-    match std::fs::read(out.join(rel)) {
-        Ok(bytes) => format!(
-            "<img src=\"data:image/png;base64,{}\" alt=\"{}\">",
-            base64::engine::general_purpose::STANDARD.encode(bytes),
-            esc(&rel.display().to_string())
-        ),
-        Err(_) => format!("<span>missing {}</span>", esc(&rel.display().to_string())),
+/// A plot, or the reason it could not be drawn, as HTML.
+fn plot_html(p: Result<String, String>) -> String {
+    match p {
+        Ok(svg) => format!("<div class=\"plot\">{svg}</div>"),
+        Err(e) => format!("<p class=\"error\">{}</p>", esc(&e)),
     }
 }
 
-/// The report in HTML: the Markdown report's tables, the speed-against-error plot of each
-/// scene, the per-view errors and gains (thesis figures 5.8 and 5.9) and a gallery of the
-/// first view of every scene (reference, baseline, headline, difference images), with the
-/// PNGs under `out` embedded.
+fn img(src: &Path, alt: &str) -> String {
+    let src = src.display().to_string().replace('\\', "/");
+    format!(
+        "<img src=\"{}\" alt=\"{}\" loading=\"eager\">",
+        esc(&src),
+        esc(alt)
+    )
+}
+
+/// The page checks itself once loaded: every image decoded and every plot drawn, written to
+/// `#check` and `<body data-check>` (read by the headless-browser test).
+const SELF_CHECK: &str = "<script>window.addEventListener('load',function(){\
+var imgs=Array.prototype.slice.call(document.images);\
+var bad=imgs.filter(function(i){return !(i.complete&&i.naturalWidth>0);});\
+var plots=document.querySelectorAll('div.plot svg').length;\
+var s=(bad.length===0?'ok':'broken')+' images='+imgs.length+' broken='+bad.length+' plots='+plots;\
+document.body.setAttribute('data-check',s);\
+var p=document.getElementById('check');if(p){p.textContent='Page check: '+s;}});</script>";
+
+/// The report in HTML: a ranking of the techniques, the speed-against-error plot of each
+/// scene and bounce limit with the Pareto front, the relighting sequence's error and time
+/// along its frames, a gallery per view (reference, every technique, their error maps in a
+/// perceptual colour map, side by side), the per-view errors and gains against the baseline
+/// (thesis figures 5.8 and 5.9), and every table of the Markdown report. Plots are SVG
+/// drawn with plotters; images are linked relative to `out` (the page lives there).
 pub fn html(r: &Results, headline: Option<&str>, out: &Path) -> String {
+    let _ = out;
     let s = &r.settings;
+    let colour_of = |label: &str| {
+        r.techniques
+            .iter()
+            .position(|t| t.label == label)
+            .unwrap_or(r.techniques.len())
+    };
     let mut o = String::from(
-        "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>Experiment report</title>\
-         <style>body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:collapse}\
-         td,th{border:1px solid #ccc;padding:2px 6px}figure{display:inline-block;margin:4px}\
-         img{image-rendering:pixelated;width:240px}</style></head><body>",
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <title>Experiment report</title><link rel=\"icon\" href=\"data:,\">\
+         <style>body{font-family:sans-serif;max-width:1400px;margin:auto;padding:0 12px}\
+         table{border-collapse:collapse;margin:6px 0}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}\
+         td:first-child,th:first-child{text-align:left}.plot{display:inline-block;margin:4px}\
+         .gallery{display:grid;gap:4px;margin-bottom:16px}.gallery figure{margin:0}\
+         .gallery img{width:100%;image-rendering:pixelated;display:block}\
+         figcaption{font-size:12px}.error{color:#b00}</style></head><body>",
     );
-    // The Markdown report's text and tables, as HTML.
-    o.push_str(&markdown_to_html(&markdown(r, headline)));
-    o.push_str("<h2>Speed against error (plots)</h2>");
+    let _ = write!(
+        o,
+        "<h1>Experiment report</h1><p id=\"check\">Page check: not run</p><p>{} views, \
+         {}x{}, reference {} spp at bounce limits {}, error metric <code>{}</code>, baseline \
+         <code>{}</code>.</p>",
+        r.views.len(),
+        s.width,
+        s.height,
+        s.spp,
+        esc(&s.bounces.join(", ")),
+        esc(&s.error_metric),
+        esc(&s.baseline)
+    );
+    // Ranking.
+    o.push_str(&markdown_to_html(&ranking_section(r)));
+    // Speed against error.
+    o.push_str("<h2>Speed against error</h2>");
     for se in &r.summary.speed_error {
-        o.push_str(&speed_error_svg(se));
+        o.push_str(&plot_html(crate::plots::speed_error(se, &colour_of)));
     }
+    // The relighting sequence.
+    if let Some(q) = &r.sequence {
+        let _ = write!(
+            o,
+            "<h2>Relighting sequence: {} / {}</h2><p>After one precomputation the lights \
+             change every frame; each frame's reference is rendered under that frame's \
+             lights ({} spp, bounces {}).</p>",
+            esc(&q.scene),
+            esc(&q.camera),
+            q.spp,
+            esc(&q.bounces)
+        );
+        let frames: Vec<String> = (0..q.frames.len()).map(|i| i.to_string()).collect();
+        let labels: Vec<&String> = q.prepare_s.iter().map(|p| &p.0).collect();
+        let lines = |pick: fn(&(f64, f64)) -> f64| -> Vec<(String, usize, Vec<f64>)> {
+            labels
+                .iter()
+                .map(|l| {
+                    (
+                        l.to_string(),
+                        colour_of(l),
+                        q.series(l).iter().map(pick).collect(),
+                    )
+                })
+                .collect()
+        };
+        o.push_str(&plot_html(crate::plots::series(
+            "error along the sequence",
+            "frame",
+            &q.metric,
+            &frames,
+            &lines(|p| p.1),
+            false,
+        )));
+        o.push_str(&plot_html(crate::plots::series(
+            "frame time along the sequence",
+            "frame",
+            "seconds (log scale)",
+            &frames,
+            &lines(|p| p.0),
+            true,
+        )));
+        o.push_str(&markdown_to_html(&sequence_section(r)));
+    }
+    // Gallery.
+    let gb = s.bounces.last().cloned().unwrap_or_else(|| "1".into());
+    let _ = write!(
+        o,
+        "<h2>Gallery</h2><p>Every view at bounce limit {gb}: the reference and every \
+         technique, and below each technique its error map (per pixel |reference - image| \
+         summed over channels, over the reference's mean; viridis):</p>{}",
+        plot_html(crate::plots::colour_bar(&format!(
+            ">= {:.0}% of the mean",
+            crate::experiment::ERROR_MAP_TOP * 100.0
+        )))
+    );
+    let cols = r.techniques.len() + 1;
+    for v in &r.views {
+        let dir = view_dir(&v.scene, v.camera_index, &v.camera_name());
+        let _ = write!(
+            o,
+            "<h3>{} / {}</h3><div class=\"gallery\" style=\"grid-template-columns:repeat({cols},1fr)\">",
+            esc(&v.scene),
+            esc(&v.camera_name())
+        );
+        let _ = write!(
+            o,
+            "<figure>{}<figcaption>reference ({} spp)</figcaption></figure>",
+            img(&dir.join(format!("reference-b{gb}.png")), "reference"),
+            s.spp
+        );
+        for t in &v.techniques {
+            let e = v.error(&t.label, &gb, &s.error_metric);
+            let _ = write!(
+                o,
+                "<figure>{}<figcaption>{} ({} ms, error {})</figcaption></figure>",
+                img(&dir.join(format!("{}.png", slug(&t.label))), &t.label),
+                esc(&t.label),
+                fmt_ms(t.frame.median_s * 1e3),
+                e.map(fmt_err).unwrap_or_else(|| "-".into())
+            );
+        }
+        o.push_str("<figure></figure>");
+        for t in &v.techniques {
+            let _ = write!(
+                o,
+                "<figure>{}<figcaption>error map: {}</figcaption></figure>",
+                img(
+                    &dir.join(format!("errmap-{}-b{gb}.png", slug(&t.label))),
+                    &format!("error map of {}", t.label)
+                ),
+                esc(&t.label)
+            );
+        }
+        o.push_str("</div>");
+    }
+    // Per view against the baseline.
     let b = s.bounces.first().cloned().unwrap_or_else(|| "1".into());
     if let Some(h) = headline {
         let pairs: Vec<(f64, f64)> = r
@@ -536,61 +587,43 @@ pub fn html(r: &Results, headline: Option<&str>, out: &Path) -> String {
                 ))
             })
             .collect();
-        let _ = write!(o, "<h2>Per view ({h} against {})</h2>", s.baseline);
-        o.push_str(&series_svg(
-            "mean error per view (figure 5.8)",
+        let names: Vec<String> = r
+            .views
+            .iter()
+            .map(|v| format!("{}/{}", v.scene, v.camera_index))
+            .collect();
+        let _ = write!(o, "<h2>Per view ({} against {})</h2>", esc(h), esc(&s.baseline));
+        o.push_str(&plot_html(crate::plots::series(
+            &format!("mean error per view, bounces {b} (figure 5.8)"),
+            "view",
             "mean error",
+            &names,
             &[
-                (&s.baseline, "#36c", pairs.iter().map(|p| p.0).collect()),
-                (h, "#c33", pairs.iter().map(|p| p.1).collect()),
+                (
+                    s.baseline.clone(),
+                    colour_of(&s.baseline),
+                    pairs.iter().map(|p| p.0).collect(),
+                ),
+                (h.to_string(), colour_of(h), pairs.iter().map(|p| p.1).collect()),
             ],
             false,
-        ));
-        o.push_str(&series_svg(
-            "quality gain per view (figure 5.9)",
+        )));
+        o.push_str(&plot_html(crate::plots::series(
+            &format!("quality gain per view, bounces {b} (figure 5.9)"),
+            "view",
             "gain",
+            &names,
             &[(
-                "gain",
-                "#393",
+                "gain".into(),
+                colour_of(h),
                 pairs.iter().map(|p| gain(p.0, p.1)).collect(),
             )],
-            true,
-        ));
-        o.push_str("<h2>Gallery</h2>");
-        let mut seen: Vec<&str> = Vec::new();
-        for v in &r.views {
-            if seen.contains(&v.scene.as_str()) {
-                continue;
-            }
-            seen.push(&v.scene);
-            let dir = view_dir(&v.scene, v.camera_index, &v.camera_name());
-            let _ = write!(o, "<h3>{} / {}</h3>", esc(&v.scene), esc(&v.camera_name()));
-            let items = [
-                (
-                    format!("reference (bounces {b})"),
-                    format!("reference-b{b}.png"),
-                ),
-                (s.baseline.clone(), format!("{}.png", slug(&s.baseline))),
-                (h.to_string(), format!("{}.png", slug(h))),
-                (
-                    format!("|reference - {}| x8", s.baseline),
-                    format!("diff-{}-b{b}.png", slug(&s.baseline)),
-                ),
-                (
-                    format!("|reference - {h}| x8"),
-                    format!("diff-{}-b{b}.png", slug(h)),
-                ),
-            ];
-            for (caption, file) in items {
-                let _ = write!(
-                    o,
-                    "<figure>{}<figcaption>{}</figcaption></figure>",
-                    embed_png(out, &dir.join(file)),
-                    esc(&caption)
-                );
-            }
-        }
+            false,
+        )));
     }
+    o.push_str("<h2>Tables</h2>");
+    o.push_str(&markdown_to_html(&markdown(r, headline)));
+    o.push_str(SELF_CHECK);
     o.push_str("</body></html>\n");
     o
 }

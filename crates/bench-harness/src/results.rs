@@ -315,6 +315,27 @@ pub struct EqualErrorRow {
     pub speedup: f64,
 }
 
+/// A technique's place in the run's ranking.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RankRow {
+    /// 1 for the closest to the reference.
+    pub rank: usize,
+    /// Technique label.
+    pub technique: String,
+    /// The bounce limit ranked on (the run's last: unlimited in the default run).
+    pub bounces: String,
+    /// Mean error over every view at that limit.
+    pub mean_error: f64,
+    /// Average frame time (milliseconds).
+    pub frame_ms: f64,
+    /// Precomputation summed over scenes (seconds).
+    pub prepare_s: f64,
+    /// Scenes where the technique is on the Pareto front at that limit.
+    pub pareto_scenes: usize,
+    /// Speedup over the path tracer at equal error, when a ladder was run.
+    pub speedup: Option<f64>,
+}
+
 /// Summary of a run.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
@@ -328,6 +349,9 @@ pub struct Summary {
     /// without a ladder).
     #[serde(default)]
     pub equal_error: Vec<EqualErrorRow>,
+    /// The techniques ranked by mean error at the last bounce limit, closest first.
+    #[serde(default)]
+    pub ranking: Vec<RankRow>,
 }
 
 /// The settings of a run, as recorded.
@@ -368,6 +392,9 @@ pub struct Results {
     pub views: Vec<ViewResult>,
     /// The summary.
     pub summary: Summary,
+    /// The relighting sequence, when one was run.
+    #[serde(default)]
+    pub sequence: Option<crate::sequence::SequenceResult>,
 }
 
 fn mean(v: impl IntoIterator<Item = f64>) -> Option<f64> {
@@ -544,11 +571,42 @@ pub fn summarize(
             });
         }
     }
+    let mut ranking = Vec::new();
+    if let Some(b) = settings.bounces.last() {
+        for t in techniques {
+            let Some(e) = mean(views.iter().filter_map(|v| v.error(&t.label, b, em))) else {
+                continue;
+            };
+            let row = times.iter().find(|r| r.label == t.label);
+            ranking.push(RankRow {
+                rank: 0,
+                technique: t.label.clone(),
+                bounces: b.clone(),
+                mean_error: e,
+                frame_ms: row.map(|r| r.avg_frame_ms).unwrap_or(0.0),
+                prepare_s: row.map(|r| r.prepare_s).unwrap_or(0.0),
+                pareto_scenes: speed_error
+                    .iter()
+                    .filter(|s| &s.bounces == b)
+                    .filter(|s| s.points.iter().any(|p| p.label == t.label && p.pareto))
+                    .count(),
+                speedup: equal_error_rows
+                    .iter()
+                    .find(|r| r.technique == t.label && &r.bounces == b)
+                    .map(|r| r.speedup),
+            });
+        }
+        ranking.sort_by(|a, b| a.mean_error.total_cmp(&b.mean_error));
+        for (i, r) in ranking.iter_mut().enumerate() {
+            r.rank = i + 1;
+        }
+    }
     Summary {
         times,
         comparisons,
         speed_error,
         equal_error: equal_error_rows,
+        ranking,
     }
 }
 

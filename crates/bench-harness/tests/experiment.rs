@@ -268,10 +268,52 @@ fn tiny_experiment_writes_every_output_and_the_report_matches_results_json() {
         assert_cell(&c[2], p.error);
         assert_eq!(c[3] == "yes", p.pareto);
     }
+    // The ranking: by mean error at the last bounce limit, the same numbers in report.md,
+    // report.html and results.json.
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert!(html.contains("<svg") && html.contains("data:image/png;base64,"));
+    let rank = section(&md, "## Ranking");
+    assert_eq!(json.summary.ranking.len(), 3);
+    for (i, k) in json.summary.ranking.iter().enumerate() {
+        assert_eq!(k.rank, i + 1);
+        assert_eq!(k.bounces, "inf");
+        let mean: f64 = json
+            .views
+            .iter()
+            .map(|v| v.error(&k.technique, "inf", "mean-error").unwrap())
+            .sum::<f64>()
+            / 2.0;
+        assert!((mean - k.mean_error).abs() < 1e-12);
+        let c = row(rank, &k.rank.to_string(), None);
+        assert_eq!(c[1], k.technique);
+        assert_cell(&c[2], k.mean_error);
+        let cells = format!(
+            "<td>{}</td><td>{}</td><td>{}</td>",
+            k.rank,
+            k.technique,
+            bench_harness::report::fmt_err(k.mean_error)
+        );
+        assert!(html.contains(&cells), "{cells} not in report.html");
+    }
+    assert!(
+        json.summary
+            .ranking
+            .windows(2)
+            .all(|w| w[0].mean_error <= w[1].mean_error)
+    );
+    // The page: plots drawn, every image it links exists (reference, every technique and
+    // its error map, per view).
+    assert!(html.contains("<svg") && html.contains("speed against error"));
     assert!(html.contains("<table>") && html.contains("<th>technique</th>"));
-    assert!(html.contains("speed against error"));
+    let srcs: Vec<&str> = html
+        .split("<img src=\"")
+        .skip(1)
+        .map(|t| t.split('"').next().unwrap())
+        .collect();
+    assert_eq!(srcs.len(), 2 * (1 + 3 + 3), "{srcs:?}");
+    for src in &srcs {
+        assert!(out.join(src).is_file(), "{src} missing");
+    }
+    assert!(srcs.iter().any(|s| s.contains("errmap-isr-b-binf.png")));
 
     // A second run reuses everything: no render, no reference.
     let renders2 = Arc::new(AtomicU64::new(0));
