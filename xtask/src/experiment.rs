@@ -62,6 +62,63 @@ pub struct Options {
     pub error_metric: String,
     /// Reference cache folder.
     pub cache: Option<PathBuf>,
+    /// Run the equal-error ladder.
+    pub ladder: bool,
+    /// The relighting sequence's `SCENE[:CAMERA]` (default: corridor, else the first scene).
+    pub sequence: Option<String>,
+    /// Frames of the sequence (0: none).
+    pub sequence_frames: usize,
+    /// Samples per pixel of the sequence's references (default spp / 2).
+    pub sequence_spp: Option<u32>,
+}
+
+/// The sequence the options ask for, checked against the run's scenes.
+fn sequence_spec(
+    o: &Options,
+    scenes: &[SceneSetup],
+    bounces: &[Bounces],
+) -> Result<Option<bench_harness::SequenceSpec>, String> {
+    if o.sequence_frames == 0 {
+        return Ok(None);
+    }
+    let (scene, camera) = match &o.sequence {
+        Some(s) => match s.rsplit_once(':') {
+            Some((sc, cam)) if cam.chars().all(|c| c.is_ascii_digit()) && !cam.is_empty() => (
+                sc.to_string(),
+                cam.parse::<usize>()
+                    .map_err(|_| format!("--sequence: bad camera index in '{s}'"))?,
+            ),
+            _ => (s.clone(), 0),
+        },
+        None => match scenes.iter().find(|s| s.id == "corridor").or(scenes.first()) {
+            Some(s) => (s.id.clone(), 0),
+            None => return Ok(None),
+        },
+    };
+    let Some(sc) = scenes.iter().find(|s| s.id == scene) else {
+        let ids: Vec<&str> = scenes.iter().map(|s| s.id.as_str()).collect();
+        return Err(format!(
+            "--sequence names scene '{scene}', which is not in the run ({})",
+            ids.join(", ")
+        ));
+    };
+    if camera >= sc.cameras.len() {
+        return Err(format!(
+            "--sequence: camera {camera} does not exist ({} view(s) of '{scene}')",
+            sc.cameras.len()
+        ));
+    }
+    let spp = o.sequence_spp.unwrap_or((o.spp / 2).max(1));
+    if spp == 0 {
+        return Err("--sequence-spp must be positive".into());
+    }
+    Ok(Some(bench_harness::SequenceSpec {
+        scene,
+        camera,
+        frames: o.sequence_frames,
+        spp,
+        bounces: *bounces.last().unwrap_or(&Bounces::Unlimited),
+    }))
 }
 
 /// POV-Ray as a [`Technique`]: each frame exports the scene and camera with the thesis'
@@ -445,6 +502,7 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
         })
         .collect();
     let mut techniques: Vec<TechniqueSetup> = techniques;
+    let sequence = sequence_spec(o, &scenes, &bounces)?;
     if o.povray {
         if bench_harness::povray::povray_available() {
             techniques.push(TechniqueSetup {
@@ -503,6 +561,12 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             stop_after_views: None,
             exposure: 0.0,
             write_images: true,
+            ladder_spp: if o.ladder {
+                bench_harness::experiment::default_ladder(o.spp)
+            } else {
+                Vec::new()
+            },
+            sequence,
         },
         scenes,
         techniques,
@@ -543,6 +607,47 @@ pub fn summary_text(outcome: &RunOutcome) -> String {
             fmt_pct(c.share_pixels_closer),
             fmt_pct(c.share_changed_pixels_closer)
         ));
+    }
+    if !r.summary.ranking.is_empty() {
+        s.push_str(&format!(
+            "\n{:<5} {:<18} {:>12} {:>11} {:>13} {:>9}\n",
+            "rank", "bounces inf", "mean error", "frame (ms)", "precomp (s)", "speedup"
+        ));
+        for k in &r.summary.ranking {
+            s.push_str(&format!(
+                "{:<5} {:<18} {:>12} {:>11} {:>13} {:>9}\n",
+                k.rank,
+                k.technique,
+                bench_harness::report::fmt_err(k.mean_error),
+                fmt_ms(k.frame_ms),
+                fmt_s(k.prepare_s),
+                k.speedup.map(fmt_2).unwrap_or_else(|| "-".into())
+            ));
+        }
+    }
+    if let Some(q) = &r.sequence {
+        s.push_str(&format!(
+            "\nrelighting sequence ({} / {}, {} frames): mean frame (ms), worst error / first-frame error\n",
+            q.scene,
+            q.camera,
+            q.frames.len()
+        ));
+        for (label, _) in &q.prepare_s {
+            let v = q.series(label);
+            let mean_ms = v.iter().map(|p| p.0).sum::<f64>() / v.len().max(1) as f64 * 1e3;
+            let first = v.first().map(|p| p.1).unwrap_or(0.0);
+            let worst = v.iter().map(|p| p.1).fold(0.0, f64::max);
+            s.push_str(&format!(
+                "{:<18} {:>11} {:>9}\n",
+                label,
+                fmt_ms(mean_ms),
+                if first > 0.0 {
+                    fmt_2(worst / first)
+                } else {
+                    "-".into()
+                }
+            ));
+        }
     }
     s
 }
@@ -614,6 +719,10 @@ mod tests {
             povray: false,
             error_metric: "mean-error".into(),
             cache: None,
+            ladder: false,
+            sequence: None,
+            sequence_frames: 0,
+            sequence_spp: None,
         }
     }
 
@@ -875,6 +984,133 @@ mod tests {
         let second = again.run().unwrap();
         assert_eq!((second.views_resumed, second.technique_renders), (2, 0));
         assert_eq!(second.reference_renders, 0);
+        std::fs::remove_dir_all(&o.out).ok();
+    }
+
+    /// Every cell of the row of `table` whose first cell is `first`.
+    fn md_row(table: &str, first: &str) -> Vec<String> {
+        table
+            .lines()
+            .map(|l| {
+                l.trim()
+                    .trim_matches('|')
+                    .split('|')
+                    .map(|c| c.trim().to_string())
+                    .collect::<Vec<_>>()
+            })
+            .find(|c| c.first().map(String::as_str) == Some(first))
+            .unwrap_or_else(|| panic!("no row '{first}'"))
+    }
+
+    #[test]
+    fn every_technique_runs_with_the_ladder_and_a_relighting_sequence_and_the_reports_agree() {
+        let mut o = options();
+        o.out = std::env::temp_dir().join(format!("xtask-every-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&o.out);
+        o.scenes = vec!["corridor".into()];
+        o.views = Some(2);
+        o.size = "48x36".into();
+        o.spp = 32;
+        o.bounces = "1,inf".into();
+        o.techniques = "dl,isr-24,isr-thesis-24,relight-256,ibrr-64-48".into();
+        o.ladder = true;
+        o.sequence_frames = 8;
+        o.sequence_spp = Some(32);
+        let mut x = build(&o).unwrap();
+        x.settings.progress = false;
+        let out = x.run().unwrap();
+        let r = &out.results;
+        let labels = ["dl", "isr-24", "isr-thesis-24", "relight-256", "ibrr-64-48"];
+        // Every output: results, both reports, every image and error map of every view.
+        for f in ["results.json", "report.md", "report.html"] {
+            assert!(o.out.join(f).is_file(), "{f}");
+        }
+        let json: bench_harness::Results =
+            serde_json::from_str(&std::fs::read_to_string(o.out.join("results.json")).unwrap())
+                .unwrap();
+        assert_eq!(&json, r);
+        assert_eq!(r.views.len(), 2);
+        for v in &r.views {
+            let dir = o.out.join(bench_harness::experiment::view_dir(
+                &v.scene,
+                v.camera_index,
+                &v.camera_name(),
+            ));
+            for l in labels {
+                for f in [format!("{l}.png"), format!("errmap-{l}-binf.png")] {
+                    assert!(dir.join(&f).is_file(), "{f}");
+                }
+            }
+            // The ladder (1, 2, 4 spp) at both bounce limits.
+            for rf in &v.references {
+                assert_eq!(rf.ladder.iter().map(|p| p.spp).collect::<Vec<_>>(), [1, 2, 4]);
+            }
+        }
+        let md = std::fs::read_to_string(o.out.join("report.md")).unwrap();
+        let html = std::fs::read_to_string(o.out.join("report.html")).unwrap();
+        // The ranking in all three.
+        let ranking = md.split("## Ranking").nth(1).unwrap();
+        assert_eq!(r.summary.ranking.len(), labels.len());
+        for k in &r.summary.ranking {
+            let c = md_row(ranking, &k.rank.to_string());
+            assert_eq!(c[1], k.technique);
+            assert_eq!(c[2], bench_harness::report::fmt_err(k.mean_error));
+            assert!(html.contains(&format!(
+                "<td>{}</td><td>{}</td><td>{}</td>",
+                k.rank,
+                k.technique,
+                c[2]
+            )));
+        }
+        // Equal error: a row per technique and bounce limit, in both reports.
+        let eq = md.split("## Equal error").nth(1).unwrap();
+        for e in &r.summary.equal_error {
+            assert!(e.median_spp.is_finite() && e.median_spp > 0.0, "{e:?}");
+            let cells = format!(
+                "| {} | {} | {} | {} | {} |",
+                e.technique,
+                e.bounces,
+                e.views,
+                bench_harness::report::fmt_err(e.mean_error),
+                bench_harness::report::fmt_2(e.median_spp)
+            );
+            assert!(eq.contains(&cells), "{cells}");
+        }
+        // The sequence: every technique at every frame, the same numbers in the reports.
+        let q = r.sequence.as_ref().expect("a relighting sequence");
+        assert_eq!(q.frames.len(), 8);
+        let seq = md.split("## Relighting sequence").nth(1).unwrap();
+        for (i, f) in q.frames.iter().enumerate() {
+            assert_eq!(f.techniques.len(), labels.len());
+            let c = md_row(seq, &i.to_string());
+            assert_eq!(c[1], f.caption);
+            for (k, t) in f.techniques.iter().enumerate() {
+                assert!(t.error.is_finite() && t.frame_s > 0.0);
+                assert_eq!(
+                    c[2 + k],
+                    format!(
+                        "{} / {}",
+                        bench_harness::report::fmt_err(t.error),
+                        bench_harness::report::fmt_ms(t.frame_s * 1e3)
+                    )
+                );
+            }
+        }
+        assert!(html.contains("error along the sequence"));
+        // Relighting does not drift: every frame's error within 1.5x of the first frame's,
+        // and every frame faster than solving again (its precomputation).
+        let relight = q.series("relight-256");
+        let solve = q
+            .prepare_s
+            .iter()
+            .find(|p| p.0 == "relight-256")
+            .unwrap()
+            .1;
+        for (i, (t, e)) in relight.iter().enumerate() {
+            eprintln!("frame {i}: relight {:.3} ms, error {e:.5}", t * 1e3);
+            assert!(*e <= 1.5 * relight[0].1, "frame {i}: {e} against {}", relight[0].1);
+            assert!(*t < solve, "frame {i}: {t} s against a {solve} s solve");
+        }
         std::fs::remove_dir_all(&o.out).ok();
     }
 }

@@ -119,7 +119,7 @@ enum Command {
         /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
         /// isr-N, isr-thesis-N, relight (1024 and 4096 elements), relight-N, ibrr (LDC 128
         /// with 64 IRPLs and LDC 256 with 184), ibrr-RES-N; comma-separated.
-        #[arg(long, default_value = "dl,isr")]
+        #[arg(long, default_value = "dl,isr,relight,ibrr")]
         techniques: String,
         /// Views per scene: the scene's cameras first, then seeded random ones.
         #[arg(long)]
@@ -162,6 +162,19 @@ enum Command {
         /// Reference cache folder (default DIR/reference-cache).
         #[arg(long)]
         cache: Option<PathBuf>,
+        /// Skip the equal-error ladder (the path tracer at 1, 2, 4 ... spp/8 spp per view).
+        #[arg(long)]
+        no_ladder: bool,
+        /// The relighting sequence's scene and camera, SCENE or SCENE:CAMERA (default: corridor
+        /// when in the run, else the first scene; camera 0).
+        #[arg(long)]
+        sequence: Option<String>,
+        /// Frames of the relighting sequence (0: none).
+        #[arg(long, default_value_t = 8)]
+        sequence_frames: usize,
+        /// Samples per pixel of each sequence frame's reference (default: spp / 2).
+        #[arg(long)]
+        sequence_spp: Option<u32>,
     },
     /// Fuzz the loaders with mutated seed files: each input under catch_unwind, the worker
     /// under an address-space cap and a per-input time limit; failing inputs are saved under
@@ -459,6 +472,10 @@ fn run(cli: Cli) -> Result<(), String> {
             povray,
             error_metric,
             cache,
+            no_ladder,
+            sequence,
+            sequence_frames,
+            sequence_spp,
         } => experiment::run(&experiment::Options {
             scenes,
             techniques,
@@ -474,6 +491,10 @@ fn run(cli: Cli) -> Result<(), String> {
             povray,
             error_metric,
             cache,
+            ladder: !no_ladder,
+            sequence,
+            sequence_frames,
+            sequence_spp,
         }),
         Command::Fuzz {
             targets,
