@@ -214,6 +214,46 @@ fn inside_geometry(scene: &Scene, rays: &RayScene, offsets: &[u32], p: Vec3) -> 
     back * 2 > PROBES
 }
 
+/// Share of probe rays from `p` (a Fibonacci sphere) that hit anything: 1 in a closed room.
+fn enclosure(rays: &RayScene, p: Vec3) -> f32 {
+    const PROBES: u32 = 26;
+    let golden = std::f32::consts::PI * (3.0 - 5.0f32.sqrt());
+    let mut hits = 0;
+    for i in 0..PROBES {
+        let y = 1.0 - 2.0 * (i as f32 + 0.5) / PROBES as f32;
+        let r = (1.0 - y * y).max(0.0).sqrt();
+        let phi = golden * i as f32;
+        let d = Vec3::new(r * phi.cos(), y, r * phi.sin());
+        if rays.closest_hit(p, d, 0.0, f32::INFINITY).is_some() {
+            hits += 1;
+        }
+    }
+    hits as f32 / PROBES as f32
+}
+
+/// Enclosure a point must have to count as indoors.
+const INDOORS: f32 = 0.95;
+
+/// True when `scene` is an interior: of 256 seeded points in its bounds that lie in free
+/// space, at least 5 % are enclosed (every probe ray hits something). Open scenes (a ground
+/// under the sky, a box open at the front) have none.
+fn is_interior(scene: &Scene, rays: &RayScene, offsets: &[u32], lo: Vec3, hi: Vec3) -> bool {
+    let mut rng = Rng::new(0x1d00, 0x0e7c);
+    let (mut free, mut enclosed) = (0u32, 0u32);
+    for _ in 0..256 {
+        let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let p = lo + (hi - lo) * u;
+        if inside_geometry(scene, rays, offsets, p) {
+            continue;
+        }
+        free += 1;
+        if enclosure(rays, p) >= INDOORS {
+            enclosed += 1;
+        }
+    }
+    free > 0 && enclosed * 20 >= free
+}
+
 /// Share of an 8 x 6 grid of rays through `camera`'s image that hit geometry, the median
 /// hit distance and the number of distinct triangles hit.
 fn coverage(rays: &RayScene, camera: &Camera) -> (f32, f32, usize) {
@@ -238,7 +278,8 @@ fn coverage(rays: &RayScene, camera: &Camera) -> (f32, f32, usize) {
 }
 
 /// `count` seeded random cameras inside `scene`'s bounds: each eye lies in free space (not
-/// inside a solid, not closer to a surface than 2 % of the extent), looks in a random
+/// inside a solid, not closer to a surface than 2 % of the extent; in an interior, such as a
+/// building standing on a ground, inside a room: enclosed on every side), looks in a random
 /// direction that is not too steep, and sees geometry through at least `min_coverage` of
 /// its image, made of at least `min_triangles` triangles. Deterministic for a seed. Fails when the scene is empty or no candidate
 /// passes within `max_attempts` tries.
@@ -263,6 +304,7 @@ pub fn random_cameras(
     // Shrink the box a little so eyes do not sit on the outer walls.
     let lo = bounds.min + (bounds.max - bounds.min) * 0.05;
     let hi = bounds.max - (bounds.max - bounds.min) * 0.05;
+    let indoors = is_interior(scene, &rays, &offsets, lo, hi);
     while out.len() < count {
         attempts += 1;
         if attempts > settings.max_attempts * count.max(1) as u32 {
@@ -276,7 +318,10 @@ pub fn random_cameras(
         let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
         let p = lo + (hi - lo) * u;
         let d = uniform_sphere(rng.next_vec2());
-        if d.y.abs() > 0.6 || inside_geometry(scene, &rays, &offsets, p) {
+        if d.y.abs() > 0.6
+            || inside_geometry(scene, &rays, &offsets, p)
+            || indoors && enclosure(&rays, p) < INDOORS
+        {
             continue;
         }
         let spec = CameraSpec {

@@ -3,6 +3,7 @@
 //! light sources with stable ids and their per-frame state ([`lights`]), and views
 //! ([`view`]: cameras, hemicube faces, shadow-map views, engine matrices).
 
+pub mod building;
 pub mod builtin;
 pub mod lights;
 pub mod scene;

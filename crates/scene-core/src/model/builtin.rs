@@ -5,6 +5,8 @@
 //! - `primitives`: coloured boxes and spheres on a ground plane under a sun.
 //! - `corridor`: a long interior with pillars, coloured walls and several point lights.
 //! - `many-boxes N`: N seeded random boxes on a ground plane (12 N + 2 triangles).
+//! - `building NxM`: a procedural multi-room interior, textured, a lamp per room and a sun
+//!   through the windows (default 4x3 rooms, about 280 000 triangles; [`super::building`]).
 
 use glam::{Vec2, Vec3};
 
@@ -13,12 +15,13 @@ use crate::sampling::Rng;
 use crate::scene::{Camera, DirectionalLight, Material, Mesh, PointLight, Scene};
 
 /// Names of the built-in scenes (`many-boxes` takes a box count: `many-boxes 1000`).
-pub const NAMES: [&str; 5] = [
+pub const NAMES: [&str; 6] = [
     "cornell",
     "cornell-point",
     "primitives",
     "corridor",
     "many-boxes",
+    "building",
 ];
 
 /// A small instance of every built-in scene, for tests and quick checks.
@@ -42,6 +45,28 @@ pub fn scene(name: &str) -> Result<Scene, SceneError> {
         "cornell-point" => cornell_point(),
         "primitives" => primitives(),
         "corridor" => corridor(),
+        _ if name.starts_with("building") => {
+            let rest = name["building".len()..]
+                .trim_start_matches([' ', ':', '=', '-'])
+                .trim();
+            let grid = if rest.is_empty() {
+                Some((4, 3))
+            } else {
+                rest.split_once(['x', 'X']).and_then(|(a, b)| {
+                    let a: u32 = a.trim().parse().ok()?;
+                    let b: u32 = b.trim().parse().ok()?;
+                    let max = super::building::MAX_ROOMS;
+                    ((1..=max).contains(&a) && (1..=max).contains(&b)).then_some((a, b))
+                })
+            };
+            let (a, b) = grid.ok_or_else(|| {
+                SceneError::UnknownBuiltin(format!(
+                    "{name} (building takes NxM rooms, each 1..={})",
+                    super::building::MAX_ROOMS
+                ))
+            })?;
+            super::building::building(a, b)
+        }
         _ => {
             let rest = name
                 .strip_prefix("many-boxes")
@@ -72,7 +97,7 @@ fn mm(x: f32, y: f32, z: f32) -> Vec3 {
 }
 
 /// A camera whose near/far planes are sized from the scene bounds seen from `position`.
-fn camera(
+pub(crate) fn camera(
     name: &str,
     position: Vec3,
     target: Vec3,
