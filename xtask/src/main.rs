@@ -26,6 +26,7 @@ mod fuzz;
 mod ibrr;
 mod relight;
 mod shaders;
+mod sweep;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -109,15 +110,32 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// The main job: render the scenes with DL, ISR and the reference path tracer and write
-    /// results.json, report.md and report.html (speed against error).
+    /// ISR's settings (k_isr, AO on/off, radius) swept at 24/48/80 samples over the built-in
+    /// scenes against the reference; prints the most accurate setting per sample count.
+    SweepIsr {
+        /// Output directory.
+        #[arg(long, default_value = "out/sweep-isr")]
+        out: PathBuf,
+        /// Reference cache folder (share the main job's: out/experiment/reference-cache).
+        #[arg(long)]
+        cache: Option<PathBuf>,
+        /// Image size WxH.
+        #[arg(long, default_value = "256x192")]
+        size: String,
+        /// Reference samples per pixel.
+        #[arg(long, default_value_t = 512)]
+        spp: u32,
+    },
+    /// The main job: render the scenes with DL, ISR, radiosity relighting, the IBRR and the
+    /// reference path tracer and write results.json, report.md and report.html (speed
+    /// against error, equal-error path tracing, a relighting sequence).
     Experiment {
         /// Built-in scene name or .gltf/.glb path (repeatable; default: cornell,
         /// cornell-point, primitives, corridor).
         #[arg(long = "scene")]
         scenes: Vec<String>,
         /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
-        /// isr-N, isr-thesis-N, relight (1024 and 4096 elements), relight-N, ibrr (LDC 128
+        /// isr-N, isr-thesis-N, relight (256 and 1024 elements), relight-N, ibrr (LDC 128
         /// with 64 IRPLs and LDC 256 with 184), ibrr-RES-N; comma-separated.
         #[arg(long, default_value = "dl,isr,relight,ibrr")]
         techniques: String,
@@ -456,6 +474,12 @@ fn run(cli: Cli) -> Result<(), String> {
             println!("{}", out.display());
             Ok(())
         }
+        Command::SweepIsr {
+            out,
+            cache,
+            size,
+            spp,
+        } => sweep::run(out, cache, &size, spp),
         Command::Experiment {
             scenes,
             techniques,

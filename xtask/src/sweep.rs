@@ -1,0 +1,146 @@
+//! `cargo xtask sweep-isr`: ISR's settings swept over the built-in scenes against the
+//! reference, to choose the default mode from measurement. Every combination of the indirect
+//! power `k_isr`, ambient occlusion (on at `k_ssao` 0.5, or off) and the sampling radius runs
+//! at each of the thesis' sample counts through the same experiment as the main job (and its
+//! reference cache), and the most accurate setting per sample count is printed.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use bench_harness::{Experiment, ExperimentSettings, SceneSetup, TechniqueSetup, cameras_for};
+use gbuffer::CpuRasterizer;
+use imalyzer::{Measure, MeasureMetric};
+use isr::{IsrSettings, IsrTechnique, Radius};
+use scene_core::Metric;
+use scene_core::reference::Bounces;
+
+/// The swept values.
+pub const K_ISR: [f32; 3] = [0.5, 1.0, 1.5];
+/// Ambient occlusion: `Some(k_ssao)` or off.
+pub const AO: [Option<f32>; 2] = [Some(0.5), None];
+/// Radii as a share of the scene's extent.
+pub const RADII: [f32; 3] = [0.1, 0.25, 0.5];
+
+/// One swept setting.
+#[derive(Clone, Debug)]
+pub struct Setting {
+    /// Label (`isr-80-k1-ao-r0.25`).
+    pub label: String,
+    /// The settings.
+    pub settings: IsrSettings,
+}
+
+/// The grid at `samples`.
+pub fn grid(samples: u32) -> Vec<Setting> {
+    let mut out = Vec::new();
+    for k in K_ISR {
+        for ao in AO {
+            for r in RADII {
+                let settings = IsrSettings {
+                    samples,
+                    k_isr: k,
+                    ssao: ao.is_some(),
+                    k_ssao: ao.unwrap_or(0.0),
+                    radius: Radius::Relative(r),
+                    ..IsrSettings::default()
+                };
+                let label = format!(
+                    "isr-{samples}-k{k}-{}-r{r}",
+                    if ao.is_some() { "ao" } else { "noao" }
+                );
+                out.push(Setting { label, settings });
+            }
+        }
+    }
+    out
+}
+
+/// Runs the sweep.
+pub fn run(out: PathBuf, cache: Option<PathBuf>, size: &str, spp: u32) -> Result<(), String> {
+    let (width, height) = crate::experiment::parse_size(size)?;
+    let mut scenes = Vec::new();
+    for name in crate::experiment::DEFAULT_SCENES {
+        let scene = crate::load_scene(name)?;
+        let cameras = cameras_for(&scene, &scene.cameras, scene.cameras.len(), &Default::default())
+            .map_err(|e| e.to_string())?;
+        scenes.push(SceneSetup {
+            id: name.to_string(),
+            scene: Arc::new(scene),
+            cameras,
+        });
+    }
+    let mut techniques = vec![TechniqueSetup {
+        label: "dl".into(),
+        family: "dl".into(),
+        description: "direct light".into(),
+        technique: Box::new(
+            IsrTechnique::new(IsrSettings::dl(), Box::new(CpuRasterizer::new())).named("dl"),
+        ),
+        single_frame: false,
+    }];
+    let mut labels = Vec::new();
+    for n in crate::experiment::SAMPLES {
+        for s in grid(n) {
+            labels.push((n, s.label.clone(), s.settings));
+            techniques.push(TechniqueSetup {
+                label: s.label.clone(),
+                family: "isr".into(),
+                description: format!("{:?}", s.settings),
+                technique: Box::new(
+                    IsrTechnique::new(s.settings, Box::new(CpuRasterizer::new())).named(&s.label),
+                ),
+                single_frame: false,
+            });
+        }
+    }
+    let metrics: Vec<Box<dyn Metric>> = vec![Box::new(MeasureMetric::new(Measure::MeanError))];
+    let mut x = Experiment {
+        settings: ExperimentSettings {
+            width,
+            height,
+            spp,
+            bounces: vec![Bounces::Limited(1), Bounces::Unlimited],
+            repeats: 1,
+            out_dir: out.clone(),
+            cache_dir: cache,
+            error_metric: Measure::MeanError.name().into(),
+            correlation_metric: Measure::MeanError.name().into(),
+            write_images: false,
+            ..Default::default()
+        },
+        scenes,
+        techniques,
+        metrics,
+    };
+    let outcome = x.run().map_err(|e| e.to_string())?;
+    let r = &outcome.results;
+    let gain = |label: &str, b: &str| {
+        r.summary
+            .comparisons
+            .iter()
+            .find(|c| c.technique == label && c.bounces == b)
+            .map(|c| c.mean_gain)
+            .unwrap_or(f64::NEG_INFINITY)
+    };
+    println!(
+        "{:<28} {:>12} {:>12}",
+        "setting", "gain b=1", "gain b=inf"
+    );
+    for n in crate::experiment::SAMPLES {
+        let mut rows: Vec<&(u32, String, IsrSettings)> =
+            labels.iter().filter(|l| l.0 == n).collect();
+        rows.sort_by(|a, b| gain(&b.1, "1").total_cmp(&gain(&a.1, "1")));
+        for (i, (_, label, _)) in rows.iter().enumerate() {
+            println!(
+                "{:<28} {:>11.2}% {:>11.2}%{}",
+                label,
+                gain(label, "1") * 100.0,
+                gain(label, "inf") * 100.0,
+                if i == 0 { "  <- most accurate at bounce 1" } else { "" }
+            );
+        }
+        println!();
+    }
+    println!("report: {}", outcome.report_md.display());
+    Ok(())
+}
