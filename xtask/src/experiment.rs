@@ -262,7 +262,7 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
     let base = if thesis {
         IsrSettings::thesis()
     } else {
-        IsrSettings::default()
+        IsrSettings::for_samples(samples)
     };
     let (label, mode) = if thesis {
         (
@@ -272,7 +272,7 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
     } else {
         (
             format!("isr-{samples}"),
-            "default mode (patch estimator, lit senders)",
+            "default mode (patch estimator, lit senders, no AO, k_isr measured for the sample count)",
         )
     };
     TechniqueChoice {

@@ -15,7 +15,7 @@ use scene_core::Metric;
 use scene_core::reference::Bounces;
 
 /// The swept values.
-pub const K_ISR: [f32; 3] = [0.5, 1.0, 1.5];
+pub const K_ISR: [f32; 6] = [0.5, 1.0, 1.5, 2.0, 2.5, 3.0];
 /// Ambient occlusion: `Some(k_ssao)` or off.
 pub const AO: [Option<f32>; 2] = [Some(0.5), None];
 /// Radii as a share of the scene's extent.

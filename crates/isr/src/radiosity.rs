@@ -344,6 +344,7 @@ mod tests {
                 estimator,
                 sender: Sender::Albedo,
                 samples: 48,
+                ssao: true,
                 ..Default::default()
             };
             let out = radiosity(&s, &g, None, &settings, 2.0);

@@ -53,14 +53,16 @@ fn golden_images_of_every_mode() {
             blur: Blur::EdgeAware,
             ao_indirect_only: true,
             upsample_normal_power: 8.0,
-            ..Default::default()
+            ..IsrSettings::thesis_constants()
         }),
     );
     let primitives = Setup::builtin("primitives", 0, 128, 96);
     check(
         "primitives-patch-lit",
-        &primitives.render(&IsrSettings::default()),
+        &primitives.render(&IsrSettings::thesis_constants()),
     );
+    // The measured default (k_isr 2, no AO).
+    check("primitives-default", &primitives.render(&IsrSettings::default()));
 }
 
 #[test]

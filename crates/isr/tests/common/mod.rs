@@ -76,7 +76,7 @@ pub fn modes() -> Vec<(&'static str, IsrSettings)> {
             IsrSettings {
                 estimator,
                 sender,
-                ..Default::default()
+                ..IsrSettings::thesis_constants()
             },
         ));
     }
