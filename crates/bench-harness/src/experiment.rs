@@ -442,6 +442,7 @@ impl Experiment {
                     if prepared.is_none() {
                         let mut times = Vec::new();
                         for t in &mut self.techniques {
+                            views_bar.set_message(format!("{}: preparing {}", sc.id, t.label));
                             let t0 = Instant::now();
                             t.technique.prepare(sc.scene.clone()).map_err(|e| {
                                 HarnessError::Technique {
@@ -582,6 +583,17 @@ impl Experiment {
             return Ok(None);
         };
         let frames = crate::sequence::light_sequence(&scene, spec.frames);
+        if self.settings.progress {
+            eprintln!(
+                "relighting sequence: {} frames on {} / {}, {} technique(s) prepared again, a \
+                 {}-spp reference per frame",
+                frames.len(),
+                spec.scene,
+                camera.name,
+                self.techniques.len(),
+                spec.spp
+            );
+        }
         let settings = SequenceSettings {
             width: self.settings.width,
             height: self.settings.height,
