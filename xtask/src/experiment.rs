@@ -90,7 +90,11 @@ fn sequence_spec(
             ),
             _ => (s.clone(), 0),
         },
-        None => match scenes.iter().find(|s| s.id == "corridor").or(scenes.first()) {
+        None => match scenes
+            .iter()
+            .find(|s| s.id == "corridor")
+            .or(scenes.first())
+        {
             Some(s) => (s.id.clone(), 0),
             None => return Ok(None),
         },
@@ -1061,7 +1065,10 @@ mod tests {
             }
             // The ladder (1, 2, 4 spp) at both bounce limits.
             for rf in &v.references {
-                assert_eq!(rf.ladder.iter().map(|p| p.spp).collect::<Vec<_>>(), [1, 2, 4]);
+                assert_eq!(
+                    rf.ladder.iter().map(|p| p.spp).collect::<Vec<_>>(),
+                    [1, 2, 4]
+                );
             }
         }
         let md = std::fs::read_to_string(o.out.join("report.md")).unwrap();
@@ -1075,9 +1082,7 @@ mod tests {
             assert_eq!(c[2], bench_harness::report::fmt_err(k.mean_error));
             assert!(html.contains(&format!(
                 "<td>{}</td><td>{}</td><td>{}</td>",
-                k.rank,
-                k.technique,
-                c[2]
+                k.rank, k.technique, c[2]
             )));
         }
         // Equal error: a row per technique and bounce limit, in both reports.
@@ -1118,15 +1123,14 @@ mod tests {
         // Relighting does not drift: every frame's error within 1.5x of the first frame's,
         // and every frame faster than solving again (its precomputation).
         let relight = q.series("relight-256");
-        let solve = q
-            .prepare_s
-            .iter()
-            .find(|p| p.0 == "relight-256")
-            .unwrap()
-            .1;
+        let solve = q.prepare_s.iter().find(|p| p.0 == "relight-256").unwrap().1;
         for (i, (t, e)) in relight.iter().enumerate() {
             eprintln!("frame {i}: relight {:.3} ms, error {e:.5}", t * 1e3);
-            assert!(*e <= 1.5 * relight[0].1, "frame {i}: {e} against {}", relight[0].1);
+            assert!(
+                *e <= 1.5 * relight[0].1,
+                "frame {i}: {e} against {}",
+                relight[0].1
+            );
             assert!(*t < solve, "frame {i}: {t} s against a {solve} s solve");
         }
         std::fs::remove_dir_all(&o.out).ok();

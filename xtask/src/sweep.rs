@@ -61,8 +61,13 @@ pub fn run(out: PathBuf, cache: Option<PathBuf>, size: &str, spp: u32) -> Result
     let mut scenes = Vec::new();
     for name in crate::experiment::DEFAULT_SCENES {
         let scene = crate::load_scene(name)?;
-        let cameras = cameras_for(&scene, &scene.cameras, scene.cameras.len(), &Default::default())
-            .map_err(|e| e.to_string())?;
+        let cameras = cameras_for(
+            &scene,
+            &scene.cameras,
+            scene.cameras.len(),
+            &Default::default(),
+        )
+        .map_err(|e| e.to_string())?;
         scenes.push(SceneSetup {
             id: name.to_string(),
             scene: Arc::new(scene),
@@ -122,10 +127,7 @@ pub fn run(out: PathBuf, cache: Option<PathBuf>, size: &str, spp: u32) -> Result
             .map(|c| c.mean_gain)
             .unwrap_or(f64::NEG_INFINITY)
     };
-    println!(
-        "{:<28} {:>12} {:>12}",
-        "setting", "gain b=1", "gain b=inf"
-    );
+    println!("{:<28} {:>12} {:>12}", "setting", "gain b=1", "gain b=inf");
     for n in crate::experiment::SAMPLES {
         let mut rows: Vec<&(u32, String, IsrSettings)> =
             labels.iter().filter(|l| l.0 == n).collect();
@@ -136,7 +138,11 @@ pub fn run(out: PathBuf, cache: Option<PathBuf>, size: &str, spp: u32) -> Result
                 label,
                 gain(label, "1") * 100.0,
                 gain(label, "inf") * 100.0,
-                if i == 0 { "  <- most accurate at bounce 1" } else { "" }
+                if i == 0 {
+                    "  <- most accurate at bounce 1"
+                } else {
+                    ""
+                }
             );
         }
         println!();

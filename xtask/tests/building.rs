@@ -28,8 +28,16 @@ fn the_generated_building_exports_imports_validates_and_runs_the_experiment() {
     let mut scene = imported.scene;
     scene.validate().unwrap();
     assert_eq!(scene.triangle_count(), built.triangle_count());
-    assert!(scene.triangle_count() >= 200_000, "{}", scene.triangle_count());
-    assert!(scene.materials.len() >= 24, "{} materials", scene.materials.len());
+    assert!(
+        scene.triangle_count() >= 200_000,
+        "{}",
+        scene.triangle_count()
+    );
+    assert!(
+        scene.materials.len() >= 24,
+        "{} materials",
+        scene.materials.len()
+    );
     assert_eq!(scene.textures.len(), built.textures.len());
     assert!(scene.textures.len() >= 5);
     assert!(
@@ -59,16 +67,29 @@ fn the_generated_building_exports_imports_validates_and_runs_the_experiment() {
     let o = xtask()
         .args(["experiment", "--scene"])
         .arg(&file)
-        .args(["--views", "2", "--size", "32x24", "--spp", "16", "--repeats", "1"])
-        .args(["--techniques", "dl,isr-24,ibrr-32-16", "--sequence-frames", "2"])
+        .args([
+            "--views",
+            "2",
+            "--size",
+            "32x24",
+            "--spp",
+            "16",
+            "--repeats",
+            "1",
+        ])
+        .args([
+            "--techniques",
+            "dl,isr-24,ibrr-32-16",
+            "--sequence-frames",
+            "2",
+        ])
         .arg("--out")
         .arg(&out)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let r: bench_harness::Results =
-        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
     assert_eq!(r.views.len(), 2);
     for v in &r.views {
         for t in &v.techniques {

@@ -12,11 +12,11 @@ use scene_core::{Camera, FrameRequest, Image, LightState, Metric, Scene, Techniq
 use crate::HarnessError;
 use crate::cache::{Fnv, ReferenceCache, scene_hash};
 use crate::cameras::CameraSpec;
-use crate::sequence::{SequenceResult, SequenceSettings};
 use crate::results::{
-    ErrorSet, LadderPoint, ReferenceResult, Results, RunSettings, TechniqueInfo, TechniqueResult, Timing,
-    ViewResult, summarize,
+    ErrorSet, LadderPoint, ReferenceResult, Results, RunSettings, TechniqueInfo, TechniqueResult,
+    Timing, ViewResult, summarize,
 };
+use crate::sequence::{SequenceResult, SequenceSettings};
 
 /// Version of the per-view result format; views written by another version are recomputed.
 pub const RESULTS_VERSION: u64 = 3;
@@ -568,8 +568,7 @@ impl Experiment {
             spec.bounces
         );
         let file = views_dir.join("sequence.json");
-        if let Ok(bytes) =
-            scene_core::budget::read_file(&file, &scene_core::Budget::default())
+        if let Ok(bytes) = scene_core::budget::read_file(&file, &scene_core::Budget::default())
             && let Ok(saved) = serde_json::from_slice::<SavedSequence>(&bytes)
             && saved.config == config
         {

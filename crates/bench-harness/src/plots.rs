@@ -138,12 +138,7 @@ pub fn series(
     {
         let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
         root.fill(&WHITE).map_err(err)?;
-        let n = lines
-            .iter()
-            .map(|l| l.2.len())
-            .max()
-            .unwrap_or(1)
-            .max(1);
+        let n = lines.iter().map(|l| l.2.len()).max().unwrap_or(1).max(1);
         let values = || lines.iter().flat_map(|l| l.2.iter().copied());
         let mut chart = ChartBuilder::on(&root);
         chart

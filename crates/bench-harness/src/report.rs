@@ -592,7 +592,12 @@ pub fn html(r: &Results, headline: Option<&str>, out: &Path) -> String {
             .iter()
             .map(|v| format!("{}/{}", v.scene, v.camera_index))
             .collect();
-        let _ = write!(o, "<h2>Per view ({} against {})</h2>", esc(h), esc(&s.baseline));
+        let _ = write!(
+            o,
+            "<h2>Per view ({} against {})</h2>",
+            esc(h),
+            esc(&s.baseline)
+        );
         o.push_str(&plot_html(crate::plots::series(
             &format!("mean error per view, bounces {b} (figure 5.8)"),
             "view",
@@ -604,7 +609,11 @@ pub fn html(r: &Results, headline: Option<&str>, out: &Path) -> String {
                     colour_of(&s.baseline),
                     pairs.iter().map(|p| p.0).collect(),
                 ),
-                (h.to_string(), colour_of(h), pairs.iter().map(|p| p.1).collect()),
+                (
+                    h.to_string(),
+                    colour_of(h),
+                    pairs.iter().map(|p| p.1).collect(),
+                ),
             ],
             false,
         )));

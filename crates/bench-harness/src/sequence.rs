@@ -198,7 +198,12 @@ pub fn run_sequence(
             .map_err(|e| fail(&t.label, e))?;
         prepare_s.push((t.label.clone(), t0.elapsed().as_secs_f64()));
         t.technique
-            .render(&FrameRequest::from_camera(&cam, w, h, &LightState::default()))
+            .render(&FrameRequest::from_camera(
+                &cam,
+                w,
+                h,
+                &LightState::default(),
+            ))
             .map_err(|e| fail(&t.label, e))?;
     }
     if let Some(dir) = images {
@@ -234,10 +239,7 @@ pub fn run_sequence(
                 })?
                 .value;
             if let Some(dir) = images {
-                let file = dir.join(format!(
-                    "{fi:02}-{}.png",
-                    crate::experiment::slug(&t.label)
-                ));
+                let file = dir.join(format!("{fi:02}-{}.png", crate::experiment::slug(&t.label)));
                 img.write_png(&file, 0.0)
                     .map_err(|e| HarnessError::from(scene_core::Error::from(e)))?;
             }

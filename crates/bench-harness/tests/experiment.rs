@@ -461,7 +461,10 @@ impl Technique for PathTracerAt {
         Ok(())
     }
     fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
-        let scene = self.scene.as_deref().ok_or(Error::NotPrepared("pt".into()))?;
+        let scene = self
+            .scene
+            .as_deref()
+            .ok_or(Error::NotPrepared("pt".into()))?;
         let settings = scene_core::reference::ReferenceSettings {
             width: frame.width,
             height: frame.height,
@@ -520,7 +523,10 @@ fn the_equal_error_spp_of_a_path_tracer_at_a_lower_spp_is_that_spp() {
         [1, 2, 4, 8, 16, 32]
     );
     // The ladder's error falls with the sample count.
-    assert!(ladder.windows(2).all(|w| w[1].error < w[0].error), "{ladder:?}");
+    assert!(
+        ladder.windows(2).all(|w| w[1].error < w[0].error),
+        "{ladder:?}"
+    );
     for (label, spp) in [("pt-2", 2.0), ("pt-6", 6.0), ("pt-12", 12.0)] {
         let e = r.views[0].technique(label).unwrap().errors[0]
             .equal_error

@@ -62,7 +62,10 @@ fn golden_images_of_every_mode() {
         &primitives.render(&IsrSettings::thesis_constants()),
     );
     // The measured default (k_isr 2, no AO).
-    check("primitives-default", &primitives.render(&IsrSettings::default()));
+    check(
+        "primitives-default",
+        &primitives.render(&IsrSettings::default()),
+    );
 }
 
 #[test]

@@ -101,7 +101,11 @@ impl Builder {
                     j as f32 * dv,
                     (j + 1) as f32 * dv,
                 );
-                self.quad([p(a0, b0), p(a1, b0), p(a1, b1), p(a0, b1)], normal, material);
+                self.quad(
+                    [p(a0, b0), p(a1, b0), p(a1, b1), p(a0, b1)],
+                    normal,
+                    material,
+                );
             }
         }
     }
@@ -110,12 +114,60 @@ impl Builder {
     fn cuboid(&mut self, centre: Vec3, half: Vec3, material: u32) {
         let p = |x: f32, y: f32, z: f32| centre + half * Vec3::new(x, y, z);
         let faces: [([Vec3; 4], Vec3); 6] = [
-            ([p(1., -1., -1.), p(1., 1., -1.), p(1., 1., 1.), p(1., -1., 1.)], Vec3::X),
-            ([p(-1., -1., -1.), p(-1., 1., -1.), p(-1., 1., 1.), p(-1., -1., 1.)], -Vec3::X),
-            ([p(-1., 1., -1.), p(1., 1., -1.), p(1., 1., 1.), p(-1., 1., 1.)], Vec3::Y),
-            ([p(-1., -1., -1.), p(1., -1., -1.), p(1., -1., 1.), p(-1., -1., 1.)], -Vec3::Y),
-            ([p(-1., -1., 1.), p(1., -1., 1.), p(1., 1., 1.), p(-1., 1., 1.)], Vec3::Z),
-            ([p(-1., -1., -1.), p(1., -1., -1.), p(1., 1., -1.), p(-1., 1., -1.)], -Vec3::Z),
+            (
+                [
+                    p(1., -1., -1.),
+                    p(1., 1., -1.),
+                    p(1., 1., 1.),
+                    p(1., -1., 1.),
+                ],
+                Vec3::X,
+            ),
+            (
+                [
+                    p(-1., -1., -1.),
+                    p(-1., 1., -1.),
+                    p(-1., 1., 1.),
+                    p(-1., -1., 1.),
+                ],
+                -Vec3::X,
+            ),
+            (
+                [
+                    p(-1., 1., -1.),
+                    p(1., 1., -1.),
+                    p(1., 1., 1.),
+                    p(-1., 1., 1.),
+                ],
+                Vec3::Y,
+            ),
+            (
+                [
+                    p(-1., -1., -1.),
+                    p(1., -1., -1.),
+                    p(1., -1., 1.),
+                    p(-1., -1., 1.),
+                ],
+                -Vec3::Y,
+            ),
+            (
+                [
+                    p(-1., -1., 1.),
+                    p(1., -1., 1.),
+                    p(1., 1., 1.),
+                    p(-1., 1., 1.),
+                ],
+                Vec3::Z,
+            ),
+            (
+                [
+                    p(-1., -1., -1.),
+                    p(1., -1., -1.),
+                    p(1., 1., -1.),
+                    p(-1., 1., -1.),
+                ],
+                -Vec3::Z,
+            ),
         ];
         for (c, n) in faces {
             self.quad(c, n, material);
@@ -127,7 +179,11 @@ impl Builder {
         let at = |r: u32, s: u32| {
             let theta = std::f32::consts::PI * r as f32 / rings as f32;
             let phi = std::f32::consts::TAU * s as f32 / segments as f32;
-            Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+            Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            )
         };
         for r in 0..rings {
             for s in 0..segments {
@@ -140,7 +196,8 @@ impl Builder {
                     for (k, p) in [c[0], c[2], c[3]].into_iter().enumerate() {
                         self.mesh.positions.push(p);
                         self.mesh.normals.push(n);
-                        self.uvs.push(Vec2::new(s as f32, (r + k as u32) as f32) * 0.1);
+                        self.uvs
+                            .push(Vec2::new(s as f32, (r + k as u32) as f32) * 0.1);
                     }
                     self.mesh.indices.push([base, base + 2, base + 1]);
                     self.mesh.material_ids.push(material);
@@ -179,7 +236,8 @@ fn texture(name: &str, size: u32, f: impl Fn(f32, f32) -> Vec3) -> Texture {
 /// Cheap lattice value noise in [0, 1] (deterministic).
 fn noise(x: f32, y: f32, seed: u32) -> f32 {
     let h = |i: i32, j: i32| {
-        let mut v = (i as u32).wrapping_mul(0x27d4_eb2d) ^ (j as u32).wrapping_mul(0x1656_67b1)
+        let mut v = (i as u32).wrapping_mul(0x27d4_eb2d)
+            ^ (j as u32).wrapping_mul(0x1656_67b1)
             ^ seed.wrapping_mul(0x9e37_79b9);
         v ^= v >> 15;
         v = v.wrapping_mul(0x2c1b_3c6d);
@@ -253,8 +311,7 @@ pub fn building(nx: u32, nz: u32) -> Scene {
         textured("carpet", Vec3::new(0.55, 0.3, 0.25), 3),
     ];
     s.materials.extend(floor_kinds);
-    s.materials
-        .push(textured("ceiling", Vec3::splat(0.85), 1));
+    s.materials.push(textured("ceiling", Vec3::splat(0.85), 1));
     s.materials
         .push(textured("table", Vec3::new(0.6, 0.55, 0.5), 0));
     s.materials
@@ -288,7 +345,7 @@ pub fn building(nx: u32, nz: u32) -> Scene {
             let x0 = i as f32 * ROOM + WALL * 0.5;
             let z0 = j as f32 * ROOM + WALL * 0.5;
             let (x1, z1) = (x0 + inner, z0 + inner);
-            let floor = (room % 3) as u32;
+            let floor = room % 3;
             let wall = walls + room;
             shell.grid(
                 Vec3::new(x0, 0.0, z0),
@@ -313,22 +370,25 @@ pub fn building(nx: u32, nz: u32) -> Scene {
             // Four walls: (origin, along, inward normal, opening, outward offset).
             let sides = [
                 (Vec3::new(x0, 0.0, z0), Vec3::X, Vec3::Z, j == 0, -Vec3::Z),
-                (Vec3::new(x0, 0.0, z1), Vec3::X, -Vec3::Z, j + 1 == nz, Vec3::Z),
+                (
+                    Vec3::new(x0, 0.0, z1),
+                    Vec3::X,
+                    -Vec3::Z,
+                    j + 1 == nz,
+                    Vec3::Z,
+                ),
                 (Vec3::new(x0, 0.0, z0), Vec3::Z, Vec3::X, i == 0, -Vec3::X),
-                (Vec3::new(x1, 0.0, z0), Vec3::Z, -Vec3::X, i + 1 == nx, Vec3::X),
+                (
+                    Vec3::new(x1, 0.0, z0),
+                    Vec3::Z,
+                    -Vec3::X,
+                    i + 1 == nx,
+                    Vec3::X,
+                ),
             ];
             for (origin, along, normal, outer, out) in sides {
                 let hole = if outer { window } else { door };
-                shell.grid(
-                    origin,
-                    along,
-                    inner,
-                    Vec3::Y,
-                    HEIGHT,
-                    normal,
-                    &[hole],
-                    wall,
-                );
+                shell.grid(origin, along, inner, Vec3::Y, HEIGHT, normal, &[hole], wall);
                 // The opening's jambs through the wall's thickness (half of a shared
                 // wall's: the neighbour adds its half; the whole of an outer wall).
                 let depth = if outer { WALL } else { WALL * 0.5 };
@@ -336,9 +396,18 @@ pub fn building(nx: u32, nz: u32) -> Scene {
                 let [u0, u1, v0, v1] = hole;
                 let d = out * depth;
                 let jambs = [
-                    ([at(u0, v0), at(u0, v1), at(u0, v1) + d, at(u0, v0) + d], along),
-                    ([at(u1, v0), at(u1, v1), at(u1, v1) + d, at(u1, v0) + d], -along),
-                    ([at(u0, v1), at(u1, v1), at(u1, v1) + d, at(u0, v1) + d], -Vec3::Y),
+                    (
+                        [at(u0, v0), at(u0, v1), at(u0, v1) + d, at(u0, v0) + d],
+                        along,
+                    ),
+                    (
+                        [at(u1, v0), at(u1, v1), at(u1, v1) + d, at(u1, v0) + d],
+                        -along,
+                    ),
+                    (
+                        [at(u0, v1), at(u1, v1), at(u1, v1) + d, at(u0, v1) + d],
+                        -Vec3::Y,
+                    ),
                 ];
                 for (c, n) in jambs {
                     shell.quad(c, n, wall);
@@ -355,7 +424,11 @@ pub fn building(nx: u32, nz: u32) -> Scene {
             let c = Vec3::new(x0 + inner * 0.5, 0.0, z0 + inner * 0.5);
             let yaw_off = Vec3::new(rng.next_f32() - 0.5, 0.0, rng.next_f32() - 0.5) * 0.6;
             let t = c + yaw_off;
-            furniture.cuboid(t + Vec3::new(0.0, 0.74, 0.0), Vec3::new(0.8, 0.03, 0.5), table);
+            furniture.cuboid(
+                t + Vec3::new(0.0, 0.74, 0.0),
+                Vec3::new(0.8, 0.03, 0.5),
+                table,
+            );
             for (sx, sz) in [(-1.0f32, -1.0f32), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
                 furniture.cuboid(
                     t + Vec3::new(0.72 * sx, 0.36, 0.42 * sz),
@@ -363,7 +436,11 @@ pub fn building(nx: u32, nz: u32) -> Scene {
                     table,
                 );
                 let chair = t + Vec3::new(0.45 * sx, 0.0, 0.85 * sz);
-                furniture.cuboid(chair + Vec3::new(0.0, 0.45, 0.0), Vec3::new(0.22, 0.03, 0.22), table);
+                furniture.cuboid(
+                    chair + Vec3::new(0.0, 0.45, 0.0),
+                    Vec3::new(0.22, 0.03, 0.22),
+                    table,
+                );
                 furniture.cuboid(
                     chair + Vec3::new(0.0, 0.7, 0.2 * sz),
                     Vec3::new(0.22, 0.25, 0.03),
@@ -412,7 +489,11 @@ pub fn building(nx: u32, nz: u32) -> Scene {
             furniture.sphere(t + Vec3::new(0.0, 0.95, 0.0), 0.18, 16, 32, shade);
             // A potted plant in the corner by the door.
             let pot = Vec3::new(x1 - 0.4, 0.0, z0 + 0.4);
-            furniture.cuboid(pot + Vec3::new(0.0, 0.2, 0.0), Vec3::new(0.15, 0.2, 0.15), shelf);
+            furniture.cuboid(
+                pot + Vec3::new(0.0, 0.2, 0.0),
+                Vec3::new(0.15, 0.2, 0.15),
+                shelf,
+            );
             furniture.sphere(pot + Vec3::new(0.0, 0.75, 0.0), 0.35, 16, 32, sofa);
             s.point_lights.push(PointLight {
                 name: format!("lamp {room}"),
@@ -433,7 +514,11 @@ pub fn building(nx: u32, nz: u32) -> Scene {
         ((wx, 0.0), (cx + g, wz)),
     ] {
         let p = |x: f32, z: f32| Vec3::new(x, -0.02, z);
-        shell.quad([p(a.0, a.1), p(b.0, a.1), p(b.0, b.1), p(a.0, b.1)], Vec3::Y, ground);
+        shell.quad(
+            [p(a.0, a.1), p(b.0, a.1), p(b.0, b.1), p(a.0, b.1)],
+            Vec3::Y,
+            ground,
+        );
     }
     s.meshes.push(shell.finish());
     s.meshes.push(furniture.finish());
@@ -443,7 +528,10 @@ pub fn building(nx: u32, nz: u32) -> Scene {
         irradiance: Vec3::new(3.0, 2.85, 2.6),
     });
     let mut cams = Vec::new();
-    for (k, (i, j)) in [(0, 0), (nx / 2, nz / 2), (nx - 1, nz - 1)].into_iter().enumerate() {
+    for (k, (i, j)) in [(0, 0), (nx / 2, nz / 2), (nx - 1, nz - 1)]
+        .into_iter()
+        .enumerate()
+    {
         let x0 = i as f32 * ROOM + WALL * 0.5;
         let z0 = j as f32 * ROOM + WALL * 0.5;
         let eye = Vec3::new(x0 + 0.6, 1.6, z0 + 0.6);
