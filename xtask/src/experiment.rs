@@ -632,8 +632,14 @@ pub fn summary_text(outcome: &RunOutcome) -> String {
     }
     if !r.summary.ranking.is_empty() {
         s.push_str(&format!(
-            "\n{:<5} {:<18} {:>12} {:>11} {:>13} {:>9}\n",
-            "rank", "bounces inf", "mean error", "frame (ms)", "precomp (s)", "speedup"
+            "\nranking by mean error at bounce limit {}\n{:<5} {:<18} {:>12} {:>11} {:>13} {:>9}\n",
+            r.summary.ranking[0].bounces,
+            "rank",
+            "technique",
+            "mean error",
+            "frame (ms)",
+            "precomp (s)",
+            "speedup"
         ));
         for k in &r.summary.ranking {
             s.push_str(&format!(

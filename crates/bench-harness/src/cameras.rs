@@ -182,16 +182,10 @@ impl Default for RandomCameraSettings {
 
 /// How the geometry around a candidate point looks from it.
 fn inside_geometry(scene: &Scene, rays: &RayScene, offsets: &[u32], p: Vec3) -> bool {
-    // Probe directions on a Fibonacci sphere; a point is inside a solid when most probes hit
-    // the back of a triangle (its winding-and-normal side faces away from the ray origin).
-    const PROBES: u32 = 26;
-    let golden = std::f32::consts::PI * (3.0 - 5.0f32.sqrt());
+    // A point is inside a solid when most probes hit the back of a triangle (its
+    // winding-and-normal side faces away from the ray origin).
     let mut back = 0;
-    for i in 0..PROBES {
-        let y = 1.0 - 2.0 * (i as f32 + 0.5) / PROBES as f32;
-        let r = (1.0 - y * y).max(0.0).sqrt();
-        let phi = golden * i as f32;
-        let d = Vec3::new(r * phi.cos(), y, r * phi.sin());
+    for d in probes() {
         if let Some(hit) = rays.closest_hit(p, d, 0.0, f32::INFINITY)
             && let Some(tri) = scene.triangle_ref(offsets, hit.triangle)
         {
@@ -214,20 +208,25 @@ fn inside_geometry(scene: &Scene, rays: &RayScene, offsets: &[u32], p: Vec3) -> 
     back * 2 > PROBES
 }
 
-/// Share of probe rays from `p` (a Fibonacci sphere) that hit anything: 1 in a closed room.
-fn enclosure(rays: &RayScene, p: Vec3) -> f32 {
-    const PROBES: u32 = 26;
+/// Probe rays per point.
+const PROBES: u32 = 26;
+
+/// [`PROBES`] directions evenly spread over the sphere (a Fibonacci sphere).
+fn probes() -> impl Iterator<Item = Vec3> {
     let golden = std::f32::consts::PI * (3.0 - 5.0f32.sqrt());
-    let mut hits = 0;
-    for i in 0..PROBES {
+    (0..PROBES).map(move |i| {
         let y = 1.0 - 2.0 * (i as f32 + 0.5) / PROBES as f32;
         let r = (1.0 - y * y).max(0.0).sqrt();
         let phi = golden * i as f32;
-        let d = Vec3::new(r * phi.cos(), y, r * phi.sin());
-        if rays.closest_hit(p, d, 0.0, f32::INFINITY).is_some() {
-            hits += 1;
-        }
-    }
+        Vec3::new(r * phi.cos(), y, r * phi.sin())
+    })
+}
+
+/// Share of probe rays from `p` (a Fibonacci sphere) that hit anything: 1 in a closed room.
+fn enclosure(rays: &RayScene, p: Vec3) -> f32 {
+    let hits = probes()
+        .filter(|&d| rays.closest_hit(p, d, 0.0, f32::INFINITY).is_some())
+        .count();
     hits as f32 / PROBES as f32
 }
 
