@@ -38,6 +38,9 @@ pub struct Options {
     pub scenes: Vec<String>,
     /// Comma-separated technique list.
     pub techniques: String,
+    /// The list is the default (not given): relighting is left out of it for scenes whose
+    /// triangles far outnumber its elements.
+    pub default_techniques: bool,
     /// Views per scene (default: the scene's own cameras).
     pub views: Option<usize>,
     /// Reference spp.
@@ -412,7 +415,7 @@ fn scene_id(spec: &str) -> String {
 pub fn build(o: &Options) -> Result<Experiment, String> {
     let (width, height) = parse_size(&o.size)?;
     let bounces = parse_bounces(&o.bounces)?;
-    let choices = parse_techniques(&o.techniques)?;
+    let mut choices = parse_techniques(&o.techniques)?;
     if o.spp == 0 {
         return Err("--spp must be positive".into());
     }
@@ -466,6 +469,34 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             ));
         }
     }
+    // relight-pr cuts every triangle into at least four elements: on a scene with far more
+    // triangles than the target element count its solve runs for hours. The default list
+    // leaves relighting out there (a named one runs, with a note below).
+    let too_large = |elements: usize| {
+        scenes
+            .iter()
+            .find(|sc| 4 * sc.scene.triangle_count() > 16 * elements)
+    };
+    if o.default_techniques {
+        choices.retain(|c| match c.kind {
+            ChoiceKind::Relight { elements } => match too_large(elements) {
+                Some(sc) => {
+                    eprintln!(
+                        "note: {} left out of the default techniques: '{}' has {} triangles, \
+                         which relight-pr would mesh into at least {} elements (target {elements}); \
+                         name it in --techniques to run it anyway",
+                        c.label,
+                        sc.id,
+                        sc.scene.triangle_count(),
+                        4 * sc.scene.triangle_count()
+                    );
+                    false
+                }
+                None => true,
+            },
+            _ => true,
+        });
+    }
     let techniques: Vec<TechniqueSetup> = choices
         .into_iter()
         .map(|c| {
@@ -507,21 +538,20 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
         })
         .collect();
     let mut techniques: Vec<TechniqueSetup> = techniques;
-    for c in parse_techniques(&o.techniques)? {
-        if let ChoiceKind::Relight { elements } = c.kind {
-            for sc in &scenes {
-                let floor = 4 * sc.scene.triangle_count();
-                if floor > 16 * elements {
-                    eprintln!(
-                        "note: {} on '{}': relight-pr cuts each of the scene's {} triangles into \
-                         at least 4 elements ({floor}, against a target of {elements}); the solve \
-                         will take long. Leave relight out of --techniques for scenes this large.",
-                        c.label,
-                        sc.id,
-                        sc.scene.triangle_count()
-                    );
-                }
-            }
+    for label in techniques.iter().map(|t| t.label.clone()) {
+        let Some(elements) = label
+            .strip_prefix("relight-")
+            .and_then(|n| n.parse::<usize>().ok())
+        else {
+            continue;
+        };
+        if let Some(sc) = too_large(elements) {
+            eprintln!(
+                "note: {label} on '{}': relight-pr cuts each of the scene's {} triangles into at \
+                 least 4 elements (target {elements}); the solve will take long",
+                sc.id,
+                sc.scene.triangle_count()
+            );
         }
     }
     let sequence = sequence_spec(o, &scenes, &bounces)?;
@@ -735,6 +765,7 @@ mod tests {
         Options {
             scenes: vec!["cornell".into()],
             techniques: "dl,isr-24".into(),
+            default_techniques: false,
             views: Some(1),
             spp: 2,
             bounces: "1".into(),
@@ -1140,5 +1171,29 @@ mod tests {
             assert!(*t < solve, "frame {i}: {t} s against a {solve} s solve");
         }
         std::fs::remove_dir_all(&o.out).ok();
+    }
+
+    #[test]
+    fn the_default_list_leaves_relighting_out_only_for_scenes_with_far_more_triangles() {
+        let labels = |scene: &str, default_techniques: bool| {
+            let mut o = options();
+            o.scenes = vec![scene.into()];
+            o.techniques = "dl,relight,ibrr-32-8".into();
+            o.default_techniques = default_techniques;
+            build(&o)
+                .unwrap()
+                .techniques
+                .iter()
+                .map(|t| t.label.clone())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            labels("cornell", true),
+            ["dl", "relight-256", "relight-1024", "ibrr-32-8"]
+        );
+        // Two rooms of the building: about 46 000 triangles, at least 4 elements each.
+        assert_eq!(labels("building 2x1", true), ["dl", "ibrr-32-8"]);
+        // Named by the user, it runs anyway.
+        assert_eq!(labels("building 2x1", false).len(), 4);
     }
 }

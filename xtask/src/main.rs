@@ -137,8 +137,10 @@ enum Command {
         /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
         /// isr-N, isr-thesis-N, relight (256 and 1024 elements), relight-N, ibrr (LDC 128
         /// with 64 IRPLs and LDC 256 with 184), ibrr-RES-N; comma-separated.
-        #[arg(long, default_value = "dl,isr,relight,ibrr")]
-        techniques: String,
+        /// Default: dl,isr,relight,ibrr (relight left out for scenes with far more triangles than
+        /// its elements).
+        #[arg(long)]
+        techniques: Option<String>,
         /// Views per scene: the scene's cameras first, then seeded random ones.
         #[arg(long)]
         views: Option<usize>,
@@ -502,7 +504,8 @@ fn run(cli: Cli) -> Result<(), String> {
             sequence_spp,
         } => experiment::run(&experiment::Options {
             scenes,
-            techniques,
+            default_techniques: techniques.is_none(),
+            techniques: techniques.unwrap_or_else(|| "dl,isr,relight,ibrr".into()),
             views,
             spp,
             bounces,
