@@ -39,7 +39,7 @@ pub struct Options {
     /// Comma-separated technique list.
     pub techniques: String,
     /// The list is the default (not given): relighting is left out of it for scenes whose
-    /// triangles far outnumber its elements.
+    /// triangles would make more than [`RELIGHT_MAX_ELEMENTS`] elements.
     pub default_techniques: bool,
     /// Views per scene (default: the scene's own cameras).
     pub views: Option<usize>,
@@ -239,6 +239,10 @@ pub struct TechniqueChoice {
 /// The element counts of `relight` in a technique list (a coarse and a fine mesh; 4096
 /// elements solve for minutes per scene and gain little over 1024 on the built-in scenes).
 pub const RELIGHT_ELEMENTS: [usize; 2] = [256, 1024];
+
+/// The most elements the default run lets relight-pr mesh a scene into: every triangle is at
+/// least four elements, and at 10^5 elements a solve takes minutes on two cores.
+pub const RELIGHT_MAX_ELEMENTS: usize = 100_000;
 
 /// The (LDC resolution, IRPLs) pairs of `ibrr` in a technique list.
 pub const IBRR_SETTINGS: [(u32, u32); 2] = [(128, 64), (256, 184)];
@@ -469,13 +473,13 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             ));
         }
     }
-    // relight-pr cuts every triangle into at least four elements: on a scene with far more
-    // triangles than the target element count its solve runs for hours. The default list
+    // relight-pr cuts every triangle into at least four elements: on a scene of hundreds of
+    // thousands of triangles its solve runs for hours, whatever the target. The default list
     // leaves relighting out there (a named one runs, with a note below).
     let too_large = |elements: usize| {
         scenes
             .iter()
-            .find(|sc| 4 * sc.scene.triangle_count() > 16 * elements)
+            .find(|sc| 4 * sc.scene.triangle_count() > RELIGHT_MAX_ELEMENTS.max(elements))
     };
     if o.default_techniques {
         choices.retain(|c| match c.kind {
@@ -1191,8 +1195,12 @@ mod tests {
             labels("cornell", true),
             ["dl", "relight-256", "relight-1024", "ibrr-32-8"]
         );
-        // Two rooms of the building: about 46 000 triangles, at least 4 elements each.
+        // Two rooms of the building: about 46 000 triangles, at least 4 elements each (more
+        // than the default run lets relighting mesh); corridor and primitives stay in.
         assert_eq!(labels("building 2x1", true), ["dl", "ibrr-32-8"]);
+        for small in ["primitives", "corridor"] {
+            assert_eq!(labels(small, true).len(), 4, "{small}");
+        }
         // Named by the user, it runs anyway.
         assert_eq!(labels("building 2x1", false).len(), 4);
     }

@@ -185,9 +185,9 @@ fn equal_error_table(o: &mut String, r: &Results) {
         "\n## Equal error (why not just path trace)\n\nThe path tracer renders every view \
          again at {} spp with another seed; its error against the reference, read in log-log \
          between those rungs, gives the spp at which it is as close as each technique, and \
-         its seconds per sample give the time. Speedup: path-tracer seconds over the \
-         technique's frame time (precomputation not counted; above 1 the technique is \
-         faster at equal error). Extrapolated: views whose error lies outside the ladder.\n",
+         its seconds per sample give the time. Speedup: the median over views of the \
+         path tracer's seconds over the technique's frame time (precomputation not counted; \
+         above 1 the technique is faster at equal error). Extrapolated: views whose error lies outside the ladder.\n",
         ladder.join(", ")
     );
     let _ = writeln!(

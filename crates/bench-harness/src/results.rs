@@ -311,7 +311,9 @@ pub struct EqualErrorRow {
     pub mean_path_tracer_s: f64,
     /// Mean over views of the technique's median frame time (seconds).
     pub mean_frame_s: f64,
-    /// `mean_path_tracer_s / mean_frame_s`: above 1 the technique is faster at equal error.
+    /// Median over views of the path tracer's seconds at the technique's error over the
+    /// technique's frame time: above 1 the technique is faster at equal error. (A median, so
+    /// a view extrapolated far beyond the ladder does not decide it.)
     pub speedup: f64,
 }
 
@@ -527,11 +529,13 @@ pub fn summarize(
                 median_spp: Timing::from_samples(&spp).median_s,
                 mean_path_tracer_s: mean_pt,
                 mean_frame_s: mean_frame,
-                speedup: if mean_frame > 0.0 {
-                    mean_pt / mean_frame
-                } else {
-                    f64::INFINITY
-                },
+                speedup: Timing::from_samples(
+                    &points
+                        .iter()
+                        .map(|p| p.1.speedup.min(f64::MAX))
+                        .collect::<Vec<_>>(),
+                )
+                .median_s,
             });
         }
     }
