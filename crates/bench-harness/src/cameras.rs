@@ -180,15 +180,23 @@ impl Default for RandomCameraSettings {
     }
 }
 
-/// How the geometry around a candidate point looks from it.
-fn inside_geometry(scene: &Scene, rays: &RayScene, offsets: &[u32], p: Vec3) -> bool {
-    // A point is inside a solid when most probes hit the back of a triangle (its
-    // winding-and-normal side faces away from the ray origin).
-    let mut back = 0;
+/// How the geometry around a candidate point looks from it, from one set of probe rays.
+struct Surroundings {
+    /// Inside a solid: most probes hit the back of a triangle (its winding-and-normal side
+    /// faces away from the ray origin).
+    inside: bool,
+    /// Share of probes that hit anything: 1 in a closed room.
+    enclosure: f32,
+}
+
+fn surroundings(scene: &Scene, rays: &RayScene, offsets: &[u32], p: Vec3) -> Surroundings {
+    let (mut back, mut hits) = (0, 0);
     for d in probes() {
-        if let Some(hit) = rays.closest_hit(p, d, 0.0, f32::INFINITY)
-            && let Some(tri) = scene.triangle_ref(offsets, hit.triangle)
-        {
+        let Some(hit) = rays.closest_hit(p, d, 0.0, f32::INFINITY) else {
+            continue;
+        };
+        hits += 1;
+        if let Some(tri) = scene.triangle_ref(offsets, hit.triangle) {
             let mesh = &scene.meshes[tri.mesh as usize];
             let [a, b, c] = mesh.indices[tri.local as usize].map(|i| i as usize);
             let mut n = (mesh.positions[b] - mesh.positions[a])
@@ -205,7 +213,10 @@ fn inside_geometry(scene: &Scene, rays: &RayScene, offsets: &[u32], p: Vec3) -> 
             }
         }
     }
-    back * 2 > PROBES
+    Surroundings {
+        inside: back * 2 > PROBES,
+        enclosure: hits as f32 / PROBES as f32,
+    }
 }
 
 /// Probe rays per point.
@@ -222,14 +233,6 @@ fn probes() -> impl Iterator<Item = Vec3> {
     })
 }
 
-/// Share of probe rays from `p` (a Fibonacci sphere) that hit anything: 1 in a closed room.
-fn enclosure(rays: &RayScene, p: Vec3) -> f32 {
-    let hits = probes()
-        .filter(|&d| rays.closest_hit(p, d, 0.0, f32::INFINITY).is_some())
-        .count();
-    hits as f32 / PROBES as f32
-}
-
 /// Enclosure a point must have to count as indoors.
 const INDOORS: f32 = 0.95;
 
@@ -242,11 +245,12 @@ fn is_interior(scene: &Scene, rays: &RayScene, offsets: &[u32], lo: Vec3, hi: Ve
     for _ in 0..256 {
         let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
         let p = lo + (hi - lo) * u;
-        if inside_geometry(scene, rays, offsets, p) {
+        let around = surroundings(scene, rays, offsets, p);
+        if around.inside {
             continue;
         }
         free += 1;
-        if enclosure(rays, p) >= INDOORS {
+        if around.enclosure >= INDOORS {
             enclosed += 1;
         }
     }
@@ -317,10 +321,11 @@ pub fn random_cameras(
         let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
         let p = lo + (hi - lo) * u;
         let d = uniform_sphere(rng.next_vec2());
-        if d.y.abs() > 0.6
-            || inside_geometry(scene, &rays, &offsets, p)
-            || indoors && enclosure(&rays, p) < INDOORS
-        {
+        if d.y.abs() > 0.6 {
+            continue;
+        }
+        let around = surroundings(scene, &rays, &offsets, p);
+        if around.inside || indoors && around.enclosure < INDOORS {
             continue;
         }
         let spec = CameraSpec {

@@ -558,9 +558,10 @@ impl Experiment {
             )));
         };
         let scene = sc.scene.clone();
+        let hash = scene_hash(&scene);
         let config = format!(
             "{}-{}-{}-{}-{}-{}",
-            self.config_key(scene_hash(&scene)),
+            self.config_key(hash),
             spec.scene,
             spec.camera,
             spec.frames,
@@ -604,6 +605,7 @@ impl Experiment {
         let result = crate::sequence::run_sequence(
             &spec.scene,
             &scene,
+            Some(hash),
             &camera,
             &mut self.techniques,
             metric.as_ref(),

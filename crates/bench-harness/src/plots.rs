@@ -111,13 +111,7 @@ pub fn speed_error(se: &SceneSpeedError, colour_of: &dyn Fn(&str) -> usize) -> P
                 ))
                 .map_err(err)?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(err)?;
+        legend(&mut chart)?;
         root.present().map_err(err)?;
     }
     Ok(svg)
@@ -212,6 +206,13 @@ fn draw_lines<'a, Y: Ranged<ValueType = f64>>(
             )
             .map_err(err)?;
     }
+    legend(chart)
+}
+
+/// The legend of every labelled series, top right.
+fn legend<'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, SVGBackend<'a>, CT>,
+) -> Result<(), String> {
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperRight)

@@ -36,6 +36,20 @@ fn opt(x: Option<f64>) -> String {
     x.map(fmt_err).unwrap_or_else(|| "-".into())
 }
 
+/// A Markdown table: the header row, its rule, then one row per `rows` item.
+fn table<S: AsRef<str>>(
+    o: &mut String,
+    headers: &[S],
+    rows: impl IntoIterator<Item = Vec<String>>,
+) {
+    let headers: Vec<&str> = headers.iter().map(AsRef::as_ref).collect();
+    let _ = writeln!(o, "| {} |", headers.join(" | "));
+    let _ = writeln!(o, "|{}", "---|".repeat(headers.len()));
+    for row in rows {
+        let _ = writeln!(o, "| {} |", row.join(" | "));
+    }
+}
+
 /// The break-even table: per scene, after how many frames each technique that
 /// precomputes costs less in total (precomputation + frames) than each other technique.
 /// Written only when some technique precomputes.
@@ -61,37 +75,29 @@ fn break_even_table(o: &mut String, r: &Results) {
          from N frames on; \"first N\": for the first N frames only; \"always\" and \"never\" \
          for any number of frames.\n"
     );
-    let _ = write!(o, "| technique |");
-    for c in &rows {
-        let _ = write!(o, " {} |", c.label);
-    }
-    let _ = write!(o, "\n|---|");
-    for _ in &rows {
-        let _ = write!(o, "---|");
-    }
-    let _ = writeln!(o);
-    for a in &rows {
-        let _ = write!(o, "| {} |", a.label);
-        for b in &rows {
-            let cell = if a.label == b.label {
-                "".to_string()
-            } else {
-                match break_even(
-                    a.prepare_s / n,
-                    a.avg_frame_ms * 1e-3,
-                    b.prepare_s / n,
-                    b.avg_frame_ms * 1e-3,
-                ) {
-                    BreakEven::Always => "always".into(),
-                    BreakEven::Never => "never".into(),
-                    BreakEven::After(f) => format!("after {}", f.ceil()),
-                    BreakEven::Until(f) => format!("first {}", f.floor()),
-                }
-            };
-            let _ = write!(o, " {cell} |");
-        }
-        let _ = writeln!(o);
-    }
+    let mut headers = vec!["technique"];
+    headers.extend(rows.iter().map(|t| t.label.as_str()));
+    let cells = rows.iter().map(|a| {
+        let mut row = vec![a.label.clone()];
+        row.extend(rows.iter().map(|b| {
+            if a.label == b.label {
+                return String::new();
+            }
+            match break_even(
+                a.prepare_s / n,
+                a.avg_frame_ms * 1e-3,
+                b.prepare_s / n,
+                b.avg_frame_ms * 1e-3,
+            ) {
+                BreakEven::Always => "always".into(),
+                BreakEven::Never => "never".into(),
+                BreakEven::After(f) => format!("after {}", f.ceil()),
+                BreakEven::Until(f) => format!("first {}", f.floor()),
+            }
+        }));
+        row
+    });
+    table(o, &headers, cells);
 }
 
 /// The ranking: techniques by mean error at the last bounce limit, closest first.
@@ -107,23 +113,29 @@ pub fn ranking_section(r: &Results) -> String {
          over the path tracer at equal error.\n",
         first.bounces
     );
-    let _ = writeln!(
-        o,
-        "| rank | technique | mean error | frame (ms) | precomputation (s) | Pareto scenes | speedup at equal error |\n|---|---|---|---|---|---|---|"
+    table(
+        &mut o,
+        &[
+            "rank",
+            "technique",
+            "mean error",
+            "frame (ms)",
+            "precomputation (s)",
+            "Pareto scenes",
+            "speedup at equal error",
+        ],
+        r.summary.ranking.iter().map(|k| {
+            vec![
+                k.rank.to_string(),
+                k.technique.clone(),
+                fmt_err(k.mean_error),
+                fmt_ms(k.frame_ms),
+                fmt_s(k.prepare_s),
+                k.pareto_scenes.to_string(),
+                k.speedup.map(fmt_2).unwrap_or_else(|| "-".into()),
+            ]
+        }),
     );
-    for k in &r.summary.ranking {
-        let _ = writeln!(
-            o,
-            "| {} | {} | {} | {} | {} | {} | {} |",
-            k.rank,
-            k.technique,
-            fmt_err(k.mean_error),
-            fmt_ms(k.frame_ms),
-            fmt_s(k.prepare_s),
-            k.pareto_scenes,
-            k.speedup.map(fmt_2).unwrap_or_else(|| "-".into())
-        );
-    }
     o
 }
 
@@ -150,22 +162,18 @@ pub fn sequence_section(r: &Results) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    let _ = write!(o, "| frame | lights |");
-    for (l, _) in &q.prepare_s {
-        let _ = write!(o, " {l} |");
-    }
-    let _ = write!(o, "\n|---|---|");
-    for _ in &q.prepare_s {
-        let _ = write!(o, "---|");
-    }
-    let _ = writeln!(o);
-    for (i, f) in q.frames.iter().enumerate() {
-        let _ = write!(o, "| {i} | {} |", f.caption);
-        for t in &f.techniques {
-            let _ = write!(o, " {} / {} |", fmt_err(t.error), fmt_ms(t.frame_s * 1e3));
-        }
-        let _ = writeln!(o);
-    }
+    let mut headers = vec!["frame", "lights"];
+    headers.extend(q.prepare_s.iter().map(|(l, _)| l.as_str()));
+    let rows = q.frames.iter().enumerate().map(|(i, f)| {
+        let mut row = vec![i.to_string(), f.caption.clone()];
+        row.extend(
+            f.techniques
+                .iter()
+                .map(|t| format!("{} / {}", fmt_err(t.error), fmt_ms(t.frame_s * 1e3))),
+        );
+        row
+    });
+    table(&mut o, &headers, rows);
     o
 }
 
@@ -190,25 +198,33 @@ fn equal_error_table(o: &mut String, r: &Results) {
          above 1 the technique is faster at equal error). Extrapolated: views whose error lies outside the ladder.\n",
         ladder.join(", ")
     );
-    let _ = writeln!(
+    table(
         o,
-        "| technique | bounces | views | mean error | path tracer spp (median) | path tracer (s) | frame (ms) | speedup | extrapolated |\n|---|---|---|---|---|---|---|---|---|"
+        &[
+            "technique",
+            "bounces",
+            "views",
+            "mean error",
+            "path tracer spp (median)",
+            "path tracer (s)",
+            "frame (ms)",
+            "speedup",
+            "extrapolated",
+        ],
+        r.summary.equal_error.iter().map(|e| {
+            vec![
+                e.technique.clone(),
+                e.bounces.clone(),
+                e.views.to_string(),
+                fmt_err(e.mean_error),
+                fmt_2(e.median_spp),
+                fmt_s(e.mean_path_tracer_s),
+                fmt_ms(e.mean_frame_s * 1e3),
+                fmt_2(e.speedup),
+                e.extrapolated.to_string(),
+            ]
+        }),
     );
-    for e in &r.summary.equal_error {
-        let _ = writeln!(
-            o,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
-            e.technique,
-            e.bounces,
-            e.views,
-            fmt_err(e.mean_error),
-            fmt_2(e.median_spp),
-            fmt_s(e.mean_path_tracer_s),
-            fmt_ms(e.mean_frame_s * 1e3),
-            fmt_2(e.speedup),
-            e.extrapolated
-        );
-    }
 }
 
 /// The report in Markdown: settings, Table 2 (time), the break-even frame counts, the summary statistics, speed against
@@ -241,22 +257,27 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
         o,
         "\n## Time (the thesis' Table 2)\n\nTotal = sum of the per-view median frame times.\n"
     );
-    let _ = writeln!(
-        o,
-        "| technique | views | total time (s) | average frame time (ms) | average FPS | precomputation (s) |\n|---|---|---|---|---|---|"
+    table(
+        &mut o,
+        &[
+            "technique",
+            "views",
+            "total time (s)",
+            "average frame time (ms)",
+            "average FPS",
+            "precomputation (s)",
+        ],
+        r.summary.times.iter().map(|t| {
+            vec![
+                t.label.clone(),
+                t.views.to_string(),
+                fmt_s(t.total_s),
+                fmt_ms(t.avg_frame_ms),
+                fmt_2(t.avg_fps),
+                fmt_s(t.prepare_s),
+            ]
+        }),
     );
-    for t in &r.summary.times {
-        let _ = writeln!(
-            o,
-            "| {} | {} | {} | {} | {} | {} |",
-            t.label,
-            t.views,
-            fmt_s(t.total_s),
-            fmt_ms(t.avg_frame_ms),
-            fmt_2(t.avg_fps),
-            fmt_s(t.prepare_s)
-        );
-    }
     break_even_table(&mut o, r);
     equal_error_table(&mut o, r);
     if r.sequence.is_some() {

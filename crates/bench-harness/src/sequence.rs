@@ -168,12 +168,14 @@ impl SequenceResult {
 
 /// Runs `frames` on `scene` from `camera`: each technique is prepared once (timed), renders
 /// one untimed warm-up frame as authored, then renders every frame under its light state
-/// (timed) and is compared by `metric` with the frame's reference from `cache`. The frame's
+/// (timed) and is compared by `metric` with the frame's reference from `cache` (keyed by
+/// `scene_hash`, computed when not given). The frame's
 /// images go to `images` (PNG) when given.
 #[allow(clippy::too_many_arguments)]
 pub fn run_sequence(
     scene_id: &str,
     scene: &Arc<Scene>,
+    scene_hash: Option<u64>,
     camera: &Camera,
     techniques: &mut [TechniqueSetup],
     metric: &dyn Metric,
@@ -182,7 +184,7 @@ pub fn run_sequence(
     cache: &ReferenceCache,
     images: Option<&Path>,
 ) -> Result<SequenceResult, HarnessError> {
-    let hash = crate::cache::scene_hash(scene);
+    let hash = scene_hash.unwrap_or_else(|| crate::cache::scene_hash(scene));
     let cam = camera.with_aspect(settings.width as f32 / settings.height as f32);
     let (w, h) = (settings.width, settings.height);
     let fail = |label: &str, e| HarnessError::Technique {

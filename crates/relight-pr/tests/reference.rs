@@ -34,13 +34,9 @@ fn relit(scene: &Arc<scene_core::Scene>, elements: usize, state: &LightState) ->
     relit_with(scene, elements, &[DirectLight::default()], state).remove(0)
 }
 
-/// One solve at `elements`, displayed with each of `directs`.
-fn relit_with(
-    scene: &Arc<scene_core::Scene>,
-    elements: usize,
-    directs: &[DirectLight],
-    state: &LightState,
-) -> Vec<Image> {
+/// The technique prepared on `scene` at `elements` (solved to 0.1 % unshot, 8 visibility
+/// rays).
+fn solved(scene: &Arc<scene_core::Scene>, elements: usize) -> RelightTechnique {
     let mut t = RelightTechnique::new(
         MeshSettings::elements(elements),
         SolverSettings {
@@ -51,6 +47,17 @@ fn relit_with(
         Box::new(RayCastRenderer::new()),
     );
     t.prepare(scene.clone()).unwrap();
+    t
+}
+
+/// One solve at `elements`, displayed with each of `directs`.
+fn relit_with(
+    scene: &Arc<scene_core::Scene>,
+    elements: usize,
+    directs: &[DirectLight],
+    state: &LightState,
+) -> Vec<Image> {
+    let mut t = solved(scene, elements);
     directs
         .iter()
         .map(|&d| {
@@ -196,16 +203,7 @@ fn the_image_mean_at_the_default_element_count_is_the_references_over_whole_pixe
     let name = "cornell-point";
     let scene = Arc::new(builtin::scene(name).unwrap());
     let truth = reference(&scene, &LightState::default());
-    let mut t = RelightTechnique::new(
-        MeshSettings::elements(4096),
-        SolverSettings {
-            max_unshot: 1e-3,
-            visibility_samples: 8,
-            ..Default::default()
-        },
-        Box::new(RayCastRenderer::new()),
-    );
-    t.prepare(scene.clone()).unwrap();
+    let mut t = solved(&scene, 4096);
     let big = t
         .render(&FrameRequest::camera(&scene.cameras[0], 4 * W, 4 * H))
         .unwrap();

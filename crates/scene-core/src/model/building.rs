@@ -21,196 +21,83 @@ const CELL: f32 = 0.1;
 /// Largest grid side.
 pub const MAX_ROOMS: u32 = 12;
 
-/// A mesh under construction whose every vertex has a texture coordinate (planar, one
-/// texture repeat per `TEXTURE_METRES`).
-struct Builder {
-    mesh: Mesh,
-    uvs: Vec<Vec2>,
-}
-
+/// One texture repeat per this many metres of the planar mapping.
 const TEXTURE_METRES: f32 = 1.0;
 
-impl Builder {
-    fn new(name: &str) -> Self {
-        Self {
-            mesh: Mesh {
-                name: name.into(),
-                ..Default::default()
-            },
-            uvs: Vec::new(),
-        }
-    }
-
-    /// A planar quad `c` (any winding) facing `normal`, planar-mapped.
-    fn quad(&mut self, c: [Vec3; 4], normal: Vec3, material: u32) {
-        let n = normal.normalize();
-        let a = if n.y.abs() > 0.9 { Vec3::X } else { Vec3::Y };
-        let (u, v) = (n.cross(a).normalize(), a);
-        let base = self.mesh.positions.len() as u32;
-        for p in c {
-            self.mesh.positions.push(p);
-            self.mesh.normals.push(n);
-            self.uvs
-                .push(Vec2::new(p.dot(u), -p.dot(v)) / TEXTURE_METRES);
-        }
-        let geometric = (c[1] - c[0]).cross(c[2] - c[0]);
-        let (t0, t1) = if geometric.dot(n) >= 0.0 {
-            ([0, 1, 2], [0, 2, 3])
-        } else {
-            ([0, 2, 1], [0, 3, 2])
-        };
-        for t in [t0, t1] {
-            self.mesh.indices.push(t.map(|i| base + i));
-            self.mesh.material_ids.push(material);
-        }
-    }
-
-    /// A rectangle from `origin` along `u` (length `lu`) and `v` (length `lv`) facing
-    /// `normal`, cut into `CELL` cells; cells whose centre lies in one of `holes`
-    /// (`[u0, u1, v0, v1]` in metres along `u` and `v`) are left out.
-    #[allow(clippy::too_many_arguments)]
-    fn grid(
-        &mut self,
-        origin: Vec3,
-        u: Vec3,
-        lu: f32,
-        v: Vec3,
-        lv: f32,
-        normal: Vec3,
-        holes: &[[f32; 4]],
-        material: u32,
-    ) {
-        let (nu, nv) = (
-            (lu / CELL).round().max(1.0) as u32,
-            (lv / CELL).round().max(1.0) as u32,
-        );
-        let (du, dv) = (lu / nu as f32, lv / nv as f32);
-        for j in 0..nv {
-            for i in 0..nu {
-                let (cu, cv) = ((i as f32 + 0.5) * du, (j as f32 + 0.5) * dv);
-                if holes
-                    .iter()
-                    .any(|h| cu > h[0] && cu < h[1] && cv > h[2] && cv < h[3])
-                {
-                    continue;
-                }
-                let p = |a: f32, b: f32| origin + u * a + v * b;
-                let (a0, a1, b0, b1) = (
-                    i as f32 * du,
-                    (i + 1) as f32 * du,
-                    j as f32 * dv,
-                    (j + 1) as f32 * dv,
-                );
-                self.quad(
-                    [p(a0, b0), p(a1, b0), p(a1, b1), p(a0, b1)],
-                    normal,
-                    material,
-                );
+/// A rectangle from `origin` along `u` (length `lu`) and `v` (length `lv`) facing `normal`,
+/// cut into `CELL` cells; cells whose centre lies in one of `holes` (`[u0, u1, v0, v1]` in
+/// metres along `u` and `v`) are left out.
+#[allow(clippy::too_many_arguments)]
+fn grid(
+    mesh: &mut Mesh,
+    origin: Vec3,
+    u: Vec3,
+    lu: f32,
+    v: Vec3,
+    lv: f32,
+    normal: Vec3,
+    holes: &[[f32; 4]],
+    material: u32,
+) {
+    let (nu, nv) = (
+        (lu / CELL).round().max(1.0) as u32,
+        (lv / CELL).round().max(1.0) as u32,
+    );
+    let (du, dv) = (lu / nu as f32, lv / nv as f32);
+    for j in 0..nv {
+        for i in 0..nu {
+            let (cu, cv) = ((i as f32 + 0.5) * du, (j as f32 + 0.5) * dv);
+            if holes
+                .iter()
+                .any(|h| cu > h[0] && cu < h[1] && cv > h[2] && cv < h[3])
+            {
+                continue;
             }
+            let p = |a: f32, b: f32| origin + u * a + v * b;
+            let (a0, a1, b0, b1) = (
+                i as f32 * du,
+                (i + 1) as f32 * du,
+                j as f32 * dv,
+                (j + 1) as f32 * dv,
+            );
+            let centre = p(cu, cv);
+            mesh.push_quad_facing(
+                [p(a0, b0), p(a1, b0), p(a1, b1), p(a0, b1)],
+                material,
+                centre + normal,
+            );
         }
     }
+}
 
-    /// A box (six faces facing out).
-    fn cuboid(&mut self, centre: Vec3, half: Vec3, material: u32) {
-        let p = |x: f32, y: f32, z: f32| centre + half * Vec3::new(x, y, z);
-        let faces: [([Vec3; 4], Vec3); 6] = [
-            (
-                [
-                    p(1., -1., -1.),
-                    p(1., 1., -1.),
-                    p(1., 1., 1.),
-                    p(1., -1., 1.),
-                ],
-                Vec3::X,
-            ),
-            (
-                [
-                    p(-1., -1., -1.),
-                    p(-1., 1., -1.),
-                    p(-1., 1., 1.),
-                    p(-1., -1., 1.),
-                ],
-                -Vec3::X,
-            ),
-            (
-                [
-                    p(-1., 1., -1.),
-                    p(1., 1., -1.),
-                    p(1., 1., 1.),
-                    p(-1., 1., 1.),
-                ],
-                Vec3::Y,
-            ),
-            (
-                [
-                    p(-1., -1., -1.),
-                    p(1., -1., -1.),
-                    p(1., -1., 1.),
-                    p(-1., -1., 1.),
-                ],
-                -Vec3::Y,
-            ),
-            (
-                [
-                    p(-1., -1., 1.),
-                    p(1., -1., 1.),
-                    p(1., 1., 1.),
-                    p(-1., 1., 1.),
-                ],
-                Vec3::Z,
-            ),
-            (
-                [
-                    p(-1., -1., -1.),
-                    p(1., -1., -1.),
-                    p(1., 1., -1.),
-                    p(-1., 1., -1.),
-                ],
-                -Vec3::Z,
-            ),
-        ];
-        for (c, n) in faces {
-            self.quad(c, n, material);
-        }
-    }
+/// A planar quad `c` (either winding) facing `normal`.
+fn quad(mesh: &mut Mesh, c: [Vec3; 4], normal: Vec3, material: u32) {
+    let centre = (c[0] + c[1] + c[2] + c[3]) * 0.25;
+    mesh.push_quad_facing(c, material, centre + normal);
+}
 
-    /// A UV sphere (`rings` x `segments` quads).
-    fn sphere(&mut self, centre: Vec3, radius: f32, rings: u32, segments: u32, material: u32) {
-        let at = |r: u32, s: u32| {
-            let theta = std::f32::consts::PI * r as f32 / rings as f32;
-            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
-            Vec3::new(
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                theta.sin() * phi.sin(),
-            )
-        };
-        for r in 0..rings {
-            for s in 0..segments {
-                let d = [at(r, s), at(r, s + 1), at(r + 1, s + 1), at(r + 1, s)];
-                let n = (d[0] + d[1] + d[2] + d[3]).normalize_or_zero();
-                let c = d.map(|d| centre + d * radius);
-                if (c[1] - c[0]).length_squared() < 1e-12 {
-                    // A pole: one triangle.
-                    let base = self.mesh.positions.len() as u32;
-                    for (k, p) in [c[0], c[2], c[3]].into_iter().enumerate() {
-                        self.mesh.positions.push(p);
-                        self.mesh.normals.push(n);
-                        self.uvs
-                            .push(Vec2::new(s as f32, (r + k as u32) as f32) * 0.1);
-                    }
-                    self.mesh.indices.push([base, base + 2, base + 1]);
-                    self.mesh.material_ids.push(material);
-                    continue;
-                }
-                self.quad(c, n, material);
-            }
-        }
-    }
+/// Gives every vertex of `mesh` a planar texture coordinate: its position projected onto
+/// the plane of its normal (one repeat per [`TEXTURE_METRES`]), so textures keep their size
+/// in metres on walls, floors and furniture alike.
+fn planar_uvs(mut mesh: Mesh) -> Mesh {
+    let uvs = mesh
+        .positions
+        .iter()
+        .zip(&mesh.normals)
+        .map(|(p, n)| {
+            let a = if n.y.abs() > 0.9 { Vec3::X } else { Vec3::Y };
+            let u = n.cross(a).normalize_or_zero();
+            Vec2::new(p.dot(u), -p.dot(a)) / TEXTURE_METRES
+        })
+        .collect();
+    mesh.uvs = Some(uvs);
+    mesh
+}
 
-    fn finish(mut self) -> Mesh {
-        self.mesh.uvs = Some(self.uvs);
-        self.mesh
+fn mesh(name: &str) -> Mesh {
+    Mesh {
+        name: name.into(),
+        ..Default::default()
     }
 }
 
@@ -334,8 +221,8 @@ pub fn building(nx: u32, nz: u32) -> Scene {
         s.materials.push(textured(&format!("wall {r}"), c, 1));
     }
 
-    let mut shell = Builder::new("rooms");
-    let mut furniture = Builder::new("furniture");
+    let mut shell = mesh("rooms");
+    let mut furniture = mesh("furniture");
     let inner = ROOM - WALL;
     let door = [1.8, 3.0, 0.0, 2.2];
     let window = [1.2, 3.6, 0.8, 2.2];
@@ -347,7 +234,8 @@ pub fn building(nx: u32, nz: u32) -> Scene {
             let (x1, z1) = (x0 + inner, z0 + inner);
             let floor = room % 3;
             let wall = walls + room;
-            shell.grid(
+            grid(
+                &mut shell,
                 Vec3::new(x0, 0.0, z0),
                 Vec3::X,
                 inner,
@@ -357,7 +245,8 @@ pub fn building(nx: u32, nz: u32) -> Scene {
                 &[],
                 floor,
             );
-            shell.grid(
+            grid(
+                &mut shell,
                 Vec3::new(x0, HEIGHT, z0),
                 Vec3::X,
                 inner,
@@ -388,7 +277,17 @@ pub fn building(nx: u32, nz: u32) -> Scene {
             ];
             for (origin, along, normal, outer, out) in sides {
                 let hole = if outer { window } else { door };
-                shell.grid(origin, along, inner, Vec3::Y, HEIGHT, normal, &[hole], wall);
+                grid(
+                    &mut shell,
+                    origin,
+                    along,
+                    inner,
+                    Vec3::Y,
+                    HEIGHT,
+                    normal,
+                    &[hole],
+                    wall,
+                );
                 // The opening's jambs through the wall's thickness (half of a shared
                 // wall's: the neighbour adds its half; the whole of an outer wall).
                 let depth = if outer { WALL } else { WALL * 0.5 };
@@ -410,10 +309,11 @@ pub fn building(nx: u32, nz: u32) -> Scene {
                     ),
                 ];
                 for (c, n) in jambs {
-                    shell.quad(c, n, wall);
+                    quad(&mut shell, c, n, wall);
                 }
                 if v0 > 0.0 {
-                    shell.quad(
+                    quad(
+                        &mut shell,
                         [at(u0, v0), at(u1, v0), at(u1, v0) + d, at(u0, v0) + d],
                         Vec3::Y,
                         wall,
@@ -424,53 +324,61 @@ pub fn building(nx: u32, nz: u32) -> Scene {
             let c = Vec3::new(x0 + inner * 0.5, 0.0, z0 + inner * 0.5);
             let yaw_off = Vec3::new(rng.next_f32() - 0.5, 0.0, rng.next_f32() - 0.5) * 0.6;
             let t = c + yaw_off;
-            furniture.cuboid(
+            furniture.push_box(
                 t + Vec3::new(0.0, 0.74, 0.0),
                 Vec3::new(0.8, 0.03, 0.5),
+                0.0,
                 table,
             );
             for (sx, sz) in [(-1.0f32, -1.0f32), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                furniture.cuboid(
+                furniture.push_box(
                     t + Vec3::new(0.72 * sx, 0.36, 0.42 * sz),
                     Vec3::new(0.04, 0.36, 0.04),
+                    0.0,
                     table,
                 );
                 let chair = t + Vec3::new(0.45 * sx, 0.0, 0.85 * sz);
-                furniture.cuboid(
+                furniture.push_box(
                     chair + Vec3::new(0.0, 0.45, 0.0),
                     Vec3::new(0.22, 0.03, 0.22),
+                    0.0,
                     table,
                 );
-                furniture.cuboid(
+                furniture.push_box(
                     chair + Vec3::new(0.0, 0.7, 0.2 * sz),
                     Vec3::new(0.22, 0.25, 0.03),
+                    0.0,
                     table,
                 );
                 for (lx, lz) in [(-1.0f32, -1.0f32), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                    furniture.cuboid(
+                    furniture.push_box(
                         chair + Vec3::new(0.19 * lx, 0.21, 0.19 * lz),
                         Vec3::new(0.025, 0.21, 0.025),
+                        0.0,
                         table,
                     );
                 }
             }
-            furniture.cuboid(
+            furniture.push_box(
                 Vec3::new(x0 + 0.5, 0.25, z0 + inner * 0.5),
                 Vec3::new(0.4, 0.25, 1.0),
+                0.0,
                 sofa,
             );
-            furniture.cuboid(
+            furniture.push_box(
                 Vec3::new(x0 + 0.15, 0.6, z0 + inner * 0.5),
                 Vec3::new(0.1, 0.35, 1.0),
+                0.0,
                 sofa,
             );
             // The shelf against the far wall, four boards of books.
             let sx0 = x1 - 0.25;
             for b in 0..4 {
                 let y = 0.3 + 0.45 * b as f32;
-                furniture.cuboid(
+                furniture.push_box(
                     Vec3::new(sx0, y, z0 + inner * 0.5),
                     Vec3::new(0.2, 0.02, 1.2),
+                    0.0,
                     shelf,
                 );
                 let mut z = z0 + inner * 0.5 - 1.15;
@@ -478,23 +386,39 @@ pub fn building(nx: u32, nz: u32) -> Scene {
                     let w = 0.025 + 0.03 * rng.next_f32();
                     let h = 0.22 + 0.15 * rng.next_f32();
                     let book = books + (rng.next_f32() * 8.0) as u32 % 8;
-                    furniture.cuboid(
+                    furniture.push_box(
                         Vec3::new(sx0, y + 0.02 + h * 0.5, z + w * 0.5),
                         Vec3::new(0.15, h * 0.5, w * 0.5),
+                        0.0,
                         book,
                     );
                     z += w + 0.005;
                 }
             }
-            furniture.sphere(t + Vec3::new(0.0, 0.95, 0.0), 0.18, 16, 32, shade);
+            super::builtin::push_sphere(
+                &mut furniture,
+                t + Vec3::new(0.0, 0.95, 0.0),
+                0.18,
+                shade,
+                16,
+                32,
+            );
             // A potted plant in the corner by the door.
             let pot = Vec3::new(x1 - 0.4, 0.0, z0 + 0.4);
-            furniture.cuboid(
+            furniture.push_box(
                 pot + Vec3::new(0.0, 0.2, 0.0),
                 Vec3::new(0.15, 0.2, 0.15),
+                0.0,
                 shelf,
             );
-            furniture.sphere(pot + Vec3::new(0.0, 0.75, 0.0), 0.35, 16, 32, sofa);
+            super::builtin::push_sphere(
+                &mut furniture,
+                pot + Vec3::new(0.0, 0.75, 0.0),
+                0.35,
+                sofa,
+                16,
+                32,
+            );
             s.point_lights.push(PointLight {
                 name: format!("lamp {room}"),
                 position: c + Vec3::new(0.0, HEIGHT - 0.4, 0.0),
@@ -514,14 +438,15 @@ pub fn building(nx: u32, nz: u32) -> Scene {
         ((wx, 0.0), (cx + g, wz)),
     ] {
         let p = |x: f32, z: f32| Vec3::new(x, -0.02, z);
-        shell.quad(
+        quad(
+            &mut shell,
             [p(a.0, a.1), p(b.0, a.1), p(b.0, b.1), p(a.0, b.1)],
             Vec3::Y,
             ground,
         );
     }
-    s.meshes.push(shell.finish());
-    s.meshes.push(furniture.finish());
+    s.meshes.push(planar_uvs(shell));
+    s.meshes.push(planar_uvs(furniture));
     s.directional_lights.push(DirectionalLight {
         name: "sun".into(),
         direction: Vec3::new(0.55, -0.45, 0.7).normalize(),

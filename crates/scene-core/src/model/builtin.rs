@@ -365,7 +365,7 @@ pub fn cornell_point() -> Scene {
 }
 
 /// Appends a UV sphere with smooth normals.
-fn push_sphere(
+pub(crate) fn push_sphere(
     mesh: &mut Mesh,
     centre: Vec3,
     radius: f32,
