@@ -36,6 +36,7 @@ pub mod dynamic;
 pub mod export;
 pub mod form_factor;
 pub mod gpu;
+pub mod merge;
 pub mod mesh;
 pub mod packed;
 pub mod relight;
