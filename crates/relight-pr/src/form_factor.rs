@@ -65,6 +65,48 @@ pub fn point_to_triangle<O: crate::direct::Occlusion + ?Sized>(
     samples: u32,
     seed: u64,
 ) -> f32 {
+    point_to_triangle_with(x, n, tri, tri_n, rays, |_| samples, seed)
+}
+
+/// [`point_to_triangle`] with as many visibility rays as the receiver's share of the
+/// patch's light asks: `max_samples` when the unoccluded form factor is `full_at` or more,
+/// in proportion below it, at least one. Every ray count gives an unbiased estimate of the
+/// visible fraction; the rays go where a wrong fraction would show (a receiver near the
+/// patch, its contact shadows), not to the far receivers that each get a sliver of its
+/// light (in a building, the thousands of elements of other rooms that face the shooter
+/// behind walls).
+pub fn point_to_triangle_adaptive<O: crate::direct::Occlusion + ?Sized>(
+    x: Vec3,
+    n: Vec3,
+    tri: &[Vec3; 3],
+    tri_n: Vec3,
+    rays: &O,
+    (max_samples, full_at): (u32, f32),
+    seed: u64,
+) -> f32 {
+    let samples = |f: f32| adaptive_samples(f, max_samples, full_at);
+    point_to_triangle_with(x, n, tri, tri_n, Some(rays), samples, seed)
+}
+
+/// The visibility rays for an unoccluded form factor `f`: `max_samples * f / full_at`
+/// rounded up, between 1 and `max_samples` (all of them when `full_at` is not positive).
+pub fn adaptive_samples(f: f32, max_samples: u32, full_at: f32) -> u32 {
+    if full_at > 0.0 && f < full_at {
+        ((max_samples as f32 * f / full_at).ceil() as u32).clamp(1, max_samples.max(1))
+    } else {
+        max_samples
+    }
+}
+
+fn point_to_triangle_with<O: crate::direct::Occlusion + ?Sized>(
+    x: Vec3,
+    n: Vec3,
+    tri: &[Vec3; 3],
+    tri_n: Vec3,
+    rays: Option<&O>,
+    samples: impl FnOnce(f32) -> u32,
+    seed: u64,
+) -> f32 {
     let centre = (tri[0] + tri[1] + tri[2]) / 3.0;
     // In front of the patch by more than rounding: a receiver in the patch's plane and
     // facing along it (on the same wall) sees it edge-on, whatever the last bits of a
@@ -83,7 +125,7 @@ pub fn point_to_triangle<O: crate::direct::Occlusion + ?Sized>(
     let Some(rays) = rays else {
         return f;
     };
-    let samples = samples.max(1);
+    let samples = samples(f).max(1);
     let offset = r2(hash_seed(seed, 0x5eed, 0), glam::Vec2::ZERO);
     let mut visible = 0u32;
     let mut tried = 0u32;

@@ -28,6 +28,9 @@ pub struct MeshSettings {
     /// inside a closed solid, such as the floor under a wall's slab, do not count). 0 turns
     /// it off. Default 6 (patch edges down to 1/64).
     pub split_depth: u32,
+    /// Merge coplanar triangles first ([`crate::merge::merge_coplanar`]), so that a flat
+    /// wall cut into a fine grid by its modeller meshes like one polygon. Default true.
+    pub merge_coplanar: bool,
 }
 
 impl MeshSettings {
@@ -46,6 +49,7 @@ impl Default for MeshSettings {
             target_elements: 4096,
             budget: MeshBudget::default(),
             split_depth: 6,
+            merge_coplanar: true,
         }
     }
 }
@@ -87,7 +91,9 @@ pub struct Element {
     pub emission: Vec3,
     /// The patch it belongs to.
     pub patch: u32,
-    /// Global id of the scene triangle it was cut from.
+    /// Global id of the scene triangle it was cut from (with coplanar triangles merged,
+    /// [`MeshSettings::merge_coplanar`], one of the scene triangles of its flat region:
+    /// [`crate::merge::Merged::origin`]).
     pub source_triangle: u32,
     /// The scene material of that triangle.
     pub material: u32,
@@ -135,7 +141,9 @@ impl Element {
     }
 }
 
-/// One shooting patch: four consecutive elements.
+/// One shooting patch: four consecutive elements, or one where the scene triangle is
+/// itself no larger than an element (a book's face in a room meshed at metre-sized
+/// elements: cutting it in four would only multiply the receivers).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Patch {
     /// Corners.
@@ -144,8 +152,11 @@ pub struct Patch {
     pub normal: Vec3,
     /// Area.
     pub area: f32,
-    /// First of its four elements.
+    /// First of its elements.
     pub first_element: u32,
+    /// How many consecutive elements it has: 4, or 1 for a triangle no larger than an
+    /// element.
+    pub element_count: u32,
     /// The area of its elements that are not hidden ([`Element::hidden`]): what reflects.
     pub open_area: f32,
     /// The emissive mesh whose light it emits, if it emits.
@@ -166,6 +177,8 @@ pub struct Meshing {
     /// Patches split again because they straddled other geometry
     /// ([`MeshSettings::split_depth`]).
     pub split_patches: usize,
+    /// What merging coplanar triangles did ([`MeshSettings::merge_coplanar`]), when on.
+    pub merge: Option<crate::merge::MergeStats>,
 }
 
 /// A triangle of the subdivision, with the barycentric coordinates of its corners in its
@@ -291,8 +304,14 @@ impl Meshing {
                 settings.target_elements
             )));
         }
-        let mut areas = Vec::with_capacity(scene.triangle_count());
-        for mesh in &scene.meshes {
+        // Coplanar triangles merged first; the rays and the face normals stay those of the
+        // input scene (same surfaces).
+        let merged = settings
+            .merge_coplanar
+            .then(|| crate::merge::merge_coplanar(scene));
+        let source = merged.as_ref().map_or(scene, |m| &m.scene);
+        let mut areas = Vec::with_capacity(source.triangle_count());
+        for mesh in &source.meshes {
             for t in &mesh.indices {
                 let p = t.map(|i| mesh.positions[i as usize]);
                 areas.push(0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length());
@@ -305,11 +324,23 @@ impl Meshing {
             .sum();
         let patch_area =
             (total / (settings.target_elements as f64 / 4.0)).max(f64::MIN_POSITIVE) as f32;
+        // A whole triangle (level 0) no larger than an element is a patch of one element;
+        // pieces cut from a triangle, by the uniform subdivision or at walls, have four.
+        let elements_per = |piece_area: f32, level: u32| -> u64 {
+            if level == 0 && piece_area <= patch_area * 0.25 * (1.0 + 1e-4) {
+                1
+            } else {
+                4
+            }
+        };
         // Count before allocating: the uniform subdivision first.
-        let mut count: u64 = 0;
+        let (mut count, mut patch_count) = (0u64, 0u64);
         for &a in &areas {
             if a.is_finite() && a > 0.0 {
-                count += 4u64 * 4u64.pow(level(a, patch_area));
+                let l = level(a, patch_area);
+                let pieces = 4u64.pow(l);
+                count += pieces * elements_per(a / pieces as f32, l);
+                patch_count += pieces;
             }
         }
         let budget = &settings.budget;
@@ -323,7 +354,7 @@ impl Meshing {
             return Err(over(count));
         }
         // The patches of each triangle: its uniform pieces, those that straddle other
-        // geometry split again. Every split adds 12 elements, counted before it is kept.
+        // geometry split again. Every split is counted before it is kept.
         let rays = (count > 0).then_some(rays);
         let face_normals: Vec<Vec3> = match rays {
             Some(_) => scene
@@ -342,7 +373,7 @@ impl Meshing {
         let mut leaves: Vec<(u32, Piece, u32)> = Vec::new();
         let mut split_patches = 0usize;
         let mut global = 0u32;
-        for mesh in &scene.meshes {
+        for mesh in &source.meshes {
             for t in &mesh.indices {
                 let id = global;
                 global += 1;
@@ -370,7 +401,9 @@ impl Meshing {
                             && straddles(r, &face_normals, piece.bary.map(at), geometric, lift)
                     });
                     if straddles {
-                        count += 12;
+                        let piece_area = area / 4f32.powi(l as i32);
+                        count += 16 - elements_per(piece_area, l);
+                        patch_count += 3;
                         if count > budget.max_elements as u64 {
                             return Err(over(count));
                         }
@@ -383,7 +416,7 @@ impl Meshing {
             }
         }
         let bytes =
-            crate::solver::solution_bytes(count as usize, count as usize / 4, lights.max(1));
+            crate::solver::solution_bytes(count as usize, patch_count as usize, lights.max(1));
         if bytes > budget.max_solution_bytes {
             return Err(RelightError::Budget(format!(
                 "a {lights}-light solution over {count} elements needs {bytes} bytes, over the \
@@ -393,7 +426,7 @@ impl Meshing {
         }
         // Where each triangle starts: its mesh and index within it.
         let mut owner = Vec::with_capacity(areas.len());
-        for (mi, mesh) in scene.meshes.iter().enumerate() {
+        for (mi, mesh) in source.meshes.iter().enumerate() {
             for ti in 0..mesh.indices.len() {
                 owner.push((mi, ti));
             }
@@ -403,10 +436,10 @@ impl Meshing {
             .filter(|a| !(a.is_finite() && **a > 0.0))
             .count();
         let mut elements = Vec::with_capacity(count as usize);
-        let mut patches = Vec::with_capacity(count as usize / 4);
+        let mut patches = Vec::with_capacity(patch_count as usize);
         for (id, piece, l) in leaves {
             let (mi, ti) = owner[id as usize];
-            let mesh = &scene.meshes[mi];
+            let mesh = &source.meshes[mi];
             let t = mesh.indices[ti];
             let area = areas[id as usize];
             let p = t.map(|i| mesh.positions[i as usize]);
@@ -414,7 +447,7 @@ impl Meshing {
             let ns = t.map(|i| mesh.normals.get(i as usize).copied().unwrap_or(geometric));
             let uvs = mesh.uvs.as_ref().map(|uv| t.map(|i| uv[i as usize]));
             let material = mesh.material_ids[ti];
-            let emission = scene.materials[material as usize].emission;
+            let emission = source.materials[material as usize].emission;
             let light = (emission.max_element() > 0.0).then_some(LightId::Emissive(mi as u32));
             let at = |b: Vec2| p[0] * (1.0 - b.x - b.y) + p[1] * b.x + p[2] * b.y;
             let normal_at = |b: Vec2| {
@@ -422,23 +455,25 @@ impl Meshing {
                 let n = n.normalize_or_zero();
                 if n == Vec3::ZERO { geometric } else { n }
             };
-            let albedo_at = |b: Vec2| {
-                let uv = uvs.map(|q| q[0] * (1.0 - b.x - b.y) + q[1] * b.x + q[2] * b.y);
-                scene.albedo_at(material, uv)
-            };
-            let corners = piece.bary.map(at);
-            let centre = (piece.bary[0] + piece.bary[1] + piece.bary[2]) / 3.0;
+            let uv_of = |b: Vec2| uvs.map(|q| q[0] * (1.0 - b.x - b.y) + q[1] * b.x + q[2] * b.y);
+            let albedo_at = |b: Vec2| source.albedo_at(material, uv_of(b));
+            let source_triangle = merged.as_ref().map_or(id, |m| m.origin[id as usize]);
             let patch_area = area / 4f32.powi(l as i32);
+            let centre = (piece.bary[0] + piece.bary[1] + piece.bary[2]) / 3.0;
+            let one = elements_per(patch_area, l) == 1;
             patches.push(Patch {
-                corners,
+                corners: piece.bary.map(at),
                 normal: normal_at(centre),
                 area: patch_area,
                 first_element: elements.len() as u32,
+                element_count: if one { 1 } else { 4 },
                 open_area: 0.0,
                 light,
             });
             let patch = patches.len() as u32 - 1;
-            for e in piece.children() {
+            let pieces: &[Piece] = if one { &[piece] } else { &piece.children() };
+            let element_area = patch_area / pieces.len() as f32;
+            for e in pieces {
                 let c = (e.bary[0] + e.bary[1] + e.bary[2]) / 3.0;
                 // Four albedo samples: the centroid and the midpoints towards each corner.
                 let albedo = (albedo_at(c)
@@ -447,19 +482,16 @@ impl Meshing {
                         .map(|&v| albedo_at((c + v) * 0.5))
                         .sum::<Vec3>())
                     * 0.25;
-                let corners = e.bary.map(at);
-                let uv_of =
-                    |b: Vec2| uvs.map(|q| q[0] * (1.0 - b.x - b.y) + q[1] * b.x + q[2] * b.y);
                 let corner_uvs = uvs.map(|_| e.bary.map(|b| uv_of(b).unwrap_or_default()));
                 elements.push(Element {
-                    corners,
+                    corners: e.bary.map(at),
                     centroid: at(c),
                     normal: normal_at(c),
-                    area: patch_area * 0.25,
+                    area: element_area,
                     albedo,
                     emission,
                     patch,
-                    source_triangle: id,
+                    source_triangle,
                     material,
                     uvs: corner_uvs,
                     hidden: false,
@@ -491,7 +523,7 @@ impl Meshing {
         }
         for p in patches.iter_mut() {
             let first = p.first_element as usize;
-            p.open_area = elements[first..first + 4]
+            p.open_area = elements[first..first + p.element_count as usize]
                 .iter()
                 .filter(|e| !e.hidden)
                 .map(|e| e.area)
@@ -503,6 +535,7 @@ impl Meshing {
             patch_area,
             skipped_triangles: skipped,
             split_patches,
+            merge: merged.map(|m| m.stats),
         })
     }
 
@@ -539,7 +572,8 @@ impl Meshing {
 
     /// The elements of patch `p`.
     pub fn elements_of(&self, p: usize) -> &[Element] {
-        let first = self.patches[p].first_element as usize;
-        &self.elements[first..first + 4]
+        let patch = &self.patches[p];
+        let first = patch.first_element as usize;
+        &self.elements[first..first + patch.element_count as usize]
     }
 }

@@ -19,7 +19,7 @@ use scene_core::{Scene, luminance};
 
 use crate::RelightError;
 use crate::direct;
-use crate::form_factor::point_to_triangle;
+use crate::form_factor::point_to_triangle_adaptive;
 use crate::mesh::Meshing;
 
 /// Bytes of a `k`-source solution over `n` elements and `p` patches (direct and indirect
@@ -76,6 +76,21 @@ pub struct SolverSettings {
     pub banks: Vec<Vec<LightId>>,
     /// The strategy. Default [`Strategy::Tagged`].
     pub strategy: Strategy,
+    /// Patches of one element (whole scene triangles smaller than an element: books,
+    /// finely tessellated curves) shoot together in clusters of up to this many spatial
+    /// neighbours, no wider than a patch of the target size ([`small_patch_clusters`]):
+    /// one row of small-disk form factors for the cluster instead of one shot each. On a
+    /// scene of tens of thousands of such patches the unshot energy left among them
+    /// otherwise takes tens of thousands of shots. 0 or 1 shoots each alone; hemicube
+    /// form factors always do. At most [`MAX_CLUSTER_MEMBERS`]. Default 32.
+    pub cluster_members: usize,
+    /// The unoccluded form factor at which a receiver gets all `visibility_samples` rays;
+    /// below it, rays in proportion, at least one
+    /// ([`crate::form_factor::point_to_triangle_adaptive`]). Receivers that get a sliver of
+    /// a shot's light (far away, or in another room behind a wall) then cost one ray
+    /// instead of 16; the estimate stays unbiased. 0 gives every receiver all rays.
+    /// Default 0.01 (a facing receiver within about five patch sizes of the shooter).
+    pub full_visibility_at: f32,
 }
 
 impl Default for SolverSettings {
@@ -88,6 +103,8 @@ impl Default for SolverSettings {
             ambient: true,
             banks: Vec::new(),
             strategy: Strategy::Tagged,
+            cluster_members: 32,
+            full_visibility_at: 0.01,
         }
     }
 }
@@ -106,6 +123,9 @@ pub struct SolveStats {
     pub shots: usize,
     /// Rows of form factors computed (one per shot and, for separate solves, per source).
     pub form_factor_rows: usize,
+    /// Of the shots, those of a cluster of small patches
+    /// ([`SolverSettings::cluster_members`]).
+    pub cluster_shots: usize,
     /// The unshot fraction left (the largest over sources for separate solves).
     pub unshot_fraction: f64,
     /// Wall-clock time.
@@ -391,7 +411,7 @@ pub(crate) fn reflect_onto_patches(
         }
         for m in 0..k {
             let mut sum = Vec3::ZERO;
-            for e in (first..first + 4).filter(|&e| !els[e].hidden) {
+            for e in (first..first + patch.element_count as usize).filter(|&e| !els[e].hidden) {
                 sum += els[e].albedo * direct[e * k + m] * els[e].area;
             }
             unshot_refl[p * k + m] += sum / patch.open_area;
@@ -445,21 +465,74 @@ pub(crate) fn propagate(
         ..Default::default()
     };
     let samples = settings.visibility_samples;
+    let element_area = (meshing.patch_area * 0.25).max(f32::MIN_POSITIVE);
     let normals: Vec<Vec3> = els.iter().map(|e| e.normal).collect();
     let mut form = vec![0.0f32; n];
+    // Clusters of small patches, shot together (rays only).
+    let clusters = match settings.form_factors {
+        FormFactorMethod::Rays if settings.cluster_members > 1 => {
+            small_patch_clusters(meshing, settings.cluster_members)
+        }
+        _ => Vec::new(),
+    };
+    let mut cluster_of = vec![u32::MAX; np];
+    for (c, members) in clusters.iter().enumerate() {
+        for &p in members {
+            cluster_of[p as usize] = c as u32;
+        }
+    }
+    let mut cluster_power = vec![0.0f64; clusters.len()];
+    let mut gains = if clusters.is_empty() {
+        (Vec::new(), Vec::new())
+    } else {
+        (vec![Vec3::ZERO; n * k], vec![Vec3::ZERO; n * k])
+    };
     while emitted > 0.0 && stats.shots < settings.max_shots {
         let fraction = unshot_power(unshot_emit, unshot_refl) / emitted;
         stats.unshot_fraction = fraction;
         if fraction <= settings.max_unshot {
             break;
         }
-        // The patch with the most unshot energy over all sources (ties: the first).
+        // The patch or cluster with the most unshot energy over all sources (ties: the
+        // first patch, then the first cluster).
         let mut best = (0usize, -1.0f64);
-        for p in 0..np {
+        cluster_power.iter_mut().for_each(|w| *w = 0.0);
+        for (p, &cluster) in cluster_of.iter().enumerate() {
             let w = power(unshot_emit, p) + power(unshot_refl, p);
-            if w > best.1 {
-                best = (p, w);
+            match cluster {
+                u32::MAX if w > best.1 => best = (p, w),
+                u32::MAX => {}
+                c => cluster_power[c as usize] += w,
             }
+        }
+        let best_cluster =
+            cluster_power
+                .iter()
+                .enumerate()
+                .fold(None, |b: Option<(usize, f64)>, (c, &w)| {
+                    (w > best.1 && b.is_none_or(|(_, bw)| w > bw))
+                        .then_some((c, w))
+                        .or(b)
+                });
+        if let Some((c, _)) = best_cluster {
+            shoot_cluster(
+                meshing,
+                rays,
+                &clusters[c],
+                state_parts(direct, indirect, unshot_emit, unshot_refl, k),
+                &mut gains,
+                (
+                    samples,
+                    element_area,
+                    settings.full_visibility_at,
+                    stats.shots as u64,
+                ),
+            );
+            stats.shots += 1;
+            stats.form_factor_rows += 1;
+            stats.cluster_shots += 1;
+            progress(fraction);
+            continue;
         }
         let p = best.0;
         let patch = patches[p];
@@ -492,19 +565,34 @@ pub(crate) fn propagate(
                     0.0
                 } else {
                     // The element's average over its open receiver points, the visibility
-                    // rays shared out among them.
+                    // rays shared out among them. An element that is a whole triangle
+                    // smaller than an element of the target size gets rays in proportion
+                    // to its area (at least one), and when they are fewer than its open
+                    // points, receives at one of them (its centroid where open).
                     let (points, count) = e.open_receiver_points();
-                    let per_point = samples.div_ceil(count.max(1) as u32);
-                    points[..count]
+                    let budget = if patches[e.patch as usize].element_count == 1 {
+                        let share = e.area / element_area;
+                        ((samples as f32 * share).ceil() as u32).clamp(1, samples)
+                    } else {
+                        samples
+                    };
+                    let chosen = if (budget as usize) < count {
+                        &points[count - 1..count]
+                    } else {
+                        &points[..count]
+                    };
+                    let count = chosen.len();
+                    let per_point = budget.div_ceil(count.max(1) as u32);
+                    chosen
                         .iter()
                         .map(|&(r, x)| {
-                            point_to_triangle(
+                            point_to_triangle_adaptive(
                                 x,
                                 e.normal,
                                 &patch.corners,
                                 patch.normal,
-                                Some(rays),
-                                per_point,
+                                rays,
+                                (per_point, settings.full_visibility_at),
                                 ((p as u64) << 34) | ((j as u64) << 2) | r as u64,
                             )
                         })
@@ -542,7 +630,8 @@ pub(crate) fn propagate(
                     return;
                 }
                 let inv = 1.0 / patches[q].open_area;
-                for e in (first..first + 4).filter(|&e| !els[e].hidden) {
+                let count = patches[q].element_count as usize;
+                for e in (first..first + count).filter(|&e| !els[e].hidden) {
                     let f = form[e];
                     if f > 0.0 {
                         let w = els[e].albedo * (f * els[e].area * inv);
@@ -593,4 +682,274 @@ pub(crate) fn propagate(
             });
     }
     Ok((stats, ambient))
+}
+
+/// The most members a cluster holds, whatever [`SolverSettings::cluster_members`] asks.
+pub const MAX_CLUSTER_MEMBERS: usize = 64;
+
+/// The patches of one element (whole triangles smaller than an element) in clusters of
+/// spatial neighbours: sorted along a Morton curve of their centres (over the scene's
+/// bounds, 2^10 cells a side), then cut into runs of at most `max_members` whose bounding
+/// box stays within the side of a target patch (`sqrt(patch_area)`). Hidden patches (no
+/// open area, nothing to shoot) and runs of one are left out: those shoot alone.
+pub fn small_patch_clusters(meshing: &Meshing, max_members: usize) -> Vec<Vec<u32>> {
+    let centre = |p: &crate::mesh::Patch| (p.corners[0] + p.corners[1] + p.corners[2]) / 3.0;
+    let small: Vec<u32> = (0..meshing.patches.len() as u32)
+        .filter(|&p| {
+            let patch = &meshing.patches[p as usize];
+            patch.element_count == 1 && patch.open_area > 0.0
+        })
+        .collect();
+    let max_members = max_members.min(MAX_CLUSTER_MEMBERS);
+    if small.len() < 2 || max_members < 2 {
+        return Vec::new();
+    }
+    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    for &p in &small {
+        let c = centre(&meshing.patches[p as usize]);
+        lo = lo.min(c);
+        hi = hi.max(c);
+    }
+    let size = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
+    let spread = |v: u32| -> u64 {
+        // The 10 bits of v, two zero bits between each.
+        let mut out = 0u64;
+        for b in 0..10 {
+            out |= u64::from((v >> b) & 1) << (3 * b);
+        }
+        out
+    };
+    let mut keyed: Vec<(u64, u32)> = small
+        .iter()
+        .map(|&p| {
+            let q = ((centre(&meshing.patches[p as usize]) - lo) / size * 1023.0)
+                .clamp(Vec3::ZERO, Vec3::splat(1023.0));
+            let code = spread(q.x as u32) | spread(q.y as u32) << 1 | spread(q.z as u32) << 2;
+            (code, p)
+        })
+        .collect();
+    keyed.sort_unstable();
+    let side = meshing.patch_area.sqrt();
+    let mut clusters = Vec::new();
+    let mut run: Vec<u32> = Vec::new();
+    let (mut rlo, mut rhi) = (Vec3::ZERO, Vec3::ZERO);
+    for (_, p) in keyed {
+        let patch = &meshing.patches[p as usize];
+        let (plo, phi) = patch.corners.iter().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(a, b), &c| (a.min(c), b.max(c)),
+        );
+        let fits = !run.is_empty()
+            && run.len() < max_members
+            && (rhi.max(phi) - rlo.min(plo)).max_element() <= side;
+        if fits {
+            run.push(p);
+            rlo = rlo.min(plo);
+            rhi = rhi.max(phi);
+        } else {
+            if run.len() > 1 {
+                clusters.push(std::mem::take(&mut run));
+            }
+            run.clear();
+            run.push(p);
+            (rlo, rhi) = (plo, phi);
+        }
+    }
+    if run.len() > 1 {
+        clusters.push(run);
+    }
+    clusters
+}
+
+/// The parts of a [`Shooting`] a cluster shot changes.
+type ShootingParts<'a> = (
+    &'a mut [Vec3],
+    &'a mut [Vec3],
+    &'a mut [Vec3],
+    &'a mut [Vec3],
+    usize,
+);
+
+fn state_parts<'a>(
+    direct: &'a mut [Vec3],
+    indirect: &'a mut [Vec3],
+    unshot_emit: &'a mut [Vec3],
+    unshot_refl: &'a mut [Vec3],
+    k: usize,
+) -> ShootingParts<'a> {
+    (direct, indirect, unshot_emit, unshot_refl, k)
+}
+
+/// One shot of a cluster of small patches (`members`), every source at once. Each member
+/// is a small disk of its area: an element at `x` (normal `n`) would receive
+/// `B_m F_m`, `F_m = A_m cos_x cos_m / (pi r^2 + A_m)` (the disk form factor, bounded where
+/// `r` is small; the exact closed form within four member sizes). The sum over members is
+/// estimated by importance sampling with visibility: each visibility ray goes to a member
+/// picked (stratified) with probability `p_m` proportional to `F_m` times its unshot
+/// luminance, and a ray that arrives adds `F_m B_m / p_m` over the ray count. Only members
+/// the element sees give it energy, so a cluster spanning both sides of a wall does not
+/// carry light through it. The rays follow the rule of a patch's shot: `samples`, or fewer
+/// for a receiver that is itself small. `gains` are scratch (emitted and reflected
+/// irradiance per element and source).
+fn shoot_cluster(
+    meshing: &Meshing,
+    rays: &RayScene,
+    members: &[u32],
+    (direct, indirect, unshot_emit, unshot_refl, k): ShootingParts<'_>,
+    gains: &mut (Vec<Vec3>, Vec<Vec3>),
+    (samples, element_area, full_at, shot): (u32, f32, f32, u64),
+) {
+    let els = &meshing.elements;
+    let patches = &meshing.patches;
+    struct Member {
+        centre: Vec3,
+        corners: [Vec3; 3],
+        normal: Vec3,
+        area: f32,
+        /// Its open fraction (open area over area).
+        open: f32,
+        patch: u32,
+        /// The sources it has unshot energy of, with (emitted, reflected) radiosity.
+        energy: Vec<(usize, Vec3, Vec3)>,
+        weight: f32,
+    }
+    let members: Vec<Member> = members
+        .iter()
+        .map(|&p| {
+            let patch = &patches[p as usize];
+            let energy: Vec<(usize, Vec3, Vec3)> = (0..k)
+                .filter_map(|m| {
+                    let (e, r) = (
+                        unshot_emit[p as usize * k + m],
+                        unshot_refl[p as usize * k + m],
+                    );
+                    (e != Vec3::ZERO || r != Vec3::ZERO).then_some((m, e, r))
+                })
+                .collect();
+            let weight = energy.iter().map(|(_, e, r)| luminance(*e + *r)).sum();
+            Member {
+                centre: (patch.corners[0] + patch.corners[1] + patch.corners[2]) / 3.0,
+                corners: patch.corners,
+                normal: patch.normal,
+                area: patch.open_area,
+                open: patch.open_area / patch.area.max(f32::MIN_POSITIVE),
+                patch: p,
+                energy,
+                weight,
+            }
+        })
+        .collect();
+    for &p in members.iter().map(|m| &m.patch) {
+        for m in 0..k {
+            unshot_emit[p as usize * k + m] = Vec3::ZERO;
+            unshot_refl[p as usize * k + m] = Vec3::ZERO;
+        }
+    }
+    let (gain_emit, gain_refl) = gains;
+    gain_emit
+        .par_chunks_mut(k)
+        .zip(gain_refl.par_chunks_mut(k))
+        .enumerate()
+        .for_each(|(j, (ge, gr))| {
+            ge.fill(Vec3::ZERO);
+            gr.fill(Vec3::ZERO);
+            let e = &els[j];
+            let (points, count) = e.open_receiver_points();
+            if count == 0 {
+                return;
+            }
+            // The receiver point: its centroid where open (the last of its open points).
+            let x = points[count - 1].1;
+            let n = e.normal;
+            let mut f = [0.0f32; MAX_CLUSTER_MEMBERS];
+            let (mut total, mut f_sum) = (0.0f32, 0.0f32);
+            for (i, m) in members.iter().enumerate() {
+                f[i] = 0.0;
+                if m.patch == e.patch || m.weight <= 0.0 {
+                    continue;
+                }
+                let d = m.centre - x;
+                let r2 = d.length_squared();
+                let r = r2.sqrt();
+                let (cx, cm) = (n.dot(d) / r, -m.normal.dot(d) / r);
+                if !(cx > 0.0 && cm > 0.0) {
+                    continue;
+                }
+                // Near a member (within four of its sizes) the disk is too coarse: its
+                // exact closed form, as a patch's shot uses.
+                f[i] = if r2 < 16.0 * m.area {
+                    crate::form_factor::point_to_polygon(x, n, &m.corners) * m.open
+                } else {
+                    m.area * cx * cm / (std::f32::consts::PI * r2 + m.area)
+                };
+                total += f[i] * m.weight;
+                f_sum += f[i];
+            }
+            if total <= 0.0 {
+                return;
+            }
+            // Visibility: stratified picks among the members in proportion to f * weight.
+            let budget = if patches[e.patch as usize].element_count == 1 {
+                ((samples as f32 * e.area / element_area).ceil() as u32).clamp(1, samples)
+            } else {
+                samples
+            };
+            let budget = crate::form_factor::adaptive_samples(f_sum, budget, full_at);
+            let mut rng = scene_core::sampling::Rng::new(shot, j as u64);
+            let offset = rng.next_f32();
+            for s in 0..budget {
+                let target = (s as f32 + offset) / budget as f32 * total;
+                let mut acc = 0.0;
+                let mut pick = None;
+                for (i, m) in members.iter().enumerate() {
+                    acc += f[i] * m.weight;
+                    if f[i] > 0.0 {
+                        pick = Some(i);
+                        if acc >= target {
+                            break;
+                        }
+                    }
+                }
+                let Some(i) = pick else { break };
+                let m = &members[i];
+                let dist = m.centre.distance(x);
+                if dist > 0.0 && direct::sees_surface_point(rays, x, n, m.centre, dist) {
+                    // The member's share, f_i u_i / p_i with p_i = f_i w_i / total.
+                    let scale = total / (m.weight * budget as f32);
+                    for &(src, em, rf) in &m.energy {
+                        ge[src] += em * scale;
+                        gr[src] += rf * scale;
+                    }
+                }
+            }
+        });
+    direct
+        .par_iter_mut()
+        .zip(indirect.par_iter_mut())
+        .zip(gain_emit.par_iter().zip(gain_refl.par_iter()))
+        .for_each(|((d, i), (ge, gr))| {
+            *d += *ge;
+            *i += *gr;
+        });
+    // The receivers reflect what they got onto their patches.
+    unshot_refl
+        .par_chunks_mut(k)
+        .enumerate()
+        .for_each(|(q, u)| {
+            let patch = &patches[q];
+            if patch.open_area <= 0.0 {
+                return;
+            }
+            let first = patch.first_element as usize;
+            let inv = 1.0 / patch.open_area;
+            for e in (first..first + patch.element_count as usize).filter(|&e| !els[e].hidden) {
+                let w = els[e].albedo * (els[e].area * inv);
+                for m in 0..k {
+                    let g = gain_emit[e * k + m] + gain_refl[e * k + m];
+                    if g != Vec3::ZERO {
+                        u[m] += w * g;
+                    }
+                }
+            }
+        });
 }
