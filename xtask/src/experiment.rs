@@ -38,9 +38,6 @@ pub struct Options {
     pub scenes: Vec<String>,
     /// Comma-separated technique list.
     pub techniques: String,
-    /// The list is the default (not given): relighting is left out of it for scenes whose
-    /// triangles would make more than [`RELIGHT_MAX_ELEMENTS`] elements.
-    pub default_techniques: bool,
     /// Views per scene (default: the scene's own cameras).
     pub views: Option<usize>,
     /// Reference spp.
@@ -240,10 +237,6 @@ pub struct TechniqueChoice {
 /// elements solve for minutes per scene and gain little over 1024 on the built-in scenes).
 pub const RELIGHT_ELEMENTS: [usize; 2] = [256, 1024];
 
-/// The most elements the default run lets relight-pr mesh a scene into: every triangle is at
-/// least four elements, and at 10^5 elements a solve takes minutes on two cores.
-pub const RELIGHT_MAX_ELEMENTS: usize = 100_000;
-
 /// The (LDC resolution, IRPLs) pairs of `ibrr` in a technique list.
 pub const IBRR_SETTINGS: [(u32, u32); 2] = [(128, 64), (256, 184)];
 
@@ -419,7 +412,7 @@ fn scene_id(spec: &str) -> String {
 pub fn build(o: &Options) -> Result<Experiment, String> {
     let (width, height) = parse_size(&o.size)?;
     let bounces = parse_bounces(&o.bounces)?;
-    let mut choices = parse_techniques(&o.techniques)?;
+    let choices = parse_techniques(&o.techniques)?;
     if o.spp == 0 {
         return Err("--spp must be positive".into());
     }
@@ -473,35 +466,7 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             ));
         }
     }
-    // relight-pr cuts every triangle into at least four elements: on a scene of hundreds of
-    // thousands of triangles its solve runs for hours, whatever the target. The default list
-    // leaves relighting out there (a named one runs, with a note below).
-    let too_large = |elements: usize| {
-        scenes
-            .iter()
-            .find(|sc| 4 * sc.scene.triangle_count() > RELIGHT_MAX_ELEMENTS.max(elements))
-    };
-    if o.default_techniques {
-        choices.retain(|c| match c.kind {
-            ChoiceKind::Relight { elements } => match too_large(elements) {
-                Some(sc) => {
-                    eprintln!(
-                        "note: {} left out of the default techniques: '{}' has {} triangles, \
-                         which relight-pr would mesh into at least {} elements (target {elements}); \
-                         name it in --techniques to run it anyway",
-                        c.label,
-                        sc.id,
-                        sc.scene.triangle_count(),
-                        4 * sc.scene.triangle_count()
-                    );
-                    false
-                }
-                None => true,
-            },
-            _ => true,
-        });
-    }
-    let techniques: Vec<TechniqueSetup> = choices
+    let mut techniques: Vec<TechniqueSetup> = choices
         .into_iter()
         .map(|c| {
             let technique: Box<dyn Technique> = match &c.kind {
@@ -541,23 +506,6 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             }
         })
         .collect();
-    let mut techniques: Vec<TechniqueSetup> = techniques;
-    for label in techniques.iter().map(|t| t.label.clone()) {
-        let Some(elements) = label
-            .strip_prefix("relight-")
-            .and_then(|n| n.parse::<usize>().ok())
-        else {
-            continue;
-        };
-        if let Some(sc) = too_large(elements) {
-            eprintln!(
-                "note: {label} on '{}': relight-pr cuts each of the scene's {} triangles into at \
-                 least 4 elements (target {elements}); the solve will take long",
-                sc.id,
-                sc.scene.triangle_count()
-            );
-        }
-    }
     let sequence = sequence_spec(o, &scenes, &bounces)?;
     if o.povray {
         if bench_harness::povray::povray_available() {
@@ -769,7 +717,6 @@ mod tests {
         Options {
             scenes: vec!["cornell".into()],
             techniques: "dl,isr-24".into(),
-            default_techniques: false,
             views: Some(1),
             spp: 2,
             bounces: "1".into(),
@@ -1175,33 +1122,5 @@ mod tests {
             assert!(*t < solve, "frame {i}: {t} s against a {solve} s solve");
         }
         std::fs::remove_dir_all(&o.out).ok();
-    }
-
-    #[test]
-    fn the_default_list_leaves_relighting_out_only_for_scenes_with_far_more_triangles() {
-        let labels = |scene: &str, default_techniques: bool| {
-            let mut o = options();
-            o.scenes = vec![scene.into()];
-            o.techniques = "dl,relight,ibrr-32-8".into();
-            o.default_techniques = default_techniques;
-            build(&o)
-                .unwrap()
-                .techniques
-                .iter()
-                .map(|t| t.label.clone())
-                .collect::<Vec<_>>()
-        };
-        assert_eq!(
-            labels("cornell", true),
-            ["dl", "relight-256", "relight-1024", "ibrr-32-8"]
-        );
-        // Two rooms of the building: about 46 000 triangles, at least 4 elements each (more
-        // than the default run lets relighting mesh); corridor and primitives stay in.
-        assert_eq!(labels("building 2x1", true), ["dl", "ibrr-32-8"]);
-        for small in ["primitives", "corridor"] {
-            assert_eq!(labels(small, true).len(), 4, "{small}");
-        }
-        // Named by the user, it runs anyway.
-        assert_eq!(labels("building 2x1", false).len(), 4);
     }
 }

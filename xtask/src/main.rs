@@ -137,8 +137,7 @@ enum Command {
         /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
         /// isr-N, isr-thesis-N, relight (256 and 1024 elements), relight-N, ibrr (LDC 128
         /// with 64 IRPLs and LDC 256 with 184), ibrr-RES-N; comma-separated.
-        /// Default: dl,isr,relight,ibrr (relight left out for scenes of more than 25 000
-        /// triangles, which relight-pr would mesh into more than 100 000 elements).
+        /// Default: dl,isr,relight,ibrr.
         #[arg(long)]
         techniques: Option<String>,
         /// Views per scene: the scene's cameras first, then seeded random ones.
@@ -504,7 +503,6 @@ fn run(cli: Cli) -> Result<(), String> {
             sequence_spp,
         } => experiment::run(&experiment::Options {
             scenes,
-            default_techniques: techniques.is_none(),
             techniques: techniques.unwrap_or_else(|| "dl,isr,relight,ibrr".into()),
             views,
             spp,

@@ -179,13 +179,27 @@ pub fn run(o: &Options) -> Result<(), String> {
     let relight_ms = timings.relight.as_secs_f64() * 1e3;
     let prepared = technique.prepared().expect("prepared above");
     let (meshing, solution) = (&prepared.meshing, &prepared.solution);
+    let small = meshing
+        .patches
+        .iter()
+        .filter(|p| p.element_count == 1)
+        .count();
     eprintln!(
-        "{}: {} lights, {} patches, {} elements",
+        "{}: {} lights, {} patches ({small} of one element), {} elements; {} shots ({} of \
+         clusters of small patches)",
         scene.name,
         ids.len(),
         meshing.patches.len(),
-        meshing.elements.len()
+        meshing.elements.len(),
+        solution.stats.shots,
+        solution.stats.cluster_shots,
     );
+    if let Some(m) = meshing.merge.filter(|m| m.vertices_removed > 0) {
+        eprintln!(
+            "coplanar triangles merged: {} -> {}",
+            m.triangles_before, m.triangles_after
+        );
+    }
     let (exr, png) = crate::write_view(&o.out, &scene, &image, o.view.exposure)?;
     let stem = exr
         .file_stem()
@@ -228,9 +242,12 @@ pub fn run(o: &Options) -> Result<(), String> {
         "elements": meshing.elements.len(),
         "patches": meshing.patches.len(),
         "split_patches": meshing.split_patches,
+        "one_element_patches": small,
+        "merged_triangles": meshing.merge.map(|m| [m.triangles_before, m.triangles_after]),
         "form_factors": o.form_factors,
         "shots": solution.stats.shots,
         "form_factor_rows": solution.stats.form_factor_rows,
+        "cluster_shots": solution.stats.cluster_shots,
         "unshot_fraction": solution.stats.unshot_fraction,
         "solve_seconds": solve_s,
         "relight_ms": relight_ms,
