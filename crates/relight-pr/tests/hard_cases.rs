@@ -3,6 +3,9 @@
 //! only such surfaces): sliver and degenerate triangles, surfaces touching face to face
 //! (1/r^2 at zero distance), albedo near and at 1. Never a NaN, never a panic.
 
+mod common;
+
+use common::furnace_scene;
 use glam::Vec3;
 use relight_pr::mesh::{MeshSettings, Meshing};
 use relight_pr::relight;
@@ -10,7 +13,7 @@ use relight_pr::solver::{self, SolverSettings};
 use scene_core::Scene;
 use scene_core::lights::LightState;
 use scene_core::ray::RayScene;
-use scene_core::scene::{Material, Mesh};
+use scene_core::scene::Mesh;
 
 fn v(x: f32, y: f32, z: f32) -> Vec3 {
     Vec3::new(x, y, z)
@@ -27,18 +30,6 @@ fn walls(mesh: &mut Mesh) {
     ] {
         mesh.push_quad(q, 0);
     }
-}
-
-fn furnace_scene(rho: f32, mesh: Mesh) -> Scene {
-    let mut scene = Scene::new("furnace");
-    scene.materials.push(Material {
-        name: "m".into(),
-        albedo: Vec3::splat(rho),
-        albedo_texture: None,
-        emission: Vec3::ONE,
-    });
-    scene.meshes.push(mesh);
-    scene
 }
 
 fn solve(scene: &Scene, elements: usize, settings: &SolverSettings) -> (Meshing, Vec<Vec3>) {

@@ -3,6 +3,8 @@
 //! orientation, and what rays hit in the built-in building), what must not merge does not,
 //! and the furnace holds with merging on and off.
 
+mod common;
+
 use glam::{Vec2, Vec3};
 use relight_pr::merge::merge_coplanar;
 use relight_pr::mesh::{MeshSettings, Meshing};
@@ -239,15 +241,7 @@ fn gridded_furnace(n: u32, rho: f32) -> Scene {
             }
         }
     }
-    let mut scene = Scene::new("gridded furnace");
-    scene.materials.push(Material {
-        name: "m".into(),
-        albedo: Vec3::splat(rho),
-        albedo_texture: None,
-        emission: Vec3::ONE,
-    });
-    scene.meshes.push(mesh);
-    scene
+    common::furnace_scene(rho, mesh)
 }
 
 #[test]

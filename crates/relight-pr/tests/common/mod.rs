@@ -1,6 +1,22 @@
-//! Helpers shared by relight-pr's integration tests.
+//! Helpers shared by relight-pr's integration tests (each test file uses some of them).
+#![allow(dead_code)]
 
 use glam::Vec3;
+use scene_core::Scene;
+use scene_core::scene::{Material, Mesh};
+
+/// A furnace: `mesh` with one material of albedo `rho` that emits 1 everywhere.
+pub fn furnace_scene(rho: f32, mesh: Mesh) -> Scene {
+    let mut scene = Scene::new("furnace");
+    scene.materials.push(Material {
+        name: "m".into(),
+        albedo: Vec3::splat(rho),
+        albedo_texture: None,
+        emission: Vec3::ONE,
+    });
+    scene.meshes.push(mesh);
+    scene
+}
 
 /// The largest difference between `a` and `b` over the largest value of `b`.
 pub fn max_relative(a: &[Vec3], b: &[Vec3]) -> f32 {
