@@ -488,33 +488,32 @@ pub(crate) fn propagate(
         (vec![Vec3::ZERO; n * k], vec![Vec3::ZERO; n * k])
     };
     while emitted > 0.0 && stats.shots < settings.max_shots {
-        let fraction = unshot_power(unshot_emit, unshot_refl) / emitted;
-        stats.unshot_fraction = fraction;
-        if fraction <= settings.max_unshot {
-            break;
-        }
-        // The patch or cluster with the most unshot energy over all sources (ties: the
-        // first patch, then the first cluster).
-        let mut best = (0usize, -1.0f64);
+        // One pass over the patches gives the unshot total and the patch or cluster with
+        // the most unshot energy over all sources (ties: the first patch, then the first
+        // cluster).
+        let (mut unshot, mut best) = (0.0f64, (0usize, -1.0f64));
         cluster_power.iter_mut().for_each(|w| *w = 0.0);
         for (p, &cluster) in cluster_of.iter().enumerate() {
             let w = power(unshot_emit, p) + power(unshot_refl, p);
+            unshot += w;
             match cluster {
                 u32::MAX if w > best.1 => best = (p, w),
                 u32::MAX => {}
                 c => cluster_power[c as usize] += w,
             }
         }
-        let best_cluster =
-            cluster_power
-                .iter()
-                .enumerate()
-                .fold(None, |b: Option<(usize, f64)>, (c, &w)| {
-                    (w > best.1 && b.is_none_or(|(_, bw)| w > bw))
-                        .then_some((c, w))
-                        .or(b)
-                });
-        if let Some((c, _)) = best_cluster {
+        let fraction = unshot / emitted;
+        stats.unshot_fraction = fraction;
+        if fraction <= settings.max_unshot {
+            break;
+        }
+        let (mut best_cluster, mut top) = (None, best.1);
+        for (c, &w) in cluster_power.iter().enumerate() {
+            if w > top {
+                (best_cluster, top) = (Some(c), w);
+            }
+        }
+        if let Some(c) = best_cluster {
             shoot_cluster(
                 meshing,
                 rays,
@@ -570,12 +569,7 @@ pub(crate) fn propagate(
                     // to its area (at least one), and when they are fewer than its open
                     // points, receives at one of them (its centroid where open).
                     let (points, count) = e.open_receiver_points();
-                    let budget = if patches[e.patch as usize].element_count == 1 {
-                        let share = e.area / element_area;
-                        ((samples as f32 * share).ceil() as u32).clamp(1, samples)
-                    } else {
-                        samples
-                    };
+                    let budget = receiver_rays(meshing, j, samples, element_area);
                     let chosen = if (budget as usize) < count {
                         &points[count - 1..count]
                     } else {
@@ -682,6 +676,18 @@ pub(crate) fn propagate(
             });
     }
     Ok((stats, ambient))
+}
+
+/// The visibility rays of receiver `j` (before [`SolverSettings::full_visibility_at`]):
+/// `samples`, or for an element that is a whole triangle smaller than an element of the
+/// target size (`element_area`), rays in proportion to its area, at least one.
+fn receiver_rays(meshing: &Meshing, j: usize, samples: u32, element_area: f32) -> u32 {
+    let e = &meshing.elements[j];
+    if meshing.patches[e.patch as usize].element_count == 1 {
+        ((samples as f32 * e.area / element_area).ceil() as u32).clamp(1, samples)
+    } else {
+        samples
+    }
 }
 
 /// The most members a cluster holds, whatever [`SolverSettings::cluster_members`] asks.
@@ -889,11 +895,7 @@ fn shoot_cluster(
                 return;
             }
             // Visibility: stratified picks among the members in proportion to f * weight.
-            let budget = if patches[e.patch as usize].element_count == 1 {
-                ((samples as f32 * e.area / element_area).ceil() as u32).clamp(1, samples)
-            } else {
-                samples
-            };
+            let budget = receiver_rays(meshing, j, samples, element_area);
             let budget = crate::form_factor::adaptive_samples(f_sum, budget, full_at);
             let mut rng = scene_core::sampling::Rng::new(shot, j as u64);
             let offset = rng.next_f32();
