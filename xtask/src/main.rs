@@ -244,25 +244,11 @@ enum Command {
 /// Loads a built-in scene by name, or a glTF file when the name ends in .gltf/.glb, printing
 /// what the import ignored.
 pub fn load_scene(spec: &str) -> Result<Scene, String> {
-    let lower = spec.to_ascii_lowercase();
-    if lower.ends_with(".gltf") || lower.ends_with(".glb") {
-        let options = gltf_io::ImportOptions {
-            budget: scene_core::Budget::from_env()?,
-            ..Default::default()
-        };
-        let imported =
-            gltf_io::import_with(Path::new(spec), &options).map_err(|e| e.to_string())?;
-        let summary = imported.summary();
-        if !summary.is_empty() {
-            eprintln!("{summary}");
-        }
-        for w in &imported.warnings {
-            eprintln!("warning: {w}");
-        }
-        Ok(imported.scene)
-    } else {
-        builtin::scene(spec).map_err(|e| e.to_string())
+    let opened = scene_core::open_scene(spec)?;
+    for note in &opened.notes {
+        eprintln!("{note}");
     }
+    Ok(opened.scene)
 }
 
 /// The options every command that renders one view of a scene takes.

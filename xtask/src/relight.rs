@@ -50,11 +50,7 @@ pub struct Options {
 /// A light id as the command line writes it: `point:N`, `directional:N`, `emissive:N`
 /// (N a mesh index).
 pub fn id_text(id: LightId) -> String {
-    match id {
-        LightId::Point(i) => format!("point:{i}"),
-        LightId::Directional(i) => format!("directional:{i}"),
-        LightId::Emissive(m) => format!("emissive:{m}"),
-    }
+    id.key()
 }
 
 /// The emission a light has in the scene, in its own units (intensity, irradiance, or the

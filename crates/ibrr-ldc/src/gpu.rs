@@ -198,7 +198,8 @@ impl GpuLdc {
     }
 
     /// The image of `g` (the camera's G-buffer of `scene` from `view`) under `lights`, and
-    /// the pixel counts of the fallback and of pixels without a layer.
+    /// the pixel counts of the fallback and of pixels without a layer. Records, submits
+    /// and reads back; [`GpuLdc::encode`] is the frame without the readback.
     pub fn render(
         &mut self,
         scene: &Scene,
@@ -208,6 +209,68 @@ impl GpuLdc {
     ) -> Result<(Image, GpuFrameCounts), IbrrError> {
         let (w, h) = (g.width, g.height);
         let pixels = w as usize * h as usize;
+        let image = Self::output_buffer(&self.ctx, w, h);
+        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
+        self.encode(&mut encoder, scene, g, view, lights, &image)?;
+        let ctx = &self.ctx;
+        ctx.queue.submit([encoder.finish()]);
+        let v: Vec<[f32; 4]> = ctx.read_buffer_as(&image).map_err(gpu)?;
+        let mut counts = GpuFrameCounts::default();
+        let pixels_out = v
+            .iter()
+            .take(pixels)
+            .map(|p| {
+                match p[3] as u32 {
+                    1 => counts.fallback += 1,
+                    2 => counts.missing += 1,
+                    _ => {}
+                }
+                let l = Vec3::new(p[0], p[1], p[2]);
+                if l.is_finite() { l } else { Vec3::ZERO }
+            })
+            .collect();
+        Ok((
+            Image {
+                width: w,
+                height: h,
+                pixels: pixels_out,
+            },
+            counts,
+        ))
+    }
+
+    /// A storage buffer for [`GpuLdc::encode`]'s image of `width x height` pixels (one
+    /// `vec4<f32>` each, row-major; `COPY_SRC` for readback).
+    pub fn output_buffer(ctx: &GpuContext, width: u32, height: u32) -> wgpu::Buffer {
+        let pixels = width as usize * height as usize;
+        ctx.storage_with(
+            "ibrr image",
+            &vec![0u8; pixels.max(1) * 16],
+            wgpu::BufferUsages::COPY_SRC,
+        )
+    }
+
+    /// Records the reconstruction of `g` (the camera's G-buffer of `scene` from `view`)
+    /// under `lights` into `encoder`, writing `output` (at least `g.width * g.height`
+    /// `vec4<f32>`: radiance in `xyz`, and in `w` 1 where the fallback served the pixel, 2
+    /// where no layer matched). Nothing is read back.
+    pub fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &Scene,
+        g: &GpuGBuffer,
+        view: &View,
+        lights: &LightState,
+        output: &wgpu::Buffer,
+    ) -> Result<(), IbrrError> {
+        let (w, h) = (g.width, g.height);
+        let pixels = w as usize * h as usize;
+        if output.size() < pixels as u64 * 16 {
+            return Err(IbrrError::Settings(format!(
+                "reconstruction output of {} bytes for {w}x{h} pixels",
+                output.size()
+            )));
+        }
         let f = &self.ldc_frame;
         let eye = match view.projection {
             Projection::Perspective { .. } => view.eye.extend(1.0),
@@ -251,11 +314,6 @@ impl GpuLdc {
                 usage: wgpu::BufferUsages::UNIFORM,
             });
 
-        let image = ctx.storage_with(
-            "ibrr image",
-            &vec![0u8; pixels.max(1) * 16],
-            wgpu::BufferUsages::COPY_SRC,
-        );
         let views = [&g.albedo, &g.normal, &g.depth, &g.triangle_id]
             .map(|t| t.create_view(&Default::default()));
         let bind = self.pass.bind(
@@ -266,39 +324,15 @@ impl GpuLdc {
                 self.planes.as_entire_binding(),
                 self.values.as_entire_binding(),
                 tri.as_entire_binding(),
-                image.as_entire_binding(),
+                output.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&views[0]),
                 wgpu::BindingResource::TextureView(&views[1]),
                 wgpu::BindingResource::TextureView(&views[2]),
                 wgpu::BindingResource::TextureView(&views[3]),
             ],
         );
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        self.pass.dispatch(&mut encoder, &bind, w, h, None);
-        ctx.queue.submit([encoder.finish()]);
-        let v: Vec<[f32; 4]> = ctx.read_buffer_as(&image).map_err(gpu)?;
-        let mut counts = GpuFrameCounts::default();
-        let pixels_out = v
-            .iter()
-            .take(pixels)
-            .map(|p| {
-                match p[3] as u32 {
-                    1 => counts.fallback += 1,
-                    2 => counts.missing += 1,
-                    _ => {}
-                }
-                let l = Vec3::new(p[0], p[1], p[2]);
-                if l.is_finite() { l } else { Vec3::ZERO }
-            })
-            .collect();
-        Ok((
-            Image {
-                width: w,
-                height: h,
-                pixels: pixels_out,
-            },
-            counts,
-        ))
+        self.pass.dispatch(encoder, &bind, w, h, None);
+        Ok(())
     }
 }
 

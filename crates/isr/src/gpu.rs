@@ -303,6 +303,19 @@ pub struct GpuIsrInputs<'a> {
     pub view: &'a View,
 }
 
+/// The intermediate buffers of a GPU frame ([`GpuIsr::intermediate`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Intermediate {
+    /// Coarse: the light each sender sends (`Lit` senders only).
+    Senders,
+    /// Coarse: the gathered indirect irradiance (`xyz`) and ambient accessibility (`w`).
+    Radiosity,
+    /// Coarse: the same after the blur.
+    Blurred,
+    /// Full size: the same after the bilateral upsampling.
+    Upsampled,
+}
+
 /// Intermediate textures of one size.
 struct Targets {
     full: (u32, u32),
@@ -518,6 +531,20 @@ impl GpuIsr {
     pub fn output_texture(&self, width: u32, height: u32) -> Result<wgpu::Texture, IsrError> {
         self.ctx.check_texture_size(width, height)?;
         Ok(rgba_texture(&self.ctx, "isr output", width, height))
+    }
+
+    /// An intermediate texture of the last recorded frame (`Rgba32Float`), for views of
+    /// the pipeline's buffers (the thesis' F-key views): `None` before the first frame.
+    /// Its contents are those of the last submitted frame that ran the ISR passes (a
+    /// direct-only frame leaves them as they were).
+    pub fn intermediate(&self, which: Intermediate) -> Option<&wgpu::Texture> {
+        let t = self.targets.as_ref()?;
+        Some(match which {
+            Intermediate::Senders => &t.senders,
+            Intermediate::Radiosity => &t.radiosity,
+            Intermediate::Blurred => &t.blurred,
+            Intermediate::Upsampled => &t.upsampled,
+        })
     }
 
     /// Blocks until the device has finished all submitted work (for timing).

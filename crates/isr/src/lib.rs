@@ -57,7 +57,7 @@ pub mod technique;
 pub mod upsample;
 
 pub use frame::{Frame, IsrInputs, PassTimings, render_cpu, render_image};
-pub use gpu::{GpuIsr, GpuIsrInputs};
+pub use gpu::{GpuIsr, GpuIsrInputs, Intermediate};
 pub use light_set::{Light, LightKind, LightSet, Part};
 pub use scene_core::gbuffer::downsample::{DownsampleMode, coarse_size, downsample};
 pub use settings::{Blur, Estimator, IsrSettings, Radius, Sender, ShadowSettings};

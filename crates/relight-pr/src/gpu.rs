@@ -385,7 +385,8 @@ impl GpuRelight {
     /// albedo, plus its element's glow; with `pixel_direct` (pixel-major, k per pixel,
     /// [`crate::display::pixel_direct`]) the vertices' direct part is left out and each
     /// pixel adds its own direct light times the direct factors. Equals
-    /// [`crate::display::compose`] with smooth shading.
+    /// [`crate::display::compose`] with smooth shading. Records, submits and reads the
+    /// image back; [`GpuRelight::encode_display`] is the same without the readback.
     pub fn display(
         &self,
         g: &GpuGBuffer,
@@ -394,9 +395,60 @@ impl GpuRelight {
         base: Vec3,
         pixel_direct: Option<&[Vec3]>,
     ) -> Result<Image, RelightError> {
+        let (w, h) = (g.width, g.height);
+        let pixels = w as usize * h as usize;
+        let ctx = &self.ctx;
+        let image = Self::display_buffer(ctx, w, h);
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.encode_display(&mut encoder, g, view, factors, base, pixel_direct, &image)?;
+        ctx.queue.submit([encoder.finish()]);
+        let v: Vec<[f32; 4]> = ctx.read_buffer_as(&image).map_err(gpu)?;
+        Ok(Image {
+            width: w,
+            height: h,
+            pixels: v
+                .iter()
+                .take(pixels)
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect(),
+        })
+    }
+
+    /// A storage buffer for [`GpuRelight::encode_display`]'s image of `width x height`
+    /// pixels (one `vec4<f32>` each, row-major; `COPY_SRC` for readback).
+    pub fn display_buffer(ctx: &GpuContext, width: u32, height: u32) -> wgpu::Buffer {
+        let pixels = width as usize * height as usize;
+        ctx.storage_with(
+            "relight image",
+            &vec![0u8; pixels.max(1) * 16],
+            wgpu::BufferUsages::COPY_SRC,
+        )
+    }
+
+    /// Records [`GpuRelight::display`] into `encoder`, writing the image into `output` (at
+    /// least `g.width * g.height` `vec4<f32>`, row-major, radiance in `xyz`, e.g. from
+    /// [`GpuRelight::display_buffer`]). Nothing is read back: what an interactive frame
+    /// loop needs.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_display(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        g: &GpuGBuffer,
+        view: &View,
+        factors: &[(Vec3, Vec3)],
+        base: Vec3,
+        pixel_direct: Option<&[Vec3]>,
+        output: &wgpu::Buffer,
+    ) -> Result<(), RelightError> {
         self.check_factors(factors)?;
         let (w, h) = (g.width, g.height);
         let pixels = w as usize * h as usize;
+        if output.size() < pixels as u64 * 16 {
+            return Err(RelightError::InvalidSetting(format!(
+                "display output of {} bytes for {w}x{h} pixels",
+                output.size()
+            )));
+        }
         let params = DisplayParams {
             frustum: FrustumReconstruction::new(view).uniform(),
             width: w,
@@ -435,11 +487,6 @@ impl GpuRelight {
             bytemuck::cast_slice(&direct),
             wgpu::BufferUsages::empty(),
         );
-        let image = ctx.storage_with(
-            "relight image",
-            &vec![0u8; pixels.max(1) * 16],
-            wgpu::BufferUsages::COPY_SRC,
-        );
         let views =
             [&g.albedo, &g.depth, &g.triangle_id].map(|t| t.create_view(&Default::default()));
         let bind = pass.bind(
@@ -450,25 +497,14 @@ impl GpuRelight {
                 f.as_entire_binding(),
                 self.element_table.as_entire_binding(),
                 direct_buf.as_entire_binding(),
-                image.as_entire_binding(),
+                output.as_entire_binding(),
                 wgpu::BindingResource::TextureView(&views[0]),
                 wgpu::BindingResource::TextureView(&views[1]),
                 wgpu::BindingResource::TextureView(&views[2]),
             ],
         );
-        let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        pass.dispatch(&mut encoder, &bind, w, h, None);
-        ctx.queue.submit([encoder.finish()]);
-        let v: Vec<[f32; 4]> = ctx.read_buffer_as(&image).map_err(gpu)?;
-        Ok(Image {
-            width: w,
-            height: h,
-            pixels: v
-                .iter()
-                .take(pixels)
-                .map(|p| Vec3::new(p[0], p[1], p[2]))
-                .collect(),
-        })
+        pass.dispatch(encoder, &bind, w, h, None);
+        Ok(())
     }
 }
 

@@ -138,16 +138,32 @@ impl GpuContext {
     /// The async form of [`GpuContext::new`].
     pub async fn new_async() -> Result<Self, GpuError> {
         let desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-        let tried = describe_backends(desc.backends);
         let backends = desc.backends;
-        let instance = wgpu::Instance::new(desc);
+        Self::with_instance(wgpu::Instance::new(desc), backends, None).await
+    }
+
+    /// A context on `instance` (created with `backends`) whose adapter can present to
+    /// `compatible_surface` when one is given: what a windowed program needs, the surface
+    /// being made from the same instance. Adapter choice and device limits as
+    /// [`GpuContext::new`].
+    pub async fn with_instance(
+        instance: wgpu::Instance,
+        backends: wgpu::Backends,
+        compatible_surface: Option<&wgpu::Surface<'_>>,
+    ) -> Result<Self, GpuError> {
+        let tried = describe_backends(backends);
 
         let wanted = std::env::var("WGPU_ADAPTER_NAME")
             .ok()
             .filter(|s| !s.trim().is_empty());
         let adapter = match wanted {
             Some(wanted) => {
-                let adapters = instance.enumerate_adapters(backends).await;
+                let adapters: Vec<wgpu::Adapter> = instance
+                    .enumerate_adapters(backends)
+                    .await
+                    .into_iter()
+                    .filter(|a| compatible_surface.is_none_or(|s| a.is_surface_supported(s)))
+                    .collect();
                 if adapters.is_empty() {
                     return Err(GpuError::NoAdapter { tried });
                 }
@@ -172,7 +188,7 @@ impl GpuContext {
                     power_preference: wgpu::PowerPreference::from_env()
                         .unwrap_or(wgpu::PowerPreference::HighPerformance),
                     force_fallback_adapter: false,
-                    compatible_surface: None,
+                    compatible_surface,
                     apply_limit_buckets: false,
                 })
                 .await

@@ -40,6 +40,7 @@ pub mod model;
 pub mod rays;
 pub mod technique;
 
+pub use files::open::{OpenedScene, open_scene};
 pub use files::{budget, gltf_io, image};
 pub use model::{builtin, lights, scene, view};
 pub use rays::{ray, reference, sampling};

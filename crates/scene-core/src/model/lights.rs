@@ -71,6 +71,39 @@ impl LightId {
     }
 }
 
+impl LightId {
+    /// The id as command lines and replay files write it: `point:N`, `directional:N` or
+    /// `emissive:N` (N a mesh index).
+    pub fn key(&self) -> String {
+        match *self {
+            LightId::Point(i) => format!("point:{i}"),
+            LightId::Directional(i) => format!("directional:{i}"),
+            LightId::Emissive(m) => format!("emissive:{m}"),
+        }
+    }
+
+    /// The light of `scene` whose [`LightId::key`] is `key`; the error names the key and
+    /// lists the scene's lights.
+    pub fn find(scene: &Scene, key: &str) -> Result<LightId, String> {
+        let ids = light_ids(scene);
+        ids.iter()
+            .copied()
+            .find(|id| id.key() == key)
+            .ok_or_else(|| {
+                let known: Vec<String> = ids.iter().map(LightId::key).collect();
+                format!(
+                    "no light '{key}' in scene '{}' (its lights: {})",
+                    scene.name,
+                    if known.is_empty() {
+                        "none".to_string()
+                    } else {
+                        known.join(", ")
+                    }
+                )
+            })
+    }
+}
+
 /// Every light source of `scene`, in a fixed order: point lights, directional lights, then
 /// emissive meshes by mesh index.
 pub fn light_ids(scene: &Scene) -> Vec<LightId> {

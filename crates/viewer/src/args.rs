@@ -1,0 +1,85 @@
+//! The command line.
+
+use std::path::PathBuf;
+
+use clap::Parser;
+use scene_core::reference::Bounces;
+
+/// `cargo run --release -p viewer -- --scene NAME|FILE`: walk through a scene, switch
+/// methods, relight, and compare against a progressive path-traced reference.
+#[derive(Clone, Debug, Parser)]
+#[command(name = "viewer", version, about, long_about = None)]
+pub struct Args {
+    /// Built-in scene name (cornell, cornell-point, primitives, corridor...) or a
+    /// .gltf/.glb path.
+    #[arg(long, default_value = "cornell")]
+    pub scene: String,
+    /// Window size, WIDTHxHEIGHT in physical pixels.
+    #[arg(long, default_value = "960x600")]
+    pub size: String,
+    /// The mode shown first (dl, isr, isr-indirect, isr-ao, isr-coarse, relight, ibrr,
+    /// reference).
+    #[arg(long, default_value = "isr")]
+    pub mode: String,
+    /// Relighting's element target (its mesh density).
+    #[arg(long, default_value_t = 1024)]
+    pub relight_elements: usize,
+    /// Do not start relighting's solve at launch (it starts when the mode is first chosen).
+    #[arg(long)]
+    pub lazy: bool,
+    /// The IBRR's LDC resolution.
+    #[arg(long, default_value_t = 256)]
+    pub ibrr_resolution: u32,
+    /// The IBRR's number of IRPLs (virtual point lights).
+    #[arg(long, default_value_t = 184)]
+    pub ibrr_irpls: u32,
+    /// The reference's bounce limit: 0, 1, N or inf.
+    #[arg(long, default_value = "inf")]
+    pub bounces: Bounces,
+    /// The reference's seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The reference stops accumulating at this many samples per pixel.
+    #[arg(long, default_value_t = 1024)]
+    pub max_spp: u32,
+    /// Exposure of the display and of PNG screenshots, in stops.
+    #[arg(long, default_value_t = 0.0)]
+    pub exposure: f32,
+    /// Start with vsync off (V toggles it).
+    #[arg(long)]
+    pub no_vsync: bool,
+    /// Hide the panel (H toggles it).
+    #[arg(long)]
+    pub no_ui: bool,
+    /// Record the walkthrough (camera, modes, lights, screenshots) into this JSON file.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Replay a recorded walkthrough, one step per frame, then exit (prints frame times
+    /// per mode).
+    #[arg(long)]
+    pub replay: Option<PathBuf>,
+    /// Where screenshots go (created when needed).
+    #[arg(long, default_value = "screenshots")]
+    pub screenshots: PathBuf,
+}
+
+impl Args {
+    /// The window size.
+    pub fn window_size(&self) -> Result<(u32, u32), String> {
+        let bad = || {
+            format!(
+                "--size '{}': expected WIDTHxHEIGHT, e.g. 960x600",
+                self.size
+            )
+        };
+        let (w, h) = self.size.split_once('x').ok_or_else(bad)?;
+        let w: u32 = w.trim().parse().map_err(|_| bad())?;
+        let h: u32 = h.trim().parse().map_err(|_| bad())?;
+        if w == 0 || h == 0 || w > 16384 || h > 16384 {
+            return Err(format!(
+                "--size {w}x{h}: each side must be 1 to 16384 pixels"
+            ));
+        }
+        Ok((w, h))
+    }
+}

@@ -1,0 +1,653 @@
+//! The frame on the GPU: the scene's G-buffer, each mode on screen drawn into a frame-sized
+//! buffer, the composed frame ([`Layout`]) and its presentation. Nothing is read back in a
+//! frame; [`Renderer::read_frame`] (screenshots) and [`Renderer::read_slot`] (the error
+//! view's mean, a few times a second) are the only readbacks.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use gbuffer::{GpuPreparedScene, GpuRasterizer};
+use glam::Vec3;
+use ibrr_ldc::{GpuLdc, IbrrTechnique};
+use isr::{GpuIsr, GpuIsrInputs, Intermediate, IsrSettings, LightSet, ShadowSettings};
+use relight_pr::gpu::GpuRelight;
+use relight_pr::packed::Precision;
+use relight_pr::{RelightTechnique, relight};
+use scene_core::gpu::compute::ComputePass;
+use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, uniform};
+use scene_core::gpu::{GpuContext, GpuGBuffer};
+use scene_core::{Image, LightState, Scene, View};
+use wgpu::util::DeviceExt;
+
+use crate::mode::{Layout, Mode};
+
+/// WGSL of the resolve pass (`shaders/viewer/resolve.wgsl`).
+pub const RESOLVE_WGSL: &str = include_str!("../../../shaders/viewer/resolve.wgsl");
+/// WGSL of the compose pass (`shaders/viewer/compose.wgsl`).
+pub const COMPOSE_WGSL: &str = include_str!("../../../shaders/viewer/compose.wgsl");
+/// WGSL of the present pass (`shaders/viewer/present.wgsl`).
+pub const PRESENT_WGSL: &str = include_str!("../../../shaders/viewer/present.wgsl");
+
+/// The ISR settings of an ISR-family mode, and which of its textures the mode shows
+/// (`None`: the output; else an intermediate buffer) with which channel (0 colour, 1 the
+/// fourth channel as grey).
+pub fn isr_view(mode: Mode) -> Option<(IsrSettings, Option<Intermediate>, u32)> {
+    Some(match mode {
+        Mode::Dl => (IsrSettings::dl(), None, 0),
+        Mode::Isr => (IsrSettings::default(), None, 0),
+        Mode::IsrIndirect => (
+            IsrSettings {
+                k_dl: 0.0,
+                ..IsrSettings::default()
+            },
+            None,
+            0,
+        ),
+        Mode::IsrAo => (
+            IsrSettings {
+                indirect: false,
+                ssao: true,
+                ..IsrSettings::default()
+            },
+            Some(Intermediate::Upsampled),
+            1,
+        ),
+        Mode::IsrCoarse => (IsrSettings::default(), Some(Intermediate::Blurred), 0),
+        _ => return None,
+    })
+}
+
+/// Relighting on the GPU: the solution uploaded once, relit per frame.
+pub struct RelightGpu {
+    /// The prepared technique (its solution, meshing and welding).
+    pub technique: RelightTechnique,
+    gpu: GpuRelight,
+    elements: GpuPreparedScene,
+}
+
+/// The IBRR on the GPU: its layered depth cube uploaded once per construction.
+pub struct IbrrGpu {
+    /// The constructed technique.
+    pub technique: IbrrTechnique,
+    /// The light state it was built for.
+    pub lights: LightState,
+    ldc: GpuLdc,
+}
+
+/// Buffers and textures of one frame size.
+struct Targets {
+    width: u32,
+    height: u32,
+    gbuffer: GpuGBuffer,
+    element_gbuffer: GpuGBuffer,
+    isr_out: wgpu::Texture,
+    /// The buffers of the left and right modes.
+    slots: [wgpu::Buffer; 2],
+    reference: wgpu::Buffer,
+    frame: wgpu::Buffer,
+}
+
+/// What one frame shows.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameSpec<'a> {
+    /// The view.
+    pub view: &'a View,
+    /// Light settings.
+    pub lights: &'a LightState,
+    /// The (left) mode.
+    pub mode: Mode,
+    /// The layout.
+    pub layout: Layout,
+    /// The error view's scale: the per-pixel error mapped to the top of the colour map.
+    pub error_scale: f32,
+}
+
+/// Per-stage wall-clock times of a frame: with `on`, each stage is submitted on its own and
+/// waited for (slower, but it times the work on any adapter, lavapipe included).
+pub struct Profiler<'a> {
+    ctx: &'a GpuContext,
+    on: bool,
+    last: Instant,
+    /// Each stage's label and time, in order.
+    pub times: Vec<(&'static str, Duration)>,
+}
+
+impl<'a> Profiler<'a> {
+    /// A profiler that times stages when `on`.
+    pub fn new(ctx: &'a GpuContext, on: bool) -> Self {
+        Self {
+            ctx,
+            on,
+            last: Instant::now(),
+            times: Vec::new(),
+        }
+    }
+
+    /// Ends stage `label`: with profiling on, submits what `encoder` holds, waits, and
+    /// records the time since the previous mark.
+    pub fn mark(&mut self, label: &'static str, encoder: &mut wgpu::CommandEncoder) {
+        if !self.on {
+            return;
+        }
+        let done = std::mem::replace(
+            encoder,
+            self.ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("viewer frame"),
+                }),
+        );
+        self.ctx.queue.submit([done.finish()]);
+        let _ = self.ctx.device.poll(wgpu::PollType::wait_indefinitely());
+        let now = Instant::now();
+        self.times.push((label, now - self.last));
+        self.last = now;
+    }
+}
+
+/// The viewer's GPU side.
+pub struct Renderer {
+    /// The context (device, queue).
+    pub ctx: GpuContext,
+    scene: Arc<Scene>,
+    raster: GpuRasterizer,
+    scene_gpu: GpuPreparedScene,
+    isr: GpuIsr,
+    resolve: ComputePass,
+    compose: ComputePass,
+    present: wgpu::RenderPipeline,
+    present_layout: wgpu::BindGroupLayout,
+    surface_is_srgb: bool,
+    targets: Option<Targets>,
+    /// Relighting, once its solve is done.
+    pub relight: Option<RelightGpu>,
+    /// The IBRR, once constructed.
+    pub ibrr: Option<IbrrGpu>,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ResolveParams {
+    width: u32,
+    height: u32,
+    channel: u32,
+    pad: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ComposeParams {
+    width: u32,
+    height: u32,
+    layout: u32,
+    divider: u32,
+    error_scale: f32,
+    pad: [u32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct PresentParams {
+    width: u32,
+    height: u32,
+    scale: f32,
+    encode: u32,
+}
+
+fn err(e: impl std::fmt::Display) -> String {
+    e.to_string()
+}
+
+impl Renderer {
+    /// Uploads `scene`, builds ISR's lights and shadow maps and compiles every pass;
+    /// `surface_format` is the window's.
+    pub fn new(
+        ctx: GpuContext,
+        scene: Arc<Scene>,
+        surface_format: wgpu::TextureFormat,
+    ) -> Result<Self, String> {
+        let raster = GpuRasterizer::new(&ctx).map_err(err)?;
+        let scene_gpu = raster.upload(&scene).map_err(err)?;
+        let lights = LightSet::new(&scene, &ShadowSettings::default()).map_err(err)?;
+        let isr = GpuIsr::new(&ctx, &lights).map_err(err)?;
+        let device = &ctx.device;
+        let (resolve, compose, present, present_layout) = ctx
+            .validated(|| {
+                let resolve = ComputePass::new(
+                    device,
+                    "viewer resolve",
+                    RESOLVE_WGSL,
+                    &[uniform(0), float_texture(1), storage_buffer_rw(2)],
+                    &[],
+                );
+                let compose = ComputePass::new(
+                    device,
+                    "viewer compose",
+                    COMPOSE_WGSL,
+                    &[
+                        uniform(0),
+                        storage_buffer(1),
+                        storage_buffer(2),
+                        storage_buffer(3),
+                        storage_buffer_rw(4),
+                    ],
+                    &[],
+                );
+                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("viewer present"),
+                    source: wgpu::ShaderSource::Wgsl(PRESENT_WGSL.into()),
+                });
+                let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
+                    binding,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                };
+                let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("viewer present"),
+                    entries: &[
+                        entry(0, wgpu::BufferBindingType::Uniform),
+                        entry(1, wgpu::BufferBindingType::Storage { read_only: true }),
+                    ],
+                });
+                let pipeline_layout =
+                    device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some("viewer present"),
+                        bind_group_layouts: &[Some(&layout)],
+                        immediate_size: 0,
+                    });
+                let present = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("viewer present"),
+                    layout: Some(&pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_main"),
+                        compilation_options: Default::default(),
+                        buffers: &[],
+                    },
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some("fs_main"),
+                        compilation_options: Default::default(),
+                        targets: &[Some(surface_format.into())],
+                    }),
+                    primitive: wgpu::PrimitiveState::default(),
+                    depth_stencil: None,
+                    multisample: wgpu::MultisampleState::default(),
+                    multiview_mask: None,
+                    cache: None,
+                });
+                (resolve, compose, present, layout)
+            })
+            .map_err(err)?;
+        Ok(Self {
+            ctx,
+            scene,
+            raster,
+            scene_gpu,
+            isr,
+            resolve,
+            compose,
+            present,
+            present_layout,
+            surface_is_srgb: surface_format.is_srgb(),
+            targets: None,
+            relight: None,
+            ibrr: None,
+        })
+    }
+
+    /// The frame size in pixels (zero before the first [`Renderer::resize`]).
+    pub fn size(&self) -> (u32, u32) {
+        self.targets
+            .as_ref()
+            .map_or((0, 0), |t| (t.width, t.height))
+    }
+
+    /// (Re)creates the frame-sized buffers and textures.
+    pub fn resize(&mut self, width: u32, height: u32) -> Result<(), String> {
+        if self.size() == (width, height) {
+            return Ok(());
+        }
+        let ctx = &self.ctx;
+        ctx.check_texture_size(width, height).map_err(err)?;
+        let bytes = width as u64 * height as u64 * 16;
+        let limits = ctx.device.limits();
+        let limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        if bytes > limit {
+            return Err(format!(
+                "a {width}x{height} frame needs {bytes}-byte buffers; this adapter binds at most {limit}"
+            ));
+        }
+        let buffer = |label: &str| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        self.targets = Some(Targets {
+            width,
+            height,
+            gbuffer: GpuGBuffer::new(ctx, width, height).map_err(err)?,
+            element_gbuffer: GpuGBuffer::new(ctx, width, height).map_err(err)?,
+            isr_out: self.isr.output_texture(width, height).map_err(err)?,
+            slots: [buffer("viewer left"), buffer("viewer right")],
+            reference: buffer("viewer reference"),
+            frame: buffer("viewer frame"),
+        });
+        Ok(())
+    }
+
+    /// Uploads relighting's solution (after its solve).
+    pub fn set_relight(&mut self, technique: RelightTechnique) -> Result<(), String> {
+        let p = technique.prepared().ok_or("relighting was not prepared")?;
+        let gpu = GpuRelight::new(
+            &self.ctx,
+            &p.meshing,
+            &p.welding,
+            &p.solution,
+            Precision::F32,
+        )
+        .map_err(err)?;
+        let elements = self
+            .raster
+            .upload(&p.meshing.element_scene(&p.scene))
+            .map_err(err)?;
+        self.relight = Some(RelightGpu {
+            technique,
+            gpu,
+            elements,
+        });
+        Ok(())
+    }
+
+    /// Uploads the IBRR's layered depth cube (after its construction for `lights`).
+    pub fn set_ibrr(&mut self, technique: IbrrTechnique, lights: LightState) -> Result<(), String> {
+        let ldc = technique.ldc().ok_or("the IBRR was not constructed")?;
+        let s = &technique.settings;
+        let ldc = GpuLdc::new(&self.ctx, ldc, s.lookup, s.fallback_radius).map_err(err)?;
+        self.ibrr = Some(IbrrGpu {
+            technique,
+            lights,
+            ldc,
+        });
+        Ok(())
+    }
+
+    /// Uploads the reference's accumulated image (row-major, the frame's size).
+    pub fn upload_reference(&self, pixels: &[Vec3]) {
+        let Some(t) = &self.targets else { return };
+        if pixels.len() != t.width as usize * t.height as usize {
+            return;
+        }
+        let data: Vec<[f32; 4]> = pixels.iter().map(|p| p.extend(1.0).to_array()).collect();
+        self.ctx
+            .queue
+            .write_buffer(&t.reference, 0, bytemuck::cast_slice(&data));
+    }
+
+    /// Clears the reference image (a restart).
+    pub fn clear_reference(&self, encoder: &mut wgpu::CommandEncoder) {
+        if let Some(t) = &self.targets {
+            encoder.clear_buffer(&t.reference, 0, None);
+        }
+    }
+
+    /// Records `mode` into its buffer (`slot` 0 or 1; the reference has its own). A mode
+    /// whose precomputation is not done yet leaves a black buffer.
+    fn encode_mode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        spec: &FrameSpec<'_>,
+        mode: Mode,
+        slot: usize,
+        gbuffer_done: &mut bool,
+    ) -> Result<(), String> {
+        let Some(t) = &self.targets else {
+            return Err("no frame size yet".into());
+        };
+        let (w, h) = (t.width, t.height);
+        if mode.is_isr() || mode == Mode::Ibrr {
+            if !*gbuffer_done {
+                self.raster
+                    .encode(encoder, &self.scene_gpu, spec.view, &t.gbuffer)
+                    .map_err(err)?;
+                *gbuffer_done = true;
+            }
+        }
+        if let Some((settings, which, channel)) = isr_view(mode) {
+            self.isr.apply(spec.lights);
+            let inputs = GpuIsrInputs {
+                full: &t.gbuffer,
+                coarse: None,
+                view: spec.view,
+            };
+            self.isr
+                .encode(encoder, &inputs, &settings, &t.isr_out)
+                .map_err(err)?;
+            let source = match which {
+                None => &t.isr_out,
+                Some(i) => self
+                    .isr
+                    .intermediate(i)
+                    .ok_or("ISR has no intermediate buffers yet")?,
+            };
+            let params = ResolveParams {
+                width: w,
+                height: h,
+                channel,
+                pad: 0,
+            };
+            let uniform = self
+                .ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("viewer resolve"),
+                    contents: bytemuck::bytes_of(&params),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+            let view = source.create_view(&Default::default());
+            let bind = self.resolve.bind(
+                &self.ctx.device,
+                &[
+                    uniform.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&view),
+                    t.slots[slot].as_entire_binding(),
+                ],
+            );
+            self.resolve.dispatch(encoder, &bind, w, h, None);
+            return Ok(());
+        }
+        match mode {
+            Mode::Relight => match &self.relight {
+                Some(r) => {
+                    let p = r
+                        .technique
+                        .prepared()
+                        .ok_or("relighting lost its solution")?;
+                    self.raster
+                        .encode(encoder, &r.elements, spec.view, &t.element_gbuffer)
+                        .map_err(err)?;
+                    let (factors, base) = relight::weights(&p.solution, spec.lights, true);
+                    r.gpu
+                        .encode_display(
+                            encoder,
+                            &t.element_gbuffer,
+                            spec.view,
+                            &factors,
+                            base,
+                            None,
+                            &t.slots[slot],
+                        )
+                        .map_err(err)?;
+                }
+                None => encoder.clear_buffer(&t.slots[slot], 0, None),
+            },
+            Mode::Ibrr => match self.ibrr.as_mut() {
+                Some(b) => {
+                    b.ldc
+                        .encode(
+                            encoder,
+                            &self.scene,
+                            &t.gbuffer,
+                            spec.view,
+                            &b.lights,
+                            &t.slots[slot],
+                        )
+                        .map_err(err)?;
+                }
+                None => encoder.clear_buffer(&t.slots[slot], 0, None),
+            },
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Records the frame: each mode on screen, then the composed frame.
+    pub fn encode_frame(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        spec: &FrameSpec<'_>,
+        profiler: &mut Profiler<'_>,
+    ) -> Result<(), String> {
+        let mut gbuffer_done = false;
+        let mut modes = vec![(spec.mode, 0)];
+        if let Layout::Split { right, .. } = spec.layout {
+            modes.push((right, 1));
+        }
+        for &(mode, slot) in &modes {
+            if mode != Mode::Reference {
+                self.encode_mode(encoder, spec, mode, slot, &mut gbuffer_done)?;
+                profiler.mark(mode.name(), encoder);
+            }
+        }
+        let Some(t) = &self.targets else {
+            return Err("no frame size yet".into());
+        };
+        let source = |mode: Mode, slot: usize| {
+            if mode == Mode::Reference {
+                &t.reference
+            } else {
+                &t.slots[slot]
+            }
+        };
+        let (layout, divider, right) = match spec.layout {
+            Layout::Single => (0, 0, spec.mode),
+            Layout::Split { right, divider } => (
+                1,
+                (divider.clamp(0.0, 1.0) * t.width as f32).round() as u32,
+                right,
+            ),
+            Layout::Error => (2, 0, spec.mode),
+        };
+        let params = ComposeParams {
+            width: t.width,
+            height: t.height,
+            layout,
+            divider,
+            error_scale: spec.error_scale,
+            pad: [0; 3],
+        };
+        let uniform = self
+            .ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("viewer compose"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let bind = self.compose.bind(
+            &self.ctx.device,
+            &[
+                uniform.as_entire_binding(),
+                source(spec.mode, 0).as_entire_binding(),
+                source(right, 1).as_entire_binding(),
+                t.reference.as_entire_binding(),
+                t.frame.as_entire_binding(),
+            ],
+        );
+        self.compose
+            .dispatch(encoder, &bind, t.width, t.height, None);
+        profiler.mark("compose", encoder);
+        Ok(())
+    }
+
+    /// Draws the composed frame into `pass` (a pass over the window's surface texture),
+    /// scaled by `2^exposure`.
+    pub fn draw_present(&self, pass: &mut wgpu::RenderPass<'_>, exposure: f32) {
+        let Some(t) = &self.targets else { return };
+        let params = PresentParams {
+            width: t.width,
+            height: t.height,
+            scale: exposure.exp2(),
+            encode: u32::from(!self.surface_is_srgb),
+        };
+        let uniform = self
+            .ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("viewer present"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let bind = self
+            .ctx
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("viewer present"),
+                layout: &self.present_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: uniform.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: t.frame.as_entire_binding(),
+                    },
+                ],
+            });
+        pass.set_pipeline(&self.present);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.draw(0..3, 0..1);
+    }
+
+    fn read_buffer(&self, buffer: &wgpu::Buffer) -> Result<Image, String> {
+        let Some(t) = &self.targets else {
+            return Err("no frame yet".into());
+        };
+        let v: Vec<[f32; 4]> = self.ctx.read_buffer_as(buffer).map_err(err)?;
+        Ok(Image {
+            width: t.width,
+            height: t.height,
+            pixels: v
+                .iter()
+                .take(t.width as usize * t.height as usize)
+                .map(|p| Vec3::new(p[0], p[1], p[2]))
+                .collect(),
+        })
+    }
+
+    /// Reads the composed frame back (a screenshot: exactly what was presented, before
+    /// exposure and encoding).
+    pub fn read_frame(&self) -> Result<Image, String> {
+        let t = self.targets.as_ref().ok_or("no frame yet")?;
+        self.read_buffer(&t.frame)
+    }
+
+    /// Reads the buffer of the left mode back (the error view's mean error).
+    pub fn read_slot(&self, slot: usize) -> Result<Image, String> {
+        let t = self.targets.as_ref().ok_or("no frame yet")?;
+        self.read_buffer(&t.slots[slot.min(1)])
+    }
+}
