@@ -1,0 +1,477 @@
+//! The viewer in a real window: under a virtual X server (Xvfb) with whatever adapter
+//! wgpu finds (lavapipe in CI), it replays walkthroughs through every mode and saves
+//! screenshots, which must equal the library's own offscreen render of the same frame.
+//!
+//! The tests skip when there is no display server to start (no `xvfb-run` and no
+//! `DISPLAY`) or no GPU adapter, unless `REQUIRE_GPU=1` (CI), where that is a failure.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::Arc;
+
+use gbuffer::{CpuRasterizer, GpuRasterizer};
+use glam::Vec3;
+use ibrr_ldc::{IbrrSettings, IbrrTechnique};
+use isr::{Backend, GpuIsr, GpuIsrInputs, IsrTechnique, LightSet, ShadowSettings};
+use relight_pr::direct::DirectLight;
+use relight_pr::{MeshSettings, RelightTechnique, SolverSettings};
+use scene_core::gpu::{GpuContext, gpu_test_context};
+use scene_core::reference::{Bounces, ReferenceSettings, render_lit};
+use scene_core::{
+    Camera, FrameRequest, Image, LightId, LightSetting, LightState, Scene, Technique, View,
+};
+use serde_json::Value;
+use viewer::frame::isr_view;
+use viewer::mode::Mode;
+
+const WIDTH: u32 = 96;
+const HEIGHT: u32 = 72;
+const ELEMENTS: usize = 256;
+const LDC: u32 = 64;
+const IRPLS: u32 = 16;
+const SPP: u32 = 4;
+
+fn required() -> bool {
+    std::env::var("REQUIRE_GPU").is_ok_and(|v| v == "1")
+}
+
+/// How to run a program with a display: directly when `DISPLAY` is set, else under
+/// `xvfb-run`; `None` (or a failure with `REQUIRE_GPU=1`) when neither is possible.
+fn display_runner() -> Option<Vec<String>> {
+    if std::env::var("DISPLAY").is_ok_and(|d| !d.is_empty()) {
+        return Some(Vec::new());
+    }
+    let xvfb = Command::new("xvfb-run").arg("--help").output().is_ok();
+    if xvfb {
+        return Some(
+            ["xvfb-run", "-a", "-s", "-screen 0 1280x800x24"]
+                .map(String::from)
+                .to_vec(),
+        );
+    }
+    assert!(
+        !required(),
+        "REQUIRE_GPU=1 but there is no display and no xvfb-run (apt-get install xvfb xauth)"
+    );
+    eprintln!("skipping: no DISPLAY and no xvfb-run");
+    None
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs the viewer binary with `args` under `runner`.
+fn viewer(runner: &[String], args: &[&str]) -> Output {
+    let bin = env!("CARGO_BIN_EXE_viewer");
+    let mut cmd = match runner.split_first() {
+        Some((first, rest)) => {
+            let mut c = Command::new(first);
+            c.args(rest).arg(bin);
+            c
+        }
+        None => Command::new(bin),
+    };
+    let runtime = std::env::temp_dir().join("viewer-test-runtime");
+    let _ = std::fs::create_dir_all(&runtime);
+    cmd.args(args)
+        .env("XDG_RUNTIME_DIR", runtime)
+        .output()
+        .expect("the viewer runs")
+}
+
+fn replay(dir: &Path, steps: &str) -> (Vec<String>, Output) {
+    let runner = display_runner().expect("checked by the caller");
+    let file = dir.join("walk.json");
+    std::fs::write(&file, format!(r#"{{"version": 1, "steps": [{steps}]}}"#)).unwrap();
+    let shots = dir.join("shots");
+    let out = viewer(
+        &runner,
+        &[
+            "--scene",
+            "cornell",
+            "--size",
+            &format!("{WIDTH}x{HEIGHT}"),
+            "--relight-elements",
+            &ELEMENTS.to_string(),
+            "--ibrr-resolution",
+            &LDC.to_string(),
+            "--ibrr-irpls",
+            &IRPLS.to_string(),
+            "--replay",
+            file.to_str().unwrap(),
+            "--screenshots",
+            shots.to_str().unwrap(),
+        ],
+    );
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    eprintln!("{text}");
+    assert!(out.status.success(), "the replay failed: {text}");
+    (text.lines().map(String::from).collect(), out)
+}
+
+/// A screenshot: its image and its sidecar.
+struct Shot {
+    image: Image,
+    meta: Value,
+}
+
+fn shot(dir: &Path, name: &str) -> Shot {
+    let image = Image::read_exr(&dir.join("shots").join(format!("{name}.exr"))).unwrap();
+    let text = std::fs::read_to_string(dir.join("shots").join(format!("{name}.json"))).unwrap();
+    let meta: Value = serde_json::from_str(&text).unwrap();
+    // The window may not get exactly the size asked for; the sidecar says what it got.
+    assert_eq!(meta["width"].as_u64(), Some(image.width as u64));
+    Shot { image, meta }
+}
+
+fn vec3(v: &Value) -> Vec3 {
+    let a: Vec<f32> = v
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap() as f32)
+        .collect();
+    Vec3::new(a[0], a[1], a[2])
+}
+
+impl Shot {
+    fn camera(&self) -> Camera {
+        let c = &self.meta["camera"];
+        Camera {
+            name: c["name"].as_str().unwrap().into(),
+            position: vec3(&c["position"]),
+            target: vec3(&c["target"]),
+            up: vec3(&c["up"]),
+            fov_y: c["fov_y"].as_f64().unwrap() as f32,
+            aspect: c["aspect"].as_f64().unwrap() as f32,
+            near: c["near"].as_f64().unwrap() as f32,
+            far: c["far"].as_f64().unwrap() as f32,
+        }
+    }
+
+    fn view(&self) -> View {
+        View::from_camera(&self.camera())
+    }
+
+    fn lights(&self, scene: &Scene) -> LightState {
+        let mut state = LightState::default();
+        for l in self.meta["lights"].as_array().unwrap() {
+            let id = LightId::find(scene, l["light"].as_str().unwrap()).unwrap();
+            state.set(
+                id,
+                LightSetting {
+                    enabled: l["enabled"].as_bool().unwrap(),
+                    color: vec3(&l["color"]),
+                    direct: l["direct"].as_f64().unwrap() as f32,
+                    indirect: l["indirect"].as_f64().unwrap() as f32,
+                },
+            );
+        }
+        state
+    }
+
+    fn size(&self) -> (u32, u32) {
+        (self.image.width, self.image.height)
+    }
+}
+
+/// Mean absolute difference over pixels and channels, relative to the mean of `expected`.
+fn relative_difference(got: &Image, expected: &Image) -> f64 {
+    assert_eq!((got.width, got.height), (expected.width, expected.height));
+    let mut diff = 0.0;
+    let mut sum = 0.0;
+    for (a, b) in got.pixels.iter().zip(&expected.pixels) {
+        let d = (*a - *b).abs();
+        diff += (d.x + d.y + d.z) as f64;
+        sum += (b.x + b.y + b.z) as f64;
+    }
+    diff / sum.max(1e-30)
+}
+
+fn assert_matches(name: &str, got: &Image, expected: &Image) {
+    let d = relative_difference(got, expected);
+    eprintln!("{name}: mean difference {d:.2e} of the mean");
+    assert!(d < 1e-3, "{name}: the screenshot differs from the library's frame by {d:.2e} of its mean");
+}
+
+fn scene() -> Arc<Scene> {
+    Arc::new(scene_core::builtin::scene("cornell").unwrap())
+}
+
+/// The library's frame of an ISR-family mode: the technique's image for the modes that
+/// are ISR's output, the intermediate buffer (nearest texel per pixel) for the others.
+fn isr_frame(ctx: &GpuContext, scene: &Arc<Scene>, mode: Mode, s: &Shot) -> Image {
+    let (settings, which, channel) = isr_view(mode).unwrap();
+    let (w, h) = s.size();
+    let view = s.view();
+    let lights = s.lights(scene);
+    let Some(which) = which else {
+        let mut t = IsrTechnique::new(settings, Box::new(GpuRasterizer::new(ctx).unwrap()))
+            .with_backend(Backend::Gpu(ctx.clone()));
+        t.prepare(scene.clone()).unwrap();
+        return t
+            .render(&FrameRequest {
+                view,
+                width: w,
+                height: h,
+                lights: &lights,
+            })
+            .unwrap();
+    };
+    let raster = GpuRasterizer::new(ctx).unwrap();
+    let prepared = raster.upload(scene).unwrap();
+    let g = raster.render_gpu(&prepared, &view, w, h).unwrap();
+    let set = LightSet::new(scene, &ShadowSettings::default()).unwrap();
+    let mut isr = GpuIsr::new(ctx, &set).unwrap();
+    isr.apply(&lights);
+    let out = isr.output_texture(w, h).unwrap();
+    let inputs = GpuIsrInputs {
+        full: &g,
+        coarse: None,
+        view: &view,
+    };
+    isr.render(&inputs, &settings, &out).unwrap();
+    let tex = isr.intermediate(which).unwrap();
+    let (tw, th) = (tex.width(), tex.height());
+    let texels = ctx.read_texture_rgba32f(tex).unwrap();
+    let pixels = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| {
+            let sx = (((x as f32 + 0.5) * tw as f32 / w as f32) as u32).min(tw - 1);
+            let sy = (((y as f32 + 0.5) * th as f32 / h as f32) as u32).min(th - 1);
+            let t = texels[(sy * tw + sx) as usize];
+            if channel == 1 {
+                Vec3::splat(t[3])
+            } else {
+                Vec3::new(t[0], t[1], t[2])
+            }
+        })
+        .collect();
+    Image {
+        width: w,
+        height: h,
+        pixels,
+    }
+}
+
+fn relight_technique(scene: &Arc<Scene>) -> RelightTechnique {
+    let mut t = RelightTechnique::new(
+        MeshSettings::elements(ELEMENTS),
+        SolverSettings::default(),
+        Box::new(CpuRasterizer::new()),
+    );
+    // The viewer displays the paper's way: direct light from the elements too.
+    t.direct = DirectLight::Elements;
+    t.prepare(scene.clone()).unwrap();
+    t
+}
+
+fn frame_of(t: &mut dyn Technique, scene: &Scene, s: &Shot) -> Image {
+    let (w, h) = s.size();
+    let lights = s.lights(scene);
+    t.render(&FrameRequest {
+        view: s.view(),
+        width: w,
+        height: h,
+        lights: &lights,
+    })
+    .unwrap()
+}
+
+fn reference_frame(scene: &Scene, s: &Shot) -> Image {
+    let (w, h) = s.size();
+    let spp = s.meta["reference_spp"].as_u64().unwrap() as u32;
+    assert_eq!(spp, SPP);
+    // What `xtask reference --spp 4 --bounces inf --seed 1` computes for this camera.
+    let settings = ReferenceSettings {
+        width: w,
+        height: h,
+        spp,
+        bounces: Bounces::Unlimited,
+        seed: 1,
+    };
+    render_lit(scene, &s.view(), &settings, &s.lights(scene), None).image
+}
+
+fn context() -> Option<GpuContext> {
+    display_runner()?;
+    gpu_test_context()
+}
+
+#[test]
+fn a_replay_through_every_mode_matches_the_library_frame_by_frame() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let dir = out_dir("every-mode");
+    let mut steps: Vec<String> = Mode::ALL
+        .iter()
+        .map(|m| {
+            let wait = if *m == Mode::Reference {
+                format!(r#", "reference_spp": {SPP}"#)
+            } else {
+                String::new()
+            };
+            format!(r#"{{"scene_camera": 0, "mode": "{m}", "screenshot": "{m}"{wait}}}"#)
+        })
+        .collect();
+    // A walk to another position, then split and error views there.
+    steps.push(
+        r#"{"camera": {"position": [0.4, 0.3, -0.5], "target": [0.25, 0.2, 0.3]}, "mode": "isr",
+           "layout": "split", "right": "dl", "divider": 0.4, "screenshot": "split"}"#
+            .into(),
+    );
+    steps.push(format!(
+        r#"{{"layout": "error", "mode": "isr", "reference_spp": {SPP}, "screenshot": "error"}}"#
+    ));
+    let (lines, _) = replay(&dir, &steps.join(",\n"));
+    // The frame-time table names every mode.
+    for m in Mode::ALL {
+        assert!(
+            lines.iter().any(|l| l.trim_start().starts_with(&format!("{m} "))),
+            "no frame time for {m}"
+        );
+    }
+
+    let scene = scene();
+    let mut relight = relight_technique(&scene);
+    let mut ibrr = IbrrTechnique::new(
+        IbrrSettings {
+            resolution: LDC,
+            irpls: IRPLS,
+            ..Default::default()
+        },
+        Box::new(CpuRasterizer::new()),
+    );
+    ibrr.prepare(scene.clone()).unwrap();
+    for m in Mode::ALL {
+        let s = shot(&dir, m.name());
+        assert_eq!(s.meta["mode"].as_str(), Some(m.name()));
+        let expected = match m {
+            Mode::Relight => frame_of(&mut relight, &scene, &s),
+            Mode::Ibrr => frame_of(&mut ibrr, &scene, &s),
+            Mode::Reference => reference_frame(&scene, &s),
+            _ => isr_frame(&ctx, &scene, m, &s),
+        };
+        assert_matches(m.name(), &s.image, &expected);
+    }
+
+    // Split: ISR left of the divider column, DL right of it, both of the moved camera.
+    let s = shot(&dir, "split");
+    let isr = isr_frame(&ctx, &scene, Mode::Isr, &s);
+    let dl = isr_frame(&ctx, &scene, Mode::Dl, &s);
+    let column = (0.4 * s.image.width as f32).round() as u32;
+    let mut expected = isr.clone();
+    for (i, p) in expected.pixels.iter_mut().enumerate() {
+        if i as u32 % s.image.width >= column {
+            *p = dl.pixels[i];
+        }
+    }
+    assert_matches("split", &s.image, &expected);
+    assert!(
+        relative_difference(&isr, &dl) > 0.05,
+        "ISR and DL should differ for the split to show anything"
+    );
+
+    // Error view: the eq. 19 mean error printed is that of the library's ISR frame against
+    // the reference at the same samples.
+    let s = shot(&dir, "error");
+    let reference = reference_frame(&scene, &s);
+    let isr = isr_frame(&ctx, &scene, Mode::Isr, &s);
+    let expected = imalyzer::mean_error(&reference, &isr).unwrap();
+    let got = s.meta["mean_error"].as_f64().unwrap();
+    eprintln!("error view: mean error {got:.5}, library {expected:.5}");
+    assert!(
+        (got - expected).abs() <= 1e-3 * expected,
+        "mean error {got} against the library's {expected}"
+    );
+}
+
+#[test]
+fn a_replayed_light_change_relights_the_frame_as_the_library_does() {
+    let Some(_ctx) = context() else {
+        return;
+    };
+    let dir = out_dir("relight");
+    let scene = scene();
+    let key = scene_core::lights::light_ids(&scene)[0].key();
+    let steps = format!(
+        r#"{{"scene_camera": 0, "mode": "relight", "screenshot": "before"}},
+           {{"lights": [{{"light": "{key}", "color": [1.0, 0.35, 0.2], "indirect": 2.0}}],
+            "screenshot": "after"}}"#
+    );
+    replay(&dir, &steps);
+    let before = shot(&dir, "before");
+    let after = shot(&dir, "after");
+    assert!(after.lights(&scene) != LightState::default());
+    let mut relight = relight_technique(&scene);
+    let expected_before = frame_of(&mut relight, &scene, &before);
+    let expected_after = frame_of(&mut relight, &scene, &after);
+    assert_matches("before the change", &before.image, &expected_before);
+    assert_matches("after the change", &after.image, &expected_after);
+    // The change shows: the relit frame is redder, and differs from the first.
+    let red = |i: &Image| i.pixels.iter().map(|p| p.x / (p.y + 1e-6)).sum::<f32>();
+    assert!(red(&after.image) > 1.5 * red(&before.image));
+    assert!(relative_difference(&after.image, &before.image) > 0.1);
+}
+
+#[test]
+fn bad_input_exits_non_zero_with_a_message_that_names_it() {
+    // These fail before any window opens: no display needed.
+    let dir = out_dir("bad-input");
+    let cases: Vec<(Vec<String>, &str)> = {
+        let replay = |name: &str, body: &str| {
+            let f = dir.join(name);
+            std::fs::write(&f, body).unwrap();
+            f.to_str().unwrap().to_string()
+        };
+        let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+        vec![
+            (
+                s(&["--scene", dir.join("missing.glb").to_str().unwrap()]),
+                "does not exist",
+            ),
+            (s(&["--scene", "no-such-scene"]), "no-such-scene"),
+            (s(&["--mode", "radiosity"]), "unknown mode 'radiosity'"),
+            (
+                vec![
+                    "--replay".into(),
+                    replay("mode.json", r#"{"version":1,"steps":[{"mode":"pathtracer"}]}"#),
+                ],
+                "replay step 0: unknown mode 'pathtracer'",
+            ),
+            (
+                vec![
+                    "--replay".into(),
+                    replay(
+                        "light.json",
+                        r#"{"version":1,"steps":[{},{"lights":[{"light":"point:3","color":[1,1,1]}]}]}"#,
+                    ),
+                ],
+                "replay step 1: no light 'point:3'",
+            ),
+            (
+                vec!["--replay".into(), dir.join("nowhere.json").to_str().unwrap().into()],
+                "nowhere.json",
+            ),
+        ]
+    };
+    for (args, message) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = viewer(&[], &args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(
+            stderr.contains(message),
+            "{args:?}: expected '{message}' in: {stderr}"
+        );
+    }
+}
