@@ -2,6 +2,10 @@
 
 use std::process::Command;
 
+/// The composition points: they may use every crate, and nothing of the library (the
+/// spokes and scene-core) may depend on them.
+pub const COMPOSITION_POINTS: [&str; 3] = ["xtask", "golden-tests", "viewer"];
+
 /// The six spokes: each depends on scene-core and on no sibling.
 pub const SPOKES: [&str; 6] = [
     "gbuffer",
@@ -26,7 +30,7 @@ fn cargo(args: &[&str]) -> Result<(), String> {
 }
 
 /// Fails when a spoke names a sibling among its normal or build dependencies, or does not
-/// depend on scene-core.
+/// depend on scene-core, or when a spoke or scene-core depends on a composition point.
 pub fn dependency_rule() -> Result<(), String> {
     let out = Command::new(env!("CARGO"))
         .args(["metadata", "--format-version", "1", "--no-deps"])
@@ -58,10 +62,22 @@ pub fn rule_violations(meta: &serde_json::Value) -> Vec<String> {
     let empty = Vec::new();
     for pkg in meta["packages"].as_array().unwrap_or(&empty) {
         let name = pkg["name"].as_str().unwrap_or_default();
-        if !SPOKES.contains(&name) {
+        if !SPOKES.contains(&name) && name != "scene-core" {
             continue;
         }
         let deps = pkg["dependencies"].as_array().unwrap_or(&empty);
+        for dep in deps {
+            let dep_name = dep["name"].as_str().unwrap_or_default();
+            if COMPOSITION_POINTS.contains(&dep_name) {
+                violations.push(format!(
+                    "{name} depends on the composition point {dep_name}; only xtask, the golden \
+                     tests and the viewer compose the library"
+                ));
+            }
+        }
+        if name == "scene-core" {
+            continue;
+        }
         let mut has_core = false;
         for dep in deps {
             let dep_name = dep["name"].as_str().unwrap_or_default();
@@ -133,5 +149,18 @@ mod tests {
         );
         // Missing scene-core is flagged too.
         assert_eq!(rule_violations(&meta(&[])).len(), 1);
+    }
+
+    #[test]
+    fn depending_on_a_composition_point_is_a_violation() {
+        for point in COMPOSITION_POINTS {
+            // Even as a dev-dependency: a spoke's tests must not need the viewer.
+            let v = rule_violations(&meta(&[("scene-core", "normal"), (point, "dev")]));
+            assert_eq!(v.len(), 1, "{point}: {v:?}");
+            assert!(v[0].contains(&format!("isr depends on the composition point {point}")));
+        }
+        let core = serde_json::json!({"packages": [{"name": "scene-core",
+            "dependencies": [{"name": "viewer", "kind": null}]}]});
+        assert_eq!(rule_violations(&core).len(), 1);
     }
 }

@@ -143,6 +143,8 @@ struct App {
     last_recorded: Option<Step>,
     screenshot: Option<String>,
     shots: u32,
+    /// The scene camera jumped to this frame (recorded, so a replay gets its lens too).
+    jumped: Option<usize>,
     error: Option<String>,
 }
 
@@ -213,6 +215,7 @@ impl App {
             last_recorded: None,
             screenshot: None,
             shots: 0,
+            jumped: None,
             error: None,
         }
     }
@@ -429,10 +432,16 @@ impl App {
         Ok(())
     }
 
+    /// Moves the camera to scene camera `i` (exactly as the scene gives it).
+    fn jump(&mut self, i: usize) {
+        self.state.camera.camera = self.scene.cameras[i].clone();
+        self.jumped = Some(i);
+    }
+
     /// Applies a replay step (camera, mode, layout, lights, rebuilds).
     fn apply_step(&mut self, step: &CheckedStep) {
         if let Some(i) = step.scene_camera {
-            self.state.camera.camera = self.scene.cameras[i].clone();
+            self.jump(i);
         }
         if let Some((position, target)) = step.camera {
             self.state.camera.camera.position = position;
@@ -561,7 +570,7 @@ impl App {
     }
 
     /// Records the frame's state when it differs from the last recorded one.
-    fn record(&mut self, dt: f32, screenshot: Option<String>) {
+    fn record(&mut self, dt: f32, screenshot: Option<String>, replayed: Option<&CheckedStep>) {
         let Some(script) = self.recording.as_mut() else {
             return;
         };
@@ -581,6 +590,7 @@ impl App {
             })
             .collect();
         let mut step = Step {
+            scene_camera: self.jumped.take(),
             camera: Some(Pose {
                 position: c.position.to_array(),
                 target: c.target.to_array(),
@@ -592,8 +602,13 @@ impl App {
             lights,
             ..Default::default()
         };
+        // A replay recorded again keeps its waits and rebuilds, so the copy replays alike.
+        if let Some(r) = replayed {
+            step.reference_spp = r.reference_spp;
+            step.rebuild_ibrr = r.rebuild_ibrr;
+        }
         let same = self.last_recorded.as_ref() == Some(&step);
-        if same && screenshot.is_none() {
+        if same && screenshot.is_none() && replayed.is_none() {
             return;
         }
         self.last_recorded = Some(step.clone());
@@ -620,6 +635,7 @@ impl App {
         self.last_frame = now;
         let replaying = self.steps.is_some();
         let mut want_spp = None;
+        let mut replayed = None;
         if let Some(steps) = &self.steps {
             let Some(step) = steps.get(self.step).cloned() else {
                 event_loop.exit();
@@ -628,6 +644,7 @@ impl App {
             self.step += 1;
             want_spp = step.reference_spp;
             self.apply_step(&step);
+            replayed = Some(step);
         } else {
             let key = |k| *self.motion_keys.get(&k).unwrap_or(&false) as i32 as f32;
             let motion = Motion {
@@ -659,12 +676,13 @@ impl App {
 
         let frame_start = Instant::now();
         let ctx = gfx.renderer.ctx.clone();
-        let mut profiler = Profiler::new(&ctx, self.state.profile);
+        let mut profiler = Profiler::new(&ctx, self.state.profile, false);
         let mut encoder = ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("viewer frame"),
             });
+        profiler.begin(&mut encoder);
         let spec = FrameSpec {
             view: &view,
             lights: &self.state.lights,
@@ -749,6 +767,8 @@ impl App {
             gfx.renderer.draw_present(&mut pass, self.state.exposure);
             gfx.egui_renderer.render(&mut pass, &jobs, &screen);
         }
+        profiler.mark("present and panel", &mut encoder);
+        profiler.resolve(&mut encoder);
         extra.push(encoder.finish());
         ctx.queue.submit(extra);
         if let Some(texture) = surface_texture {
@@ -762,7 +782,9 @@ impl App {
             // Time the frame's work, not its submission.
             let _ = ctx.device.poll(wgpu::PollType::wait_indefinitely());
         }
-        profiler.times.push(("frame", frame_start.elapsed()));
+        profiler.read_gpu()?;
+        self.info.timestamps = profiler.uses_timestamps();
+        profiler.times.push(("frame (wall clock)", frame_start.elapsed()));
         let frame_seconds = frame_start.elapsed().as_secs_f64();
         if self.state.profile {
             self.info.stages = profiler.times;
@@ -815,16 +837,14 @@ impl App {
                     self.shots += 1;
                     self.screenshot = Some(format!("shot-{:03}", self.shots));
                 }
-                Action::SceneCamera(i) => {
-                    self.state.camera.camera = self.scene.cameras[i].clone();
-                }
+                Action::SceneCamera(i) => self.jump(i),
             }
         }
         let shot = self.screenshot.take();
         if let Some(name) = &shot {
             self.save_screenshot(name, &camera)?;
         }
-        self.record(dt, shot);
+        self.record(dt, shot, replayed.as_ref());
         Ok(())
     }
 
@@ -902,8 +922,8 @@ impl App {
             KeyCode::Digit9,
         ];
         if let Some(i) = digits.iter().position(|&k| k == code) {
-            if let Some(c) = self.scene.cameras.get(i) {
-                self.state.camera.camera = c.clone();
+            if i < self.scene.cameras.len() {
+                self.jump(i);
             }
             return;
         }

@@ -96,6 +96,8 @@ pub struct PanelInfo {
     pub frames: VecDeque<f32>,
     /// The last profiled frame's stages.
     pub stages: Vec<(&'static str, Duration)>,
+    /// True when the stages were timed by GPU timestamps (else by the wall clock).
+    pub timestamps: bool,
     /// Median frame time per mode so far (seconds).
     pub per_mode: BTreeMap<String, f64>,
 }
@@ -289,11 +291,16 @@ pub fn panel(
             }
             frame_graph(ui, &info.frames);
             if state.profile {
+                ui.label(if info.timestamps {
+                    "per stage (GPU timestamps):"
+                } else {
+                    "per stage (wall clock, each stage submitted and waited for):"
+                });
                 for (label, d) in &info.stages {
                     ui.label(format!("{label}: {:.2} ms", d.as_secs_f64() * 1e3));
                 }
             } else {
-                ui.label("(tick 'time stages' for per-pass wall-clock times)");
+                ui.label("(tick 'time stages' for per-stage times)");
             }
             for (mode, median) in &info.per_mode {
                 ui.label(format!("{mode}: median {:.1} ms", median * 1e3));

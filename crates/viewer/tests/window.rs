@@ -84,29 +84,34 @@ fn viewer(runner: &[String], args: &[&str]) -> Output {
 }
 
 fn replay(dir: &Path, steps: &str) -> (Vec<String>, Output) {
-    let runner = display_runner().expect("checked by the caller");
     let file = dir.join("walk.json");
     std::fs::write(&file, format!(r#"{{"version": 1, "steps": [{steps}]}}"#)).unwrap();
-    let shots = dir.join("shots");
-    let out = viewer(
-        &runner,
-        &[
-            "--scene",
-            "cornell",
-            "--size",
-            &format!("{WIDTH}x{HEIGHT}"),
-            "--relight-elements",
-            &ELEMENTS.to_string(),
-            "--ibrr-resolution",
-            &LDC.to_string(),
-            "--ibrr-irpls",
-            &IRPLS.to_string(),
-            "--replay",
-            file.to_str().unwrap(),
-            "--screenshots",
-            shots.to_str().unwrap(),
-        ],
-    );
+    replay_file(&file, &dir.join("shots"), &[])
+}
+
+/// Replays `file` on cornell at the test size, screenshots into `shots`.
+fn replay_file(file: &Path, shots: &Path, extra: &[&str]) -> (Vec<String>, Output) {
+    let runner = display_runner().expect("checked by the caller");
+    let size = format!("{WIDTH}x{HEIGHT}");
+    let (elements, ldc, irpls) = (ELEMENTS.to_string(), LDC.to_string(), IRPLS.to_string());
+    let mut args = vec![
+        "--scene",
+        "cornell",
+        "--size",
+        &size,
+        "--relight-elements",
+        &elements,
+        "--ibrr-resolution",
+        &ldc,
+        "--ibrr-irpls",
+        &irpls,
+        "--replay",
+        file.to_str().unwrap(),
+        "--screenshots",
+        shots.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let out = viewer(&runner, &args);
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),
@@ -421,6 +426,56 @@ fn a_replayed_light_change_relights_the_frame_as_the_library_does() {
     let red = |i: &Image| i.pixels.iter().map(|p| p.x / (p.y + 1e-6)).sum::<f32>();
     assert!(red(&after.image) > 1.5 * red(&before.image));
     assert!(relative_difference(&after.image, &before.image) > 0.1);
+}
+
+#[test]
+fn a_recorded_walkthrough_replays_to_the_same_frames() {
+    let Some(_ctx) = context() else {
+        return;
+    };
+    let dir = out_dir("record");
+    let scene = scene();
+    let key = scene_core::lights::light_ids(&scene)[0].key();
+    let steps = format!(
+        r#"{{"scene_camera": 0, "mode": "isr", "screenshot": "a"}},
+           {{"camera": {{"position": [0.3, 0.35, -0.6], "target": [0.2, 0.2, 0.3]}},
+            "lights": [{{"light": "{key}", "color": [0.4, 0.8, 1.0], "direct": 0.5}}],
+            "mode": "dl", "screenshot": "b"}},
+           {{"mode": "reference", "reference_spp": 2, "screenshot": "c"}}"#
+    );
+    let file = dir.join("walk.json");
+    std::fs::write(&file, format!(r#"{{"version": 1, "steps": [{steps}]}}"#)).unwrap();
+    let recorded = dir.join("recorded.json");
+    replay_file(
+        &file,
+        &dir.join("shots"),
+        &["--record", recorded.to_str().unwrap()],
+    );
+    let script = viewer::Script::read(&recorded).unwrap();
+    assert_eq!(script.steps.len(), 3, "one recorded step per replayed frame");
+    assert_eq!(script.steps[0].scene_camera, Some(0));
+    replay_file(&recorded, &dir.join("again"), &[]);
+    for name in ["a", "b", "c"] {
+        let first = Image::read_exr(&dir.join("shots").join(format!("{name}.exr"))).unwrap();
+        let again = Image::read_exr(&dir.join("again").join(format!("{name}.exr"))).unwrap();
+        assert_eq!(first, again, "screenshot {name} differs when replayed from the recording");
+    }
+}
+
+#[test]
+fn without_a_display_the_error_names_the_fix() {
+    let out = Command::new(env!("CARGO_BIN_EXE_viewer"))
+        .args(["--scene", "cornell"])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("cannot open a window") && stderr.contains("xvfb-run"),
+        "{stderr}"
+    );
 }
 
 #[test]
