@@ -46,7 +46,10 @@ pub fn dependency_rule() -> Result<(), String> {
         serde_json::from_slice(&out.stdout).map_err(|e| format!("cargo metadata: {e}"))?;
     let violations = rule_violations(&meta);
     if violations.is_empty() {
-        eprintln!("dependency rule holds: every spoke depends on scene-core and no sibling");
+        eprintln!(
+            "dependency rule holds: every spoke depends on scene-core and no sibling, and nothing \
+             of the library depends on a composition point"
+        );
         Ok(())
     } else {
         Err(format!(

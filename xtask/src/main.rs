@@ -37,7 +37,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use scene_core::reference::{Accumulator, Bounces, PathTracer};
 use std::sync::Arc;
 
-use scene_core::{Scene, View, builtin, gltf_io};
+use scene_core::{Scene, View, gltf_io};
 
 #[derive(Parser)]
 #[command(name = "xtask", about = "Automation for the diffuse-GI toolkit")]

@@ -122,8 +122,8 @@ pub struct GpuContext {
 /// Optional features requested when the adapter has them: timestamp queries, for
 /// benchmarks (in compute passes) and the viewer's stage times (between passes, inside an
 /// encoder). Check `device.features()` before using them.
-const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::TIMESTAMP_QUERY
-    .union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS);
+const OPTIONAL_FEATURES: wgpu::Features =
+    wgpu::Features::TIMESTAMP_QUERY.union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS);
 
 impl GpuContext {
     /// Creates a headless context, blocking until the device is ready.

@@ -613,16 +613,9 @@ impl App {
         }
         self.last_recorded = Some(step.clone());
         // Only what changed since the previous step is written.
-        if let Some(prev) = script
-            .steps
-            .iter()
-            .rev()
-            .find_map(|s| s.camera.map(|_| s))
-            .cloned()
-        {
-            if prev.camera == step.camera {
-                step.camera = None;
-            }
+        let previous_camera = script.steps.iter().rev().find_map(|s| s.camera);
+        if previous_camera == step.camera {
+            step.camera = None;
         }
         step.screenshot = screenshot;
         step.dt = Some(dt);
@@ -784,7 +777,9 @@ impl App {
         }
         profiler.read_gpu()?;
         self.info.timestamps = profiler.uses_timestamps();
-        profiler.times.push(("frame (wall clock)", frame_start.elapsed()));
+        profiler
+            .times
+            .push(("frame (wall clock)", frame_start.elapsed()));
         let frame_seconds = frame_start.elapsed().as_secs_f64();
         if self.state.profile {
             self.info.stages = profiler.times;
@@ -993,17 +988,15 @@ impl ApplicationHandler for App {
         let consumed = gfx.egui_state.on_window_event(&gfx.window, &event).consumed;
         match event {
             WindowEvent::CloseRequested => event_loop.exit(),
-            WindowEvent::Resized(size) => {
-                if size.width > 0 && size.height > 0 {
-                    gfx.config.width = size.width;
-                    gfx.config.height = size.height;
-                    gfx.surface.configure(&gfx.renderer.ctx.device, &gfx.config);
-                    if let Err(e) = gfx.renderer.resize(size.width, size.height) {
-                        self.fail(event_loop, e);
-                        return;
-                    }
-                    self.size = (size.width, size.height);
+            WindowEvent::Resized(size) if size.width > 0 && size.height > 0 => {
+                gfx.config.width = size.width;
+                gfx.config.height = size.height;
+                gfx.surface.configure(&gfx.renderer.ctx.device, &gfx.config);
+                if let Err(e) = gfx.renderer.resize(size.width, size.height) {
+                    self.fail(event_loop, e);
+                    return;
                 }
+                self.size = (size.width, size.height);
             }
             WindowEvent::RedrawRequested => {
                 if let Err(e) = self.redraw(event_loop) {

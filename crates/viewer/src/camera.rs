@@ -63,7 +63,7 @@ impl FlyCamera {
 
     /// Moves by `motion` for `dt` seconds; returns true when the camera moved.
     pub fn advance(&mut self, motion: &Motion, dt: f32) -> bool {
-        if motion.is_still() || !(dt > 0.0) {
+        if motion.is_still() || dt.is_nan() || dt <= 0.0 {
             return false;
         }
         let f = self.forward();

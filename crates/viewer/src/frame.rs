@@ -504,13 +504,11 @@ impl Renderer {
             return Err("no frame size yet".into());
         };
         let (w, h) = (t.width, t.height);
-        if mode.is_isr() || mode == Mode::Ibrr {
-            if !*gbuffer_done {
-                self.raster
-                    .encode(encoder, &self.scene_gpu, spec.view, &t.gbuffer)
-                    .map_err(err)?;
-                *gbuffer_done = true;
-            }
+        if (mode.is_isr() || mode == Mode::Ibrr) && !*gbuffer_done {
+            self.raster
+                .encode(encoder, &self.scene_gpu, spec.view, &t.gbuffer)
+                .map_err(err)?;
+            *gbuffer_done = true;
         }
         if let Some((settings, which, channel)) = isr_view(mode) {
             self.isr.apply(spec.lights);
@@ -773,7 +771,11 @@ mod tests {
             ctx.queue.submit([encoder.finish()]);
             p.read_gpu().unwrap();
             let labels: Vec<&str> = p.times.iter().map(|(l, _)| *l).collect();
-            assert_eq!(labels, ["first", "second", "third"], "timestamps: {allow_cpu}");
+            assert_eq!(
+                labels,
+                ["first", "second", "third"],
+                "timestamps: {allow_cpu}"
+            );
         }
     }
 }

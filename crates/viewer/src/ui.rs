@@ -63,9 +63,10 @@ impl ViewState {
 }
 
 /// A precomputation's state, for the panel.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub enum JobStatus {
     /// Not started.
+    #[default]
     Idle,
     /// Running: progress in [0, 1] and time so far.
     Running(f64, Duration),
@@ -113,12 +114,6 @@ pub enum Action {
     Screenshot,
     /// Select scene camera `i`.
     SceneCamera(usize),
-}
-
-impl Default for JobStatus {
-    fn default() -> Self {
-        JobStatus::Idle
-    }
 }
 
 fn status_line(ui: &mut egui::Ui, name: &str, status: &JobStatus) {

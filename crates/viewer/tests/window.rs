@@ -204,7 +204,10 @@ fn relative_difference(got: &Image, expected: &Image) -> f64 {
 fn assert_matches(name: &str, got: &Image, expected: &Image) {
     let d = relative_difference(got, expected);
     eprintln!("{name}: mean difference {d:.2e} of the mean");
-    assert!(d < 1e-3, "{name}: the screenshot differs from the library's frame by {d:.2e} of its mean");
+    assert!(
+        d < 1e-3,
+        "{name}: the screenshot differs from the library's frame by {d:.2e} of its mean"
+    );
 }
 
 fn scene() -> Arc<Scene> {
@@ -341,7 +344,9 @@ fn a_replay_through_every_mode_matches_the_library_frame_by_frame() {
     // The frame-time table names every mode.
     for m in Mode::ALL {
         assert!(
-            lines.iter().any(|l| l.trim_start().starts_with(&format!("{m} "))),
+            lines
+                .iter()
+                .any(|l| l.trim_start().starts_with(&format!("{m} "))),
             "no frame time for {m}"
         );
     }
@@ -452,13 +457,20 @@ fn a_recorded_walkthrough_replays_to_the_same_frames() {
         &["--record", recorded.to_str().unwrap()],
     );
     let script = viewer::Script::read(&recorded).unwrap();
-    assert_eq!(script.steps.len(), 3, "one recorded step per replayed frame");
+    assert_eq!(
+        script.steps.len(),
+        3,
+        "one recorded step per replayed frame"
+    );
     assert_eq!(script.steps[0].scene_camera, Some(0));
     replay_file(&recorded, &dir.join("again"), &[]);
     for name in ["a", "b", "c"] {
         let first = Image::read_exr(&dir.join("shots").join(format!("{name}.exr"))).unwrap();
         let again = Image::read_exr(&dir.join("again").join(format!("{name}.exr"))).unwrap();
-        assert_eq!(first, again, "screenshot {name} differs when replayed from the recording");
+        assert_eq!(
+            first, again,
+            "screenshot {name} differs when replayed from the recording"
+        );
     }
 }
 
@@ -499,7 +511,10 @@ fn bad_input_exits_non_zero_with_a_message_that_names_it() {
             (
                 vec![
                     "--replay".into(),
-                    replay("mode.json", r#"{"version":1,"steps":[{"mode":"pathtracer"}]}"#),
+                    replay(
+                        "mode.json",
+                        r#"{"version":1,"steps":[{"mode":"pathtracer"}]}"#,
+                    ),
                 ],
                 "replay step 0: unknown mode 'pathtracer'",
             ),
@@ -514,7 +529,10 @@ fn bad_input_exits_non_zero_with_a_message_that_names_it() {
                 "replay step 1: no light 'point:3'",
             ),
             (
-                vec!["--replay".into(), dir.join("nowhere.json").to_str().unwrap().into()],
+                vec![
+                    "--replay".into(),
+                    dir.join("nowhere.json").to_str().unwrap().into(),
+                ],
                 "nowhere.json",
             ),
         ]
