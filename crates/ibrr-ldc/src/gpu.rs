@@ -209,7 +209,7 @@ impl GpuLdc {
     ) -> Result<(Image, GpuFrameCounts), IbrrError> {
         let (w, h) = (g.width, g.height);
         let pixels = w as usize * h as usize;
-        let image = Self::output_buffer(&self.ctx, w, h);
+        let image = self.ctx.pixel_buffer("ibrr image", w, h);
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         self.encode(&mut encoder, scene, g, view, lights, &image)?;
         let ctx = &self.ctx;
@@ -239,21 +239,10 @@ impl GpuLdc {
         ))
     }
 
-    /// A storage buffer for [`GpuLdc::encode`]'s image of `width x height` pixels (one
-    /// `vec4<f32>` each, row-major; `COPY_SRC` for readback).
-    pub fn output_buffer(ctx: &GpuContext, width: u32, height: u32) -> wgpu::Buffer {
-        let pixels = width as usize * height as usize;
-        ctx.storage_with(
-            "ibrr image",
-            &vec![0u8; pixels.max(1) * 16],
-            wgpu::BufferUsages::COPY_SRC,
-        )
-    }
-
     /// Records the reconstruction of `g` (the camera's G-buffer of `scene` from `view`)
     /// under `lights` into `encoder`, writing `output` (at least `g.width * g.height`
-    /// `vec4<f32>`: radiance in `xyz`, and in `w` 1 where the fallback served the pixel, 2
-    /// where no layer matched). Nothing is read back.
+    /// `vec4<f32>`, e.g. [`GpuContext::pixel_buffer`]: radiance in `xyz`, and in `w` 1 where
+    /// the fallback served the pixel, 2 where no layer matched). Nothing is read back.
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,

@@ -398,7 +398,7 @@ impl GpuRelight {
         let (w, h) = (g.width, g.height);
         let pixels = w as usize * h as usize;
         let ctx = &self.ctx;
-        let image = Self::display_buffer(ctx, w, h);
+        let image = ctx.pixel_buffer("relight image", w, h);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         self.encode_display(&mut encoder, g, view, factors, base, pixel_direct, &image)?;
         ctx.queue.submit([encoder.finish()]);
@@ -414,20 +414,9 @@ impl GpuRelight {
         })
     }
 
-    /// A storage buffer for [`GpuRelight::encode_display`]'s image of `width x height`
-    /// pixels (one `vec4<f32>` each, row-major; `COPY_SRC` for readback).
-    pub fn display_buffer(ctx: &GpuContext, width: u32, height: u32) -> wgpu::Buffer {
-        let pixels = width as usize * height as usize;
-        ctx.storage_with(
-            "relight image",
-            &vec![0u8; pixels.max(1) * 16],
-            wgpu::BufferUsages::COPY_SRC,
-        )
-    }
-
     /// Records [`GpuRelight::display`] into `encoder`, writing the image into `output` (at
     /// least `g.width * g.height` `vec4<f32>`, row-major, radiance in `xyz`, e.g. from
-    /// [`GpuRelight::display_buffer`]). Nothing is read back: what an interactive frame
+    /// [`GpuContext::pixel_buffer`]). Nothing is read back: what an interactive frame
     /// loop needs.
     #[allow(clippy::too_many_arguments)]
     pub fn encode_display(

@@ -492,6 +492,23 @@ impl GpuContext {
         self.submit_and_map(encoder, &staging)
     }
 
+    /// A zeroed storage buffer of one `vec4<f32>` per pixel of a `width x height` image
+    /// (row-major; at least one pixel), readable back (`COPY_SRC`) and clearable or
+    /// writable by the queue (`COPY_DST`): the output of the per-pixel passes that write
+    /// buffers rather than textures (relighting's display, the IBRR's reconstruction, the
+    /// viewer's frames).
+    pub fn pixel_buffer(&self, label: &str, width: u32, height: u32) -> wgpu::Buffer {
+        let pixels = (width as u64 * height as u64).max(1);
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: pixels * 16,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
     /// A storage buffer holding `bytes` (16 zero bytes when `bytes` is empty: storage
     /// bindings may not be empty), with `STORAGE` and the `extra` usages.
     pub fn storage_with(

@@ -3,7 +3,7 @@
 //!
 //! Keys: WASD to walk, Q/E down and up, Shift faster, right mouse button held to look,
 //! mouse wheel for speed; 1 to 9 the scene's cameras; F1 to F8 the modes (DL, ISR, ISR
-//! indirect, ISR AO, ISR coarse, relighting, IBRR, reference); Tab cycles single, split
+//! indirect, ISR AO, ISR coarse, relighting, IBRR, reference); F9 cycles single, split
 //! and error layouts; drag the split's divider with the left button; V vsync; H the panel;
 //! P or F12 a screenshot; Esc quits.
 
@@ -923,7 +923,7 @@ impl App {
             return;
         }
         match code {
-            KeyCode::Tab => {
+            KeyCode::F9 => {
                 self.state.layout = match self.state.layout {
                     "single" => "split",
                     "split" => "error",

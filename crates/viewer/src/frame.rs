@@ -388,6 +388,17 @@ impl Renderer {
         })
     }
 
+    /// A uniform buffer holding `params`.
+    fn uniform<T: bytemuck::Pod>(&self, label: &str, params: &T) -> wgpu::Buffer {
+        self.ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::bytes_of(params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+    }
+
     /// The frame size in pixels (zero before the first [`Renderer::resize`]).
     pub fn size(&self) -> (u32, u32) {
         self.targets
@@ -412,16 +423,7 @@ impl Renderer {
                 "a {width}x{height} frame needs {bytes}-byte buffers; this adapter binds at most {limit}"
             ));
         }
-        let buffer = |label: &str| {
-            ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes,
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
+        let buffer = |label: &str| ctx.pixel_buffer(label, width, height);
         self.targets = Some(Targets {
             width,
             height,
@@ -533,14 +535,7 @@ impl Renderer {
                 channel,
                 pad: 0,
             };
-            let uniform = self
-                .ctx
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("viewer resolve"),
-                    contents: bytemuck::bytes_of(&params),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
+            let uniform = self.uniform("viewer resolve", &params);
             let view = source.create_view(&Default::default());
             let bind = self.resolve.bind(
                 &self.ctx.device,
@@ -643,14 +638,7 @@ impl Renderer {
             error_scale: spec.error_scale,
             pad: [0; 3],
         };
-        let uniform = self
-            .ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("viewer compose"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let uniform = self.uniform("viewer compose", &params);
         let bind = self.compose.bind(
             &self.ctx.device,
             &[
@@ -677,14 +665,7 @@ impl Renderer {
             scale: exposure.exp2(),
             encode: u32::from(!self.surface_is_srgb),
         };
-        let uniform = self
-            .ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("viewer present"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let uniform = self.uniform("viewer present", &params);
         let bind = self
             .ctx
             .device

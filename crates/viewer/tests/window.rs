@@ -31,6 +31,10 @@ const LDC: u32 = 64;
 const IRPLS: u32 = 16;
 const SPP: u32 = 4;
 
+/// One virtual X server at a time: `xvfb-run -a` picks a free display number, and two
+/// picking at once can collide.
+static DISPLAY_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn required() -> bool {
     std::env::var("REQUIRE_GPU").is_ok_and(|v| v == "1")
 }
@@ -64,23 +68,38 @@ fn out_dir(name: &str) -> PathBuf {
     dir
 }
 
-/// Runs the viewer binary with `args` under `runner`.
-fn viewer(runner: &[String], args: &[&str]) -> Output {
-    let bin = env!("CARGO_BIN_EXE_viewer");
+/// Runs `program` with `args` under `runner` (one display at a time), with a runtime
+/// directory of its own.
+fn run_with_display(runner: &[String], program: &str, args: &[&str]) -> Output {
     let mut cmd = match runner.split_first() {
         Some((first, rest)) => {
             let mut c = Command::new(first);
-            c.args(rest).arg(bin);
+            c.args(rest).arg(program);
             c
         }
-        None => Command::new(bin),
+        None => Command::new(program),
     };
     let runtime = std::env::temp_dir().join("viewer-test-runtime");
     let _ = std::fs::create_dir_all(&runtime);
+    let _one_at_a_time = DISPLAY_LOCK.lock().unwrap_or_else(|e| e.into_inner());
     cmd.args(args)
         .env("XDG_RUNTIME_DIR", runtime)
         .output()
-        .expect("the viewer runs")
+        .expect("the program runs")
+}
+
+/// Runs the viewer binary with `args` under `runner`.
+fn viewer(runner: &[String], args: &[&str]) -> Output {
+    run_with_display(runner, env!("CARGO_BIN_EXE_viewer"), args)
+}
+
+/// Stdout and stderr together.
+fn output_text(out: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    )
 }
 
 fn replay(dir: &Path, steps: &str) -> (Vec<String>, Output) {
@@ -112,11 +131,7 @@ fn replay_file(file: &Path, shots: &Path, extra: &[&str]) -> (Vec<String>, Outpu
     ];
     args.extend_from_slice(extra);
     let out = viewer(&runner, &args);
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let text = output_text(&out);
     eprintln!("{text}");
     assert!(out.status.success(), "the replay failed: {text}");
     (text.lines().map(String::from).collect(), out)
@@ -472,6 +487,69 @@ fn a_recorded_walkthrough_replays_to_the_same_frames() {
             "screenshot {name} differs when replayed from the recording"
         );
     }
+}
+
+/// Real key presses (xdotool) into the window: F1 picks DL, W walks forward, F12 saves a
+/// screenshot, Esc quits; the recording holds what was done.
+#[test]
+fn keys_switch_walk_screenshot_and_quit() {
+    let Some(runner) = display_runner() else {
+        return;
+    };
+    if gpu_test_context().is_none() {
+        return;
+    }
+    if Command::new("xdotool").arg("version").output().is_err() {
+        assert!(
+            !required(),
+            "REQUIRE_GPU=1 but xdotool is missing (apt-get install xdotool)"
+        );
+        eprintln!("skipping: no xdotool");
+        return;
+    }
+    let dir = out_dir("keys");
+    let shots = dir.join("shots");
+    let recorded = dir.join("keys.json");
+    let script = format!(
+        r#"set -e
+"{bin}" --scene cornell --size 96x72 --no-ui --lazy --screenshots "{shots}" --record "{rec}" &
+pid=$!
+win=$(timeout 120 xdotool search --sync --name 'diffuse-gi viewer' | head -n 1)
+xdotool windowfocus --sync "$win" || true
+sleep 1
+xdotool key F1
+xdotool keydown w
+sleep 1
+xdotool keyup w
+xdotool key F12
+for i in $(seq 300); do [ -f "{shots}/shot-001.json" ] && break; sleep 0.2; done
+xdotool key Escape
+wait $pid
+"#,
+        bin = env!("CARGO_BIN_EXE_viewer"),
+        shots = shots.display(),
+        rec = recorded.display(),
+    );
+    let out = run_with_display(&runner, "sh", &["-c", &script]);
+    let text = output_text(&out);
+    assert!(out.status.success(), "{text}");
+    let s = shot(&dir, "shot-001");
+    assert_eq!(s.meta["mode"].as_str(), Some("dl"), "{text}");
+    let start = scene().cameras[0].clone();
+    let moved = s.camera().position - start.position;
+    let forward = (start.target - start.position).normalize();
+    assert!(
+        moved.dot(forward) > 0.01 && moved.cross(forward).length() < 1e-3,
+        "W should walk forward: moved by {moved}"
+    );
+    let script = viewer::Script::read(&recorded).unwrap();
+    assert!(script.steps.iter().any(|s| s.mode.as_deref() == Some("dl")));
+    assert!(
+        script
+            .steps
+            .iter()
+            .any(|s| s.screenshot.as_deref() == Some("shot-001"))
+    );
 }
 
 #[test]

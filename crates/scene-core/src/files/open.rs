@@ -59,3 +59,20 @@ pub fn open_scene(spec: &str) -> Result<OpenedScene, String> {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_and_paths_open_or_say_why_not() {
+        let cornell = open_scene("cornell").unwrap();
+        assert_eq!(cornell.scene.name, "cornell");
+        assert!(cornell.notes.is_empty());
+        let e = open_scene("no-such-scene").unwrap_err();
+        assert!(e.contains("no-such-scene"), "{e}");
+        let e = open_scene("/nonexistent/scene.GLB").unwrap_err();
+        assert_eq!(e, "scene file '/nonexistent/scene.GLB' does not exist");
+        assert!(is_gltf_path("a.gltf") && is_gltf_path("B.Glb") && !is_gltf_path("cornell"));
+    }
+}

@@ -455,6 +455,22 @@ mod tests {
     }
 
     #[test]
+    fn keys_name_each_light_and_find_it_again() {
+        let scene = builtin::scene("corridor").unwrap();
+        for id in light_ids(&scene) {
+            assert_eq!(LightId::find(&scene, &id.key()), Ok(id));
+        }
+        assert_eq!(LightId::Directional(2).key(), "directional:2");
+        let e = LightId::find(&scene, "point:99").unwrap_err();
+        assert!(
+            e.contains("no light 'point:99'") && e.contains("point:0"),
+            "{e}"
+        );
+        let e = LightId::find(&builtin::scene("primitives").unwrap(), "sun").unwrap_err();
+        assert!(e.contains("its lights: directional:0"), "{e}");
+    }
+
+    #[test]
     fn state_defaults_and_only() {
         let scene = builtin::scene("corridor").unwrap();
         let mut s = LightState::default();
