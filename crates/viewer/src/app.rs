@@ -110,6 +110,8 @@ struct ReferenceState {
     running: bool,
     spp: u32,
     pass_seconds: f64,
+    /// Seconds of every pass received (the replay's summary).
+    passes: Vec<f64>,
     /// The CPU copy of the accumulated image (the error view's mean needs it).
     pixels: Vec<Vec3>,
     /// Error-view state: the reference spp and mode frame of the last mean.
@@ -187,6 +189,7 @@ impl App {
                 running: false,
                 spp: 0,
                 pass_seconds: 0.0,
+                passes: Vec::new(),
                 pixels: Vec::new(),
                 error: None,
                 error_at: None,
@@ -246,6 +249,14 @@ impl App {
                     "  {mode:<24} {:>4} frames, median {:8.2} ms",
                     times.len(),
                     median(times) * 1e3
+                );
+            }
+            let passes = &self.reference.passes;
+            if !passes.is_empty() {
+                println!(
+                    "  reference passes (1 spp, CPU) {:>4} seen, median {:8.2} ms",
+                    passes.len(),
+                    median(passes) * 1e3
                 );
             }
         }
@@ -541,6 +552,7 @@ impl App {
                 let Some(u) = r.worker.wait(Duration::from_secs(600)) else {
                     return Err(format!("the reference did not reach {n} spp in 10 minutes"));
                 };
+                r.passes.push(u.pass_seconds);
                 if u.generation == r.generation {
                     r.spp = u.spp;
                     r.pass_seconds = u.pass_seconds;
@@ -551,6 +563,7 @@ impl App {
         } else if let Some(u) = r.worker.latest()
             && u.generation == r.generation
         {
+            r.passes.push(u.pass_seconds);
             r.spp = u.spp;
             r.pass_seconds = u.pass_seconds;
             r.pixels = u.pixels;
