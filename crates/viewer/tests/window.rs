@@ -489,8 +489,10 @@ fn a_recorded_walkthrough_replays_to_the_same_frames() {
     }
 }
 
-/// Real key presses (xdotool) into the window: F1 picks DL, W walks forward, F12 saves a
-/// screenshot, Esc quits; the recording holds what was done.
+/// Real key presses and mouse drags (xdotool) into the window: F1 picks DL, W walks
+/// forward, F12 saves a screenshot, V toggles vsync, F9 splits the window and a drag moves
+/// the divider, a resize gives frames of the new size, Esc quits; the recording holds what
+/// was done.
 #[test]
 fn keys_switch_walk_screenshot_and_quit() {
     let Some(runner) = display_runner() else {
@@ -522,7 +524,23 @@ xdotool keydown w
 sleep 1
 xdotool keyup w
 xdotool key F12
-for i in $(seq 300); do [ -f "{shots}/shot-001.json" ] && break; sleep 0.2; done
+shot() {{ for i in $(seq 300); do [ -f "{shots}/shot-$1.json" ] && return 0; sleep 0.2; done; return 1; }}
+shot 001
+xdotool key v
+xdotool key F9
+xdotool mousemove --window "$win" 48 36
+sleep 0.5
+xdotool mousedown 1
+xdotool mousemove --window "$win" 24 36
+sleep 0.5
+xdotool mouseup 1
+sleep 0.5
+xdotool key F12
+shot 002
+xdotool windowsize "$win" 120 90
+sleep 1
+xdotool key F12
+shot 003
 xdotool key Escape
 wait $pid
 "#,
@@ -542,6 +560,15 @@ wait $pid
         moved.dot(forward) > 0.01 && moved.cross(forward).length() < 1e-3,
         "W should walk forward: moved by {moved}"
     );
+    let split = shot(&dir, "shot-002");
+    assert_eq!(split.meta["layout"].as_str(), Some("split"), "{text}");
+    let divider = split.meta["divider"].as_f64().unwrap();
+    assert!(
+        (divider - 0.25).abs() < 0.03,
+        "the drag should leave the divider at 1/4: {divider}"
+    );
+    let resized = shot(&dir, "shot-003");
+    assert_eq!(resized.size(), (120, 90), "{text}");
     let script = viewer::Script::read(&recorded).unwrap();
     assert!(script.steps.iter().any(|s| s.mode.as_deref() == Some("dl")));
     assert!(
