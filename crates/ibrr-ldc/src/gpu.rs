@@ -253,13 +253,7 @@ impl GpuLdc {
         output: &wgpu::Buffer,
     ) -> Result<(), IbrrError> {
         let (w, h) = (g.width, g.height);
-        let pixels = w as usize * h as usize;
-        if output.size() < pixels as u64 * 16 {
-            return Err(IbrrError::Settings(format!(
-                "reconstruction output of {} bytes for {w}x{h} pixels",
-                output.size()
-            )));
-        }
+        GpuContext::check_pixel_buffer(output, w, h, "reconstruction output").map_err(gpu)?;
         let f = &self.ldc_frame;
         let eye = match view.projection {
             Projection::Perspective { .. } => view.eye.extend(1.0),

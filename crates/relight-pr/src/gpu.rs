@@ -431,13 +431,8 @@ impl GpuRelight {
     ) -> Result<(), RelightError> {
         self.check_factors(factors)?;
         let (w, h) = (g.width, g.height);
+        GpuContext::check_pixel_buffer(output, w, h, "display output").map_err(gpu)?;
         let pixels = w as usize * h as usize;
-        if output.size() < pixels as u64 * 16 {
-            return Err(RelightError::InvalidSetting(format!(
-                "display output of {} bytes for {w}x{h} pixels",
-                output.size()
-            )));
-        }
         let params = DisplayParams {
             frustum: FrustumReconstruction::new(view).uniform(),
             width: w,

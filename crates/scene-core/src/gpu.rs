@@ -509,6 +509,28 @@ impl GpuContext {
         })
     }
 
+    /// Checks that `buffer` holds a `vec4<f32>` per pixel of a `width x height` image
+    /// (what [`GpuContext::pixel_buffer`] makes); `what` names the buffer in the error.
+    pub fn check_pixel_buffer(
+        buffer: &wgpu::Buffer,
+        width: u32,
+        height: u32,
+        what: &str,
+    ) -> Result<(), GpuError> {
+        let needed = width as u64 * height as u64 * 16;
+        if buffer.size() < needed {
+            return Err(GpuError::InvalidSize {
+                width,
+                height,
+                reason: format!(
+                    "the {what} buffer holds {} bytes, {needed} needed",
+                    buffer.size()
+                ),
+            });
+        }
+        Ok(())
+    }
+
     /// A storage buffer holding `bytes` (16 zero bytes when `bytes` is empty: storage
     /// bindings may not be empty), with `STORAGE` and the `extra` usages.
     pub fn storage_with(
@@ -1119,6 +1141,24 @@ mod tests {
             self.0 ^= self.0 << 17;
             (self.0 >> 40) as f32 / (1u64 << 24) as f32
         }
+    }
+
+    #[test]
+    fn a_pixel_buffer_too_small_for_its_image_is_a_typed_error() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        let b = ctx.pixel_buffer("test", 7, 5);
+        assert_eq!(b.size(), 7 * 5 * 16);
+        assert!(GpuContext::check_pixel_buffer(&b, 7, 5, "test").is_ok());
+        assert!(GpuContext::check_pixel_buffer(&b, 5, 7, "test").is_ok());
+        let e = GpuContext::check_pixel_buffer(&b, 8, 5, "display output").unwrap_err();
+        assert!(
+            e.to_string().contains("the display output buffer holds 560 bytes, 640 needed"),
+            "{e}"
+        );
+        // Never an empty buffer, even for an empty image.
+        assert_eq!(ctx.pixel_buffer("empty", 0, 0).size(), 16);
     }
 
     #[test]
