@@ -1154,7 +1154,8 @@ mod tests {
         assert!(GpuContext::check_pixel_buffer(&b, 5, 7, "test").is_ok());
         let e = GpuContext::check_pixel_buffer(&b, 8, 5, "display output").unwrap_err();
         assert!(
-            e.to_string().contains("the display output buffer holds 560 bytes, 640 needed"),
+            e.to_string()
+                .contains("the display output buffer holds 560 bytes, 640 needed"),
             "{e}"
         );
         // Never an empty buffer, even for an empty image.
