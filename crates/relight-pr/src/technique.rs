@@ -112,6 +112,12 @@ impl RelightTechnique {
         self.prepared.as_ref()
     }
 
+    /// What `prepare` built, taken out of the technique (for a caller that shares it
+    /// between threads, e.g. an interactive viewer).
+    pub fn into_prepared(self) -> Option<Prepared> {
+        self.prepared
+    }
+
     /// [`Technique::prepare`] reporting the solver's unshot fraction to `progress` after
     /// every shot.
     pub fn prepare_with_progress(

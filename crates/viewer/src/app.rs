@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 
 use glam::Vec3;
 use ibrr_ldc::IbrrSettings;
+use relight_pr::direct::DirectLight;
 use relight_pr::{MeshSettings, SolverSettings};
 use scene_core::gpu::GpuContext;
 use scene_core::lights::light_ids;
@@ -26,6 +27,7 @@ use winit::window::{Window, WindowId};
 
 use crate::args::Args;
 use crate::camera::{FlyCamera, Motion};
+use crate::direct::{DirectWorker, Request};
 use crate::frame::{FrameSpec, Profiler, Renderer};
 use crate::mode::Mode;
 use crate::precompute::{self, Background};
@@ -136,6 +138,11 @@ struct App {
     moved: bool,
     relight: Option<Background<relight_pr::RelightTechnique>>,
     relight_status: Option<JobStatus>,
+    /// Relighting's per-pixel direct light: the worker, the last request's generation and
+    /// what it asked for.
+    direct: Option<DirectWorker>,
+    direct_generation: u64,
+    direct_requested: Option<(View, (u32, u32))>,
     ibrr: Option<Background<(ibrr_ldc::IbrrTechnique, LightState)>>,
     ibrr_status: Option<JobStatus>,
     reference: ReferenceState,
@@ -210,6 +217,9 @@ impl App {
             moved: false,
             relight: None,
             relight_status: None,
+            direct: None,
+            direct_generation: 0,
+            direct_requested: None,
             ibrr: None,
             ibrr_status: None,
             info: PanelInfo::default(),
@@ -389,11 +399,21 @@ impl App {
             match done {
                 Some(Ok(t)) => {
                     self.relight = None;
-                    let solved = t.prepared().map(|p| p.solution.stats.unshot_fraction);
                     match gfx.renderer.set_relight(t) {
-                        Ok(()) => {
-                            if let Some(u) = solved {
-                                eprintln!("relighting ready (unshot fraction {u:.2e})");
+                        Ok(p) => {
+                            eprintln!(
+                                "relighting ready (unshot fraction {:.2e})",
+                                p.solution.stats.unshot_fraction
+                            );
+                            if let (
+                                "pixels",
+                                DirectLight::PerPixel {
+                                    subpixels,
+                                    emitter_rays,
+                                },
+                            ) = (self.args.relight_direct.as_str(), DirectLight::default())
+                            {
+                                self.direct = Some(DirectWorker::new(p, subpixels, emitter_rays));
                             }
                             self.relight_status = Some(JobStatus::Ready)
                         }
@@ -572,6 +592,55 @@ impl App {
         Ok(())
     }
 
+    /// Asks for relighting's per-pixel direct light of this frame's view when relighting is
+    /// on screen and it is not in hand; takes a finished gather to the GPU. With `wait`
+    /// (a replay), waits for it, so the frame shows what `RelightTechnique` renders.
+    fn update_direct(&mut self, view: &View, wait: bool) -> Result<(), String> {
+        let (Some(worker), Some(gfx)) = (self.direct.as_ref(), self.gfx.as_mut()) else {
+            return Ok(());
+        };
+        let Some(relight) = gfx.renderer.relight.as_ref() else {
+            return Ok(());
+        };
+        let key = (*view, self.size);
+        if !self.state.shows(Mode::Relight) || relight.has_direct(view, self.size) {
+            return Ok(());
+        }
+        if self.direct_requested != Some(key) {
+            self.direct_generation += 1;
+            self.direct_requested = Some(key);
+            worker.request(Request {
+                generation: self.direct_generation,
+                view: *view,
+                width: self.size.0,
+                height: self.size.1,
+            });
+        }
+        let mut take = |g: crate::direct::Gathered| {
+            if g.request.generation == self.direct_generation && !g.values.is_empty() {
+                let size = (g.request.width, g.request.height);
+                gfx.renderer
+                    .set_relight_direct(g.request.view, size, g.values);
+                true
+            } else {
+                false
+            }
+        };
+        if wait {
+            loop {
+                let g = worker
+                    .wait(Duration::from_secs(600))
+                    .ok_or("relighting's per-pixel direct light did not come in 10 minutes")?;
+                if take(g) {
+                    break;
+                }
+            }
+        } else if let Some(g) = worker.latest() {
+            take(g);
+        }
+        Ok(())
+    }
+
     /// The error view's scale: `error_range` times the reference's mean value.
     fn error_scale(&self) -> f32 {
         let p = &self.reference.pixels;
@@ -667,6 +736,7 @@ impl App {
         let camera = self.state.camera.camera_at(w, h);
         let view = View::from_camera(&camera);
         self.update_reference(&view, want_spp)?;
+        self.update_direct(&view, replaying)?;
         let error_scale = self.error_scale();
 
         let Some(gfx) = self.gfx.as_mut() else {
@@ -703,6 +773,10 @@ impl App {
         self.info.adapter = ctx.adapter_summary();
         self.info.size = self.size;
         self.info.relight = self.relight_status.clone();
+        self.info.relight_direct = match (&self.direct, gfx.renderer.relight.as_ref()) {
+            (Some(_), Some(r)) => Some(r.has_direct(&view, self.size)),
+            _ => None,
+        };
         self.info.ibrr = self.ibrr_status.clone();
         self.info.ibrr_stale = gfx
             .renderer

@@ -12,6 +12,7 @@ use ibrr_ldc::{GpuLdc, IbrrTechnique};
 use isr::{GpuIsr, GpuIsrInputs, Intermediate, IsrSettings, LightSet, ShadowSettings};
 use relight_pr::gpu::GpuRelight;
 use relight_pr::packed::Precision;
+use relight_pr::technique::Prepared;
 use relight_pr::{RelightTechnique, relight};
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, uniform};
@@ -59,10 +60,22 @@ pub fn isr_view(mode: Mode) -> Option<(IsrSettings, Option<Intermediate>, u32)> 
 
 /// Relighting on the GPU: the solution uploaded once, relit per frame.
 pub struct RelightGpu {
-    /// The prepared technique (its solution, meshing and welding).
-    pub technique: RelightTechnique,
+    /// What the technique prepared (solution, meshing, welding, rays), shared with the
+    /// per-pixel direct light's worker.
+    pub prepared: Arc<Prepared>,
     gpu: GpuRelight,
     elements: GpuPreparedScene,
+    /// The per-pixel direct light of one view and size, when gathered.
+    direct: Option<(View, (u32, u32), Vec<Vec3>)>,
+}
+
+impl RelightGpu {
+    /// True when the per-pixel direct light of `view` at `size` is in hand.
+    pub fn has_direct(&self, view: &View, size: (u32, u32)) -> bool {
+        self.direct
+            .as_ref()
+            .is_some_and(|(v, s, _)| v == view && *s == size)
+    }
 }
 
 /// The IBRR on the GPU: its layered depth cube uploaded once per construction.
@@ -437,9 +450,13 @@ impl Renderer {
         Ok(())
     }
 
-    /// Uploads relighting's solution (after its solve).
-    pub fn set_relight(&mut self, technique: RelightTechnique) -> Result<(), String> {
-        let p = technique.prepared().ok_or("relighting was not prepared")?;
+    /// Uploads relighting's solution (after its solve); returns what was prepared, shared.
+    pub fn set_relight(&mut self, technique: RelightTechnique) -> Result<Arc<Prepared>, String> {
+        let p = Arc::new(
+            technique
+                .into_prepared()
+                .ok_or("relighting was not prepared")?,
+        );
         let gpu = GpuRelight::new(
             &self.ctx,
             &p.meshing,
@@ -453,11 +470,22 @@ impl Renderer {
             .upload(&p.meshing.element_scene(&p.scene))
             .map_err(err)?;
         self.relight = Some(RelightGpu {
-            technique,
+            prepared: p.clone(),
             gpu,
             elements,
+            direct: None,
         });
-        Ok(())
+        Ok(p)
+    }
+
+    /// Hands relighting the per-pixel direct light of `view` at `size` (`k` values per
+    /// pixel, pixel-major); frames of that view and size use it.
+    pub fn set_relight_direct(&mut self, view: View, size: (u32, u32), values: Vec<Vec3>) {
+        if let Some(r) = self.relight.as_mut() {
+            let k = r.prepared.solution.k();
+            let ok = values.len() == size.0 as usize * size.1 as usize * k;
+            r.direct = ok.then_some((view, size, values));
+        }
     }
 
     /// Uploads the IBRR's layered depth cube (after its construction for `lights`).
@@ -551,10 +579,12 @@ impl Renderer {
         match mode {
             Mode::Relight => match &self.relight {
                 Some(r) => {
-                    let p = r
-                        .technique
-                        .prepared()
-                        .ok_or("relighting lost its solution")?;
+                    let p = &r.prepared;
+                    let direct = r
+                        .direct
+                        .as_ref()
+                        .filter(|(v, s, _)| v == spec.view && *s == (w, h))
+                        .map(|(_, _, values)| values.as_slice());
                     self.raster
                         .encode(encoder, &r.elements, spec.view, &t.element_gbuffer)
                         .map_err(err)?;
@@ -566,7 +596,7 @@ impl Renderer {
                             spec.view,
                             &factors,
                             base,
-                            None,
+                            direct,
                             &t.slots[slot],
                         )
                         .map_err(err)?;

@@ -12,6 +12,7 @@
 pub mod app;
 pub mod args;
 pub mod camera;
+pub mod direct;
 pub mod frame;
 pub mod mode;
 pub mod precompute;

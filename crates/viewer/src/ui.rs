@@ -85,6 +85,9 @@ pub struct PanelInfo {
     pub size: (u32, u32),
     /// Relighting's solve.
     pub relight: Option<JobStatus>,
+    /// Relighting's per-pixel direct light: `Some(true)` in hand for this view,
+    /// `Some(false)` being gathered (the elements' meanwhile), `None` not used.
+    pub relight_direct: Option<bool>,
     /// The IBRR's construction.
     pub ibrr: Option<JobStatus>,
     /// True when the IBRR on the GPU was built for other light settings.
@@ -262,6 +265,15 @@ pub fn panel(
                         actions.push(Action::StartRelight);
                     }
                 }
+            }
+            match info.relight_direct {
+                Some(true) => {
+                    ui.label("relighting's direct light: per pixel");
+                }
+                Some(false) => {
+                    ui.label("relighting's direct light: from the elements (gathering per pixel)");
+                }
+                None => {}
             }
             if let Some(s) = &info.ibrr {
                 status_line(ui, "IBRR", s);

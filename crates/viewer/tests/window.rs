@@ -285,14 +285,15 @@ fn isr_frame(ctx: &GpuContext, scene: &Arc<Scene>, mode: Mode, s: &Shot) -> Imag
     }
 }
 
-fn relight_technique(scene: &Arc<Scene>) -> RelightTechnique {
+/// The library's relighting, with its direct light per pixel (its default, the viewer's
+/// default once the view stands still) or from the elements (the paper's display).
+fn relight_technique(scene: &Arc<Scene>, direct: DirectLight) -> RelightTechnique {
     let mut t = RelightTechnique::new(
         MeshSettings::elements(ELEMENTS),
         SolverSettings::default(),
         Box::new(CpuRasterizer::new()),
     );
-    // The viewer displays the paper's way: direct light from the elements too.
-    t.direct = DirectLight::Elements;
+    t.direct = direct;
     t.prepare(scene.clone()).unwrap();
     t
 }
@@ -367,7 +368,7 @@ fn a_replay_through_every_mode_matches_the_library_frame_by_frame() {
     }
 
     let scene = scene();
-    let mut relight = relight_technique(&scene);
+    let mut relight = relight_technique(&scene, DirectLight::default());
     let mut ibrr = IbrrTechnique::new(
         IbrrSettings {
             resolution: LDC,
@@ -433,11 +434,15 @@ fn a_replayed_light_change_relights_the_frame_as_the_library_does() {
            {{"lights": [{{"light": "{key}", "color": [1.0, 0.35, 0.2], "indirect": 2.0}}],
             "screenshot": "after"}}"#
     );
-    replay(&dir, &steps);
+    // The paper's display: direct light from the elements (the every-mode test covers the
+    // per-pixel direct light).
+    let file = dir.join("walk.json");
+    std::fs::write(&file, format!(r#"{{"version": 1, "steps": [{steps}]}}"#)).unwrap();
+    replay_file(&file, &dir.join("shots"), &["--relight-direct", "elements"]);
     let before = shot(&dir, "before");
     let after = shot(&dir, "after");
     assert!(after.lights(&scene) != LightState::default());
-    let mut relight = relight_technique(&scene);
+    let mut relight = relight_technique(&scene, DirectLight::Elements);
     let expected_before = frame_of(&mut relight, &scene, &before);
     let expected_after = frame_of(&mut relight, &scene, &after);
     assert_matches("before the change", &before.image, &expected_before);
