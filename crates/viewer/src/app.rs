@@ -143,6 +143,8 @@ struct App {
     direct: Option<DirectWorker>,
     direct_generation: u64,
     direct_requested: Option<(View, (u32, u32))>,
+    /// Seconds of every per-pixel gather received (the replay's summary).
+    direct_seconds: Vec<f64>,
     ibrr: Option<Background<(ibrr_ldc::IbrrTechnique, LightState)>>,
     ibrr_status: Option<JobStatus>,
     reference: ReferenceState,
@@ -220,6 +222,7 @@ impl App {
             direct: None,
             direct_generation: 0,
             direct_requested: None,
+            direct_seconds: Vec::new(),
             ibrr: None,
             ibrr_status: None,
             info: PanelInfo::default(),
@@ -259,6 +262,14 @@ impl App {
                     "  {mode:<24} {:>4} frames, median {:8.2} ms",
                     times.len(),
                     median(times) * 1e3
+                );
+            }
+            let gathers = &self.direct_seconds;
+            if !gathers.is_empty() {
+                println!(
+                    "  relighting's per-pixel direct light (CPU) {:>4} views, median {:8.2} ms",
+                    gathers.len(),
+                    median(gathers) * 1e3
                 );
             }
             let passes = &self.reference.passes;
@@ -616,7 +627,9 @@ impl App {
                 height: self.size.1,
             });
         }
+        let seconds = &mut self.direct_seconds;
         let mut take = |g: crate::direct::Gathered| {
+            seconds.push(g.seconds);
             if g.request.generation == self.direct_generation && !g.values.is_empty() {
                 let size = (g.request.width, g.request.height);
                 gfx.renderer

@@ -37,6 +37,8 @@ pub struct Gathered {
     pub request: Request,
     /// The values (empty when the gather failed).
     pub values: Vec<Vec3>,
+    /// Seconds the G-buffer and the gather took.
+    pub seconds: f64,
 }
 
 /// The worker thread and its channels.
@@ -115,6 +117,7 @@ fn run(
         while let Ok(newer) = requests.try_recv() {
             request = newer;
         }
+        let start = std::time::Instant::now();
         let values = match (
             &prepared,
             raster.render_view(&request.view, request.width, request.height),
@@ -122,7 +125,15 @@ fn run(
             (Ok(()), Ok(g)) => pixel_direct(&gather, &p.rays, &g, &request.view, subpixels),
             _ => Vec::new(),
         };
-        if results.send(Gathered { request, values }).is_err() {
+        let seconds = start.elapsed().as_secs_f64();
+        if results
+            .send(Gathered {
+                request,
+                values,
+                seconds,
+            })
+            .is_err()
+        {
             return;
         }
     }
