@@ -47,6 +47,7 @@ const DISPLAY_HELP: &str = "the viewer needs a display and a GPU driver that can
 /// replay ends). Errors name the fault: a missing scene, a bad replay step, no display.
 pub fn run(args: Args) -> Result<(), String> {
     let size = args.window_size()?;
+    let scale = args.render_scale()?;
     let first_mode = Mode::parse(&args.mode)?;
     let opened = scene_core::open_scene(&args.scene)?;
     for note in &opened.notes {
@@ -63,6 +64,7 @@ pub fn run(args: Args) -> Result<(), String> {
     let event_loop =
         EventLoop::new().map_err(|e| format!("cannot open a window ({e}): {DISPLAY_HELP}"))?;
     let mut app = App::new(args, Arc::new(scene), steps, size, first_mode);
+    app.scale = scale;
     event_loop
         .run_app(&mut app)
         .map_err(|e| format!("the event loop failed: {e}"))?;
@@ -127,7 +129,10 @@ struct App {
     ids: Vec<LightId>,
     steps: Option<Vec<CheckedStep>>,
     step: usize,
+    /// The frame's size in pixels (the window's times the render scale).
     size: (u32, u32),
+    /// The render scale.
+    scale: f32,
     gfx: Option<Gfx>,
     state: ViewState,
     motion_keys: BTreeMap<KeyCode, bool>,
@@ -209,6 +214,7 @@ impl App {
             steps,
             step: 0,
             size,
+            scale: 1.0,
             gfx: None,
             state,
             motion_keys: BTreeMap::new(),
@@ -342,8 +348,9 @@ impl App {
         surface.configure(&ctx.device, &config);
         eprintln!("adapter: {}", ctx.adapter_summary());
         let mut renderer = Renderer::new(ctx.clone(), self.scene.clone(), format)?;
-        renderer.resize(w, h)?;
-        self.size = (w, h);
+        let frame = renderer.fit(w, h, self.scale);
+        renderer.resize(frame.0, frame.1)?;
+        self.size = frame;
         let egui_ctx = egui::Context::default();
         let max_side = ctx.device.limits().max_texture_dimension_2d as usize;
         let egui_state = egui_winit::State::new(
@@ -857,7 +864,9 @@ impl App {
                     multiview_mask: None,
                 })
                 .forget_lifetime();
-            gfx.renderer.draw_present(&mut pass, self.state.exposure);
+            let surface = (gfx.config.width, gfx.config.height);
+            gfx.renderer
+                .draw_present(&mut pass, surface, self.state.exposure);
             gfx.egui_renderer.render(&mut pass, &jobs, &screen);
         }
         profiler.mark("present and panel", &mut encoder);
@@ -1092,11 +1101,12 @@ impl ApplicationHandler for App {
                 gfx.config.width = size.width;
                 gfx.config.height = size.height;
                 gfx.surface.configure(&gfx.renderer.ctx.device, &gfx.config);
-                if let Err(e) = gfx.renderer.resize(size.width, size.height) {
+                let frame = gfx.renderer.fit(size.width, size.height, self.scale);
+                if let Err(e) = gfx.renderer.resize(frame.0, frame.1) {
                     self.fail(event_loop, e);
                     return;
                 }
-                self.size = (size.width, size.height);
+                self.size = frame;
             }
             WindowEvent::RedrawRequested => {
                 if let Err(e) = self.redraw(event_loop) {
@@ -1115,10 +1125,9 @@ impl ApplicationHandler for App {
                 match button {
                     MouseButton::Right => self.looking = pressed && !consumed,
                     MouseButton::Left => {
+                        let window = gfx.config.width as f64;
                         let near_divider = self.state.layout == "split"
-                            && (self.cursor.0 - self.state.divider as f64 * self.size.0 as f64)
-                                .abs()
-                                < 8.0;
+                            && (self.cursor.0 - self.state.divider as f64 * window).abs() < 8.0;
                         self.dragging = pressed && !consumed && near_divider;
                     }
                     _ => {}
@@ -1126,8 +1135,9 @@ impl ApplicationHandler for App {
             }
             WindowEvent::CursorMoved { position, .. } => {
                 self.cursor = (position.x, position.y);
-                if self.dragging && self.size.0 > 0 {
-                    self.state.divider = (position.x / self.size.0 as f64).clamp(0.0, 1.0) as f32;
+                if self.dragging && gfx.config.width > 0 {
+                    self.state.divider =
+                        (position.x / gfx.config.width as f64).clamp(0.0, 1.0) as f32;
                 }
             }
             WindowEvent::MouseWheel { delta, .. } if !consumed => {

@@ -47,6 +47,11 @@ pub struct Args {
     /// The reference stops accumulating at this many samples per pixel.
     #[arg(long, default_value_t = 1024)]
     pub max_spp: u32,
+    /// Render at this fraction of the window's size (0.05 to 1), stretched onto the
+    /// window: a slow adapter stays interactive. Frames too large for the adapter's buffers
+    /// are scaled down further on their own.
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f32,
     /// Exposure of the display and of PNG screenshots, in stops.
     #[arg(long, default_value_t = 0.0)]
     pub exposure: f32,
@@ -69,6 +74,18 @@ pub struct Args {
 }
 
 impl Args {
+    /// The render scale, checked.
+    pub fn render_scale(&self) -> Result<f32, String> {
+        if (0.05..=1.0).contains(&self.scale) {
+            Ok(self.scale)
+        } else {
+            Err(format!(
+                "--scale {}: must be between 0.05 and 1",
+                self.scale
+            ))
+        }
+    }
+
     /// The window size.
     pub fn window_size(&self) -> Result<(u32, u32), String> {
         let bad = || {

@@ -58,6 +58,18 @@ pub fn isr_view(mode: Mode) -> Option<(IsrSettings, Option<Intermediate>, u32)> 
     })
 }
 
+/// The frame size for a `width x height` window at render scale `scale` under limits of
+/// `max_bytes` per buffer (16 bytes a pixel) and `max_side` pixels a side: scaled, then
+/// shrunk with the aspect ratio kept until both hold; at least 1 x 1.
+pub fn fit_frame(width: u32, height: u32, scale: f32, max_bytes: u64, max_side: u32) -> (u32, u32) {
+    let (w, h) = (width.max(1) as f64, height.max(1) as f64);
+    let by_bytes = (max_bytes as f64 / (w * h * 16.0)).sqrt();
+    let by_side = max_side as f64 / w.max(h);
+    let s = (scale as f64).min(by_bytes).min(by_side).min(1.0);
+    let size = |x: f64| ((x * s).floor() as u32).max(1);
+    (size(w), size(h))
+}
+
 /// Relighting on the GPU: the solution uploaded once, relit per frame.
 pub struct RelightGpu {
     /// What the technique prepared (solution, meshing, welding, rays), shared with the
@@ -292,6 +304,9 @@ struct PresentParams {
     height: u32,
     scale: f32,
     encode: u32,
+    surface_width: u32,
+    surface_height: u32,
+    pad: [u32; 2],
 }
 
 fn err(e: impl std::fmt::Display) -> String {
@@ -417,6 +432,23 @@ impl Renderer {
         self.targets
             .as_ref()
             .map_or((0, 0), |t| (t.width, t.height))
+    }
+
+    /// The frame size for a `width x height` window at render scale `scale`: scaled, then
+    /// shrunk (keeping the aspect ratio) until a frame buffer fits the adapter's
+    /// storage-binding and buffer limits and its 2D texture limit.
+    pub fn fit(&self, width: u32, height: u32, scale: f32) -> (u32, u32) {
+        let limits = self.ctx.device.limits();
+        let max_bytes = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        fit_frame(
+            width,
+            height,
+            scale,
+            max_bytes,
+            limits.max_texture_dimension_2d,
+        )
     }
 
     /// (Re)creates the frame-sized buffers and textures.
@@ -685,15 +717,24 @@ impl Renderer {
         Ok(())
     }
 
-    /// Draws the composed frame into `pass` (a pass over the window's surface texture),
-    /// scaled by `2^exposure`.
-    pub fn draw_present(&self, pass: &mut wgpu::RenderPass<'_>, exposure: f32) {
+    /// Draws the composed frame into `pass` (a pass over the window's surface texture of
+    /// `surface` pixels, the frame stretched over it, nearest pixel), scaled by
+    /// `2^exposure`.
+    pub fn draw_present(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        surface: (u32, u32),
+        exposure: f32,
+    ) {
         let Some(t) = &self.targets else { return };
         let params = PresentParams {
             width: t.width,
             height: t.height,
             scale: exposure.exp2(),
             encode: u32::from(!self.surface_is_srgb),
+            surface_width: surface.0.max(1),
+            surface_height: surface.1.max(1),
+            pad: [0; 2],
         };
         let uniform = self.uniform("viewer present", &params);
         let bind = self
@@ -751,6 +792,24 @@ impl Renderer {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn frames_fit_the_adapter_and_keep_their_shape() {
+        let mib = 1u64 << 20;
+        // A window that fits is rendered at its size, or at the scale asked for.
+        assert_eq!(fit_frame(960, 600, 1.0, 128 * mib, 8192), (960, 600));
+        assert_eq!(fit_frame(960, 600, 0.5, 128 * mib, 8192), (480, 300));
+        // A 4K window is 132.7 MB of frame buffer: above a 128 MiB binding limit it shrinks.
+        let (w, h) = fit_frame(3840, 2160, 1.0, 128 * mib, 16384);
+        assert!(w as u64 * h as u64 * 16 <= 128 * mib, "{w}x{h}");
+        assert!(
+            w > 3700 && (w as f64 / h as f64 - 16.0 / 9.0).abs() < 1e-2,
+            "{w}x{h}"
+        );
+        // The texture side limit holds too, and nothing is ever empty.
+        assert_eq!(fit_frame(10000, 5000, 1.0, u64::MAX, 4096), (4096, 2048));
+        assert_eq!(fit_frame(0, 0, 0.05, 128 * mib, 8192), (1, 1));
+    }
 
     /// The stage timer's two ways on the test adapter: timestamps between stages (forced on
     /// a CPU adapter, whose values only show the mechanism works: every stage labelled, in

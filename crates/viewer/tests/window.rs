@@ -585,6 +585,25 @@ wait $pid
 }
 
 #[test]
+fn a_render_scale_renders_smaller_frames_stretched_over_the_window() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let dir = out_dir("scale");
+    let file = dir.join("walk.json");
+    std::fs::write(
+        &file,
+        r#"{"version": 1, "steps": [{"scene_camera": 0, "mode": "isr", "screenshot": "half"}]}"#,
+    )
+    .unwrap();
+    replay_file(&file, &dir.join("shots"), &["--scale", "0.5"]);
+    let s = shot(&dir, "half");
+    assert_eq!(s.size(), (WIDTH / 2, HEIGHT / 2));
+    let expected = isr_frame(&ctx, &scene(), Mode::Isr, &s);
+    assert_matches("isr at half scale", &s.image, &expected);
+}
+
+#[test]
 fn without_a_display_the_error_names_the_fix() {
     let out = Command::new(env!("CARGO_BIN_EXE_viewer"))
         .args(["--scene", "cornell"])
@@ -618,6 +637,10 @@ fn bad_input_exits_non_zero_with_a_message_that_names_it() {
             ),
             (s(&["--scene", "no-such-scene"]), "no-such-scene"),
             (s(&["--mode", "radiosity"]), "unknown mode 'radiosity'"),
+            (
+                s(&["--scale", "0"]),
+                "--scale 0: must be between 0.05 and 1",
+            ),
             (
                 vec![
                     "--replay".into(),
