@@ -979,6 +979,12 @@ impl App {
             },
         )?;
         eprintln!("screenshot: {}", path.display());
+        if let (true, Some((e, spp))) = (self.state.layout == "error", self.reference.error) {
+            println!(
+                "mean error (eq. 19) of {} against the reference at {spp} spp: {e:.6}",
+                self.state.mode.name()
+            );
+        }
         Ok(())
     }
 

@@ -357,6 +357,12 @@ fn a_replay_through_every_mode_matches_the_library_frame_by_frame() {
         r#"{{"layout": "error", "mode": "isr", "reference_spp": {SPP}, "screenshot": "error"}}"#
     ));
     let (lines, _) = replay(&dir, &steps.join(",\n"));
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("mean error (eq. 19) of isr against the reference at 4 spp")),
+        "the error view's mean is printed"
+    );
     // The frame-time table names every mode.
     for m in Mode::ALL {
         assert!(
@@ -521,7 +527,7 @@ fn keys_switch_walk_screenshot_and_quit() {
         r#"set -e
 "{bin}" --scene cornell --size 96x72 --no-ui --lazy --screenshots "{shots}" --record "{rec}" &
 pid=$!
-win=$(timeout 120 xdotool search --sync --name 'diffuse-gi viewer' | head -n 1)
+win=$(timeout 120 xdotool search --sync --onlyvisible --name 'diffuse-gi viewer' | head -n 1)
 xdotool windowfocus --sync "$win" || true
 sleep 1
 xdotool key F1
