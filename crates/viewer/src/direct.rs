@@ -79,11 +79,7 @@ impl DirectWorker {
 
     /// The newest result, if any arrived.
     pub fn latest(&self) -> Option<Gathered> {
-        let mut last = None;
-        while let Ok(g) = self.results.try_recv() {
-            last = Some(g);
-        }
-        last
+        crate::precompute::newest(&self.results)
     }
 
     /// Waits up to `timeout` for the next result.
@@ -114,7 +110,7 @@ fn run(
     let gather = DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, emitter_rays);
     while let Ok(mut request) = requests.recv() {
         // Only the newest view matters.
-        while let Ok(newer) = requests.try_recv() {
+        if let Some(newer) = crate::precompute::newest(requests) {
             request = newer;
         }
         let start = std::time::Instant::now();

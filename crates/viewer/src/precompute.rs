@@ -12,6 +12,16 @@ use ibrr_ldc::{IbrrSettings, IbrrTechnique};
 use relight_pr::{MeshSettings, RelightTechnique, SolverSettings};
 use scene_core::{LightState, Scene};
 
+/// The newest message waiting in `rx`, dropping the older ones (`None` when none waits):
+/// what a frame loop wants from a worker that reports faster than frames come.
+pub fn newest<T>(rx: &std::sync::mpsc::Receiver<T>) -> Option<T> {
+    let mut last = None;
+    while let Ok(m) = rx.try_recv() {
+        last = Some(m);
+    }
+    last
+}
+
 /// A job on a worker thread producing `T`, with a progress value in [0, 1].
 pub struct Background<T> {
     progress: Arc<AtomicU64>,

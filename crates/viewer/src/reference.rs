@@ -95,11 +95,7 @@ impl ReferenceWorker {
 
     /// The newest update, if any arrived (older ones are dropped).
     pub fn latest(&self) -> Option<Update> {
-        let mut last = None;
-        while let Ok(u) = self.updates.try_recv() {
-            last = Some(u);
-        }
-        last
+        crate::precompute::newest(&self.updates)
     }
 
     /// Waits up to `timeout` for the next update.
