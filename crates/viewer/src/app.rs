@@ -634,10 +634,11 @@ impl App {
                 height: self.size.1,
             });
         }
+        let generation = self.direct_generation;
         let seconds = &mut self.direct_seconds;
         let mut take = |g: crate::direct::Gathered| {
             seconds.push(g.seconds);
-            if g.request.generation == self.direct_generation && !g.values.is_empty() {
+            if g.request.generation == generation && !g.values.is_empty() {
                 let size = (g.request.width, g.request.height);
                 gfx.renderer
                     .set_relight_direct(g.request.view, size, g.values);
@@ -651,8 +652,14 @@ impl App {
                 let g = worker
                     .wait(Duration::from_secs(600))
                     .ok_or("relighting's per-pixel direct light did not come in 10 minutes")?;
+                let failed = g.request.generation == generation && g.values.is_empty();
                 if take(g) {
                     break;
+                }
+                if failed {
+                    return Err("relighting's per-pixel direct light could not be gathered \
+                        (the element scene's G-buffer failed)"
+                        .into());
                 }
             }
         } else if let Some(g) = worker.latest() {
