@@ -6,5 +6,6 @@
 pub mod child;
 pub mod fuzz;
 pub mod hostile;
+pub mod scenes;
 
 pub use scene_core;

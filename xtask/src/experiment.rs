@@ -441,10 +441,30 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
         if (lower.ends_with(".gltf") || lower.ends_with(".glb")) && !Path::new(spec).exists() {
             return Err(format!("scene file '{spec}' does not exist"));
         }
-        let scene = crate::load_scene(spec)?;
+        let opened = crate::open_scene_noted(spec)?;
+        let (scene, moved) = (opened.scene, opened.translation);
         let id = scene_id(spec);
         let given = match lists.iter().find(|(s, _)| s == spec || *s == id) {
-            Some((_, file)) => load_camera_list(file, &scene).map_err(|e| e.to_string())?,
+            // A camera list is in the file's coordinates: read it against the scene as the
+            // file has it, then move it with the scene.
+            Some((_, file)) => {
+                let unmoved;
+                let file_scene = if moved == scene_core::glam::Vec3::ZERO {
+                    &scene
+                } else {
+                    unmoved = scene.clone().translated(-moved);
+                    &unmoved
+                };
+                load_camera_list(file, file_scene)
+            }
+            .map_err(|e| e.to_string())?
+                .into_iter()
+                .map(|mut c| {
+                    c.position += moved;
+                    c.target += moved;
+                    c
+                })
+                .collect(),
             None => scene.cameras.clone(),
         };
         let count = o.views.unwrap_or(given.len().max(1));

@@ -244,11 +244,17 @@ enum Command {
 /// Loads a built-in scene by name, or a glTF file when the name ends in .gltf/.glb, printing
 /// what the import ignored.
 pub fn load_scene(spec: &str) -> Result<Scene, String> {
+    Ok(open_scene_noted(spec)?.scene)
+}
+
+/// [`scene_core::open_scene`], printing its notes; the translation it applied (a scene far
+/// from the origin is moved to it) comes with the scene.
+pub fn open_scene_noted(spec: &str) -> Result<scene_core::OpenedScene, String> {
     let opened = scene_core::open_scene(spec)?;
     for note in &opened.notes {
         eprintln!("{note}");
     }
-    Ok(opened.scene)
+    Ok(opened)
 }
 
 /// The options every command that renders one view of a scene takes.

@@ -70,8 +70,9 @@ impl CameraSpec {
 
     /// The camera for `scene` (aspect 1; the harness sets the image's aspect). `index` names
     /// unnamed cameras. Fails on a field of view outside (0, 180) degrees and on whatever
-    /// [`Camera::check`] refuses (non-finite values, a zero view direction, up parallel to
-    /// it, planes out of order), exactly as for a scene's own cameras.
+    /// [`Camera::check`] refuses (non-finite values, a zero view direction, a field of view
+    /// above 170 degrees, planes out of order or too far apart), exactly as for a scene's
+    /// own cameras.
     pub fn to_camera(&self, scene: &Scene, index: usize) -> Result<Camera, String> {
         let p = Vec3::from_array(self.position);
         let t = Vec3::from_array(self.target);

@@ -52,7 +52,7 @@ pub fn export(scene: &Scene, camera: &Camera, width: u32, height: u32) -> String
         "camera {{\n  perspective\n  location {}\n  look_at {}\n  sky {}\n  right x*{aspect}\n  angle {}\n}}\n",
         v(camera.position),
         v(camera.target),
-        v(camera.up),
+        v(camera.view_up()),
         fov_x.to_degrees()
     );
     // POV-Ray's diffuse finish has no 1/pi and attenuates by 2 / (1 + (d / f)^2): with a

@@ -120,6 +120,7 @@ impl IbrrTechnique {
         if let Some((_, uploaded)) = self.gpu.as_mut() {
             *uploaded = None;
         }
+        scene_core::contract::check(&scene).map_err(scene_core::Error::from)?;
         let mut c = Construction::new(scene, lights, &self.settings)?;
         if let Some((ctx, _)) = self.gpu.as_ref() {
             c.gather_on_gpu(ctx)?;

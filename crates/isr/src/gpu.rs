@@ -454,7 +454,12 @@ impl GpuIsr {
                  of {limit}; lower ShadowSettings resolutions or max_texels"
             )));
         }
-        let lights = gpu_lights(scene);
+        let mut lights = gpu_lights(scene);
+        if lights.is_empty() {
+            // A scene without lights: the shader's array needs one whole element to bind
+            // (its light count stays 0, so it is never read).
+            lights.push(bytemuck::Zeroable::zeroed());
+        }
         let table = gpu_emitters(scene);
         let per_triangle: &[u32] = if scene.emitters.entries.is_empty() {
             // No emitters: no triangle needs looking up.

@@ -112,6 +112,7 @@ impl Technique for IsrTechnique {
     fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error> {
         self.prepared = None;
         self.gpu = None;
+        scene_core::contract::check(&scene)?;
         self.renderer.prepare(scene.clone())?;
         let lights = LightSet::new(&scene, &self.shadows)?;
         self.prepared = Some((scene, lights));

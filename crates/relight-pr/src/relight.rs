@@ -59,7 +59,7 @@ pub fn weights(
 fn weighted(solution: &Solution, state: &LightState, with_direct: bool) -> Vec<Vec3> {
     let k = solution.k();
     if k == 0 {
-        return vec![Vec3::ZERO; solution.direct.len()];
+        return vec![Vec3::ZERO; solution.elements];
     }
     let (f, base) = weights(solution, state, with_direct);
     solution

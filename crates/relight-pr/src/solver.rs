@@ -137,6 +137,9 @@ pub struct SolveStats {
 pub struct Solution {
     /// The sources, in solution order.
     pub sources: Vec<Source>,
+    /// Number of elements (the element-major arrays hold `elements * k` values; with no
+    /// source they are empty, and relighting still gives one value per element).
+    pub elements: usize,
     /// Irradiance received straight from each source, element-major: `direct[j * k + m]`.
     pub direct: Vec<Vec3>,
     /// Irradiance received after one or more reflections, the same layout.
@@ -271,6 +274,7 @@ pub fn solve_with(
             }
             Solution {
                 sources,
+                elements: n,
                 direct,
                 indirect,
                 ambient,
@@ -377,6 +381,7 @@ fn solve_tagged(
     } = state;
     Ok(Solution {
         sources,
+        elements: meshing.elements.len(),
         direct,
         indirect,
         ambient,

@@ -127,6 +127,7 @@ impl RelightTechnique {
     ) -> Result<(), Error> {
         self.prepared = None;
         self.cache = None;
+        scene_core::contract::check(&scene)?;
         let k = solver::sources(&scene, &self.solver.banks)?.len();
         let rays = RayScene::build(&scene);
         let meshing = Meshing::with_rays(&scene, &self.mesh, k, &rays)?;

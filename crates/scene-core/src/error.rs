@@ -75,8 +75,11 @@ pub enum SceneError {
         /// Number of materials.
         material_count: usize,
     },
-    /// Albedo must lie in [0, 1): radiosity diverges at 1.
-    #[error("{material}: albedo {albedo:?} is outside [0, 1) (radiosity diverges at albedo 1)")]
+    /// Albedo must lie in [0, [`crate::scene::ALBEDO_MAX`]]: radiosity diverges at 1.
+    #[error(
+        "{material}: albedo {albedo:?} is outside [0, {max}] (radiosity diverges at albedo 1)",
+        max = crate::scene::ALBEDO_MAX
+    )]
     AlbedoOutOfRange {
         /// The material at fault.
         material: String,
@@ -124,6 +127,45 @@ pub enum SceneError {
         camera: String,
         /// What is wrong.
         reason: String,
+    },
+    /// The scene has no triangle a method could render (none given, or every one dropped
+    /// as degenerate by validation).
+    #[error("scene '{scene}' has no geometry: {reason}")]
+    NoGeometry {
+        /// The scene's name.
+        scene: String,
+        /// What it has instead.
+        reason: String,
+    },
+    /// A number of the scene lies outside the range the toolkit accepts.
+    #[error("{what} = {value:e} is outside the accepted range [{min:e}, {max:e}]")]
+    OutOfRange {
+        /// The number at fault (which material, light or camera, and which field).
+        what: String,
+        /// Its value.
+        value: f64,
+        /// The smallest accepted value.
+        min: f64,
+        /// The largest accepted value.
+        max: f64,
+    },
+    /// The scene's coordinates are so large for its size that f32 no longer resolves its
+    /// geometry (spacing above [`crate::contract::PRECISION_LIMIT`] of the extent).
+    #[error(
+        "scene '{scene}': geometry lies {offset:.3e} from the origin with an extent of only \
+         {extent:.3e}: f32 places its vertices {spacing:.3e} apart there, more than {limit:e} \
+         of the extent (the positions have already lost that precision); move the scene to \
+         the origin where it is made",
+        spacing = (offset.abs() + extent) * f32::EPSILON,
+        limit = crate::contract::PRECISION_LIMIT
+    )]
+    PrecisionLost {
+        /// The scene's name.
+        scene: String,
+        /// Distance of the geometry's centre from the origin.
+        offset: f32,
+        /// The geometry's extent (diagonal of its bounds).
+        extent: f32,
     },
     /// A name given to `builtin` is unknown or its parameter is out of range.
     #[error(

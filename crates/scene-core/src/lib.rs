@@ -42,7 +42,7 @@ pub mod technique;
 
 pub use files::open::{OpenedScene, open_scene};
 pub use files::{budget, gltf_io, image};
-pub use model::{builtin, lights, scene, view};
+pub use model::{builtin, contract, lights, scene, view};
 pub use rays::{ray, reference, sampling};
 
 pub use budget::{Budget, BudgetError};

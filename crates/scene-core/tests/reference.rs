@@ -106,6 +106,35 @@ fn mean_and_standard_error(img: &Image, var: &Image, spp: u32) -> (f64, f64) {
     (mean, (var_sum / spp as f64).sqrt() / npix)
 }
 
+/// At the largest albedo a scene may have the path tracer's Russian roulette must keep the
+/// variance bounded: paths average a thousand bounces, and the mean converges to E/(1-rho)
+/// within its standard error (a survival capped below the albedo gave 187 for 1000).
+#[test]
+fn furnace_at_the_largest_accepted_albedo_converges() {
+    let (rho, e) = (scene_core::scene::ALBEDO_MAX, 0.5f32);
+    let s = furnace(rho, e);
+    let view = View::from_camera(&s.cameras[0]);
+    let settings = ReferenceSettings {
+        width: 8,
+        height: 8,
+        spp: 32,
+        bounces: Bounces::Unlimited,
+        seed: 11,
+    };
+    let out = render(&s, &view, &settings, None);
+    let (mean, se) = mean_and_standard_error(&out.image, &out.variance, out.spp);
+    let expected = (e / (1.0 - rho)) as f64;
+    eprintln!("furnace at albedo {rho}: mean {mean:.2}, expected {expected:.2}, standard error {se:.2}");
+    assert!(
+        se > 0.0 && se < 0.05 * expected,
+        "standard error {se} too large to test"
+    );
+    assert!(
+        (mean - expected).abs() < 4.0 * se,
+        "furnace mean {mean}, expected {expected} +- 4 x {se}"
+    );
+}
+
 #[test]
 fn furnace_converges_to_e_over_one_minus_rho() {
     let (rho, e) = (0.6f32, 0.5f32);

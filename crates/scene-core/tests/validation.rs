@@ -193,10 +193,15 @@ fn bad_lights_and_cameras_are_errors() {
         near: 0.1,
         far: 1.0,
     });
+    // Looking straight up with +Y up is a camera: its view takes another up.
+    s.validate().unwrap();
+    let v = scene_core::View::from_camera(&s.cameras[0]);
+    assert!(v.up.is_finite() && v.up.dot(v.forward).abs() < 1e-6, "{v:?}");
+    s.cameras[0].fov_y = 3.0;
     match s.validate().unwrap_err() {
         SceneError::InvalidCamera { camera, reason } => {
             assert_eq!(camera, "camera #0 'eye'");
-            assert!(reason.contains("parallel"), "{reason}");
+            assert!(reason.contains("field of view"), "{reason}");
         }
         other => panic!("expected InvalidCamera, got {other}"),
     }

@@ -84,8 +84,9 @@ pub use import::{
 };
 pub use uri::ExternalFiles;
 
-/// Imported albedo channels are clamped to at most this value (validation requires < 1).
-pub const ALBEDO_MAX: f32 = 0.999;
+/// Imported albedo channels are clamped to at most this value, the largest albedo a scene
+/// may have ([`crate::scene::ALBEDO_MAX`]).
+pub use crate::scene::ALBEDO_MAX;
 
 /// Albedo of the material given to primitives that have none.
 pub const DEFAULT_ALBEDO: f32 = 0.8;

@@ -16,9 +16,35 @@ use crate::scene::Scene;
 pub struct OpenedScene {
     /// The scene.
     pub scene: Scene,
-    /// One line per import note (the import summary, then each warning); empty for a
-    /// built-in scene.
+    /// One line per import note (the import summary, then each warning), then what the
+    /// scene contract noted ([`crate::contract::check`]: no light, a recentring); empty for
+    /// a built-in scene that needs no note.
     pub notes: Vec<String>,
+    /// The translation applied to the file's coordinates ([`Scene::recentred`]): zero unless
+    /// its geometry lay farther from the origin than its extent. Cameras given in the file's
+    /// coordinates elsewhere (camera lists) must be moved by it too.
+    pub translation: glam::Vec3,
+}
+
+impl OpenedScene {
+    /// Checks the scene contract ([`crate::contract::check`]: refuses a scene without
+    /// geometry or beyond f32's precision), then moves the scene to the origin when it lies
+    /// farther from it than its extent, noting both.
+    fn checked(mut self) -> Result<Self, String> {
+        let contract = crate::contract::check(&self.scene).map_err(|e| e.to_string())?;
+        self.notes.extend(contract.notes.into_iter().map(|n| format!("note: {n}")));
+        let (scene, t) = self.scene.recentred();
+        self.scene = scene;
+        self.translation = t;
+        if t != glam::Vec3::ZERO {
+            self.notes.push(format!(
+                "note: {}: moved by ({}, {}, {}) to the origin (cameras, lights and outputs \
+                 are in the moved coordinates)",
+                self.scene.name, t.x, t.y, t.z
+            ));
+        }
+        Ok(self)
+    }
 }
 
 /// True when `spec` names a glTF file (by its extension) rather than a built-in scene.
@@ -29,7 +55,9 @@ pub fn is_gltf_path(spec: &str) -> bool {
 
 /// Opens a built-in scene by name, or a glTF file when `spec` ends in `.gltf`/`.glb`. The
 /// error names the fault: a file that does not exist, an import error, or an unknown
-/// built-in name with the list of known ones.
+/// built-in name with the list of known ones, or a scene that breaks the contract
+/// ([`crate::contract::check`]). A scene far from the origin is moved to it
+/// ([`OpenedScene::translation`]).
 pub fn open_scene(spec: &str) -> Result<OpenedScene, String> {
     if is_gltf_path(spec) {
         if !Path::new(spec).exists() {
@@ -47,16 +75,20 @@ pub fn open_scene(spec: &str) -> Result<OpenedScene, String> {
             notes.push(summary);
         }
         notes.extend(imported.warnings.iter().map(|w| format!("warning: {w}")));
-        Ok(OpenedScene {
+        OpenedScene {
             scene: imported.scene,
             notes,
-        })
+            translation: glam::Vec3::ZERO,
+        }
+        .checked()
     } else {
         let scene = builtin::scene(spec).map_err(|e| e.to_string())?;
-        Ok(OpenedScene {
+        OpenedScene {
             scene,
             notes: Vec::new(),
-        })
+            translation: glam::Vec3::ZERO,
+        }
+        .checked()
     }
 }
 

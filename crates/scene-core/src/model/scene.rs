@@ -278,11 +278,27 @@ impl Camera {
         }
     }
 
+    /// The up vector its views use: [`Camera::up`] unless that is zero or parallel to the
+    /// view direction (a camera looking straight up or down with the default +Y), then the
+    /// first of -Z, +Y, +X that is not, so every camera with a view direction has a view.
+    pub fn view_up(&self) -> Vec3 {
+        let forward = (self.target - self.position).normalize_or_zero();
+        [self.up, Vec3::NEG_Z, Vec3::Y, Vec3::X]
+            .into_iter()
+            .find(|c| {
+                let c = c.normalize_or_zero();
+                forward.cross(c).length_squared() > 1e-6
+            })
+            .unwrap_or(Vec3::Y)
+    }
+
     /// Checks what every view of this camera needs: finite position, target and up; a view
-    /// direction of non-zero length that up is not parallel to; field of view in (0, pi);
-    /// finite aspect > 0; finite planes with 0 < near < far. The error names the camera
-    /// (`index` labels an unnamed one) and says what is wrong. [`Scene::validate`] and every
-    /// loader of cameras (glTF, camera lists) use this one check.
+    /// direction of non-zero length (up may be zero or parallel to it: [`Camera::view_up`]
+    /// picks one); a vertical field of view in (0, [`FOV_MAX`]]; finite aspect > 0; planes
+    /// with 0 < near < far, far / near at most [`DEPTH_RANGE_MAX`] and near x far finite.
+    /// The error names the camera (`index` labels an unnamed one) and says what is wrong.
+    /// [`Scene::validate`] and every loader of cameras (glTF, camera lists) use this one
+    /// check.
     pub fn check(&self, index: usize) -> Result<(), SceneError> {
         let dir = self.target - self.position;
         let reason =
@@ -290,14 +306,14 @@ impl Camera {
                 Some("position, target or up is not finite".to_string())
             } else if dir.length_squared() == 0.0 || !dir.length_squared().is_finite() {
                 Some("target equals position (or lies too far to measure)".into())
-            } else if !(dir.normalize().cross(self.up).length_squared() > 1e-12
-                && dir.normalize().cross(self.up).length_squared().is_finite())
-            {
-                Some("up is zero or parallel to the view direction".into())
-            } else if !(self.fov_y > 0.0 && self.fov_y < std::f32::consts::PI) {
+            } else if !(self.fov_y > 0.0 && self.fov_y <= FOV_MAX) {
                 Some(format!(
-                    "vertical field of view {} rad is outside (0, pi)",
-                    self.fov_y
+                    "vertical field of view {} rad ({:.2} degrees) is outside (0, {:.0} degrees]: \
+                     wider, the rasterising methods clip at the near plane what the path \
+                     tracer sees",
+                    self.fov_y,
+                    self.fov_y.to_degrees(),
+                    FOV_MAX.to_degrees()
                 ))
             } else if !(self.aspect > 0.0 && self.aspect.is_finite()) {
                 Some(format!(
@@ -308,6 +324,17 @@ impl Camera {
                 Some(format!(
                     "planes near {} and far {} break 0 < near < far < infinity",
                     self.near, self.far
+                ))
+            } else if !(self.far / self.near <= DEPTH_RANGE_MAX
+                && (self.near * self.far).is_finite())
+            {
+                Some(format!(
+                    "planes near {:e} and far {:e}: far / near is {:e}, above {DEPTH_RANGE_MAX:e} \
+                     (or near x far overflows), so f32 depth cannot tell near from far and \
+                     the rasterising methods draw nothing",
+                    self.near,
+                    self.far,
+                    self.far / self.near
                 ))
             } else {
                 None
@@ -321,6 +348,16 @@ impl Camera {
         }
     }
 }
+
+/// The widest vertical field of view a camera may have: 170 degrees. Wider, the rasterising
+/// methods (DL, ISR, relighting, the IBRR) clip at the near plane much of what the path
+/// tracer, whose rays start at the eye, sees.
+pub const FOV_MAX: f32 = 170.0 * std::f32::consts::PI / 180.0;
+
+/// The largest far / near ratio a camera may have: beyond it f32 depth (z / w of a
+/// perspective projection) rounds near and far geometry to the same value and the
+/// rasterisers draw nothing.
+pub const DEPTH_RANGE_MAX: f32 = 1e6;
 
 /// A scene: meshes, materials, textures, lights and cameras.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -411,6 +448,32 @@ impl Bounds {
 /// Triangles whose area is below this fraction of the squared scene extent are degenerate.
 const DEGENERATE_REL_AREA: f32 = 1e-14;
 
+/// The largest albedo a channel may have. Radiosity diverges at 1, and a light path (or a
+/// progressive solve) in a closed room of albedo rho needs about 1 / (1 - rho) bounces: at
+/// 0.999 a thousand, the most a reference render or a solve can afford. The glTF importer
+/// clamps to it with a note.
+pub const ALBEDO_MAX: f32 = 0.999;
+
+/// The largest emitted radiance, point-light intensity or directional irradiance a scene may
+/// give (any channel). The sun's disc is about 2e7 W/(m^2 sr); this bound leaves f32 about
+/// 26 orders of magnitude for the sums, the inverse-square gains of nearby lights and the
+/// squares (variances, errors) every method takes of radiance.
+pub const RADIOMETRIC_MAX: f32 = 1e12;
+
+/// [`SceneError::OutOfRange`] unless every channel of `v` lies in `[0, max]` (NaN fails).
+fn check_channels(what: impl FnOnce() -> String, v: Vec3, max: f32) -> Result<(), SceneError> {
+    let ok = |x: f32| (0.0..=max).contains(&x);
+    match v.to_array().into_iter().find(|&x| !ok(x)) {
+        None => Ok(()),
+        Some(bad) => Err(SceneError::OutOfRange {
+            what: what(),
+            value: bad as f64,
+            min: 0.0,
+            max: max as f64,
+        }),
+    }
+}
+
 impl Scene {
     /// An empty scene with a name.
     pub fn new(name: &str) -> Self {
@@ -469,8 +532,11 @@ impl Scene {
     ///
     /// Errors (each names the mesh, triangle, material or light at fault): non-finite
     /// positions or UVs, UV or material-id counts that do not match, indices out of range,
-    /// material ids out of range, albedo outside [0, 1) (radiosity diverges at 1), negative or
-    /// non-finite emission, non-finite or negative light data, invalid cameras.
+    /// material ids out of range, albedo outside [0, [`ALBEDO_MAX`]] (radiosity diverges at
+    /// 1), negative or non-finite emission, non-finite or negative light data, emission,
+    /// intensity or irradiance above [`RADIOMETRIC_MAX`] ([`SceneError::OutOfRange`]),
+    /// invalid cameras. What a method needs of the whole scene (geometry, precision) is
+    /// checked by [`crate::contract::check`].
     /// Repairs: degenerate triangles are dropped and counted; missing, zero-length or
     /// non-finite normals are recomputed from the faces (a normal array whose length does not
     /// match the positions is replaced whole, every vertex counted).
@@ -594,7 +660,7 @@ impl Scene {
             let name = label_or_index(&m.name, "material", i);
             if !m.albedo.is_finite()
                 || m.albedo.min_element() < 0.0
-                || m.albedo.max_element() >= 1.0
+                || m.albedo.max_element() > ALBEDO_MAX
             {
                 return Err(SceneError::AlbedoOutOfRange {
                     material: name,
@@ -607,6 +673,11 @@ impl Scene {
                     emission: m.emission.to_array(),
                 });
             }
+            check_channels(
+                || format!("{name}: emission"),
+                m.emission,
+                RADIOMETRIC_MAX,
+            )?;
             if let Some(t) = m.albedo_texture {
                 let Some(tex) = self.textures.get(t as usize) else {
                     return Err(SceneError::TextureOutOfRange {
@@ -655,6 +726,11 @@ impl Scene {
                     reason: "position, intensity or radius not finite, or negative".into(),
                 });
             }
+            check_channels(
+                || format!("{}: intensity", label_or_index(&l.name, "point light", i)),
+                l.intensity,
+                RADIOMETRIC_MAX,
+            )?;
         }
         for (i, l) in self.directional_lights.iter().enumerate() {
             let bad = !l.direction.is_finite()
@@ -668,6 +744,16 @@ impl Scene {
                         .into(),
                 });
             }
+            check_channels(
+                || {
+                    format!(
+                        "{}: irradiance",
+                        label_or_index(&l.name, "directional light", i)
+                    )
+                },
+                l.irradiance,
+                RADIOMETRIC_MAX,
+            )?;
         }
         Ok(())
     }

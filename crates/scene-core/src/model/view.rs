@@ -226,10 +226,11 @@ pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
 }
 
 impl View {
-    /// A perspective view from a camera (its aspect ratio is the camera's).
+    /// A perspective view from a camera (its aspect ratio is the camera's; its up is
+    /// [`Camera::view_up`], so a camera looking straight up or down has a view too).
     pub fn from_camera(camera: &Camera) -> View {
         let forward = (camera.target - camera.position).normalize();
-        let right = forward.cross(camera.up).normalize();
+        let right = forward.cross(camera.view_up()).normalize();
         let up = right.cross(forward);
         let ty = (camera.fov_y * 0.5).tan();
         let tx = ty * camera.aspect;

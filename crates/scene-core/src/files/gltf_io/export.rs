@@ -415,7 +415,7 @@ fn build_document(
     for c in &scene.cameras {
         let offset = c.target - c.position;
         let forward = offset.normalize();
-        let right = forward.cross(c.up).normalize();
+        let right = forward.cross(c.view_up()).normalize();
         let up = right.cross(forward);
         let rotation = Quat::from_mat3(&Mat3::from_cols(right, up, -forward)).normalize();
         cameras.push(named(

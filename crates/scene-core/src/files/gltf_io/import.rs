@@ -601,7 +601,7 @@ impl<'a> Importer<'a> {
                     ),
                 ));
             }
-            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            let world = parent * self.node_matrix(&node)?;
             self.visit(&node, world)?;
             let children: Vec<gltf::Node> = node.children().collect();
             for child in children.into_iter().rev() {
@@ -620,8 +620,59 @@ impl<'a> Importer<'a> {
             let cam = &mut self.scene.cameras[p.camera];
             let reach = 2.0 * (cam.position.distance(center) + extent);
             cam.far = (1000.0 * p.near).max(reach);
+            if cam.far / cam.near > crate::scene::DEPTH_RANGE_MAX {
+                let near = cam.far / crate::scene::DEPTH_RANGE_MAX;
+                self.warnings.push(format!(
+                    "{}: infinite projection with znear {:e}: the far plane is set to the \
+                     scene's reach {:e} and near raised to {near:e} (far / near at most {:e})",
+                    label_or_index(&cam.name, "camera", p.camera),
+                    cam.near,
+                    cam.far,
+                    crate::scene::DEPTH_RANGE_MAX
+                ));
+                cam.near = near;
+            }
         }
         Ok(())
+    }
+
+    /// A node's local matrix. glTF requires a unit rotation quaternion, and readers differ on
+    /// what to make of another one: a zero or non-finite quaternion is refused naming the
+    /// node; one whose length is off by more than 1e-3 is normalised with a warning.
+    fn node_matrix(&mut self, node: &gltf::Node) -> Result<Mat4, GltfError> {
+        match node.transform() {
+            gltf::scene::Transform::Matrix { matrix } => Ok(Mat4::from_cols_array_2d(&matrix)),
+            gltf::scene::Transform::Decomposed {
+                translation,
+                rotation,
+                scale,
+            } => {
+                let q = glam::Quat::from_array(rotation);
+                let len2 = q.length_squared();
+                let label = label_or_index(node.name().unwrap_or(""), "node", node.index());
+                if !(len2.is_finite() && len2 > 1e-12) {
+                    return Err(content_error(
+                        self.path,
+                        format!(
+                            "{label}: rotation {rotation:?} is not a unit quaternion (zero or \
+                             not finite): its orientation is undefined"
+                        ),
+                    ));
+                }
+                if (len2 - 1.0).abs() > 1e-3 {
+                    self.warnings.push(format!(
+                        "{label}: rotation {rotation:?} is not a unit quaternion (length {:.4}); \
+                         normalised",
+                        len2.sqrt()
+                    ));
+                }
+                Ok(Mat4::from_scale_rotation_translation(
+                    Vec3::from(scale),
+                    q.normalize(),
+                    Vec3::from(translation),
+                ))
+            }
+        }
     }
 
     fn import_materials(&mut self) -> Result<(), GltfError> {

@@ -1,0 +1,265 @@
+//! The scene contract across every method (DL, ISR, relighting, the IBRR, the reference;
+//! CPU and, where an adapter exists, GPU): each hard case gets a finite image that agrees
+//! with the reference, or the same typed refusal from every method
+//! (`scene_core::contract`, docs/hostile-files.md).
+
+use std::sync::Arc;
+
+use golden_tests::scenes::{self, Outcome, keeps_contract, run, techniques};
+use scene_core::glam::Vec3;
+use scene_core::scene::Scene;
+use scene_core::{SceneError, builtin};
+
+const W: u32 = 24;
+const H: u32 = 18;
+
+fn gpu() -> Option<scene_core::gpu::GpuContext> {
+    scene_core::gpu::gpu_test_context()
+}
+
+/// Every technique's outcome for `scene`, each checked against the contract.
+fn outcomes(scene: Scene) -> Vec<(&'static str, Outcome)> {
+    let scene = Arc::new(scene);
+    let ctx = gpu();
+    techniques(ctx.as_ref())
+        .into_iter()
+        .map(|(name, mut t)| {
+            let o = run(t.as_mut(), &scene, W, H);
+            if let Err(e) = keeps_contract(&o, W, H) {
+                panic!("{name} on {}: {e}", scene.name);
+            }
+            (name, o)
+        })
+        .collect()
+}
+
+#[test]
+fn scenes_without_light_render_black_in_every_method() {
+    for scene in [
+        scenes::unlit_room(),
+        scenes::single_triangle(),
+        scenes::degenerate_emitter(),
+    ] {
+        let name = scene.name.clone();
+        let contract = scene_core::contract::check(&scene).unwrap();
+        assert!(!contract.lit, "{name}");
+        assert!(
+            contract.notes.iter().any(|n| n.contains("no light")),
+            "{name}: {:?}",
+            contract.notes
+        );
+        for (technique, o) in outcomes(scene) {
+            let img = o.image(technique);
+            assert!(
+                img.pixels.iter().all(|p| *p == Vec3::ZERO),
+                "{technique} on {name}: a scene without light must be black"
+            );
+        }
+    }
+}
+
+#[test]
+fn scenes_without_geometry_are_refused_by_every_method() {
+    for scene in [scenes::empty_scene(), scenes::all_degenerate()] {
+        let name = scene.name.clone();
+        for (technique, o) in outcomes(scene) {
+            match o.scene_error() {
+                Some(SceneError::NoGeometry { scene, .. }) => assert_eq!(scene, &name),
+                _ => panic!("{technique} on {name}: expected NoGeometry, got {o:?}"),
+            }
+        }
+    }
+}
+
+#[test]
+fn far_off_geometry_is_refused_by_every_method_naming_offset_and_extent() {
+    for offset in [1e7f32, 1e30] {
+        let scene = scenes::lit_room(true, false).translated(Vec3::new(offset, 0.0, 0.0));
+        for (technique, o) in outcomes(scene) {
+            match o.scene_error() {
+                Some(SceneError::PrecisionLost {
+                    offset: off,
+                    extent,
+                    ..
+                }) => {
+                    assert!((off / offset - 1.0).abs() < 1e-3, "{technique}: {off}");
+                    // The f32 positions have lost their precision already: the extent
+                    // is what is left of the room's 1.755.
+                    assert!(*extent > 0.0 && *extent < 4.0, "{technique}: {extent}");
+                }
+                _ => panic!("{technique} at offset {offset}: expected PrecisionLost, got {o:?}"),
+            }
+        }
+    }
+}
+
+#[test]
+fn out_of_range_lights_and_albedos_are_refused_at_validation_naming_the_field() {
+    let mut s = scenes::lit_room(true, true);
+    s.point_lights[0].intensity = Vec3::splat(1e38);
+    match s.validate() {
+        Err(SceneError::OutOfRange {
+            what, value, max, ..
+        }) => {
+            assert!(what.contains("bulb") && what.contains("intensity"), "{what}");
+            assert_eq!((value, max), (1e38f32 as f64, 1e12f32 as f64));
+        }
+        other => panic!("{other:?}"),
+    }
+    let mut s = scenes::lit_room(true, true);
+    s.directional_lights.push(scene_core::DirectionalLight {
+        name: "sun".into(),
+        direction: Vec3::NEG_Y,
+        irradiance: Vec3::new(1.0, 1e13, 1.0),
+    });
+    assert!(matches!(s.validate(), Err(SceneError::OutOfRange { what, .. }) if what.contains("sun")));
+    let mut s = scenes::lit_room(true, true);
+    s.materials[2].emission = Vec3::splat(f32::MAX);
+    assert!(matches!(s.validate(), Err(SceneError::OutOfRange { what, .. }) if what.contains("lamp")));
+    let mut s = scenes::lit_room(true, true);
+    s.materials[0].albedo = Vec3::splat(0.9995);
+    assert!(matches!(s.validate(), Err(SceneError::AlbedoOutOfRange { .. })));
+}
+
+/// Mean of a channel over pixels, relative difference of two images' means.
+fn mean_rel(a: &scene_core::Image, b: &scene_core::Image) -> f32 {
+    let (ma, mb) = (a.mean(), b.mean());
+    ((ma - mb).abs() / ma.max(Vec3::splat(1e-6))).max_element()
+}
+
+/// Mean absolute pixel difference over the mean: a per-pixel agreement measure.
+fn pixel_rel(a: &scene_core::Image, b: &scene_core::Image) -> f32 {
+    let d: f32 = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| (*p - *q).abs().element_sum())
+        .sum();
+    d / a.pixels.iter().map(|p| p.element_sum()).sum::<f32>().max(1e-12)
+}
+
+#[test]
+fn cameras_looking_straight_down_or_up_render_in_every_method() {
+    // Straight down or up with the default +Y up: the view takes -Z as its up hint, the
+    // limit of a camera tilted by a milliradian towards -Z (down) or +Z (up), and every
+    // method renders what it renders from that tilted camera.
+    let base = scenes::lit_room(true, true);
+    for (dir, tilt) in [(Vec3::NEG_Y, Vec3::NEG_Z), (Vec3::Y, Vec3::Z)] {
+        let with_dir = |d: Vec3| {
+            let mut s = base.clone();
+            let c = &mut s.cameras[0];
+            c.position = Vec3::new(0.5, 0.4, 0.6);
+            c.target = c.position + d;
+            c.up = Vec3::Y;
+            s.validate().unwrap();
+            s
+        };
+        let exact = outcomes(with_dir(dir));
+        let tilted = outcomes(with_dir(dir + tilt * 1e-3));
+        for ((technique, a), (_, b)) in exact.iter().zip(&tilted) {
+            let (a, b) = (a.image(technique), b.image(technique));
+            assert!(a.mean().max_element() > 0.0, "{technique} looking {dir}: black");
+            let e = pixel_rel(b, a);
+            eprintln!("looking {dir}: {technique} differs from the tilted camera by {e:.4}");
+            assert!(e < 0.05, "{technique} looking {dir}: {e}");
+        }
+    }
+}
+
+#[test]
+fn extreme_camera_fields_are_refused_at_validation_naming_the_field() {
+    let base = scenes::lit_room(true, true);
+    let cases: [(&str, fn(&mut scene_core::Camera)); 4] = [
+        ("field of view", |c| c.fov_y = 179.9f32.to_radians()),
+        ("far / near", |c| {
+            c.near = 1e-30;
+            c.far = 1e30
+        }),
+        ("far / near", |c| c.near = 1e-9),
+        ("far / near", |c| {
+            c.near = 1e20;
+            c.far = 1e21
+        }),
+    ];
+    for (field, edit) in cases {
+        let mut s = base.clone();
+        edit(&mut s.cameras[0]);
+        match s.validate() {
+            Err(SceneError::InvalidCamera { camera, reason }) => {
+                assert!(camera.contains("inside"), "{camera}");
+                assert!(reason.contains(field), "{reason}");
+            }
+            other => panic!("{field}: {other:?}"),
+        }
+    }
+    // The widest accepted camera renders in every method.
+    let mut s = base.clone();
+    s.cameras[0].fov_y = scene_core::scene::FOV_MAX;
+    s.validate().unwrap();
+    for (technique, o) in outcomes(s) {
+        assert!(o.image(technique).mean().max_element() > 0.0, "{technique}");
+    }
+}
+
+/// Each method's image of a scene and of the same scene moved by `offset` (its camera and
+/// lights too) agree: translation invariance. Returns the worst per-pixel relative
+/// difference per method.
+fn translation_errors(offset: Vec3) -> Vec<(&'static str, f32)> {
+    let base = scenes::lit_room(true, true);
+    let moved = base.clone().translated(offset);
+    let a = outcomes(base);
+    let b = outcomes(moved);
+    a.iter()
+        .zip(&b)
+        .map(|((n, oa), (_, ob))| (*n, pixel_rel(oa.image(n), ob.image(n))))
+        .collect()
+}
+
+#[test]
+fn a_moved_scene_renders_like_the_original_and_recentring_restores_it() {
+    // 50 extents from the origin: within f32's precision, so every method accepts it and
+    // must give the picture of the original.
+    let offset = Vec3::new(60.0, -35.0, 70.0);
+    for (technique, e) in translation_errors(offset) {
+        eprintln!("moved by {offset}: {technique} differs by {e:.4} (mean |d| / mean)");
+        assert!(e < 0.05, "{technique}: {e}");
+    }
+    // Recentring undoes a translation exactly up to rounding: the recentred scene renders
+    // the same image as the original in every method.
+    let base = scenes::lit_room(true, true);
+    let far = base.clone().translated(Vec3::new(1000.0, 0.0, 0.0));
+    let contract = scene_core::contract::check(&far).unwrap();
+    assert!(contract.notes.iter().any(|n| n.contains("from the origin")));
+    let (back, t) = far.recentred();
+    assert!((t.x + 1000.5).abs() < 0.01, "{t}");
+    let a = outcomes(base);
+    let b = outcomes(back);
+    for ((n, oa), (_, ob)) in a.iter().zip(&b) {
+        let e = pixel_rel(oa.image(n), ob.image(n));
+        eprintln!("recentred from 1000: {n} differs by {e:.5}");
+        assert!(e < 0.02, "{n}: {e}");
+    }
+}
+
+#[test]
+fn scaled_scenes_render_like_the_original_in_every_method() {
+    let base = scenes::lit_room(true, true);
+    let a = outcomes(base.clone());
+    for k in [1e-3f32, 1e3] {
+        let b = outcomes(base.clone().scaled(k));
+        for ((n, oa), (_, ob)) in a.iter().zip(&b) {
+            let e = pixel_rel(oa.image(n), ob.image(n));
+            eprintln!("scaled by {k}: {n} differs by {e:.5}");
+            assert!(e < 0.05, "{n} scaled by {k}: {e}");
+        }
+    }
+}
+
+#[test]
+fn built_in_scenes_keep_the_contract_and_are_lit() {
+    for name in ["cornell", "cornell-point", "primitives", "corridor"] {
+        let s = builtin::scene(name).unwrap();
+        let c = scene_core::contract::check(&s).unwrap();
+        assert!(c.lit && c.notes.is_empty(), "{name}: {c:?}");
+    }
+}
