@@ -164,12 +164,42 @@ pub fn closed_box(mesh: &mut Mesh, lo: Vec3, hi: Vec3, material: u32) {
     let centre = (lo + hi) * 0.5;
     let (a, b) = (lo, hi);
     let faces = [
-        [c(a.x, a.y, a.z), c(b.x, a.y, a.z), c(b.x, a.y, b.z), c(a.x, a.y, b.z)],
-        [c(a.x, b.y, a.z), c(b.x, b.y, a.z), c(b.x, b.y, b.z), c(a.x, b.y, b.z)],
-        [c(a.x, a.y, a.z), c(a.x, b.y, a.z), c(a.x, b.y, b.z), c(a.x, a.y, b.z)],
-        [c(b.x, a.y, a.z), c(b.x, b.y, a.z), c(b.x, b.y, b.z), c(b.x, a.y, b.z)],
-        [c(a.x, a.y, a.z), c(b.x, a.y, a.z), c(b.x, b.y, a.z), c(a.x, b.y, a.z)],
-        [c(a.x, a.y, b.z), c(b.x, a.y, b.z), c(b.x, b.y, b.z), c(a.x, b.y, b.z)],
+        [
+            c(a.x, a.y, a.z),
+            c(b.x, a.y, a.z),
+            c(b.x, a.y, b.z),
+            c(a.x, a.y, b.z),
+        ],
+        [
+            c(a.x, b.y, a.z),
+            c(b.x, b.y, a.z),
+            c(b.x, b.y, b.z),
+            c(a.x, b.y, b.z),
+        ],
+        [
+            c(a.x, a.y, a.z),
+            c(a.x, b.y, a.z),
+            c(a.x, b.y, b.z),
+            c(a.x, a.y, b.z),
+        ],
+        [
+            c(b.x, a.y, a.z),
+            c(b.x, b.y, a.z),
+            c(b.x, b.y, b.z),
+            c(b.x, a.y, b.z),
+        ],
+        [
+            c(a.x, a.y, a.z),
+            c(b.x, a.y, a.z),
+            c(b.x, b.y, a.z),
+            c(a.x, b.y, a.z),
+        ],
+        [
+            c(a.x, a.y, b.z),
+            c(b.x, a.y, b.z),
+            c(b.x, b.y, b.z),
+            c(a.x, b.y, b.z),
+        ],
     ];
     for f in faces {
         mesh.push_quad_facing(f, material, centre);
@@ -197,8 +227,10 @@ pub fn room_camera(lo: Vec3, hi: Vec3) -> Camera {
 pub fn lit_room(point: bool, emissive_patch: bool) -> Scene {
     let (lo, hi) = (Vec3::ZERO, Vec3::new(1.0, 0.8, 1.2));
     let mut s = Scene::new("room");
-    s.materials.push(Material::diffuse("grey", Vec3::splat(0.6)));
-    s.materials.push(Material::diffuse("red", Vec3::new(0.7, 0.2, 0.15)));
+    s.materials
+        .push(Material::diffuse("grey", Vec3::splat(0.6)));
+    s.materials
+        .push(Material::diffuse("red", Vec3::new(0.7, 0.2, 0.15)));
     s.materials.push(Material::emissive(
         "lamp",
         Vec3::splat(0.5),
@@ -210,7 +242,12 @@ pub fn lit_room(point: bool, emissive_patch: bool) -> Scene {
     };
     closed_box(&mut m, lo, hi, 0);
     // A red block on the floor.
-    closed_box_outward(&mut m, Vec3::new(0.2, 0.0, 0.3), Vec3::new(0.5, 0.3, 0.6), 1);
+    closed_box_outward(
+        &mut m,
+        Vec3::new(0.2, 0.0, 0.3),
+        Vec3::new(0.5, 0.3, 0.6),
+        1,
+    );
     if emissive_patch {
         let y = hi.y - 1e-3;
         m.push_quad_facing(
@@ -258,7 +295,8 @@ pub fn unlit_room() -> Scene {
 /// One triangle seen by a camera, no light.
 pub fn single_triangle() -> Scene {
     let mut s = Scene::new("one-triangle");
-    s.materials.push(Material::diffuse("grey", Vec3::splat(0.5)));
+    s.materials
+        .push(Material::diffuse("grey", Vec3::splat(0.5)));
     s.meshes.push(Mesh {
         name: "tri".into(),
         positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
@@ -293,8 +331,11 @@ pub fn degenerate_emitter() -> Scene {
     ));
     let m = &mut s.meshes[0];
     let base = m.positions.len() as u32;
-    m.positions
-        .extend([Vec3::new(0.5, 0.79, 0.5), Vec3::new(0.6, 0.79, 0.5), Vec3::new(0.7, 0.79, 0.5)]);
+    m.positions.extend([
+        Vec3::new(0.5, 0.79, 0.5),
+        Vec3::new(0.6, 0.79, 0.5),
+        Vec3::new(0.7, 0.79, 0.5),
+    ]);
     m.normals.extend([Vec3::NEG_Y; 3]);
     m.indices.push([base, base + 1, base + 2]);
     m.material_ids.push(3);
@@ -314,7 +355,8 @@ pub fn empty_scene() -> Scene {
 pub fn all_degenerate() -> Scene {
     let mut s = empty_scene();
     s.name = "all-degenerate".into();
-    s.materials.push(Material::diffuse("grey", Vec3::splat(0.5)));
+    s.materials
+        .push(Material::diffuse("grey", Vec3::splat(0.5)));
     s.meshes.push(Mesh {
         name: "slivers".into(),
         positions: vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
@@ -335,7 +377,8 @@ pub fn all_degenerate() -> Scene {
 pub fn random_scene(seed: u64) -> Scene {
     let mut rng = Rng::new(seed, 0x5ce4e);
     let mut r = || rng.next_f32();
-    let pick = |u: f32, values: &[f32]| values[((u * values.len() as f32) as usize).min(values.len() - 1)];
+    let pick =
+        |u: f32, values: &[f32]| values[((u * values.len() as f32) as usize).min(values.len() - 1)];
     let mut s = Scene::new(&format!("random-{seed}"));
     let albedo = |u: f32, v: f32| {
         Vec3::new(
@@ -349,8 +392,11 @@ pub fn random_scene(seed: u64) -> Scene {
     s.materials.push(Material::diffuse("walls", a0));
     s.materials.push(Material::diffuse("blocks", a1));
     let emission = pick(r(), &[0.0, 1.0, 50.0, 1e12, 1e13, f32::MAX]);
-    s.materials
-        .push(Material::emissive("lamp", Vec3::splat(0.5), Vec3::splat(emission)));
+    s.materials.push(Material::emissive(
+        "lamp",
+        Vec3::splat(0.5),
+        Vec3::splat(emission),
+    ));
     let size = Vec3::new(1.0 + r(), 0.5 + r(), 1.0 + r());
     let mut m = Mesh {
         name: "room".into(),

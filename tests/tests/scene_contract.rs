@@ -101,7 +101,10 @@ fn out_of_range_lights_and_albedos_are_refused_at_validation_naming_the_field() 
         Err(SceneError::OutOfRange {
             what, value, max, ..
         }) => {
-            assert!(what.contains("bulb") && what.contains("intensity"), "{what}");
+            assert!(
+                what.contains("bulb") && what.contains("intensity"),
+                "{what}"
+            );
             assert_eq!((value, max), (1e38f32 as f64, 1e12f32 as f64));
         }
         other => panic!("{other:?}"),
@@ -112,19 +115,20 @@ fn out_of_range_lights_and_albedos_are_refused_at_validation_naming_the_field() 
         direction: Vec3::NEG_Y,
         irradiance: Vec3::new(1.0, 1e13, 1.0),
     });
-    assert!(matches!(s.validate(), Err(SceneError::OutOfRange { what, .. }) if what.contains("sun")));
+    assert!(
+        matches!(s.validate(), Err(SceneError::OutOfRange { what, .. }) if what.contains("sun"))
+    );
     let mut s = scenes::lit_room(true, true);
     s.materials[2].emission = Vec3::splat(f32::MAX);
-    assert!(matches!(s.validate(), Err(SceneError::OutOfRange { what, .. }) if what.contains("lamp")));
+    assert!(
+        matches!(s.validate(), Err(SceneError::OutOfRange { what, .. }) if what.contains("lamp"))
+    );
     let mut s = scenes::lit_room(true, true);
     s.materials[0].albedo = Vec3::splat(0.9995);
-    assert!(matches!(s.validate(), Err(SceneError::AlbedoOutOfRange { .. })));
-}
-
-/// Mean of a channel over pixels, relative difference of two images' means.
-fn mean_rel(a: &scene_core::Image, b: &scene_core::Image) -> f32 {
-    let (ma, mb) = (a.mean(), b.mean());
-    ((ma - mb).abs() / ma.max(Vec3::splat(1e-6))).max_element()
+    assert!(matches!(
+        s.validate(),
+        Err(SceneError::AlbedoOutOfRange { .. })
+    ));
 }
 
 /// Mean absolute pixel difference over the mean: a per-pixel agreement measure.
@@ -135,7 +139,12 @@ fn pixel_rel(a: &scene_core::Image, b: &scene_core::Image) -> f32 {
         .zip(&b.pixels)
         .map(|(p, q)| (*p - *q).abs().element_sum())
         .sum();
-    d / a.pixels.iter().map(|p| p.element_sum()).sum::<f32>().max(1e-12)
+    d / a
+        .pixels
+        .iter()
+        .map(|p| p.element_sum())
+        .sum::<f32>()
+        .max(1e-12)
 }
 
 #[test]
@@ -158,7 +167,10 @@ fn cameras_looking_straight_down_or_up_render_in_every_method() {
         let tilted = outcomes(with_dir(dir + tilt * 1e-3));
         for ((technique, a), (_, b)) in exact.iter().zip(&tilted) {
             let (a, b) = (a.image(technique), b.image(technique));
-            assert!(a.mean().max_element() > 0.0, "{technique} looking {dir}: black");
+            assert!(
+                a.mean().max_element() > 0.0,
+                "{technique} looking {dir}: black"
+            );
             let e = pixel_rel(b, a);
             eprintln!("looking {dir}: {technique} differs from the tilted camera by {e:.4}");
             assert!(e < 0.05, "{technique} looking {dir}: {e}");
@@ -262,4 +274,63 @@ fn built_in_scenes_keep_the_contract_and_are_lit() {
         let c = scene_core::contract::check(&s).unwrap();
         assert!(c.lit && c.notes.is_empty(), "{name}: {c:?}");
     }
+}
+
+#[test]
+fn coincident_faces_are_dropped_at_validation_keeping_the_first() {
+    let base = scenes::lit_room(true, true);
+    let mut doubled = base.clone();
+    let m = &mut doubled.meshes[0];
+    let n = m.indices.len();
+    for i in 0..n {
+        // Each face again, wound the other way (the same positions in another order).
+        let [a, b, c] = m.indices[i];
+        m.indices.push([a, c, b]);
+        let id = m.material_ids[i];
+        m.material_ids.push(id);
+    }
+    let report = doubled.validate().unwrap();
+    assert_eq!(
+        report.duplicates_dropped,
+        vec![("mesh #0 'walls'".to_string(), n)]
+    );
+    assert_eq!(doubled, base, "the first of each pair is kept, as it was");
+}
+
+#[test]
+fn a_diverging_relighting_solve_stops_at_once_naming_the_fault() {
+    use relight_pr::RelightError;
+    use relight_pr::solver::{DIVERGED_FRACTION, check_energy};
+    assert!(check_energy(3, 1.0).is_ok() && check_energy(3, DIVERGED_FRACTION).is_ok());
+    for bad in [f64::NAN, f64::INFINITY, 2.0] {
+        match check_energy(7, bad) {
+            Err(RelightError::Diverged { shots: 7, fraction }) => {
+                assert!(fraction.is_nan() == bad.is_nan())
+            }
+            other => panic!("{bad}: {other:?}"),
+        }
+    }
+    // A hemicube of one pixel a face gains energy: refused before the solve.
+    let scene = scenes::lit_room(true, true);
+    let meshing =
+        relight_pr::Meshing::new(&scene, &relight_pr::MeshSettings::elements(64), 1).unwrap();
+    let rays = scene_core::ray::RayScene::build(&scene);
+    let mut renderer = gbuffer::CpuRasterizer::new();
+    let settings = relight_pr::SolverSettings {
+        form_factors: relight_pr::FormFactorMethod::Hemicube { resolution: 1 },
+        ..Default::default()
+    };
+    let e = relight_pr::solver::solve_with(
+        &scene,
+        &meshing,
+        &rays,
+        Some(&mut renderer),
+        &settings,
+        &mut |_| {},
+    )
+    .unwrap_err();
+    assert!(
+        matches!(&e, RelightError::InvalidSetting(m) if m.contains("hemicube resolution 1")),
+        "{e}"
+    );
 }

@@ -413,9 +413,14 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
     let (width, height) = parse_size(&o.size)?;
     let bounces = parse_bounces(&o.bounces)?;
     let choices = parse_techniques(&o.techniques)?;
-    if o.spp == 0 {
-        return Err("--spp must be positive".into());
-    }
+    // Every number against its stated range before any scene is loaded or camera drawn.
+    crate::ranged("--spp", o.spp, scene_core::range::SPP)?;
+    scene_core::range::check_opt("--views", o.views, 1..=1000).map_err(|e| e.to_string())?;
+    crate::ranged("--repeats", o.repeats, 1..=100)?;
+    crate::ranged("--sequence-frames", o.sequence_frames, 0..=64)?;
+    scene_core::range::check_opt("--sequence-spp", o.sequence_spp, scene_core::range::SPP)
+        .map_err(|e| e.to_string())?;
+    crate::check_out_dir(&o.out)?;
     let backend = if o.gpu {
         let ctx = scene_core::gpu::GpuContext::new()
             .map_err(|e| format!("--gpu: {e} (run with --cpu to stay on the CPU)"))?;
@@ -458,13 +463,13 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                 load_camera_list(file, file_scene)
             }
             .map_err(|e| e.to_string())?
-                .into_iter()
-                .map(|mut c| {
-                    c.position += moved;
-                    c.target += moved;
-                    c
-                })
-                .collect(),
+            .into_iter()
+            .map(|mut c| {
+                c.position += moved;
+                c.target += moved;
+                c
+            })
+            .collect(),
             None => scene.cameras.clone(),
         };
         let count = o.views.unwrap_or(given.len().max(1));

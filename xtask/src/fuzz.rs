@@ -60,6 +60,8 @@ struct Summary {
 
 /// `cargo xtask fuzz`.
 pub fn run(opts: &Options) -> Result<(), String> {
+    crate::ranged("--seconds", opts.seconds, 1..=86_400)?;
+    crate::ranged("--jobs", opts.jobs, 1..=16)?;
     let all = fuzz::targets();
     let names: Vec<&str> = if opts.targets.is_empty() {
         all.iter().map(|t| t.name).collect()

@@ -42,6 +42,11 @@ pub struct Options {
 pub fn run(o: &Options) -> Result<(), String> {
     let splat: Splat = o.splat.parse().map_err(|e| format!("--splat: {e}"))?;
     let lookup: Lookup = o.lookup.parse().map_err(|e| format!("--lookup: {e}"))?;
+    o.view.check()?;
+    crate::ranged("--ldc", o.ldc, 8..=2048)?;
+    crate::ranged("--irpls", o.irpls, 1..=100_000)?;
+    crate::ranged("--clamp", o.clamp, 0.0..=1.0)?;
+    crate::check_out_dir(&o.out)?;
     let (scene, state, camera) = o.view.open()?;
     let camera = &camera;
     let settings = IbrrSettings {

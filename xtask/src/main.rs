@@ -281,15 +281,40 @@ pub struct ViewArgs {
     pub exposure: f32,
 }
 
+/// [`scene_core::range::check`] with the error as the commands print it.
+pub fn ranged<T: PartialOrd + std::fmt::Display + Copy>(
+    what: &str,
+    value: T,
+    range: std::ops::RangeInclusive<T>,
+) -> Result<T, String> {
+    scene_core::range::check(what, value, range).map_err(|e| e.to_string())
+}
+
+/// Fails at once unless `dir` can be created (or exists as a folder) and a file can be
+/// written in it: an output path is checked before the long work that fills it.
+pub fn check_out_dir(dir: &Path) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("output folder {}: {e}", dir.display()))?;
+    let probe = dir.join(format!(".write-check-{}", std::process::id()));
+    std::fs::write(&probe, b"")
+        .map_err(|e| format!("output folder {}: cannot write in it: {e}", dir.display()))?;
+    std::fs::remove_file(&probe).ok();
+    Ok(())
+}
+
 impl ViewArgs {
-    /// Checks the size, loads the scene, parses the lights and picks the camera.
+    /// Checks the numbers (size, exposure: [`scene_core::range`]), loads the scene, parses
+    /// the lights and picks the camera.
+    pub fn check(&self) -> Result<(), String> {
+        ranged("--width", self.width, scene_core::range::IMAGE_SIDE)?;
+        ranged("--height", self.height, scene_core::range::IMAGE_SIDE)?;
+        ranged("--exposure", self.exposure, scene_core::range::EXPOSURE)?;
+        Ok(())
+    }
+
+    /// Checks the numbers ([`ViewArgs::check`]), loads the scene, parses the lights and
+    /// picks the camera.
     pub fn open(&self) -> Result<(Arc<Scene>, scene_core::LightState, scene_core::Camera), String> {
-        if self.width == 0 || self.height == 0 {
-            return Err(format!(
-                "--width and --height must be positive (got {}x{})",
-                self.width, self.height
-            ));
-        }
+        self.check()?;
         let scene = Arc::new(load_scene(&self.scene)?);
         let state = relight::light_state(&scene, &self.lights)?;
         let camera = scene_camera(&scene, self.camera)?;
@@ -377,11 +402,14 @@ fn reference(
     exposure: f32,
     out: &Path,
 ) -> Result<(), String> {
-    if width == 0 || height == 0 || spp == 0 {
-        return Err(format!(
-            "width, height and spp must be positive (got {width}x{height}, {spp} spp)"
-        ));
+    ranged("--width", width, scene_core::range::IMAGE_SIDE)?;
+    ranged("--height", height, scene_core::range::IMAGE_SIDE)?;
+    ranged("--spp", spp, scene_core::range::SPP)?;
+    ranged("--exposure", exposure, scene_core::range::EXPOSURE)?;
+    if let Bounces::Limited(n) = bounces {
+        ranged("--bounces", n, 0..=1000)?;
     }
+    check_out_dir(out)?;
     let scene = load_scene(scene_spec)?;
     let cam = scene_camera(&scene, camera)?;
     let cam = cam.with_aspect(width as f32 / height as f32);
@@ -536,17 +564,23 @@ fn run(cli: Cli) -> Result<(), String> {
             what,
             threads,
             repeats,
-        } => match what.as_str() {
-            "reference" => bench::reference(threads, repeats),
-            "isr" => bench::isr(threads, repeats),
-            "gbuffer" => bench::gbuffer(threads, repeats),
-            "relight" => bench_relight::run(threads, repeats),
-            "relight-frames" => bench_relight::frames(threads, repeats),
-            "relight-dynamic" => bench_relight::dynamic_only(threads, repeats),
-            "ibrr" => bench_ibrr::run(threads, repeats),
-            other => Err(format!(
-                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, ibrr)"
-            )),
+        } => match (
+            ranged("--threads", threads, 1..=1024),
+            ranged("--repeats", repeats, 1..=1000),
+        ) {
+            (Err(e), _) | (_, Err(e)) => Err(e),
+            _ => match what.as_str() {
+                "reference" => bench::reference(threads, repeats),
+                "isr" => bench::isr(threads, repeats),
+                "gbuffer" => bench::gbuffer(threads, repeats),
+                "relight" => bench_relight::run(threads, repeats),
+                "relight-frames" => bench_relight::frames(threads, repeats),
+                "relight-dynamic" => bench_relight::dynamic_only(threads, repeats),
+                "ibrr" => bench_ibrr::run(threads, repeats),
+                other => Err(format!(
+                    "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, ibrr)"
+                )),
+            },
         },
     }
 }

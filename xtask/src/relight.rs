@@ -47,6 +47,22 @@ pub struct Options {
     pub emitter_rays: u32,
 }
 
+impl Options {
+    /// Every number against its stated range, before the scene is loaded: a bad
+    /// `--subpixels` or `--emitter-rays` would otherwise fail only after the solve.
+    pub fn check(&self) -> Result<(), String> {
+        use crate::ranged;
+        self.view.check()?;
+        ranged("--elements", self.elements, 16..=1_000_000)?;
+        ranged("--split-depth", self.split_depth, 0..=10)?;
+        ranged("--hemicube-resolution", self.hemicube_resolution, 16..=2048)?;
+        ranged("--max-unshot", self.max_unshot, 1e-6..=1.0)?;
+        ranged("--subpixels", self.subpixels, 1..=256)?;
+        ranged("--emitter-rays", self.emitter_rays, 1..=1024)?;
+        crate::check_out_dir(&self.out)
+    }
+}
+
 /// A light id as the command line writes it: `point:N`, `directional:N`, `emissive:N`
 /// (N a mesh index).
 pub fn id_text(id: LightId) -> String {
@@ -126,6 +142,7 @@ pub fn light_state(scene: &Scene, settings: &[String]) -> Result<LightState, Str
 
 /// Runs the command.
 pub fn run(o: &Options) -> Result<(), String> {
+    o.check()?;
     let (scene, state, camera) = o.view.open()?;
     let camera = &camera;
     let form_factors = match o.form_factors.as_str() {

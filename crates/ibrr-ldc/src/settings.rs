@@ -159,9 +159,10 @@ impl IbrrSettings {
                 self.resolution
             ));
         }
-        if self.irpls > 10_000_000 || self.paths > 10_000_000 {
+        if !(1..=10_000_000).contains(&self.irpls) || self.paths > 10_000_000 {
             return bad(format!(
-                "irpls and paths must be at most 10^7, got {} and {}",
+                "irpls must be in 1..=10^7 (none lights nothing) and paths at most 10^7, got {} \
+                 and {}",
                 self.irpls, self.paths
             ));
         }

@@ -459,6 +459,16 @@ impl Pair<'_> {
         let max = lum.iter().copied().fold(0.0f64, f64::max);
         let x85 = exposure_at_target();
         let eps = f32::EPSILON as f64;
+        // What a user sets has a stated range, checked before any exposure is evaluated.
+        for (what, v) in [
+            ("HDR-FLIP start exposure", options.start_exposure),
+            ("HDR-FLIP stop exposure", options.stop_exposure),
+        ] {
+            scene_core::range::check_opt(what, v, -64.0..=64.0)
+                .map_err(|e| CompareError::InvalidArgument(e.to_string()))?;
+        }
+        scene_core::range::check_opt("HDR-FLIP exposures", options.exposures, 1..=64)
+            .map_err(|e| CompareError::InvalidArgument(e.to_string()))?;
         let start = options
             .start_exposure
             .unwrap_or((x85 / max.max(eps)).log2() as f32);

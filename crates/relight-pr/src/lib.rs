@@ -67,6 +67,20 @@ pub enum RelightError {
     /// The GPU failed (device, validation, readback).
     #[error("GPU relighting failed: {0}")]
     Gpu(Box<scene_core::gpu::GpuError>),
+    /// The solve gained energy instead of losing it: the unshot energy became non-finite
+    /// or grew past [`solver::DIVERGED_FRACTION`] of the emitted energy. Form factors that
+    /// sum above 1 do this (overlapping faces, a hemicube too coarse for its patches).
+    #[error(
+        "the radiosity solve diverged after {shots} shots: the unshot energy is {fraction:e} \
+         times the emitted energy (form factors gain energy: overlapping faces, or a hemicube \
+         too coarse)"
+    )]
+    Diverged {
+        /// Shots taken when it was noticed.
+        shots: usize,
+        /// The unshot fraction then (non-finite or above the limit).
+        fraction: f64,
+    },
 }
 
 impl From<RelightError> for scene_core::Error {

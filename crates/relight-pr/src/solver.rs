@@ -296,8 +296,11 @@ pub(crate) fn check_and_prepare(
     settings: &SolverSettings,
 ) -> Result<(), RelightError> {
     if let FormFactorMethod::Hemicube { resolution } = settings.form_factors {
-        if resolution == 0 {
-            return Err(RelightError::InvalidSetting("hemicube resolution 0".into()));
+        if !(MIN_HEMICUBE..=8192).contains(&resolution) {
+            return Err(RelightError::InvalidSetting(format!(
+                "hemicube resolution {resolution} is outside [{MIN_HEMICUBE}, 8192] (a coarser \
+                 hemicube's pixels carry form factors above 1 and the solve gains energy)"
+            )));
         }
         let Some(r) = renderer.as_deref_mut() else {
             return Err(RelightError::InvalidSetting(
@@ -389,6 +392,27 @@ fn solve_tagged(
     })
 }
 
+/// The coarsest hemicube form factors are taken with: at a resolution of 1 the top face's
+/// single pixel carries a delta form factor of 4/pi.
+pub const MIN_HEMICUBE: u32 = 16;
+
+/// The unshot fraction above which a solve has gained energy. Each shot of an
+/// energy-conserving solve (albedo below 1, form factors summing to at most 1) leaves less
+/// unshot energy than it found, so the fraction starts at 1 and falls; estimated form
+/// factors may sum slightly above 1, and 1.5 leaves room for that noise.
+pub const DIVERGED_FRACTION: f64 = 1.5;
+
+/// [`RelightError::Diverged`] when the unshot `fraction` is non-finite or above
+/// [`DIVERGED_FRACTION`]: checked before every shot, so a diverging solve stops at once
+/// rather than at the shot cap.
+pub fn check_energy(shots: usize, fraction: f64) -> Result<(), RelightError> {
+    if fraction.is_finite() && fraction <= DIVERGED_FRACTION {
+        Ok(())
+    } else {
+        Err(RelightError::Diverged { shots, fraction })
+    }
+}
+
 /// The state of a progressive refinement with `k` tagged sources: irradiance received
 /// (direct and indirect, element-major `j * k + m`) and unshot radiosity per patch
 /// (emitted and reflected, patch-major `p * k + m`).
@@ -465,6 +489,12 @@ pub(crate) fn propagate(
             .sum();
         (0..np).map(|p| power(unshot_emit, p)).sum::<f64>() + received
     };
+    if !emitted.is_finite() {
+        return Err(RelightError::Diverged {
+            shots: 0,
+            fraction: emitted,
+        });
+    }
     let mut stats = SolveStats {
         unshot_fraction: if emitted > 0.0 { 1.0 } else { 0.0 },
         ..Default::default()
@@ -509,6 +539,7 @@ pub(crate) fn propagate(
         }
         let fraction = unshot / emitted;
         stats.unshot_fraction = fraction;
+        check_energy(stats.shots, fraction)?;
         if fraction <= settings.max_unshot {
             break;
         }

@@ -25,7 +25,7 @@
 //! | rays | [`rays`]: [`ray`], [`reference`], [`sampling`] | the BVH, the reference path tracer, sampling |
 //! | G-buffer | [`gbuffer`] (with [`gbuffer::downsample`]) | the currency of the screen-space methods, the renderer trait, operations on G-buffers (CPU and WGSL) |
 //! | GPU | [`gpu`] (with [`gpu::compute`]) | the headless context, uploads and readbacks, GPU G-buffers, the compute-pass helper and pass timer |
-//! | methods | [`technique`], [`error`], [`hash`] | the traits the methods implement, errors, scene identity |
+//! | methods | [`technique`], [`error`], [`hash`], [`range`] | the traits the methods implement, errors, scene identity, stated ranges of user-set numbers |
 //!
 //! Each module of a layer is also reachable at the crate root (`scene_core::scene`,
 //! `scene_core::gltf_io`, ...), the paths the rest of the workspace uses.
@@ -37,6 +37,7 @@ pub mod gbuffer;
 pub mod gpu;
 pub mod hash;
 pub mod model;
+pub mod range;
 pub mod rays;
 pub mod technique;
 

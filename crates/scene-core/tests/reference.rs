@@ -124,7 +124,9 @@ fn furnace_at_the_largest_accepted_albedo_converges() {
     let out = render(&s, &view, &settings, None);
     let (mean, se) = mean_and_standard_error(&out.image, &out.variance, out.spp);
     let expected = (e / (1.0 - rho)) as f64;
-    eprintln!("furnace at albedo {rho}: mean {mean:.2}, expected {expected:.2}, standard error {se:.2}");
+    eprintln!(
+        "furnace at albedo {rho}: mean {mean:.2}, expected {expected:.2}, standard error {se:.2}"
+    );
     assert!(
         se > 0.0 && se < 0.05 * expected,
         "standard error {se} too large to test"

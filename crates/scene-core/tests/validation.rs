@@ -196,7 +196,10 @@ fn bad_lights_and_cameras_are_errors() {
     // Looking straight up with +Y up is a camera: its view takes another up.
     s.validate().unwrap();
     let v = scene_core::View::from_camera(&s.cameras[0]);
-    assert!(v.up.is_finite() && v.up.dot(v.forward).abs() < 1e-6, "{v:?}");
+    assert!(
+        v.up.is_finite() && v.up.dot(v.forward).abs() < 1e-6,
+        "{v:?}"
+    );
     s.cameras[0].fov_y = 3.0;
     match s.validate().unwrap_err() {
         SceneError::InvalidCamera { camera, reason } => {

@@ -49,6 +49,16 @@ pub fn run(args: Args) -> Result<(), String> {
     let size = args.window_size()?;
     let scale = args.render_scale()?;
     let first_mode = Mode::parse(&args.mode)?;
+    args.check_numbers()?;
+    if let Some(path) = &args.record {
+        // Fail now, not when the window closes: write an empty recording where the
+        // session's will go.
+        Script {
+            version: crate::script::VERSION,
+            steps: Vec::new(),
+        }
+        .write(path)?;
+    }
     let opened = scene_core::open_scene(&args.scene)?;
     for note in &opened.notes {
         eprintln!("{note}");
@@ -245,16 +255,23 @@ impl App {
     /// The outcome once the loop ended: the first error, or Ok after writing the
     /// recording and printing frame times.
     fn finish(mut self) -> Result<(), String> {
-        if let Some(e) = self.error.take() {
-            return Err(e);
-        }
+        // The recording is kept even when the session ends on an error.
         if let (Some(script), Some(path)) = (&self.recording, &self.args.record) {
-            script.write(path)?;
+            let written = script.write(path);
+            if let Err(w) = written {
+                return Err(match self.error.take() {
+                    Some(e) => format!("{e}; and the recording was lost: {w}"),
+                    None => w,
+                });
+            }
             eprintln!(
                 "recorded {} steps to {}",
                 script.steps.len(),
                 path.display()
             );
+        }
+        if let Some(e) = self.error.take() {
+            return Err(e);
         }
         if !self.mode_times.is_empty() {
             let adapter = self

@@ -74,6 +74,22 @@ pub struct Args {
 }
 
 impl Args {
+    /// Every number against its stated range ([`scene_core::range`]), before the window
+    /// opens or any work starts.
+    pub fn check_numbers(&self) -> Result<(), String> {
+        use scene_core::range::{self, check};
+        let e = |e: range::OutOfRange| e.to_string();
+        check("--relight-elements", self.relight_elements, 16..=1_000_000).map_err(e)?;
+        check("--ibrr-resolution", self.ibrr_resolution, 8..=2048).map_err(e)?;
+        check("--ibrr-irpls", self.ibrr_irpls, 1..=100_000).map_err(e)?;
+        check("--max-spp", self.max_spp, 1..=1 << 20).map_err(e)?;
+        check("--exposure", self.exposure, range::EXPOSURE).map_err(e)?;
+        if let Bounces::Limited(n) = self.bounces {
+            check("--bounces", n, 0..=1000).map_err(e)?;
+        }
+        Ok(())
+    }
+
     /// The render scale, checked.
     pub fn render_scale(&self) -> Result<f32, String> {
         if (0.05..=1.0).contains(&self.scale) {

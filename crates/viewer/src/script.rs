@@ -31,6 +31,10 @@ use crate::mode::Mode;
 /// The file format's version.
 pub const VERSION: u32 = 1;
 
+/// The largest replay file read: 64 MiB (a recorded hour at 60 frames a second is about
+/// 40 MiB).
+pub const MAX_SCRIPT_BYTES: u64 = 64 << 20;
+
 /// A walkthrough.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -157,11 +161,17 @@ pub fn apply_lights(state: &mut LightState, changes: &[(LightId, LightChange)]) 
 }
 
 impl Script {
-    /// Reads and parses a file; the error names the file and the fault.
+    /// Reads and parses a file; the error names the file and the fault. Only a regular
+    /// file of at most [`MAX_SCRIPT_BYTES`] is read (a FIFO or a device such as /dev/zero
+    /// is refused at once, before it is opened for reading).
     pub fn read(path: &Path) -> Result<Script, String> {
-        let text = std::fs::read_to_string(path)
+        let budget = scene_core::Budget {
+            file_bytes: MAX_SCRIPT_BYTES,
+            ..Default::default()
+        };
+        let bytes = scene_core::budget::read_file(path, &budget)
             .map_err(|e| format!("replay file '{}': {e}", path.display()))?;
-        serde_json::from_str(&text).map_err(|e| format!("replay file '{}': {e}", path.display()))
+        serde_json::from_slice(&bytes).map_err(|e| format!("replay file '{}': {e}", path.display()))
     }
 
     /// Writes the file (through a temporary file renamed into place, so a reader never
@@ -259,9 +269,8 @@ impl Step {
                 ));
             }
         }
-        if self.reference_spp == Some(0) {
-            return Err("reference_spp must be at least 1".into());
-        }
+        scene_core::range::check_opt("reference_spp", self.reference_spp, scene_core::range::SPP)
+            .map_err(|e| e.to_string())?;
         Ok(CheckedStep {
             scene_camera: self.scene_camera,
             camera,

@@ -32,7 +32,8 @@ impl OpenedScene {
     /// farther from it than its extent, noting both.
     fn checked(mut self) -> Result<Self, String> {
         let contract = crate::contract::check(&self.scene).map_err(|e| e.to_string())?;
-        self.notes.extend(contract.notes.into_iter().map(|n| format!("note: {n}")));
+        self.notes
+            .extend(contract.notes.into_iter().map(|n| format!("note: {n}")));
         let (scene, t) = self.scene.recentred();
         self.scene = scene;
         self.translation = t;

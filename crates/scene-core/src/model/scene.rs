@@ -301,44 +301,44 @@ impl Camera {
     /// check.
     pub fn check(&self, index: usize) -> Result<(), SceneError> {
         let dir = self.target - self.position;
-        let reason =
-            if !(self.position.is_finite() && self.target.is_finite() && self.up.is_finite()) {
-                Some("position, target or up is not finite".to_string())
-            } else if dir.length_squared() == 0.0 || !dir.length_squared().is_finite() {
-                Some("target equals position (or lies too far to measure)".into())
-            } else if !(self.fov_y > 0.0 && self.fov_y <= FOV_MAX) {
-                Some(format!(
-                    "vertical field of view {} rad ({:.2} degrees) is outside (0, {:.0} degrees]: \
+        let reason = if !(self.position.is_finite()
+            && self.target.is_finite()
+            && self.up.is_finite())
+        {
+            Some("position, target or up is not finite".to_string())
+        } else if dir.length_squared() == 0.0 || !dir.length_squared().is_finite() {
+            Some("target equals position (or lies too far to measure)".into())
+        } else if !(self.fov_y > 0.0 && self.fov_y <= FOV_MAX) {
+            Some(format!(
+                "vertical field of view {} rad ({:.2} degrees) is outside (0, {:.0} degrees]: \
                      wider, the rasterising methods clip at the near plane what the path \
                      tracer sees",
-                    self.fov_y,
-                    self.fov_y.to_degrees(),
-                    FOV_MAX.to_degrees()
-                ))
-            } else if !(self.aspect > 0.0 && self.aspect.is_finite()) {
-                Some(format!(
-                    "aspect ratio {} is not finite and > 0",
-                    self.aspect
-                ))
-            } else if !(self.near > 0.0 && self.far > self.near && self.far.is_finite()) {
-                Some(format!(
-                    "planes near {} and far {} break 0 < near < far < infinity",
-                    self.near, self.far
-                ))
-            } else if !(self.far / self.near <= DEPTH_RANGE_MAX
-                && (self.near * self.far).is_finite())
-            {
-                Some(format!(
-                    "planes near {:e} and far {:e}: far / near is {:e}, above {DEPTH_RANGE_MAX:e} \
+                self.fov_y,
+                self.fov_y.to_degrees(),
+                FOV_MAX.to_degrees()
+            ))
+        } else if !(self.aspect > 0.0 && self.aspect.is_finite()) {
+            Some(format!(
+                "aspect ratio {} is not finite and > 0",
+                self.aspect
+            ))
+        } else if !(self.near > 0.0 && self.far > self.near && self.far.is_finite()) {
+            Some(format!(
+                "planes near {} and far {} break 0 < near < far < infinity",
+                self.near, self.far
+            ))
+        } else if !(self.far / self.near <= DEPTH_RANGE_MAX && (self.near * self.far).is_finite()) {
+            Some(format!(
+                "planes near {:e} and far {:e}: far / near is {:e}, above {DEPTH_RANGE_MAX:e} \
                      (or near x far overflows), so f32 depth cannot tell near from far and \
                      the rasterising methods draw nothing",
-                    self.near,
-                    self.far,
-                    self.far / self.near
-                ))
-            } else {
-                None
-            };
+                self.near,
+                self.far,
+                self.far / self.near
+            ))
+        } else {
+            None
+        };
         match reason {
             None => Ok(()),
             Some(reason) => Err(SceneError::InvalidCamera {
@@ -385,6 +385,10 @@ pub struct ValidationReport {
     pub degenerate_dropped: Vec<(String, usize)>,
     /// Normals recomputed from faces because they were missing, zero or not finite.
     pub normals_recomputed: usize,
+    /// Triangles dropped because an earlier triangle (of any mesh) has the same three
+    /// vertex positions, per mesh: (mesh name, count). Coincident faces have no defined
+    /// radiosity between them (their form factor is singular) and only z-fight when drawn.
+    pub duplicates_dropped: Vec<(String, usize)>,
 }
 
 impl ValidationReport {
@@ -537,7 +541,8 @@ impl Scene {
     /// intensity or irradiance above [`RADIOMETRIC_MAX`] ([`SceneError::OutOfRange`]),
     /// invalid cameras. What a method needs of the whole scene (geometry, precision) is
     /// checked by [`crate::contract::check`].
-    /// Repairs: degenerate triangles are dropped and counted; missing, zero-length or
+    /// Repairs: degenerate triangles, and triangles that repeat an earlier one's positions
+    /// (coincident faces), are dropped and counted; missing, zero-length or
     /// non-finite normals are recomputed from the faces (a normal array whose length does not
     /// match the positions is replaced whole, every vertex counted).
     pub fn validate(&mut self) -> Result<ValidationReport, SceneError> {
@@ -652,7 +657,66 @@ impl Scene {
                 *n = n.normalize();
             }
         }
+        self.drop_duplicate_triangles(&mut report);
         Ok(report)
+    }
+
+    /// Drops every triangle whose three vertex positions (in any order) equal those of an
+    /// earlier triangle, meshes in order; the first keeps its material. Deterministic, and
+    /// 16 bytes a triangle of scratch (a sorted list of position hashes).
+    fn drop_duplicate_triangles(&mut self, report: &mut ValidationReport) {
+        use rayon::slice::ParallelSliceMut;
+        use std::hash::{Hash, Hasher};
+        let key = |m: &Mesh, t: usize| -> [[u32; 3]; 3] {
+            let mut k = m.indices[t].map(|i| m.positions[i as usize].to_array().map(f32::to_bits));
+            k.sort_unstable();
+            k
+        };
+        let mut entries: Vec<(u64, u32, u32)> = Vec::with_capacity(self.triangle_count());
+        for (mi, m) in self.meshes.iter().enumerate() {
+            for t in 0..m.indices.len() {
+                let mut h = std::hash::DefaultHasher::new();
+                key(m, t).hash(&mut h);
+                entries.push((h.finish(), mi as u32, t as u32));
+            }
+        }
+        entries.par_sort_unstable();
+        let mut drop: Vec<Vec<bool>> = self
+            .meshes
+            .iter()
+            .map(|m| vec![false; m.indices.len()])
+            .collect();
+        let mut any = false;
+        for group in entries.chunk_by(|a, b| a.0 == b.0) {
+            // Within one hash: each triangle is a duplicate when an earlier one of the group
+            // has exactly its positions (the group is in mesh, triangle order).
+            for (i, &(_, mi, t)) in group.iter().enumerate().skip(1) {
+                let k = key(&self.meshes[mi as usize], t as usize);
+                let seen = group[..i]
+                    .iter()
+                    .any(|&(_, mj, u)| key(&self.meshes[mj as usize], u as usize) == k);
+                if seen {
+                    drop[mi as usize][t as usize] = true;
+                    any = true;
+                }
+            }
+        }
+        if !any {
+            return;
+        }
+        for (mi, (mesh, drop)) in self.meshes.iter_mut().zip(&drop).enumerate() {
+            let count = drop.iter().filter(|&&d| d).count();
+            if count == 0 {
+                continue;
+            }
+            let mut d = drop.iter();
+            mesh.indices.retain(|_| !*d.next().unwrap_or(&false));
+            let mut d = drop.iter();
+            mesh.material_ids.retain(|_| !*d.next().unwrap_or(&false));
+            report
+                .duplicates_dropped
+                .push((mesh_label(mesh, mi), count));
+        }
     }
 
     fn validate_materials(&self) -> Result<(), SceneError> {
@@ -673,11 +737,7 @@ impl Scene {
                     emission: m.emission.to_array(),
                 });
             }
-            check_channels(
-                || format!("{name}: emission"),
-                m.emission,
-                RADIOMETRIC_MAX,
-            )?;
+            check_channels(|| format!("{name}: emission"), m.emission, RADIOMETRIC_MAX)?;
             if let Some(t) = m.albedo_texture {
                 let Some(tex) = self.textures.get(t as usize) else {
                     return Err(SceneError::TextureOutOfRange {

@@ -623,7 +623,10 @@ impl crate::Technique for ReferenceTechnique {
         let Some(scene) = self.scene.as_ref() else {
             return Err(crate::Error::NotPrepared("technique 'reference'".into()));
         };
-        frame.lights.check(scene).map_err(crate::Error::InvalidArgument)?;
+        frame
+            .lights
+            .check(scene)
+            .map_err(crate::Error::InvalidArgument)?;
         let settings = ReferenceSettings {
             width: frame.width,
             height: frame.height,

@@ -267,6 +267,12 @@ fn import_bytes(
     for (mesh, n) in &report.degenerate_dropped {
         warnings.push(format!("{mesh}: {n} degenerate triangles dropped"));
     }
+    for (mesh, n) in &report.duplicates_dropped {
+        warnings.push(format!(
+            "{mesh}: {n} triangles dropped that repeat an earlier triangle's positions \
+             (coincident faces)"
+        ));
+    }
     Ok(ImportResult {
         scene,
         ignored,
