@@ -141,7 +141,121 @@ pub fn targets() -> Vec<Target> {
                 Ok(())
             },
         },
+        Target {
+            name: "scenes",
+            ext: "json",
+            json: true,
+            seeds: scene_spec_seeds,
+            run: run_scene_spec,
+        },
     ]
+}
+
+/// The scene fuzz target's seeds: specs of random small scenes ([`crate::scenes::random_scene`])
+/// and of the hard cases the scene contract names, as JSON (so the fuzzer also sets their
+/// numbers to 0, -1, 1e39, 1e-45 ...).
+fn scene_spec_seeds() -> Vec<Vec<u8>> {
+    let mut s: Vec<String> = (0..8).map(|i| format!("{{\"seed\": {i}}}")).collect();
+    s.extend(
+        [
+            r#"{"seed": 1, "intensity": 1e38}"#,
+            r#"{"seed": 2, "albedo": [0.999, 0.999, 0.999], "emission": 5}"#,
+            r#"{"seed": 3, "offset": [1e7, 0, 0]}"#,
+            r#"{"seed": 4, "offset": [60, -35, 70], "scale": 1e3}"#,
+            r#"{"seed": 5, "camera": {"target": [0.5, -1, 0.5], "up": [0, 1, 0]}}"#,
+            r#"{"seed": 6, "camera": {"fov": 179.9, "near": 1e-30, "far": 1e30}}"#,
+            r#"{"seed": 7, "lights": false, "emission": 0}"#,
+            r#"{"seed": 8, "triangles": false}"#,
+        ]
+        .map(String::from),
+    );
+    s.into_iter().map(String::into_bytes).collect()
+}
+
+/// Runs one scene spec through the scene contract: the scene is built (a random small scene
+/// from `seed`, then the spec's overrides), validated as a loader would, and every method
+/// renders its first camera at 8x6 on the CPU. A refusal (validation, the contract, a
+/// method's typed error) is an outcome; an image with a non-finite or negative pixel, or a
+/// panic, is a finding.
+pub fn run_scene_spec(bytes: &[u8], _ctx: &Context) -> Result<(), String> {
+    use scene_core::glam::Vec3;
+    let v: serde_json::Value = serde_json::from_slice(bytes).map_err(|e| e.to_string())?;
+    let num = |k: &str| v.get(k).and_then(|x| x.as_f64()).map(|x| x as f32);
+    let vec3 = |x: Option<&serde_json::Value>| -> Option<Vec3> {
+        let a = x?.as_array()?;
+        (a.len() == 3).then(|| {
+            Vec3::new(
+                a[0].as_f64().unwrap_or(0.0) as f32,
+                a[1].as_f64().unwrap_or(0.0) as f32,
+                a[2].as_f64().unwrap_or(0.0) as f32,
+            )
+        })
+    };
+    let seed = v.get("seed").and_then(|x| x.as_u64()).unwrap_or(0);
+    let mut s = crate::scenes::random_scene(seed);
+    if let Some(i) = num("intensity") {
+        s.point_lights
+            .iter_mut()
+            .for_each(|l| l.intensity = Vec3::splat(i));
+    }
+    if let Some(a) = vec3(v.get("albedo")) {
+        s.materials[0].albedo = a;
+    }
+    if let Some(e) = num("emission") {
+        s.materials[2].emission = Vec3::splat(e);
+    }
+    if v.get("lights").and_then(|x| x.as_bool()) == Some(false) {
+        s.point_lights.clear();
+        s.directional_lights.clear();
+    }
+    if v.get("triangles").and_then(|x| x.as_bool()) == Some(false) {
+        s.meshes.iter_mut().for_each(|m| {
+            m.indices.clear();
+            m.material_ids.clear();
+        });
+    }
+    if let Some(c) = v.get("camera") {
+        let cam = &mut s.cameras[0];
+        if let Some(f) = c.get("fov").and_then(|x| x.as_f64()) {
+            cam.fov_y = (f as f32).to_radians();
+        }
+        if let Some(n) = c.get("near").and_then(|x| x.as_f64()) {
+            cam.near = n as f32;
+        }
+        if let Some(f) = c.get("far").and_then(|x| x.as_f64()) {
+            cam.far = f as f32;
+        }
+        if let Some(t) = vec3(c.get("target")) {
+            cam.target = t;
+        }
+        if let Some(u) = vec3(c.get("up")) {
+            cam.up = u;
+        }
+    }
+    if let Some(k) = num("scale") {
+        s = s.scaled(k);
+    }
+    if let Some(t) = vec3(v.get("offset")) {
+        s = s.translated(t);
+    }
+    s.validate().map_err(|e| e.to_string())?;
+    let scene = std::sync::Arc::new(s);
+    let (w, h) = (8, 6);
+    let mut refusals = Vec::new();
+    for (name, mut technique) in crate::scenes::techniques(None) {
+        let outcome = crate::scenes::run(technique.as_mut(), &scene, w, h);
+        if let Err(e) = crate::scenes::keeps_contract(&outcome, w, h) {
+            panic!("{name} broke the scene contract on {}: {e}", scene.name);
+        }
+        if let crate::scenes::Outcome::Refused(e) = outcome {
+            refusals.push(format!("{name}: {e}"));
+        }
+    }
+    if refusals.is_empty() {
+        Ok(())
+    } else {
+        Err(refusals.join("; "))
+    }
 }
 
 /// A loader's result as a target's: loaded, or refused with the error's text.

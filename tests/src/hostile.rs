@@ -342,7 +342,8 @@ pub fn exr_b44_overflow() -> Vec<u8> {
 }
 
 /// Camera lists with values that JSON holds but an f32 camera cannot: a far plane that
-/// becomes infinite, a field of view that becomes 0, NaN-like strings, huge positions.
+/// becomes infinite, a field of view that becomes 0, NaN-like strings, huge positions, and
+/// fields outside the scene contract's ranges (planes too far apart, too wide a view).
 pub fn bad_camera_lists() -> Vec<(&'static str, String)> {
     let cam = |extra: &str| {
         format!(
@@ -361,7 +362,14 @@ pub fn bad_camera_lists() -> Vec<(&'static str, String)> {
             "position 1e39",
             cam("").replace("[0.278, 0.273, -0.8]", "[1e39, 0, 0]"),
         ),
-        ("up zero", cam(", \"up\": [0, 0, 0]")),
+        (
+            "far / near 1e9 (f32 depth cannot separate them)",
+            cam(", \"near\": 1e-9, \"far\": 1"),
+        ),
+        (
+            "fov 179 (wider than 170 degrees)",
+            cam("").replace("\"fov\": 40", "\"fov\": 179"),
+        ),
     ]
 }
 

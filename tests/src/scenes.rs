@@ -382,7 +382,7 @@ pub fn random_scene(seed: u64) -> Scene {
     let mut s = Scene::new(&format!("random-{seed}"));
     let albedo = |u: f32, v: f32| {
         Vec3::new(
-            pick(u, &[0.0, 0.3, 0.8, 0.999, 1.0]),
+            pick(u, &[0.0, 0.3, 0.5, 0.8, 0.8, 0.999, 0.999, 1.0]),
             pick(v, &[0.1, 0.5, 0.999]),
             0.5,
         )
@@ -391,7 +391,7 @@ pub fn random_scene(seed: u64) -> Scene {
     let a1 = albedo(r(), r());
     s.materials.push(Material::diffuse("walls", a0));
     s.materials.push(Material::diffuse("blocks", a1));
-    let emission = pick(r(), &[0.0, 1.0, 50.0, 1e12, 1e13, f32::MAX]);
+    let emission = pick(r(), &[0.0, 1.0, 1.0, 50.0, 50.0, 1e12, 1e13, f32::MAX]);
     s.materials.push(Material::emissive(
         "lamp",
         Vec3::splat(0.5),
@@ -441,7 +441,7 @@ pub fn random_scene(seed: u64) -> Scene {
     }
     s.meshes.push(m);
     if r() < 0.5 {
-        let intensity = pick(r(), &[0.0, 0.5, 1e12, 1e38, f32::INFINITY]);
+        let intensity = pick(r(), &[0.0, 0.5, 0.5, 2.0, 1e12, 1e38, f32::INFINITY]);
         s.point_lights.push(PointLight {
             name: "bulb".into(),
             position: size * Vec3::new(r(), r(), r()),
@@ -459,7 +459,7 @@ pub fn random_scene(seed: u64) -> Scene {
         });
     }
     let mut camera = room_camera(Vec3::ZERO, size);
-    match (r() * 6.0) as u32 {
+    match (r() * 9.0) as u32 {
         0 => {
             // Straight down, +Y up hint.
             camera.target = camera.position - Vec3::Y;
@@ -474,7 +474,7 @@ pub fn random_scene(seed: u64) -> Scene {
     }
     s.cameras.push(camera);
     let scale = pick(r(), &[1e-3, 1.0, 1.0, 1e3]);
-    let offset = pick(r(), &[0.0, 0.0, 100.0, 1e7, 1e30]);
+    let offset = pick(r(), &[0.0, 0.0, 0.0, 0.0, 100.0, 100.0, 1e7, 1e30]);
     let dir = Vec3::new(r(), r(), r()) - 0.5;
     s.scaled(scale).translated(dir * offset)
 }

@@ -334,3 +334,32 @@ fn a_diverging_relighting_solve_stops_at_once_naming_the_fault() {
         "{e}"
     );
 }
+
+/// The scene fuzz target on a fixed budget with fixed seeds (its own seeds and 24 random
+/// scenes): every method keeps the contract on each (a broken contract panics inside the
+/// target, naming the method and the fault). `cargo xtask fuzz --target scenes` mutates
+/// these further.
+#[test]
+fn the_scene_fuzz_target_keeps_the_contract_on_fixed_seeds() {
+    let target = golden_tests::fuzz::targets()
+        .into_iter()
+        .find(|t| t.name == "scenes")
+        .unwrap();
+    let dir = golden_tests::hostile::scratch_dir("scene-specs");
+    let ctx = golden_tests::fuzz::Context::new(golden_tests::fuzz::fuzz_budget(), &dir);
+    let mut inputs = (target.seeds)();
+    inputs.extend((100..124).map(|i| format!("{{\"seed\": {i}}}").into_bytes()));
+    let (mut rendered, mut refused) = (0, 0);
+    for input in &inputs {
+        match golden_tests::fuzz::run(&target, input, &ctx) {
+            golden_tests::fuzz::Outcome::Ok => rendered += 1,
+            golden_tests::fuzz::Outcome::Refused(_) => refused += 1,
+            golden_tests::fuzz::Outcome::Panicked(p) => {
+                panic!("{}: {p}", String::from_utf8_lossy(input))
+            }
+        }
+    }
+    eprintln!("scene specs: {rendered} rendered by every method, {refused} refused");
+    assert!(rendered > 0 && refused > 0, "{rendered} {refused}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -245,3 +245,105 @@ fn imalyzer_refuses_image_bombs() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("image-bytes budget of 100 bytes"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Every number a user sets has a stated range, checked before any work: a huge, zero or
+/// NaN value exits 1 at once naming the argument and its range (before, several aborted on
+/// a huge allocation, hung, or wrote a black image with exit 0).
+#[test]
+fn numbers_out_of_range_are_refused_before_any_work() {
+    let xtask = Path::new(env!("CARGO_BIN_EXE_xtask"));
+    let dir = hostile::scratch_dir("cli-ranges");
+    let out = dir.join("out");
+    let o = s(&out);
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["relight", "--subpixels", "4000000000", "--out", o],
+            "--subpixels = 4000000000 is outside its range [1, 256]",
+        ),
+        (
+            vec!["relight", "--emitter-rays", "4000000000", "--out", o],
+            "--emitter-rays",
+        ),
+        (
+            vec![
+                "relight",
+                "--form-factors",
+                "hemicube",
+                "--hemicube-resolution",
+                "1",
+                "--out",
+                o,
+            ],
+            "--hemicube-resolution = 1",
+        ),
+        (
+            vec!["relight", "--exposure", "NaN", "--out", o],
+            "--exposure = NaN",
+        ),
+        (vec!["ibrr", "--irpls", "0", "--out", o], "--irpls = 0"),
+        (
+            vec!["reference", "--exposure", "NaN", "--out", o],
+            "--exposure = NaN",
+        ),
+        (
+            vec!["reference", "--width", "100000", "--out", o],
+            "--width = 100000",
+        ),
+        (
+            vec!["experiment", "--views", "0", "--out", o],
+            "--views = 0 is outside its range [1, 1000]",
+        ),
+        (
+            vec!["experiment", "--views", "1000000000", "--out", o],
+            "--views = 1000000000",
+        ),
+        (
+            vec!["experiment", "--sequence-frames", "1000000000", "--out", o],
+            "--sequence-frames",
+        ),
+        (
+            vec!["experiment", "--repeats", "0", "--out", o],
+            "--repeats = 0",
+        ),
+        (
+            vec!["bench", "reference", "--threads", "0"],
+            "--threads = 0",
+        ),
+        (vec!["fuzz", "--seconds", "0"], "--seconds = 0"),
+    ];
+    for (args, says) in &cases {
+        let start = std::time::Instant::now();
+        fails_cleanly(xtask, args, &[says]);
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(20),
+            "{args:?} took {:?}",
+            start.elapsed()
+        );
+    }
+    if let Some(imalyzer) = imalyzer() {
+        let good = hostile::write(&dir, "good.exr", &hostile::small_exr(4, 4));
+        fails_cleanly(
+            &imalyzer,
+            &["compare", s(&good), s(&good), "--exposures", "100000000"],
+            &["HDR-FLIP exposures = 100000000 is outside its range [1, 64]"],
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// An output folder that cannot be made fails before the long work, naming the folder.
+#[test]
+fn an_output_folder_that_cannot_be_made_fails_first() {
+    let xtask = Path::new(env!("CARGO_BIN_EXE_xtask"));
+    let dir = hostile::scratch_dir("cli-out");
+    let file = hostile::write(&dir, "a-file", b"x");
+    let inside = file.join("out");
+    for cmd in ["reference", "relight", "ibrr", "experiment"] {
+        fails_cleanly(
+            xtask,
+            &[cmd, "--out", s(&inside)],
+            &["output folder", "a-file"],
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -59,7 +59,18 @@ fn ibrr_writes_the_view_and_the_summary() {
 fn ibrr_refuses_bad_options_by_name() {
     for (args, says) in [
         (vec!["--splat", "round"], "--splat"),
-        (vec!["--ldc", "0"], "resolution"),
+        (
+            vec!["--ldc", "0"],
+            "--ldc = 0 is outside its range [8, 2048]",
+        ),
+        (
+            vec!["--irpls", "0"],
+            "--irpls = 0 is outside its range [1, 100000]",
+        ),
+        (
+            vec!["--exposure", "NaN"],
+            "--exposure = NaN is outside its range [-20, 20]",
+        ),
         (vec!["--camera", "7"], "--camera 7"),
         (vec!["--light", "point:9=1,1,1"], "point:0"),
     ] {

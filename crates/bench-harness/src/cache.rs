@@ -119,15 +119,23 @@ impl ReferenceCache {
             Image::read_exr_with(&exr, &budget),
             scene_core::budget::read_file(&meta_path, &budget),
         ) && let Ok(meta) = serde_json::from_slice::<CacheMeta>(&text)
-            && image.width == settings.width
-            && image.height == settings.height
         {
-            return Ok(CachedReference {
-                image,
-                seconds: meta.seconds,
-                key,
-                from_cache: true,
-            });
+            // A file read back is checked like user input: a bad entry is rendered again,
+            // with a note naming the file.
+            match check_entry(&image, &meta, settings) {
+                Ok(()) => {
+                    return Ok(CachedReference {
+                        image,
+                        seconds: meta.seconds,
+                        key,
+                        from_cache: true,
+                    });
+                }
+                Err(why) => eprintln!(
+                    "note: reference cache entry {}: {why}; rendering it again",
+                    exr.display()
+                ),
+            }
         }
         let out = reference::render_lit(
             scene,
@@ -136,6 +144,14 @@ impl ReferenceCache {
             lights,
             progress,
         );
+        let bad = out.image.non_finite_count();
+        if bad > 0 {
+            return Err(HarnessError::Invalid(format!(
+                "the reference render of scene '{}' from '{}' has {bad} non-finite pixel(s); \
+                 nothing was cached",
+                scene.name, camera.name
+            )));
+        }
         std::fs::create_dir_all(&self.dir).map_err(|e| HarnessError::io(&self.dir, e))?;
         out.image
             .write_exr(&exr)
@@ -157,4 +173,46 @@ impl ReferenceCache {
             from_cache: false,
         })
     }
+}
+
+/// What a cache entry read back must hold to be used: the asked size, finite non-negative
+/// pixels, and a sidecar whose samples and bounces are the asked ones and whose render time
+/// is a time (finite, at least 0, under a year).
+fn check_entry(
+    image: &Image,
+    meta: &CacheMeta,
+    settings: &ReferenceSettings,
+) -> Result<(), String> {
+    if (image.width, image.height) != (settings.width, settings.height) {
+        return Err(format!(
+            "image is {}x{}, {}x{} asked",
+            image.width, image.height, settings.width, settings.height
+        ));
+    }
+    if let Some(i) = image
+        .pixels
+        .iter()
+        .position(|p| !p.is_finite() || p.min_element() < 0.0)
+    {
+        let w = image.width.max(1) as usize;
+        return Err(format!(
+            "pixel ({}, {}) is {:?} (not finite or negative)",
+            i % w,
+            i / w,
+            image.pixels[i]
+        ));
+    }
+    if !(meta.seconds.is_finite() && (0.0..3.2e7).contains(&meta.seconds)) {
+        return Err(format!(
+            "its sidecar's seconds {} is not a render time",
+            meta.seconds
+        ));
+    }
+    if meta.spp != settings.spp || meta.bounces != settings.bounces.to_string() {
+        return Err(format!(
+            "its sidecar says {} spp, bounces {} ({} spp, bounces {} asked)",
+            meta.spp, meta.bounces, settings.spp, settings.bounces
+        ));
+    }
+    Ok(())
 }

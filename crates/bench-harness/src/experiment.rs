@@ -425,7 +425,12 @@ impl Experiment {
                         slug(&sc.id),
                         slug(&camera.name)
                     ));
-                    if let Some(v) = read_view(&file, &config, camera) {
+                    let lower_is_better = |name: &str| {
+                        self.metrics
+                            .iter()
+                            .any(|m| m.name() == name && m.lower_is_better())
+                    };
+                    if let Some(v) = read_view(&file, &config, camera, &lower_is_better) {
                         outcome_views.push(v);
                         resumed += 1;
                         views_bar.inc(1);
@@ -573,7 +578,13 @@ impl Experiment {
             && let Ok(saved) = serde_json::from_slice::<SavedSequence>(&bytes)
             && saved.config == config
         {
-            return Ok(Some(saved.result));
+            match saved.result.check() {
+                Ok(()) => return Ok(Some(saved.result)),
+                Err(why) => eprintln!(
+                    "note: resume file {}: {why}; measuring the sequence again",
+                    file.display()
+                ),
+            }
         }
         let Some(metric) = self
             .metrics
@@ -871,10 +882,29 @@ struct SavedSequence {
 /// A saved view result to resume from: read within the default file budget (never from a
 /// device), and used only when its configuration and its camera are exactly this run's (a
 /// camera is checked once, when its list is loaded; a saved file does not bring its own).
-fn read_view(path: &Path, config: &str, camera: &Camera) -> Option<ViewResult> {
+fn read_view(
+    path: &Path,
+    config: &str,
+    camera: &Camera,
+    lower_is_better: &dyn Fn(&str) -> bool,
+) -> Option<ViewResult> {
     let bytes = scene_core::budget::read_file(path, &scene_core::Budget::default()).ok()?;
     let v: ViewResult = serde_json::from_slice(&bytes).ok()?;
-    (v.config == config && v.camera == CameraSpec::from_camera(camera)).then_some(v)
+    if !(v.config == config && v.camera == CameraSpec::from_camera(camera)) {
+        return None;
+    }
+    // A resume file is read back like user input: values that are not measurements are
+    // computed again, with a note naming the file.
+    match v.check(lower_is_better) {
+        Ok(()) => Some(v),
+        Err(why) => {
+            eprintln!(
+                "note: resume file {}: {why}; computing the view again",
+                path.display()
+            );
+            None
+        }
+    }
 }
 
 /// Writes `<dir>/<stem>.png` always and `<dir>/<stem>.exr` when `exr` is set.

@@ -185,7 +185,73 @@ pub struct ViewResult {
     pub techniques: Vec<TechniqueResult>,
 }
 
+/// `Err` naming `what` unless `v` is a time or an error value: finite and at least 0.
+fn non_negative(what: impl FnOnce() -> String, v: f64) -> Result<(), String> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{} is {v:?}, not a finite value >= 0", what()))
+    }
+}
+
 impl ViewResult {
+    /// Checks what a saved view holds before it is reported as measured (a resume file is
+    /// read back like user input): every time and error finite and at least 0, frame
+    /// times ordered (min <= median <= max) from at least one repeat, metric values
+    /// finite (and at least 0 for the metrics `lower_is_better` names: errors), pixel
+    /// counts within the image, sample counts positive. The error names the technique and
+    /// the field.
+    pub fn check(&self, lower_is_better: &dyn Fn(&str) -> bool) -> Result<(), String> {
+        for r in &self.references {
+            let b = &r.bounces;
+            non_negative(|| format!("reference (bounces {b}) seconds"), r.seconds)?;
+            if r.spp == 0 {
+                return Err(format!("reference (bounces {b}) has 0 spp"));
+            }
+            for p in &r.ladder {
+                non_negative(|| format!("ladder rung {} spp seconds", p.spp), p.seconds)?;
+                non_negative(|| format!("ladder rung {} spp error", p.spp), p.error)?;
+            }
+        }
+        for t in &self.techniques {
+            let l = &t.label;
+            non_negative(|| format!("{l}: precomputation seconds"), t.prepare_s)?;
+            let f = &t.frame;
+            for (name, v) in [("min", f.min_s), ("median", f.median_s), ("max", f.max_s)] {
+                non_negative(|| format!("{l}: frame {name} seconds"), v)?;
+            }
+            if !(f.min_s <= f.median_s && f.median_s <= f.max_s && f.repeats > 0) {
+                return Err(format!(
+                    "{l}: frame times min {} median {} max {} over {} repeats are not ordered",
+                    f.min_s, f.median_s, f.max_s, f.repeats
+                ));
+            }
+            for e in &t.errors {
+                for (m, v) in &e.metrics {
+                    if !v.is_finite() || (lower_is_better(m) && *v < 0.0) {
+                        return Err(format!(
+                            "{l}: {m} (bounces {}) is {v:?}, not a measured value",
+                            e.bounces
+                        ));
+                    }
+                }
+                let counted = e.pixels_closer.unwrap_or(0) + e.pixels_farther.unwrap_or(0);
+                if counted > e.pixels {
+                    return Err(format!(
+                        "{l}: {counted} pixels closer or farther of {}",
+                        e.pixels
+                    ));
+                }
+                if let Some(q) = &e.equal_error {
+                    non_negative(|| format!("{l}: equal-error spp"), q.spp)?;
+                    non_negative(|| format!("{l}: equal-error seconds"), q.seconds)?;
+                    non_negative(|| format!("{l}: equal-error speedup"), q.speedup)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The camera's name.
     pub fn camera_name(&self) -> String {
         self.camera

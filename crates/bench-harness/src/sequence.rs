@@ -156,6 +156,33 @@ pub struct SequenceResult {
 }
 
 impl SequenceResult {
+    /// Checks a saved sequence before it is reported as measured: every time and error
+    /// finite and at least 0. The error names the frame, the technique and the field.
+    pub fn check(&self) -> Result<(), String> {
+        let bad = |what: String, v: f64| {
+            (!(v.is_finite() && v >= 0.0))
+                .then(|| format!("{what} is {v:?}, not a finite value >= 0"))
+        };
+        for (label, s) in &self.prepare_s {
+            if let Some(e) = bad(format!("{label}: precomputation seconds"), *s) {
+                return Err(e);
+            }
+        }
+        for (i, f) in self.frames.iter().enumerate() {
+            if let Some(e) = bad(format!("frame {i}: reference seconds"), f.reference_s) {
+                return Err(e);
+            }
+            for t in &f.techniques {
+                if let Some(e) = bad(format!("frame {i}: {} seconds", t.label), t.frame_s)
+                    .or_else(|| bad(format!("frame {i}: {} error", t.label), t.error))
+                {
+                    return Err(e);
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The (frame time, error) series of technique `label`.
     pub fn series(&self, label: &str) -> Vec<(f64, f64)> {
         self.frames

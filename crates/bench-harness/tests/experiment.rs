@@ -578,3 +578,78 @@ fn equal_error_interpolates_in_log_log_and_marks_extrapolation() {
         .collect();
     assert!(equal_error(&flat, 0.05, 0.002).is_none());
 }
+
+#[test]
+fn bad_cache_entries_and_resume_files_are_computed_again_not_reported() {
+    let base = temp_dir("readback");
+    let cache = base.join("cache");
+    let renders = Arc::new(AtomicU64::new(0));
+    let run = |out: &Path| {
+        let mut x = experiment(out, &renders);
+        x.settings.cache_dir = Some(cache.clone());
+        x.settings.bounces = vec![Bounces::Limited(1)];
+        x.run().unwrap()
+    };
+    let first = run(&base.join("a"));
+    assert_eq!(first.reference_renders, 2);
+    // A cached reference with a NaN pixel, and another whose sidecar has negative seconds:
+    // both are rendered again (in a fresh output folder, so no view is resumed).
+    let mut exrs: Vec<_> = std::fs::read_dir(&cache)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "exr"))
+        .collect();
+    exrs.sort();
+    assert_eq!(exrs.len(), 2);
+    let mut img = scene_core::Image::read_exr(&exrs[0]).unwrap();
+    img.pixels[3].y = f32::NAN;
+    img.write_exr(&exrs[0]).unwrap();
+    let sidecar = exrs[1].with_extension("json");
+    let text = std::fs::read_to_string(&sidecar).unwrap();
+    let mut meta: serde_json::Value = serde_json::from_str(&text).unwrap();
+    meta["seconds"] = serde_json::json!(-5.0);
+    std::fs::write(&sidecar, meta.to_string()).unwrap();
+    let second = run(&base.join("b"));
+    assert_eq!(
+        second.reference_renders, 2,
+        "both bad entries rendered again"
+    );
+    assert_eq!(errors(&second.results), errors(&first.results));
+    let errors_only = |name: &str| name != "ssim";
+    assert!(
+        second
+            .results
+            .views
+            .iter()
+            .all(|v| v.check(&errors_only).is_ok())
+    );
+    // A resume file whose frame time is negative and whose error is -1e308: that view is
+    // computed again, the other resumed.
+    let views = base.join("b").join("views");
+    let mut files: Vec<_> = std::fs::read_dir(&views)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .collect();
+    files.sort();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&files[0]).unwrap()).unwrap();
+    let metric = v["techniques"][0]["errors"][0]["metrics"][0][0]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert!(errors_only(&metric), "{metric}");
+    v["techniques"][0]["errors"][0]["metrics"][0][1] = serde_json::json!(-1e308);
+    let saved: bench_harness::results::ViewResult = serde_json::from_value(v.clone()).unwrap();
+    let e = saved.check(&errors_only).unwrap_err();
+    assert!(e.contains("-1e308") && e.contains(&metric), "{e}");
+    v["techniques"][0]["frame"]["median_s"] = serde_json::json!(-1.0);
+    let saved: bench_harness::results::ViewResult = serde_json::from_value(v.clone()).unwrap();
+    let e = saved.check(&errors_only).unwrap_err();
+    assert!(e.contains("frame median seconds is -1"), "{e}");
+    std::fs::write(&files[0], v.to_string()).unwrap();
+    let third = run(&base.join("b"));
+    assert_eq!((third.views_resumed, third.views_computed), (1, 1));
+    assert_eq!(errors(&third.results), errors(&first.results));
+    std::fs::remove_dir_all(&base).ok();
+}

@@ -5,7 +5,7 @@
 //! [`LightState`]: start points are quasi-random (scrambled Halton, dimensions 0 to 4:
 //! which light, where on it, which direction), bounces are cosine-weighted with a seeded
 //! generator per path, and a particle survives a bounce with probability equal to the
-//! largest channel of the albedo there (capped at 0.95, at most
+//! largest channel of the albedo there (so the carried power never grows; at most
 //! [`crate::IbrrSettings::max_depth`] bounces), its power divided by that probability.
 //!
 //! Each surface a particle reaches holds an IRPL: a Lambertian point emitter of power
@@ -471,7 +471,10 @@ impl Walker<'_> {
                 path: path_id,
                 depth,
             });
-            let q = s.albedo.max_element().min(0.95);
+            // Survival equals the albedo's largest channel (at most 0.999,
+            // `scene_core::scene::ALBEDO_MAX`), so the carried power never grows: a cap below
+            // the albedo multiplied it by rho / cap at every bounce.
+            let q = s.albedo.max_element().min(1.0);
             if q <= 0.0 || rng.next_f32() >= q {
                 break;
             }

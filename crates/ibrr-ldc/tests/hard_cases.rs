@@ -40,12 +40,20 @@ fn finite(img: &Image) -> bool {
 }
 
 #[test]
-fn an_empty_scene_and_a_scene_without_lights_are_black() {
+fn an_empty_scene_is_refused_and_a_scene_without_lights_is_black() {
     let camera = builtin::scene("cornell").unwrap().cameras[0].clone();
+    // An empty scene is refused naming the fault (the scene contract), nothing built.
     let empty = Arc::new(Scene::new("empty"));
-    let (img, t) = render(&empty, small(), &camera, 16);
-    assert!(img.pixels.iter().all(|p| *p == Vec3::ZERO));
-    assert_eq!(t.ldc().unwrap().layer_count(), 0);
+    let mut t = IbrrTechnique::new(small(), Box::new(RayCastRenderer::new()));
+    let e = t.prepare(empty).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            scene_core::Error::Scene(scene_core::SceneError::NoGeometry { .. })
+        ),
+        "{e}"
+    );
+    assert!(t.ldc().is_none());
     let mut dark = builtin::scene("cornell-point").unwrap();
     dark.point_lights.clear();
     let dark = Arc::new(dark);

@@ -374,17 +374,20 @@ fn a_scene_without_lights_is_black() {
     let img = setup.render(&IsrSettings::default());
     let lit = img.pixels.iter().filter(|p| **p != Vec3::ZERO).count();
     assert!(lit > 0 && lit < 40, "{lit} pixels see the light");
-    // An empty scene.
+    // An empty scene is refused naming the fault (the scene contract).
     let mut empty = Scene::new("empty");
     empty
         .cameras
         .push(builtin::scene("cornell").unwrap().cameras[0].clone());
     let mut t = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer::new()));
-    t.prepare(Arc::new(empty.clone())).unwrap();
-    let img = t
-        .render(&FrameRequest::camera(&empty.cameras[0], 8, 6))
-        .unwrap();
-    assert!(img.pixels.iter().all(|p| *p == Vec3::ZERO));
+    let e = t.prepare(Arc::new(empty)).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            scene_core::Error::Scene(scene_core::SceneError::NoGeometry { .. })
+        ),
+        "{e}"
+    );
 }
 
 #[test]

@@ -285,10 +285,8 @@ impl Camera {
         let forward = (self.target - self.position).normalize_or_zero();
         [self.up, Vec3::NEG_Z, Vec3::Y, Vec3::X]
             .into_iter()
-            .find(|c| {
-                let c = c.normalize_or_zero();
-                forward.cross(c).length_squared() > 1e-6
-            })
+            .map(|c| (c / c.abs().max_element()).normalize_or_zero())
+            .find(|c| forward.cross(*c).length_squared() > 1e-6)
             .unwrap_or(Vec3::Y)
     }
 
