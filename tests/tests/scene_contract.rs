@@ -181,7 +181,8 @@ fn cameras_looking_straight_down_or_up_render_in_every_method() {
 #[test]
 fn extreme_camera_fields_are_refused_at_validation_naming_the_field() {
     let base = scenes::lit_room(true, true);
-    let cases: [(&str, fn(&mut scene_core::Camera)); 4] = [
+    type Edit = fn(&mut scene_core::Camera);
+    let cases: [(&str, Edit); 4] = [
         ("field of view", |c| c.fov_y = 179.9f32.to_radians()),
         ("far / near", |c| {
             c.near = 1e-30;

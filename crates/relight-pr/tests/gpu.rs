@@ -195,3 +195,49 @@ fn hardware_display_equals_the_cpu_display() {
             .is_err()
     );
 }
+
+/// A scene without lights solves to zero sources; the hardware display (what the viewer
+/// draws) binds its buffers and shows black, as the CPU display does.
+#[test]
+fn a_scene_without_lights_displays_black_on_the_gpu() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let mut scene = builtin::scene("corridor").unwrap();
+    scene.point_lights.clear();
+    let scene = Arc::new(scene);
+    assert!(!scene_core::contract::is_lit(&scene));
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(100), 0).unwrap();
+    let rays = RayScene::build(&scene);
+    let solution = solve(
+        &scene,
+        &meshing,
+        &rays,
+        &SolverSettings::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(
+        (solution.k(), solution.elements),
+        (0, meshing.elements.len())
+    );
+    let welding = Welding::new(&meshing, scene.extent());
+    let (w, h) = (16, 12);
+    let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
+    let mut renderer = RayCastRenderer::new();
+    renderer
+        .prepare(Arc::new(meshing.element_scene(&scene)))
+        .unwrap();
+    let g = renderer.render_view(&view, w, h).unwrap();
+    let gg = GpuGBuffer::upload(&ctx, &g).unwrap();
+    let gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
+    let state = LightState::default();
+    let (f, base) = relight::weights(&solution, &state, true);
+    let got = gpu.display(&gg, &view, &f, base, None).unwrap();
+    assert_eq!(got.pixels.len(), (w * h) as usize);
+    assert!(got.pixels.iter().all(|p| *p == Vec3::ZERO));
+    assert_eq!(
+        relight::irradiance(&solution, &state).len(),
+        meshing.elements.len()
+    );
+}

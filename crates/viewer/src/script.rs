@@ -299,6 +299,39 @@ mod tests {
         s.check(&cornell())
     }
 
+    /// A replay file is read only when it is a regular file: a device or a FIFO is refused
+    /// at once (reading /dev/zero grew without bound; opening a FIFO blocked forever).
+    #[test]
+    fn special_files_are_refused_at_once() {
+        let start = std::time::Instant::now();
+        let e = Script::read(Path::new("/dev/zero")).unwrap_err();
+        assert!(
+            e.contains("/dev/zero") && e.contains("not a regular file"),
+            "{e}"
+        );
+        let dir = std::env::temp_dir().join(format!("viewer-fifo-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let fifo = dir.join("replay.json");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .is_ok_and(|s| s.success());
+        if made {
+            let e = Script::read(&fifo).unwrap_err();
+            assert!(e.contains("not a regular file"), "{e}");
+        }
+        let e = Script::read(&dir).unwrap_err();
+        assert!(e.contains("not a regular file"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+        assert!(start.elapsed() < std::time::Duration::from_secs(5));
+    }
+
+    #[test]
+    fn reference_spp_out_of_range_is_refused_naming_it() {
+        let e = check(r#"{"version": 1, "steps": [{"reference_spp": 0}]}"#).unwrap_err();
+        assert!(e.contains("reference_spp = 0 is outside its range"), "{e}");
+    }
+
     #[test]
     fn a_walkthrough_reads_back_as_written() {
         let script = Script {

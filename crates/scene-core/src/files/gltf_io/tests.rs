@@ -817,3 +817,45 @@ fn invalid_scene_is_reported() {
         other => panic!("expected Invalid, got {other:?}"),
     }
 }
+
+#[test]
+fn zero_rotations_are_refused_and_unnormalised_ones_normalised() {
+    let with_rotation = |rotation: serde_json::Value| {
+        doc(&TRI, Some(&TRI_N), None, 4, |root| {
+            root["extensionsUsed"] = json!([EXT_LIGHTS]);
+            root["extensions"] = json!({ EXT_LIGHTS: { "lights": [
+                { "name": "sun", "type": "directional", "intensity": 3.0 },
+            ]}});
+            root["nodes"] = json!([
+                { "mesh": 0 },
+                { "name": "sun-node", "rotation": rotation,
+                  "extensions": { EXT_LIGHTS: { "light": 0 } } },
+            ]);
+            root["scenes"] = json!([{ "nodes": [0, 1] }]);
+        })
+    };
+    let e = import_slice(&with_rotation(json!([0, 0, 0, 0])), Path::new("zero.gltf")).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        msg.contains("zero.gltf") && msg.contains("'sun-node'") && msg.contains("unit quaternion"),
+        "{msg}"
+    );
+    // Twice a -45 degree turn about X: read as the unit quaternion, with a warning.
+    let (s, c) = ((-22.5f32).to_radians().sin(), (-22.5f32).to_radians().cos());
+    let r = import_slice(
+        &with_rotation(json!([2.0 * s, 0, 0, 2.0 * c])),
+        Path::new("two.gltf"),
+    )
+    .unwrap();
+    assert_close(
+        r.scene.directional_lights[0].direction,
+        Vec3::new(0.0, -1.0, -1.0).normalize(),
+        1e-5,
+        "normalised rotation",
+    );
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.contains("'sun-node'") && w.contains("normalised"))
+    );
+}
