@@ -87,7 +87,10 @@ pub trait Technique {
     fn name(&self) -> &str;
 
     /// View-independent precomputation for `scene` (form factors, LDC, shadow maps...).
-    /// Replaces whatever was prepared before.
+    /// Replaces whatever was prepared before. Every method first checks the scene contract
+    /// ([`crate::contract::check`]): a scene without geometry, or beyond f32's precision,
+    /// is refused with a [`crate::SceneError`] naming the fault; a scene without light is
+    /// prepared and renders black.
     fn prepare(&mut self, scene: Arc<Scene>) -> Result<(), Error>;
 
     /// Continues a progressive precomputation for about `budget` of wall-clock time, so
