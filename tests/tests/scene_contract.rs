@@ -364,3 +364,49 @@ fn the_scene_fuzz_target_keeps_the_contract_on_fixed_seeds() {
     assert!(rendered > 0 && refused > 0, "{rendered} {refused}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Faces that overlap without repeating positions (each wall again, a thousandth of the way
+/// to the room's centre, above the ray offsets of 2e-5 of the extent) are not dropped: every
+/// method renders the room finite and close to its own image of the room without the
+/// copies, or refuses by name (relighting's solve stops with `Diverged` if its form factors
+/// gain energy). Closer than the ray offsets, two faces act as one face emitting twice
+/// (every method, the reference too, sees both lamps of a doubled emitter).
+#[test]
+fn nearly_coincident_faces_render_like_single_faces_or_are_refused_by_name() {
+    let base = scenes::lit_room(true, true);
+    let mut doubled = base.clone();
+    let m = &mut doubled.meshes[0];
+    let centre = scene_core::glam::Vec3::new(0.5, 0.4, 0.6);
+    let (n, v) = (m.indices.len(), m.positions.len());
+    for i in 0..v {
+        let p = m.positions[i];
+        let nn = m.normals[i];
+        m.positions.push(p + (centre - p) * 1e-3);
+        m.normals.push(nn);
+    }
+    for i in 0..n {
+        let t = m.indices[i].map(|x| x + v as u32);
+        m.indices.push(t);
+        let id = m.material_ids[i];
+        m.material_ids.push(id);
+    }
+    let report = doubled.validate().unwrap();
+    assert!(report.duplicates_dropped.is_empty());
+    let a = outcomes(base);
+    let b = outcomes(doubled);
+    for ((name, oa), (_, ob)) in a.iter().zip(&b) {
+        match ob {
+            Outcome::Image(img) => {
+                let e = pixel_rel(oa.image(name), img);
+                eprintln!("nearly coincident faces: {name} differs by {e:.4}");
+                assert!(e < 0.1, "{name}: {e}");
+            }
+            Outcome::Refused(e) => {
+                let d = e
+                    .method_error::<relight_pr::RelightError>()
+                    .is_some_and(|r| matches!(r, relight_pr::RelightError::Diverged { .. }));
+                assert!(d, "{name} refused without naming divergence: {e}");
+            }
+        }
+    }
+}

@@ -106,61 +106,46 @@ fn mean_and_standard_error(img: &Image, var: &Image, spp: u32) -> (f64, f64) {
     (mean, (var_sum / spp as f64).sqrt() / npix)
 }
 
-/// At the largest albedo a scene may have the path tracer's Russian roulette must keep the
-/// variance bounded: paths average a thousand bounces, and the mean converges to E/(1-rho)
-/// within its standard error (a survival capped below the albedo gave 187 for 1000).
-#[test]
-fn furnace_at_the_largest_accepted_albedo_converges() {
-    let (rho, e) = (scene_core::scene::ALBEDO_MAX, 0.5f32);
+/// Renders the furnace of albedo `rho` and emission `e` from inside at `size x size` and
+/// `spp`, and checks that the mean is E / (1 - rho) within `k` standard errors, the standard
+/// error being below `max_rel_se` of the answer (so the test can fail).
+fn check_furnace(rho: f32, e: f32, (size, spp, seed): (u32, u32, u64), max_rel_se: f64, k: f64) {
     let s = furnace(rho, e);
     let view = View::from_camera(&s.cameras[0]);
     let settings = ReferenceSettings {
-        width: 8,
-        height: 8,
-        spp: 32,
+        width: size,
+        height: size,
+        spp,
         bounces: Bounces::Unlimited,
-        seed: 11,
+        seed,
     };
     let out = render(&s, &view, &settings, None);
     let (mean, se) = mean_and_standard_error(&out.image, &out.variance, out.spp);
     let expected = (e / (1.0 - rho)) as f64;
     eprintln!(
-        "furnace at albedo {rho}: mean {mean:.2}, expected {expected:.2}, standard error {se:.2}"
+        "furnace at albedo {rho}: mean {mean:.5}, expected {expected:.5}, standard error {se:.5}"
     );
     assert!(
-        se > 0.0 && se < 0.05 * expected,
+        se > 0.0 && se < max_rel_se * expected,
         "standard error {se} too large to test"
     );
     assert!(
-        (mean - expected).abs() < 4.0 * se,
-        "furnace mean {mean}, expected {expected} +- 4 x {se}"
+        (mean - expected).abs() < k * se,
+        "furnace mean {mean}, expected {expected} +- {k} x {se}"
     );
+}
+
+/// At the largest albedo a scene may have the path tracer's Russian roulette must keep the
+/// variance bounded: paths average a thousand bounces, and the mean converges to E/(1-rho)
+/// within its standard error (a survival capped below the albedo gave 187 for 1000).
+#[test]
+fn furnace_at_the_largest_accepted_albedo_converges() {
+    check_furnace(scene_core::scene::ALBEDO_MAX, 0.5, (8, 32, 11), 0.05, 4.0);
 }
 
 #[test]
 fn furnace_converges_to_e_over_one_minus_rho() {
-    let (rho, e) = (0.6f32, 0.5f32);
-    let s = furnace(rho, e);
-    let view = View::from_camera(&s.cameras[0]);
-    let settings = ReferenceSettings {
-        width: 24,
-        height: 24,
-        spp: 64,
-        bounces: Bounces::Unlimited,
-        seed: 3,
-    };
-    let out = render(&s, &view, &settings, None);
-    let (mean, se) = mean_and_standard_error(&out.image, &out.variance, out.spp);
-    let expected = (e / (1.0 - rho)) as f64;
-    assert!(
-        se > 0.0 && se < 0.02 * expected,
-        "standard error {se} too large to test"
-    );
-    eprintln!("furnace: mean {mean:.5}, expected {expected:.5}, standard error {se:.5}");
-    assert!(
-        (mean - expected).abs() < 3.0 * se,
-        "furnace mean {mean}, expected {expected} +- 3 x {se}"
-    );
+    check_furnace(0.6, 0.5, (24, 64, 3), 0.02, 3.0);
 }
 
 #[test]
