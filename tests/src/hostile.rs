@@ -91,6 +91,26 @@ pub fn triangle_json() -> Value {
     })
 }
 
+/// The one-triangle glTF with its node moved by `offset` along x: at 1e7 its f32 positions
+/// are placed a metre apart for a triangle a metre wide (the scene contract's
+/// `PrecisionLost`).
+pub fn triangle_far_away(offset: f64) -> Vec<u8> {
+    let mut v = triangle_json();
+    v["nodes"][0]["translation"] = json!([offset, 0.0, 0.0]);
+    to_bytes(&v)
+}
+
+/// A glTF with a camera and no mesh: nothing to render (the scene contract's `NoGeometry`).
+pub fn camera_only() -> Vec<u8> {
+    to_bytes(&json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"camera": 0, "translation": [0, 0, 2]}],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.01, "zfar": 10}}]
+    }))
+}
+
 /// A glTF whose one mesh has a sparse-only `POSITION` accessor of `count` vertices (no
 /// buffer view: every vertex is zero but one), drawn without indices, instanced by
 /// `instances` nodes: a few hundred bytes that ask for `count x instances` vertices.

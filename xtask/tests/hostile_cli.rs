@@ -85,6 +85,11 @@ fn hostile_scenes() -> Files {
             ),
             "outside the scene's folder",
         ),
+        (w("empty.gltf", hostile::camera_only()), "has no geometry"),
+        (
+            w("far.gltf", hostile::triangle_far_away(1e7)),
+            "move the scene to the origin",
+        ),
     ];
     std::fs::write(
         dir.parent().unwrap().join("outside.bin"),

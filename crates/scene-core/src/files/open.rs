@@ -30,8 +30,8 @@ impl OpenedScene {
     /// Checks the scene contract ([`crate::contract::check`]: refuses a scene without
     /// geometry or beyond f32's precision), then moves the scene to the origin when it lies
     /// farther from it than its extent, noting both.
-    fn checked(mut self) -> Result<Self, String> {
-        let contract = crate::contract::check(&self.scene).map_err(|e| e.to_string())?;
+    fn checked(mut self, spec: &str) -> Result<Self, String> {
+        let contract = crate::contract::check(&self.scene).map_err(|e| format!("{spec}: {e}"))?;
         self.notes
             .extend(contract.notes.into_iter().map(|n| format!("note: {n}")));
         let (scene, t) = self.scene.recentred();
@@ -81,7 +81,7 @@ pub fn open_scene(spec: &str) -> Result<OpenedScene, String> {
             notes,
             translation: glam::Vec3::ZERO,
         }
-        .checked()
+        .checked(spec)
     } else {
         let scene = builtin::scene(spec).map_err(|e| e.to_string())?;
         OpenedScene {
@@ -89,7 +89,7 @@ pub fn open_scene(spec: &str) -> Result<OpenedScene, String> {
             notes: Vec::new(),
             translation: glam::Vec3::ZERO,
         }
-        .checked()
+        .checked(spec)
     }
 }
 
