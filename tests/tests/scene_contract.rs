@@ -105,7 +105,7 @@ fn out_of_range_lights_and_albedos_are_refused_at_validation_naming_the_field() 
                 what.contains("bulb") && what.contains("intensity"),
                 "{what}"
             );
-            assert_eq!((value, max), (1e38f32 as f64, 1e12f32 as f64));
+            assert_eq!((value, max), (1e38, 1e12));
         }
         other => panic!("{other:?}"),
     }

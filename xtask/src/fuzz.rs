@@ -58,11 +58,44 @@ struct Summary {
     restarts: u64,
 }
 
+/// Every fuzz target: the loaders' and the scenes' (`golden_tests::fuzz`), and `cli`, the
+/// command lines of this binary ([`crate::fuzz_command_line`]: parsed and every number
+/// checked against its range, nothing run).
+pub fn targets() -> Vec<Target> {
+    let mut all = fuzz::targets();
+    all.push(Target {
+        name: "cli",
+        ext: "json",
+        json: true,
+        seeds: cli_seeds,
+        run: |bytes, _| crate::fuzz_command_line(bytes),
+    });
+    all
+}
+
+/// Command lines of every command with its numbers, as JSON arrays of arguments.
+fn cli_seeds() -> Vec<Vec<u8>> {
+    [
+        r#"["reference", "--width", "256", "--height", "256", "--spp", "64", "--exposure", "0", "--bounces", "1"]"#,
+        r#"["reference", "--width", "4294967295", "--spp", "0", "--exposure", "NaN", "--bounces", "inf"]"#,
+        r#"["relight", "--elements", "4096", "--subpixels", "8", "--emitter-rays", "4", "--hemicube-resolution", "128", "--max-unshot", "0.001", "--split-depth", "6", "--width", "64", "--height", "48", "--light", "point:0=1,1,1"]"#,
+        r#"["relight", "--subpixels", "4000000000", "--emitter-rays", "4294967295", "--max-unshot=-1e308"]"#,
+        r#"["ibrr", "--ldc", "256", "--irpls", "184", "--clamp", "0", "--exposure", "1", "--seed", "3"]"#,
+        r#"["experiment", "--views", "2", "--spp", "512", "--size", "256x192", "--repeats", "3", "--sequence-frames", "8", "--sequence-spp", "64", "--bounces", "1,inf", "--techniques", "dl,isr-24,relight-256,ibrr-128-64"]"#,
+        r#"["experiment", "--views", "18446744073709551615", "--size", "99999x0", "--techniques", "isr-0,relight-99999999999"]"#,
+        r#"["sweep-isr", "--size", "64x48", "--spp", "16"]"#,
+        r#"["bench", "reference", "--threads", "2", "--repeats", "5"]"#,
+        r#"["fuzz", "--seconds", "60", "--jobs", "2", "--seed", "1"]"#,
+    ]
+    .map(|s| s.as_bytes().to_vec())
+    .to_vec()
+}
+
 /// `cargo xtask fuzz`.
 pub fn run(opts: &Options) -> Result<(), String> {
     crate::ranged("--seconds", opts.seconds, 1..=86_400)?;
     crate::ranged("--jobs", opts.jobs, 1..=16)?;
-    let all = fuzz::targets();
+    let all = targets();
     let names: Vec<&str> = if opts.targets.is_empty() {
         all.iter().map(|t| t.name).collect()
     } else {
@@ -254,7 +287,7 @@ fn save_current(name: &str, dir: &Path, why: &str) -> Result<String, String> {
 }
 
 fn save_finding(name: &str, bytes: &[u8], why: &str) -> Result<String, String> {
-    let targets = fuzz::targets();
+    let targets = targets();
     let ext = targets
         .iter()
         .find(|t| t.name == name)
@@ -279,7 +312,7 @@ pub fn worker(name: &str, seconds: u64, seed: u64, dir: &Path) -> Result<(), Str
 fn fuzz_loop(name: &str, seconds: u64, seed: u64, dir: &Path) -> Result<(), String> {
     // Panics are caught and reported; the default hook's message would only be noise.
     std::panic::set_hook(Box::new(|_| {}));
-    let targets = fuzz::targets();
+    let targets = targets();
     let target = targets
         .iter()
         .find(|t| t.name == name)
@@ -537,5 +570,51 @@ fn edit_node(v: &mut Value, rng: &mut Rng) {
             }
         }
         _ => *v = number(rng),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The `cli` target's seeds and saved findings (`tests/fuzz-regressions/cli/`) parse
+    /// and check without a panic; the good seeds are accepted and the hostile ones refused
+    /// naming the argument.
+    #[test]
+    fn command_lines_are_checked_without_a_panic() {
+        let all = targets();
+        let cli = all.iter().find(|t| t.name == "cli").unwrap();
+        let dir = std::env::temp_dir().join(format!("xtask-cli-fuzz-{}", std::process::id()));
+        let ctx = Context::new(fuzz::fuzz_budget(), &dir);
+        let mut inputs = (cli.seeds)();
+        for p in fuzz::regressions(cli) {
+            inputs.push(std::fs::read(p).unwrap());
+        }
+        let mut outcomes = Vec::new();
+        for input in &inputs {
+            let o = fuzz::run(cli, input, &ctx);
+            assert!(
+                !matches!(o, Outcome::Panicked(_)),
+                "{}: {o:?}",
+                String::from_utf8_lossy(input)
+            );
+            outcomes.push(o);
+        }
+        std::fs::remove_dir_all(&dir).ok();
+        assert_eq!(outcomes[0], Outcome::Ok);
+        assert!(
+            matches!(&outcomes[1], Outcome::Refused(e) if e.contains("--width")),
+            "{:?}",
+            outcomes[1]
+        );
+        assert!(
+            matches!(&outcomes[3], Outcome::Refused(e) if e.contains("--max-unshot = -1e308")),
+            "{:?}",
+            outcomes[3]
+        );
+        assert!(matches!(&outcomes[6], Outcome::Refused(_)));
+        for i in [2, 4, 5, 7, 8, 9] {
+            assert_eq!(outcomes[i], Outcome::Ok, "seed {i}");
+        }
     }
 }

@@ -38,14 +38,20 @@ pub struct Options {
     pub seed: u64,
 }
 
-/// Runs the command.
-pub fn run(o: &Options) -> Result<(), String> {
-    let splat: Splat = o.splat.parse().map_err(|e| format!("--splat: {e}"))?;
-    let lookup: Lookup = o.lookup.parse().map_err(|e| format!("--lookup: {e}"))?;
+/// Every number against its stated range (no file touched).
+pub fn check_numbers(o: &Options) -> Result<(), String> {
     o.view.check()?;
     crate::ranged("--ldc", o.ldc, 8..=2048)?;
     crate::ranged("--irpls", o.irpls, 1..=100_000)?;
     crate::ranged("--clamp", o.clamp, 0.0..=1.0)?;
+    Ok(())
+}
+
+/// Runs the command.
+pub fn run(o: &Options) -> Result<(), String> {
+    let splat: Splat = o.splat.parse().map_err(|e| format!("--splat: {e}"))?;
+    let lookup: Lookup = o.lookup.parse().map_err(|e| format!("--lookup: {e}"))?;
+    check_numbers(o)?;
     crate::check_out_dir(&o.out)?;
     let (scene, state, camera) = o.view.open()?;
     let camera = &camera;

@@ -199,7 +199,7 @@ enum Command {
     /// under an address-space cap and a per-input time limit; failing inputs are saved under
     /// tests/fuzz-regressions/<target>/ (replayed by `cargo test`).
     Fuzz {
-        /// A target to run: gltf, glb, exr, png, cameras, scenes (repeatable; default all).
+        /// A target to run: gltf, glb, exr, png, cameras, scenes, cli (repeatable; default all).
         #[arg(long = "target")]
         targets: Vec<String>,
         /// Seconds per target.
@@ -282,7 +282,7 @@ pub struct ViewArgs {
 }
 
 /// [`scene_core::range::check`] with the error as the commands print it.
-pub fn ranged<T: PartialOrd + std::fmt::Display + Copy>(
+pub fn ranged<T: PartialOrd + std::fmt::Debug + Copy>(
     what: &str,
     value: T,
     range: std::ops::RangeInclusive<T>,
@@ -402,13 +402,7 @@ fn reference(
     exposure: f32,
     out: &Path,
 ) -> Result<(), String> {
-    ranged("--width", width, scene_core::range::IMAGE_SIDE)?;
-    ranged("--height", height, scene_core::range::IMAGE_SIDE)?;
-    ranged("--spp", spp, scene_core::range::SPP)?;
-    ranged("--exposure", exposure, scene_core::range::EXPOSURE)?;
-    if let Bounces::Limited(n) = bounces {
-        ranged("--bounces", n, 0..=1000)?;
-    }
+    // The numbers were checked by `Command::check_numbers`.
     check_out_dir(out)?;
     let scene = load_scene(scene_spec)?;
     let cam = scene_camera(&scene, camera)?;
@@ -463,7 +457,88 @@ fn reference(
     Ok(())
 }
 
+impl Command {
+    /// Every number of the command against its stated range ([`scene_core::range`],
+    /// docs/hostile-files.md), touching no file: what `run` checks before any work, and what
+    /// the `cli` fuzz target runs on mutated command lines.
+    fn check_numbers(&self) -> Result<(), String> {
+        use scene_core::range::{EXPOSURE, IMAGE_SIDE, SPP, check_opt};
+        let opt = |e: scene_core::range::OutOfRange| e.to_string();
+        let bounces = |b: &Bounces| match b {
+            Bounces::Limited(n) => ranged("--bounces", *n, 0..=1000).map(|_| ()),
+            Bounces::Unlimited => Ok(()),
+        };
+        match self {
+            Command::Reference {
+                width,
+                height,
+                spp,
+                bounces: b,
+                exposure,
+                ..
+            } => {
+                ranged("--width", *width, IMAGE_SIDE)?;
+                ranged("--height", *height, IMAGE_SIDE)?;
+                ranged("--spp", *spp, SPP)?;
+                ranged("--exposure", *exposure, EXPOSURE)?;
+                bounces(b)
+            }
+            Command::Relight(o) => o.check_numbers(),
+            Command::Ibrr(o) => ibrr::check_numbers(o),
+            Command::SweepIsr { size, spp, .. } => {
+                experiment::parse_size(size)?;
+                ranged("--spp", *spp, SPP).map(|_| ())
+            }
+            Command::Experiment {
+                techniques,
+                views,
+                spp,
+                bounces: b,
+                size,
+                repeats,
+                sequence_frames,
+                sequence_spp,
+                ..
+            } => {
+                experiment::parse_size(size)?;
+                experiment::parse_bounces(b)?;
+                if let Some(t) = techniques {
+                    experiment::parse_techniques(t)?;
+                }
+                ranged("--spp", *spp, SPP)?;
+                check_opt("--views", *views, 1..=1000).map_err(opt)?;
+                ranged("--repeats", *repeats, 1..=100)?;
+                ranged("--sequence-frames", *sequence_frames, 0..=64)?;
+                check_opt("--sequence-spp", *sequence_spp, SPP).map_err(opt)?;
+                Ok(())
+            }
+            Command::Fuzz { seconds, jobs, .. } => {
+                ranged("--seconds", *seconds, 1..=86_400)?;
+                ranged("--jobs", *jobs, 1..=16).map(|_| ())
+            }
+            Command::Bench {
+                threads, repeats, ..
+            } => {
+                ranged("--threads", *threads, 1..=1024)?;
+                ranged("--repeats", *repeats, 1..=1000).map(|_| ())
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// The `cli` fuzz target: a JSON array of arguments (after `xtask`) parsed as a command
+/// line and checked ([`Command::check_numbers`]); a parse error or a refusal is an outcome,
+/// a panic a finding. Nothing runs and no file is touched.
+pub fn fuzz_command_line(bytes: &[u8]) -> Result<(), String> {
+    let args: Vec<String> = serde_json::from_slice(bytes).map_err(|e| e.to_string())?;
+    let cli = Cli::try_parse_from(std::iter::once("xtask".to_string()).chain(args))
+        .map_err(|e| e.to_string().lines().next().unwrap_or_default().to_string())?;
+    cli.command.check_numbers()
+}
+
 fn run(cli: Cli) -> Result<(), String> {
+    cli.command.check_numbers()?;
     match cli.command {
         Command::Ci { no_test } => checks::ci(!no_test),
         Command::Shaders { out } => {
@@ -564,23 +639,17 @@ fn run(cli: Cli) -> Result<(), String> {
             what,
             threads,
             repeats,
-        } => match (
-            ranged("--threads", threads, 1..=1024),
-            ranged("--repeats", repeats, 1..=1000),
-        ) {
-            (Err(e), _) | (_, Err(e)) => Err(e),
-            _ => match what.as_str() {
-                "reference" => bench::reference(threads, repeats),
-                "isr" => bench::isr(threads, repeats),
-                "gbuffer" => bench::gbuffer(threads, repeats),
-                "relight" => bench_relight::run(threads, repeats),
-                "relight-frames" => bench_relight::frames(threads, repeats),
-                "relight-dynamic" => bench_relight::dynamic_only(threads, repeats),
-                "ibrr" => bench_ibrr::run(threads, repeats),
-                other => Err(format!(
-                    "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, ibrr)"
-                )),
-            },
+        } => match what.as_str() {
+            "reference" => bench::reference(threads, repeats),
+            "isr" => bench::isr(threads, repeats),
+            "gbuffer" => bench::gbuffer(threads, repeats),
+            "relight" => bench_relight::run(threads, repeats),
+            "relight-frames" => bench_relight::frames(threads, repeats),
+            "relight-dynamic" => bench_relight::dynamic_only(threads, repeats),
+            "ibrr" => bench_ibrr::run(threads, repeats),
+            other => Err(format!(
+                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, ibrr)"
+            )),
         },
     }
 }

@@ -48,9 +48,16 @@ pub struct Options {
 }
 
 impl Options {
-    /// Every number against its stated range, before the scene is loaded: a bad
-    /// `--subpixels` or `--emitter-rays` would otherwise fail only after the solve.
+    /// Every number against its stated range, and the output folder, before the scene is
+    /// loaded: a bad `--subpixels` or `--emitter-rays` would otherwise fail only after the
+    /// solve.
     pub fn check(&self) -> Result<(), String> {
+        self.check_numbers()?;
+        crate::check_out_dir(&self.out)
+    }
+
+    /// Every number against its stated range (no file touched).
+    pub fn check_numbers(&self) -> Result<(), String> {
         use crate::ranged;
         self.view.check()?;
         ranged("--elements", self.elements, 16..=1_000_000)?;
@@ -59,7 +66,7 @@ impl Options {
         ranged("--max-unshot", self.max_unshot, 1e-6..=1.0)?;
         ranged("--subpixels", self.subpixels, 1..=256)?;
         ranged("--emitter-rays", self.emitter_rays, 1..=1024)?;
-        crate::check_out_dir(&self.out)
+        Ok(())
     }
 }
 

@@ -69,7 +69,7 @@ fn ibrr_refuses_bad_options_by_name() {
         ),
         (
             vec!["--exposure", "NaN"],
-            "--exposure = NaN is outside its range [-20, 20]",
+            "--exposure = NaN is outside its range [-20.0, 20.0]",
         ),
         (vec!["--camera", "7"], "--camera 7"),
         (vec!["--light", "point:9=1,1,1"], "point:0"),

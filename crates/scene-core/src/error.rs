@@ -138,16 +138,16 @@ pub enum SceneError {
         reason: String,
     },
     /// A number of the scene lies outside the range the toolkit accepts.
-    #[error("{what} = {value:e} is outside the accepted range [{min:e}, {max:e}]")]
+    #[error("{what} = {value:e} is outside the accepted range [{min}, {max:e}]")]
     OutOfRange {
         /// The number at fault (which material, light or camera, and which field).
         what: String,
         /// Its value.
-        value: f64,
+        value: f32,
         /// The smallest accepted value.
-        min: f64,
+        min: f32,
         /// The largest accepted value.
-        max: f64,
+        max: f32,
     },
     /// The scene's coordinates are so large for its size that f32 no longer resolves its
     /// geometry (spacing above [`crate::contract::PRECISION_LIMIT`] of the extent).

@@ -2,7 +2,7 @@
 //! settings): each is checked before any allocation or loop it sizes, and a value outside
 //! its range is refused with an error naming the argument, the value and the range.
 
-use std::fmt::Display;
+use std::fmt::Debug;
 use std::ops::RangeInclusive;
 
 /// A number outside its stated range.
@@ -20,15 +20,16 @@ pub struct OutOfRange {
 }
 
 /// `value` when it lies in `range` (both ends included; NaN never does), else
-/// [`OutOfRange`] naming `what`.
+/// [`OutOfRange`] naming `what` (numbers written as Rust's `{:?}` writes them, so a huge or
+/// tiny float stays short: `-1e308`).
 ///
 /// ```
 /// use scene_core::range::check;
 /// assert_eq!(check("--spp", 64u32, 1..=65536), Ok(64));
 /// let e = check("--exposure", f32::NAN, -20.0..=20.0).unwrap_err();
-/// assert_eq!(e.to_string(), "--exposure = NaN is outside its range [-20, 20]");
+/// assert_eq!(e.to_string(), "--exposure = NaN is outside its range [-20.0, 20.0]");
 /// ```
-pub fn check<T: PartialOrd + Display + Copy>(
+pub fn check<T: PartialOrd + Debug + Copy>(
     what: &str,
     value: T,
     range: RangeInclusive<T>,
@@ -38,15 +39,15 @@ pub fn check<T: PartialOrd + Display + Copy>(
     } else {
         Err(OutOfRange {
             what: what.to_string(),
-            value: value.to_string(),
-            min: range.start().to_string(),
-            max: range.end().to_string(),
+            value: format!("{value:?}"),
+            min: format!("{:?}", range.start()),
+            max: format!("{:?}", range.end()),
         })
     }
 }
 
 /// [`check`] for an optional value: `None` passes.
-pub fn check_opt<T: PartialOrd + Display + Copy>(
+pub fn check_opt<T: PartialOrd + Debug + Copy>(
     what: &str,
     value: Option<T>,
     range: RangeInclusive<T>,

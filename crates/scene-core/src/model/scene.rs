@@ -469,9 +469,9 @@ fn check_channels(what: impl FnOnce() -> String, v: Vec3, max: f32) -> Result<()
         None => Ok(()),
         Some(bad) => Err(SceneError::OutOfRange {
             what: what(),
-            value: bad as f64,
+            value: bad,
             min: 0.0,
-            max: max as f64,
+            max,
         }),
     }
 }
