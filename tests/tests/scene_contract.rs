@@ -410,3 +410,33 @@ fn nearly_coincident_faces_render_like_single_faces_or_are_refused_by_name() {
         }
     }
 }
+
+/// A view built in code (no camera check at load) whose planes f32 depth cannot resolve:
+/// every rasterising method refuses the frame naming the planes, where it drew a black
+/// image before; the path tracer (rays from the eye) renders it.
+#[test]
+fn frames_whose_planes_f32_depth_cannot_resolve_are_refused_by_rasterising_methods() {
+    let scene = Arc::new(scenes::lit_room(true, true));
+    let ctx = gpu();
+    let mut view =
+        scene_core::View::from_camera(&scene.cameras[0].with_aspect(W as f32 / H as f32));
+    view.near = 1e-30;
+    view.far = 1e30;
+    let lights = scene_core::LightState::default();
+    let frame = scene_core::FrameRequest {
+        view,
+        width: W,
+        height: H,
+        lights: &lights,
+    };
+    for (name, mut t) in techniques(ctx.as_ref()) {
+        t.prepare(scene.clone()).unwrap();
+        match t.render(&frame) {
+            Ok(img) => {
+                assert_eq!(name, "reference", "{name} rendered planes 1e-30 / 1e30");
+                assert!(img.mean().max_element() > 0.0);
+            }
+            Err(e) => assert!(e.to_string().contains("far / near"), "{name}: {e}"),
+        }
+    }
+}

@@ -264,6 +264,17 @@ pub(crate) fn check_view(view: &View) -> Result<(), Error> {
             "view window is empty (left {l}, right {r}, bottom {b}, top {t})"
         )));
     }
+    // Beyond this f32 depth rounds every surface to the far plane and nothing is drawn: a
+    // typed refusal rather than a black frame (cameras are refused at load alike).
+    if view.far / view.near > scene_core::scene::DEPTH_RANGE_MAX {
+        return Err(Error::InvalidArgument(format!(
+            "view planes near {:e} and far {:e}: far / near is above {:e}, beyond what f32 \
+             depth resolves",
+            view.near,
+            view.far,
+            scene_core::scene::DEPTH_RANGE_MAX
+        )));
+    }
     if (view.forward.length() - 1.0).abs() > 1e-3
         || (view.up.length() - 1.0).abs() > 1e-3
         || view.forward.dot(view.up).abs() > 1e-3
