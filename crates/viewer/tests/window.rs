@@ -674,6 +674,30 @@ fn bad_input_exits_non_zero_with_a_message_that_names_it() {
                 ],
                 "nowhere.json",
             ),
+            (
+                s(&["--replay", "/dev/zero"]),
+                "replay file '/dev/zero': not a regular file",
+            ),
+            (
+                vec![
+                    "--record".into(),
+                    dir.join("no-such-folder")
+                        .join("walk.json")
+                        .to_str()
+                        .unwrap()
+                        .into(),
+                ],
+                "cannot write",
+            ),
+            (
+                s(&["--exposure", "NaN"]),
+                "--exposure = NaN is outside its range",
+            ),
+            (
+                s(&["--ibrr-irpls", "0"]),
+                "--ibrr-irpls = 0 is outside its range [1, 100000]",
+            ),
+            (s(&["--max-spp", "0"]), "--max-spp = 0 is outside its range"),
         ]
     };
     for (args, message) in cases {
