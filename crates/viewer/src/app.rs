@@ -653,34 +653,31 @@ impl App {
         }
         let generation = self.direct_generation;
         let seconds = &mut self.direct_seconds;
-        let mut take = |g: crate::direct::Gathered| {
+        // Ok(true) when the newest request's values were taken, Err when its gather failed.
+        let mut take = |g: crate::direct::Gathered| -> Result<bool, String> {
             seconds.push(g.seconds);
-            if g.request.generation == generation && !g.values.is_empty() {
-                let size = (g.request.width, g.request.height);
-                gfx.renderer
-                    .set_relight_direct(g.request.view, size, g.values);
-                true
-            } else {
-                false
+            if g.request.generation != generation {
+                return Ok(false);
             }
+            let values = g.values.map_err(|e| {
+                format!("relighting's per-pixel direct light could not be gathered: {e}")
+            })?;
+            let size = (g.request.width, g.request.height);
+            gfx.renderer
+                .set_relight_direct(g.request.view, size, values);
+            Ok(true)
         };
         if wait {
             loop {
                 let g = worker
                     .wait(Duration::from_secs(600))
                     .ok_or("relighting's per-pixel direct light did not come in 10 minutes")?;
-                let failed = g.request.generation == generation && g.values.is_empty();
-                if take(g) {
+                if take(g)? {
                     break;
-                }
-                if failed {
-                    return Err("relighting's per-pixel direct light could not be gathered \
-                        (the element scene's G-buffer failed)"
-                        .into());
                 }
             }
         } else if let Some(g) = worker.latest() {
-            take(g);
+            take(g)?;
         }
         Ok(())
     }

@@ -35,8 +35,9 @@ pub struct Request {
 pub struct Gathered {
     /// The request answered.
     pub request: Request,
-    /// The values (empty when the gather failed).
-    pub values: Vec<Vec3>,
+    /// The values (`k` a pixel: none at all for a scene without lights), or why the gather
+    /// failed.
+    pub values: Result<Vec<Vec3>, String>,
     /// Seconds the G-buffer and the gather took.
     pub seconds: f64,
 }
@@ -118,8 +119,9 @@ fn run(
             &prepared,
             raster.render_view(&request.view, request.width, request.height),
         ) {
-            (Ok(()), Ok(g)) => pixel_direct(&gather, &p.rays, &g, &request.view, subpixels),
-            _ => Vec::new(),
+            (Ok(()), Ok(g)) => Ok(pixel_direct(&gather, &p.rays, &g, &request.view, subpixels)),
+            (Err(e), _) => Err(e.to_string()),
+            (_, Err(e)) => Err(e.to_string()),
         };
         let seconds = start.elapsed().as_secs_f64();
         if results

@@ -711,3 +711,60 @@ fn bad_input_exits_non_zero_with_a_message_that_names_it() {
         );
     }
 }
+
+/// A scene without lights (a glTF of the Cornell box with its point light removed) is a
+/// scene: the window opens, every mode (relighting's per-pixel direct light of zero sources
+/// included) renders it black, and the replay ends normally. Before, the per-pixel gather of
+/// zero sources was taken for a failed one and the replay stopped with an error.
+#[test]
+fn a_scene_without_lights_replays_through_every_mode_black() {
+    let Some(_ctx) = context() else {
+        return;
+    };
+    let dir = out_dir("no-light");
+    let mut dark = scene_core::builtin::scene("cornell-point").unwrap();
+    dark.point_lights.clear();
+    let file = dir.join("dark.glb");
+    scene_core::gltf_io::export(&dark, &file).unwrap();
+    let walk = dir.join("walk.json");
+    std::fs::write(
+        &walk,
+        r#"{"version": 1, "steps": [{"mode": "dl"}, {"mode": "isr"}, {"mode": "relight",
+            "screenshot": "relight"}, {"mode": "ibrr", "screenshot": "ibrr"},
+            {"mode": "reference", "reference_spp": 2, "screenshot": "reference"}]}"#,
+    )
+    .unwrap();
+    let runner = display_runner().unwrap();
+    let (size, elements) = (format!("{WIDTH}x{HEIGHT}"), ELEMENTS.to_string());
+    let (ldc, irpls) = (LDC.to_string(), IRPLS.to_string());
+    let shots = dir.join("shots");
+    let out = viewer(
+        &runner,
+        &[
+            "--scene",
+            file.to_str().unwrap(),
+            "--size",
+            &size,
+            "--relight-elements",
+            &elements,
+            "--ibrr-resolution",
+            &ldc,
+            "--ibrr-irpls",
+            &irpls,
+            "--replay",
+            walk.to_str().unwrap(),
+            "--screenshots",
+            shots.to_str().unwrap(),
+        ],
+    );
+    let text = output_text(&out);
+    assert!(out.status.success(), "the replay failed: {text}");
+    assert!(text.contains("has no light"), "{text}");
+    for name in ["relight", "ibrr", "reference"] {
+        let s = shot(&dir, name);
+        assert!(
+            s.image.pixels.iter().all(|p| *p == Vec3::ZERO),
+            "{name}: a scene without light must be black"
+        );
+    }
+}
