@@ -110,12 +110,18 @@ fn replay(dir: &Path, steps: &str) -> (Vec<String>, Output) {
 
 /// Replays `file` on cornell at the test size, screenshots into `shots`.
 fn replay_file(file: &Path, shots: &Path, extra: &[&str]) -> (Vec<String>, Output) {
+    replay_scene("cornell", file, shots, extra)
+}
+
+/// Replays `file` on `scene` (a built-in name or a file) at the test size, screenshots into
+/// `shots`; the replay must succeed.
+fn replay_scene(scene: &str, file: &Path, shots: &Path, extra: &[&str]) -> (Vec<String>, Output) {
     let runner = display_runner().expect("checked by the caller");
     let size = format!("{WIDTH}x{HEIGHT}");
     let (elements, ldc, irpls) = (ELEMENTS.to_string(), LDC.to_string(), IRPLS.to_string());
     let mut args = vec![
         "--scene",
-        "cornell",
+        scene,
         "--size",
         &size,
         "--relight-elements",
@@ -734,31 +740,8 @@ fn a_scene_without_lights_replays_through_every_mode_black() {
             {"mode": "reference", "reference_spp": 2, "screenshot": "reference"}]}"#,
     )
     .unwrap();
-    let runner = display_runner().unwrap();
-    let (size, elements) = (format!("{WIDTH}x{HEIGHT}"), ELEMENTS.to_string());
-    let (ldc, irpls) = (LDC.to_string(), IRPLS.to_string());
-    let shots = dir.join("shots");
-    let out = viewer(
-        &runner,
-        &[
-            "--scene",
-            file.to_str().unwrap(),
-            "--size",
-            &size,
-            "--relight-elements",
-            &elements,
-            "--ibrr-resolution",
-            &ldc,
-            "--ibrr-irpls",
-            &irpls,
-            "--replay",
-            walk.to_str().unwrap(),
-            "--screenshots",
-            shots.to_str().unwrap(),
-        ],
-    );
-    let text = output_text(&out);
-    assert!(out.status.success(), "the replay failed: {text}");
+    let (lines, _) = replay_scene(file.to_str().unwrap(), &walk, &dir.join("shots"), &[]);
+    let text = lines.join("\n");
     assert!(text.contains("has no light"), "{text}");
     for name in ["relight", "ibrr", "reference"] {
         let s = shot(&dir, name);
