@@ -282,7 +282,6 @@ pub fn closed_box_outward(mesh: &mut Mesh, lo: Vec3, hi: Vec3, material: u32) {
     for t in &mut mesh.indices[start..] {
         t.swap(1, 2);
     }
-    let _ = start;
 }
 
 /// The lit room without any light: no point light, no emissive material.

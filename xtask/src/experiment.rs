@@ -408,18 +408,31 @@ fn scene_id(spec: &str) -> String {
     }
 }
 
+/// The experiment's counts against their stated ranges (docs/hostile-files.md), before any
+/// scene is loaded or camera drawn: `--spp`, `--views`, `--repeats`, `--sequence-frames`,
+/// `--sequence-spp`.
+pub fn check_numbers(
+    spp: u32,
+    views: Option<usize>,
+    repeats: u32,
+    sequence_frames: usize,
+    sequence_spp: Option<u32>,
+) -> Result<(), String> {
+    use scene_core::range::{SPP, check_opt};
+    crate::ranged("--spp", spp, SPP)?;
+    check_opt("--views", views, 1..=1000).map_err(|e| e.to_string())?;
+    crate::ranged("--repeats", repeats, 1..=100)?;
+    crate::ranged("--sequence-frames", sequence_frames, 0..=64)?;
+    check_opt("--sequence-spp", sequence_spp, SPP).map_err(|e| e.to_string())?;
+    Ok(())
+}
+
 /// Builds the experiment the options describe (scenes loaded, cameras parsed or drawn).
 pub fn build(o: &Options) -> Result<Experiment, String> {
     let (width, height) = parse_size(&o.size)?;
     let bounces = parse_bounces(&o.bounces)?;
     let choices = parse_techniques(&o.techniques)?;
-    // Every number against its stated range before any scene is loaded or camera drawn.
-    crate::ranged("--spp", o.spp, scene_core::range::SPP)?;
-    scene_core::range::check_opt("--views", o.views, 1..=1000).map_err(|e| e.to_string())?;
-    crate::ranged("--repeats", o.repeats, 1..=100)?;
-    crate::ranged("--sequence-frames", o.sequence_frames, 0..=64)?;
-    scene_core::range::check_opt("--sequence-spp", o.sequence_spp, scene_core::range::SPP)
-        .map_err(|e| e.to_string())?;
+    check_numbers(o.spp, o.views, o.repeats, o.sequence_frames, o.sequence_spp)?;
     crate::check_out_dir(&o.out)?;
     let backend = if o.gpu {
         let ctx = scene_core::gpu::GpuContext::new()

@@ -38,7 +38,8 @@ pub struct Options {
     pub seed: u64,
 }
 
-/// Every number against its stated range (no file touched).
+/// Every number against its stated range (no file touched), run by `Command::check_numbers`
+/// before the LDC is built.
 pub fn check_numbers(o: &Options) -> Result<(), String> {
     o.view.check()?;
     crate::ranged("--ldc", o.ldc, 8..=2048)?;
@@ -51,7 +52,7 @@ pub fn check_numbers(o: &Options) -> Result<(), String> {
 pub fn run(o: &Options) -> Result<(), String> {
     let splat: Splat = o.splat.parse().map_err(|e| format!("--splat: {e}"))?;
     let lookup: Lookup = o.lookup.parse().map_err(|e| format!("--lookup: {e}"))?;
-    check_numbers(o)?;
+    // The numbers were checked by `Command::check_numbers`.
     crate::check_out_dir(&o.out)?;
     let (scene, state, camera) = o.view.open()?;
     let camera = &camera;

@@ -311,10 +311,9 @@ impl ViewArgs {
         Ok(())
     }
 
-    /// Checks the numbers ([`ViewArgs::check`]), loads the scene, parses the lights and
-    /// picks the camera.
+    /// Loads the scene, parses the lights and picks the camera (the numbers were checked
+    /// first, [`ViewArgs::check`] through `Command::check_numbers`).
     pub fn open(&self) -> Result<(Arc<Scene>, scene_core::LightState, scene_core::Camera), String> {
-        self.check()?;
         let scene = Arc::new(load_scene(&self.scene)?);
         let state = relight::light_state(&scene, &self.lights)?;
         let camera = scene_camera(&scene, self.camera)?;
@@ -462,8 +461,7 @@ impl Command {
     /// docs/hostile-files.md), touching no file: what `run` checks before any work, and what
     /// the `cli` fuzz target runs on mutated command lines.
     fn check_numbers(&self) -> Result<(), String> {
-        use scene_core::range::{EXPOSURE, IMAGE_SIDE, SPP, check_opt};
-        let opt = |e: scene_core::range::OutOfRange| e.to_string();
+        use scene_core::range::{EXPOSURE, IMAGE_SIDE, SPP};
         let bounces = |b: &Bounces| match b {
             Bounces::Limited(n) => ranged("--bounces", *n, 0..=1000).map(|_| ()),
             Bounces::Unlimited => Ok(()),
@@ -505,12 +503,7 @@ impl Command {
                 if let Some(t) = techniques {
                     experiment::parse_techniques(t)?;
                 }
-                ranged("--spp", *spp, SPP)?;
-                check_opt("--views", *views, 1..=1000).map_err(opt)?;
-                ranged("--repeats", *repeats, 1..=100)?;
-                ranged("--sequence-frames", *sequence_frames, 0..=64)?;
-                check_opt("--sequence-spp", *sequence_spp, SPP).map_err(opt)?;
-                Ok(())
+                experiment::check_numbers(*spp, *views, *repeats, *sequence_frames, *sequence_spp)
             }
             Command::Fuzz { seconds, jobs, .. } => {
                 ranged("--seconds", *seconds, 1..=86_400)?;

@@ -48,15 +48,9 @@ pub struct Options {
 }
 
 impl Options {
-    /// Every number against its stated range, and the output folder, before the scene is
-    /// loaded: a bad `--subpixels` or `--emitter-rays` would otherwise fail only after the
-    /// solve.
-    pub fn check(&self) -> Result<(), String> {
-        self.check_numbers()?;
-        crate::check_out_dir(&self.out)
-    }
-
-    /// Every number against its stated range (no file touched).
+    /// Every number against its stated range (no file touched), run by
+    /// `Command::check_numbers` before the scene is loaded: a bad `--subpixels` or
+    /// `--emitter-rays` would otherwise fail only after the solve.
     pub fn check_numbers(&self) -> Result<(), String> {
         use crate::ranged;
         self.view.check()?;
@@ -149,7 +143,9 @@ pub fn light_state(scene: &Scene, settings: &[String]) -> Result<LightState, Str
 
 /// Runs the command.
 pub fn run(o: &Options) -> Result<(), String> {
-    o.check()?;
+    // The numbers were checked by `Command::check_numbers`; the output folder is checked
+    // before the solve.
+    crate::check_out_dir(&o.out)?;
     let (scene, state, camera) = o.view.open()?;
     let camera = &camera;
     let form_factors = match o.form_factors.as_str() {

@@ -14,7 +14,7 @@
 //! Every technique calls [`check`] in `prepare`, and every command opens scenes through
 //! [`crate::open_scene`], which calls it too, so a scene is refused before any work.
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 
 use crate::error::SceneError;
 use crate::scene::{Bounds, Scene};
@@ -185,6 +185,3 @@ impl Scene {
         }
     }
 }
-
-#[allow(dead_code)]
-fn _assert_dvec(_: DVec3) {}
