@@ -126,6 +126,17 @@ impl RayStats {
     }
 }
 
+/// What a pixel's centre sees ([`PathTracer::pixel_classes`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PixelClass {
+    /// Nothing: the ray leaves the scene.
+    Background,
+    /// A surface whose material emits.
+    Emitter,
+    /// A reflecting surface that does not emit.
+    Surface,
+}
+
 /// The result of [`render`].
 #[derive(Clone, Debug)]
 pub struct ReferenceOutput {
@@ -222,6 +233,33 @@ impl<'a> PathTracer<'a> {
             eps: extent * 2e-5,
             far: extent * 4.0,
         }
+    }
+
+    /// What each pixel's centre sees from `view` at `width` x `height`: nothing, an
+    /// emitting surface (emission seen from either side) or a reflecting one. Error over
+    /// "lit surfaces" is measured on [`PixelClass::Surface`] pixels, so that a method's bias
+    /// on what it shades is not diluted by emitter pixels every method copies exactly.
+    pub fn pixel_classes(&self, view: &View, width: u32, height: u32) -> Vec<PixelClass> {
+        let (w, h) = (width as usize, height as usize);
+        let mut out = vec![PixelClass::Background; w * h];
+        out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
+            for (x, c) in row.iter_mut().enumerate() {
+                let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+                let (o, d) = view.ray(uv);
+                *c = match self.rays.closest_hit(o, d, 0.0, f32::INFINITY) {
+                    None => PixelClass::Background,
+                    Some(hit) => {
+                        let tri = &self.tris[hit.triangle as usize];
+                        if self.scene.materials[tri.material as usize].is_emissive() {
+                            PixelClass::Emitter
+                        } else {
+                            PixelClass::Surface
+                        }
+                    }
+                };
+            }
+        });
+        out
     }
 
     /// The BVH, for reuse by callers.
