@@ -5,7 +5,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use scene_core::reference::{Bounces, ReferenceSettings};
+use scene_core::reference::{Bounces, PathTracer, PixelClass, ReferenceSettings};
 
 use scene_core::{Camera, FrameRequest, Image, LightState, Metric, Scene, Technique};
 
@@ -13,13 +13,13 @@ use crate::HarnessError;
 use crate::cache::{Fnv, ReferenceCache, scene_hash};
 use crate::cameras::CameraSpec;
 use crate::results::{
-    ErrorSet, LadderPoint, ReferenceResult, Results, RunSettings, TechniqueInfo, TechniqueResult,
-    Timing, ViewResult, summarize,
+    ErrorSet, LadderPoint, ReferenceResult, Results, RunInfo, RunSettings, TechniqueInfo,
+    TechniqueResult, Timing, ViewResult, summarize,
 };
 use crate::sequence::{SequenceResult, SequenceSettings};
 
 /// Version of the per-view result format; views written by another version are recomputed.
-pub const RESULTS_VERSION: u64 = 3;
+pub const RESULTS_VERSION: u64 = 4;
 
 /// A scene and the cameras to render it from.
 pub struct SceneSetup {
@@ -59,10 +59,26 @@ pub struct ExperimentSettings {
     pub bounces: Vec<Bounces>,
     /// Reference seed.
     pub seed: u64,
-    /// Untimed frames before the timed ones.
+    /// Untimed frames before the timed ones, each from a neighbour of the view (never the
+    /// view itself, so that per-view work stays inside the timed frames).
     pub warmup: u32,
-    /// Timed frames (median, min, max reported).
+    /// Timed moving-camera frames (median, min, max reported): the view itself, then
+    /// neighbours of it ([`neighbour`]), each new to the technique.
     pub repeats: u32,
+    /// Timed still-camera frames after those: the view again, reusing whatever per-view
+    /// work the technique keeps (0: not measured). Reported beside, never instead of, the
+    /// moving-camera figure.
+    pub still_repeats: u32,
+    /// Extend the equal-error ladder with rungs at twice the finest, up to half the
+    /// reference's spp (the reference's own noise floor), until it brackets every
+    /// technique's error.
+    pub ladder_extend: bool,
+    /// Provenance written into `results.json` (date, command, preset, tuning); the harness
+    /// fills in the scenes, the shard and the seconds.
+    pub run_info: crate::results::RunInfo,
+    /// Run only the `k`-th of `n` shares of the work (views and the sequence, dealt round
+    /// the shards in run order); [`crate::merge`] combines the shards' output folders.
+    pub shard: Option<Shard>,
     /// Output folder.
     pub out_dir: PathBuf,
     /// Reference cache folder (default `<out_dir>/reference-cache`).
@@ -119,6 +135,58 @@ pub fn default_ladder(spp: u32) -> Vec<u32> {
     v
 }
 
+/// One share of an experiment's work: the `index`-th (0-based) of `count`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Shard {
+    /// Which share, `0..count`.
+    pub index: usize,
+    /// How many shares.
+    pub count: usize,
+}
+
+impl Shard {
+    /// Parses `K/N`: share `K` (1-based) of `N`. A runner that numbers its tasks from 0
+    /// (a Kubernetes Indexed Job) passes `$((INDEX + 1))/N`.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let bad = || format!("--shard takes K/N with 1 <= K <= N <= 4096, got '{s}'");
+        let (k, n) = s.split_once('/').ok_or_else(bad)?;
+        let k: usize = k.trim().parse().map_err(|_| bad())?;
+        let n: usize = n.trim().parse().map_err(|_| bad())?;
+        if !(1..=4096).contains(&n) || !(1..=n).contains(&k) {
+            return Err(bad());
+        }
+        Ok(Self {
+            index: k - 1,
+            count: n,
+        })
+    }
+
+    /// True when job number `job` (in run order) is this shard's.
+    pub fn owns(&self, job: usize) -> bool {
+        job % self.count == self.index
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index + 1, self.count)
+    }
+}
+
+/// The `k`-th neighbour of a camera (`k >= 1`): moved sideways by `k` x 0.5% of its
+/// viewing distance, target with it. Frames timed from neighbours are views a technique
+/// has not rendered before, at the same cost as the view itself.
+pub fn neighbour(camera: &Camera, k: u32) -> Camera {
+    let d = camera.target - camera.position;
+    let right = d.cross(camera.view_up()).normalize_or_zero();
+    let shift = right * d.length() * 5e-3 * k as f32;
+    Camera {
+        position: camera.position + shift,
+        target: camera.target + shift,
+        ..camera.clone()
+    }
+}
+
 /// The seed of the ladder's renders: independent of the reference's.
 pub fn ladder_seed(seed: u64) -> u64 {
     seed ^ 0x1add_e5ee_d000_0001
@@ -134,6 +202,10 @@ impl Default for ExperimentSettings {
             seed: 1,
             warmup: 1,
             repeats: 3,
+            still_repeats: 0,
+            ladder_extend: true,
+            shard: None,
+            run_info: Default::default(),
             out_dir: PathBuf::from("out/experiment"),
             cache_dir: None,
             baseline: "dl".into(),
@@ -292,6 +364,7 @@ impl Experiment {
             seed: s.seed,
             warmup: s.warmup,
             repeats: s.repeats,
+            still_repeats: s.still_repeats,
             baseline: s.baseline.clone(),
             error_metric: s.error_metric.clone(),
             correlation_metric: s.correlation_metric.clone(),
@@ -321,6 +394,8 @@ impl Experiment {
             .u64(s.seed)
             .u64(s.warmup as u64)
             .u64(s.repeats as u64)
+            .u64(s.still_repeats as u64)
+            .u64(s.ladder_extend as u64)
             .str(&s.baseline)
             .str(&s.error_metric);
         for b in &s.bounces {
@@ -414,12 +489,20 @@ impl Experiment {
             (0usize, 0usize, 0u64, 0u64);
         let mut interrupted = false;
         let scenes = std::mem::take(&mut self.scenes);
+        let shard = self.settings.shard;
+        let mut job = 0usize;
+        let mut last_prepared: Option<(String, Vec<f64>)> = None;
         let result = (|| -> Result<(), HarnessError> {
             for sc in &scenes {
                 let hash = scene_hash(&sc.scene);
                 let config = self.config_key(hash);
                 let mut prepared: Option<Vec<f64>> = None;
+                let mut tracer: Option<PathTracer<'_>> = None;
                 for (ci, camera) in sc.cameras.iter().enumerate() {
+                    job += 1;
+                    if shard.is_some_and(|k| !k.owns(job - 1)) {
+                        continue;
+                    }
                     let file = views_dir.join(format!(
                         "{}--{ci:02}-{}.json",
                         slug(&sc.id),
@@ -458,9 +541,11 @@ impl Experiment {
                             })?;
                             times.push(t0.elapsed().as_secs_f64());
                         }
+                        last_prepared = Some((sc.id.clone(), times.clone()));
                         prepared = Some(times);
                     }
                     let prepare_times = prepared.clone().unwrap_or_default();
+                    let tracer = tracer.get_or_insert_with(|| PathTracer::new(&sc.scene));
                     let (view, n_renders, n_refs) = self.run_view(
                         sc,
                         hash,
@@ -469,6 +554,7 @@ impl Experiment {
                         &config,
                         &prepare_times,
                         &cache,
+                        tracer,
                         &out,
                         (&multi, &views_bar),
                     )?;
@@ -485,10 +571,11 @@ impl Experiment {
         self.scenes = scenes;
         views_bar.finish_and_clear();
         result?;
-        let sequence = if interrupted {
+        // The sequence is the last job.
+        let sequence = if interrupted || shard.is_some_and(|k| !k.owns(job)) {
             None
         } else {
-            self.sequence(&cache, &views_dir, &out, &mut renders)?
+            self.sequence(&cache, &views_dir, &out, &mut renders, last_prepared)?
         };
 
         let settings = self.run_settings();
@@ -501,12 +588,20 @@ impl Experiment {
             views: outcome_views,
             summary,
             sequence,
+            run: RunInfo {
+                scenes: self.scenes.iter().map(|s| s.id.clone()).collect(),
+                shard,
+                sequence_expected: self.settings.sequence.is_some(),
+                seconds: start.elapsed().as_secs_f64(),
+                date: crate::results::utc_now(),
+                ..self.settings.run_info.clone()
+            },
         };
         let results_json = out.join("results.json");
         let report_md = out.join("report.md");
         let report_html = out.join("report.html");
         crate::write_json(&results_json, &results)?;
-        if !interrupted {
+        if !interrupted && shard.is_none() {
             let headline = self.settings.headline.clone().or_else(|| {
                 self.techniques
                     .iter()
@@ -544,6 +639,7 @@ impl Experiment {
         views_dir: &Path,
         out: &Path,
         renders: &mut u64,
+        last_prepared: Option<(String, Vec<f64>)>,
     ) -> Result<Option<SequenceResult>, HarnessError> {
         let Some(spec) = self.settings.sequence.clone() else {
             return Ok(None);
@@ -613,6 +709,11 @@ impl Experiment {
             seed: self.settings.seed,
         };
         let images = out.join("sequence");
+        // The techniques are still prepared for the sequence's scene when it was the last
+        // scene of the views: reuse that precomputation (and its times).
+        let prepared = last_prepared
+            .filter(|(id, _)| *id == spec.scene)
+            .map(|(_, times)| times);
         let result = crate::sequence::run_sequence(
             &spec.scene,
             &scene,
@@ -624,6 +725,7 @@ impl Experiment {
             &settings,
             cache,
             Some(&images),
+            prepared.as_deref(),
         )?;
         *renders += (self.techniques.len() * (frames.len() + 1)) as u64;
         crate::write_json(
@@ -639,6 +741,7 @@ impl Experiment {
     /// The equal-error ladder of one view at bounce limit `b`: the path tracer at each
     /// ladder spp below the reference's, with the ladder seed, measured against `reference`
     /// by the error metric. Returns the rungs and the number of renders made (not cached).
+    #[allow(clippy::too_many_arguments)]
     fn ladder(
         &self,
         sc: &SceneSetup,
@@ -647,6 +750,7 @@ impl Experiment {
         b: Bounces,
         reference: &Image,
         cache: &ReferenceCache,
+        spps: &[u32],
     ) -> Result<(Vec<LadderPoint>, u64), HarnessError> {
         let s = &self.settings;
         let Some(metric) = self.metrics.iter().find(|m| m.name() == s.error_metric) else {
@@ -654,7 +758,7 @@ impl Experiment {
         };
         let mut rungs = Vec::new();
         let mut renders = 0;
-        for &spp in s.ladder_spp.iter().filter(|&&n| n > 0 && n < s.spp) {
+        for &spp in spps.iter().filter(|&&n| n > 0 && n < s.spp) {
             let rs = ReferenceSettings {
                 width: s.width,
                 height: s.height,
@@ -689,6 +793,7 @@ impl Experiment {
         config: &str,
         prepare_times: &[f64],
         cache: &ReferenceCache,
+        tracer: &PathTracer<'_>,
         out: &Path,
         (multi, views_bar): (&MultiProgress, &ProgressBar),
     ) -> Result<(ViewResult, u64, u64), HarnessError> {
@@ -725,7 +830,7 @@ impl Experiment {
             }
             let stem = format!("reference-b{b}");
             write_image(&dir, &stem, &r.image, s.exposure, true)?;
-            let ladder = self.ladder(sc, hash, &cam, *b, &r.image, cache)?;
+            let ladder = self.ladder(sc, hash, &cam, *b, &r.image, cache, &s.ladder_spp)?;
             ref_renders += ladder.1;
             references.push(ReferenceResult {
                 bounces: b.to_string(),
@@ -736,42 +841,47 @@ impl Experiment {
             });
             ref_images.push(r.image);
         }
-        // Techniques: warm-up, timed repeats; the last frame is measured.
+        // Techniques: warm-up on neighbours of the view, then timed moving-camera frames
+        // (the view itself first, then neighbours: every one new to the technique), then
+        // timed still-camera frames (the view again). The view's first frame is measured.
         let mut renders = 0;
         let mut images = Vec::new();
         let mut results = Vec::new();
+        let (w, h) = (s.width, s.height);
         for (ti, t) in self.techniques.iter_mut().enumerate() {
             let fail = |e| HarnessError::Technique {
                 label: t.label.clone(),
                 scene: sc.id.clone(),
                 source: Box::new(e),
             };
-            let mut samples = Vec::new();
-            let mut last = None;
-            let (warmup, frames) = if t.single_frame {
-                (0, 1)
-            } else {
-                (s.warmup, s.warmup + s.repeats)
-            };
-            for i in 0..frames {
+            let lights = LightState::default();
+            let mut frame = |c: &Camera| -> Result<(Image, f64), HarnessError> {
                 let t0 = Instant::now();
                 let img = t
                     .technique
-                    .render(&FrameRequest::from_camera(
-                        &cam,
-                        s.width,
-                        s.height,
-                        &LightState::default(),
-                    ))
+                    .render(&FrameRequest::from_camera(c, w, h, &lights))
                     .map_err(fail)?;
-                let dt = t0.elapsed().as_secs_f64();
                 renders += 1;
-                if i >= warmup {
-                    samples.push(dt);
-                }
-                last = Some(img);
+                Ok((img, t0.elapsed().as_secs_f64()))
+            };
+            let (warmup, repeats, still) = if t.single_frame {
+                (0, 1, 0)
+            } else {
+                (s.warmup, s.repeats, s.still_repeats)
+            };
+            // Neighbours 1..=warmup warm up; warmup+1.. are the moving frames' others.
+            for k in 0..warmup {
+                frame(&neighbour(&cam, 1 + k))?;
             }
-            let img = last.ok_or_else(|| HarnessError::Invalid("no frame rendered".into()))?;
+            let (img, first) = frame(&cam)?;
+            let mut moving = vec![first];
+            for k in 1..repeats {
+                moving.push(frame(&neighbour(&cam, warmup + k))?.1);
+            }
+            let mut still_samples = Vec::new();
+            for _ in 0..still {
+                still_samples.push(frame(&cam)?.1);
+            }
             if img.width != s.width || img.height != s.height {
                 return Err(HarnessError::Invalid(format!(
                     "technique '{}' returned {}x{} for {}x{}",
@@ -782,11 +892,23 @@ impl Experiment {
             results.push(TechniqueResult {
                 label: t.label.clone(),
                 prepare_s: prepare_times.get(ti).copied().unwrap_or(0.0),
-                frame: Timing::from_samples(&samples),
+                frame: Timing::from_samples(&moving),
+                still: (!still_samples.is_empty()).then(|| Timing::from_samples(&still_samples)),
                 errors: Vec::new(),
             });
             images.push(img);
         }
+        // The lit-surface mask of each reference (what the pixel centres see, less the
+        // reference's brightest 1%).
+        let surface: Vec<bool> = tracer
+            .pixel_classes(&scene_core::View::from_camera(&cam), w, h)
+            .into_iter()
+            .map(|c| c == PixelClass::Surface)
+            .collect();
+        let masks: Vec<Vec<bool>> = ref_images
+            .iter()
+            .map(|r| crate::results::surface_mask(&surface, r))
+            .collect();
         // Errors against every reference, and the pixel comparison with the baseline.
         let base = self
             .techniques
@@ -824,17 +946,6 @@ impl Experiment {
                     }
                     (Some(c), Some(f))
                 };
-                let error = metrics
-                    .iter()
-                    .find(|(n, _)| n == &s.error_metric)
-                    .map(|m| m.1);
-                let equal_error = error.and_then(|e| {
-                    crate::results::equal_error(
-                        &references[ri].ladder,
-                        e,
-                        results[ti].frame.median_s,
-                    )
-                });
                 let label = &results[ti].label;
                 error_map(reference, img)
                     .write_png(&dir.join(format!("errmap-{}-b{b}.png", slug(label))), 0.0)
@@ -854,8 +965,39 @@ impl Experiment {
                     pixels_closer: closer,
                     pixels_farther: farther,
                     pixels: reference.pixels.len() as u64,
-                    equal_error,
+                    equal_error: None,
+                    surface: crate::results::surface_error(reference, img, &masks[ri]),
                 });
+            }
+        }
+        // The ladder extended until it brackets every technique's error (or reaches half
+        // the reference's spp), then each technique's point on it.
+        for (ri, (b, reference)) in s.bounces.iter().zip(&ref_images).enumerate() {
+            let error = |r: &TechniqueResult| r.errors[ri].metric(&s.error_metric);
+            let closest = results
+                .iter()
+                .filter_map(error)
+                .filter(|e| *e > 0.0)
+                .fold(f64::INFINITY, f64::min);
+            while s.ladder_extend && !references[ri].ladder.is_empty() {
+                let finest = *references[ri]
+                    .ladder
+                    .iter()
+                    .max_by_key(|p| p.spp)
+                    .expect("non-empty");
+                let next = finest.spp.saturating_mul(2);
+                if finest.error <= closest || next > s.spp / 2 {
+                    break;
+                }
+                let (rung, n) = self.ladder(sc, hash, &cam, *b, reference, cache, &[next])?;
+                ref_renders += n;
+                references[ri].ladder.extend(rung);
+            }
+            for r in results.iter_mut() {
+                let q = error(r).and_then(|e| {
+                    crate::results::equal_error(&references[ri].ladder, e, r.frame.median_s)
+                });
+                r.errors[ri].equal_error = q;
             }
         }
         Ok((
@@ -926,7 +1068,7 @@ fn write_image(
     Ok(())
 }
 
-fn write_text(path: &Path, text: &str) -> Result<(), HarnessError> {
+pub(crate) fn write_text(path: &Path, text: &str) -> Result<(), HarnessError> {
     scene_core::image::write_via_temp(
         path,
         |tmp| std::fs::write(tmp, text).map_err(|e| HarnessError::io(path, e)),

@@ -67,6 +67,7 @@
 pub mod cache;
 pub mod cameras;
 pub mod experiment;
+pub mod merge;
 pub mod plots;
 pub mod povray;
 pub mod report;
@@ -81,9 +82,10 @@ pub use cameras::{
     random_cameras,
 };
 pub use experiment::{
-    Experiment, ExperimentSettings, RunOutcome, SceneSetup, SequenceSpec, TechniqueSetup,
+    Experiment, ExperimentSettings, RunOutcome, SceneSetup, SequenceSpec, Shard, TechniqueSetup,
 };
-pub use results::{Comparison, Results, Summary, TimeRow, ViewResult};
+pub use merge::merge;
+pub use results::{Comparison, Results, RunInfo, Summary, TimeRow, ViewResult};
 pub use scene_core;
 
 /// An error of the harness.

@@ -32,6 +32,15 @@ pub fn fmt_err(x: f64) -> String {
     format!("{x:.6}")
 }
 
+/// A per-channel bias as signed percentages, `-7.10% / -8.02% / -9.20%`.
+pub fn fmt_bias(b: [f64; 3]) -> String {
+    b.map(|c| format!("{:+.2}%", c * 100.0)).join(" / ")
+}
+
+fn opt_ms(x: Option<f64>) -> String {
+    x.map(fmt_ms).unwrap_or_else(|| "-".into())
+}
+
 fn opt(x: Option<f64>) -> String {
     x.map(fmt_err).unwrap_or_else(|| "-".into())
 }
@@ -109,8 +118,13 @@ pub fn ranking_section(r: &Results) -> String {
     let _ = writeln!(
         o,
         "## Ranking\n\nBy mean error over every view against the reference at bounce limit \
-         {}; Pareto: scenes where no other technique is both faster and closer; speedup: \
-         over the path tracer at equal error.\n",
+         {}. Frame: a moving camera (every timed frame a view the technique had not rendered, \
+         so per-view work is inside); still: the same view again (reusing per-view work), a \
+         second figure that nothing below is computed from. Surface error and bias: over lit \
+         surfaces only (emitters, background and the reference's brightest 1% left out), \
+         bias per channel R / G / B. Pareto: scenes where no other technique is both faster \
+         and closer; speedup: over the path tracer at equal error (\"> N\": closer than the \
+         ladder's finest rung, a lower bound).\n",
         first.bounces
     );
     table(
@@ -119,7 +133,10 @@ pub fn ranking_section(r: &Results) -> String {
             "rank",
             "technique",
             "mean error",
+            "surface error",
+            "surface bias",
             "frame (ms)",
+            "still camera (ms)",
             "precomputation (s)",
             "Pareto scenes",
             "speedup at equal error",
@@ -129,10 +146,13 @@ pub fn ranking_section(r: &Results) -> String {
                 k.rank.to_string(),
                 k.technique.clone(),
                 fmt_err(k.mean_error),
+                opt(k.surface_error),
+                k.surface_bias.map(fmt_bias).unwrap_or_else(|| "-".into()),
                 fmt_ms(k.frame_ms),
+                opt_ms(k.still_frame_ms),
                 fmt_s(k.prepare_s),
                 k.pareto_scenes.to_string(),
-                k.speedup.map(fmt_2).unwrap_or_else(|| "-".into()),
+                k.speedup.clone().unwrap_or_else(|| "-".into()),
             ]
         }),
     );
@@ -149,7 +169,9 @@ pub fn sequence_section(r: &Results) -> String {
     let _ = writeln!(
         o,
         "## Relighting sequence\n\n{} / {}, {} frames, references at {} spp (bounces {}), \
-         error `{}`. Each cell: error / frame time (ms). Precomputation (s): {}.\n",
+         error `{}`. The camera stays still while the lights change, so these are \
+         still-camera frame times. Each cell: error / error over lit surfaces / frame time \
+         (ms). Precomputation (s): {}.\n",
         q.scene,
         q.camera,
         q.frames.len(),
@@ -169,12 +191,57 @@ pub fn sequence_section(r: &Results) -> String {
         row.extend(
             f.techniques
                 .iter()
-                .map(|t| format!("{} / {}", fmt_err(t.error), fmt_ms(t.frame_s * 1e3))),
+                .map(|t| {
+                    format!(
+                        "{} / {} / {}",
+                        fmt_err(t.error),
+                        opt(t.surface.map(|x| x.mean_error)),
+                        fmt_ms(t.frame_s * 1e3)
+                    )
+                }),
         );
         row
     });
     table(&mut o, &headers, rows);
     o
+}
+
+/// Error over lit surfaces per technique and scene, beside the whole-image error.
+pub fn surface_section(o: &mut String, r: &Results) {
+    if r.summary.surface.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        o,
+        "\n## Error over lit surfaces\n\nPer scene and bounce limit, the mean error over \
+         the pixels that see a reflecting surface (emitters, background and the reference's \
+         brightest 1% left out) beside the whole-image error, and the bias per channel R / G \
+         / B over those pixels ((sum test - sum reference) / sum reference: -10% is 10% \
+         dark).\n"
+    );
+    table(
+        o,
+        &[
+            "technique",
+            "scene",
+            "bounces",
+            "views",
+            "surface error",
+            "image error",
+            "surface bias",
+        ],
+        r.summary.surface.iter().map(|x| {
+            vec![
+                x.technique.clone(),
+                x.scene.clone(),
+                x.bounces.clone(),
+                x.views.to_string(),
+                fmt_err(x.mean_error),
+                fmt_err(x.image_error),
+                fmt_bias(x.bias),
+            ]
+        }),
+    );
 }
 
 /// The equal-error table: the path tracer's spp and time at each technique's error.
@@ -194,8 +261,14 @@ fn equal_error_table(o: &mut String, r: &Results) {
          again at {} spp with another seed; its error against the reference, read in log-log \
          between those rungs, gives the spp at which it is as close as each technique, and \
          its seconds per sample give the time. Speedup: the median over views of the \
-         path tracer's seconds over the technique's frame time (precomputation not counted; \
-         above 1 the technique is faster at equal error). Extrapolated: views whose error lies outside the ladder.\n",
+         path tracer's seconds over the technique's moving-camera frame time (precomputation \
+         not counted; above 1 the technique is faster at equal error), over the views the \
+         ladder brackets. Nothing is extrapolated: the ladder is extended (rungs at twice the \
+         finest, up to half the reference's spp, where the reference's own noise sets the \
+         floor) until it brackets each technique's error; a view still closer than the finest \
+         rung counts under \"above ladder\" and is left out of the median (when every view is \
+         above, the speedup is shown as \"> N\", the median of their lower bounds); \"below \
+         ladder\": farther than 1 spp. Surface error: over lit surfaces.\n",
         ladder.join(", ")
     );
     table(
@@ -209,7 +282,9 @@ fn equal_error_table(o: &mut String, r: &Results) {
             "path tracer (s)",
             "frame (ms)",
             "speedup",
-            "extrapolated",
+            "above ladder",
+            "below ladder",
+            "surface error",
         ],
         r.summary.equal_error.iter().map(|e| {
             vec![
@@ -220,8 +295,10 @@ fn equal_error_table(o: &mut String, r: &Results) {
                 fmt_2(e.median_spp),
                 fmt_s(e.mean_path_tracer_s),
                 fmt_ms(e.mean_frame_s * 1e3),
-                fmt_2(e.speedup),
-                e.extrapolated.to_string(),
+                e.shown(),
+                e.above_ladder.to_string(),
+                e.below_ladder.to_string(),
+                opt(e.surface_error),
             ]
         }),
     );
@@ -236,7 +313,8 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
     let _ = writeln!(
         o,
         "{} views, {}x{}, reference {} spp at bounce limits {}, {} warm-up + {} timed frames \
-         per view; error metric `{}`, baseline `{}`.\n",
+         per view from views new to the technique (moving camera) + {} still-camera frames; \
+         error metric `{}`, baseline `{}`.\n",
         r.views.len(),
         s.width,
         s.height,
@@ -244,6 +322,7 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
         s.bounces.join(", "),
         s.warmup,
         s.repeats,
+        s.still_repeats,
         s.error_metric,
         s.baseline
     );
@@ -265,6 +344,7 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
             "total time (s)",
             "average frame time (ms)",
             "average FPS",
+            "still camera (ms)",
             "precomputation (s)",
         ],
         r.summary.times.iter().map(|t| {
@@ -274,10 +354,12 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
                 fmt_s(t.total_s),
                 fmt_ms(t.avg_frame_ms),
                 fmt_2(t.avg_fps),
+                opt_ms(t.still_frame_ms),
                 fmt_s(t.prepare_s),
             ]
         }),
     );
+    surface_section(&mut o, r);
     break_even_table(&mut o, r);
     equal_error_table(&mut o, r);
     if r.sequence.is_some() {

@@ -58,6 +58,91 @@ pub struct ErrorSet {
     /// when the ladder's error does not fall with the sample count).
     #[serde(default)]
     pub equal_error: Option<EqualError>,
+    /// The error over lit surfaces ([`surface_error`]): emitters, background and the
+    /// reference's brightest 1% left out, with the bias per channel.
+    #[serde(default)]
+    pub surface: Option<SurfaceError>,
+}
+
+/// Error over lit surfaces: the pixels whose centre sees a reflecting surface (not an
+/// emitter, not the background), less the reference's brightest 1% of those (fireflies and
+/// highlights at emitter edges). Whole-image means dilute a method's bias under emitters
+/// that every method copies exactly; this is the figure that shows it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceError {
+    /// Pixels measured.
+    pub pixels: u64,
+    /// Mean over those pixels and the three channels of `|test - reference|` (eq. 19's
+    /// mean error restricted to lit surfaces).
+    pub mean_error: f64,
+    /// Per channel, `(sum test - sum reference) / sum reference` over those pixels: -0.1
+    /// is 10% dark (0 where the reference is black there).
+    pub bias: [f64; 3],
+}
+
+/// Share of the brightest lit-surface pixels of the reference left out of [`SurfaceError`].
+pub const SURFACE_BRIGHTEST_EXCLUDED: f64 = 0.01;
+
+/// The lit-surface mask of a view: `surface[i]` says pixel `i`'s centre sees a reflecting
+/// surface ([`scene_core::reference::PixelClass::Surface`]); of those, the pixels whose
+/// reference luminance is above the 99th percentile are left out.
+pub fn surface_mask(surface: &[bool], reference: &scene_core::Image) -> Vec<bool> {
+    let lum = |i: usize| scene_core::luminance(reference.pixels[i]);
+    let mut values: Vec<f32> = (0..surface.len().min(reference.pixels.len()))
+        .filter(|&i| surface[i])
+        .map(lum)
+        .filter(|v| v.is_finite())
+        .collect();
+    if values.is_empty() {
+        return vec![false; surface.len()];
+    }
+    values.sort_by(f32::total_cmp);
+    let keep = ((values.len() as f64) * (1.0 - SURFACE_BRIGHTEST_EXCLUDED)).ceil() as usize;
+    let limit = values[keep.clamp(1, values.len()) - 1];
+    (0..surface.len())
+        .map(|i| surface[i] && i < reference.pixels.len() && lum(i) <= limit)
+        .collect()
+}
+
+/// [`SurfaceError`] of `test` against `reference` over `mask` ([`surface_mask`]); `None`
+/// when the mask is empty or the sizes differ.
+pub fn surface_error(
+    reference: &scene_core::Image,
+    test: &scene_core::Image,
+    mask: &[bool],
+) -> Option<SurfaceError> {
+    if reference.pixels.len() != test.pixels.len() || mask.len() != reference.pixels.len() {
+        return None;
+    }
+    let (mut abs, mut sum_t, mut sum_r, mut n) = (0.0f64, [0.0f64; 3], [0.0f64; 3], 0u64);
+    for ((r, t), &m) in reference.pixels.iter().zip(&test.pixels).zip(mask) {
+        if !m {
+            continue;
+        }
+        let (r, t) = (r.as_dvec3(), t.as_dvec3());
+        abs += (r - t).abs().element_sum();
+        for c in 0..3 {
+            sum_t[c] += t[c];
+            sum_r[c] += r[c];
+        }
+        n += 1;
+    }
+    if n == 0 {
+        return None;
+    }
+    let bias = std::array::from_fn(|c| {
+        if sum_r[c] > 0.0 {
+            (sum_t[c] - sum_r[c]) / sum_r[c]
+        } else {
+            0.0
+        }
+    });
+    let mean_error = abs / (3 * n) as f64;
+    (mean_error.is_finite() && bias.iter().all(|b: &f64| b.is_finite())).then_some(SurfaceError {
+        pixels: n,
+        mean_error,
+        bias,
+    })
 }
 
 /// One rung of the equal-error ladder: the path tracer at a lower sample count (another
@@ -72,26 +157,54 @@ pub struct LadderPoint {
     pub error: f64,
 }
 
+/// Where a technique's error lies against the equal-error ladder.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum LadderBound {
+    /// Between two rungs: the spp is interpolated and the speedup is a measurement.
+    Within,
+    /// Closer than the finest rung: the path tracer needs more than that rung's spp, and
+    /// the speedup is at least the one given (a lower bound, shown "> N x").
+    AboveFinest,
+    /// Farther than the coarsest rung (1 spp): the path tracer needs fewer samples, and the
+    /// speedup is at most the one given (an upper bound, shown "< N x").
+    BelowCoarsest,
+}
+
 /// The path tracer's cost at a technique's error.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct EqualError {
     /// Samples per pixel at which the path tracer's error equals the technique's
-    /// (interpolated in log-log between ladder rungs).
+    /// (interpolated in log-log between the bracketing rungs; the outside rung's spp when
+    /// `bound` is not [`LadderBound::Within`]).
     pub spp: f64,
     /// Seconds the path tracer takes at that sample count (its measured seconds per spp).
     pub seconds: f64,
     /// `seconds` over the technique's median frame time: how many times faster the
-    /// technique is at equal error (above 1: the technique wins).
+    /// technique is at equal error (above 1: the technique wins); a bound unless `bound` is
+    /// [`LadderBound::Within`].
     pub speedup: f64,
-    /// True when the error lies outside the ladder and the spp was extrapolated along the
-    /// nearest two rungs' slope.
-    pub extrapolated: bool,
+    /// Whether the ladder brackets the error. Never extrapolated: outside the ladder the
+    /// figure is a bound and is left out of medians.
+    pub bound: LadderBound,
+}
+
+impl EqualError {
+    /// The speedup as shown: `123.4`, `> 123.4` or `< 0.5`.
+    pub fn shown(&self) -> String {
+        let v = crate::report::fmt_2(self.speedup);
+        match self.bound {
+            LadderBound::Within => v,
+            LadderBound::AboveFinest => format!("> {v}"),
+            LadderBound::BelowCoarsest => format!("< {v}"),
+        }
+    }
 }
 
 /// The equal-error point of `error` on `ladder` for a technique whose frame takes
 /// `frame_s` seconds: the ladder is read as `log e = a + k log spp` between the two rungs
-/// that bracket `error` (the nearest two outside it, marked extrapolated). `None` with fewer
-/// than two rungs, a non-positive error, or a segment whose error does not fall.
+/// that bracket `error`. An error outside the ladder gives the outside rung as a bound
+/// ([`LadderBound`]), never an extrapolation. `None` with fewer than two rungs, a
+/// non-positive error, or a bracketing segment whose error does not fall.
 pub fn equal_error(ladder: &[LadderPoint], error: f64, frame_s: f64) -> Option<EqualError> {
     let mut l: Vec<LadderPoint> = ladder
         .iter()
@@ -103,32 +216,42 @@ pub fn equal_error(ladder: &[LadderPoint], error: f64, frame_s: f64) -> Option<E
         return None;
     }
     let n = l.len();
-    // The segment: the first whose lower end is at or below `error`, else the last.
-    let (i, extrapolated) = match l.iter().position(|p| p.error <= error) {
-        Some(0) => (0, error > l[0].error),
-        Some(k) => (k - 1, false),
-        None => (n - 2, true),
+    let top = l[n - 1];
+    let per_spp = top.seconds / top.spp as f64;
+    let speedup = |seconds: f64| {
+        if frame_s > 0.0 {
+            seconds / frame_s
+        } else {
+            f64::INFINITY
+        }
     };
-    let (a, b) = (l[i], l[i + 1]);
+    let at = |spp: f64, bound| {
+        let seconds = spp * per_spp;
+        Some(EqualError {
+            spp,
+            seconds,
+            speedup: speedup(seconds),
+            bound,
+        })
+    };
+    if error > l[0].error {
+        return at(l[0].spp as f64, LadderBound::BelowCoarsest);
+    }
+    // The first rung at or below `error` closes the bracketing segment.
+    let Some(k) = l.iter().position(|p| p.error <= error) else {
+        return at(top.spp as f64, LadderBound::AboveFinest);
+    };
+    if k == 0 {
+        return at(l[0].spp as f64, LadderBound::Within);
+    }
+    let (a, b) = (l[k - 1], l[k]);
     let (x0, x1) = ((a.spp as f64).ln(), (b.spp as f64).ln());
     let (y0, y1) = (a.error.ln(), b.error.ln());
     if y1 >= y0 {
         return None;
     }
     let x = x0 + (error.ln() - y0) * (x1 - x0) / (y1 - y0);
-    let spp = x.exp();
-    let top = l[n - 1];
-    let seconds = spp * top.seconds / top.spp as f64;
-    Some(EqualError {
-        spp,
-        seconds,
-        speedup: if frame_s > 0.0 {
-            seconds / frame_s
-        } else {
-            f64::INFINITY
-        },
-        extrapolated,
-    })
+    at(x.exp(), LadderBound::Within)
 }
 
 impl ErrorSet {
@@ -145,8 +268,14 @@ pub struct TechniqueResult {
     pub label: String,
     /// Precomputation time for the view's scene (seconds; the run that computed the view).
     pub prepare_s: f64,
-    /// Frame times.
+    /// Frame times of a moving camera: every timed frame is a view the technique had not
+    /// rendered before, so per-view work (caches a frame fills) is inside. The report,
+    /// the ranking and the equal-error speedups use these.
     pub frame: Timing,
+    /// Frame times of a still camera: the same view rendered again, reusing per-view work
+    /// (a second, labelled figure; `None` when not measured).
+    #[serde(default)]
+    pub still: Option<Timing>,
     /// Errors per reference bounce limit.
     pub errors: Vec<ErrorSet>,
 }
@@ -217,14 +346,16 @@ impl ViewResult {
             let l = &t.label;
             non_negative(|| format!("{l}: precomputation seconds"), t.prepare_s)?;
             let f = &t.frame;
-            for (name, v) in [("min", f.min_s), ("median", f.median_s), ("max", f.max_s)] {
-                non_negative(|| format!("{l}: frame {name} seconds"), v)?;
-            }
-            if !(f.min_s <= f.median_s && f.median_s <= f.max_s && f.repeats > 0) {
-                return Err(format!(
-                    "{l}: frame times min {} median {} max {} over {} repeats are not ordered",
-                    f.min_s, f.median_s, f.max_s, f.repeats
-                ));
+            for (kind, f) in std::iter::once(("frame", f)).chain(t.still.iter().map(|s| ("still", s))) {
+                for (name, v) in [("min", f.min_s), ("median", f.median_s), ("max", f.max_s)] {
+                    non_negative(|| format!("{l}: {kind} {name} seconds"), v)?;
+                }
+                if !(f.min_s <= f.median_s && f.median_s <= f.max_s && f.repeats > 0) {
+                    return Err(format!(
+                        "{l}: {kind} times min {} median {} max {} over {} repeats are not ordered",
+                        f.min_s, f.median_s, f.max_s, f.repeats
+                    ));
+                }
             }
             for e in &t.errors {
                 for (m, v) in &e.metrics {
@@ -241,6 +372,15 @@ impl ViewResult {
                         "{l}: {counted} pixels closer or farther of {}",
                         e.pixels
                     ));
+                }
+                if let Some(x) = &e.surface {
+                    non_negative(|| format!("{l}: surface error"), x.mean_error)?;
+                    if x.pixels > e.pixels || x.bias.iter().any(|b| !b.is_finite() || *b < -1.0) {
+                        return Err(format!(
+                            "{l}: surface error over {} of {} pixels with bias {:?} is not a measurement",
+                            x.pixels, e.pixels, x.bias
+                        ));
+                    }
                 }
                 if let Some(q) = &e.equal_error {
                     non_negative(|| format!("{l}: equal-error spp"), q.spp)?;
@@ -301,6 +441,9 @@ pub struct TimeRow {
     pub avg_fps: f64,
     /// Precomputation summed over scenes (seconds; 0 for the reference).
     pub prepare_s: f64,
+    /// Average still-camera frame time (milliseconds; the same view again), when measured.
+    #[serde(default)]
+    pub still_frame_ms: Option<f64>,
 }
 
 /// The thesis' summary statistics of one technique against the baseline at one bounce limit.
@@ -367,8 +510,13 @@ pub struct EqualErrorRow {
     pub bounces: String,
     /// Views with an equal-error point.
     pub views: usize,
-    /// Of those, views whose point was extrapolated beyond the ladder.
-    pub extrapolated: usize,
+    /// Of those, views whose error is closer than the ladder's finest rung (their speedup
+    /// is a lower bound, left out of the median).
+    pub above_ladder: usize,
+    /// Views whose error is farther than the ladder's coarsest rung (an upper bound, left
+    /// out of the median).
+    #[serde(default)]
+    pub below_ladder: usize,
     /// Mean over views of the technique's error.
     pub mean_error: f64,
     /// Median over views of the path tracer's spp at that error.
@@ -377,10 +525,48 @@ pub struct EqualErrorRow {
     pub mean_path_tracer_s: f64,
     /// Mean over views of the technique's median frame time (seconds).
     pub mean_frame_s: f64,
-    /// Median over views of the path tracer's seconds at the technique's error over the
-    /// technique's frame time: above 1 the technique is faster at equal error. (A median, so
-    /// a view extrapolated far beyond the ladder does not decide it.)
-    pub speedup: f64,
+    /// Median, over the views the ladder brackets, of the path tracer's seconds at the
+    /// technique's error over the technique's (moving-camera) frame time: above 1 the
+    /// technique is faster at equal error. `None` when the ladder brackets no view.
+    pub speedup: Option<f64>,
+    /// When no view is bracketed and every view is above the ladder: the median of their
+    /// lower bounds (the median speedup is at least this; shown "> N").
+    #[serde(default)]
+    pub speedup_at_least: Option<f64>,
+    /// Mean over views of the error over lit surfaces, when measured.
+    #[serde(default)]
+    pub surface_error: Option<f64>,
+}
+
+impl EqualErrorRow {
+    /// The speedup as shown: a median of measured points, `> N` for a bound, `-` for none.
+    pub fn shown(&self) -> String {
+        match (self.speedup, self.speedup_at_least) {
+            (Some(v), _) => crate::report::fmt_2(v),
+            (None, Some(b)) => format!("> {}", crate::report::fmt_2(b)),
+            _ => "-".into(),
+        }
+    }
+}
+
+/// A technique's error over lit surfaces on one scene ([`SurfaceError`], averaged over the
+/// scene's views).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SurfaceRow {
+    /// Technique label.
+    pub technique: String,
+    /// Scene id.
+    pub scene: String,
+    /// The reference's bounce limit.
+    pub bounces: String,
+    /// Views.
+    pub views: usize,
+    /// Mean over views of the lit-surface mean error.
+    pub mean_error: f64,
+    /// Mean over views of the whole-image error (the experiment's error metric), beside.
+    pub image_error: f64,
+    /// Mean over views of the per-channel bias on lit surfaces.
+    pub bias: [f64; 3],
 }
 
 /// A technique's place in the run's ranking.
@@ -400,8 +586,18 @@ pub struct RankRow {
     pub prepare_s: f64,
     /// Scenes where the technique is on the Pareto front at that limit.
     pub pareto_scenes: usize,
-    /// Speedup over the path tracer at equal error, when a ladder was run.
-    pub speedup: Option<f64>,
+    /// Speedup over the path tracer at equal error, when a ladder was run, as shown
+    /// ([`EqualErrorRow::shown`]: a median of bracketed views or a bound).
+    pub speedup: Option<String>,
+    /// Average still-camera frame time (milliseconds), when measured.
+    #[serde(default)]
+    pub still_frame_ms: Option<f64>,
+    /// Mean over views of the error over lit surfaces at that limit.
+    #[serde(default)]
+    pub surface_error: Option<f64>,
+    /// Mean over views of the per-channel bias on lit surfaces at that limit.
+    #[serde(default)]
+    pub surface_bias: Option<[f64; 3]>,
 }
 
 /// Summary of a run.
@@ -420,6 +616,9 @@ pub struct Summary {
     /// The techniques ranked by mean error at the last bounce limit, closest first.
     #[serde(default)]
     pub ranking: Vec<RankRow>,
+    /// Error over lit surfaces per technique, scene and bounce limit.
+    #[serde(default)]
+    pub surface: Vec<SurfaceRow>,
 }
 
 /// The settings of a run, as recorded.
@@ -437,8 +636,11 @@ pub struct RunSettings {
     pub seed: u64,
     /// Warm-up frames per view and technique.
     pub warmup: u32,
-    /// Timed frames per view and technique.
+    /// Timed frames per view and technique (moving camera: each a new view).
     pub repeats: u32,
+    /// Timed still-camera frames per view and technique (0: not measured).
+    #[serde(default)]
+    pub still_repeats: u32,
     /// Baseline technique label.
     pub baseline: String,
     /// The metric that decides "closer" (eq. 19).
@@ -463,6 +665,69 @@ pub struct Results {
     /// The relighting sequence, when one was run.
     #[serde(default)]
     pub sequence: Option<crate::sequence::SequenceResult>,
+    /// How, when and where the run was made.
+    #[serde(default)]
+    pub run: RunInfo,
+}
+
+/// The current UTC date and minute, `2026-11-25 09:41 UTC` (from the system clock).
+pub fn utc_now() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let (days, rest) = ((secs / 86_400) as i64, secs % 86_400);
+    // Days since 1970-01-01 to a proleptic Gregorian date, by 400-year eras of 146 097
+    // days counted from 0000-03-01 (so the leap day ends a year).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1_460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let day = doy - (153 * mp + 2) / 5 + 1;
+    let month = if mp < 10 { mp + 3 } else { mp - 9 };
+    let year = yoe + era * 400 + i64::from(month <= 2);
+    format!(
+        "{year:04}-{month:02}-{day:02} {:02}:{:02} UTC",
+        rest / 3600,
+        rest % 3600 / 60
+    )
+}
+
+/// The provenance of a run: what a generated document quotes beside its numbers.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunInfo {
+    /// UTC date and time the run finished (`2026-11-25 09:41 UTC`).
+    #[serde(default)]
+    pub date: String,
+    /// The command that made it.
+    #[serde(default)]
+    pub command: String,
+    /// The preset (`default`, `full`), or empty.
+    #[serde(default)]
+    pub preset: String,
+    /// Worker threads.
+    #[serde(default)]
+    pub threads: usize,
+    /// Wall-clock seconds of the run (of the longest shard for a merged run).
+    #[serde(default)]
+    pub seconds: f64,
+    /// The scenes in run order (views of a merged run are put back in this order).
+    #[serde(default)]
+    pub scenes: Vec<String>,
+    /// The share of the work this run did (`None`: all of it, or a merge of every share).
+    #[serde(default)]
+    pub shard: Option<crate::experiment::Shard>,
+    /// Shards merged into this result (0: a single run).
+    #[serde(default)]
+    pub merged_shards: usize,
+    /// True when the run was set up with a relighting sequence.
+    #[serde(default)]
+    pub sequence_expected: bool,
+    /// Where the defaults of the methods measured were tuned (held out from these views).
+    #[serde(default)]
+    pub tuning: Vec<String>,
 }
 
 fn mean(v: impl IntoIterator<Item = f64>) -> Option<f64> {
@@ -498,7 +763,14 @@ pub fn summarize(
                 prepare += r.prepare_s;
             }
         }
-        times.push(time_row(t.label.clone(), &frames, prepare));
+        let still: Vec<f64> = views
+            .iter()
+            .filter_map(|v| v.technique(&t.label)?.still.as_ref())
+            .map(|s| s.median_s * 1e3)
+            .collect();
+        let mut row = time_row(t.label.clone(), &frames, prepare);
+        row.still_frame_ms = mean(still);
+        times.push(row);
     }
     for b in &settings.bounces {
         let frames: Vec<f64> = views
@@ -571,37 +843,49 @@ pub fn summarize(
     let mut equal_error_rows = Vec::new();
     for t in techniques {
         for b in &settings.bounces {
-            let points: Vec<(f64, EqualError, f64)> = views
+            let sets: Vec<(&ErrorSet, f64)> = views
                 .iter()
                 .filter_map(|v| {
                     let r = v.technique(&t.label)?;
-                    let set = r.errors.iter().find(|e| &e.bounces == b)?;
-                    Some((set.metric(em)?, set.equal_error?, r.frame.median_s))
+                    Some((r.errors.iter().find(|e| &e.bounces == b)?, r.frame.median_s))
                 })
+                .collect();
+            let points: Vec<(f64, EqualError, f64)> = sets
+                .iter()
+                .filter_map(|(set, f)| Some((set.metric(em)?, set.equal_error?, *f)))
                 .collect();
             if points.is_empty() {
                 continue;
             }
-            let mut spp: Vec<f64> = points.iter().map(|p| p.1.spp).collect();
-            spp.sort_by(f64::total_cmp);
-            let mean_pt = mean(points.iter().map(|p| p.1.seconds)).unwrap_or(0.0);
-            let mean_frame = mean(points.iter().map(|p| p.2)).unwrap_or(0.0);
+            let within: Vec<&(f64, EqualError, f64)> = points
+                .iter()
+                .filter(|p| p.1.bound == LadderBound::Within)
+                .collect();
+            let above: Vec<f64> = points
+                .iter()
+                .filter(|p| p.1.bound == LadderBound::AboveFinest)
+                .map(|p| p.1.speedup.min(f64::MAX))
+                .collect();
+            let median = |v: Vec<f64>| Timing::from_samples(&v).median_s;
+            let speedup = (!within.is_empty())
+                .then(|| median(within.iter().map(|p| p.1.speedup.min(f64::MAX)).collect()));
             equal_error_rows.push(EqualErrorRow {
                 technique: t.label.clone(),
                 bounces: b.clone(),
                 views: points.len(),
-                extrapolated: points.iter().filter(|p| p.1.extrapolated).count(),
+                above_ladder: above.len(),
+                below_ladder: points
+                    .iter()
+                    .filter(|p| p.1.bound == LadderBound::BelowCoarsest)
+                    .count(),
                 mean_error: mean(points.iter().map(|p| p.0)).unwrap_or(0.0),
-                median_spp: Timing::from_samples(&spp).median_s,
-                mean_path_tracer_s: mean_pt,
-                mean_frame_s: mean_frame,
-                speedup: Timing::from_samples(
-                    &points
-                        .iter()
-                        .map(|p| p.1.speedup.min(f64::MAX))
-                        .collect::<Vec<_>>(),
-                )
-                .median_s,
+                median_spp: median(within.iter().map(|p| p.1.spp).collect()),
+                mean_path_tracer_s: mean(within.iter().map(|p| p.1.seconds)).unwrap_or(0.0),
+                mean_frame_s: mean(points.iter().map(|p| p.2)).unwrap_or(0.0),
+                speedup,
+                speedup_at_least: (speedup.is_none() && above.len() == points.len())
+                    .then(|| median(above)),
+                surface_error: mean(sets.iter().filter_map(|(s, _)| s.surface.map(|x| x.mean_error))),
             });
         }
     }
@@ -641,6 +925,60 @@ pub fn summarize(
             });
         }
     }
+    let surface_of = |label: &str, b: &str, vs: &mut dyn Iterator<Item = &ViewResult>| {
+        let sets: Vec<SurfaceError> = vs
+            .filter_map(|v| {
+                v.technique(label)?
+                    .errors
+                    .iter()
+                    .find(|e| e.bounces == b)?
+                    .surface
+            })
+            .collect();
+        let n = sets.len();
+        (n > 0).then(|| {
+            (
+                n,
+                sets.iter().map(|x| x.mean_error).sum::<f64>() / n as f64,
+                std::array::from_fn::<f64, 3, _>(|c| {
+                    sets.iter().map(|x| x.bias[c]).sum::<f64>() / n as f64
+                }),
+            )
+        })
+    };
+    let mut surface = Vec::new();
+    for t in techniques {
+        for b in &settings.bounces {
+            let mut scenes: Vec<&str> = Vec::new();
+            for v in views {
+                if !scenes.contains(&v.scene.as_str()) {
+                    scenes.push(&v.scene);
+                }
+            }
+            for sc in scenes {
+                let Some((n, e, bias)) =
+                    surface_of(&t.label, b, &mut views.iter().filter(|v| v.scene == sc))
+                else {
+                    continue;
+                };
+                surface.push(SurfaceRow {
+                    technique: t.label.clone(),
+                    scene: sc.to_string(),
+                    bounces: b.clone(),
+                    views: n,
+                    mean_error: e,
+                    image_error: mean(
+                        views
+                            .iter()
+                            .filter(|v| v.scene == sc)
+                            .filter_map(|v| v.error(&t.label, b, em)),
+                    )
+                    .unwrap_or(0.0),
+                    bias,
+                });
+            }
+        }
+    }
     let mut ranking = Vec::new();
     if let Some(b) = settings.bounces.last() {
         for t in techniques {
@@ -648,6 +986,7 @@ pub fn summarize(
                 continue;
             };
             let row = times.iter().find(|r| r.label == t.label);
+            let surf = surface_of(&t.label, b, &mut views.iter());
             ranking.push(RankRow {
                 rank: 0,
                 technique: t.label.clone(),
@@ -663,7 +1002,10 @@ pub fn summarize(
                 speedup: equal_error_rows
                     .iter()
                     .find(|r| r.technique == t.label && &r.bounces == b)
-                    .map(|r| r.speedup),
+                    .map(|r| r.shown()),
+                still_frame_ms: row.and_then(|r| r.still_frame_ms),
+                surface_error: surf.map(|x| x.1),
+                surface_bias: surf.map(|x| x.2),
             });
         }
         ranking.sort_by(|a, b| a.mean_error.total_cmp(&b.mean_error));
@@ -677,6 +1019,7 @@ pub fn summarize(
         speed_error,
         equal_error: equal_error_rows,
         ranking,
+        surface,
     }
 }
 
@@ -727,6 +1070,7 @@ fn time_row(label: String, frames: &[f64], prepare_s: f64) -> TimeRow {
         avg_frame_ms: if n > 0 { total / n as f64 * 1e3 } else { 0.0 },
         avg_fps: if total > 0.0 { n as f64 / total } else { 0.0 },
         prepare_s,
+        still_frame_ms: None,
     }
 }
 

@@ -122,6 +122,9 @@ pub struct SequenceSample {
     pub frame_s: f64,
     /// Error against the frame's reference (the experiment's error metric).
     pub error: f64,
+    /// Error over lit surfaces, with the bias per channel.
+    #[serde(default)]
+    pub surface: Option<crate::results::SurfaceError>,
 }
 
 /// One frame of a sequence, measured.
@@ -193,11 +196,13 @@ impl SequenceResult {
     }
 }
 
-/// Runs `frames` on `scene` from `camera`: each technique is prepared once (timed), renders
-/// one untimed warm-up frame as authored, then renders every frame under its light state
-/// (timed) and is compared by `metric` with the frame's reference from `cache` (keyed by
-/// `scene_hash`, computed when not given). The frame's
-/// images go to `images` (PNG) when given.
+/// Runs `frames` on `scene` from `camera`: each technique is prepared once (timed; or, when
+/// `prepared` gives its times, taken as already prepared for `scene`), renders one untimed
+/// warm-up frame as authored, then renders every frame under its light state (timed) and is
+/// compared by `metric` with the frame's reference from `cache` (keyed by `scene_hash`,
+/// computed when not given), over the whole image and over lit surfaces. The camera stays
+/// still: frame times are still-camera figures (per-view work is reused), which is what a
+/// relighting session costs. The frame's images go to `images` (PNG) when given.
 #[allow(clippy::too_many_arguments)]
 pub fn run_sequence(
     scene_id: &str,
@@ -210,6 +215,7 @@ pub fn run_sequence(
     settings: &SequenceSettings,
     cache: &ReferenceCache,
     images: Option<&Path>,
+    prepared: Option<&[f64]>,
 ) -> Result<SequenceResult, HarnessError> {
     let hash = scene_hash.unwrap_or_else(|| crate::cache::scene_hash(scene));
     let cam = camera.with_aspect(settings.width as f32 / settings.height as f32);
@@ -220,12 +226,19 @@ pub fn run_sequence(
         source: Box::new(e),
     };
     let mut prepare_s = Vec::new();
-    for t in techniques.iter_mut() {
-        let t0 = Instant::now();
-        t.technique
-            .prepare(scene.clone())
-            .map_err(|e| fail(&t.label, e))?;
-        prepare_s.push((t.label.clone(), t0.elapsed().as_secs_f64()));
+    let prepared = prepared.filter(|p| p.len() == techniques.len());
+    for (ti, t) in techniques.iter_mut().enumerate() {
+        let seconds = match prepared {
+            Some(p) => p[ti],
+            None => {
+                let t0 = Instant::now();
+                t.technique
+                    .prepare(scene.clone())
+                    .map_err(|e| fail(&t.label, e))?;
+                t0.elapsed().as_secs_f64()
+            }
+        };
+        prepare_s.push((t.label.clone(), seconds));
         t.technique
             .render(&FrameRequest::from_camera(
                 &cam,
@@ -238,6 +251,11 @@ pub fn run_sequence(
     if let Some(dir) = images {
         std::fs::create_dir_all(dir).map_err(|e| HarnessError::io(dir, e))?;
     }
+    let surface: Vec<bool> = scene_core::reference::PathTracer::new(scene)
+        .pixel_classes(&scene_core::View::from_camera(&cam), w, h)
+        .into_iter()
+        .map(|c| c == scene_core::reference::PixelClass::Surface)
+        .collect();
     let mut out = Vec::new();
     for (fi, frame) in frames.iter().enumerate() {
         frame
@@ -252,6 +270,7 @@ pub fn run_sequence(
             seed: settings.seed,
         };
         let reference = cache.get_or_render_lit(scene, hash, &cam, &rs, &frame.lights, None)?;
+        let mask = crate::results::surface_mask(&surface, &reference.image);
         let mut samples = Vec::new();
         for t in techniques.iter_mut() {
             let t0 = Instant::now();
@@ -276,6 +295,7 @@ pub fn run_sequence(
                 label: t.label.clone(),
                 frame_s,
                 error,
+                surface: crate::results::surface_error(&reference.image, &img, &mask),
             });
         }
         if let Some(dir) = images {

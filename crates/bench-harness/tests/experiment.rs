@@ -230,7 +230,8 @@ fn tiny_experiment_writes_every_output_and_the_report_matches_results_json() {
         assert_cell(&c[2], t.total_s);
         assert_cell(&c[3], t.avg_frame_ms);
         assert_cell(&c[4], t.avg_fps);
-        assert_cell(&c[5], t.prepare_s);
+        assert_eq!(c[5], "-", "no still-camera frames were asked for");
+        assert_cell(&c[6], t.prepare_s);
     }
     assert_eq!(json.summary.comparisons.len(), 4);
     let against = section(&md, "## Against the baseline");
@@ -512,15 +513,23 @@ fn the_equal_error_spp_of_a_path_tracer_at_a_lower_spp_is_that_spp() {
             cameras: scene.cameras[..1].to_vec(),
             scene: Arc::new(scene),
         }],
-        // Seeds other than the reference's (1) and the ladder's.
-        techniques: vec![pt("pt-2", 2, 77), pt("pt-6", 6, 78), pt("pt-12", 12, 79)],
+        // Seeds other than the reference's (1) and the ladder's. pt-256 is as good as the
+        // reference itself: closer than any rung the ladder may add (up to 128 spp).
+        techniques: vec![
+            pt("pt-2", 2, 77),
+            pt("pt-6", 6, 78),
+            pt("pt-12", 12, 79),
+            pt("pt-256", 256, 80),
+        ],
         metrics: vec![Box::new(MeanError)],
     };
     let r = x.run().unwrap().results;
     let ladder = &r.views[0].references[0].ladder;
+    // The default ladder (1 to 32 spp) extended to half the reference's spp to bracket
+    // pt-256, which it cannot.
     assert_eq!(
         ladder.iter().map(|p| p.spp).collect::<Vec<_>>(),
-        [1, 2, 4, 8, 16, 32]
+        [1, 2, 4, 8, 16, 32, 64, 128]
     );
     // The ladder's error falls with the sample count.
     assert!(
@@ -535,7 +544,7 @@ fn the_equal_error_spp_of_a_path_tracer_at_a_lower_spp_is_that_spp() {
         // Within the noise of one 96 x 72 image's mean error (measured 2.12, 5.79 and
         // 12.05 for 2, 6 and 12 spp).
         assert!(
-            (e.spp / spp - 1.0).abs() < 0.15 && !e.extrapolated,
+            (e.spp / spp - 1.0).abs() < 0.15 && e.bound == bench_harness::results::LadderBound::Within,
             "{label}: {e:?}"
         );
         // The path tracer's time at that spp, from its measured seconds per sample.
@@ -544,15 +553,34 @@ fn the_equal_error_spp_of_a_path_tracer_at_a_lower_spp_is_that_spp() {
         assert!((e.seconds - e.spp * per_spp).abs() < 1e-9 * e.seconds.max(1.0));
     }
     let rows = &r.summary.equal_error;
-    assert_eq!(rows.len(), 3);
+    assert_eq!(rows.len(), 4);
+    // pt-256 lies above the ladder: a bound, left out of the median, shown as one.
+    let best = rows.iter().find(|x| x.technique == "pt-256").unwrap();
+    let point = r.views[0].technique("pt-256").unwrap().errors[0]
+        .equal_error
+        .unwrap();
+    assert_eq!(point.bound, bench_harness::results::LadderBound::AboveFinest);
+    assert_eq!((best.above_ladder, best.speedup), (1, None), "{best:?}");
+    assert_eq!(best.speedup_at_least, Some(point.speedup));
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(md.contains("## Equal error"), "no equal-error section");
+    let row = section(&md, "## Equal error")
+        .lines()
+        .find(|l| l.starts_with("| pt-256 | 1 |"))
+        .expect("pt-256's equal-error row");
+    assert!(row.contains("| > "), "{row}");
+    assert!(
+        rows.iter()
+            .filter(|x| x.technique != "pt-256")
+            .all(|x| x.speedup.is_some() && x.above_ladder == 0),
+        "{rows:?}"
+    );
     std::fs::remove_dir_all(&out).ok();
 }
 
 #[test]
-fn equal_error_interpolates_in_log_log_and_marks_extrapolation() {
-    use bench_harness::results::{LadderPoint, equal_error};
+fn equal_error_interpolates_in_log_log_and_gives_bounds_outside_the_ladder() {
+    use bench_harness::results::{LadderBound, LadderPoint, equal_error};
     // e = 0.4 / sqrt(spp), 0.01 s per sample.
     let ladder: Vec<LadderPoint> = [1u32, 4, 16, 64]
         .iter()
@@ -563,20 +591,27 @@ fn equal_error_interpolates_in_log_log_and_marks_extrapolation() {
         })
         .collect();
     let e = equal_error(&ladder, 0.4 / 8f64.sqrt(), 0.002).unwrap();
-    assert!((e.spp - 8.0).abs() < 1e-9 && !e.extrapolated, "{e:?}");
+    assert!((e.spp - 8.0).abs() < 1e-9 && e.bound == LadderBound::Within, "{e:?}");
     assert!((e.seconds - 0.08).abs() < 1e-12 && (e.speedup - 40.0).abs() < 1e-9);
-    let below = equal_error(&ladder, 0.4 / 256f64.sqrt(), 0.002).unwrap();
-    assert!((below.spp - 256.0).abs() < 1e-6 && below.extrapolated);
-    let above = equal_error(&ladder, 0.8, 0.002).unwrap();
-    assert!((above.spp - 0.25).abs() < 1e-9 && above.extrapolated);
+    // Closer than the finest rung: the finest rung's spp and speedup as a lower bound,
+    // never the 256 spp an extrapolation along the slope would claim.
+    let closer = equal_error(&ladder, 0.4 / 256f64.sqrt(), 0.002).unwrap();
+    assert_eq!(closer.bound, LadderBound::AboveFinest);
+    assert!((closer.spp - 64.0).abs() < 1e-9 && (closer.speedup - 320.0).abs() < 1e-9);
+    assert_eq!(closer.shown(), "> 320.00");
+    // Farther than 1 spp: an upper bound at the coarsest rung.
+    let farther = equal_error(&ladder, 0.8, 0.002).unwrap();
+    assert_eq!(farther.bound, LadderBound::BelowCoarsest);
+    assert!((farther.spp - 1.0).abs() < 1e-9 && farther.shown() == "< 5.00");
     assert!(equal_error(&ladder[..1], 0.1, 0.002).is_none());
     assert!(equal_error(&ladder, f64::NAN, 0.002).is_none());
-    // A ladder whose error does not fall gives no answer rather than a wrong one.
+    // A ladder whose error does not fall brackets nothing below it: a bound, not a guess.
     let flat: Vec<LadderPoint> = ladder
         .iter()
         .map(|p| LadderPoint { error: 0.1, ..*p })
         .collect();
-    assert!(equal_error(&flat, 0.05, 0.002).is_none());
+    let f = equal_error(&flat, 0.05, 0.002).unwrap();
+    assert_eq!((f.bound, f.spp), (LadderBound::AboveFinest, 64.0));
 }
 
 #[test]
@@ -651,5 +686,213 @@ fn bad_cache_entries_and_resume_files_are_computed_again_not_reported() {
     let third = run(&base.join("b"));
     assert_eq!((third.views_resumed, third.views_computed), (1, 1));
     assert_eq!(errors(&third.results), errors(&first.results));
+    std::fs::remove_dir_all(&base).ok();
+}
+
+/// A technique with a per-view cache: the first frame of a view it has not rendered before
+/// sleeps [`FIRST_VIEW`], a frame of the view it rendered last is free.
+struct PerViewCache {
+    last: Option<scene_core::View>,
+}
+
+const FIRST_VIEW: std::time::Duration = std::time::Duration::from_millis(40);
+
+impl Technique for PerViewCache {
+    fn name(&self) -> &str {
+        "per-view-cache"
+    }
+    fn prepare(&mut self, _: Arc<Scene>) -> Result<(), Error> {
+        self.last = None;
+        Ok(())
+    }
+    fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
+        if self.last != Some(frame.view) {
+            std::thread::sleep(FIRST_VIEW);
+            self.last = Some(frame.view);
+        }
+        Ok(Image::filled(frame.width, frame.height, Vec3::splat(0.1)))
+    }
+}
+
+#[test]
+fn a_per_view_cache_is_inside_the_reported_frame_time_and_the_still_camera_apart() {
+    let out = temp_dir("per-view-cache");
+    let renders = Arc::new(AtomicU64::new(0));
+    let mut x = experiment(&out, &renders);
+    x.settings.still_repeats = 3;
+    x.settings.repeats = 3;
+    x.techniques.push(TechniqueSetup {
+        label: "cached".into(),
+        family: "cached".into(),
+        description: "sleeps on a new view".into(),
+        technique: Box::new(PerViewCache { last: None }),
+        single_frame: false,
+    });
+    let r = x.run().unwrap().results;
+    let first = FIRST_VIEW.as_secs_f64();
+    for v in &r.views {
+        let t = v.technique("cached").unwrap();
+        // Every moving-camera frame is a new view: each pays the first-view cost, even
+        // after the warm-up.
+        assert!(t.frame.min_s >= first, "{:?}", t.frame);
+        let still = t.still.as_ref().expect("still-camera frames");
+        assert!(still.median_s < first / 4.0, "{still:?}");
+    }
+    let row = r
+        .summary
+        .ranking
+        .iter()
+        .find(|k| k.technique == "cached")
+        .unwrap();
+    assert!(row.frame_ms >= first * 1e3, "{row:?}");
+    assert!(row.still_frame_ms.unwrap() < first * 1e3 / 4.0, "{row:?}");
+    // The report shows the sleep in the ranking's frame column.
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let cells = row_cells(&md, "cached");
+    let frame_col = 5;
+    assert!(
+        cells[frame_col].parse::<f64>().unwrap() >= first * 1e3,
+        "{cells:?}"
+    );
+    std::fs::remove_dir_all(&out).ok();
+}
+
+/// The cells of the first Markdown table row whose second cell is `label`.
+fn row_cells(md: &str, label: &str) -> Vec<String> {
+    md.lines()
+        .map(|l| {
+            l.trim()
+                .trim_matches('|')
+                .split('|')
+                .map(|c| c.trim().to_string())
+                .collect::<Vec<_>>()
+        })
+        .find(|c| c.len() > 2 && c[1] == label)
+        .unwrap_or_else(|| panic!("no row for {label}"))
+}
+
+#[test]
+fn surface_error_shows_a_bias_that_the_whole_image_dilutes() {
+    use bench_harness::results::{surface_error, surface_mask};
+    use scene_core::reference::{PathTracer, PixelClass, ReferenceSettings};
+    let scene = builtin::scene("cornell").unwrap();
+    let (w, h) = (48, 36);
+    let cam = scene.cameras[0].with_aspect(w as f32 / h as f32);
+    let view = scene_core::View::from_camera(&cam);
+    let classes = PathTracer::new(&scene).pixel_classes(&view, w, h);
+    let emitters = classes.iter().filter(|c| **c == PixelClass::Emitter).count();
+    assert!(emitters > 0, "the default camera sees cornell's light");
+    let reference = scene_core::reference::render(
+        &scene,
+        &view,
+        &ReferenceSettings {
+            width: w,
+            height: h,
+            spp: 4,
+            bounces: Bounces::Unlimited,
+            seed: 3,
+        },
+        None,
+    )
+    .image;
+    // 10% dark on every surface, exact on emitters.
+    let mut test = reference.clone();
+    for (p, c) in test.pixels.iter_mut().zip(&classes) {
+        if *c == PixelClass::Surface {
+            *p *= 0.9;
+        }
+    }
+    let surface: Vec<bool> = classes.iter().map(|c| *c == PixelClass::Surface).collect();
+    let mask = surface_mask(&surface, &reference);
+    // The brightest 1% of the surface pixels are left out, emitters always.
+    let kept = mask.iter().filter(|m| **m).count();
+    let surfaces = surface.iter().filter(|m| **m).count();
+    assert!(kept < surfaces && kept as f64 >= 0.985 * surfaces as f64, "{kept} of {surfaces}");
+    let s = surface_error(&reference, &test, &mask).unwrap();
+    for b in s.bias {
+        assert!((b + 0.1).abs() < 1e-5, "{:?}", s.bias);
+    }
+    let whole = surface_error(&reference, &test, &vec![true; mask.len()]).unwrap();
+    for c in 0..3 {
+        assert!(
+            whole.bias[c] > -0.1 + 0.01 && whole.bias[c] < 0.0,
+            "whole-image bias {:?} does not read less than the surfaces' -10%",
+            whole.bias
+        );
+    }
+}
+
+#[test]
+fn a_run_split_in_shards_and_merged_equals_the_unsplit_run() {
+    let base = temp_dir("shards");
+    let renders = Arc::new(AtomicU64::new(0));
+    let setup = |out: &Path, shard: Option<bench_harness::Shard>| {
+        let mut x = experiment(out, &renders);
+        x.settings.cache_dir = Some(base.join("cache"));
+        x.settings.ladder_spp = vec![1, 2];
+        x.settings.spp = 8;
+        x.settings.shard = shard;
+        // A second scene: three views dealt over two shards, the sequence a fourth job.
+        let point = builtin::scene("cornell-point").unwrap();
+        x.scenes.push(SceneSetup {
+            id: "cornell-point".into(),
+            cameras: point.cameras[..1].to_vec(),
+            scene: Arc::new(point),
+        });
+        x.settings.sequence = Some(bench_harness::SequenceSpec {
+            scene: "cornell-point".into(),
+            camera: 0,
+            frames: 3,
+            spp: 4,
+            bounces: Bounces::Unlimited,
+        });
+        x
+    };
+    let whole = setup(&base.join("whole"), None).run().unwrap().results;
+    let mut dirs = Vec::new();
+    for k in 1..=2 {
+        let dir = base.join(format!("shard{k}"));
+        let shard = bench_harness::Shard::parse(&format!("{k}/2")).unwrap();
+        let o = setup(&dir, Some(shard)).run().unwrap();
+        assert!(!o.report_md.exists(), "a shard writes results.json only");
+        assert!(o.results.views.len() < whole.views.len());
+        dirs.push(dir);
+    }
+    // A missing share is refused, naming it.
+    let e = bench_harness::merge(&dirs[..1], &base.join("bad"), None).unwrap_err();
+    assert!(e.to_string().contains("2/2 is missing"), "{e}");
+    let merged = bench_harness::merge(&dirs, &base.join("merged"), None)
+        .unwrap()
+        .results;
+    assert!(base.join("merged/report.md").exists());
+    // Errors bit-identical, views in the same order, the same ranking and surface rows.
+    assert_eq!(errors(&merged), errors(&whole));
+    let surf = |r: &Results| -> Vec<_> {
+        r.views
+            .iter()
+            .flat_map(|v| v.techniques.iter().map(|t| t.errors.iter().map(|e| e.surface).collect::<Vec<_>>()))
+            .collect()
+    };
+    assert_eq!(surf(&merged), surf(&whole));
+    let ranks = |r: &Results| -> Vec<(String, f64, Option<f64>)> {
+        r.summary
+            .ranking
+            .iter()
+            .map(|k| (k.technique.clone(), k.mean_error, k.surface_error))
+            .collect()
+    };
+    assert_eq!(ranks(&merged), ranks(&whole));
+    assert_eq!(merged.summary.surface, whole.summary.surface);
+    let seq_errors = |r: &Results| -> Vec<f64> {
+        r.sequence
+            .as_ref()
+            .unwrap()
+            .frames
+            .iter()
+            .flat_map(|f| f.techniques.iter().map(|t| t.error))
+            .collect()
+    };
+    assert_eq!(seq_errors(&merged), seq_errors(&whole));
+    assert_eq!(merged.run.merged_shards, 2);
     std::fs::remove_dir_all(&base).ok();
 }
