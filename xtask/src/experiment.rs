@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use bench_harness::{
-    Experiment, ExperimentSettings, RandomCameraSettings, RunOutcome, SceneSetup, TechniqueSetup,
+    Experiment, ExperimentSettings, RandomCameraSettings, SceneSetup, TechniqueSetup,
     cameras_for, load_camera_list,
 };
 use gbuffer::CpuRasterizer;
@@ -70,6 +70,77 @@ pub struct Options {
     pub sequence_frames: usize,
     /// Samples per pixel of the sequence's references (default spp / 2).
     pub sequence_spp: Option<u32>,
+    /// Timed still-camera frames per view (0: not measured).
+    pub still_repeats: u32,
+    /// The preset the options came from (recorded in results.json).
+    pub preset: String,
+    /// Run only this share of the work.
+    pub shard: Option<bench_harness::Shard>,
+    /// Write a generated results document (docs/results.md) from the run's results.json.
+    pub write_docs: Option<PathBuf>,
+}
+
+/// A named set of the experiment's sizes: what `--preset` chooses; any option given on
+/// the command line overrides its value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Preset {
+    /// `default` or `full`.
+    pub name: &'static str,
+    /// What it is for, in words.
+    pub about: &'static str,
+    /// Image size.
+    pub size: &'static str,
+    /// Reference spp.
+    pub spp: u32,
+    /// Technique list.
+    pub techniques: &'static str,
+    /// Moving-camera timed frames per view.
+    pub repeats: u32,
+    /// Still-camera timed frames per view.
+    pub still_repeats: u32,
+    /// Frames of the relighting sequence.
+    pub sequence_frames: usize,
+}
+
+/// The presets: `default` answers in minutes on 2 cores with every method, both bounce
+/// limits, the ladder and a sequence; `full` is the thorough run.
+pub const PRESETS: [Preset; 2] = [
+    Preset {
+        name: "default",
+        about: "every method at one setting each (DL, ISR in both modes at 24/48/80 samples, \
+                relighting at 256 elements, the IBRR at LDC 128 with 64 IRPLs), 128x96, 512 spp",
+        size: "128x96",
+        spp: 512,
+        techniques: "dl,isr,relight-256,ibrr-128-64",
+        repeats: 3,
+        still_repeats: 2,
+        sequence_frames: 8,
+    },
+    Preset {
+        name: "full",
+        about: "every method at every setting (relighting at 256 and 1024 elements, the IBRR \
+                at LDC 128/64 IRPLs and 256/184), 256x192, 512 spp",
+        size: "256x192",
+        spp: 512,
+        techniques: "dl,isr,relight,ibrr",
+        repeats: 3,
+        still_repeats: 3,
+        sequence_frames: 8,
+    },
+];
+
+impl Preset {
+    /// The preset called `name`.
+    pub fn named(name: &str) -> Result<Self, String> {
+        PRESETS
+            .iter()
+            .find(|p| p.name == name.trim().to_ascii_lowercase())
+            .copied()
+            .ok_or_else(|| {
+                let names: Vec<&str> = PRESETS.iter().map(|p| p.name).collect();
+                format!("unknown preset '{name}' (known: {})", names.join(", "))
+            })
+    }
 }
 
 /// The sequence the options ask for, checked against the run's scenes.
@@ -409,22 +480,60 @@ fn scene_id(spec: &str) -> String {
 }
 
 /// The experiment's counts against their stated ranges (docs/hostile-files.md), before any
-/// scene is loaded or camera drawn: `--spp`, `--views`, `--repeats`, `--sequence-frames`,
-/// `--sequence-spp`.
-pub fn check_numbers(
-    spp: u32,
-    views: Option<usize>,
-    repeats: u32,
-    sequence_frames: usize,
-    sequence_spp: Option<u32>,
-) -> Result<(), String> {
+/// scene is loaded or camera drawn: `--spp`, `--views`, `--repeats`, `--still-repeats`,
+/// `--sequence-frames`, `--sequence-spp`.
+pub fn check_numbers(o: &Options) -> Result<(), String> {
     use scene_core::range::{SPP, check_opt};
-    crate::ranged("--spp", spp, SPP)?;
-    check_opt("--views", views, 1..=1000).map_err(|e| e.to_string())?;
-    crate::ranged("--repeats", repeats, 1..=100)?;
-    crate::ranged("--sequence-frames", sequence_frames, 0..=64)?;
-    check_opt("--sequence-spp", sequence_spp, SPP).map_err(|e| e.to_string())?;
+    crate::ranged("--spp", o.spp, SPP)?;
+    check_opt("--views", o.views, 1..=1000).map_err(|e| e.to_string())?;
+    crate::ranged("--repeats", o.repeats, 1..=100)?;
+    crate::ranged("--still-repeats", o.still_repeats, 0..=100)?;
+    crate::ranged("--sequence-frames", o.sequence_frames, 0..=64)?;
+    check_opt("--sequence-spp", o.sequence_spp, SPP).map_err(|e| e.to_string())?;
     Ok(())
+}
+
+/// The command line that runs exactly `o` (every size spelled out, so a later reader can
+/// repeat the run whatever the presets have become).
+pub fn command_line(o: &Options) -> String {
+    let mut c = format!(
+        "cargo xtask experiment --preset {} --size {} --spp {} --bounces {} --techniques {} \
+         --repeats {} --still-repeats {} --sequence-frames {} --seed {}",
+        o.preset,
+        o.size,
+        o.spp,
+        o.bounces,
+        o.techniques,
+        o.repeats,
+        o.still_repeats,
+        o.sequence_frames,
+        o.seed
+    );
+    for sc in &o.scenes {
+        c.push_str(&format!(" --scene {sc}"));
+    }
+    if let Some(v) = o.views {
+        c.push_str(&format!(" --views {v}"));
+    }
+    if let Some(q) = o.sequence_spp {
+        c.push_str(&format!(" --sequence-spp {q}"));
+    }
+    if let Some(q) = &o.sequence {
+        c.push_str(&format!(" --sequence {q}"));
+    }
+    if !o.ladder {
+        c.push_str(" --no-ladder");
+    }
+    if o.gpu {
+        c.push_str(" --gpu");
+    }
+    if o.error_metric != "mean-error" {
+        c.push_str(&format!(" --error-metric {}", o.error_metric));
+    }
+    if let Some(k) = o.shard {
+        c.push_str(&format!(" --shard {k}"));
+    }
+    c
 }
 
 /// Builds the experiment the options describe (scenes loaded, cameras parsed or drawn).
@@ -432,7 +541,7 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
     let (width, height) = parse_size(&o.size)?;
     let bounces = parse_bounces(&o.bounces)?;
     let choices = parse_techniques(&o.techniques)?;
-    check_numbers(o.spp, o.views, o.repeats, o.sequence_frames, o.sequence_spp)?;
+    check_numbers(o)?;
     crate::check_out_dir(&o.out)?;
     let backend = if o.gpu {
         let ctx = scene_core::gpu::GpuContext::new()
@@ -589,6 +698,16 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             seed: o.seed,
             warmup: 1,
             repeats: o.repeats.max(1),
+            still_repeats: o.still_repeats,
+            ladder_extend: true,
+            shard: o.shard,
+            run_info: bench_harness::RunInfo {
+                command: command_line(o),
+                preset: o.preset.clone(),
+                threads: rayon::current_num_threads(),
+                tuning: vec![crate::sweep::TUNING_NOTE.to_string()],
+                ..Default::default()
+            },
             out_dir: o.out.clone(),
             cache_dir: o.cache.clone(),
             baseline: "dl".into(),
@@ -617,9 +736,8 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
 }
 
 /// The summary table printed at the end.
-pub fn summary_text(outcome: &RunOutcome) -> String {
+pub fn summary_text(r: &bench_harness::Results) -> String {
     use bench_harness::report::{fmt_2, fmt_ms, fmt_pct, fmt_s};
-    let r = &outcome.results;
     let mut s = String::new();
     s.push_str(&format!(
         "{:<26} {:>6} {:>12} {:>14} {:>10}\n",
@@ -652,24 +770,34 @@ pub fn summary_text(outcome: &RunOutcome) -> String {
     }
     if !r.summary.ranking.is_empty() {
         s.push_str(&format!(
-            "\nranking by mean error at bounce limit {}\n{:<5} {:<18} {:>12} {:>11} {:>13} {:>9}\n",
+            "\nranking by mean error at bounce limit {} (frame: moving camera; still: the same view again)\n{:<5} {:<18} {:>12} {:>12} {:>26} {:>11} {:>11} {:>13} {:>10}\n",
             r.summary.ranking[0].bounces,
             "rank",
             "technique",
             "mean error",
+            "surface err",
+            "surface bias R/G/B",
             "frame (ms)",
+            "still (ms)",
             "precomp (s)",
             "speedup"
         ));
         for k in &r.summary.ranking {
             s.push_str(&format!(
-                "{:<5} {:<18} {:>12} {:>11} {:>13} {:>9}\n",
+                "{:<5} {:<18} {:>12} {:>12} {:>26} {:>11} {:>11} {:>13} {:>10}\n",
                 k.rank,
                 k.technique,
                 bench_harness::report::fmt_err(k.mean_error),
+                k.surface_error
+                    .map(bench_harness::report::fmt_err)
+                    .unwrap_or_else(|| "-".into()),
+                k.surface_bias
+                    .map(bench_harness::report::fmt_bias)
+                    .unwrap_or_else(|| "-".into()),
                 fmt_ms(k.frame_ms),
+                k.still_frame_ms.map(fmt_ms).unwrap_or_else(|| "-".into()),
                 fmt_s(k.prepare_s),
-                k.speedup.map(fmt_2).unwrap_or_else(|| "-".into())
+                k.speedup.clone().unwrap_or_else(|| "-".into())
             ));
         }
     }
@@ -740,10 +868,46 @@ pub fn run(o: &Options) -> Result<(), String> {
         "{} view(s) computed, {} resumed, {} reference render(s), {:.1} s",
         outcome.views_computed, outcome.views_resumed, outcome.reference_renders, outcome.seconds
     );
-    print!("{}", summary_text(&outcome));
+    print!("{}", summary_text(&outcome.results));
+    if let Some(k) = o.shard {
+        println!(
+            "\nshard {k}: results in {} (combine every shard with `cargo xtask experiment merge DIR... --out DIR`)",
+            outcome.results_json.display()
+        );
+        return Ok(());
+    }
     println!("\nreport: {}", outcome.report_md.display());
     println!("report: {}", outcome.report_html.display());
     println!("results: {}", outcome.results_json.display());
+    if let Some(doc) = &o.write_docs {
+        crate::results_doc::write(&outcome.results, doc)?;
+        println!("document: {}", doc.display());
+    }
+    Ok(())
+}
+
+/// Runs `cargo xtask experiment merge`.
+pub fn merge(dirs: &[PathBuf], out: &Path, write_docs: Option<&Path>) -> Result<(), String> {
+    crate::check_out_dir(out)?;
+    let m = bench_harness::merge(dirs, out, Some("isr-80")).map_err(|e| e.to_string())?;
+    eprintln!(
+        "merged {} shard(s): {} view(s){}",
+        m.results.run.merged_shards,
+        m.results.views.len(),
+        if m.results.sequence.is_some() {
+            " and the relighting sequence"
+        } else {
+            ""
+        }
+    );
+    print!("{}", summary_text(&m.results));
+    println!("\nreport: {}", m.report_md.display());
+    println!("report: {}", m.report_html.display());
+    println!("results: {}", m.results_json.display());
+    if let Some(doc) = write_docs {
+        crate::results_doc::write(&m.results, doc)?;
+        println!("document: {}", doc.display());
+    }
     Ok(())
 }
 
@@ -771,6 +935,10 @@ mod tests {
             sequence: None,
             sequence_frames: 0,
             sequence_spp: None,
+            still_repeats: 0,
+            preset: "default".into(),
+            shard: None,
+            write_docs: None,
         }
     }
 
@@ -1025,7 +1193,7 @@ mod tests {
         for f in ["results.json", "report.md", "report.html"] {
             assert!(o.out.join(f).is_file(), "{f}");
         }
-        assert!(summary_text(&first).contains("isr-thesis-24"));
+        assert!(summary_text(&first.results).contains("isr-thesis-24"));
         // A rerun with the same options renders nothing.
         let mut again = build(&o).unwrap();
         again.settings.progress = false;
@@ -1089,11 +1257,15 @@ mod tests {
                     assert!(dir.join(&f).is_file(), "{f}");
                 }
             }
-            // The ladder (1, 2, 4 spp) at both bounce limits.
+            // The ladder (1, 2, 4 spp, extended by doubling up to 16 where a technique is
+            // closer than its finest rung) at both bounce limits.
             for rf in &v.references {
-                assert_eq!(
-                    rf.ladder.iter().map(|p| p.spp).collect::<Vec<_>>(),
-                    [1, 2, 4]
+                let spps: Vec<u32> = rf.ladder.iter().map(|p| p.spp).collect();
+                assert!(
+                    spps.starts_with(&[1, 2, 4])
+                        && spps.windows(2).all(|w| w[1] == 2 * w[0])
+                        && *spps.last().unwrap() <= 16,
+                    "{spps:?}"
                 );
             }
         }
@@ -1114,7 +1286,12 @@ mod tests {
         // Equal error: a row per technique and bounce limit, in both reports.
         let eq = md.split("## Equal error").nth(1).unwrap();
         for e in &r.summary.equal_error {
-            assert!(e.median_spp.is_finite() && e.median_spp > 0.0, "{e:?}");
+            // A median of bracketed views, or every view a bound.
+            assert!(
+                (e.speedup.is_some() && e.median_spp > 0.0)
+                    || e.above_ladder + e.below_ladder == e.views,
+                "{e:?}"
+            );
             let cells = format!(
                 "| {} | {} | {} | {} | {} |",
                 e.technique,
@@ -1138,8 +1315,9 @@ mod tests {
                 assert_eq!(
                     c[2 + k],
                     format!(
-                        "{} / {}",
+                        "{} / {} / {}",
                         bench_harness::report::fmt_err(t.error),
+                        bench_harness::report::fmt_err(t.surface.unwrap().mean_error),
                         bench_harness::report::fmt_ms(t.frame_s * 1e3)
                     )
                 );

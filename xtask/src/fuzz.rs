@@ -86,6 +86,9 @@ fn cli_seeds() -> Vec<Vec<u8>> {
         r#"["sweep-isr", "--size", "64x48", "--spp", "16"]"#,
         r#"["bench", "reference", "--threads", "2", "--repeats", "5"]"#,
         r#"["fuzz", "--seconds", "60", "--jobs", "2", "--seed", "1"]"#,
+        r#"["experiment", "--preset", "full", "--shard", "2/4", "--still-repeats", "3", "--write-docs", "out/r.md"]"#,
+        r#"["experiment", "--shard", "0/0", "--preset", "huge", "--still-repeats", "4294967295"]"#,
+        r#"["experiment", "merge", "out/a", "out/b", "--out", "out/m"]"#,
     ]
     .map(|s| s.as_bytes().to_vec())
     .to_vec()
@@ -612,7 +615,12 @@ mod tests {
             outcomes[3]
         );
         assert!(matches!(&outcomes[6], Outcome::Refused(_)));
-        for i in [2, 4, 5, 7, 8, 9] {
+        assert!(
+            matches!(&outcomes[11], Outcome::Refused(e) if e.contains("unknown preset")),
+            "{:?}",
+            outcomes[11]
+        );
+        for i in [2, 4, 5, 7, 8, 9, 10, 12] {
             assert_eq!(outcomes[i], Outcome::Ok, "seed {i}");
         }
     }

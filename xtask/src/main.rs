@@ -25,6 +25,7 @@ mod experiment;
 mod fuzz;
 mod ibrr;
 mod relight;
+mod results_doc;
 mod shaders;
 mod sweep;
 
@@ -44,6 +45,159 @@ use scene_core::{Scene, View, gltf_io};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+/// The options of `cargo xtask experiment`.
+#[derive(clap::Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
+struct ExperimentArgs {
+    /// `merge`: combine shard folders.
+    #[command(subcommand)]
+    then: Option<ExperimentCommand>,
+    /// The sizes of the run: default (minutes on 2 cores: every method at one setting,
+    /// 128x96, 512 spp) or full (every setting, 256x192, 512 spp). Options given
+    /// override the preset's.
+    #[arg(long, default_value = "default")]
+    preset: String,
+    /// Run only share K of N (views and the sequence dealt round the shards), e.g. 2/4;
+    /// combine the shards' folders with `experiment merge`.
+    #[arg(long)]
+    shard: Option<String>,
+    /// Also write a generated results document (e.g. docs/results.md) from the run.
+    #[arg(long)]
+    write_docs: Option<PathBuf>,
+    /// Timed still-camera frames per view (the same view again; default: the preset's).
+    #[arg(long)]
+    still_repeats: Option<u32>,
+    /// Built-in scene name or .gltf/.glb path (repeatable; default: cornell,
+    /// cornell-point, primitives, corridor).
+    #[arg(long = "scene")]
+    scenes: Vec<String>,
+    /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
+    /// isr-N, isr-thesis-N, relight (256 and 1024 elements), relight-N, ibrr (LDC 128
+    /// with 64 IRPLs and LDC 256 with 184), ibrr-RES-N; comma-separated.
+    /// Default: the preset's.
+    #[arg(long)]
+    techniques: Option<String>,
+    /// Views per scene: the scene's cameras first, then seeded random ones.
+    #[arg(long)]
+    views: Option<usize>,
+    /// Reference samples per pixel (default: the preset's).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Reference bounce limits, comma-separated (0, 1, N, inf).
+    #[arg(long, default_value = "1,inf")]
+    bounces: String,
+    /// Image size WxH (default: the preset's).
+    #[arg(long)]
+    size: Option<String>,
+    /// Output directory.
+    #[arg(long, default_value = "out/experiment")]
+    out: PathBuf,
+    /// Run ISR and DL on the GPU (wgpu).
+    #[arg(long, conflicts_with = "cpu")]
+    gpu: bool,
+    /// Run ISR and DL on the CPU (the default).
+    #[arg(long)]
+    cpu: bool,
+    /// A camera list for a scene: SCENE=FILE.json (repeatable).
+    #[arg(long)]
+    cameras: Vec<String>,
+    /// Timed moving-camera frames per view after one warm-up (default: the preset's).
+    #[arg(long)]
+    repeats: Option<u32>,
+    /// Seed of the reference and the random cameras.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Also write a POV-Ray scene file per view (thesis' radiosity block); renders it as an
+    /// extra column when povray is on PATH.
+    #[arg(long)]
+    povray: bool,
+    /// The measure that decides which image is closer and the gain: mean-error (eq. 19 on
+    /// linear values), mean-error-8bit (on 8-bit sRGB codes, as the thesis), rmse, flip.
+    #[arg(long, default_value = "mean-error")]
+    error_metric: String,
+    /// Reference cache folder (default DIR/reference-cache).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// Skip the equal-error ladder (the path tracer at 1, 2, 4 ... spp/8 spp per view).
+    #[arg(long)]
+    no_ladder: bool,
+    /// The relighting sequence's scene and camera, SCENE or SCENE:CAMERA (default: corridor
+    /// when in the run, else the first scene; camera 0).
+    #[arg(long)]
+    sequence: Option<String>,
+    /// Frames of the relighting sequence (0: none; default: the preset's).
+    #[arg(long)]
+    sequence_frames: Option<usize>,
+    /// Samples per pixel of each sequence frame's reference (default: spp / 2).
+    #[arg(long)]
+    sequence_spp: Option<u32>,
+}
+
+impl ExperimentArgs {
+    /// The run's options: the preset's values where the command line gives none.
+    fn options(&self) -> Result<experiment::Options, String> {
+        let p = experiment::Preset::named(&self.preset)?;
+        Ok(experiment::Options {
+            scenes: self.scenes.clone(),
+            techniques: self.techniques.clone().unwrap_or_else(|| p.techniques.into()),
+            views: self.views,
+            spp: self.spp.unwrap_or(p.spp),
+            bounces: self.bounces.clone(),
+            size: self.size.clone().unwrap_or_else(|| p.size.into()),
+            out: self.out.clone(),
+            gpu: self.gpu,
+            cameras: self.cameras.clone(),
+            repeats: self.repeats.unwrap_or(p.repeats),
+            seed: self.seed,
+            povray: self.povray,
+            error_metric: self.error_metric.clone(),
+            cache: self.cache.clone(),
+            ladder: !self.no_ladder,
+            sequence: self.sequence.clone(),
+            sequence_frames: self.sequence_frames.unwrap_or(p.sequence_frames),
+            sequence_spp: self.sequence_spp,
+            still_repeats: self.still_repeats.unwrap_or(p.still_repeats),
+            preset: p.name.into(),
+            shard: self
+                .shard
+                .as_deref()
+                .map(bench_harness::Shard::parse)
+                .transpose()?,
+            write_docs: self.write_docs.clone(),
+        })
+    }
+
+    /// Checks every number and name of the options before anything is loaded.
+    fn check_numbers(&self) -> Result<(), String> {
+        if self.then.is_some() {
+            return Ok(());
+        }
+        let o = self.options()?;
+        experiment::parse_size(&o.size)?;
+        experiment::parse_bounces(&o.bounces)?;
+        experiment::parse_techniques(&o.techniques)?;
+        experiment::check_numbers(&o)
+    }
+}
+
+/// What `cargo xtask experiment` does besides a run.
+#[derive(Subcommand, Debug)]
+enum ExperimentCommand {
+    /// Combine the output folders of a sharded run (`--shard K/N`) into one report,
+    /// identical in its errors and ranking to a single run's.
+    Merge {
+        /// The shard folders (every share exactly once).
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Output folder of the merged report.
+        #[arg(long, default_value = "out/experiment")]
+        out: PathBuf,
+        /// Also write a generated results document (e.g. docs/results.md).
+        #[arg(long)]
+        write_docs: Option<PathBuf>,
+    },
 }
 
 #[derive(Subcommand)]
@@ -110,91 +264,44 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
-    /// ISR's settings (k_isr, AO on/off, radius) swept at 24/48/80 samples over the built-in
-    /// scenes against the reference; prints the most accurate setting per sample count.
+    /// ISR's settings (k_isr, AO on/off, radius) swept at 24/48/80 samples on held-out
+    /// views (seeded random cameras of the built-in scenes, none of which the main job
+    /// scores) against the reference; prints the most accurate setting per sample count.
     SweepIsr {
         /// Output directory.
         #[arg(long, default_value = "out/sweep-isr")]
         out: PathBuf,
-        /// Reference cache folder (share the main job's: out/experiment/reference-cache).
+        /// Reference cache folder.
         #[arg(long)]
         cache: Option<PathBuf>,
         /// Image size WxH.
-        #[arg(long, default_value = "256x192")]
+        #[arg(long, default_value = "128x96")]
         size: String,
         /// Reference samples per pixel.
         #[arg(long, default_value_t = 512)]
         spp: u32,
+        /// Random views per scene.
+        #[arg(long, default_value_t = 4)]
+        views: usize,
+    },
+    /// Regenerate a generated results document (docs/results.md) from the results.json it
+    /// names, check that it is unchanged, or generate it from a run's results.json.
+    ResultsDoc {
+        /// The document.
+        #[arg(long, default_value = "docs/results.md")]
+        doc: PathBuf,
+        /// Fail when the document differs from what its results generate.
+        #[arg(long, conflicts_with = "from")]
+        check: bool,
+        /// Generate the document from this run's results.json (copied beside it).
+        #[arg(long)]
+        from: Option<PathBuf>,
     },
     /// The main job: render the scenes with DL, ISR, radiosity relighting, the IBRR and the
     /// reference path tracer and write results.json, report.md and report.html (speed
     /// against error, equal-error path tracing, a relighting sequence).
-    Experiment {
-        /// Built-in scene name or .gltf/.glb path (repeatable; default: cornell,
-        /// cornell-point, primitives, corridor).
-        #[arg(long = "scene")]
-        scenes: Vec<String>,
-        /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
-        /// isr-N, isr-thesis-N, relight (256 and 1024 elements), relight-N, ibrr (LDC 128
-        /// with 64 IRPLs and LDC 256 with 184), ibrr-RES-N; comma-separated.
-        /// Default: dl,isr,relight,ibrr.
-        #[arg(long)]
-        techniques: Option<String>,
-        /// Views per scene: the scene's cameras first, then seeded random ones.
-        #[arg(long)]
-        views: Option<usize>,
-        /// Reference samples per pixel.
-        #[arg(long, default_value_t = 512)]
-        spp: u32,
-        /// Reference bounce limits, comma-separated (0, 1, N, inf).
-        #[arg(long, default_value = "1,inf")]
-        bounces: String,
-        /// Image size WxH.
-        #[arg(long, default_value = "256x192")]
-        size: String,
-        /// Output directory.
-        #[arg(long, default_value = "out/experiment")]
-        out: PathBuf,
-        /// Run ISR and DL on the GPU (wgpu).
-        #[arg(long, conflicts_with = "cpu")]
-        gpu: bool,
-        /// Run ISR and DL on the CPU (the default).
-        #[arg(long)]
-        cpu: bool,
-        /// A camera list for a scene: SCENE=FILE.json (repeatable).
-        #[arg(long)]
-        cameras: Vec<String>,
-        /// Timed frames per view after one warm-up.
-        #[arg(long, default_value_t = 3)]
-        repeats: u32,
-        /// Seed of the reference and the random cameras.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Also write a POV-Ray scene file per view (thesis' radiosity block); renders it as an
-        /// extra column when povray is on PATH.
-        #[arg(long)]
-        povray: bool,
-        /// The measure that decides which image is closer and the gain: mean-error (eq. 19 on
-        /// linear values), mean-error-8bit (on 8-bit sRGB codes, as the thesis), rmse, flip.
-        #[arg(long, default_value = "mean-error")]
-        error_metric: String,
-        /// Reference cache folder (default DIR/reference-cache).
-        #[arg(long)]
-        cache: Option<PathBuf>,
-        /// Skip the equal-error ladder (the path tracer at 1, 2, 4 ... spp/8 spp per view).
-        #[arg(long)]
-        no_ladder: bool,
-        /// The relighting sequence's scene and camera, SCENE or SCENE:CAMERA (default: corridor
-        /// when in the run, else the first scene; camera 0).
-        #[arg(long)]
-        sequence: Option<String>,
-        /// Frames of the relighting sequence (0: none).
-        #[arg(long, default_value_t = 8)]
-        sequence_frames: usize,
-        /// Samples per pixel of each sequence frame's reference (default: spp / 2).
-        #[arg(long)]
-        sequence_spp: Option<u32>,
-    },
+    /// `experiment merge DIR... --out DIR` combines the folders of a sharded run.
+    Experiment(ExperimentArgs),
     /// Fuzz the loaders with mutated seed files: each input under catch_unwind, the worker
     /// under an address-space cap and a per-input time limit; failing inputs are saved under
     /// tests/fuzz-regressions/<target>/ (replayed by `cargo test`).
@@ -483,28 +590,14 @@ impl Command {
             }
             Command::Relight(o) => o.check_numbers(),
             Command::Ibrr(o) => ibrr::check_numbers(o),
-            Command::SweepIsr { size, spp, .. } => {
-                experiment::parse_size(size)?;
-                ranged("--spp", *spp, SPP).map(|_| ())
-            }
-            Command::Experiment {
-                techniques,
-                views,
-                spp,
-                bounces: b,
-                size,
-                repeats,
-                sequence_frames,
-                sequence_spp,
-                ..
+            Command::SweepIsr {
+                size, spp, views, ..
             } => {
                 experiment::parse_size(size)?;
-                experiment::parse_bounces(b)?;
-                if let Some(t) = techniques {
-                    experiment::parse_techniques(t)?;
-                }
-                experiment::check_numbers(*spp, *views, *repeats, *sequence_frames, *sequence_spp)
+                ranged("--views", *views, 1..=100)?;
+                ranged("--spp", *spp, SPP).map(|_| ())
             }
+            Command::Experiment(args) => args.check_numbers(),
             Command::Fuzz { seconds, jobs, .. } => {
                 ranged("--seconds", *seconds, 1..=86_400)?;
                 ranged("--jobs", *jobs, 1..=16).map(|_| ())
@@ -568,47 +661,42 @@ fn run(cli: Cli) -> Result<(), String> {
             cache,
             size,
             spp,
-        } => sweep::run(out, cache, &size, spp),
-        Command::Experiment {
-            scenes,
-            techniques,
             views,
-            spp,
-            bounces,
-            size,
-            out,
-            gpu,
-            cpu: _,
-            cameras,
-            repeats,
-            seed,
-            povray,
-            error_metric,
-            cache,
-            no_ladder,
-            sequence,
-            sequence_frames,
-            sequence_spp,
-        } => experiment::run(&experiment::Options {
-            scenes,
-            techniques: techniques.unwrap_or_else(|| "dl,isr,relight,ibrr".into()),
-            views,
-            spp,
-            bounces,
-            size,
-            out,
-            gpu,
-            cameras,
-            repeats,
-            seed,
-            povray,
-            error_metric,
-            cache,
-            ladder: !no_ladder,
-            sequence,
-            sequence_frames,
-            sequence_spp,
-        }),
+        } => sweep::run(out, cache, &size, spp, views),
+        Command::ResultsDoc {
+            doc,
+            from: Some(from),
+            ..
+        } => {
+            let r = bench_harness::merge::read_results_file(&from).map_err(|e| e.to_string())?;
+            results_doc::write(&r, &doc)?;
+            println!("{}", doc.display());
+            Ok(())
+        }
+        Command::ResultsDoc { doc, check, .. } => {
+            let (text, now) = results_doc::regenerate(&doc)?;
+            if check {
+                if text != now {
+                    return Err(format!(
+                        "{} differs from what its results generate; run `cargo xtask results-doc`",
+                        doc.display()
+                    ));
+                }
+                println!("{}: as generated", doc.display());
+            } else {
+                std::fs::write(&doc, now).map_err(|e| format!("{}: {e}", doc.display()))?;
+                println!("{}", doc.display());
+            }
+            Ok(())
+        }
+        Command::Experiment(args) => match &args.then {
+            Some(ExperimentCommand::Merge {
+                dirs,
+                out,
+                write_docs,
+            }) => experiment::merge(dirs, out, write_docs.as_deref()),
+            None => experiment::run(&args.options()?),
+        },
         Command::Fuzz {
             targets,
             seconds,

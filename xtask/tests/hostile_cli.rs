@@ -311,6 +311,26 @@ fn numbers_out_of_range_are_refused_before_any_work() {
             "--repeats = 0",
         ),
         (
+            vec!["experiment", "--still-repeats", "101", "--out", o],
+            "--still-repeats = 101",
+        ),
+        (
+            vec!["experiment", "--shard", "3/2", "--out", o],
+            "--shard takes K/N with 1 <= K <= N <= 4096, got '3/2'",
+        ),
+        (
+            vec!["experiment", "--shard", "0/2", "--out", o],
+            "--shard takes K/N",
+        ),
+        (
+            vec!["experiment", "--preset", "huge", "--out", o],
+            "unknown preset 'huge' (known: default, full)",
+        ),
+        (
+            vec!["experiment", "merge", o, "--out", o],
+            "results.json",
+        ),
+        (
             vec!["bench", "reference", "--threads", "0"],
             "--threads = 0",
         ),
