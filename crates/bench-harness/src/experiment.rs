@@ -690,14 +690,24 @@ impl Experiment {
             return Ok(None);
         };
         let frames = crate::sequence::light_sequence(&scene, spec.frames);
+        // The techniques are still prepared for the sequence's scene when it was the last
+        // scene of the views: reuse that precomputation (and its times).
+        let prepared = last_prepared
+            .filter(|(id, _)| *id == spec.scene)
+            .map(|(_, times)| times);
         if self.settings.progress {
             eprintln!(
-                "relighting sequence: {} frames on {} / {}, {} technique(s) prepared again, a \
-                 {}-spp reference per frame",
+                "relighting sequence: {} frames on {} / {}, {} technique(s) {}, a {}-spp \
+                 reference per frame",
                 frames.len(),
                 spec.scene,
                 camera.name,
                 self.techniques.len(),
+                if prepared.is_some() {
+                    "as prepared for the views"
+                } else {
+                    "prepared again"
+                },
                 spec.spp
             );
         }
@@ -709,11 +719,6 @@ impl Experiment {
             seed: self.settings.seed,
         };
         let images = out.join("sequence");
-        // The techniques are still prepared for the sequence's scene when it was the last
-        // scene of the views: reuse that precomputation (and its times).
-        let prepared = last_prepared
-            .filter(|(id, _)| *id == spec.scene)
-            .map(|(_, times)| times);
         let result = crate::sequence::run_sequence(
             &spec.scene,
             &scene,
