@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use bench_harness::{
-    Experiment, ExperimentSettings, RandomCameraSettings, SceneSetup, TechniqueSetup,
-    cameras_for, load_camera_list,
+    Experiment, ExperimentSettings, RandomCameraSettings, SceneSetup, TechniqueSetup, cameras_for,
+    load_camera_list,
 };
 use gbuffer::CpuRasterizer;
 use imalyzer::{Measure, MeasureMetric};

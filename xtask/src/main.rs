@@ -141,7 +141,10 @@ impl ExperimentArgs {
         let p = experiment::Preset::named(&self.preset)?;
         Ok(experiment::Options {
             scenes: self.scenes.clone(),
-            techniques: self.techniques.clone().unwrap_or_else(|| p.techniques.into()),
+            techniques: self
+                .techniques
+                .clone()
+                .unwrap_or_else(|| p.techniques.into()),
             views: self.views,
             spp: self.spp.unwrap_or(p.spp),
             bounces: self.bounces.clone(),
@@ -301,7 +304,7 @@ enum Command {
     /// reference path tracer and write results.json, report.md and report.html (speed
     /// against error, equal-error path tracing, a relighting sequence).
     /// `experiment merge DIR... --out DIR` combines the folders of a sharded run.
-    Experiment(ExperimentArgs),
+    Experiment(Box<ExperimentArgs>),
     /// Fuzz the loaders with mutated seed files: each input under catch_unwind, the worker
     /// under an address-space cap and a per-input time limit; failing inputs are saved under
     /// tests/fuzz-regressions/<target>/ (replayed by `cargo test`).

@@ -65,7 +65,12 @@ fn findings(r: &Results) -> String {
             fmt_err(first.mean_error)
         );
         if let (Some(e), Some(b)) = (first.surface_error, first.surface_bias) {
-            let _ = write!(o, " ({} over lit surfaces, bias {})", fmt_err(e), fmt_bias(b));
+            let _ = write!(
+                o,
+                " ({} over lit surfaces, bias {})",
+                fmt_err(e),
+                fmt_bias(b)
+            );
         }
         let _ = writeln!(o, ".");
     }
@@ -184,9 +189,17 @@ pub fn render(r: &Results, results_name: &str) -> String {
         o,
         "Run {} on {} worker thread(s), preset `{}`, {} view(s) of {} ({}x{}, reference {} spp \
          at bounce limits {}), {:.0} min {:.0} s wall{}:\n\n```sh\n{}\n```\n",
-        if run.date.is_empty() { "(date not recorded)" } else { &run.date },
+        if run.date.is_empty() {
+            "(date not recorded)"
+        } else {
+            &run.date
+        },
         run.threads,
-        if run.preset.is_empty() { "-" } else { &run.preset },
+        if run.preset.is_empty() {
+            "-"
+        } else {
+            &run.preset
+        },
         views,
         run.scenes.join(", "),
         r.settings.width,

@@ -326,10 +326,7 @@ fn numbers_out_of_range_are_refused_before_any_work() {
             vec!["experiment", "--preset", "huge", "--out", o],
             "unknown preset 'huge' (known: default, full)",
         ),
-        (
-            vec!["experiment", "merge", o, "--out", o],
-            "results.json",
-        ),
+        (vec!["experiment", "merge", o, "--out", o], "results.json"),
         (
             vec!["bench", "reference", "--threads", "0"],
             "--threads = 0",

@@ -42,11 +42,7 @@ pub fn read_results_file(path: &Path) -> Result<Results, HarnessError> {
 /// once), puts their views back in run order, recomputes the summary, copies every image
 /// (`images/`, `sequence/`) and writes `results.json`, `report.md` and `report.html`.
 /// `headline` is the technique shown against the baseline in the gallery.
-pub fn merge(
-    dirs: &[PathBuf],
-    out: &Path,
-    headline: Option<&str>,
-) -> Result<Merged, HarnessError> {
+pub fn merge(dirs: &[PathBuf], out: &Path, headline: Option<&str>) -> Result<Merged, HarnessError> {
     let invalid = |m: String| HarnessError::Invalid(format!("merge: {m}"));
     let mut shards: Vec<(PathBuf, Results)> = Vec::new();
     for d in dirs {
@@ -100,17 +96,23 @@ pub fn merge(
         .flat_map(|(_, r)| r.views.iter().cloned())
         .collect();
     views.sort_by_key(|v| (order(&v.scene), v.camera_index));
-    if let Some(w) = views.windows(2).find(|w| {
-        w[0].scene == w[1].scene && w[0].camera_index == w[1].camera_index
-    }) {
+    if let Some(w) = views
+        .windows(2)
+        .find(|w| w[0].scene == w[1].scene && w[0].camera_index == w[1].camera_index)
+    {
         return Err(invalid(format!(
             "view {} / {} appears in two shards",
             w[0].scene, w[0].camera_index
         )));
     }
-    let sequences: Vec<_> = shards.iter().filter_map(|(_, r)| r.sequence.clone()).collect();
+    let sequences: Vec<_> = shards
+        .iter()
+        .filter_map(|(_, r)| r.sequence.clone())
+        .collect();
     if sequences.len() > 1 {
-        return Err(invalid("more than one shard holds the relighting sequence".into()));
+        return Err(invalid(
+            "more than one shard holds the relighting sequence".into(),
+        ));
     }
     if first.run.sequence_expected && sequences.is_empty() {
         return Err(invalid("the relighting sequence is in no shard".into()));
@@ -125,7 +127,10 @@ pub fn merge(
     let mut run = first.run.clone();
     run.shard = None;
     run.merged_shards = count;
-    run.seconds = shards.iter().map(|(_, r)| r.run.seconds).fold(0.0, f64::max);
+    run.seconds = shards
+        .iter()
+        .map(|(_, r)| r.run.seconds)
+        .fold(0.0, f64::max);
     run.date = shards
         .iter()
         .map(|(_, r)| r.run.date.clone())
@@ -145,10 +150,7 @@ pub fn merge(
     let report_html = out.join("report.html");
     crate::write_json(&results_json, &results)?;
     crate::experiment::write_text(&report_md, &crate::report::markdown(&results, headline))?;
-    crate::experiment::write_text(
-        &report_html,
-        &crate::report::html(&results, headline, out),
-    )?;
+    crate::experiment::write_text(&report_html, &crate::report::html(&results, headline, out))?;
     Ok(Merged {
         results,
         results_json,

@@ -188,18 +188,14 @@ pub fn sequence_section(r: &Results) -> String {
     headers.extend(q.prepare_s.iter().map(|(l, _)| l.as_str()));
     let rows = q.frames.iter().enumerate().map(|(i, f)| {
         let mut row = vec![i.to_string(), f.caption.clone()];
-        row.extend(
-            f.techniques
-                .iter()
-                .map(|t| {
-                    format!(
-                        "{} / {} / {}",
-                        fmt_err(t.error),
-                        opt(t.surface.map(|x| x.mean_error)),
-                        fmt_ms(t.frame_s * 1e3)
-                    )
-                }),
-        );
+        row.extend(f.techniques.iter().map(|t| {
+            format!(
+                "{} / {} / {}",
+                fmt_err(t.error),
+                opt(t.surface.map(|x| x.mean_error)),
+                fmt_ms(t.frame_s * 1e3)
+            )
+        }));
         row
     });
     table(&mut o, &headers, rows);

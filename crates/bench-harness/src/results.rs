@@ -346,7 +346,9 @@ impl ViewResult {
             let l = &t.label;
             non_negative(|| format!("{l}: precomputation seconds"), t.prepare_s)?;
             let f = &t.frame;
-            for (kind, f) in std::iter::once(("frame", f)).chain(t.still.iter().map(|s| ("still", s))) {
+            for (kind, f) in
+                std::iter::once(("frame", f)).chain(t.still.iter().map(|s| ("still", s)))
+            {
                 for (name, v) in [("min", f.min_s), ("median", f.median_s), ("max", f.max_s)] {
                     non_negative(|| format!("{l}: {kind} {name} seconds"), v)?;
                 }
@@ -885,7 +887,10 @@ pub fn summarize(
                 speedup,
                 speedup_at_least: (speedup.is_none() && above.len() == points.len())
                     .then(|| median(above)),
-                surface_error: mean(sets.iter().filter_map(|(s, _)| s.surface.map(|x| x.mean_error))),
+                surface_error: mean(
+                    sets.iter()
+                        .filter_map(|(s, _)| s.surface.map(|x| x.mean_error)),
+                ),
             });
         }
     }

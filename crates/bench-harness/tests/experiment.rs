@@ -544,7 +544,8 @@ fn the_equal_error_spp_of_a_path_tracer_at_a_lower_spp_is_that_spp() {
         // Within the noise of one 96 x 72 image's mean error (measured 2.12, 5.79 and
         // 12.05 for 2, 6 and 12 spp).
         assert!(
-            (e.spp / spp - 1.0).abs() < 0.15 && e.bound == bench_harness::results::LadderBound::Within,
+            (e.spp / spp - 1.0).abs() < 0.15
+                && e.bound == bench_harness::results::LadderBound::Within,
             "{label}: {e:?}"
         );
         // The path tracer's time at that spp, from its measured seconds per sample.
@@ -559,7 +560,10 @@ fn the_equal_error_spp_of_a_path_tracer_at_a_lower_spp_is_that_spp() {
     let point = r.views[0].technique("pt-256").unwrap().errors[0]
         .equal_error
         .unwrap();
-    assert_eq!(point.bound, bench_harness::results::LadderBound::AboveFinest);
+    assert_eq!(
+        point.bound,
+        bench_harness::results::LadderBound::AboveFinest
+    );
     assert_eq!((best.above_ladder, best.speedup), (1, None), "{best:?}");
     assert_eq!(best.speedup_at_least, Some(point.speedup));
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
@@ -591,7 +595,10 @@ fn equal_error_interpolates_in_log_log_and_gives_bounds_outside_the_ladder() {
         })
         .collect();
     let e = equal_error(&ladder, 0.4 / 8f64.sqrt(), 0.002).unwrap();
-    assert!((e.spp - 8.0).abs() < 1e-9 && e.bound == LadderBound::Within, "{e:?}");
+    assert!(
+        (e.spp - 8.0).abs() < 1e-9 && e.bound == LadderBound::Within,
+        "{e:?}"
+    );
     assert!((e.seconds - 0.08).abs() < 1e-12 && (e.speedup - 40.0).abs() < 1e-9);
     // Closer than the finest rung: the finest rung's spp and speedup as a lower bound,
     // never the 256 spp an extrapolation along the slope would claim.
@@ -780,7 +787,10 @@ fn surface_error_shows_a_bias_that_the_whole_image_dilutes() {
     let cam = scene.cameras[0].with_aspect(w as f32 / h as f32);
     let view = scene_core::View::from_camera(&cam);
     let classes = PathTracer::new(&scene).pixel_classes(&view, w, h);
-    let emitters = classes.iter().filter(|c| **c == PixelClass::Emitter).count();
+    let emitters = classes
+        .iter()
+        .filter(|c| **c == PixelClass::Emitter)
+        .count();
     assert!(emitters > 0, "the default camera sees cornell's light");
     let reference = scene_core::reference::render(
         &scene,
@@ -807,7 +817,10 @@ fn surface_error_shows_a_bias_that_the_whole_image_dilutes() {
     // The brightest 1% of the surface pixels are left out, emitters always.
     let kept = mask.iter().filter(|m| **m).count();
     let surfaces = surface.iter().filter(|m| **m).count();
-    assert!(kept < surfaces && kept as f64 >= 0.985 * surfaces as f64, "{kept} of {surfaces}");
+    assert!(
+        kept < surfaces && kept as f64 >= 0.985 * surfaces as f64,
+        "{kept} of {surfaces}"
+    );
     let s = surface_error(&reference, &test, &mask).unwrap();
     for b in s.bias {
         assert!((b + 0.1).abs() < 1e-5, "{:?}", s.bias);
@@ -870,7 +883,11 @@ fn a_run_split_in_shards_and_merged_equals_the_unsplit_run() {
     let surf = |r: &Results| -> Vec<_> {
         r.views
             .iter()
-            .flat_map(|v| v.techniques.iter().map(|t| t.errors.iter().map(|e| e.surface).collect::<Vec<_>>()))
+            .flat_map(|v| {
+                v.techniques
+                    .iter()
+                    .map(|t| t.errors.iter().map(|e| e.surface).collect::<Vec<_>>())
+            })
             .collect()
     };
     assert_eq!(surf(&merged), surf(&whole));

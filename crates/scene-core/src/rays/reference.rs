@@ -242,23 +242,25 @@ impl<'a> PathTracer<'a> {
     pub fn pixel_classes(&self, view: &View, width: u32, height: u32) -> Vec<PixelClass> {
         let (w, h) = (width as usize, height as usize);
         let mut out = vec![PixelClass::Background; w * h];
-        out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-            for (x, c) in row.iter_mut().enumerate() {
-                let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
-                let (o, d) = view.ray(uv);
-                *c = match self.rays.closest_hit(o, d, 0.0, f32::INFINITY) {
-                    None => PixelClass::Background,
-                    Some(hit) => {
-                        let tri = &self.tris[hit.triangle as usize];
-                        if self.scene.materials[tri.material as usize].is_emissive() {
-                            PixelClass::Emitter
-                        } else {
-                            PixelClass::Surface
+        out.par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (x, c) in row.iter_mut().enumerate() {
+                    let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+                    let (o, d) = view.ray(uv);
+                    *c = match self.rays.closest_hit(o, d, 0.0, f32::INFINITY) {
+                        None => PixelClass::Background,
+                        Some(hit) => {
+                            let tri = &self.tris[hit.triangle as usize];
+                            if self.scene.materials[tri.material as usize].is_emissive() {
+                                PixelClass::Emitter
+                            } else {
+                                PixelClass::Surface
+                            }
                         }
-                    }
-                };
-            }
-        });
+                    };
+                }
+            });
         out
     }
 
