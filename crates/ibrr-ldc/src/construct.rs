@@ -82,6 +82,10 @@ pub struct Construction {
     pub lights: LightState,
     builder: LdcBuilder,
     next: usize,
+    /// The exact mode's first pass: every IRPL founds its layers before any lights them,
+    /// so that every layer receives every IRPL that sees it whatever the IRPL order (a
+    /// layer founded by a later IRPL would otherwise miss the earlier ones' light).
+    founding: bool,
     stats: ConstructionStats,
     /// The exact mode's gather on the GPU, when asked for ([`Construction::gather_on_gpu`]).
     gpu: Option<crate::gpu::GpuGather>,
@@ -159,6 +163,7 @@ impl Construction {
             lights: LightState::default(),
             builder,
             next: 0,
+            founding: settings.splat == Splat::Exact,
             gpu: None,
         })
     }
@@ -173,7 +178,27 @@ impl Construction {
 
     /// True when every IRPL has been warped.
     pub fn is_done(&self) -> bool {
-        self.next >= self.irpls.irpls.len()
+        !self.founding && self.next >= self.irpls.irpls.len()
+    }
+
+    /// True while the exact mode founds its layers (nothing is lit yet).
+    pub fn is_founding(&self) -> bool {
+        self.founding
+    }
+
+    /// IRPL steps done and in all, over both passes of the exact mode (founding, then
+    /// lighting: twice the IRPLs) or the one pass of the paper's kernels.
+    pub fn progress(&self) -> (usize, usize) {
+        let n = self.irpls.irpls.len();
+        if self.settings.splat != Splat::Exact {
+            return (self.next.min(n), n);
+        }
+        let done = if self.founding {
+            self.next.min(n)
+        } else {
+            n + self.next.min(n)
+        };
+        (done, 2 * n)
     }
 
     /// Figures so far.
@@ -196,6 +221,9 @@ impl Construction {
         renderer: &mut dyn GBufferRenderer,
         count: usize,
     ) -> Result<usize, IbrrError> {
+        if self.founding && self.next >= self.irpls.irpls.len() {
+            self.end_founding();
+        }
         let end = (self.next + count).min(self.irpls.irpls.len());
         let mut done = 0;
         // Render in batches of up to 8 IRPLs (one submission each on the GPU) whose renders
@@ -253,6 +281,12 @@ impl Construction {
             }
             self.stats.warp_time += t.elapsed();
         }
+        if self.founding && self.next >= self.irpls.irpls.len() {
+            self.end_founding();
+        }
+        if self.founding {
+            return Ok(done);
+        }
         self.stats.irpls_done = self.next;
         let exact = self.irpls.exact;
         self.stats.paths_done = if self.next <= exact {
@@ -264,6 +298,14 @@ impl Construction {
             self.stats.paths_done = self.irpls.paths;
         }
         Ok(done)
+    }
+
+    /// Ends the founding pass: the lighting pass starts over the IRPLs with every layer in
+    /// place.
+    fn end_founding(&mut self) {
+        self.founding = false;
+        self.next = 0;
+        self.builder.reset_values();
     }
 
     /// Prepares `renderer` with this construction's scene (once, before [`Construction::step`]).
@@ -374,9 +416,12 @@ impl Construction {
             1.0
         };
         let value_at = |q: Vec3, n: Vec3| irpl.irradiance_clamped(q, n, g_max) * scale;
+        let founding = self.founding;
         self.builder.begin();
         for samples in all {
-            self.stats.samples += samples.len() as u64;
+            if !founding {
+                self.stats.samples += samples.len() as u64;
+            }
             for mut s in samples {
                 // The paper's kernels copy the sample's own value (clamped and compensated
                 // like every other); the exact mode evaluates at each LDI pixel instead.
@@ -447,7 +492,11 @@ impl Construction {
                                     buffers,
                                 )
                             {
-                                self.stats.copies_hidden += 1;
+                                self.stats.copies_hidden += u64::from(!founding);
+                                continue;
+                            }
+                            if founding {
+                                self.builder.found(axis, i, j, q, s.n)?;
                                 continue;
                             }
                             let weight = if gaussian { (-0.5 * m2).exp() } else { 1.0 };
@@ -462,6 +511,9 @@ impl Construction {
                     }
                 }
             }
+        }
+        if founding {
+            return Ok(());
         }
         if exact {
             // Every layer not reached by a sample: lit when no surface of the IRPL's renders

@@ -328,6 +328,39 @@ impl LdcBuilder {
         Ok(Some(id))
     }
 
+    /// Founds a layer at pixel `(i, j)` of LDI `axis` for the surface through `p` with
+    /// normal `n` unless one matches already (the founding pass of the exact mode: layers
+    /// only, no light).
+    pub fn found(
+        &mut self,
+        axis: usize,
+        i: i64,
+        j: i64,
+        p: Vec3,
+        n: Vec3,
+    ) -> Result<(), IbrrError> {
+        let Some(index) = self.frame.pixel_index(axis, i, j) else {
+            return Ok(());
+        };
+        self.find_or_insert(index, p, n, n.extend(p.dot(n)), true)
+            .map(|_| ())
+    }
+
+    /// Clears every layer's light and the splat stamps, keeping the layers (between the
+    /// exact mode's founding and lighting passes).
+    pub fn reset_values(&mut self) {
+        for l in &mut self.layers {
+            l.exact = Vec3::ZERO;
+            l.direct = Vec3::ZERO;
+            l.indirect = Vec3::ZERO;
+            l.stamp = 0;
+            l.scratch = Vec4::ZERO;
+            l.scratch_w = 0.0;
+        }
+        self.stamp = 0;
+        self.touched.clear();
+    }
+
     /// The layer of pixel `(i, j)` of LDI `axis` matching `(p, n)` if the current IRPL has
     /// already splatted into it.
     pub fn stamped(&self, axis: usize, i: i64, j: i64, p: Vec3, n: Vec3) -> Option<u32> {

@@ -107,8 +107,9 @@ impl IbrrTechnique {
         self.timings
     }
 
-    /// [`Technique::prepare`] under a light state, reporting `(IRPLs done, IRPLs total)`
-    /// to `progress` as it goes.
+    /// [`Technique::prepare`] under a light state, reporting `(steps done, steps total)`
+    /// to `progress` as it goes ([`Construction::progress`]: one step an IRPL, two in the
+    /// exact mode, which founds every layer before lighting any).
     pub fn prepare_lit(
         &mut self,
         scene: Arc<Scene>,
@@ -129,8 +130,8 @@ impl IbrrTechnique {
         if !self.progressive {
             while !c.is_done() {
                 c.step(self.renderer.as_mut(), 16)?;
-                let s = c.stats();
-                progress(s.irpls_done, s.irpls_total);
+                let (done, total) = c.progress();
+                progress(done, total);
             }
         }
         self.ldc = Some(c.ldc()?);
@@ -164,11 +165,11 @@ impl Technique for IbrrTechnique {
                 *uploaded = None;
             }
         }
-        let s = c.stats();
+        let (done, total) = c.progress();
         Ok(scene_core::Refinement {
             done: c.is_done(),
             steps,
-            remaining: Some((s.irpls_total - s.irpls_done) as f64 / s.irpls_total.max(1) as f64),
+            remaining: Some((total - done) as f64 / total.max(1) as f64),
         })
     }
 

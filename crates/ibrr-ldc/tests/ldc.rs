@@ -131,7 +131,9 @@ fn ldc_of_one(scene: &Arc<Scene>, irpl: Irpl, settings: &IbrrSettings) -> ibrr_l
     let mut c = Construction::with_irpls(scene.clone(), set, settings).unwrap();
     let mut r = RayCastRenderer::new();
     c.prepare_renderer(&mut r).unwrap();
-    c.step(&mut r, 1).unwrap();
+    while !c.is_done() {
+        c.step(&mut r, 1).unwrap();
+    }
     c.ldc().unwrap()
 }
 
