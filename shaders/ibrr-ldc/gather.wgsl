@@ -1,8 +1,9 @@
 // after: ../scene-core/reconstruct.wgsl
 // The exact mode's gather on the GPU, one invocation per LDC layer; mirrors
 // crates/ibrr-ldc/src/construct.rs (`unoccluded`) and irpl.rs (`irradiance_clamped`): the
-// layer's centre on its plane, the IRPL's (clamped, compensated) irradiance there, and
-// whether any surface of the IRPL's renders lies between the IRPL and that centre. The CPU
+// layer's centre on its plane, the IRPL's (clamped, compensated) irradiance there, times
+// the share of that centre the IRPL's renders see (bilinear over the four pixels around it,
+// each either free or blocked by a surface between the IRPL and the centre). The CPU
 // keeps the values of layers no sample of this IRPL reached.
 
 struct Params {
@@ -87,7 +88,7 @@ fn irradiance(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     return power * g;
 }
 
-fn unoccluded(q: vec3<f32>, n: vec3<f32>) -> bool {
+fn unoccluded(q: vec3<f32>, n: vec3<f32>) -> f32 {
     for (var k = 0u; k < params.renders; k++) {
         let rd = renders[k];
         let clip = rd.view_projection * vec4<f32>(q, 1.0);
@@ -110,7 +111,7 @@ fn unoccluded(q: vec3<f32>, n: vec3<f32>) -> bool {
         let dq = q - origin;
         let len = length(dq);
         if len <= 0.0 {
-            return false;
+            return 0.0;
         }
         let dir = dq / len;
         let w = rd.size.x;
@@ -119,25 +120,41 @@ fn unoccluded(q: vec3<f32>, n: vec3<f32>) -> bool {
         let fy = v * f32(h) - 0.5;
         let x0 = i32(floor(fx));
         let y0 = i32(floor(fy));
+        let tx = fx - f32(x0);
+        let ty = fy - f32(y0);
+        var seen = 0.0;
         for (var c = 0; c < 4; c++) {
             let x = u32(clamp(x0 + (c & 1), 0, i32(w) - 1));
             let y = u32(clamp(y0 + (c >> 1u), 0, i32(h) - 1));
+            var wx = 1.0 - tx;
+            if (c & 1) == 1 {
+                wx = tx;
+            }
+            var wy = 1.0 - ty;
+            if (c >> 1u) == 1 {
+                wy = ty;
+            }
+            let wt = wx * wy;
             let px = pixels[rd.size.z + y * w + x];
             if px.w < 0.0 {
+                seen += wt;
                 continue;
             }
             let np = px.xyz;
             let uv = (vec2<f32>(f32(x), f32(y)) + 0.5) / vec2<f32>(f32(w), f32(h));
             let pp = reconstruct(rd.frustum, uv, px.w);
             if dot(np, n) > 1.0 - params.eps_normal && abs(dot(q - pp, np)) < params.eps_distance {
+                seen += wt;
                 continue;
             }
             let denom = dot(dq, np);
             if abs(denom) <= 1e-12 * len {
+                seen += wt;
                 continue;
             }
             let s = dot(pp - origin, np) / denom;
             if s <= 0.0 || s >= 1.0 - params.eps_distance / len {
+                seen += wt;
                 continue;
             }
             let cross_at = origin + dq * s;
@@ -146,13 +163,13 @@ fn unoccluded(q: vec3<f32>, n: vec3<f32>) -> bool {
                 along = length(pp - origin) * rd.forward.w;
             }
             let reach = 2.0 * along / max(abs(dot(np, dir)), 0.1);
-            if length(cross_at - pp) < reach {
-                return false;
+            if length(cross_at - pp) >= reach {
+                seen += wt;
             }
         }
-        return true;
+        return seen;
     }
-    return false;
+    return 0.0;
 }
 
 @compute @workgroup_size(64)
@@ -185,7 +202,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if !(m > 0.0 && m < 3.4028235e38) {
         return;
     }
-    if unoccluded(q, n) {
-        out_values[l] = vec4<f32>(e, 1.0);
+    let seen = unoccluded(q, n);
+    if seen > 0.0 {
+        out_values[l] = vec4<f32>(e * seen, 1.0);
     }
 }

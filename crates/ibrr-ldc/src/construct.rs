@@ -532,10 +532,11 @@ impl Construction {
                     .collect();
                 self.builder.gather(|q, n| {
                     let e = value_at(q, n);
-                    (e.max_element() > 0.0
-                        && e.is_finite()
-                        && unoccluded(&renders, q, n, eps_d, eps_n))
-                    .then_some(e)
+                    if !(e.max_element() > 0.0 && e.is_finite()) {
+                        return None;
+                    }
+                    let seen = unoccluded(&renders, q, n, eps_d, eps_n);
+                    (seen > 0.0).then_some(e * seen)
                 });
             }
         }
@@ -715,13 +716,15 @@ impl<'a> Render<'a> {
     }
 }
 
-/// True when the first render covering `q` shows no surface between the IRPL and `q`
-/// (the renders as a shadow map of planes): each of the four pixels around `q`'s
-/// projection either sees `q`'s own plane, or sees a surface whose plane the segment from
-/// the IRPL to `q` does not cross before `q` near that pixel's point. Concave edges (a
-/// floor meeting a wall behind it) stay lit; a point just behind a thin wall's corner is
-/// hidden. False when no render covers `q`.
-fn unoccluded(renders: &[Render], q: Vec3, n: Vec3, eps_distance: f32, eps_normal: f32) -> bool {
+/// The share of `q` the IRPL sees, from the first render covering `q` (the renders as a
+/// shadow map of planes): of the four pixels around `q`'s projection, weighted bilinearly,
+/// those that see `q`'s own plane, the background, or a surface whose plane the segment
+/// from the IRPL to `q` does not cross before `q` near that pixel's point. Concave edges (a
+/// floor meeting a wall behind it) stay lit; a point behind a wall is hidden. A fraction
+/// rather than "any of the four occludes": that all-or-nothing test widened every shadow
+/// by about a render pixel, which read 1.3 % dark in cornell's direct light (0.3 % now).
+/// 0 when no render covers `q`.
+fn unoccluded(renders: &[Render], q: Vec3, n: Vec3, eps_distance: f32, eps_normal: f32) -> f32 {
     for r in renders {
         let clip = r.vp * q.extend(1.0);
         if clip.w <= 0.0 {
@@ -743,29 +746,40 @@ fn unoccluded(renders: &[Render], q: Vec3, n: Vec3, eps_distance: f32, eps_norma
         let dq = q - origin;
         let len = dq.length();
         if len <= 0.0 {
-            return false;
+            return 0.0;
         }
         let dir = dq / len;
         let f = Vec2::new(u * g.width as f32 - 0.5, v * g.height as f32 - 0.5);
         let (x0, y0) = (f.x.floor() as i64, f.y.floor() as i64);
-        for (x, y) in [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)] {
+        let (fx, fy) = (f.x - x0 as f32, f.y - y0 as f32);
+        let mut seen = 0.0f32;
+        for (x, y, w) in [
+            (x0, y0, (1.0 - fx) * (1.0 - fy)),
+            (x0 + 1, y0, fx * (1.0 - fy)),
+            (x0, y0 + 1, (1.0 - fx) * fy),
+            (x0 + 1, y0 + 1, fx * fy),
+        ] {
             let x = x.clamp(0, g.width as i64 - 1) as u32;
             let y = y.clamp(0, g.height as i64 - 1) as u32;
             let i = (y * g.width + x) as usize;
             if g.is_background(i) {
+                seen += w;
                 continue;
             }
             let np = g.normal[i];
             let pp = r.recon.world(pixel_uv(x, y, g.width, g.height), g.depth[i]);
             if np.dot(n) > 1.0 - eps_normal && (q - pp).dot(np).abs() < eps_distance {
+                seen += w;
                 continue;
             }
             let denom = dq.dot(np);
             if denom.abs() <= 1e-12 * len {
+                seen += w;
                 continue;
             }
             let s = (pp - origin).dot(np) / denom;
             if s <= 0.0 || s >= 1.0 - eps_distance / len {
+                seen += w;
                 continue;
             }
             let c = origin + dq * s;
@@ -775,11 +789,11 @@ fn unoccluded(renders: &[Render], q: Vec3, n: Vec3, eps_distance: f32, eps_norma
                 r.pixel
             };
             let reach = 2.0 * along / np.dot(dir).abs().max(0.1);
-            if (c - pp).length() < reach {
-                return false;
+            if (c - pp).length() >= reach {
+                seen += w;
             }
         }
-        return true;
+        return seen;
     }
-    false
+    0.0
 }
