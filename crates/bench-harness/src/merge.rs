@@ -125,6 +125,16 @@ pub fn merge(dirs: &[PathBuf], out: &Path, headline: Option<&str>) -> Result<Mer
     }
     let summary = summarize(&first.settings, &first.techniques, &views);
     let mut run = first.run.clone();
+    // The command of every share, then the merge.
+    if let Some(s) = run.shard {
+        run.command = format!(
+            "{}; then `cargo xtask experiment merge` of the {count} shares",
+            run.command.replace(
+                &format!("--shard {s}"),
+                &format!("--shard K/{count} (K = 1 to {count})")
+            )
+        );
+    }
     run.shard = None;
     run.merged_shards = count;
     run.seconds = shards
