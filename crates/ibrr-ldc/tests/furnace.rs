@@ -8,84 +8,11 @@ mod common;
 
 use std::sync::Arc;
 
-use glam::Vec3;
 use ibrr_ldc::IbrrSettings;
-use scene_core::{Camera, Material, Mesh, Scene, luminance};
+use scene_core::{Scene, luminance};
 
 fn furnace(albedo: f32, emission: f32) -> Scene {
-    let mut s = Scene::new("furnace");
-    s.materials.push(Material::emissive(
-        "wall",
-        Vec3::splat(albedo),
-        Vec3::splat(emission),
-    ));
-    let mut m = Mesh {
-        name: "cube".into(),
-        ..Default::default()
-    };
-    let c = Vec3::new;
-    let faces = [
-        [
-            c(-1., -1., -1.),
-            c(1., -1., -1.),
-            c(1., -1., 1.),
-            c(-1., -1., 1.),
-        ],
-        [
-            c(-1., 1., -1.),
-            c(-1., 1., 1.),
-            c(1., 1., 1.),
-            c(1., 1., -1.),
-        ],
-        [
-            c(-1., -1., -1.),
-            c(-1., -1., 1.),
-            c(-1., 1., 1.),
-            c(-1., 1., -1.),
-        ],
-        [
-            c(1., -1., -1.),
-            c(1., 1., -1.),
-            c(1., 1., 1.),
-            c(1., -1., 1.),
-        ],
-        [
-            c(-1., -1., -1.),
-            c(-1., 1., -1.),
-            c(1., 1., -1.),
-            c(1., -1., -1.),
-        ],
-        [
-            c(-1., -1., 1.),
-            c(1., -1., 1.),
-            c(1., 1., 1.),
-            c(-1., 1., 1.),
-        ],
-    ];
-    for f in faces {
-        // Emission is one-sided: every face looks inward.
-        let n = (f[1] - f[0]).cross(f[2] - f[0]);
-        let centre = (f[0] + f[2]) * 0.5;
-        m.push_quad(
-            if n.dot(-centre) > 0.0 {
-                f
-            } else {
-                [f[3], f[2], f[1], f[0]]
-            },
-            0,
-        );
-    }
-    s.meshes.push(m);
-    s.cameras.push(Camera {
-        name: "inside".into(),
-        position: Vec3::new(0.1, 0.05, 0.2),
-        target: Vec3::new(0.5, -0.3, -1.0),
-        up: Vec3::Y,
-        fov_y: 1.2,
-        aspect: 1.0,
-        near: 0.01,
-        far: 10.0,
-    });
+    let mut s = scene_core::builtin::furnace(albedo, emission);
     s.validate().unwrap();
     s
 }

@@ -601,6 +601,87 @@ pub fn corridor() -> Scene {
     s
 }
 
+/// The furnace: a closed cube of side 2 centred on the origin whose six walls all emit
+/// `emission` (towards the inside) and reflect `albedo`, with one camera inside. Its radiance
+/// is `emission / (1 - albedo)` everywhere, every order of reflection included: the
+/// analytic check of any global illumination method.
+pub fn furnace(albedo: f32, emission: f32) -> Scene {
+    let mut s = Scene::new("furnace");
+    s.materials.push(Material::emissive(
+        "wall",
+        Vec3::splat(albedo),
+        Vec3::splat(emission),
+    ));
+    let mut m = Mesh {
+        name: "cube".into(),
+        ..Default::default()
+    };
+    let c = Vec3::new;
+    let faces = [
+        [
+            c(-1., -1., -1.),
+            c(1., -1., -1.),
+            c(1., -1., 1.),
+            c(-1., -1., 1.),
+        ],
+        [
+            c(-1., 1., -1.),
+            c(-1., 1., 1.),
+            c(1., 1., 1.),
+            c(1., 1., -1.),
+        ],
+        [
+            c(-1., -1., -1.),
+            c(-1., -1., 1.),
+            c(-1., 1., 1.),
+            c(-1., 1., -1.),
+        ],
+        [
+            c(1., -1., -1.),
+            c(1., 1., -1.),
+            c(1., 1., 1.),
+            c(1., -1., 1.),
+        ],
+        [
+            c(-1., -1., -1.),
+            c(-1., 1., -1.),
+            c(1., 1., -1.),
+            c(1., -1., -1.),
+        ],
+        [
+            c(-1., -1., 1.),
+            c(1., -1., 1.),
+            c(1., 1., 1.),
+            c(-1., 1., 1.),
+        ],
+    ];
+    for f in faces {
+        // Emission is one-sided: every face wound to look inward.
+        let n = (f[1] - f[0]).cross(f[2] - f[0]);
+        let centre = (f[0] + f[2]) * 0.5;
+        m.push_quad(
+            if n.dot(-centre) > 0.0 {
+                f
+            } else {
+                [f[3], f[2], f[1], f[0]]
+            },
+            0,
+        );
+    }
+    s.meshes.push(m);
+    s.cameras.push(Camera {
+        name: "inside".into(),
+        position: Vec3::new(0.1, -0.2, 0.05),
+        target: Vec3::new(0.5, 0.3, 1.0),
+        up: Vec3::Y,
+        fov_y: 1.2,
+        aspect: 1.0,
+        near: 0.01,
+        far: 10.0,
+    });
+    s
+}
+
 /// `n` boxes of random size, position, yaw and colour (seeded) on a ground plane sized so the
 /// density stays constant, lit by a sun and a point light. 12 n + 2 triangles.
 pub fn many_boxes(n: u32, seed: u64) -> Scene {
