@@ -1,4 +1,4 @@
-//! Reconstruction on the GPU (wgpu compute, `shaders/ibrr-ldc/reconstruct.wgsl`): the
+//! Reconstruction on the GPU (wgpu compute, `crates/ibrr-ldc/shaders/reconstruct.wgsl`): the
 //! flattened LDC ([`Ldc`]'s offsets, planes and values) is uploaded once; a frame binds the
 //! camera's [`GpuGBuffer`] and runs one pass that mirrors [`crate::reconstruct`] and
 //! [`crate::shade`] pixel for pixel.
@@ -17,9 +17,9 @@ use crate::ldc::Ldc;
 use crate::settings::Lookup;
 
 /// WGSL of the reconstruction pass (scene-core's reconstruction, then the pass).
-pub const RECONSTRUCT_WGSL: &str = concat!(
-    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
-    include_str!("../../../shaders/ibrr-ldc/reconstruct.wgsl")
+pub const RECONSTRUCT_WGSL: &str = scene_core::wgsl!(
+    scene_core::gpu::RECONSTRUCT_WGSL,
+    include_str!("../shaders/reconstruct.wgsl")
 );
 
 #[repr(C)]
@@ -320,9 +320,9 @@ impl GpuLdc {
 }
 
 /// WGSL of the gather pass (scene-core's reconstruction, then the pass).
-pub const GATHER_WGSL: &str = concat!(
-    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
-    include_str!("../../../shaders/ibrr-ldc/gather.wgsl")
+pub const GATHER_WGSL: &str = scene_core::wgsl!(
+    scene_core::gpu::RECONSTRUCT_WGSL,
+    include_str!("../shaders/gather.wgsl")
 );
 
 #[repr(C)]

@@ -104,11 +104,11 @@ pub fn blur_pass(
         .collect()
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `blur.wgsl`), one direction per dispatch.
-pub const WGSL: &str = concat!(
-    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
-    include_str!("../../../shaders/isr/common.wgsl"),
-    include_str!("../../../shaders/isr/blur.wgsl")
+/// WGSL source of the GPU pass (`crates/isr/shaders/common.wgsl` + `blur.wgsl`), one direction per dispatch.
+pub const WGSL: &str = scene_core::wgsl!(
+    scene_core::gpu::RECONSTRUCT_WGSL,
+    include_str!("../shaders/common.wgsl"),
+    include_str!("../shaders/blur.wgsl")
 );
 
 /// The GPU pass: one pipeline per direction (the shader's `HORIZONTAL` constant) over one

@@ -103,27 +103,27 @@ pub fn compose(
     }
 }
 
-/// WGSL source of the GPU pass writing `Rgba32Float`: `shaders/isr/common.wgsl`, then the
+/// WGSL source of the GPU pass writing `Rgba32Float`: `crates/isr/shaders/common.wgsl`, then the
 /// light set and shadow parts the pass shares with [`crate::light_set`] and
 /// [`crate::shadow`], the output declaration, and `lighting.wgsl`.
-pub const WGSL: &str = concat!(
-    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
-    include_str!("../../../shaders/isr/common.wgsl"),
-    include_str!("../../../shaders/isr/light_set.wgsl"),
-    include_str!("../../../shaders/isr/shadow.wgsl"),
-    include_str!("../../../shaders/isr/lighting_target.wgsl"),
-    include_str!("../../../shaders/isr/lighting.wgsl")
+pub const WGSL: &str = scene_core::wgsl!(
+    scene_core::gpu::RECONSTRUCT_WGSL,
+    include_str!("../shaders/common.wgsl"),
+    include_str!("../shaders/light_set.wgsl"),
+    include_str!("../shaders/shadow.wgsl"),
+    include_str!("../shaders/lighting_target.wgsl"),
+    include_str!("../shaders/lighting.wgsl")
 );
 
 /// The same writing `Rgba16Float` (WGSL cannot make a storage format overridable, so the
 /// pass is composed with the other output declaration).
-pub const WGSL_RGBA16F: &str = concat!(
-    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
-    include_str!("../../../shaders/isr/common.wgsl"),
-    include_str!("../../../shaders/isr/light_set.wgsl"),
-    include_str!("../../../shaders/isr/shadow.wgsl"),
-    include_str!("../../../shaders/isr/lighting_target16.wgsl"),
-    include_str!("../../../shaders/isr/lighting.wgsl")
+pub const WGSL_RGBA16F: &str = scene_core::wgsl!(
+    scene_core::gpu::RECONSTRUCT_WGSL,
+    include_str!("../shaders/common.wgsl"),
+    include_str!("../shaders/light_set.wgsl"),
+    include_str!("../shaders/shadow.wgsl"),
+    include_str!("../shaders/lighting_target16.wgsl"),
+    include_str!("../shaders/lighting.wgsl")
 );
 
 /// The light set's storage buffers the lighting pass reads.

@@ -221,11 +221,11 @@ fn gather(
     gi.extend(access)
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `radiosity.wgsl`).
-pub const WGSL: &str = concat!(
-    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
-    include_str!("../../../shaders/isr/common.wgsl"),
-    include_str!("../../../shaders/isr/radiosity.wgsl")
+/// WGSL source of the GPU pass (`crates/isr/shaders/common.wgsl` + `radiosity.wgsl`).
+pub const WGSL: &str = scene_core::wgsl!(
+    scene_core::gpu::RECONSTRUCT_WGSL,
+    include_str!("../shaders/common.wgsl"),
+    include_str!("../shaders/radiosity.wgsl")
 );
 
 /// The GPU pass.

@@ -1,4 +1,4 @@
-//! Relighting on the GPU (wgpu compute, `shaders/relight-pr/`): eq. 1 over the packed
+//! Relighting on the GPU (wgpu compute, `crates/relight-pr/shaders/`): eq. 1 over the packed
 //! element solution ([`GpuRelight::relight`]), and the paper's "hardware" display: the
 //! per-light radiosity at the welded vertices combined with the frame's light factors per
 //! pixel in one pass over a G-buffer of the element scene ([`GpuRelight::display`]). The
@@ -20,15 +20,15 @@ use crate::solver::Solution;
 
 /// WGSL of the relight pass (`common.wgsl` then `relight.wgsl`).
 pub const RELIGHT_WGSL: &str = concat!(
-    include_str!("../../../shaders/relight-pr/common.wgsl"),
-    include_str!("../../../shaders/relight-pr/relight.wgsl")
+    include_str!("../shaders/common.wgsl"),
+    include_str!("../shaders/relight.wgsl")
 );
 
 /// WGSL of the display pass (`common.wgsl`, scene-core's reconstruction, `display.wgsl`).
-pub const DISPLAY_WGSL: &str = concat!(
-    include_str!("../../../shaders/relight-pr/common.wgsl"),
-    include_str!("../../../shaders/scene-core/reconstruct.wgsl"),
-    include_str!("../../../shaders/relight-pr/display.wgsl")
+pub const DISPLAY_WGSL: &str = scene_core::wgsl!(
+    include_str!("../shaders/common.wgsl"),
+    scene_core::gpu::RECONSTRUCT_WGSL,
+    include_str!("../shaders/display.wgsl")
 );
 
 const GROUP: u32 = 64;

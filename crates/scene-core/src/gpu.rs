@@ -34,7 +34,43 @@ use crate::image::Image;
 use crate::scene::Scene;
 
 /// WGSL source of the luminance compute shader (thesis eq. 17), see [`luminance_gpu`].
-pub const LUMINANCE_WGSL: &str = include_str!("../../../shaders/scene-core/luminance.wgsl");
+pub const LUMINANCE_WGSL: &str = include_str!("../shaders/luminance.wgsl");
+
+/// WGSL of position reconstruction from depth (`View::frustum_corners`'s layout), the part
+/// every crate's passes that rebuild world positions start with: compose it with
+/// [`crate::wgsl!`], e.g. `scene_core::wgsl!(scene_core::gpu::RECONSTRUCT_WGSL,
+/// include_str!("../shaders/pass.wgsl"))`.
+pub const RECONSTRUCT_WGSL: &str = include_str!("../shaders/reconstruct.wgsl");
+
+/// Total length of `parts` (for [`crate::wgsl!`]).
+#[doc(hidden)]
+pub const fn wgsl_len(parts: &[&str]) -> usize {
+    let mut n = 0;
+    let mut i = 0;
+    while i < parts.len() {
+        n += parts[i].len();
+        i += 1;
+    }
+    n
+}
+
+/// `parts` one after the other in `N` bytes (for [`crate::wgsl!`]).
+#[doc(hidden)]
+pub const fn wgsl_join<const N: usize>(parts: &[&str]) -> [u8; N] {
+    let mut out = [0u8; N];
+    let (mut at, mut i) = (0, 0);
+    while i < parts.len() {
+        let bytes = parts[i].as_bytes();
+        let mut j = 0;
+        while j < bytes.len() {
+            out[at] = bytes[j];
+            at += 1;
+            j += 1;
+        }
+        i += 1;
+    }
+    out
+}
 
 /// An error of the GPU layer.
 #[derive(Debug, thiserror::Error)]
@@ -1089,7 +1125,7 @@ impl GpuGBuffer {
 
 /// Per-pixel luminance of `img` computed on the GPU with the thesis' eq. 17 weights,
 /// `0.27 R + 0.67 G + 0.06 B` (the compute shader [`LUMINANCE_WGSL`],
-/// `shaders/scene-core/luminance.wgsl`, 8 x 8 workgroups). Row-major like
+/// `crates/scene-core/shaders/luminance.wgsl`, 8 x 8 workgroups). Row-major like
 /// [`Image::luminance`], which it matches to a few ulps.
 ///
 /// Errors (never panics) on a zero-size image, a size beyond the device's limits or a

@@ -59,6 +59,23 @@ pub use view::{FrustumCorners, HemicubeFace, Projection, View};
 
 pub use glam;
 
+/// WGSL sources joined into one `&'static str` at compile time, like `concat!` but taking
+/// constants too, so a crate's passes can start with another crate's parts (WGSL has no
+/// `#include`): `pub const WGSL: &str = scene_core::wgsl!(scene_core::gpu::RECONSTRUCT_WGSL,
+/// include_str!("../shaders/pass.wgsl"));`. Each crate packages its own `shaders/`.
+#[macro_export]
+macro_rules! wgsl {
+    ($($part:expr),+ $(,)?) => {{
+        const PARTS: &[&str] = &[$($part),+];
+        const LEN: usize = $crate::gpu::wgsl_len(PARTS);
+        const BYTES: [u8; LEN] = $crate::gpu::wgsl_join::<LEN>(PARTS);
+        match ::core::str::from_utf8(&BYTES) {
+            Ok(s) => s,
+            Err(_) => panic!("WGSL parts are UTF-8"),
+        }
+    }};
+}
+
 /// Any error of the toolkit's shared layer.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {

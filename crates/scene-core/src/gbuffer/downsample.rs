@@ -1,6 +1,6 @@
 //! Coarse G-buffers: downsampling by 2 in each direction ("4 times smaller buffers",
 //! thesis section 4.2), on the CPU ([`downsample`]) and the GPU ([`GpuDownsampler`],
-//! shader `shaders/scene-core/downsample.wgsl`, [`DOWNSAMPLE_WGSL`]), with the same results.
+//! shader `crates/scene-core/shaders/downsample.wgsl`, [`DOWNSAMPLE_WGSL`]), with the same results.
 //! The one downsampling of the toolkit: the gbuffer crate re-exports it and ISR's coarse
 //! buffers come from it ([`DownsampleMode::NearestSurface`] by default).
 //!
@@ -39,7 +39,7 @@ use rayon::prelude::*;
 use crate::gbuffer::{BACKGROUND_ID, GBuffer};
 
 /// WGSL source of the downsampling pass (the mode is its overridable constant `MODE`).
-pub const DOWNSAMPLE_WGSL: &str = include_str!("../../../../shaders/scene-core/downsample.wgsl");
+pub const DOWNSAMPLE_WGSL: &str = include_str!("../../shaders/downsample.wgsl");
 
 /// Relative depth tolerance of [`DownsampleMode::NearestSurface`]: samples whose linear
 /// depth differs from the nearest sample's by more than 5 % of it are another surface.
