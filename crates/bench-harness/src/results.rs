@@ -203,8 +203,8 @@ impl EqualError {
 /// The equal-error point of `error` on `ladder` for a technique whose frame takes
 /// `frame_s` seconds: the ladder is read as `log e = a + k log spp` between the two rungs
 /// that bracket `error`. An error outside the ladder gives the outside rung as a bound
-/// ([`LadderBound`]), never an extrapolation. `None` with fewer than two rungs, a
-/// non-positive error, or a bracketing segment whose error does not fall.
+/// ([`LadderBound`]), never an extrapolation. `None` with fewer than two rungs or a
+/// non-positive error.
 pub fn equal_error(ladder: &[LadderPoint], error: f64, frame_s: f64) -> Option<EqualError> {
     let mut l: Vec<LadderPoint> = ladder
         .iter()
@@ -246,10 +246,8 @@ pub fn equal_error(ladder: &[LadderPoint], error: f64, frame_s: f64) -> Option<E
     }
     let (a, b) = (l[k - 1], l[k]);
     let (x0, x1) = ((a.spp as f64).ln(), (b.spp as f64).ln());
+    // `a` is above `error` and `b` at or below it, so the segment falls.
     let (y0, y1) = (a.error.ln(), b.error.ln());
-    if y1 >= y0 {
-        return None;
-    }
     let x = x0 + (error.ln() - y0) * (x1 - x0) / (y1 - y0);
     at(x.exp(), LadderBound::Within)
 }

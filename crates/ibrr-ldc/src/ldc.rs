@@ -328,9 +328,9 @@ impl LdcBuilder {
         Ok(Some(id))
     }
 
-    /// Founds a layer at pixel `(i, j)` of LDI `axis` for the surface through `p` with
-    /// normal `n` unless one matches already (the founding pass of the exact mode: layers
-    /// only, no light).
+    /// The layer at pixel `(i, j)` of LDI `axis` for the surface through `p` with normal
+    /// `n`, founded unless one matches already (`None` outside the LDI). Alone, the
+    /// founding pass of the exact mode: layers only, no light.
     pub fn found(
         &mut self,
         axis: usize,
@@ -338,12 +338,11 @@ impl LdcBuilder {
         j: i64,
         p: Vec3,
         n: Vec3,
-    ) -> Result<(), IbrrError> {
+    ) -> Result<Option<u32>, IbrrError> {
         let Some(index) = self.frame.pixel_index(axis, i, j) else {
-            return Ok(());
+            return Ok(None);
         };
         self.find_or_insert(index, p, n, n.extend(p.dot(n)), true)
-            .map(|_| ())
     }
 
     /// Clears every layer's light and the splat stamps, keeping the layers (between the
@@ -385,11 +384,7 @@ impl LdcBuilder {
         weight: f32,
         combine: Combine,
     ) -> Result<(), IbrrError> {
-        let Some(index) = self.frame.pixel_index(axis, i, j) else {
-            return Ok(());
-        };
-        let plane = n.extend(p.dot(n));
-        let Some(l) = self.find_or_insert(index, p, n, plane, true)? else {
+        let Some(l) = self.found(axis, i, j, p, n)? else {
             return Ok(());
         };
         let stamp = self.stamp;

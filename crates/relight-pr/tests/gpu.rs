@@ -51,6 +51,24 @@ fn edited(scene: &Scene) -> LightState {
 }
 
 /// Largest difference relative to the largest magnitude of `b`.
+/// The element G-buffer of `scene`'s camera 0 at `w x h`, on the CPU and uploaded.
+fn element_gbuffer(
+    ctx: &scene_core::gpu::GpuContext,
+    scene: &Scene,
+    meshing: &Meshing,
+    w: u32,
+    h: u32,
+) -> (View, scene_core::GBuffer, GpuGBuffer) {
+    let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
+    let mut renderer = RayCastRenderer::new();
+    renderer
+        .prepare(Arc::new(meshing.element_scene(scene)))
+        .unwrap();
+    let g = renderer.render_view(&view, w, h).unwrap();
+    let gg = GpuGBuffer::upload(ctx, &g).unwrap();
+    (view, g, gg)
+}
+
 fn rel_max(a: &[Vec3], b: &[Vec3]) -> f32 {
     let scale = b.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);
     assert!(scale > 0.0);
@@ -136,13 +154,7 @@ fn hardware_display_equals_the_cpu_display() {
     let welding = Welding::new(&meshing, scene.extent());
     let state = edited(&scene);
     let (w, h) = (64, 48);
-    let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
-    let mut renderer = RayCastRenderer::new();
-    renderer
-        .prepare(Arc::new(meshing.element_scene(&scene)))
-        .unwrap();
-    let g = renderer.render_view(&view, w, h).unwrap();
-    let gg = GpuGBuffer::upload(&ctx, &g).unwrap();
+    let (view, g, gg) = element_gbuffer(&ctx, &scene, &meshing, w, h);
     let gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
     let glow = relight::glow(&meshing, &solution, &state);
     let (f, base) = relight::weights(&solution, &state, true);
@@ -223,13 +235,7 @@ fn a_scene_without_lights_displays_black_on_the_gpu() {
     );
     let welding = Welding::new(&meshing, scene.extent());
     let (w, h) = (16, 12);
-    let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
-    let mut renderer = RayCastRenderer::new();
-    renderer
-        .prepare(Arc::new(meshing.element_scene(&scene)))
-        .unwrap();
-    let g = renderer.render_view(&view, w, h).unwrap();
-    let gg = GpuGBuffer::upload(&ctx, &g).unwrap();
+    let (view, _, gg) = element_gbuffer(&ctx, &scene, &meshing, w, h);
     let gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
     let state = LightState::default();
     let (f, base) = relight::weights(&solution, &state, true);
