@@ -4,8 +4,9 @@
 
 use std::time::Instant;
 
+use ibrr_ldc::ldc::SourcePrecision;
 use ibrr_ldc::{IbrrSettings, IbrrTechnique, Lookup, Splat};
-use scene_core::{FrameRequest, Technique};
+use scene_core::{FrameRequest, LightSetting, LightState, Technique};
 
 /// The options of `xtask ibrr`.
 #[derive(Debug, clap::Args)]
@@ -36,6 +37,9 @@ pub struct Options {
     /// Seed of the particle walks.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Store each layer's light per source in f16 (half the memory of f32).
+    #[arg(long)]
+    pub f16: bool,
 }
 
 /// Every number against its stated range (no file touched), run by `Command::check_numbers`
@@ -63,30 +67,63 @@ pub fn run(o: &Options) -> Result<(), String> {
         lookup,
         clamp: o.clamp,
         seed: o.seed,
+        source_precision: if o.f16 {
+            SourcePrecision::F16
+        } else {
+            SourcePrecision::F32
+        },
         ..Default::default()
     };
     settings.check().map_err(|e| e.to_string())?;
     let mut technique = IbrrTechnique::new(settings, Box::new(gbuffer::CpuRasterizer::new()));
     let bar = crate::progress_bar(1, "building the LDC (IRPLs)");
     let t0 = Instant::now();
+    // Built with every light on as the scene describes it; `--light` is applied by
+    // relighting the layers, as any later light change would be.
     technique
-        .prepare_lit(scene.clone(), &state, &mut |done, total| {
+        .prepare_lit(scene.clone(), &LightState::default(), &mut |done, total| {
             bar.set_length(total as u64);
             bar.set_position(done as u64);
         })
         .map_err(|e| e.to_string())?;
     bar.finish_and_clear();
     let build_s = t0.elapsed().as_secs_f64();
-    let frame = FrameRequest::from_camera(camera, o.view.width, o.view.height, &state);
-    // One frame to warm up, one timed.
-    technique.render(&frame).map_err(|e| e.to_string())?;
-    let image = technique.render(&frame).map_err(|e| e.to_string())?;
+    let built = LightState::default();
+    let at = |lights| FrameRequest::from_camera(camera, o.view.width, o.view.height, lights);
+    // One frame to warm up, one timed with the lights as built (a steady frame), one after
+    // a light change (the asked state, or every light dimmed to half when that is the state
+    // built), then the asked state's frame, written.
+    technique.render(&at(&built)).map_err(|e| e.to_string())?;
+    technique.render(&at(&built)).map_err(|e| e.to_string())?;
+    let steady = technique.last_timings();
+    let changed = if state.fingerprint() != built.fingerprint() {
+        state.clone()
+    } else {
+        let mut dim = LightState::default();
+        for id in scene_core::lights::light_ids(&scene) {
+            dim.set(
+                id,
+                LightSetting {
+                    color: glam::Vec3::splat(0.5),
+                    ..Default::default()
+                },
+            );
+        }
+        dim
+    };
+    technique.render(&at(&changed)).map_err(|e| e.to_string())?;
+    let after_change = technique.last_timings();
+    let image = technique.render(&at(&state)).map_err(|e| e.to_string())?;
     let timings = technique.last_timings();
+    let ms = |t: ibrr_ldc::FrameTimings| {
+        (t.rebuild + t.relight + t.gbuffer + t.lookup).as_secs_f64() * 1e3
+    };
     let c = technique.construction().expect("built above");
     let stats = c.stats();
     let ldc = technique.ldc().expect("built above");
     let (exr, png) = crate::write_view(&o.out, &scene, &image, o.view.exposure)?;
-    let frame_ms = (timings.gbuffer + timings.lookup).as_secs_f64() * 1e3;
+    let frame_ms = ms(steady);
+    let sources = ldc.sources.sources();
     let summary = serde_json::json!({
         "scene": scene.name,
         "triangles": scene.triangle_count(),
@@ -100,14 +137,20 @@ pub fn run(o: &Options) -> Result<(), String> {
         "paths": c.irpls.paths,
         "layers": ldc.layer_count(),
         "memory_bytes": ldc.bytes(),
+        "light_sources": sources,
+        "source_precision": if o.f16 { "f16" } else { "f32" },
+        "memory_bytes_per_source": ldc.sources.bytes() / sources.max(1) as u64,
+        "frame_after_light_change_ms": ms(after_change),
+        "relight_ms": after_change.relight.as_secs_f64() * 1e3,
+        "rebuild_ms": after_change.rebuild.as_secs_f64() * 1e3,
         "construction_seconds": build_s,
         "walk_seconds": stats.walk_time.as_secs_f64(),
         "render_seconds": stats.render_time.as_secs_f64(),
         "warp_seconds": stats.warp_time.as_secs_f64(),
         "samples_warped": stats.samples,
         "frame_ms": frame_ms,
-        "gbuffer_ms": timings.gbuffer.as_secs_f64() * 1e3,
-        "lookup_ms": timings.lookup.as_secs_f64() * 1e3,
+        "gbuffer_ms": steady.gbuffer.as_secs_f64() * 1e3,
+        "lookup_ms": steady.lookup.as_secs_f64() * 1e3,
         "pixels_without_layer": timings.missing,
         "pixels_from_fallback": timings.fallback,
         "camera": camera.name,
@@ -116,12 +159,14 @@ pub fn run(o: &Options) -> Result<(), String> {
     });
     let json = crate::write_summary(&o.out, &summary)?;
     eprintln!(
-        "{}: {} IRPLs ({} paths), {} layers, {:.1} MB, built in {build_s:.2} s; frame {frame_ms:.2} ms, {} pixels without a layer",
+        "{}: {} IRPLs ({} paths), {} layers, {:.1} MB ({sources} light sources), built in {build_s:.2} s; frame {frame_ms:.2} ms, {:.2} ms after a light change (relight {:.2} ms), {} pixels without a layer",
         scene.name,
         c.irpls.irpls.len(),
         c.irpls.paths,
         ldc.layer_count(),
         ldc.bytes() as f64 / 1e6,
+        ms(after_change),
+        after_change.relight.as_secs_f64() * 1e3,
         timings.missing
     );
     println!("{}\n{}\n{}", exr.display(), png.display(), json.display());

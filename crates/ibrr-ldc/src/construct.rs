@@ -80,6 +80,9 @@ pub struct Construction {
     pub irpls: IrplSet,
     /// The light state the IRPLs were made for.
     pub lights: LightState,
+    /// The light sources whose light the LDC keeps apart
+    /// ([`scene_core::lights::light_ids`]'s order; the LDC's per-source values follow it).
+    pub sources: Vec<scene_core::LightId>,
     builder: LdcBuilder,
     next: usize,
     /// The exact mode's first pass: every IRPL founds its layers before any lights them,
@@ -151,7 +154,8 @@ impl Construction {
                 settings.band,
             )
         };
-        let builder = LdcBuilder::new(frame, settings.max_bytes)?;
+        let sources = scene_core::lights::light_ids(&scene);
+        let builder = LdcBuilder::new(frame, settings.max_bytes, sources.len())?;
         Ok(Self {
             stats: ConstructionStats {
                 irpls_total: irpls.irpls.len(),
@@ -161,6 +165,7 @@ impl Construction {
             settings: *settings,
             irpls,
             lights: LightState::default(),
+            sources,
             builder,
             next: 0,
             founding: settings.splat == Splat::Exact,
@@ -320,14 +325,53 @@ impl Construction {
     }
 
     /// The LDC so far: path sums divided by the complete paths warped (progressive
-    /// viewing; partially warped paths count once complete).
+    /// viewing; partially warped paths count once complete), lit as the light state it was
+    /// built for; [`Ldc::relight`] with [`Construction::relight_factors`] shows another.
     pub fn ldc(&self) -> Result<Ldc, IbrrError> {
         let paths = if self.is_done() {
             self.irpls.paths
         } else {
             self.stats.paths_done
         };
-        self.builder.compact(paths)
+        let mut ldc =
+            self.builder
+                .compact(paths, self.settings.source_precision, &self.unit_factors())?;
+        if !self.lights.is_default()
+            && let Some(f) = self.relight_factors(&self.lights)
+        {
+            ldc.relight(&f);
+        }
+        Ok(ldc)
+    }
+
+    /// Per source, the inverse of the light factors its IRPLs were made with (0 where a
+    /// factor is 0: that source's light cannot be brought back without a rebuild).
+    fn unit_factors(&self) -> Vec<[Vec3; 2]> {
+        let inv = |v: Vec3| Vec3::select(v.cmpgt(Vec3::ZERO), v.recip(), Vec3::ZERO);
+        self.sources
+            .iter()
+            .map(|&id| {
+                let s = self.lights.get(id);
+                [inv(s.direct_factor()), inv(s.indirect_factor())]
+            })
+            .collect()
+    }
+
+    /// The factors that make an LDC of this construction ([`Construction::ldc`], values per
+    /// unit of each source's factors) show `state`, for [`Ldc::relight`]; `None` when
+    /// `state` lights a source (or a channel of one) that the IRPLs were made without, so
+    /// that only a rebuild can show it.
+    pub fn relight_factors(&self, state: &LightState) -> Option<Vec<[Vec3; 2]>> {
+        self.sources
+            .iter()
+            .map(|&id| {
+                let (built, wanted) = (self.lights.get(id), state.get(id));
+                let ok = |b: Vec3, w: Vec3| (w.cmple(Vec3::ZERO) | b.cmpgt(Vec3::ZERO)).all();
+                (ok(built.direct_factor(), wanted.direct_factor())
+                    && ok(built.indirect_factor(), wanted.indirect_factor()))
+                .then(|| [wanted.direct_factor(), wanted.indirect_factor()])
+            })
+            .collect()
     }
 
     /// The views an IRPL renders: a hemicube (a full cube for a point light, an
@@ -545,7 +589,12 @@ impl Construction {
             IrplKind::EmitterSample => Channel::Direct,
             IrplKind::Bounce => Channel::Indirect,
         };
-        self.builder.finish(channel);
+        let source = self
+            .sources
+            .iter()
+            .position(|&id| id == irpl.light)
+            .unwrap_or(0);
+        self.builder.finish(channel, source);
         Ok(())
     }
 }

@@ -112,12 +112,7 @@ impl GpuLdc {
                 });
             }
         }
-        let values: Vec<[f32; 4]> = ldc
-            .direct
-            .iter()
-            .zip(&ldc.indirect)
-            .flat_map(|(d, i)| [d.extend(0.0).to_array(), i.extend(0.0).to_array()])
-            .collect();
+        let values = Self::values_of(ldc);
         let planes: Vec<[f32; 4]> = ldc.planes.iter().map(|p| p.to_array()).collect();
         let (mode, radius) = match lookup {
             Lookup::Nearest => (0.0, 0.0),
@@ -158,7 +153,7 @@ impl GpuLdc {
             values: ctx.storage_with(
                 "LDC values",
                 bytemuck::cast_slice(&values),
-                wgpu::BufferUsages::empty(),
+                wgpu::BufferUsages::COPY_DST,
             ),
             pass,
             lookup,
@@ -172,6 +167,34 @@ impl GpuLdc {
     /// Bytes resident on the GPU.
     pub fn bytes(&self) -> u64 {
         self.bytes
+    }
+
+    /// The layers' values as the pass reads them: direct and indirect, padded to vec4.
+    fn values_of(ldc: &Ldc) -> Vec<[f32; 4]> {
+        ldc.direct
+            .iter()
+            .zip(&ldc.indirect)
+            .flat_map(|(d, i)| [d.extend(0.0).to_array(), i.extend(0.0).to_array()])
+            .collect()
+    }
+
+    /// Replaces the layers' values with `ldc`'s (the same LDC relit, [`Ldc::relight`]):
+    /// one buffer write, no new allocation on the GPU. Errors when `ldc` has another
+    /// number of layers than the one uploaded.
+    pub fn update_values(&mut self, ldc: &Ldc) -> Result<(), IbrrError> {
+        let values = Self::values_of(ldc);
+        let bytes = std::mem::size_of_val(values.as_slice()) as u64;
+        if bytes != self.values.size() {
+            return Err(IbrrError::Settings(format!(
+                "relit LDC has {} layers, the uploaded one {}",
+                ldc.layer_count(),
+                self.values.size() / 32
+            )));
+        }
+        self.ctx
+            .queue
+            .write_buffer(&self.values, 0, bytemuck::cast_slice(&values));
+        Ok(())
     }
 
     /// The per-triangle glow table of `scene` under `lights` (emission times the light's

@@ -22,12 +22,39 @@ use glam::{Vec2, Vec3, Vec4};
 
 use crate::error::IbrrError;
 
-/// Bytes per layer of the compact [`Ldc`]: a plane (4 x f32) and direct and indirect
-/// irradiance (2 x 3 x f32).
+/// Bytes per layer of the compact [`Ldc`] before its per-source values: a plane (4 x f32)
+/// and the direct and indirect irradiance under the light state applied (2 x 3 x f32).
 pub const LAYER_BYTES: u64 = 40;
 
-/// Bytes per layer while building (plane, three accumulators, list link, per-IRPL scratch).
-pub const BUILD_LAYER_BYTES: u64 = 16 + 36 + 4 + 4 + 4 + 16 + 4;
+/// Bytes per layer while building before its per-source accumulators (plane, list link,
+/// pixel, per-IRPL stamp and scratch).
+pub const BUILD_LAYER_BYTES: u64 = 16 + 4 + 4 + 4 + 16 + 4;
+
+/// Bytes per layer and light source of the accumulators while building (direct and
+/// indirect, 2 x 3 x f32).
+pub const BUILD_SOURCE_BYTES: u64 = 24;
+
+/// How the compact [`Ldc`] stores each layer's irradiance per light source (the relighting
+/// paper's tagging applied to the layers: one direct and one indirect value per source).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SourcePrecision {
+    /// 2 x 3 x f32: 24 bytes a layer and source.
+    #[default]
+    F32,
+    /// 2 x 3 x f16: 12 bytes a layer and source (relative rounding about 5e-4; values above
+    /// 65504 saturate, so very bright scenes keep f32).
+    F16,
+}
+
+impl SourcePrecision {
+    /// Bytes per layer and source.
+    pub fn bytes(self) -> u64 {
+        match self {
+            SourcePrecision::F32 => 24,
+            SourcePrecision::F16 => 12,
+        }
+    }
+}
 
 /// The geometry of an LDC: its cube, resolution and matching thresholds.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -174,12 +201,6 @@ impl LdcFrame {
 #[derive(Clone, Copy, Debug)]
 struct BuildLayer {
     plane: Vec4,
-    /// Exact direct light (point and directional lights' own renders).
-    exact: Vec3,
-    /// Sum over paths of direct light from emitter samples (divided by the path count).
-    direct: Vec3,
-    /// Sum over paths of indirect light (divided by the path count).
-    indirect: Vec3,
     next: u32,
     /// The LDI pixel it lies in.
     pixel: u32,
@@ -220,15 +241,25 @@ pub struct LdcBuilder {
     pub frame: LdcFrame,
     heads: Vec<u32>,
     layers: Vec<BuildLayer>,
+    /// Light sources the values are kept apart for.
+    sources: usize,
+    /// Per layer and source, `[direct, indirect]`: the direct slot holds exact light for
+    /// point and directional lights and a sum over paths for emitters (see `exact`), the
+    /// indirect slot a sum over paths.
+    values: Vec<[Vec3; 2]>,
+    /// Per source, whether its direct light is exact (not divided by the path count).
+    exact: Vec<bool>,
     touched: Vec<u32>,
     stamp: u32,
     max_bytes: u64,
 }
 
 impl LdcBuilder {
-    /// An empty LDC. Errors with [`IbrrError::Budget`] when the per-pixel heads alone (4
-    /// bytes a pixel) exceed `max_bytes`, before allocating them.
-    pub fn new(frame: LdcFrame, max_bytes: u64) -> Result<Self, IbrrError> {
+    /// An empty LDC keeping the light of `sources` sources apart (at least 1). Errors with
+    /// [`IbrrError::Budget`] when the per-pixel heads alone (4 bytes a pixel) exceed
+    /// `max_bytes`, before allocating them.
+    pub fn new(frame: LdcFrame, max_bytes: u64, sources: usize) -> Result<Self, IbrrError> {
+        let sources = sources.max(1);
         let heads = frame.pixel_count() as u64 * 4;
         if heads > max_bytes {
             return Err(IbrrError::Budget {
@@ -244,15 +275,28 @@ impl LdcBuilder {
             frame,
             heads: vec![NONE; frame.pixel_count()],
             layers: Vec::new(),
+            sources,
+            values: Vec::new(),
+            exact: vec![false; sources],
             touched: Vec::new(),
             stamp: 0,
             max_bytes,
         })
     }
 
+    /// Bytes a layer takes while building.
+    pub fn layer_bytes(&self) -> u64 {
+        BUILD_LAYER_BYTES + self.sources as u64 * BUILD_SOURCE_BYTES
+    }
+
     /// Bytes held now (heads plus layers at their building size).
     pub fn bytes(&self) -> u64 {
-        self.heads.len() as u64 * 4 + self.layers.len() as u64 * BUILD_LAYER_BYTES
+        self.heads.len() as u64 * 4 + self.layers.len() as u64 * self.layer_bytes()
+    }
+
+    /// Number of light sources kept apart.
+    pub fn sources(&self) -> usize {
+        self.sources
     }
 
     /// Number of layers.
@@ -304,7 +348,7 @@ impl LdcBuilder {
         if !insert {
             return Ok(None);
         }
-        let needed = self.bytes() + BUILD_LAYER_BYTES;
+        let needed = self.bytes() + self.layer_bytes();
         if needed > self.max_bytes {
             return Err(IbrrError::Budget {
                 needed,
@@ -313,11 +357,10 @@ impl LdcBuilder {
             });
         }
         let id = self.layers.len() as u32;
+        self.values
+            .extend(std::iter::repeat_n([Vec3::ZERO; 2], self.sources));
         self.layers.push(BuildLayer {
             plane,
-            exact: Vec3::ZERO,
-            direct: Vec3::ZERO,
-            indirect: Vec3::ZERO,
             next: self.heads[index],
             pixel: index as u32,
             stamp: 0,
@@ -348,10 +391,9 @@ impl LdcBuilder {
     /// Clears every layer's light and the splat stamps, keeping the layers (between the
     /// exact mode's founding and lighting passes).
     pub fn reset_values(&mut self) {
+        self.values.fill([Vec3::ZERO; 2]);
+        self.exact.fill(false);
         for l in &mut self.layers {
-            l.exact = Vec3::ZERO;
-            l.direct = Vec3::ZERO;
-            l.indirect = Vec3::ZERO;
             l.stamp = 0;
             l.scratch = Vec4::ZERO;
             l.scratch_w = 0.0;
@@ -475,41 +517,69 @@ impl LdcBuilder {
         }
     }
 
-    /// Adds the current IRPL's splats to `channel`: one value per layer it reached (its
-    /// overlapping splats combined, never summed).
-    pub fn finish(&mut self, channel: Channel) {
+    /// Adds the current IRPL's splats to `channel` of light source `source` (below
+    /// [`LdcBuilder::sources`]; a larger index goes to the last): one value per layer it
+    /// reached (its overlapping splats combined, never summed). A source's direct light
+    /// is either exact ([`Channel::Exact`]) or from paths ([`Channel::Direct`]), never
+    /// both.
+    pub fn finish(&mut self, channel: Channel, source: usize) {
+        let s = source.min(self.sources - 1);
+        let slot = match channel {
+            Channel::Exact => {
+                self.exact[s] = true;
+                0
+            }
+            Channel::Direct => 0,
+            Channel::Indirect => 1,
+        };
         for &l in &self.touched {
-            let layer = &mut self.layers[l as usize];
+            let layer = &self.layers[l as usize];
             let v = if layer.scratch.w > 0.0 {
                 layer.scratch.truncate() / layer.scratch.w
             } else {
                 Vec3::ZERO
             };
-            match channel {
-                Channel::Exact => layer.exact += v,
-                Channel::Direct => layer.direct += v,
-                Channel::Indirect => layer.indirect += v,
-            }
+            self.values[l as usize * self.sources + s][slot] += v;
         }
         self.touched.clear();
     }
 
-    /// The compact LDC of what was built, with path sums divided by `paths` (at least 1).
-    /// Errors when the compact copy would exceed the budget.
-    pub fn compact(&self, paths: u64) -> Result<Ldc, IbrrError> {
-        let needed = Ldc::bytes_for(self.frame.pixel_count(), self.layers.len());
+    /// The compact LDC of what was built, with path sums divided by `paths` (at least 1),
+    /// its per-source values stored at `precision` and each source's values multiplied by
+    /// `unit[source]` (`[direct, indirect]` per channel: the inverse of the light factors
+    /// the IRPLs were made with, so that the stored values are per unit of emission; a
+    /// missing entry is 1). The combined values are those of unit factors. Errors when the
+    /// compact copy would exceed the budget.
+    pub fn compact(
+        &self,
+        paths: u64,
+        precision: SourcePrecision,
+        unit: &[[Vec3; 2]],
+    ) -> Result<Ldc, IbrrError> {
+        let needed = Ldc::bytes_for(self.frame.pixel_count(), self.layers.len())
+            + self.layers.len() as u64 * self.sources as u64 * precision.bytes();
         if needed > self.max_bytes {
             return Err(IbrrError::Budget {
                 needed,
                 limit: self.max_bytes,
-                what: format!("compact LDC of {} layers", self.layers.len()),
+                what: format!(
+                    "compact LDC of {} layers and {} light sources",
+                    self.layers.len(),
+                    self.sources
+                ),
             });
         }
         let inv = 1.0 / paths.max(1) as f32;
+        let scale: Vec<[Vec3; 2]> = (0..self.sources)
+            .map(|s| {
+                let u = unit.get(s).copied().unwrap_or([Vec3::ONE; 2]);
+                let d = if self.exact[s] { 1.0 } else { inv };
+                [u[0] * d, u[1] * inv]
+            })
+            .collect();
         let mut offsets = Vec::with_capacity(self.heads.len() + 1);
         let mut planes = Vec::with_capacity(self.layers.len());
-        let mut direct = Vec::with_capacity(self.layers.len());
-        let mut indirect = Vec::with_capacity(self.layers.len());
+        let mut per_source = Vec::with_capacity(self.layers.len() * self.sources);
         let mut stack = Vec::new();
         for &h in &self.heads {
             offsets.push(planes.len() as u32);
@@ -521,20 +591,94 @@ impl LdcBuilder {
                 l = self.layers[l as usize].next;
             }
             for &l in stack.iter().rev() {
-                let layer = &self.layers[l as usize];
-                planes.push(layer.plane);
-                direct.push(layer.exact + layer.direct * inv);
-                indirect.push(layer.indirect * inv);
+                planes.push(self.layers[l as usize].plane);
+                let v = &self.values[l as usize * self.sources..][..self.sources];
+                per_source.extend(
+                    v.iter()
+                        .zip(&scale)
+                        .map(|(v, k)| [v[0] * k[0], v[1] * k[1]]),
+                );
             }
         }
         offsets.push(planes.len() as u32);
-        Ok(Ldc {
+        let layers = planes.len();
+        let mut ldc = Ldc {
             frame: self.frame,
             offsets,
             planes,
-            direct,
-            indirect,
-        })
+            direct: vec![Vec3::ZERO; layers],
+            indirect: vec![Vec3::ZERO; layers],
+            sources: SourceValues::new(self.sources, &per_source, precision),
+        };
+        ldc.relight(&vec![[Vec3::ONE; 2]; self.sources]);
+        Ok(ldc)
+    }
+}
+
+/// Each layer's direct and indirect irradiance per light source, per unit of the source's
+/// light factors ([`scene_core::LightSetting::direct_factor`] and `indirect_factor`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SourceValues {
+    sources: usize,
+    store: SourceStore,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+enum SourceStore {
+    F32(Vec<[Vec3; 2]>),
+    F16(Vec<[half::f16; 6]>),
+}
+
+impl SourceValues {
+    fn new(sources: usize, values: &[[Vec3; 2]], precision: SourcePrecision) -> Self {
+        let store = match precision {
+            SourcePrecision::F32 => SourceStore::F32(values.to_vec()),
+            SourcePrecision::F16 => SourceStore::F16(
+                values
+                    .iter()
+                    .map(|[d, i]| {
+                        [d.x, d.y, d.z, i.x, i.y, i.z]
+                            .map(|x| half::f16::from_f32(x.clamp(0.0, f32::from(half::f16::MAX))))
+                    })
+                    .collect(),
+            ),
+        };
+        Self { sources, store }
+    }
+
+    /// Number of sources.
+    pub fn sources(&self) -> usize {
+        self.sources
+    }
+
+    /// How the values are stored.
+    pub fn precision(&self) -> SourcePrecision {
+        match self.store {
+            SourceStore::F32(_) => SourcePrecision::F32,
+            SourceStore::F16(_) => SourcePrecision::F16,
+        }
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> u64 {
+        let n = match &self.store {
+            SourceStore::F32(v) => v.len(),
+            SourceStore::F16(v) => v.len(),
+        };
+        n as u64 * self.precision().bytes()
+    }
+
+    /// `[direct, indirect]` of layer `layer` from source `source`.
+    #[inline]
+    pub fn get(&self, layer: usize, source: usize) -> [Vec3; 2] {
+        let k = layer * self.sources + source;
+        match &self.store {
+            SourceStore::F32(v) => v[k],
+            SourceStore::F16(v) => {
+                let h = v[k].map(f32::from);
+                [Vec3::new(h[0], h[1], h[2]), Vec3::new(h[3], h[4], h[5])]
+            }
+        }
     }
 }
 
@@ -552,6 +696,10 @@ pub struct Ldc {
     pub direct: Vec<Vec3>,
     /// Per layer, indirect irradiance.
     pub indirect: Vec<Vec3>,
+    /// Per layer and light source, direct and indirect irradiance per unit of the source's
+    /// light factors; `direct` and `indirect` are their sums weighted by the factors last
+    /// applied ([`Ldc::relight`]).
+    pub sources: SourceValues,
 }
 
 impl Ldc {
@@ -561,9 +709,35 @@ impl Ldc {
     }
 
     /// Bytes this LDC holds (the paper's "LDC pixels times the size of such a pixel", plus
-    /// the per-pixel ranges).
+    /// the per-pixel ranges and the per-source values).
     pub fn bytes(&self) -> u64 {
         Self::bytes_for(self.offsets.len().saturating_sub(1), self.planes.len())
+            + self.sources.bytes()
+    }
+
+    /// Sets every layer's direct and indirect irradiance to the sum over sources of the
+    /// source's values times `factors[source]` (`[direct, indirect]` factors per channel;
+    /// a missing entry is 0): eq. 1 of the relighting paper applied to the layers. Costs
+    /// one multiply-add per layer, source and channel; layers in parallel, the result
+    /// independent of the thread count.
+    pub fn relight(&mut self, factors: &[[Vec3; 2]]) {
+        use rayon::prelude::*;
+        let n = self.sources.sources();
+        let sources = &self.sources;
+        self.direct
+            .par_iter_mut()
+            .zip(self.indirect.par_iter_mut())
+            .enumerate()
+            .for_each(|(l, (d, i))| {
+                let (mut sd, mut si) = (Vec3::ZERO, Vec3::ZERO);
+                for (s, f) in factors.iter().enumerate().take(n) {
+                    let v = sources.get(l, s);
+                    sd += v[0] * f[0];
+                    si += v[1] * f[1];
+                }
+                *d = sd;
+                *i = si;
+            });
     }
 
     /// Number of layers over all pixels.

@@ -106,6 +106,8 @@ pub struct IbrrSettings {
     /// Memory budget of the LDC in bytes (construction fails with a typed error before
     /// exceeding it).
     pub max_bytes: u64,
+    /// How each layer's light per source is stored (f32, or f16 at half the memory).
+    pub source_precision: crate::ldc::SourcePrecision,
 }
 
 impl Default for IbrrSettings {
@@ -127,6 +129,7 @@ impl Default for IbrrSettings {
             seed: 1,
             max_depth: 32,
             max_bytes: 2 << 30,
+            source_precision: crate::ldc::SourcePrecision::F32,
         }
     }
 }

@@ -3,9 +3,12 @@
 //! while frames show the LDC so far); `render` reconstructs a frame from the camera's
 //! G-buffer.
 //!
-//! The IBRR bakes the lights in: a frame whose [`scene_core::LightState`] differs from the
-//! one the LDC was built for is rebuilt first (the cost is reported in
-//! [`IbrrTechnique::last_timings`]); it cannot relight.
+//! The LDC keeps each layer's light per source ([`crate::ldc::SourceValues`]), so a
+//! frame's [`scene_core::LightState`] (recolour, dim, switch off, direct and indirect
+//! multipliers) is applied by recombining the layers ([`crate::Ldc::relight`]), not by
+//! rebuilding: a rebuild happens only when the state lights a source the IRPLs were made
+//! without (a build under a state with that light off), and then under the default state,
+//! from which every later state can be shown. Costs are in [`IbrrTechnique::last_timings`].
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -23,8 +26,11 @@ use scene_core::gpu::GpuGBuffer;
 /// Times and counts of the last frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FrameTimings {
-    /// Rebuilding for a new light state (zero when the lights were unchanged).
+    /// Rebuilding for a light state the LDC cannot show by relighting (zero almost always).
     pub rebuild: Duration,
+    /// Recombining the layers' per-source light for a new light state, and uploading the
+    /// result when reconstructing on the GPU (zero when the lights were unchanged).
+    pub relight: Duration,
     /// The camera's G-buffer.
     pub gbuffer: Duration,
     /// Warping the pixels into the LDC and shading.
@@ -45,6 +51,8 @@ pub struct IbrrTechnique {
     renderer: Box<dyn GBufferRenderer + Send>,
     construction: Option<Construction>,
     ldc: Option<Ldc>,
+    /// Fingerprint of the light state `ldc` shows.
+    shown: u64,
     /// The GPU context frames reconstruct on, and the LDC uploaded there (dropped whenever
     /// the LDC changes).
     gpu: Option<(scene_core::gpu::GpuContext, Option<GpuLdc>)>,
@@ -70,6 +78,7 @@ impl IbrrTechnique {
             renderer,
             construction: None,
             ldc: None,
+            shown: 0,
             gpu: None,
             timings: FrameTimings::default(),
             name: "ibrr".into(),
@@ -135,8 +144,35 @@ impl IbrrTechnique {
             }
         }
         self.ldc = Some(c.ldc()?);
+        self.shown = c.lights.fingerprint();
         self.construction = Some(c);
         Ok(())
+    }
+}
+
+impl IbrrTechnique {
+    /// Makes the LDC (and the technique's GPU copy) show `lights` by recombining its
+    /// per-source light ([`Ldc::relight`]), unless it shows them already. Returns the time
+    /// taken, or `None` when `lights` lights a source the IRPLs were made without (only a
+    /// rebuild can show it) or nothing is prepared.
+    pub fn relight(&mut self, lights: &LightState) -> Result<Option<Duration>, IbrrError> {
+        let fingerprint = lights.fingerprint();
+        if fingerprint == self.shown && self.ldc.is_some() {
+            return Ok(Some(Duration::ZERO));
+        }
+        let t = Instant::now();
+        let (Some(c), Some(ldc)) = (self.construction.as_ref(), self.ldc.as_mut()) else {
+            return Ok(None);
+        };
+        let Some(factors) = c.relight_factors(lights) else {
+            return Ok(None);
+        };
+        ldc.relight(&factors);
+        if let Some((_, Some(g))) = self.gpu.as_mut() {
+            g.update_values(ldc)?;
+        }
+        self.shown = fingerprint;
+        Ok(Some(t.elapsed()))
     }
 }
 
@@ -161,6 +197,7 @@ impl Technique for IbrrTechnique {
         }
         if steps > 0 {
             self.ldc = Some(c.ldc()?);
+            self.shown = c.lights.fingerprint();
             if let Some((_, uploaded)) = self.gpu.as_mut() {
                 *uploaded = None;
             }
@@ -178,15 +215,16 @@ impl Technique for IbrrTechnique {
             return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
         };
         let mut rebuild = Duration::ZERO;
-        if c.lights.fingerprint() != frame.lights.fingerprint() {
+        if c.relight_factors(frame.lights).is_none() {
             let t = Instant::now();
             let scene = c.scene.clone();
             let progressive = std::mem::replace(&mut self.progressive, false);
-            let r = self.prepare_lit(scene, frame.lights, &mut |_, _| {});
+            let r = self.prepare_lit(scene, &LightState::default(), &mut |_, _| {});
             self.progressive = progressive;
             r?;
             rebuild = t.elapsed();
         }
+        let relight = self.relight(frame.lights)?.unwrap_or_default();
         let (Some(c), Some(ldc)) = (self.construction.as_ref(), self.ldc.as_ref()) else {
             return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
         };
@@ -217,6 +255,7 @@ impl Technique for IbrrTechnique {
             let (image, counts) = gpu_ldc.render(&c.scene, &g, &frame.view, frame.lights)?;
             self.timings = FrameTimings {
                 rebuild,
+                relight,
                 gbuffer,
                 lookup: t.elapsed(),
                 missing: counts.missing,
@@ -239,6 +278,7 @@ impl Technique for IbrrTechnique {
         let image = shade(&c.scene, &g, &frame.view, &r, frame.lights);
         self.timings = FrameTimings {
             rebuild,
+            relight,
             gbuffer,
             lookup: t.elapsed(),
             missing: r.missing,

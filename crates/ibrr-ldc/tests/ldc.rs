@@ -7,7 +7,7 @@ use std::sync::Arc;
 
 use glam::{Vec3, Vec4};
 use ibrr_ldc::irpl::{Irpl, IrplKind, IrplSet};
-use ibrr_ldc::ldc::{Channel, Combine, LdcBuilder};
+use ibrr_ldc::ldc::{Channel, Combine, LdcBuilder, SourcePrecision};
 use ibrr_ldc::{Construction, IbrrError, IbrrSettings, LdcFrame, Lookup, Splat, lookup};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::lights::LightId;
@@ -53,7 +53,7 @@ fn figure_3_plane_matching() {
             .is_none()
     );
     // Small geometry with another normal in the same pixel gets its own layer.
-    let mut b = LdcBuilder::new(f, 1 << 30).unwrap();
+    let mut b = LdcBuilder::new(f, 1 << 30, 1).unwrap();
     b.begin();
     let p = Vec3::new(0.405, 0.3, 0.405);
     b.splat(1, 40, 40, p, Vec3::Y, Vec3::ONE, 0.0, 1.0, Combine::Nearest)
@@ -84,8 +84,8 @@ fn figure_3_plane_matching() {
         Combine::Nearest,
     )
     .unwrap();
-    b.finish(Channel::Exact);
-    let ldc = b.compact(1).unwrap();
+    b.finish(Channel::Exact, 0);
+    let ldc = b.compact(1, SourcePrecision::F32, &[]).unwrap();
     assert_eq!(ldc.layer_count(), 2);
     let i = f.pixel_index(1, 40, 40).unwrap();
     assert_eq!(ldc.range(i).len(), 2);
@@ -251,7 +251,7 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
 fn the_memory_budget_fails_typed_before_allocating() {
     let f = LdcFrame::around(Vec3::ZERO, Vec3::ONE, 1000, 0.5, 0.05, 0.1);
     // Heads: 3 x 1000 x 1000 x 4 bytes = 12 MB > 1 MB.
-    match LdcBuilder::new(f, 1 << 20) {
+    match LdcBuilder::new(f, 1 << 20, 1) {
         Err(IbrrError::Budget { needed, limit, .. }) => {
             assert_eq!(needed, 12_000_000);
             assert_eq!(limit, 1 << 20);

@@ -411,10 +411,12 @@ impl App {
 
     fn start_ibrr(&mut self) {
         if self.ibrr.is_none() {
+            // Built with every light on as the scene describes it, from which any light
+            // state is shown by relighting the layers (frame.rs).
             self.ibrr = Some(precompute::ibrr(
                 self.scene.clone(),
                 self.ibrr_settings(),
-                self.state.lights.clone(),
+                LightState::default(),
             ));
         }
     }

@@ -637,6 +637,15 @@ impl Renderer {
             },
             Mode::Ibrr => match self.ibrr.as_mut() {
                 Some(b) => {
+                    // The LDC keeps its light per source: a new light state is a
+                    // recombination and one buffer write, not a rebuild.
+                    if b.lights.fingerprint() != spec.lights.fingerprint()
+                        && b.technique.relight(spec.lights).map_err(err)?.is_some()
+                    {
+                        let ldc = b.technique.ldc().ok_or("the IBRR was not constructed")?;
+                        b.ldc.update_values(ldc).map_err(err)?;
+                        b.lights = spec.lights.clone();
+                    }
                     b.ldc
                         .encode(
                             encoder,

@@ -281,7 +281,7 @@ pub fn panel(
             if info.ibrr_stale {
                 ui.colored_label(
                     egui::Color32::YELLOW,
-                    "IBRR: built for other light settings (it bakes the lights in)",
+                    "IBRR: built with a light off that is now on (a rebuild brings its light in)",
                 );
                 if ui.button("rebuild the IBRR").clicked() {
                     actions.push(Action::RebuildIbrr);
