@@ -144,6 +144,48 @@ fn visible(q: vec3<f32>, n: vec3<f32>) -> bool {
     return sees(x0, y0, q, n) && sees(x0 + 1, y0, q, n) && sees(x0, y0 + 1, q, n) && sees(x0 + 1, y0 + 1, q, n);
 }
 
+// The last resort's test of a layer centre: each of the four camera pixels around q's
+// projection sees q's own plane or a surface behind q (twin of reconstruct's `unhidden`).
+// A centre beside a thin post passes (the camera sees past it); one behind a wall, or at
+// a wall's foot, does not.
+fn unhidden(q: vec3<f32>, n: vec3<f32>) -> bool {
+    let clip = params.view_projection * vec4<f32>(q, 1.0);
+    if clip.w <= 0.0 {
+        return false;
+    }
+    let u = clip.x / clip.w * 0.5 + 0.5;
+    let v = 0.5 - clip.y / clip.w * 0.5;
+    if u < 0.0 || u >= 1.0 || v < 0.0 || v >= 1.0 {
+        return false;
+    }
+    let x0 = i32(floor(u * f32(params.width) - 0.5));
+    let y0 = i32(floor(v * f32(params.height) - 0.5));
+    let tol = 2.0 * params.eps_distance;
+    for (var k = 0; k < 4; k++) {
+        let cx = u32(clamp(x0 + (k & 1), 0, i32(params.width) - 1));
+        let cy = u32(clamp(y0 + (k >> 1u), 0, i32(params.height) - 1));
+        if textureLoad(g_id, vec2<i32>(i32(cx), i32(cy)), 0).x == BACKGROUND {
+            continue;
+        }
+        let pp = world_at(cx, cy);
+        // The layer's own plane, seen at a grazing angle, hides nothing.
+        let np = textureLoad(g_normal, vec2<i32>(i32(cx), i32(cy)), 0).xyz;
+        if dot(np, n) > 1.0 - params.eps_normal && abs(dot(q - pp, n)) < tol {
+            continue;
+        }
+        var nearer = false;
+        if params.eye.w != 0.0 {
+            nearer = length(pp - params.eye.xyz) < length(q - params.eye.xyz) - tol;
+        } else {
+            nearer = dot(pp - q, params.eye.xyz) < -tol;
+        }
+        if nearer {
+            return false;
+        }
+    }
+    return true;
+}
+
 struct Acc {
     direct: vec3<f32>,
     indirect: vec3<f32>,
@@ -264,9 +306,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let c = pixel_coords(dominant, p);
         let ci = i32(floor(c.x));
         let cj = i32(floor(c.y));
+        var hidden = NO_LAYER;
         for (var r = 1; r <= i32(params.fallback_radius); r++) {
             var best = NO_LAYER;
             var best_d2 = 0.0;
+            var hidden_best = NO_LAYER;
+            var hidden_d2 = 0.0;
             for (var j = cj - r; j <= cj + r; j++) {
                 for (var i = ci - r; i <= ci + r; i++) {
                     if abs(i - ci) != r && abs(j - cj) != r {
@@ -287,10 +332,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                         }
                         let d2 = dot(q.xyz - p, q.xyz - p);
                         if abs(dot(p, plane.xyz) - plane.w) < params.eps_distance * (f32(r) + 1.0)
-                            && (best == NO_LAYER || d2 < best_d2)
-                            && visible(q.xyz, plane.xyz) {
-                            best = l;
-                            best_d2 = d2;
+                            && (best == NO_LAYER || d2 < best_d2) {
+                            if visible(q.xyz, plane.xyz) {
+                                best = l;
+                                best_d2 = d2;
+                            } else if (hidden_best == NO_LAYER || d2 < hidden_d2) && unhidden(q.xyz, plane.xyz) {
+                                hidden_best = l;
+                                hidden_d2 = d2;
+                            }
                         }
                     }
                 }
@@ -300,6 +349,32 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 indirect = values[2u * best + 1u].xyz;
                 status = 1.0;
                 break;
+            }
+            if hidden == NO_LAYER {
+                hidden = hidden_best;
+            }
+        }
+        // Last resort: the point's own plane in its own LDI pixel, else the nearest in the
+        // rings, its centre unseen (a surface narrower than an LDI pixel).
+        if status == 2.0 {
+            var l = NO_LAYER;
+            let index = pixel_index(dominant, ci, cj);
+            if index != NO_LAYER {
+                l = find(index, p, n);
+                if l != NO_LAYER {
+                    let q = point_on_plane(dominant, ci, cj, planes[l]);
+                    if q.w == 0.0 || !unhidden(q.xyz, planes[l].xyz) {
+                        l = NO_LAYER;
+                    }
+                }
+            }
+            if l == NO_LAYER {
+                l = hidden;
+            }
+            if l != NO_LAYER {
+                direct = values[2u * l].xyz;
+                indirect = values[2u * l + 1u].xyz;
+                status = 1.0;
             }
         }
     }

@@ -37,7 +37,7 @@ pub use error::IbrrError;
 pub use gpu::GpuLdc;
 pub use irpl::{Irpl, IrplKind, IrplSet};
 pub use ldc::{Ldc, LdcFrame};
-pub use reconstruct::{Reconstruction, lookup, reconstruct, shade};
+pub use reconstruct::{Reconstruction, Served, lookup, reconstruct, shade};
 pub use settings::{IbrrSettings, Lookup, Splat};
 pub use technique::{FrameTimings, IbrrTechnique};
 

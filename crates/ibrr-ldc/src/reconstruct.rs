@@ -13,7 +13,7 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use scene_core::lights::LightId;
-use scene_core::view::{FrustumReconstruction, pixel_uv};
+use scene_core::view::{FrustumReconstruction, Projection, pixel_uv};
 use scene_core::{GBuffer, Image, LightState, Scene, View};
 
 use crate::ldc::{Ldc, LdcFrame, axes_of};
@@ -30,6 +30,23 @@ pub struct Reconstruction {
     pub missing: u64,
     /// Pixels served by the fallback search.
     pub fallback: u64,
+    /// Per pixel, how it was served.
+    pub served: Vec<Served>,
+}
+
+/// How a camera pixel found its light.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Served {
+    /// Background, or no normal: nothing to shade.
+    Background,
+    /// Layers of the pixel's plane around it, by the lookup kernel.
+    Layer,
+    /// The fallback: the nearest layer of its orientation in rings around it, or, as the
+    /// last resort, a layer of its plane whose centre the camera does not see.
+    Fallback,
+    /// No layer of its orientation anywhere near: black.
+    Missing,
 }
 
 /// How one lookup went.
@@ -48,7 +65,7 @@ pub fn lookup(
     mode: Lookup,
     fallback_radius: u32,
 ) -> Option<(Vec3, Vec3)> {
-    match lookup_inner(ldc, p, n, mode, fallback_radius, &|_, _| true) {
+    match lookup_inner(ldc, p, n, mode, fallback_radius, &|_, _| true, &|_, _| true) {
         Found::Direct(v) | Found::Fallback(v) => Some(v),
         Found::Missing => None,
     }
@@ -58,6 +75,12 @@ pub fn lookup(
 /// camera pixel.
 type Visible<'a> = dyn Fn(Vec3, Vec3) -> bool + Sync + 'a;
 
+/// Whether each of the four camera pixels around the projection of the point `q` of a
+/// layer (normal `n`) sees that layer's own plane or a surface behind `q` (the last
+/// resort's test of a layer centre the camera does not see on its plane; one pixel alone
+/// let a floor's layer behind a wall through at the wall's foot).
+type Unhidden<'a> = dyn Fn(Vec3, Vec3) -> bool + Sync + 'a;
+
 fn lookup_inner(
     ldc: &Ldc,
     p: Vec3,
@@ -65,6 +88,7 @@ fn lookup_inner(
     mode: Lookup,
     fallback_radius: u32,
     visible: &Visible,
+    unhidden: &Unhidden,
 ) -> Found {
     let frame = &ldc.frame;
     let mut sum = (Vec3::ZERO, Vec3::ZERO);
@@ -90,8 +114,11 @@ fn lookup_inner(
     let axis = dominant.0;
     let c = frame.pixel_coords(axis, p);
     let (ci, cj) = (c.x.floor() as i64, c.y.floor() as i64);
+    // The nearest ring layer whose centre the camera does not see (for the last resort).
+    let mut hidden: Option<usize> = None;
     for r in 1..=fallback_radius as i64 {
         let mut best: Option<(f32, usize)> = None;
+        let mut hidden_best: Option<(f32, usize)> = None;
         for j in cj - r..=cj + r {
             for i in ci - r..=ci + r {
                 if (i - ci).abs() != r && (j - cj).abs() != r {
@@ -113,9 +140,14 @@ fn lookup_inner(
                     if (p.dot(plane.truncate()) - plane.w).abs()
                         < frame.eps_distance * (r as f32 + 1.0)
                         && best.is_none_or(|(b, _)| d2 < b)
-                        && visible(q, plane.truncate())
                     {
-                        best = Some((d2, l));
+                        if visible(q, plane.truncate()) {
+                            best = Some((d2, l));
+                        } else if hidden_best.is_none_or(|(b, _)| d2 < b)
+                            && unhidden(q, plane.truncate())
+                        {
+                            hidden_best = Some((d2, l));
+                        }
                     }
                 }
             }
@@ -123,8 +155,28 @@ fn lookup_inner(
         if let Some((_, l)) = best {
             return Found::Fallback((ldc.direct[l], ldc.indirect[l]));
         }
+        if hidden.is_none() {
+            hidden = hidden_best.map(|(_, l)| l);
+        }
     }
-    Found::Missing
+    // Last resort: the layer of the point's own plane in its own LDI pixel, else the
+    // nearest in the rings, although the camera does not see that pixel's centre on it,
+    // provided nothing the camera sees lies in front of that centre. A surface narrower
+    // than an LDI pixel (a post, a board's edge) has its layers' centres off the surface,
+    // where the camera sees past it to what lies behind; the layer still holds the light
+    // of that plane there. A centre behind a wall stays refused (the leak test).
+    let home = frame
+        .pixel_index(axis, ci, cj)
+        .and_then(|index| ldc.find(index, p, n))
+        .filter(|&l| {
+            frame
+                .point_on_plane(axis, ci, cj, ldc.planes[l])
+                .is_some_and(|q| unhidden(q, ldc.planes[l].truncate()))
+        });
+    match home.or(hidden) {
+        Some(l) => Found::Fallback((ldc.direct[l], ldc.indirect[l])),
+        None => Found::Missing,
+    }
 }
 
 /// Kernel-weighted values in one LDI: `((direct, indirect) already divided by the weight
@@ -208,18 +260,58 @@ pub fn reconstruct(
     let visible = move |q: Vec3, n: Vec3| -> bool {
         crate::construct::render_sees(&vp, &recon, g, q, n, eps_d, eps_n).unwrap_or(true)
     };
-    let found: Vec<(Vec3, Vec3, u8)> = (0..g.len())
+    let perspective = matches!(view.projection, Projection::Perspective { .. });
+    let (eye, forward) = (view.eye, view.forward);
+    let unhidden = move |q: Vec3, n: Vec3| -> bool {
+        let clip = vp * q.extend(1.0);
+        if clip.w <= 0.0 {
+            return false;
+        }
+        let (u, v) = (clip.x / clip.w * 0.5 + 0.5, 0.5 - clip.y / clip.w * 0.5);
+        if !(0.0..1.0).contains(&u) || !(0.0..1.0).contains(&v) {
+            return false;
+        }
+        let x0 = (u * w as f32 - 0.5).floor() as i64;
+        let y0 = (v * h as f32 - 0.5).floor() as i64;
+        (0..4).all(|k| {
+            let x = (x0 + (k & 1)).clamp(0, i64::from(w) - 1) as u32;
+            let y = (y0 + (k >> 1)).clamp(0, i64::from(h) - 1) as u32;
+            let i = (y * w + x) as usize;
+            if g.is_background(i) {
+                return true;
+            }
+            let pp = recon.world(pixel_uv(x, y, w, h), g.depth[i]);
+            // The layer's own plane, seen at a grazing angle, hides nothing.
+            if g.normal[i].dot(n) > 1.0 - eps_n && (q - pp).dot(n).abs() < eps_d {
+                return true;
+            }
+            if perspective {
+                (pp - eye).length() >= (q - eye).length() - eps_d
+            } else {
+                (pp - q).dot(forward) >= -eps_d
+            }
+        })
+    };
+    let found: Vec<(Vec3, Vec3, Served)> = (0..g.len())
         .into_par_iter()
         .map(|i| {
             if g.is_background(i) || g.normal[i] == Vec3::ZERO {
-                return (Vec3::ZERO, Vec3::ZERO, 0);
+                return (Vec3::ZERO, Vec3::ZERO, Served::Background);
             }
             let (x, y) = (i as u32 % w, i as u32 / w);
             let p = recon.world(pixel_uv(x, y, w, h), g.depth[i]);
-            match lookup_inner(ldc, p, g.normal[i], mode, fallback_radius, &visible) {
-                Found::Direct((d, ind)) => (d, ind, 0),
-                Found::Fallback((d, ind)) => (d, ind, 1),
-                Found::Missing => (Vec3::ZERO, Vec3::ZERO, 2),
+            match lookup_inner(
+                ldc,
+                p,
+                g.normal[i],
+                mode,
+                fallback_radius,
+                &visible,
+                &unhidden,
+            ) {
+                Found::Direct((d, ind)) => (d, ind, Served::Layer),
+                Found::Fallback((d, ind)) => (d, ind, Served::Fallback),
+                Found::Missing => (Vec3::ZERO, Vec3::ZERO, Served::Missing),
             }
         })
         .collect();
@@ -228,15 +320,17 @@ pub fn reconstruct(
         indirect: Vec::with_capacity(found.len()),
         missing: 0,
         fallback: 0,
+        served: Vec::with_capacity(found.len()),
     };
     for (d, ind, k) in found {
         r.direct.push(d);
         r.indirect.push(ind);
         match k {
-            1 => r.fallback += 1,
-            2 => r.missing += 1,
+            Served::Fallback => r.fallback += 1,
+            Served::Missing => r.missing += 1,
             _ => {}
         }
+        r.served.push(k);
     }
     r
 }

@@ -682,6 +682,181 @@ pub fn furnace(albedo: f32, emission: f32) -> Scene {
     s
 }
 
+/// A closed room of 6 x 3 x 5 m cluttered with `n` seeded small and thin objects (books and
+/// boxes a few centimetres across, shelves and table tops 2 cm thick, legs and posts 2 to 3
+/// cm square; about 60 n triangles), lit by a ceiling panel and a lamp, with one camera in
+/// a corner: the many small, thin surfaces real interiors are made of, for checking that
+/// a method covers every visible surface. Not in [`NAMES`]; for tests and measurements.
+pub fn cluttered_room(n: u32, seed: u64) -> Scene {
+    let mut s = Scene::new(&format!("cluttered-room-{n}"));
+    let mut rng = Rng::new(seed, 0xc1u64);
+    let (w, h, d) = (3.0f32, 3.0f32, 2.5f32); // half width, height, half depth
+    s.materials
+        .push(Material::diffuse("walls", Vec3::new(0.72, 0.7, 0.66)));
+    s.materials
+        .push(Material::diffuse("floor", Vec3::new(0.45, 0.3, 0.18)));
+    let palette = [
+        Vec3::new(0.7, 0.15, 0.1),
+        Vec3::new(0.15, 0.4, 0.7),
+        Vec3::new(0.2, 0.55, 0.2),
+        Vec3::new(0.8, 0.75, 0.4),
+        Vec3::new(0.3, 0.3, 0.3),
+        Vec3::new(0.85, 0.85, 0.85),
+    ];
+    let first = s.materials.len() as u32;
+    for (i, c) in palette.iter().enumerate() {
+        s.materials
+            .push(Material::diffuse(&format!("clutter {i}"), *c));
+    }
+    let panel = s.materials.len() as u32;
+    s.materials.push(Material::emissive(
+        "panel",
+        Vec3::splat(0.8),
+        Vec3::splat(6.0),
+    ));
+    let mut room = Mesh {
+        name: "room".into(),
+        ..Default::default()
+    };
+    let centre = Vec3::new(0.0, h * 0.5, 0.0);
+    let c = |x: f32, y: f32, z: f32| Vec3::new(x * w, y * h, z * d);
+    let walls = [
+        [
+            c(-1., 0., -1.),
+            c(1., 0., -1.),
+            c(1., 0., 1.),
+            c(-1., 0., 1.),
+        ],
+        [
+            c(-1., 1., -1.),
+            c(1., 1., -1.),
+            c(1., 1., 1.),
+            c(-1., 1., 1.),
+        ],
+        [
+            c(-1., 0., -1.),
+            c(-1., 1., -1.),
+            c(-1., 1., 1.),
+            c(-1., 0., 1.),
+        ],
+        [c(1., 0., -1.), c(1., 1., -1.), c(1., 1., 1.), c(1., 0., 1.)],
+        [
+            c(-1., 0., -1.),
+            c(1., 0., -1.),
+            c(1., 1., -1.),
+            c(-1., 1., -1.),
+        ],
+        [c(-1., 0., 1.), c(1., 0., 1.), c(1., 1., 1.), c(-1., 1., 1.)],
+    ];
+    for (k, f) in walls.into_iter().enumerate() {
+        room.push_quad_facing(f, u32::from(k == 0), centre);
+    }
+    s.meshes.push(room);
+    let mut clutter = Mesh {
+        name: "clutter".into(),
+        ..Default::default()
+    };
+    let pick = |rng: &mut Rng| first + rng.below(palette.len() as u32);
+    for _ in 0..n {
+        let x = (rng.next_f32() * 2.0 - 1.0) * (w - 0.6);
+        let z = (rng.next_f32() * 2.0 - 1.0) * (d - 0.6);
+        let yaw = rng.next_f32() * std::f32::consts::TAU;
+        match rng.below(4) {
+            // A table: a top 2 cm thick on four legs 3 cm square, books on it.
+            0 => {
+                let (tw, td, th) = (0.3 + rng.next_f32() * 0.3, 0.2 + rng.next_f32() * 0.2, 0.72);
+                let m = pick(&mut rng);
+                clutter.push_box(Vec3::new(x, th, z), Vec3::new(tw, 0.01, td), yaw, m);
+                let rot = glam::Quat::from_rotation_y(yaw);
+                for (sx, sz) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                    let leg = Vec3::new(x, th * 0.5, z)
+                        + rot * Vec3::new(sx * (tw - 0.03), 0.0, sz * (td - 0.03));
+                    clutter.push_box(leg, Vec3::new(0.015, th * 0.5 - 0.01, 0.015), yaw, m);
+                }
+                for k in 0..3 {
+                    let b = Vec3::new(x, th + 0.01, z)
+                        + rot * Vec3::new(-tw * 0.5 + k as f32 * 0.08, 0.0, 0.0);
+                    let half = Vec3::new(0.02 + rng.next_f32() * 0.02, 0.1, 0.07);
+                    clutter.push_box(b + Vec3::Y * half.y, half, yaw, pick(&mut rng));
+                }
+            }
+            // A shelf: two posts and three boards 2 cm thick.
+            1 => {
+                let m = pick(&mut rng);
+                let rot = glam::Quat::from_rotation_y(yaw);
+                for sx in [-1.0f32, 1.0] {
+                    let post = Vec3::new(x, 0.8, z) + rot * Vec3::new(sx * 0.45, 0.0, 0.0);
+                    clutter.push_box(post, Vec3::new(0.01, 0.8, 0.12), yaw, m);
+                }
+                for k in 0..3 {
+                    let y = 0.3 + k as f32 * 0.5;
+                    clutter.push_box(Vec3::new(x, y, z), Vec3::new(0.44, 0.01, 0.12), yaw, m);
+                }
+            }
+            // A small box or a pile of two.
+            2 => {
+                let half = Vec3::new(
+                    0.03 + rng.next_f32() * 0.12,
+                    0.02 + rng.next_f32() * 0.1,
+                    0.03 + rng.next_f32() * 0.12,
+                );
+                clutter.push_box(Vec3::new(x, half.y, z), half, yaw, pick(&mut rng));
+                if rng.below(2) == 0 {
+                    let top = half * 0.6;
+                    clutter.push_box(
+                        Vec3::new(x, 2.0 * half.y + top.y, z),
+                        top,
+                        yaw + 0.4,
+                        pick(&mut rng),
+                    );
+                }
+            }
+            // A thin post (a floor lamp's stem, a coat stand) 2 cm square.
+            _ => {
+                let tall = 0.6 + rng.next_f32() * 1.2;
+                clutter.push_box(
+                    Vec3::new(x, tall * 0.5, z),
+                    Vec3::new(0.01, tall * 0.5, 0.01),
+                    yaw,
+                    pick(&mut rng),
+                );
+            }
+        }
+    }
+    s.meshes.push(clutter);
+    let mut light = Mesh {
+        name: "panel".into(),
+        ..Default::default()
+    };
+    let y = h - 0.01;
+    light.push_quad_facing(
+        [
+            Vec3::new(-0.5, y, -0.4),
+            Vec3::new(0.5, y, -0.4),
+            Vec3::new(0.5, y, 0.4),
+            Vec3::new(-0.5, y, 0.4),
+        ],
+        panel,
+        Vec3::ZERO,
+    );
+    s.meshes.push(light);
+    s.point_lights.push(PointLight {
+        name: "lamp".into(),
+        position: Vec3::new(w * 0.6, 1.6, -d * 0.5),
+        intensity: Vec3::new(3.0, 2.6, 2.0),
+        radius: None,
+    });
+    s.cameras = vec![camera(
+        "corner",
+        Vec3::new(-w + 0.3, 1.7, d - 0.3),
+        Vec3::new(0.5, 0.6, -0.5),
+        65.0,
+        4.0 / 3.0,
+        &s,
+    )];
+    s
+}
+
 /// `n` boxes of random size, position, yaw and colour (seeded) on a ground plane sized so the
 /// density stays constant, lit by a sun and a point light. 12 n + 2 triangles.
 pub fn many_boxes(n: u32, seed: u64) -> Scene {
