@@ -263,3 +263,62 @@ fn the_same_irpls_in_another_order_give_the_same_ldc() {
         "relative error {rel}, bias {bias}"
     );
 }
+
+#[test]
+fn progressive_refinement_lowers_the_error_as_paths_complete() {
+    // The lighting pass adds IRPLs path by path; the LDC shown divides by the complete
+    // paths, so each doubling of them should bring the frame closer to the reference.
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let size = 32;
+    let reference = common::reference(
+        &scene,
+        size,
+        2048,
+        scene_core::reference::Bounces::Unlimited,
+    );
+    let settings = IbrrSettings {
+        resolution: 64,
+        irpls: 360,
+        ..Default::default()
+    };
+    let mut t = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+    t.progressive = true;
+    t.prepare(scene.clone()).unwrap();
+    let frame = FrameRequest::camera(&scene.cameras[0], size, size);
+    let total = t.construction().unwrap().irpls.paths;
+    assert!(total >= 64, "{total} paths");
+    let mut marks: Vec<u64> = vec![total / 16, total / 8, total / 4, total / 2, total];
+    let mut seen = Vec::new();
+    loop {
+        let r = t.refine(std::time::Duration::from_millis(20)).unwrap();
+        let c = t.construction().unwrap();
+        let done = if c.is_done() {
+            total
+        } else if c.is_founding() {
+            0
+        } else {
+            c.stats().paths_done
+        };
+        if marks.first().is_some_and(|&m| done >= m) {
+            marks.retain(|&m| m > done);
+            let img = t.render(&frame).unwrap();
+            let (err, bias) = errors(&img, &reference);
+            seen.push((done, err, bias));
+        }
+        if r.done {
+            break;
+        }
+    }
+    println!("paths done, mean error, bias: {seen:.4?}");
+    assert!(seen.len() >= 4, "{seen:?}");
+    for w in seen.windows(2) {
+        assert!(
+            w[1].1 < w[0].1,
+            "the error rose from {:.4} at {} paths to {:.4} at {}",
+            w[0].1,
+            w[0].0,
+            w[1].1,
+            w[1].0
+        );
+    }
+}

@@ -1,0 +1,91 @@
+//! The IBRR's bias on lit surfaces against the reference path tracer: cornell (area light)
+//! and cornell-point (point light), the default IRPL count, the mean over 24 seeds of each
+//! channel's `sum(test) / sum(reference) - 1` over the pixels whose centre sees a
+//! reflecting surface (emitters, background and the reference's brightest 1 % left out,
+//! as the main job's surface error). One build's level moves by 4 to 7 % with its seed
+//! (Monte Carlo over some 60 particle paths), so a single build says little about bias;
+//! the mean over seeds, with its standard error, does. The LDC is at 64 (its resolution
+//! does not move the bias: the furnace read 0.949, 0.952 and 0.949 at 64, 128 and 256).
+
+mod common;
+
+use std::sync::Arc;
+
+use ibrr_ldc::IbrrSettings;
+use scene_core::reference::{Bounces, PathTracer, PixelClass};
+use scene_core::{FrameRequest, builtin, luminance};
+
+const SIZE: u32 = 32;
+const SEEDS: u64 = 24;
+
+fn bias_over_seeds(name: &str) -> ([f64; 3], [f64; 3]) {
+    let scene = Arc::new(builtin::scene(name).unwrap());
+    let reference = common::reference(&scene, SIZE, 4096, Bounces::Unlimited);
+    let frame = FrameRequest::camera(&scene.cameras[0], SIZE, SIZE);
+    let classes = PathTracer::new(&scene).pixel_classes(&frame.view, SIZE, SIZE);
+    let mut lum: Vec<f32> = (0..classes.len())
+        .filter(|&i| classes[i] == PixelClass::Surface)
+        .map(|i| luminance(reference.pixels[i]))
+        .collect();
+    lum.sort_by(f32::total_cmp);
+    let cut = lum[((lum.len() as f64) * 0.99).ceil() as usize - 1];
+    let mask: Vec<bool> = (0..classes.len())
+        .map(|i| classes[i] == PixelClass::Surface && luminance(reference.pixels[i]) <= cut)
+        .collect();
+    let per_seed: Vec<[f64; 3]> = (1..=SEEDS)
+        .map(|seed| {
+            let settings = IbrrSettings {
+                resolution: 64,
+                seed,
+                ..Default::default()
+            };
+            let (img, _) = common::ibrr_image(&scene, settings, SIZE);
+            let (mut t, mut r) = ([0.0f64; 3], [0.0f64; 3]);
+            for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+                for c in 0..3 {
+                    t[c] += f64::from(img.pixels[i][c]);
+                    r[c] += f64::from(reference.pixels[i][c]);
+                }
+            }
+            [0, 1, 2].map(|c| t[c] / r[c] - 1.0)
+        })
+        .collect();
+    let n = per_seed.len() as f64;
+    let mean = [0, 1, 2].map(|c| per_seed.iter().map(|b| b[c]).sum::<f64>() / n);
+    let se = [0, 1, 2].map(|c| {
+        let var = per_seed
+            .iter()
+            .map(|b| (b[c] - mean[c]).powi(2))
+            .sum::<f64>()
+            / (n - 1.0);
+        (var / n).sqrt()
+    });
+    println!("{name}: lit-surface bias over {SEEDS} seeds {mean:+.4?} (standard error {se:.4?})");
+    (mean, se)
+}
+
+#[test]
+fn lit_surfaces_are_within_two_percent_of_the_reference_on_cornell_and_cornell_point() {
+    for name in ["cornell", "cornell-point"] {
+        let (mean, se) = bias_over_seeds(name);
+        for c in 0..3 {
+            // The test has the power to see a 2 % bias: its standard error is below that.
+            assert!(
+                se[c] < 0.02,
+                "{name} channel {c}: standard error {:.4}",
+                se[c]
+            );
+            // A bias beyond 2 % fails when the seeds show it (more than two standard errors
+            // past 2 %, one-sided, about 98 % confidence). Measured 2026-11-25: cornell
+            // -1.1 / -1.4 / -0.6 %, cornell-point -1.8 / -2.1 / -0.9 % (standard errors 0.9
+            // to 1.4 %): a dark bias of 1 to 2 % remains, the 2 % bound met on cornell and
+            // at its edge on cornell-point's green (docs/ibrr-ldc.md).
+            assert!(
+                mean[c].abs() <= 0.02 + 2.0 * se[c],
+                "{name} channel {c}: bias {:+.4} (standard error {:.4})",
+                mean[c],
+                se[c]
+            );
+        }
+    }
+}
