@@ -34,6 +34,10 @@ pub struct Options {
     /// clamped energy restored (0: unclamped, the paper's accurate option).
     #[arg(long, default_value_t = 0.0)]
     pub clamp: f32,
+    /// How the clamped energy is restored: local (short rays from every layer recover it
+    /// where it was lost) or rescale (each IRPL's values scaled to its unclamped power).
+    #[arg(long, default_value = "local")]
+    pub compensation: String,
     /// Seed of the particle walks.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -56,6 +60,10 @@ pub fn check_numbers(o: &Options) -> Result<(), String> {
 pub fn run(o: &Options) -> Result<(), String> {
     let splat: Splat = o.splat.parse().map_err(|e| format!("--splat: {e}"))?;
     let lookup: Lookup = o.lookup.parse().map_err(|e| format!("--lookup: {e}"))?;
+    let compensation: ibrr_ldc::Compensation = o
+        .compensation
+        .parse()
+        .map_err(|e| format!("--compensation: {e}"))?;
     // The numbers were checked by `Command::check_numbers`.
     crate::check_out_dir(&o.out)?;
     let (scene, state, camera) = o.view.open()?;
@@ -66,6 +74,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         splat,
         lookup,
         clamp: o.clamp,
+        compensation,
         seed: o.seed,
         source_precision: if o.f16 {
             SourcePrecision::F16
@@ -132,6 +141,8 @@ pub fn run(o: &Options) -> Result<(), String> {
         "lookup": o.lookup,
         "seed": o.seed,
         "clamp": o.clamp,
+        "compensation": o.compensation,
+        "compensation_seconds": stats.compensation_time.as_secs_f64(),
         "irpls": c.irpls.irpls.len(),
         "exact_sources": c.irpls.exact,
         "paths": c.irpls.paths,

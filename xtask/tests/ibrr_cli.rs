@@ -39,16 +39,24 @@ fn ibrr_writes_the_view_and_the_summary() {
     assert_eq!((white.width, white.height), (32, 24));
     assert_eq!(summary["ldc_resolution"], 32);
     let layers = summary["layers"].as_u64().unwrap();
-    // Memory: 4 bytes per pixel of the three LDIs (plus one) and 40 per layer.
+    // Memory: 4 bytes per pixel of the three LDIs (plus one), 40 per layer, and 24 per
+    // layer and light source (one point light).
+    assert_eq!(summary["light_sources"], 1);
+    assert_eq!(
+        summary["memory_bytes_per_source"].as_u64().unwrap(),
+        24 * layers
+    );
     assert_eq!(
         summary["memory_bytes"].as_u64().unwrap(),
-        (3 * 32 * 32 + 1) * 4 + 40 * layers
+        (3 * 32 * 32 + 1) * 4 + (40 + 24) * layers
     );
     assert!(summary["irpls"].as_u64().unwrap() >= 1);
     assert!(summary["construction_seconds"].as_f64().unwrap() > 0.0);
     assert!(summary["pixels_without_layer"].is_u64());
-    // The light's colour is baked in: red only.
-    let (_, red) = run(&["--light", "point:0=1,0,0"]);
+    // The light's colour is applied by relighting, not by a rebuild: red only.
+    let (red_summary, red) = run(&["--light", "point:0=1,0,0"]);
+    assert_eq!(red_summary["rebuild_ms"].as_f64().unwrap(), 0.0);
+    assert!(red_summary["relight_ms"].as_f64().unwrap() > 0.0);
     let (w, r) = (white.mean(), red.mean());
     assert!(r.x > 0.0 && r.y == 0.0 && r.z == 0.0, "{r}");
     assert!(w.y > 0.0);

@@ -67,6 +67,10 @@ pub struct ConstructionStats {
     pub warp_time: Duration,
     /// Time generating the IRPLs.
     pub walk_time: Duration,
+    /// Time of the clamp's local compensation (last complete LDC).
+    pub compensation_time: Duration,
+    /// Rays of the clamp's local compensation, and those that added light.
+    pub compensation: crate::compensate::CompensationStats,
 }
 
 /// An LDC being built, IRPL by IRPL, viewable at any point ([`Construction::ldc`]).
@@ -327,7 +331,7 @@ impl Construction {
     /// The LDC so far: path sums divided by the complete paths warped (progressive
     /// viewing; partially warped paths count once complete), lit as the light state it was
     /// built for; [`Ldc::relight`] with [`Construction::relight_factors`] shows another.
-    pub fn ldc(&self) -> Result<Ldc, IbrrError> {
+    pub fn ldc(&mut self) -> Result<Ldc, IbrrError> {
         let paths = if self.is_done() {
             self.irpls.paths
         } else {
@@ -336,6 +340,23 @@ impl Construction {
         let mut ldc =
             self.builder
                 .compact(paths, self.settings.source_precision, &self.unit_factors())?;
+        let s = &self.settings;
+        if self.is_done() && s.clamp > 0.0 && s.compensation == crate::settings::Compensation::Local
+        {
+            let t = Instant::now();
+            let r = s.clamp * self.scene.extent();
+            let g_max = std::f32::consts::FRAC_1_PI / (r * r);
+            self.stats.compensation = crate::compensate::compensate(
+                &self.scene,
+                &mut ldc,
+                &self.sources,
+                g_max,
+                s.compensation_rays,
+                s.seed,
+            );
+            self.stats.compensation_time = t.elapsed();
+            ldc.relight(&vec![[Vec3::ONE; 2]; ldc.sources.sources()]);
+        }
         if !self.lights.is_default()
             && let Some(f) = self.relight_factors(&self.lights)
         {
@@ -430,8 +451,9 @@ impl Construction {
             .map(|t| FrustumReconstruction::new(&t.view))
             .collect();
         let vps: Vec<glam::Mat4> = targets.iter().map(|t| t.view.view_projection()).collect();
-        // The clamp and its compensation: the power the renders receive, unclamped over
-        // clamped, scales every value of this IRPL.
+        // The clamp; with the rescale compensation, the power the renders receive,
+        // unclamped over clamped, scales every value of this IRPL (the local compensation
+        // runs once the LDC is complete, `Construction::ldc`).
         let extent = self.scene.extent();
         let g_max = if self.settings.clamp > 0.0 && irpl.is_path_node() {
             let r = self.settings.clamp * extent;
@@ -444,7 +466,8 @@ impl Construction {
             .enumerate()
             .map(|(k, t)| samples_of(t, &recon[k], &buffers[k]))
             .collect();
-        let scale = if g_max.is_finite() {
+        let rescale = self.settings.compensation == crate::settings::Compensation::Rescale;
+        let scale = if g_max.is_finite() && rescale {
             let (mut full, mut clamped) = (0.0f64, 0.0f64);
             for s in all.iter().flatten() {
                 let area = f64::from(s.du.cross(s.dv).length());

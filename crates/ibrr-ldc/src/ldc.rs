@@ -668,6 +668,25 @@ impl SourceValues {
         n as u64 * self.precision().bytes()
     }
 
+    /// Adds `[direct, indirect]` to layer `layer`'s values from source `source`.
+    pub fn add(&mut self, layer: usize, source: usize, value: [Vec3; 2]) {
+        let k = layer * self.sources + source;
+        match &mut self.store {
+            SourceStore::F32(v) => {
+                v[k][0] += value[0];
+                v[k][1] += value[1];
+            }
+            SourceStore::F16(v) => {
+                let [d, i] = value;
+                let add = [d.x, d.y, d.z, i.x, i.y, i.z];
+                for (h, a) in v[k].iter_mut().zip(add) {
+                    let x = (f32::from(*h) + a).clamp(0.0, f32::from(half::f16::MAX));
+                    *h = half::f16::from_f32(x);
+                }
+            }
+        }
+    }
+
     /// `[direct, indirect]` of layer `layer` from source `source`.
     #[inline]
     pub fn get(&self, layer: usize, source: usize) -> [Vec3; 2] {

@@ -23,6 +23,7 @@
 //! assert!(ibrr.ldc().unwrap().layer_count() > 0);
 //! ```
 
+pub mod compensate;
 pub mod construct;
 pub mod error;
 pub mod gpu;
@@ -38,7 +39,7 @@ pub use gpu::GpuLdc;
 pub use irpl::{Irpl, IrplKind, IrplSet};
 pub use ldc::{Ldc, LdcFrame};
 pub use reconstruct::{Reconstruction, Served, lookup, reconstruct, shade};
-pub use settings::{IbrrSettings, Lookup, Splat};
+pub use settings::{Compensation, IbrrSettings, Lookup, Splat};
 pub use technique::{FrameTimings, IbrrTechnique};
 
 pub use scene_core;

@@ -32,6 +32,19 @@ impl std::str::FromStr for Splat {
     }
 }
 
+impl std::str::FromStr for Compensation {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "local" => Ok(Compensation::Local),
+            "rescale" => Ok(Compensation::Rescale),
+            _ => Err(format!(
+                "compensation must be 'local' or 'rescale', got '{s}'"
+            )),
+        }
+    }
+}
+
 /// How a camera pixel reads the LDC (section 5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Lookup {
@@ -108,6 +121,24 @@ pub struct IbrrSettings {
     pub max_bytes: u64,
     /// How each layer's light per source is stored (f32, or f16 at half the memory).
     pub source_precision: crate::ldc::SourcePrecision,
+    /// How the energy the clamp removes is given back (with `clamp > 0`).
+    pub compensation: Compensation,
+    /// Rays a layer for [`Compensation::Local`].
+    pub compensation_rays: u32,
+}
+
+/// How the energy the clamp removes is given back.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Compensation {
+    /// Where it was lost: short rays from every layer find the surfaces within the clamp's
+    /// reach and add the part of their light the clamp removed ([`crate::compensate`],
+    /// after Kollig and Keller).
+    #[default]
+    Local,
+    /// Each IRPL's values scaled so that the power its renders receive is what it was
+    /// unclamped: the energy kept, but spread over everything the IRPL lights (a global
+    /// rescale, kept for comparison).
+    Rescale,
 }
 
 impl Default for IbrrSettings {
@@ -130,6 +161,8 @@ impl Default for IbrrSettings {
             max_depth: 32,
             max_bytes: 2 << 30,
             source_precision: crate::ldc::SourcePrecision::F32,
+            compensation: Compensation::Local,
+            compensation_rays: 16,
         }
     }
 }
@@ -203,6 +236,12 @@ impl IbrrSettings {
             && radius > 16
         {
             return bad(format!("averaging radius must be at most 16, got {radius}"));
+        }
+        if self.compensation_rays > 4096 {
+            return bad(format!(
+                "compensation_rays must be at most 4096, got {}",
+                self.compensation_rays
+            ));
         }
         if self.fallback_radius > 64 {
             return bad(format!(
