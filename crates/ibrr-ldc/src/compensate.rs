@@ -34,6 +34,10 @@ pub struct CompensationStats {
     pub compensating: u64,
 }
 
+/// Per pixel: the light added to its layers (layer, source, direct, indirect), the rays
+/// traced and those that added light.
+type PixelAdds = (Vec<(usize, usize, Vec3, Vec3)>, u64, u64);
+
 /// Adds to every layer of `ldc` (values per unit of the sources' factors, sources in
 /// `sources`' order) the light the clamp at `g_max` removed, from `rays` cosine-distributed
 /// rays a layer, seeded by `seed` (deterministic whatever the thread count).
@@ -58,7 +62,7 @@ pub(crate) fn compensate(
     let source_of = |id: LightId| sources.iter().position(|&s| s == id);
     let ldc_ref = &*ldc;
     // Per pixel: (layer, source, direct added, indirect added).
-    let added: Vec<(Vec<(usize, usize, Vec3, Vec3)>, u64, u64)> = (0..frame.pixel_count())
+    let added: Vec<PixelAdds> = (0..frame.pixel_count())
         .into_par_iter()
         .map(|k| {
             let mut out = Vec::new();
@@ -97,7 +101,7 @@ pub(crate) fn compensate(
                     let cos_q = n.dot(d);
                     let dist = hit.t.max(1e-12);
                     let g = cos_q * cos_y * std::f32::consts::FRAC_1_PI / (dist * dist);
-                    if !(g > g_max) || !g.is_finite() {
+                    if g <= g_max || !g.is_finite() {
                         continue;
                     }
                     let w = 1.0 - g_max / g;
