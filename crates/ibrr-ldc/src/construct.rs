@@ -93,6 +93,22 @@ pub struct Construction {
     /// so that every layer receives every IRPL that sees it whatever the IRPL order (a
     /// layer founded by a later IRPL would otherwise miss the earlier ones' light).
     founding: bool,
+    /// First IRPL of the current round (0 for the first; [`Construction::extend`] starts
+    /// the next).
+    round_start: usize,
+    /// Layers that existed before the current round.
+    layers_before: usize,
+    /// The exact mode's catch-up pass of a later round: the earlier IRPLs light the layers
+    /// the round founded, so that every layer receives every IRPL whatever the round.
+    catch_up: bool,
+    /// The current round's catch-up pass is done.
+    caught_up: bool,
+    /// Warps done and to do, over every pass and round so far.
+    steps: (usize, usize),
+    /// Rounds added by [`Construction::extend`].
+    rounds: usize,
+    /// The LDC of the last complete round, shown while a later round is built.
+    last_complete: Option<Ldc>,
     stats: ConstructionStats,
     /// The exact mode's gather on the GPU, when asked for ([`Construction::gather_on_gpu`]).
     gpu: Option<crate::gpu::GpuGather>,
@@ -160,6 +176,7 @@ impl Construction {
         };
         let sources = scene_core::lights::light_ids(&scene);
         let builder = LdcBuilder::new(frame, settings.max_bytes, sources.len())?;
+        let steps_total = irpls.irpls.len() * if settings.splat == Splat::Exact { 2 } else { 1 };
         Ok(Self {
             stats: ConstructionStats {
                 irpls_total: irpls.irpls.len(),
@@ -173,6 +190,13 @@ impl Construction {
             builder,
             next: 0,
             founding: settings.splat == Splat::Exact,
+            round_start: 0,
+            layers_before: 0,
+            catch_up: false,
+            caught_up: false,
+            steps: (0, steps_total),
+            rounds: 0,
+            last_complete: None,
             gpu: None,
         })
     }
@@ -185,9 +209,13 @@ impl Construction {
         Ok(())
     }
 
-    /// True when every IRPL has been warped.
+    /// True when every IRPL has been warped (and, after [`Construction::extend`], every
+    /// layer the new round founded has the earlier IRPLs' light).
     pub fn is_done(&self) -> bool {
-        !self.founding && self.next >= self.irpls.irpls.len()
+        !self.founding
+            && !self.catch_up
+            && self.next >= self.irpls.irpls.len()
+            && (self.round_start == 0 || self.caught_up || self.settings.splat != Splat::Exact)
     }
 
     /// True while the exact mode founds its layers (nothing is lit yet).
@@ -196,18 +224,100 @@ impl Construction {
     }
 
     /// IRPL steps done and in all, over both passes of the exact mode (founding, then
-    /// lighting: twice the IRPLs) or the one pass of the paper's kernels.
+    /// lighting: twice the IRPLs) or the one pass of the paper's kernels, and over the
+    /// rounds [`Construction::extend`] added (the new IRPLs twice, the earlier ones once
+    /// more for the catch-up).
     pub fn progress(&self) -> (usize, usize) {
-        let n = self.irpls.irpls.len();
-        if self.settings.splat != Splat::Exact {
-            return (self.next.min(n), n);
+        (self.steps.0.min(self.steps.1), self.steps.1)
+    }
+
+    /// Adds a round of `more_paths` particle paths (the next ones of the same walk,
+    /// [`crate::irpl::extend`]) to a finished construction: their IRPLs found their layers,
+    /// light every layer, and the earlier IRPLs light the layers the round founded; the
+    /// result equals a construction that had asked for all the paths at once, but for
+    /// float summation order. Until the round is done, [`Construction::ldc`] shows the
+    /// last complete one. Returns the number of IRPLs added.
+    pub fn extend(&mut self, more_paths: u64) -> Result<usize, IbrrError> {
+        if !self.is_done() {
+            return Err(IbrrError::Settings(
+                "extend: the construction's current round is not finished".into(),
+            ));
         }
-        let done = if self.founding {
-            self.next.min(n)
-        } else {
-            n + self.next.min(n)
-        };
-        (done, 2 * n)
+        if more_paths == 0 || self.irpls.paths == 0 {
+            return Ok(0);
+        }
+        let last = self.ldc()?;
+        self.last_complete = Some(last);
+        let rays = RayScene::build(&self.scene);
+        let s = &self.settings;
+        let before = self.irpls.irpls.len();
+        crate::irpl::extend(
+            &self.scene,
+            &rays,
+            &self.lights,
+            &WalkSettings {
+                irpls: s.irpls,
+                seed: s.seed,
+                max_depth: s.max_depth,
+                paths: 0,
+            },
+            &mut self.irpls,
+            more_paths,
+        );
+        let added = self.irpls.irpls.len() - before;
+        let exact = self.settings.splat == Splat::Exact;
+        self.round_start = before;
+        self.layers_before = self.builder.layer_count();
+        self.founding = exact;
+        self.catch_up = false;
+        self.caught_up = false;
+        self.next = before;
+        self.steps.1 += if exact { 2 * added + before } else { added };
+        self.stats.irpls_total = self.irpls.irpls.len();
+        self.rounds += 1;
+        Ok(added)
+    }
+
+    /// Rounds added by [`Construction::extend`] (0: the first round only).
+    pub fn round(&self) -> usize {
+        self.rounds
+    }
+
+    /// Moves to the next pass when the current one is finished.
+    fn advance(&mut self) {
+        let n = self.irpls.irpls.len();
+        loop {
+            if self.founding && self.next >= n {
+                // Lighting: the round's IRPLs over every layer.
+                self.founding = false;
+                self.next = self.round_start;
+                if self.round_start == 0 {
+                    self.builder.reset_values();
+                } else {
+                    self.builder.reset_scratch();
+                }
+            } else if !self.founding
+                && !self.catch_up
+                && !self.caught_up
+                && self.round_start > 0
+                && self.settings.splat == Splat::Exact
+                && self.next >= n
+            {
+                // Catch-up: the earlier IRPLs over the layers this round founded.
+                self.catch_up = true;
+                self.next = 0;
+                self.builder.reset_scratch();
+                self.builder.light_only_from(self.layers_before);
+            } else if self.catch_up && self.next >= self.round_start {
+                self.catch_up = false;
+                self.caught_up = true;
+                self.next = n;
+                self.builder.light_only_from(0);
+                self.builder.reset_scratch();
+            } else {
+                break;
+            }
+        }
     }
 
     /// Figures so far.
@@ -230,10 +340,13 @@ impl Construction {
         renderer: &mut dyn GBufferRenderer,
         count: usize,
     ) -> Result<usize, IbrrError> {
-        if self.founding && self.next >= self.irpls.irpls.len() {
-            self.end_founding();
-        }
-        let end = (self.next + count).min(self.irpls.irpls.len());
+        self.advance();
+        let pass_end = if self.catch_up {
+            self.round_start
+        } else {
+            self.irpls.irpls.len()
+        };
+        let end = (self.next + count).min(pass_end);
         let mut done = 0;
         // Render in batches of up to 8 IRPLs (one submission each on the GPU) whose renders
         // fit beside the LDC in the memory budget.
@@ -286,14 +399,13 @@ impl Construction {
                 self.warp(irpl, &targets[at..at + c], &buffers[at..at + c])?;
                 at += c;
                 self.next += 1;
+                self.steps.0 += 1;
                 done += 1;
             }
             self.stats.warp_time += t.elapsed();
         }
-        if self.founding && self.next >= self.irpls.irpls.len() {
-            self.end_founding();
-        }
-        if self.founding {
+        self.advance();
+        if self.founding || self.catch_up {
             return Ok(done);
         }
         self.stats.irpls_done = self.next;
@@ -307,14 +419,6 @@ impl Construction {
             self.stats.paths_done = self.irpls.paths;
         }
         Ok(done)
-    }
-
-    /// Ends the founding pass: the lighting pass starts over the IRPLs with every layer in
-    /// place.
-    fn end_founding(&mut self) {
-        self.founding = false;
-        self.next = 0;
-        self.builder.reset_values();
     }
 
     /// Prepares `renderer` with this construction's scene (once, before [`Construction::step`]).
@@ -332,6 +436,11 @@ impl Construction {
     /// viewing; partially warped paths count once complete), lit as the light state it was
     /// built for; [`Ldc::relight`] with [`Construction::relight_factors`] shows another.
     pub fn ldc(&mut self) -> Result<Ldc, IbrrError> {
+        if !self.is_done()
+            && let Some(last) = &self.last_complete
+        {
+            return Ok(last.clone());
+        }
         let paths = if self.is_done() {
             self.irpls.paths
         } else {

@@ -221,6 +221,50 @@ pub fn generate(
     lights: &LightState,
     settings: &WalkSettings,
 ) -> IrplSet {
+    walks(scene, rays, lights, settings, None)
+}
+
+/// Appends `more` particle paths to `set` (made by [`generate`] with the same scene,
+/// lights and settings): paths `set.paths..set.paths + more`, exactly those a single
+/// [`generate`] asked for `set.paths + more` paths would walk (a path depends only on its
+/// index and the seed). Returns the index of the first new IRPL.
+pub fn extend(
+    scene: &Scene,
+    rays: &RayScene,
+    lights: &LightState,
+    settings: &WalkSettings,
+    set: &mut IrplSet,
+    more: u64,
+) -> usize {
+    let first = set.irpls.len();
+    let extra = walks(
+        scene,
+        rays,
+        lights,
+        &WalkSettings {
+            paths: more.min(u64::from(u32::MAX)) as u32,
+            ..*settings
+        },
+        Some(set.paths),
+    );
+    for end in extra.path_ends {
+        set.path_ends.push(first + end);
+    }
+    set.irpls.extend(extra.irpls);
+    set.paths += extra.paths;
+    first
+}
+
+/// The walks of [`generate`] (`first_path` `None`: exact sources, then the paths a pilot
+/// or `settings.paths` asks for) or of [`extend`] (`Some(p)`: `settings.paths` paths from
+/// index `p`, no exact sources).
+fn walks(
+    scene: &Scene,
+    rays: &RayScene,
+    lights: &LightState,
+    settings: &WalkSettings,
+    first_path: Option<u64>,
+) -> IrplSet {
     let mut set = IrplSet::default();
     let extent = scene.extent();
     let lift = extent * 1e-5;
@@ -282,6 +326,9 @@ pub fn generate(
             id,
         ));
     }
+    if first_path.is_some() {
+        set.irpls.clear();
+    }
     set.exact = set.irpls.len();
     let emitters = Emitters::new(scene, lights);
     for (k, t) in emitters.triangles.iter().enumerate() {
@@ -303,7 +350,11 @@ pub fn generate(
         .map(|(_, p, _)| scene_core::lights::sampling_weight(*p))
         .collect();
     let total: f64 = weights.iter().sum();
-    if total <= 0.0 || (settings.paths == 0 && settings.irpls as usize <= set.irpls.len()) {
+    if total <= 0.0
+        || (first_path.is_none()
+            && settings.paths == 0
+            && settings.irpls as usize <= set.irpls.len())
+    {
         return set;
     }
     let mut cdf = Vec::with_capacity(weights.len());
@@ -331,21 +382,24 @@ pub fn generate(
     // independent walks: stopping once the IRPLs reach the target would make the path
     // count depend on the paths' lengths and bias the mean.
     const PILOT: u64 = 256;
-    let pilot_seed = scene_core::sampling::hash_seed(settings.seed, 0x9e37, 1);
-    let mut scratch = Vec::new();
-    for k in 0..PILOT {
-        walker.walk(k, pilot_seed, &mut scratch);
-    }
-    let per_path = scratch.len() as f64 / PILOT as f64;
-    let wanted = (settings.irpls as usize).saturating_sub(set.irpls.len()) as f64;
-    let paths = if settings.paths > 0 {
+    let paths = if settings.paths > 0 || first_path.is_some() {
         u64::from(settings.paths)
-    } else if per_path > 0.0 {
-        (wanted / per_path).round().max(1.0) as u64
     } else {
-        1
+        let pilot_seed = scene_core::sampling::hash_seed(settings.seed, 0x9e37, 1);
+        let mut scratch = Vec::new();
+        for k in 0..PILOT {
+            walker.walk(k, pilot_seed, &mut scratch);
+        }
+        let per_path = scratch.len() as f64 / PILOT as f64;
+        let wanted = (settings.irpls as usize).saturating_sub(set.irpls.len()) as f64;
+        if per_path > 0.0 {
+            (wanted / per_path).round().max(1.0) as u64
+        } else {
+            1
+        }
     };
-    for path in 0..paths {
+    let first = first_path.unwrap_or(0);
+    for path in first..first + paths {
         walker.walk(path, settings.seed, &mut set.irpls);
         set.path_ends.push(set.irpls.len());
     }

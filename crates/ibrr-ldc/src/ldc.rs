@@ -249,6 +249,9 @@ pub struct LdcBuilder {
     values: Vec<[Vec3; 2]>,
     /// Per source, whether its direct light is exact (not divided by the path count).
     exact: Vec<bool>,
+    /// Layers below this index take no light (a catch-up pass lights only the layers a
+    /// later round founded).
+    min_layer: usize,
     touched: Vec<u32>,
     stamp: u32,
     max_bytes: u64,
@@ -278,6 +281,7 @@ impl LdcBuilder {
             sources,
             values: Vec::new(),
             exact: vec![false; sources],
+            min_layer: 0,
             touched: Vec::new(),
             stamp: 0,
             max_bytes,
@@ -393,6 +397,17 @@ impl LdcBuilder {
     pub fn reset_values(&mut self) {
         self.values.fill([Vec3::ZERO; 2]);
         self.exact.fill(false);
+        self.reset_scratch();
+    }
+
+    /// Only layers from index `first` on take light from now on (`0`: every layer): a
+    /// catch-up pass gives the layers a later round founded the light of earlier IRPLs.
+    pub fn light_only_from(&mut self, first: usize) {
+        self.min_layer = first;
+    }
+
+    /// Clears the splat stamps and scratch, keeping the layers and their light.
+    pub fn reset_scratch(&mut self) {
         for l in &mut self.layers {
             l.stamp = 0;
             l.scratch = Vec4::ZERO;
@@ -429,6 +444,9 @@ impl LdcBuilder {
         let Some(l) = self.found(axis, i, j, p, n)? else {
             return Ok(());
         };
+        if (l as usize) < self.min_layer {
+            return Ok(());
+        }
         let stamp = self.stamp;
         let layer = &mut self.layers[l as usize];
         if layer.stamp != stamp {
@@ -473,11 +491,13 @@ impl LdcBuilder {
         let frame = self.frame;
         let stamp = self.stamp;
         let r = frame.resolution as usize;
+        let min_layer = self.min_layer;
         let found: Vec<Option<Vec3>> = self
             .layers
             .par_iter()
-            .map(|layer| {
-                if layer.stamp == stamp {
+            .enumerate()
+            .map(|(l, layer)| {
+                if layer.stamp == stamp || l < min_layer {
                     return None;
                 }
                 let k = layer.pixel as usize;
@@ -503,7 +523,12 @@ impl LdcBuilder {
     /// (computed elsewhere, e.g. on the GPU, for every layer).
     pub fn apply_gathered(&mut self, values: &[Option<Vec3>]) {
         let stamp = self.stamp;
-        for (l, v) in values.iter().enumerate().take(self.layers.len()) {
+        for (l, v) in values
+            .iter()
+            .enumerate()
+            .take(self.layers.len())
+            .skip(self.min_layer)
+        {
             if let Some(v) = *v {
                 let layer = &mut self.layers[l];
                 if layer.stamp == stamp {

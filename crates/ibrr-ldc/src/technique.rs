@@ -48,6 +48,12 @@ pub struct IbrrTechnique {
     /// When true, `prepare` only starts the construction and [`Technique::refine`] adds
     /// IRPLs; frames show the LDC so far.
     pub progressive: bool,
+    /// With `progressive`: once the IRPLs asked for are built, [`Technique::refine`] goes
+    /// on adding rounds of paths ([`Construction::extend`], each at most doubling them)
+    /// until about this many IRPLs (it stops once fewer than a quarter of those built are
+    /// still wanted); 0 stops at the settings' count. The caller's time budget per
+    /// call bounds each call; frames show the last complete round.
+    pub max_irpls: u32,
     renderer: Box<dyn GBufferRenderer + Send>,
     construction: Option<Construction>,
     ldc: Option<Ldc>,
@@ -75,6 +81,7 @@ impl IbrrTechnique {
         Self {
             settings,
             progressive: false,
+            max_irpls: 0,
             renderer,
             construction: None,
             ldc: None,
@@ -191,11 +198,40 @@ impl Technique for IbrrTechnique {
         };
         let start = Instant::now();
         let mut steps = 0;
-        // At least one IRPL per call, then as many as the budget allows.
-        while !c.is_done() && (steps == 0 || start.elapsed() < budget) {
+        // More while the IRPLs still wanted are at least a quarter of those built (a round
+        // smaller than that would cost a catch-up over every IRPL for little).
+        let wants_more = |c: &Construction| {
+            let n = c.irpls.irpls.len() as u64;
+            self.progressive && 4 * u64::from(self.max_irpls) > 5 * n
+        };
+        // At least one IRPL per call, then as many as the budget allows, up to the end of a
+        // round; the next call starts another round while more IRPLs are wanted.
+        let mut finished_round = false;
+        while steps == 0 || start.elapsed() < budget {
+            if c.is_done() {
+                if !wants_more(c) || c.irpls.paths == 0 {
+                    break;
+                }
+                // About the IRPLs still wanted, at most as many paths as there are.
+                let per_path =
+                    c.irpls.irpls.len().saturating_sub(c.irpls.exact) as f64 / c.irpls.paths as f64;
+                let wanted = u64::from(self.max_irpls) - c.irpls.irpls.len() as u64;
+                let more =
+                    ((wanted as f64 / per_path.max(1e-9)).ceil() as u64).clamp(1, c.irpls.paths);
+                if c.extend(more)? == 0 {
+                    break;
+                }
+            }
             steps += c.step(self.renderer.as_mut(), 1)? as u64;
+            if c.is_done() {
+                // A round ends the call, so that its LDC is shown before the next starts.
+                finished_round = true;
+                break;
+            }
         }
-        if steps > 0 {
+        // A later round in progress shows the last complete one: no new LDC until it ends.
+        let first_round = c.round() == 0;
+        if steps > 0 && (finished_round || first_round) {
             self.ldc = Some(c.ldc()?);
             self.shown = c.lights.fingerprint();
             if let Some((_, uploaded)) = self.gpu.as_mut() {
@@ -203,10 +239,15 @@ impl Technique for IbrrTechnique {
             }
         }
         let (done, total) = c.progress();
+        let more = wants_more(c);
         Ok(scene_core::Refinement {
-            done: c.is_done(),
+            done: c.is_done() && !more,
             steps,
-            remaining: Some((total - done) as f64 / total.max(1) as f64),
+            remaining: Some(if more && c.is_done() {
+                1.0 - c.irpls.irpls.len() as f64 / f64::from(self.max_irpls)
+            } else {
+                (total - done) as f64 / total.max(1) as f64
+            }),
         })
     }
 

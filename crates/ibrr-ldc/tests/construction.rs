@@ -322,3 +322,107 @@ fn progressive_refinement_lowers_the_error_as_paths_complete() {
         );
     }
 }
+
+#[test]
+fn a_round_added_later_equals_asking_for_all_the_paths_at_once() {
+    // 20 paths, then 20 more (founded, lit, and the first 20 caught up on the new
+    // layers), against 40 paths at once: the same layers, the same light but for float
+    // summation order.
+    let scene = Arc::new(builtin::scene("cornell-point").unwrap());
+    let settings = |paths| IbrrSettings {
+        resolution: 48,
+        paths,
+        ..Default::default()
+    };
+    let build = |c: &mut ibrr_ldc::Construction, r: &mut RayCastRenderer| {
+        while !c.is_done() {
+            c.step(r, 8).unwrap();
+        }
+    };
+    let mut r = RayCastRenderer::new();
+    let mut whole =
+        ibrr_ldc::Construction::new(scene.clone(), &LightState::default(), &settings(40)).unwrap();
+    whole.prepare_renderer(&mut r).unwrap();
+    build(&mut whole, &mut r);
+    let mut rounds =
+        ibrr_ldc::Construction::new(scene.clone(), &LightState::default(), &settings(20)).unwrap();
+    build(&mut rounds, &mut r);
+    let first = rounds.ldc().unwrap();
+    let added = rounds.extend(20).unwrap();
+    assert!(added > 0 && !rounds.is_done());
+    // While the round is built, the last complete one is shown.
+    rounds.step(&mut r, 3).unwrap();
+    assert_eq!(rounds.ldc().unwrap(), first);
+    build(&mut rounds, &mut r);
+    assert_eq!(rounds.irpls, whole.irpls, "the same walks");
+    assert_eq!(rounds.progress().0, rounds.progress().1);
+    let (a, b) = (whole.ldc().unwrap(), rounds.ldc().unwrap());
+    assert_eq!(a.layer_count(), b.layer_count());
+    assert!(
+        b.layer_count() > first.layer_count(),
+        "the round founded layers"
+    );
+    assert_eq!(a.planes, b.planes);
+    let peak = a
+        .direct
+        .iter()
+        .chain(&a.indirect)
+        .map(|v| v.max_element())
+        .fold(0.0f32, f32::max);
+    let worst = (0..a.layer_count())
+        .map(|l| {
+            (a.direct[l] - b.direct[l])
+                .abs()
+                .max_element()
+                .max((a.indirect[l] - b.indirect[l]).abs().max_element())
+        })
+        .fold(0.0f32, f32::max);
+    println!(
+        "extended against whole: worst layer difference {:.2e} of the peak",
+        worst / peak
+    );
+    assert!(worst <= 1e-5 * peak, "{worst} of {peak}");
+}
+
+#[test]
+fn progressive_refinement_goes_on_past_the_irpls_asked_and_keeps_converging() {
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let size = 32;
+    let reference = common::reference(
+        &scene,
+        size,
+        2048,
+        scene_core::reference::Bounces::Unlimited,
+    );
+    let mut t = IbrrTechnique::new(
+        IbrrSettings {
+            resolution: 64,
+            irpls: 90,
+            ..Default::default()
+        },
+        Box::new(RayCastRenderer::new()),
+    );
+    t.progressive = true;
+    t.max_irpls = 1440;
+    t.prepare(scene.clone()).unwrap();
+    let frame = FrameRequest::camera(&scene.cameras[0], size, size);
+    let mut seen: Vec<(usize, f64)> = Vec::new();
+    loop {
+        let r = t.refine(std::time::Duration::from_millis(50)).unwrap();
+        let c = t.construction().unwrap();
+        let irpls = t.ldc().map(|_| c.irpls.irpls.len()).unwrap_or(0);
+        if c.is_done() && seen.last().is_none_or(|(n, _)| *n != irpls) {
+            let (err, _) = errors(&t.render(&frame).unwrap(), &reference);
+            seen.push((irpls, err));
+        }
+        if r.done {
+            break;
+        }
+    }
+    println!("IRPLs and mean error after each round: {seen:.4?}");
+    assert!(seen.len() >= 4, "{seen:?}");
+    assert!(seen.last().unwrap().0 >= 1440 * 4 / 5);
+    for w in seen.windows(2) {
+        assert!(w[1].1 < w[0].1, "the error rose: {seen:?}");
+    }
+}
