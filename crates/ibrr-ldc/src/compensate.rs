@@ -38,31 +38,73 @@ pub struct CompensationStats {
 /// traced and those that added light.
 type PixelAdds = (Vec<(usize, usize, Vec3, Vec3)>, u64, u64);
 
+/// How [`compensate`] runs.
+pub(crate) struct Options {
+    /// The clamp: the largest geometry term kept.
+    pub g_max: f32,
+    /// Rays a layer.
+    pub rays: u32,
+    /// Levels (at least 1).
+    pub levels: u32,
+    /// Seed of the rays.
+    pub seed: u64,
+    /// False for walks without bounces (direct light only): only emitters' light is
+    /// recovered.
+    pub reflected: bool,
+}
+
 /// Adds to every layer of `ldc` (values per unit of the sources' factors, sources in
-/// `sources`' order) the light the clamp at `g_max` removed, from `rays` cosine-distributed
-/// rays a layer, seeded by `seed` (deterministic whatever the thread count).
+/// `sources`' order) the light the clamp at `o.g_max` removed, from `o.rays`
+/// cosine-distributed rays a layer, seeded by `o.seed` (deterministic whatever the thread
+/// count), over `o.levels` levels: the first reads the clamped LDC at the surfaces it reaches, each further level
+/// reads the LDC compensated by the level before (so the recovered light's own short
+/// bounces are recovered too), the same rays each time.
 pub(crate) fn compensate(
     scene: &Scene,
     ldc: &mut Ldc,
     sources: &[LightId],
-    g_max: f32,
-    rays: u32,
-    seed: u64,
+    o: &Options,
 ) -> CompensationStats {
+    let (g_max, rays, levels) = (o.g_max, o.rays, o.levels);
     if !(g_max.is_finite() && g_max > 0.0) || rays == 0 || ldc.layer_count() == 0 {
         return CompensationStats::default();
     }
-    let reach = (std::f32::consts::FRAC_1_PI / g_max).sqrt();
     let tracer = RayScene::build(scene);
+    let clamped = ldc.sources.clone();
+    let mut stats = CompensationStats::default();
+    for _ in 0..levels.max(1) {
+        let added = residuals(scene, &tracer, ldc, sources, o);
+        ldc.sources = clamped.clone();
+        stats = CompensationStats::default();
+        for (list, traced, hits) in added {
+            stats.rays += traced;
+            stats.compensating += hits;
+            for (l, src, d, i) in list {
+                ldc.sources.add(l, src, [d, i]);
+            }
+        }
+    }
+    stats
+}
+
+/// One level of [`compensate`]: per pixel of the LDC, the light to add to its layers.
+fn residuals(
+    scene: &Scene,
+    tracer: &RayScene,
+    ldc: &Ldc,
+    sources: &[LightId],
+    o: &Options,
+) -> Vec<PixelAdds> {
+    let (g_max, rays, seed, reflected) = (o.g_max, o.rays, o.seed, o.reflected);
+    let reach = (std::f32::consts::FRAC_1_PI / g_max).sqrt();
     let offsets = scene.mesh_offsets();
     let lift = scene.extent() * 1e-5;
     let frame = ldc.frame;
     let r = frame.resolution as usize;
     let n_sources = ldc.sources.sources();
     let source_of = |id: LightId| sources.iter().position(|&s| s == id);
-    let ldc_ref = &*ldc;
-    // Per pixel: (layer, source, direct added, indirect added).
-    let added: Vec<PixelAdds> = (0..frame.pixel_count())
+    let ldc_ref = ldc;
+    (0..frame.pixel_count())
         .into_par_iter()
         .map(|k| {
             let mut out = Vec::new();
@@ -82,7 +124,12 @@ pub(crate) fn compensate(
                 };
                 let n = plane.truncate();
                 res.iter_mut().for_each(|v| *v = [Vec3::ZERO; 2]);
-                let mut rng = Rng::new(hash_seed(seed, 0xc0e5, l as u64), 0);
+                // Seeded by the LDI pixel and the layer's normal (to 1e-3), not by the
+                // layer's index, which depends on the order the IRPLs founded the layers.
+                let key = n.to_array().iter().fold(k as u64, |h, c| {
+                    hash_seed(h, 0xc0e5, ((c * 1000.0).round() as i64) as u64)
+                });
+                let mut rng = Rng::new(hash_seed(seed, key, 0x5eed), 0);
                 let offset = Vec2::new(rng.next_f32(), rng.next_f32());
                 let mut any = false;
                 for m in 0..rays {
@@ -110,8 +157,13 @@ pub(crate) fn compensate(
                     };
                     hits += 1;
                     any = true;
-                    // Reflected: rho / pi E(y), per source (one more bounce: indirect).
-                    crate::reconstruct::layer_weights(ldc_ref, s.p, s.ns, &mut weights);
+                    // Reflected: rho / pi E(y), per source (one more bounce: indirect),
+                    // unless the walks make no bounce (direct light only).
+                    if !reflected {
+                        weights.clear();
+                    } else {
+                        crate::reconstruct::layer_weights(ldc_ref, s.p, s.ns, &mut weights);
+                    }
                     for &(layer, wl) in &weights {
                         for (src, v) in res.iter_mut().enumerate() {
                             let e = ldc_ref.sources.get(layer, src);
@@ -137,14 +189,5 @@ pub(crate) fn compensate(
             }
             (out, traced, hits)
         })
-        .collect();
-    let mut stats = CompensationStats::default();
-    for (list, traced, hits) in added {
-        stats.rays += traced;
-        stats.compensating += hits;
-        for (l, src, d, i) in list {
-            ldc.sources.add(l, src, [d, i]);
-        }
-    }
-    stats
+        .collect()
 }

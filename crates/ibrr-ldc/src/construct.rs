@@ -459,9 +459,14 @@ impl Construction {
                 &self.scene,
                 &mut ldc,
                 &self.sources,
-                g_max,
-                s.compensation_rays,
-                s.seed,
+                &crate::compensate::Options {
+                    g_max,
+                    rays: s.compensation_rays,
+                    levels: s.compensation_levels,
+                    seed: s.seed,
+                    // Reflected light only where the walks carry some (paths that bounce).
+                    reflected: s.max_depth > 0 && self.irpls.paths > 0,
+                },
             );
             self.stats.compensation_time = t.elapsed();
             ldc.relight(&vec![[Vec3::ONE; 2]; ldc.sources.sources()]);

@@ -125,6 +125,9 @@ pub struct IbrrSettings {
     pub compensation: Compensation,
     /// Rays a layer for [`Compensation::Local`].
     pub compensation_rays: u32,
+    /// Levels of [`Compensation::Local`]: 1 recovers the clamped light, each further level
+    /// the clamped part of what was recovered.
+    pub compensation_levels: u32,
 }
 
 /// How the energy the clamp removes is given back.
@@ -150,7 +153,7 @@ impl Default for IbrrSettings {
             direct_hemicube: 0,
             indirect_hemicube: 0,
             splat: Splat::Exact,
-            clamp: 0.0,
+            clamp: 0.1,
             lookup: Lookup::Bilinear,
             eps_distance_px: 0.5,
             eps_normal: 0.05,
@@ -163,6 +166,7 @@ impl Default for IbrrSettings {
             source_precision: crate::ldc::SourcePrecision::F32,
             compensation: Compensation::Local,
             compensation_rays: 16,
+            compensation_levels: 2,
         }
     }
 }
@@ -236,6 +240,12 @@ impl IbrrSettings {
             && radius > 16
         {
             return bad(format!("averaging radius must be at most 16, got {radius}"));
+        }
+        if !(1..=8).contains(&self.compensation_levels) {
+            return bad(format!(
+                "compensation_levels must be in 1..=8, got {}",
+                self.compensation_levels
+            ));
         }
         if self.compensation_rays > 4096 {
             return bad(format!(

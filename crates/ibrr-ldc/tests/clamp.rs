@@ -83,6 +83,7 @@ fn the_clamp_with_local_compensation_lowers_hot_spots_and_keeps_the_energy_near_
         .collect();
     let base = IbrrSettings {
         resolution: 128,
+        clamp: 0.0,
         ..Default::default()
     };
     let (plain, _) = common::ibrr_image(&scene, base, SIZE);

@@ -244,6 +244,10 @@ fn the_same_irpls_in_another_order_give_the_same_ldc() {
         direct_hemicube: 64,
         indirect_hemicube: 32,
         irpls: 40,
+        // Unclamped: the clamp's compensation traces rays from each layer's centre, which
+        // the founding sample's plane places to float precision, so two orders differ by
+        // about 1e-4 there (measured 1.2e-4) for the rays' sake, not the construction's.
+        clamp: 0.0,
         ..Default::default()
     };
     let c = ibrr_ldc::Construction::new(scene.clone(), &LightState::default(), &settings).unwrap();
@@ -279,6 +283,9 @@ fn progressive_refinement_lowers_the_error_as_paths_complete() {
     let settings = IbrrSettings {
         resolution: 64,
         irpls: 360,
+        // The clamp's compensation runs once the LDC is complete, so frames before the end
+        // show clamped light without it; unclamped, every frame is the same estimator.
+        clamp: 0.0,
         ..Default::default()
     };
     let mut t = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
