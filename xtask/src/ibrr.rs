@@ -32,7 +32,7 @@ pub struct Options {
     pub lookup: String,
     /// Clamp of path IRPLs' geometry term as a fraction of the scene's extent, with the
     /// clamped energy restored (0: unclamped, the paper's accurate option).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.1)]
     pub clamp: f32,
     /// How the clamped energy is restored: local (short rays from every layer recover it
     /// where it was lost) or rescale (each IRPL's values scaled to its unclamped power).

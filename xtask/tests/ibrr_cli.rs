@@ -67,6 +67,7 @@ fn ibrr_writes_the_view_and_the_summary() {
 fn ibrr_refuses_bad_options_by_name() {
     for (args, says) in [
         (vec!["--splat", "round"], "--splat"),
+        (vec!["--compensation", "global"], "--compensation"),
         (
             vec!["--ldc", "0"],
             "--ldc = 0 is outside its range [8, 2048]",
