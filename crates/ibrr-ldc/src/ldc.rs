@@ -759,6 +759,36 @@ impl Ldc {
             + self.sources.bytes()
     }
 
+    /// How much the layers changed since `older`, an LDC of the same construction from an
+    /// earlier round ([`crate::Construction::extend`]): over the layers both have (per LDI
+    /// pixel, a round appends its new layers after the old ones), `sum |new - old| / sum
+    /// new` of each layer's light summed over sources and channels, per unit of the
+    /// sources' factors. When a round doubles the paths, the two estimates' difference is
+    /// about the older one's error; `None` when no layer is shared.
+    pub fn change_from(&self, older: &Ldc) -> Option<f64> {
+        if older.frame != self.frame || older.offsets.len() != self.offsets.len() {
+            return None;
+        }
+        let total = |ldc: &Ldc, l: usize| -> f64 {
+            (0..ldc.sources.sources())
+                .map(|s| {
+                    let [d, i] = ldc.sources.get(l, s);
+                    f64::from((d + i).element_sum())
+                })
+                .sum()
+        };
+        let (mut diff, mut sum) = (0.0f64, 0.0f64);
+        for k in 0..self.offsets.len() - 1 {
+            let (new, old) = (self.range(k), older.range(k));
+            for (a, b) in new.zip(old) {
+                let (x, y) = (total(self, a), total(older, b));
+                diff += (x - y).abs();
+                sum += x;
+            }
+        }
+        (sum > 0.0).then(|| diff / sum)
+    }
+
     /// Sets every layer's direct and indirect irradiance to the sum over sources of the
     /// source's values times `factors[source]` (`[direct, indirect]` factors per channel;
     /// a missing entry is 0): eq. 1 of the relighting paper applied to the layers. Costs

@@ -54,6 +54,11 @@ pub struct IbrrTechnique {
     /// still wanted); 0 stops at the settings' count. The caller's time budget per
     /// call bounds each call; frames show the last complete round.
     pub max_irpls: u32,
+    /// With `max_irpls`: stop adding rounds once a round changed the LDC by less than this
+    /// ([`Ldc::change_from`], about the error of the round before); 0 does not stop.
+    pub target_change: f64,
+    /// The change the last round made ([`IbrrTechnique::last_change`]).
+    last_change: Option<f64>,
     renderer: Box<dyn GBufferRenderer + Send>,
     construction: Option<Construction>,
     ldc: Option<Ldc>,
@@ -82,6 +87,8 @@ impl IbrrTechnique {
             settings,
             progressive: false,
             max_irpls: 0,
+            target_change: 0.0,
+            last_change: None,
             renderer,
             construction: None,
             ldc: None,
@@ -118,6 +125,12 @@ impl IbrrTechnique {
         self.ldc.as_ref()
     }
 
+    /// How much the last round of progressive refinement changed the LDC
+    /// ([`Ldc::change_from`]); `None` before a second round is complete.
+    pub fn last_change(&self) -> Option<f64> {
+        self.last_change
+    }
+
     /// The figures of the last frame.
     pub fn last_timings(&self) -> FrameTimings {
         self.timings
@@ -134,6 +147,7 @@ impl IbrrTechnique {
     ) -> Result<(), IbrrError> {
         self.construction = None;
         self.ldc = None;
+        self.last_change = None;
         if let Some((_, uploaded)) = self.gpu.as_mut() {
             *uploaded = None;
         }
@@ -200,9 +214,13 @@ impl Technique for IbrrTechnique {
         let mut steps = 0;
         // More while the IRPLs still wanted are at least a quarter of those built (a round
         // smaller than that would cost a catch-up over every IRPL for little).
-        let wants_more = |c: &Construction| {
+        let (progressive, max_irpls) = (self.progressive, self.max_irpls);
+        let (target, last_change) = (self.target_change, self.last_change);
+        let wants_more = move |c: &Construction| {
             let n = c.irpls.irpls.len() as u64;
-            self.progressive && 4 * u64::from(self.max_irpls) > 5 * n
+            progressive
+                && 4 * u64::from(max_irpls) > 5 * n
+                && (target <= 0.0 || last_change.is_none_or(|x| x > target))
         };
         // At least one IRPL per call, then as many as the budget allows, up to the end of a
         // round; the next call starts another round while more IRPLs are wanted.
@@ -232,14 +250,24 @@ impl Technique for IbrrTechnique {
         // A later round in progress shows the last complete one: no new LDC until it ends.
         let first_round = c.round() == 0;
         if steps > 0 && (finished_round || first_round) {
-            self.ldc = Some(c.ldc()?);
+            let ldc = c.ldc()?;
+            if finished_round
+                && c.round() > 0
+                && let Some(old) = self.ldc.as_ref()
+            {
+                self.last_change = ldc.change_from(old);
+            }
+            self.ldc = Some(ldc);
             self.shown = c.lights.fingerprint();
             if let Some((_, uploaded)) = self.gpu.as_mut() {
                 *uploaded = None;
             }
         }
         let (done, total) = c.progress();
-        let more = wants_more(c);
+        let last_change = self.last_change;
+        let more = progressive
+            && 4 * u64::from(max_irpls) > 5 * c.irpls.irpls.len() as u64
+            && (target <= 0.0 || last_change.is_none_or(|x| x > target));
         Ok(scene_core::Refinement {
             done: c.is_done() && !more,
             steps,

@@ -297,7 +297,7 @@ fn progressive_refinement_lowers_the_error_as_paths_complete() {
     let mut marks: Vec<u64> = vec![total / 16, total / 8, total / 4, total / 2, total];
     let mut seen = Vec::new();
     loop {
-        let r = t.refine(std::time::Duration::from_millis(20)).unwrap();
+        let r = t.refine(std::time::Duration::ZERO).unwrap();
         let c = t.construction().unwrap();
         let done = if c.is_done() {
             total
@@ -414,6 +414,7 @@ fn progressive_refinement_goes_on_past_the_irpls_asked_and_keeps_converging() {
     t.prepare(scene.clone()).unwrap();
     let frame = FrameRequest::camera(&scene.cameras[0], size, size);
     let mut seen: Vec<(usize, f64)> = Vec::new();
+    let mut changes = Vec::new();
     loop {
         let r = t.refine(std::time::Duration::from_millis(50)).unwrap();
         let c = t.construction().unwrap();
@@ -421,15 +422,45 @@ fn progressive_refinement_goes_on_past_the_irpls_asked_and_keeps_converging() {
         if c.is_done() && seen.last().is_none_or(|(n, _)| *n != irpls) {
             let (err, _) = errors(&t.render(&frame).unwrap(), &reference);
             seen.push((irpls, err));
+            changes.extend(t.last_change());
         }
         if r.done {
             break;
         }
     }
-    println!("IRPLs and mean error after each round: {seen:.4?}");
+    println!(
+        "IRPLs and mean error after each round: {seen:.4?}; each round's change {changes:.4?}"
+    );
+    // The change a round makes estimates the error before it: it falls round by round.
+    assert_eq!(changes.len(), seen.len() - 1);
+    for w in changes.windows(2) {
+        assert!(w[1] < w[0], "{changes:?}");
+    }
     assert!(seen.len() >= 4, "{seen:?}");
     assert!(seen.last().unwrap().0 >= 1440 * 4 / 5);
     for w in seen.windows(2) {
         assert!(w[1].1 < w[0].1, "the error rose: {seen:?}");
     }
+}
+
+#[test]
+fn progressive_refinement_stops_at_its_target_change() {
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let mut t = IbrrTechnique::new(
+        IbrrSettings {
+            resolution: 48,
+            irpls: 60,
+            ..Default::default()
+        },
+        Box::new(RayCastRenderer::new()),
+    );
+    t.progressive = true;
+    t.max_irpls = 1_000_000;
+    t.target_change = 0.05;
+    t.prepare(scene).unwrap();
+    while !t.refine(std::time::Duration::from_millis(50)).unwrap().done {}
+    let change = t.last_change().unwrap();
+    let irpls = t.construction().unwrap().irpls.irpls.len();
+    println!("stopped at {irpls} IRPLs, the last round changing the LDC by {change:.4}");
+    assert!(change <= 0.05 && irpls > 200 && irpls < 100_000);
 }
