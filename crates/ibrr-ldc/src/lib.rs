@@ -1,12 +1,12 @@
 //! # ibrr-ldc
 //!
-//! The image-based radiosity representation (IBRR) of the paper in
-//! `shared/papers/000_b5e2d0ef7a9e18c4.txt`: Keller's instant radiosity made
-//! view-independent. Particle walks place instant-radiosity point lights (IRPLs,
+//! The image-based radiosity representation (IBRR) of Tom Mertens and Frank Van Reeth, "An
+//! Image-Based Radiosity Representation", Eurographics 2002 Short Presentations
+//! (doi:10.2312/egs.20021045): Keller's instant radiosity made view-independent. Particle walks place instant-radiosity point lights (IRPLs,
 //! [`irpl`]); the scene is rendered around each through any
 //! [`scene_core::GBufferRenderer`] and every pixel's irradiance from that IRPL (eq. 2) is
 //! warped into a layered depth cube whose pixels are planes ([`ldc`], [`construct`]); a
-//! camera view is then shaded by warping its pixels into the cube ([`reconstruct`]), at a
+//! camera view is then shaded by warping its pixels into the cube ([`mod@reconstruct`]), at a
 //! cost that depends on the image, not on the triangles.
 //!
 //! ```

@@ -57,7 +57,7 @@ enum Found {
 }
 
 /// The layer values of `ldc` at `p` with normal `n` (every neighbouring layer on the plane
-/// counts; [`reconstruct`] also checks that the camera sees them).
+/// counts; [`reconstruct()`] also checks that the camera sees them).
 pub fn lookup(
     ldc: &Ldc,
     p: Vec3,

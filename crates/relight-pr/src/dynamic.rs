@@ -16,7 +16,7 @@
 //! checked against a budget before anything is allocated and reported
 //! ([`Transfer::bytes`]).
 //!
-//! *Dynamic objects* "will cast shadows, [but] they will not transmit or receive indirect
+//! *Dynamic objects* "will cast shadows, \[but\] they will not transmit or receive indirect
 //! illumination, nor cast shadows due to the indirect illumination." Inserted as triangles
 //! ([`DynamicScene::set_objects`]), they block the direct light of every light: the point and
 //! directional lights of the static solution are re-shot through the scene's rays and the

@@ -1,6 +1,8 @@
 //! # relight-pr
 //!
-//! Radiosity relighting (the paper in `shared/papers/003`): progressive-refinement
+//! Radiosity relighting (Kasper Høy Nielsen and Niels Jørgen Christensen, "Real-Time
+//! Dynamic Radiosity Relighting of Virtual Environments", Journal of WSCG 10(1-2),
+//! 2002, pp. 325-332): progressive-refinement
 //! radiosity whose energy is tagged with the light it came from, so k single-light
 //! solutions are computed with one row of form factors per shot, and relit in real time
 //! as `B_j = sum_m B_jm E_m` (eq. 1) with each light's direct and indirect parts scaled
