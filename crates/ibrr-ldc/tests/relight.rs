@@ -301,3 +301,42 @@ fn relighting_on_the_gpu_equals_relighting_on_the_cpu() {
     );
     assert!(gpu.last_timings().rebuild.is_zero());
 }
+
+#[test]
+fn the_per_source_light_counts_against_the_memory_budget() {
+    // Each layer takes 24 bytes a light source beside its own while building: a budget
+    // that 100 layers of one source fit in refuses them with four sources, typed, before
+    // allocating past it.
+    use ibrr_ldc::ldc::{BUILD_LAYER_BYTES, BUILD_SOURCE_BYTES, LdcBuilder};
+    let frame = ibrr_ldc::LdcFrame::around(Vec3::ZERO, Vec3::ONE, 16, 0.5, 0.05, 0.1);
+    let heads = frame.pixel_count() as u64 * 4;
+    let budget = heads + 100 * (BUILD_LAYER_BYTES + BUILD_SOURCE_BYTES);
+    let fill = |sources: usize| -> Result<usize, ibrr_ldc::IbrrError> {
+        let mut b = LdcBuilder::new(frame, budget, sources)?;
+        for k in 0..100i64 {
+            let p = Vec3::new(
+                (k % 10) as f32 / 10.0 + 0.05,
+                0.5,
+                (k / 10) as f32 / 10.0 + 0.05,
+            );
+            let c = frame.pixel_coords(1, p);
+            b.found(1, c.x.floor() as i64, c.y.floor() as i64, p, Vec3::Y)?;
+        }
+        assert!(b.bytes() <= budget);
+        Ok(b.layer_count())
+    };
+    assert_eq!(fill(1).unwrap(), 100);
+    match fill(4) {
+        Err(ibrr_ldc::IbrrError::Budget {
+            needed,
+            limit,
+            what,
+        }) => {
+            assert!(
+                needed > limit && limit == budget && what.contains("layer"),
+                "{what}"
+            );
+        }
+        other => panic!("expected a budget error, got {other:?}"),
+    }
+}
