@@ -1,7 +1,31 @@
 //! The IBRR as a [`Technique`]: `prepare` constructs the LDC (or, with
 //! [`IbrrTechnique::progressive`], only starts it and lets [`Technique::refine`] add IRPLs
-//! while frames show the LDC so far); `render` reconstructs a frame from the camera's
+//! while frames show the LDC so far, then, up to [`IbrrTechnique::max_irpls`] or until a
+//! round changes the LDC by less than [`IbrrTechnique::target_change`], rounds of further
+//! paths, [`Construction::extend`]); `render` reconstructs a frame from the camera's
 //! G-buffer.
+//!
+//! ```
+//! use std::sync::Arc;
+//! use ibrr_ldc::{IbrrSettings, IbrrTechnique};
+//! use scene_core::{FrameRequest, LightState, LightId, Technique, builtin};
+//! use scene_core::gbuffer::RayCastRenderer;
+//!
+//! let scene = Arc::new(builtin::scene("cornell-point").unwrap());
+//! let settings = IbrrSettings { resolution: 32, irpls: 16, ..Default::default() };
+//! let mut ibrr = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+//! ibrr.prepare(scene.clone()).unwrap();
+//! let white = ibrr.render(&FrameRequest::camera(&scene.cameras[0], 32, 24)).unwrap();
+//! // Recoloured: a relight of the layers, not a rebuild.
+//! let mut red = LightState::default();
+//! red.set_color(LightId::Point(0), glam::Vec3::new(1.0, 0.0, 0.0));
+//! let image = ibrr
+//!     .render(&FrameRequest::from_camera(&scene.cameras[0], 32, 24, &red))
+//!     .unwrap();
+//! assert!(ibrr.last_timings().rebuild.is_zero());
+//! assert!(image.pixels.iter().all(|p| p.y == 0.0 && p.z == 0.0));
+//! assert!(white.pixels.iter().any(|p| p.y > 0.0));
+//! ```
 //!
 //! The LDC keeps each layer's light per source ([`crate::ldc::SourceValues`]), so a
 //! frame's [`scene_core::LightState`] (recolour, dim, switch off, direct and indirect
