@@ -248,7 +248,7 @@ impl Step {
         }
         let mut lights = Vec::new();
         for change in &self.lights {
-            let id = LightId::find(scene, &change.light)?;
+            let id = LightId::find(scene, &change.light).map_err(|e| e.to_string())?;
             let s = change.apply(LightSetting::default());
             let mut probe = LightState::default();
             probe.set(id, s);

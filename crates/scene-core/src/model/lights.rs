@@ -84,25 +84,48 @@ impl LightId {
 
     /// The light of `scene` whose [`LightId::key`] is `key`; the error names the key and
     /// lists the scene's lights.
-    pub fn find(scene: &Scene, key: &str) -> Result<LightId, String> {
+    pub fn find(scene: &Scene, key: &str) -> Result<LightId, UnknownLight> {
         let ids = light_ids(scene);
         ids.iter()
             .copied()
             .find(|id| id.key() == key)
-            .ok_or_else(|| {
-                let known: Vec<String> = ids.iter().map(LightId::key).collect();
-                format!(
-                    "no light '{key}' in scene '{}' (its lights: {})",
-                    scene.name,
-                    if known.is_empty() {
-                        "none".to_string()
-                    } else {
-                        known.join(", ")
-                    }
-                )
+            .ok_or_else(|| UnknownLight {
+                key: key.to_string(),
+                scene: scene.name.clone(),
+                known: ids.iter().map(LightId::key).collect(),
             })
     }
 }
+
+/// [`LightId::find`] found no light of that key: the key, the scene, and the keys of the
+/// scene's lights (for a caller to offer them).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnknownLight {
+    /// The key asked for.
+    pub key: String,
+    /// The scene's name.
+    pub scene: String,
+    /// The keys of the scene's lights ([`light_ids`]' order).
+    pub known: Vec<String>,
+}
+
+impl std::fmt::Display for UnknownLight {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "no light '{}' in scene '{}' (its lights: {})",
+            self.key,
+            self.scene,
+            if self.known.is_empty() {
+                "none".to_string()
+            } else {
+                self.known.join(", ")
+            }
+        )
+    }
+}
+
+impl std::error::Error for UnknownLight {}
 
 /// Every light source of `scene`, in a fixed order: point lights, directional lights, then
 /// emissive meshes by mesh index.
@@ -462,12 +485,16 @@ mod tests {
         }
         assert_eq!(LightId::Directional(2).key(), "directional:2");
         let e = LightId::find(&scene, "point:99").unwrap_err();
+        assert_eq!(e.key, "point:99");
+        assert!(e.known.contains(&"point:0".to_string()));
+        let e = e.to_string();
         assert!(
             e.contains("no light 'point:99'") && e.contains("point:0"),
             "{e}"
         );
         let e = LightId::find(&builtin::scene("primitives").unwrap(), "sun").unwrap_err();
-        assert!(e.contains("its lights: directional:0"), "{e}");
+        assert_eq!(e.known, vec!["directional:0".to_string()]);
+        assert!(e.to_string().contains("its lights: directional:0"), "{e}");
     }
 
     #[test]
