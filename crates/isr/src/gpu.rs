@@ -449,10 +449,15 @@ impl GpuIsr {
         let limit = device.limits().max_storage_buffer_binding_size;
         let texel_bytes = scene.shadow_texels.len() as u64 * 4;
         if texel_bytes > limit {
-            return Err(IsrError::Budget(format!(
-                "shadow maps take {texel_bytes} bytes, over the device's storage buffer limit \
-                 of {limit}; lower ShadowSettings resolutions or max_texels"
-            )));
+            return Err(IsrError::Budget(scene_core::BudgetExceeded {
+                what: "the shadow maps".into(),
+                needed: texel_bytes,
+                limit,
+                unit: "bytes",
+                hint: "the device's storage buffer limit; lower ShadowSettings resolutions or \
+                       max_texels"
+                    .into(),
+            }));
         }
         let mut lights = gpu_lights(scene);
         if lights.is_empty() {

@@ -122,7 +122,7 @@ pub enum IsrError {
     BadScene(String),
     /// A budget (shadow-map texels, GPU buffer size) would be exceeded.
     #[error("budget exceeded: {0}")]
-    Budget(String),
+    Budget(scene_core::BudgetExceeded),
     /// The GPU failed, or a texture has the wrong format or usage.
     #[error(transparent)]
     Gpu(#[from] scene_core::gpu::GpuError),

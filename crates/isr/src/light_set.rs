@@ -378,12 +378,13 @@ impl LightSet {
             emit = (emit / 2).max(16.min(emit));
         }
         if total(cube, emit) > s.max_texels {
-            return Err(IsrError::Budget(format!(
-                "shadow maps need {} texels even at 16 texels per cube face, over the budget \
-                 of {} (ShadowSettings::max_texels); lower directional_resolution or raise it",
-                total(cube, emit),
-                s.max_texels
-            )));
+            return Err(IsrError::Budget(scene_core::BudgetExceeded {
+                what: "shadow maps at 16 texels per cube face".into(),
+                needed: total(cube, emit),
+                limit: s.max_texels,
+                unit: "texels",
+                hint: "ShadowSettings::max_texels; lower directional_resolution or raise it".into(),
+            }));
         }
         self.cube_resolutions = (cube, emit);
         let rays = rays();

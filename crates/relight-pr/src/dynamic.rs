@@ -97,10 +97,13 @@ impl Transfer {
         let (n, np) = (meshing.elements.len(), meshing.patches.len());
         let bytes = transfer_bytes(n, np);
         if bytes > max_bytes {
-            return Err(RelightError::Budget(format!(
-                "a transfer solution of {np} patches over {n} elements needs {bytes} bytes \
-                 while solving, over the budget of {max_bytes}"
-            )));
+            return Err(RelightError::Budget(scene_core::BudgetExceeded {
+                what: format!("a transfer solution of {np} patches over {n} elements"),
+                needed: bytes,
+                limit: max_bytes,
+                unit: "bytes",
+                hint: "the memory budget while solving".into(),
+            }));
         }
         solver::check_and_prepare(scene, meshing, &mut renderer, settings)?;
         let start = Instant::now();

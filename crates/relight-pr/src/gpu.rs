@@ -116,10 +116,14 @@ impl GpuRelight {
             ("element table", n as u64 * 80),
         ] {
             if bytes > limit {
-                return Err(RelightError::Budget(format!(
-                    "the {what} needs {bytes} bytes; this adapter binds at most {limit} \
-                     (use Precision::F16 or fewer elements)"
-                )));
+                return Err(RelightError::Budget(scene_core::BudgetExceeded {
+                    what: format!("the {what}"),
+                    needed: bytes,
+                    limit,
+                    unit: "bytes",
+                    hint: "this adapter's binding limit; use Precision::F16 or fewer elements"
+                        .into(),
+                }));
             }
         }
         let packed = Packed::new(&solution.direct, &solution.indirect, k, precision);
@@ -173,10 +177,14 @@ impl GpuRelight {
             ("element table", table_bytes),
         ] {
             if bytes > limit {
-                return Err(RelightError::Budget(format!(
-                    "the {what} needs {bytes} bytes; this adapter binds at most {limit} \
-                     (use Precision::F16 or fewer elements)"
-                )));
+                return Err(RelightError::Budget(scene_core::BudgetExceeded {
+                    what: format!("the {what}"),
+                    needed: bytes,
+                    limit,
+                    unit: "bytes",
+                    hint: "this adapter's binding limit; use Precision::F16 or fewer elements"
+                        .into(),
+                }));
             }
         }
         let constants: &[(&str, f64)] =

@@ -62,7 +62,7 @@ pub enum RelightError {
     UnknownLight(String),
     /// The meshing or the solution would exceed its budget (nothing was allocated).
     #[error("budget exceeded: {0}")]
-    Budget(String),
+    Budget(scene_core::BudgetExceeded),
     /// The G-buffer renderer of the hemicube failed.
     #[error("hemicube rendering failed: {0}")]
     Render(Box<scene_core::Error>),

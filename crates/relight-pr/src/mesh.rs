@@ -345,10 +345,13 @@ impl Meshing {
         }
         let budget = &settings.budget;
         let over = |count: u64| {
-            RelightError::Budget(format!(
-                "{count} elements asked for, over the budget of {} (MeshBudget::max_elements)",
-                budget.max_elements
-            ))
+            RelightError::Budget(scene_core::BudgetExceeded {
+                what: "the meshing".into(),
+                needed: count,
+                limit: budget.max_elements as u64,
+                unit: "elements",
+                hint: "MeshBudget::max_elements".into(),
+            })
         };
         if count > budget.max_elements as u64 {
             return Err(over(count));
@@ -418,11 +421,13 @@ impl Meshing {
         let bytes =
             crate::solver::solution_bytes(count as usize, patch_count as usize, lights.max(1));
         if bytes > budget.max_solution_bytes {
-            return Err(RelightError::Budget(format!(
-                "a {lights}-light solution over {count} elements needs {bytes} bytes, over the \
-                 budget of {} (MeshBudget::max_solution_bytes)",
-                budget.max_solution_bytes
-            )));
+            return Err(RelightError::Budget(scene_core::BudgetExceeded {
+                what: format!("a {lights}-light solution over {count} elements"),
+                needed: bytes,
+                limit: budget.max_solution_bytes,
+                unit: "bytes",
+                hint: "MeshBudget::max_solution_bytes".into(),
+            }));
         }
         // Where each triangle starts: its mesh and index within it.
         let mut owner = Vec::with_capacity(areas.len());

@@ -284,3 +284,32 @@ pub enum ImageError {
         found: usize,
     },
 }
+
+/// A computation that would exceed a budget (memory, element count, texels, an adapter's
+/// binding limit), refused before anything was allocated. The method crates' `Budget`
+/// errors carry one, so a caller reads the figures instead of parsing a message.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BudgetExceeded {
+    /// What was to be allocated (`"a 4-light solution over 1200 elements"`).
+    pub what: String,
+    /// How much it needed.
+    pub needed: u64,
+    /// The limit.
+    pub limit: u64,
+    /// The unit of both: `"bytes"`, `"elements"` or `"texels"`.
+    pub unit: &'static str,
+    /// Which setting or limit it was, and what to change.
+    pub hint: String,
+}
+
+impl std::fmt::Display for BudgetExceeded {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} needs {} {}, over the limit of {} ({})",
+            self.what, self.needed, self.unit, self.limit, self.hint
+        )
+    }
+}
+
+impl std::error::Error for BudgetExceeded {}

@@ -47,7 +47,7 @@ pub use model::{builtin, contract, lights, scene, view};
 pub use rays::{ray, reference, sampling};
 
 pub use budget::{Budget, BudgetError};
-pub use error::{GltfError, ImageError, SceneError};
+pub use error::{BudgetExceeded, GltfError, ImageError, SceneError};
 pub use gbuffer::{
     BACKGROUND_ID, GBuffer, GBufferRenderer, HemicubeFaceBuffer, ViewTarget, hemicube_views,
 };
@@ -97,7 +97,7 @@ pub enum Error {
     FileBudget(#[from] budget::BudgetError),
     /// A budget (memory, element count) would be exceeded.
     #[error("budget exceeded: {0}")]
-    Budget(String),
+    Budget(BudgetExceeded),
     /// An argument is out of range.
     #[error("invalid argument: {0}")]
     InvalidArgument(String),
