@@ -113,7 +113,7 @@ pub fn ci(with_tests: bool) -> Result<(), String> {
         "warnings",
     ])?;
     dependency_rule()?;
-    let n = crate::shaders::validate_all(&crate::shaders::workspace_root().join("crates"), None)?;
+    let n = crate::shaders::validate_all(&crate::shaders::workspace_root().join("shaders"), None)?;
     eprintln!("{n} shader(s) valid");
     if with_tests {
         cargo(&["test", "--workspace"])?;

@@ -2,7 +2,7 @@
 //!
 //! - `ci`: formatting, clippy (warnings denied), the dependency rule, shader validation and
 //!   the workspace tests.
-//! - `shaders`: parse and validate every `crates/*/shaders/*.wgsl` with naga and translate it to
+//! - `shaders`: parse and validate every `shaders/*/*.wgsl` with naga and translate it to
 //!   SPIR-V, MSL and HLSL.
 //! - `reference`: render a scene with the reference path tracer to EXR + PNG.
 //! - `export-gltf`: write a built-in scene as glTF.
@@ -211,7 +211,7 @@ enum Command {
         #[arg(long)]
         no_test: bool,
     },
-    /// Validate every crates/*/shaders/*.wgsl with naga and translate to SPIR-V, MSL and HLSL.
+    /// Validate every shaders/*/*.wgsl with naga and translate to SPIR-V, MSL and HLSL.
     Shaders {
         /// Also write the translations to this directory.
         #[arg(long)]
@@ -631,7 +631,7 @@ fn run(cli: Cli) -> Result<(), String> {
     match cli.command {
         Command::Ci { no_test } => checks::ci(!no_test),
         Command::Shaders { out } => {
-            shaders::validate_all(&shaders::workspace_root().join("crates"), out.as_deref()).map(
+            shaders::validate_all(&shaders::workspace_root().join("shaders"), out.as_deref()).map(
                 |n| {
                     println!("{n} shader(s) valid and translated to SPIR-V, MSL and HLSL");
                 },

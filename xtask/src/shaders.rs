@@ -10,8 +10,8 @@
 //! must not get the common part goes in a subdirectory.
 //!
 //! A pass made of several files (one per Rust module it mirrors, or a part shared across
-//! crates such as `scene-core/shaders/reconstruct.wgsl`) says so on its first line,
-//! `// after: a.wgsl ../../other/shaders/b.wgsl`: those files (paths relative to its directory) come
+//! crates such as `shaders/scene-core/reconstruct.wgsl`) says so on its first line,
+//! `// after: a.wgsl ../other/b.wgsl`: those files (paths relative to its directory) come
 //! before it, in that order (not transitively; a `common.wgsl`'s parts come before the
 //! common file), and the embedding crate concatenates the same.
 
@@ -184,7 +184,7 @@ mod tests {
 
     #[test]
     fn the_project_shaders_are_valid() {
-        assert!(validate_all(&workspace_root().join("crates"), None).unwrap() >= 1);
+        assert!(validate_all(&workspace_root().join("shaders"), None).unwrap() >= 1);
     }
 
     #[test]

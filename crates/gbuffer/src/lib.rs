@@ -28,7 +28,7 @@
 //!   Bit-identical output for any thread count.
 //! * [`GpuRasterizer`] ([`mrt`]): a wgpu render pipeline writing the four targets of
 //!   scene-core's [`GpuGBuffer`](scene_core::gpu::GpuGBuffer) in one pass
-//!   (`crates/gbuffer/shaders/mrt.wgsl`). The result stays on the GPU; reading it back is an
+//!   (`shaders/gbuffer/mrt.wgsl`). The result stays on the GPU; reading it back is an
 //!   explicit step. Both renderers implement [`GBufferRenderer`](scene_core::GBufferRenderer)
 //!   and agree to about 1e-5 in depth and normals (tested to 1e-4) wherever they pick the
 //!   same triangle.

@@ -1,6 +1,6 @@
 //! The GPU G-buffer: a wgpu render pipeline writing albedo + radiation mask, world normal,
 //! linear depth and triangle id in one pass with multiple render targets (thesis figure
-//! 4.1), plus the depth attachment. Shader: `crates/gbuffer/shaders/mrt.wgsl` ([`MRT_WGSL`]).
+//! 4.1), plus the depth attachment. Shader: `shaders/gbuffer/mrt.wgsl` ([`MRT_WGSL`]).
 //!
 //! The result stays on the GPU as a [`GpuGBuffer`] (formats in
 //! [`GpuGBuffer::COLOR_FORMATS`]); reading it back is the separate, explicit step

@@ -1,5 +1,5 @@
 //! World- and view-space positions from a G-buffer's depth (thesis section 4.3), on the
-//! CPU and in WGSL (`crates/gbuffer/shaders/reconstruct.wgsl`, [`RECONSTRUCT_WGSL`]).
+//! CPU and in WGSL (`shaders/gbuffer/reconstruct.wgsl`, [`RECONSTRUCT_WGSL`]).
 //!
 //! * [`FrustumReconstruction`]: the thesis' method (eqs. 23-24). The G-buffer stores linear
 //!   depth `d` = view distance along the view direction / far; the position seen at image

@@ -1,4 +1,4 @@
-//! Reconstruction on the GPU (wgpu compute, `crates/ibrr-ldc/shaders/reconstruct.wgsl`): the
+//! Reconstruction on the GPU (wgpu compute, `shaders/ibrr-ldc/reconstruct.wgsl`): the
 //! flattened LDC ([`Ldc`]'s offsets, planes and values) is uploaded once; a frame binds the
 //! camera's [`GpuGBuffer`] and runs one pass that mirrors [`crate::reconstruct()`] and
 //! [`crate::shade`] pixel for pixel.

@@ -104,7 +104,7 @@ pub fn blur_pass(
         .collect()
 }
 
-/// WGSL source of the GPU pass (`crates/isr/shaders/common.wgsl` + `blur.wgsl`), one direction per dispatch.
+/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `blur.wgsl`), one direction per dispatch.
 pub const WGSL: &str = scene_core::wgsl!(
     scene_core::gpu::RECONSTRUCT_WGSL,
     include_str!("../shaders/common.wgsl"),

@@ -1,5 +1,5 @@
 //! The GPU path: the same frame as [`crate::render_cpu`] in wgpu compute passes, one shader
-//! per pass in `crates/isr/shaders/` (each pass module owns its pipeline, bind group layout and
+//! per pass in `shaders/isr/` (each pass module owns its pipeline, bind group layout and
 //! dispatch), from a [`GpuGBuffer`] made by anyone into a caller-provided texture, with no
 //! readback in the frame.
 //!

@@ -4,7 +4,7 @@
 //! bounce of indirect light from neighbouring pixels treated as patches (eq. 25),
 //! spherical-occluder SSAO (eq. 26), a Gaussian or edge-aware blur, bilateral upsampling
 //! (eqs. 27-28) and the lighting phase (eq. 29) with exponential shadow maps and PCF (eq. 30),
-//! on the CPU (rayon) and the GPU (wgpu compute, one shader per pass in `crates/isr/shaders/`).
+//! on the CPU (rayon) and the GPU (wgpu compute, one shader per pass in `shaders/isr/`).
 //!
 //! ```
 //! use isr::{DownsampleMode, IsrInputs, LightSet, IsrSettings, ShadowSettings, downsample, render_cpu};
@@ -35,11 +35,11 @@
 //! - [`IsrTechnique`] and [`DlTechnique`]: [`scene_core::Technique`]s holding any
 //!   [`scene_core::GBufferRenderer`].
 //!
-//! The passes, each a module here and a shader in `crates/isr/shaders/`: [`lighting`] (also the
+//! The passes, each a module here and a shader in `shaders/isr/`: [`lighting`] (also the
 //! `Lit` senders on the coarse buffer; its shader is composed of `light_set.wgsl`,
 //! `shadow.wgsl` and `lighting.wgsl`, mirroring [`light_set`], [`shadow`] and [`lighting`]),
 //! [`radiosity`] (ISR + SSAO), [`blur`], [`upsample`]. The coarse buffers come from
-//! scene-core's downsampling ([`downsample()`], `crates/scene-core/shaders/downsample.wgsl`).
+//! scene-core's downsampling ([`downsample()`], `shaders/scene-core/downsample.wgsl`).
 //! [`shadow`] builds the maps on the CPU (they are view-independent).
 //! `docs/isr.md` has the design decisions, the readings of the thesis' equations and the
 //! measured errors and timings.

@@ -103,7 +103,7 @@ pub fn compose(
     }
 }
 
-/// WGSL source of the GPU pass writing `Rgba32Float`: `crates/isr/shaders/common.wgsl`, then the
+/// WGSL source of the GPU pass writing `Rgba32Float`: `shaders/isr/common.wgsl`, then the
 /// light set and shadow parts the pass shares with [`crate::light_set`] and
 /// [`crate::shadow`], the output declaration, and `lighting.wgsl`.
 pub const WGSL: &str = scene_core::wgsl!(

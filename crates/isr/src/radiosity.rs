@@ -221,7 +221,7 @@ fn gather(
     gi.extend(access)
 }
 
-/// WGSL source of the GPU pass (`crates/isr/shaders/common.wgsl` + `radiosity.wgsl`).
+/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `radiosity.wgsl`).
 pub const WGSL: &str = scene_core::wgsl!(
     scene_core::gpu::RECONSTRUCT_WGSL,
     include_str!("../shaders/common.wgsl"),

@@ -120,7 +120,7 @@ fn upsample_pixel(
     best.map_or(NOTHING, |(_, j)| values[j])
 }
 
-/// WGSL source of the GPU pass (`crates/isr/shaders/common.wgsl` + `upsample.wgsl`).
+/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `upsample.wgsl`).
 pub const WGSL: &str = scene_core::wgsl!(
     scene_core::gpu::RECONSTRUCT_WGSL,
     include_str!("../shaders/common.wgsl"),

@@ -1,4 +1,4 @@
-//! Relighting on the GPU (wgpu compute, `crates/relight-pr/shaders/`): eq. 1 over the packed
+//! Relighting on the GPU (wgpu compute, `shaders/relight-pr/`): eq. 1 over the packed
 //! element solution ([`GpuRelight::relight`]), and the paper's "hardware" display: the
 //! per-light radiosity at the welded vertices combined with the frame's light factors per
 //! pixel in one pass over a G-buffer of the element scene ([`GpuRelight::display`]). The

@@ -1125,7 +1125,7 @@ impl GpuGBuffer {
 
 /// Per-pixel luminance of `img` computed on the GPU with the thesis' eq. 17 weights,
 /// `0.27 R + 0.67 G + 0.06 B` (the compute shader [`LUMINANCE_WGSL`],
-/// `crates/scene-core/shaders/luminance.wgsl`, 8 x 8 workgroups). Row-major like
+/// `shaders/scene-core/luminance.wgsl`, 8 x 8 workgroups). Row-major like
 /// [`Image::luminance`], which it matches to a few ulps.
 ///
 /// Errors (never panics) on a zero-size image, a size beyond the device's limits or a

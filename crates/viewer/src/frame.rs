@@ -22,11 +22,11 @@ use wgpu::util::DeviceExt;
 
 use crate::mode::{Layout, Mode};
 
-/// WGSL of the resolve pass (`crates/viewer/shaders/resolve.wgsl`).
+/// WGSL of the resolve pass (`shaders/viewer/resolve.wgsl`).
 pub const RESOLVE_WGSL: &str = include_str!("../shaders/resolve.wgsl");
-/// WGSL of the compose pass (`crates/viewer/shaders/compose.wgsl`).
+/// WGSL of the compose pass (`shaders/viewer/compose.wgsl`).
 pub const COMPOSE_WGSL: &str = include_str!("../shaders/compose.wgsl");
-/// WGSL of the present pass (`crates/viewer/shaders/present.wgsl`).
+/// WGSL of the present pass (`shaders/viewer/present.wgsl`).
 pub const PRESENT_WGSL: &str = include_str!("../shaders/present.wgsl");
 
 /// The ISR settings of an ISR-family mode, and which of its textures the mode shows

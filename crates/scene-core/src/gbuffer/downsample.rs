@@ -1,6 +1,6 @@
 //! Coarse G-buffers: downsampling by 2 in each direction ("4 times smaller buffers",
 //! thesis section 4.2), on the CPU ([`downsample`]) and the GPU ([`GpuDownsampler`],
-//! shader `crates/scene-core/shaders/downsample.wgsl`, [`DOWNSAMPLE_WGSL`]), with the same results.
+//! shader `shaders/scene-core/downsample.wgsl`, [`DOWNSAMPLE_WGSL`]), with the same results.
 //! The one downsampling of the toolkit: the gbuffer crate re-exports it and ISR's coarse
 //! buffers come from it ([`DownsampleMode::NearestSurface`] by default).
 //!

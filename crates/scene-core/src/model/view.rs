@@ -153,7 +153,7 @@ impl FrustumReconstruction {
     }
 
     /// The world-space vectors as the `FrustumReconstruction` struct of
-    /// `crates/scene-core/shaders/reconstruct.wgsl` (six `vec4`s, `w` = 0): `base0, base_u, base_v,
+    /// `shaders/scene-core/reconstruct.wgsl` (six `vec4`s, `w` = 0): `base0, base_u, base_v,
     /// ray0, ray_u, ray_v`.
     pub fn uniform(&self) -> [[f32; 4]; 6] {
         let [b0, bu, bv] = self.base;

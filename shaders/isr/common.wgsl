@@ -1,4 +1,4 @@
-// after: ../../scene-core/shaders/reconstruct.wgsl
+// after: ../scene-core/reconstruct.wgsl
 // Declarations shared by every ISR shader in this directory (blur, radiosity, upsample,
 // lighting). WGSL has no #include: crates/isr/src/*.rs build each pass's source as
 // `concat!(scene-core/reconstruct.wgsl, common.wgsl, <parts>, <pass>.wgsl)` and

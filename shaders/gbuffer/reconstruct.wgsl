@@ -1,4 +1,4 @@
-// after: ../../scene-core/shaders/reconstruct.wgsl
+// after: ../scene-core/reconstruct.wgsl
 // World-space position reconstruction from a G-buffer's depth (thesis section 4.3),
 // mirroring crates/gbuffer/src/reconstruct.rs. Three entry points, one per method, so a
 // micro-benchmark can time them apart:

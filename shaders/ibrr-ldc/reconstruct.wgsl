@@ -1,4 +1,4 @@
-// after: ../../scene-core/shaders/reconstruct.wgsl
+// after: ../scene-core/reconstruct.wgsl
 // IBRR reconstruction (paper section 5) over the flattened LDC, one invocation per camera
 // pixel; mirrors crates/ibrr-ldc/src/reconstruct.rs (`reconstruct` then `shade`) step for
 // step: unproject the pixel, pick the LDIs its normal belongs to (blended near their

@@ -1,4 +1,4 @@
-// after: ../../scene-core/shaders/reconstruct.wgsl
+// after: ../scene-core/reconstruct.wgsl
 // The paper's "hardware" display: per-light radiosity at the welded vertices combined with
 // the light factors per pixel in one pass (mirrors crates/relight-pr/src/display.rs'
 // compose with smooth shading). A pixel finds its element by the G-buffer's triangle id,
