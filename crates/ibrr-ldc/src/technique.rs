@@ -221,6 +221,22 @@ impl IbrrTechnique {
     }
 }
 
+/// Whether progressive refinement adds another round: while the IRPLs still wanted are at
+/// least a quarter of those built (a smaller round would cost a catch-up over every IRPL
+/// for little) and the last round changed the LDC by more than `target` (0: no target).
+fn wants_more(
+    progressive: bool,
+    max_irpls: u32,
+    target: f64,
+    last_change: Option<f64>,
+    c: &Construction,
+) -> bool {
+    let n = c.irpls.irpls.len() as u64;
+    progressive
+        && 4 * u64::from(max_irpls) > 5 * n
+        && (target <= 0.0 || last_change.is_none_or(|x| x > target))
+}
+
 impl Technique for IbrrTechnique {
     fn name(&self) -> &str {
         &self.name
@@ -236,22 +252,16 @@ impl Technique for IbrrTechnique {
         };
         let start = Instant::now();
         let mut steps = 0;
-        // More while the IRPLs still wanted are at least a quarter of those built (a round
-        // smaller than that would cost a catch-up over every IRPL for little).
         let (progressive, max_irpls) = (self.progressive, self.max_irpls);
         let (target, last_change) = (self.target_change, self.last_change);
-        let wants_more = move |c: &Construction| {
-            let n = c.irpls.irpls.len() as u64;
-            progressive
-                && 4 * u64::from(max_irpls) > 5 * n
-                && (target <= 0.0 || last_change.is_none_or(|x| x > target))
-        };
+        let more_rounds =
+            |c: &Construction| wants_more(progressive, max_irpls, target, last_change, c);
         // At least one IRPL per call, then as many as the budget allows, up to the end of a
         // round; the next call starts another round while more IRPLs are wanted.
         let mut finished_round = false;
         while steps == 0 || start.elapsed() < budget {
             if c.is_done() {
-                if !wants_more(c) || c.irpls.paths == 0 {
+                if !more_rounds(c) || c.irpls.paths == 0 {
                     break;
                 }
                 // About the IRPLs still wanted, at most as many paths as there are.
@@ -288,10 +298,7 @@ impl Technique for IbrrTechnique {
             }
         }
         let (done, total) = c.progress();
-        let last_change = self.last_change;
-        let more = progressive
-            && 4 * u64::from(max_irpls) > 5 * c.irpls.irpls.len() as u64
-            && (target <= 0.0 || last_change.is_none_or(|x| x > target));
+        let more = wants_more(progressive, max_irpls, target, self.last_change, c);
         Ok(scene_core::Refinement {
             done: c.is_done() && !more,
             steps,

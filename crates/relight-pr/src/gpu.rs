@@ -115,16 +115,7 @@ impl GpuRelight {
             ("packed vertex solution", vertex_bytes),
             ("element table", n as u64 * 80),
         ] {
-            if bytes > limit {
-                return Err(RelightError::Budget(scene_core::BudgetExceeded {
-                    what: format!("the {what}"),
-                    needed: bytes,
-                    limit,
-                    unit: "bytes",
-                    hint: "this adapter's binding limit; use Precision::F16 or fewer elements"
-                        .into(),
-                }));
-            }
+            check_binding(what, bytes, limit)?;
         }
         let packed = Packed::new(&solution.direct, &solution.indirect, k, precision);
         let (vd, vi) = welding.vertex_solution(meshing, solution);
@@ -176,16 +167,7 @@ impl GpuRelight {
             ("packed vertex solution", vertex_bytes),
             ("element table", table_bytes),
         ] {
-            if bytes > limit {
-                return Err(RelightError::Budget(scene_core::BudgetExceeded {
-                    what: format!("the {what}"),
-                    needed: bytes,
-                    limit,
-                    unit: "bytes",
-                    hint: "this adapter's binding limit; use Precision::F16 or fewer elements"
-                        .into(),
-                }));
-            }
+            check_binding(what, bytes, limit)?;
         }
         let constants: &[(&str, f64)] =
             &[("F16", (packed.precision == Precision::F16) as u8 as f64)];
@@ -502,4 +484,18 @@ impl GpuRelight {
 
 fn gpu(e: GpuError) -> RelightError {
     RelightError::Gpu(Box::new(e))
+}
+
+/// Refuses a buffer of `bytes` over the adapter's binding `limit`, naming `what`.
+fn check_binding(what: &str, bytes: u64, limit: u64) -> Result<(), RelightError> {
+    if bytes > limit {
+        return Err(RelightError::Budget(scene_core::BudgetExceeded {
+            what: format!("the {what}"),
+            needed: bytes,
+            limit,
+            unit: "bytes",
+            hint: "this adapter's binding limit; use Precision::F16 or fewer elements".into(),
+        }));
+    }
+    Ok(())
 }
