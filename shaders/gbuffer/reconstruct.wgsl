@@ -1,4 +1,4 @@
-// after: ../scene-core/reconstruct.wgsl
+#import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 // World-space position reconstruction from a G-buffer's depth (thesis section 4.3),
 // mirroring crates/gbuffer/src/reconstruct.rs. Three entry points, one per method, so a
 // micro-benchmark can time them apart:
@@ -19,7 +19,7 @@
 // taps = 1 the output is the pixel's own position.
 
 struct Params {
-    // Eq. 24's vectors (scene-core/reconstruct.wgsl, prepended).
+    // Eq. 24's vectors (scene_core::reconstruct).
     frustum: FrustumReconstruction,
     // Inverse of the linear-depth clip transform (see InverseMatrixReconstruction).
     inv_linear: mat4x4<f32>,

@@ -1,4 +1,4 @@
-// after: ../scene-core/reconstruct.wgsl
+#import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 // The exact mode's gather on the GPU, one invocation per LDC layer; mirrors
 // crates/ibrr-ldc/src/construct.rs (`unoccluded`) and irpl.rs (`irradiance_clamped`): the
 // layer's centre on its plane, the IRPL's (clamped, compensated) irradiance there, times

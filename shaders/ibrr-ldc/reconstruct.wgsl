@@ -1,4 +1,4 @@
-// after: ../scene-core/reconstruct.wgsl
+#import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 // IBRR reconstruction (paper section 5) over the flattened LDC, one invocation per camera
 // pixel; mirrors crates/ibrr-ldc/src/reconstruct.rs (`reconstruct` then `shade`) step for
 // step: unproject the pixel, pick the LDIs its normal belongs to (blended near their

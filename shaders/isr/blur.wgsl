@@ -1,3 +1,4 @@
+#import isr::common::{FLAG_EDGE_AWARE, BACKGROUND, MIN_POSITIVE, has_flag, pixel_uv, world, view_scale, normal_or_viewer, g}
 // One direction of the separable blur of the coarse ISR/SSAO buffer (thesis section 4.2,
 // listing 3: BlurHorizontal, BlurVertical; mirrors crates/isr/src/blur.rs).
 //
@@ -6,7 +7,7 @@
 // from the centre pixel's tangent plane and s the centre's view depth, times
 // max(n_c . n_t, 0)^2.
 
-// common.wgsl, prepended, declares Globals, g (group 0, binding 0), the FLAG_* constants
+// common.wgsl (isr::common) declares Globals, g (group 0, binding 0), the FLAG_* constants
 // and the view helpers.
 
 const EDGE_PLANE_SIGMA: f32 = 0.05;

@@ -1,8 +1,8 @@
-// after: ../scene-core/reconstruct.wgsl
+#define_import_path isr::common
+#import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 // Declarations shared by every ISR shader in this directory (blur, radiosity, upsample,
-// lighting). WGSL has no #include: crates/isr/src/*.rs build each pass's source as
-// `concat!(scene-core/reconstruct.wgsl, common.wgsl, <parts>, <pass>.wgsl)` and
-// `cargo xtask shaders` composes the same from the files' `// after:` lines.
+// lighting), the module `isr::common`: each pass imports what it uses
+// (crates/isr/src/shaders.rs lists the passes; scene-core's shader composer joins them).
 
 // Per-frame parameters; crates/isr/src/gpu.rs `Globals` writes them.
 struct Globals {
@@ -26,7 +26,7 @@ struct Globals {
     filters: vec4<f32>,
     // Shadow normal offset and depth bias (texels); unused; unused.
     shadow: vec4<f32>,
-    // Eq. 24's vectors (scene-core/reconstruct.wgsl, prepended).
+    // Eq. 24's vectors (scene_core::reconstruct).
     frustum: FrustumReconstruction,
 }
 
@@ -39,7 +39,7 @@ const FLAG_LIT: u32 = 32u;
 
 const BACKGROUND: u32 = 0xffffffffu;
 const PI: f32 = 3.14159265358979;
-const MIN_NORMAL_LEN2: f32 = 1e-12;
+const MIN_NORMAL_LEN_SQ: f32 = 1e-12;
 const MIN_FOOTPRINT_COS: f32 = 0.1;
 const MIN_POSITIVE: f32 = 1.17549435e-38;
 const MAX_FINITE: f32 = 3.40282347e38;
@@ -80,9 +80,9 @@ fn to_viewer(uv: vec2<f32>) -> vec3<f32> {
 }
 
 fn usable_normal(n: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
-    let l2 = dot(n, n);
-    if (l2 > MIN_NORMAL_LEN2 && l2 <= MAX_FINITE) {
-        return n / sqrt(l2);
+    let len_sq = dot(n, n);
+    if (len_sq > MIN_NORMAL_LEN_SQ && len_sq <= MAX_FINITE) {
+        return n / sqrt(len_sq);
     }
     return fallback;
 }
@@ -96,9 +96,9 @@ fn view_scale(depth: f32) -> f32 {
 }
 // The normal if usable, else the direction to the viewer (computed only then).
 fn normal_or_viewer(n: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
-    let l2 = dot(n, n);
-    if (l2 > MIN_NORMAL_LEN2 && l2 <= MAX_FINITE) {
-        return n / sqrt(l2);
+    let len_sq = dot(n, n);
+    if (len_sq > MIN_NORMAL_LEN_SQ && len_sq <= MAX_FINITE) {
+        return n / sqrt(len_sq);
     }
     return to_viewer(uv);
 }

@@ -1,3 +1,5 @@
+#define_import_path isr::light_set
+#import isr::common::{PI, MAX_FINITE}
 // The set of lights the lighting pass shades with (mirrors crates/isr/src/light_set.rs):
 // point lights (1/d^2 or eq. 16's window), directional lights and point samples of emissive
 // triangles (cosine profile, disk form factor), each with the frame's direct and indirect
@@ -38,9 +40,9 @@ struct Light {
     // The frame's factor on its direct light (LightState), and on the light it sends on to
     // be reflected (the Lit senders).
     direct: vec3<f32>,
-    pad0: f32,
+    pad_a: f32,
     indirect: vec3<f32>,
-    pad1: f32,
+    pad_b: f32,
 }
 
 @group(0) @binding(6) var<storage, read> lights: array<Light>;
@@ -54,9 +56,9 @@ fn falloff(radius: f32, d: f32) -> f32 {
     if (radius > 0.0) {
         return clamp(1.0 - (d / radius) * (d / radius), 0.0, 1.0);
     }
-    let d2 = d * d;
-    if (d2 > 0.0) {
-        return min(1.0 / d2, MAX_FINITE);
+    let dist_sq = d * d;
+    if (dist_sq > 0.0) {
+        return min(1.0 / dist_sq, MAX_FINITE);
     }
     return 0.0;
 }
@@ -83,17 +85,17 @@ fn irradiance(l: Light, p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
         return l.color * c;
     }
     let to = l.position - p;
-    let d2 = dot(to, to);
-    if (!(d2 > 0.0)) {
+    let dist_sq = dot(to, to);
+    if (!(dist_sq > 0.0)) {
         return vec3<f32>(0.0);
     }
-    let w = to / sqrt(d2);
+    let w = to / sqrt(dist_sq);
     let c = dot(n, w);
     let cl = -dot(l.direction, w);
     if (c <= 0.0 || cl <= 0.0) {
         return vec3<f32>(0.0);
     }
-    return l.color * (l.area * cl * c / (d2 + l.area * (1.0 / PI)));
+    return l.color * (l.area * cl * c / (dist_sq + l.area * (1.0 / PI)));
 }
 
 fn emission(id: u32, to_eye: vec3<f32>) -> vec3<f32> {

@@ -1,4 +1,6 @@
-// after: light_set.wgsl shadow.wgsl lighting_target.wgsl
+#import isr::common::{FLAG_INDIRECT, FLAG_SSAO, FLAG_AO_INDIRECT_ONLY, BACKGROUND, PI, MAX_FINITE, has_flag, pixel_uv, world, to_viewer, usable_normal, g}
+#import isr::light_set::{lights, irradiance, emission}
+#import isr::shadow::{visibility}
 // The lighting phase (thesis section 4.5, eq. 29, listing 7; mirrors
 // crates/isr/src/lighting.rs).
 //
@@ -12,6 +14,14 @@ const MODE_SENDERS: u32 = 0u;
 const MODE_COMPOSE: u32 = 1u;
 override MODE: u32 = 1u;
 override HAS_ISR: bool = true;
+
+// The output: Rgba32Float, or Rgba16Float in the variant composed with OUTPUT_RGBA16F (WGSL
+// cannot make a storage format overridable).
+#ifdef OUTPUT_RGBA16F
+@group(0) @binding(10) var out_tex: texture_storage_2d<rgba16float, write>;
+#else
+@group(0) @binding(10) var out_tex: texture_storage_2d<rgba32float, write>;
+#endif
 
 @group(0) @binding(1) var albedo_tex: texture_2d<f32>;
 @group(0) @binding(2) var normal_tex: texture_2d<f32>;

@@ -1,3 +1,4 @@
+#import isr::common::{FLAG_INDIRECT, FLAG_SSAO, FLAG_THESIS, FLAG_LIT, BACKGROUND, PI, MIN_FOOTPRINT_COS, MIN_POSITIVE, MAX_FINITE, has_flag, pixel_uv, world, ray_q, view_scale, normal_or_viewer, g}
 // The ISR + SSAO pass on the coarse buffers (thesis section 4.4, listing 6; mirrors
 // crates/isr/src/radiosity.rs, which documents the readings of the equations).
 //
@@ -12,7 +13,7 @@
 //                            r_s the radius of a sphere of the patch's (projected) area.
 // Output: indirect radiance in rgb, accessibility (1 - occlusion) in a.
 
-// common.wgsl, prepended, declares Globals, g (group 0, binding 0), the FLAG_* constants
+// common.wgsl (isr::common) declares Globals, g (group 0, binding 0), the FLAG_* constants
 // and the view helpers.
 
 // 16 per-pixel rotations (cos, sin), then the N unit-disk offsets, in xy.

@@ -1,4 +1,6 @@
-// after: light_set.wgsl
+#define_import_path isr::shadow
+#import isr::common::{MIN_POSITIVE, MAX_FINITE, g}
+#import isr::light_set::{NO_MAP, MAP_CUBE, Light}
 // Exponential shadow maps with PCF (thesis section 4.6, eq. 30, listing 8; mirrors
 // crates/isr/src/shadow.rs): V = bilinear PCF of exp(-c max(r - o, 0)) over the four
 // nearest texels of a light's log-space-filtered map (cube or orthographic).
@@ -19,14 +21,14 @@ fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
 // Bilinear PCF of eq. 30 over the four texels around uv of the face starting at `start`.
 fn pcf(start: u32, res: u32, uv: vec2<f32>, c: f32, receiver: f32) -> f32 {
     let t = clamp(uv * f32(res) - vec2<f32>(0.5), vec2<f32>(-1.0), vec2<f32>(f32(res)));
-    let i0f = floor(t);
-    let f = t - i0f;
-    let i0 = vec2<i32>(i0f);
+    let corner_f = floor(t);
+    let f = t - corner_f;
+    let corner = vec2<i32>(corner_f);
     let last = i32(res) - 1;
     var v: array<f32, 4>;
     for (var k = 0; k < 4; k++) {
-        let x = u32(clamp(i0.x + (k & 1), 0, last));
-        let y = u32(clamp(i0.y + (k >> 1u), 0, last));
+        let x = u32(clamp(corner.x + (k & 1), 0, last));
+        let y = u32(clamp(corner.y + (k >> 1u), 0, last));
         v[k] = esm(c, receiver, shadow_texels[start + y * res + x]);
     }
     let top = v[0] + (v[1] - v[0]) * f.x;

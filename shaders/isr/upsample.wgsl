@@ -1,3 +1,4 @@
+#import isr::common::{BACKGROUND, MAX_FINITE, usable_normal, g}
 // Bilateral upsampling of the blurred coarse buffer to full resolution (thesis section 4.5,
 // eqs. 27-28; mirrors crates/isr/src/upsample.rs).
 //
@@ -6,7 +7,7 @@
 // eq. 28. When they all vanish, the non-background coarse sample of the surrounding 4x4 block
 // nearest in depth is taken; with none, no indirect light and no occlusion.
 
-// common.wgsl, prepended, declares Globals, g (group 0, binding 0), the FLAG_* constants
+// common.wgsl (isr::common) declares Globals, g (group 0, binding 0), the FLAG_* constants
 // and the view helpers.
 
 const VANISHED: f32 = 1e-30;

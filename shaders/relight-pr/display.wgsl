@@ -1,4 +1,5 @@
-// after: ../scene-core/reconstruct.wgsl
+#import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
+#import relight_pr::common::{factors, relit}
 // The paper's "hardware" display: per-light radiosity at the welded vertices combined with
 // the light factors per pixel in one pass (mirrors crates/relight-pr/src/display.rs'
 // compose with smooth shading). A pixel finds its element by the G-buffer's triangle id,
@@ -7,6 +8,8 @@
 // albedo E / pi + the element's glow.
 
 override PER_PIXEL_DIRECT: bool = false;
+// The packed words hold halves (Precision::F16).
+override F16: bool = false;
 
 struct DisplayParams {
     frustum: FrustumReconstruction,
@@ -78,9 +81,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let p = reconstruct(params.frustum, uv, textureLoad(g_depth, xy, 0).x);
     let bc = barycentric(el.a.xyz, el.b.xyz, el.c.xyz, p);
     var e = params.base.xyz
-        + relit(el.vertex.x, params.k, !PER_PIXEL_DIRECT) * bc.x
-        + relit(el.vertex.y, params.k, !PER_PIXEL_DIRECT) * bc.y
-        + relit(el.vertex.z, params.k, !PER_PIXEL_DIRECT) * bc.z;
+        + relit(el.vertex.x, params.k, !PER_PIXEL_DIRECT, F16) * bc.x
+        + relit(el.vertex.y, params.k, !PER_PIXEL_DIRECT, F16) * bc.y
+        + relit(el.vertex.z, params.k, !PER_PIXEL_DIRECT, F16) * bc.z;
     if PER_PIXEL_DIRECT {
         for (var m = 0u; m < params.k; m++) {
             e += pixel_direct[i * params.k + m].xyz * factors[2u * m].xyz;

@@ -1,4 +1,6 @@
-//! `cargo xtask ci` and the dependency rule.
+//! `cargo xtask ci`: formatting, clippy, the dependency rule, what each library crate costs
+//! (built alone with its features, and the dependencies it must not pull in), the declared
+//! minimum Rust versions against the dependencies', and the shaders.
 
 use std::process::Command;
 
@@ -15,6 +17,172 @@ pub const SPOKES: [&str; 6] = [
     "imalyzer",
     "bench-harness",
 ];
+
+/// The library crates a team may pick one by one (packaged and built alone in CI), with
+/// whether each has cargo features to turn off.
+pub const LIBRARIES: [(&str, bool); 7] = [
+    ("scene-core", true),
+    ("gbuffer", false),
+    ("isr", false),
+    ("ibrr-ldc", false),
+    ("relight-pr", false),
+    ("imalyzer", true),
+    ("bench-harness", false),
+];
+
+/// What a library must not pull in with its default features (`cargo tree -e normal`):
+/// image comparison needs no GPU, glTF or BVH; ISR, a G-buffer post-process, no glTF or EXR.
+pub const MUST_NOT_PULL: [(&str, &[&str]); 2] = [
+    ("imalyzer", &["wgpu", "gltf", "obvhs"]),
+    ("isr", &["gltf", "exr"]),
+];
+
+fn cargo_output(args: &[&str]) -> Result<String, String> {
+    let out = Command::new(env!("CARGO"))
+        .args(args)
+        .output()
+        .map_err(|e| format!("cannot run cargo: {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "`cargo {}` failed: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+/// The crates of `banned` that a `cargo tree --prefix none` listing names.
+pub fn pulled_in<'a>(tree: &str, banned: &[&'a str]) -> Vec<&'a str> {
+    banned
+        .iter()
+        .copied()
+        .filter(|b| {
+            tree.lines()
+                .any(|l| l.split_whitespace().next() == Some(*b))
+        })
+        .collect()
+}
+
+/// Builds each library crate alone (default features, and none where it has features) and
+/// checks [`MUST_NOT_PULL`].
+pub fn hub_costs() -> Result<(), String> {
+    for (krate, banned) in MUST_NOT_PULL {
+        let tree = cargo_output(&["tree", "-p", krate, "-e", "normal", "--prefix", "none"])?;
+        let found = pulled_in(&tree, banned);
+        if !found.is_empty() {
+            return Err(format!(
+                "{krate} with its default features pulls in {}",
+                found.join(", ")
+            ));
+        }
+        eprintln!("{krate} pulls in none of {}", banned.join(", "));
+    }
+    for (krate, has_features) in LIBRARIES {
+        cargo(&["check", "-p", krate, "--lib"])?;
+        if has_features {
+            cargo(&["check", "-p", krate, "--lib", "--no-default-features"])?;
+        }
+    }
+    Ok(())
+}
+
+/// Each workspace member's declared `rust-version` against the highest one among its
+/// normal and build dependencies (transitively): a member that declares less than a
+/// dependency needs is named.
+pub fn msrv_violations(meta: &serde_json::Value) -> Vec<String> {
+    use std::collections::HashMap;
+    let parse = |v: &serde_json::Value| -> Option<Vec<u32>> {
+        let s = v.as_str()?;
+        Some(s.split('.').map(|p| p.parse().unwrap_or(0)).collect())
+    };
+    let packages: HashMap<&str, (&str, Option<Vec<u32>>)> = meta["packages"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|p| {
+            Some((
+                p["id"].as_str()?,
+                (p["name"].as_str()?, parse(&p["rust_version"])),
+            ))
+        })
+        .collect();
+    let deps: HashMap<&str, Vec<&str>> = meta["resolve"]["nodes"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter_map(|n| {
+            let id = n["id"].as_str()?;
+            let ds = n["deps"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter(|d| {
+                    d["dep_kinds"]
+                        .as_array()
+                        .into_iter()
+                        .flatten()
+                        .any(|k| matches!(k["kind"].as_str(), None | Some("build")))
+                })
+                .filter_map(|d| d["pkg"].as_str())
+                .collect();
+            Some((id, ds))
+        })
+        .collect();
+    let mut violations = Vec::new();
+    for member in meta["workspace_members"].as_array().into_iter().flatten() {
+        let Some(member) = member.as_str() else {
+            continue;
+        };
+        let Some((name, declared)) = packages.get(member) else {
+            continue;
+        };
+        let mut seen = std::collections::HashSet::new();
+        let mut stack = vec![member];
+        let mut need: Option<(Vec<u32>, &str)> = None;
+        while let Some(id) = stack.pop() {
+            for d in deps.get(id).into_iter().flatten() {
+                if seen.insert(*d) {
+                    stack.push(d);
+                    if let Some((dname, Some(v))) = packages.get(d)
+                        && need.as_ref().is_none_or(|(n, _)| v > n)
+                    {
+                        need = Some((v.clone(), dname));
+                    }
+                }
+            }
+        }
+        let Some((need, by)) = need else { continue };
+        let show = |v: &[u32]| v.iter().map(u32::to_string).collect::<Vec<_>>().join(".");
+        match declared {
+            Some(d) if *d >= need => {}
+            Some(d) => violations.push(format!(
+                "{name} declares rust-version {} but its dependency {by} needs {}",
+                show(d),
+                show(&need)
+            )),
+            None => violations.push(format!(
+                "{name} declares no rust-version; its dependency {by} needs {}",
+                show(&need)
+            )),
+        }
+    }
+    violations
+}
+
+/// [`msrv_violations`] over this workspace.
+pub fn msrv() -> Result<(), String> {
+    let out = cargo_output(&["metadata", "--format-version", "1"])?;
+    let meta: serde_json::Value =
+        serde_json::from_str(&out).map_err(|e| format!("cargo metadata: {e}"))?;
+    let v = msrv_violations(&meta);
+    if v.is_empty() {
+        eprintln!("every member's rust-version covers its dependencies'");
+        Ok(())
+    } else {
+        Err(format!("rust-version too low:\n  {}", v.join("\n  ")))
+    }
+}
 
 fn cargo(args: &[&str]) -> Result<(), String> {
     eprintln!("$ cargo {}", args.join(" "));
@@ -113,7 +281,9 @@ pub fn ci(with_tests: bool) -> Result<(), String> {
         "warnings",
     ])?;
     dependency_rule()?;
-    let n = crate::shaders::validate_all(&crate::shaders::workspace_root().join("shaders"), None)?;
+    msrv()?;
+    hub_costs()?;
+    let n = crate::shaders::validate_all(None)?;
     eprintln!("{n} shader(s) valid");
     if with_tests {
         cargo(&["test", "--workspace"])?;
@@ -165,5 +335,49 @@ mod tests {
         let core = serde_json::json!({"packages": [{"name": "scene-core",
             "dependencies": [{"name": "viewer", "kind": null}]}]});
         assert_eq!(rule_violations(&core).len(), 1);
+    }
+
+    /// A member `m` (declaring `declared`) depending on `a` (normal) which depends on `b`
+    /// (normal or dev), with `b` declaring 1.90.
+    fn msrv_meta(declared: Option<&str>, b_kind: Option<&str>) -> serde_json::Value {
+        let dep = |pkg: &str, kind: Option<&str>| serde_json::json!({"pkg": pkg, "dep_kinds": [{"kind": kind}]});
+        serde_json::json!({
+            "packages": [
+                {"id": "m", "name": "m", "rust_version": declared},
+                {"id": "a", "name": "a", "rust_version": "1.80"},
+                {"id": "b", "name": "b", "rust_version": "1.90"},
+            ],
+            "workspace_members": ["m"],
+            "resolve": {"nodes": [
+                {"id": "m", "deps": [dep("a", None)]},
+                {"id": "a", "deps": [dep("b", b_kind)]},
+                {"id": "b", "deps": []},
+            ]},
+        })
+    }
+
+    #[test]
+    fn a_rust_version_below_a_transitive_dependency_is_named() {
+        assert!(msrv_violations(&msrv_meta(Some("1.90"), None)).is_empty());
+        assert!(msrv_violations(&msrv_meta(Some("1.95.1"), None)).is_empty());
+        let v = msrv_violations(&msrv_meta(Some("1.88"), None));
+        assert_eq!(
+            v,
+            ["m declares rust-version 1.88 but its dependency b needs 1.90"]
+        );
+        assert_eq!(msrv_violations(&msrv_meta(None, None)).len(), 1);
+        // Build dependencies count, dev-dependencies do not.
+        assert_eq!(
+            msrv_violations(&msrv_meta(Some("1.88"), Some("build"))).len(),
+            1
+        );
+        assert!(msrv_violations(&msrv_meta(Some("1.88"), Some("dev"))).is_empty());
+    }
+
+    #[test]
+    fn a_banned_crate_in_a_tree_listing_is_found_by_its_name_only() {
+        let tree = "imalyzer v0.1.0 (/w/crates/imalyzer)\nscene-core v0.1.0\nwgpu v30.0.1\nwgpu-core v30.0.1\n";
+        assert_eq!(pulled_in(tree, &["wgpu", "gltf"]), ["wgpu"]);
+        assert!(pulled_in("wgpu-core v30.0.1\ngltf-json v1.4.1\n", &["wgpu", "gltf"]).is_empty());
     }
 }

@@ -630,13 +630,9 @@ fn run(cli: Cli) -> Result<(), String> {
     cli.command.check_numbers()?;
     match cli.command {
         Command::Ci { no_test } => checks::ci(!no_test),
-        Command::Shaders { out } => {
-            shaders::validate_all(&shaders::workspace_root().join("shaders"), out.as_deref()).map(
-                |n| {
-                    println!("{n} shader(s) valid and translated to SPIR-V, MSL and HLSL");
-                },
-            )
-        }
+        Command::Shaders { out } => shaders::validate_all(out.as_deref()).map(|n| {
+            println!("{n} shader pass(es) composed, valid and translated to SPIR-V, MSL and HLSL");
+        }),
         Command::DepRule => checks::dependency_rule(),
         Command::Reference {
             scene,

@@ -1,24 +1,17 @@
-//! `cargo xtask shaders`: every WGSL file parsed and validated by naga, then translated to
-//! SPIR-V, MSL and HLSL, so that a shader a backend cannot take fails CI, not a user.
-//!
-//! WGSL has no `#include`, so a directory's shared declarations go in a file named
-//! `common.wgsl`: it is validated on its own, and prepended to every other `.wgsl` in the same
-//! directory (not in its subdirectories) before that file is validated. The crate embedding
-//! such a pass must do the same, e.g.
-//! `concat!(include_str!(".../common.wgsl"), include_str!(".../pass.wgsl"))` (or
-//! `scene_core::wgsl!` when a part is another crate's constant); a pass that
-//! must not get the common part goes in a subdirectory.
-//!
-//! A pass made of several files (one per Rust module it mirrors, or a part shared across
-//! crates such as `shaders/scene-core/reconstruct.wgsl`) says so on its first line,
-//! `// after: a.wgsl ../other/b.wgsl`: those files (paths relative to its directory) come
-//! before it, in that order (not transitively; a `common.wgsl`'s parts come before the
-//! common file), and the embedding crate concatenates the same.
+//! `cargo xtask shaders`: every shader pass of every crate composed by scene-core's shader
+//! composer (`scene_core::gpu::shader`, naga_oil's `#import`), exactly as the crate composes
+//! it at run time, validated by naga and translated to SPIR-V, MSL and HLSL, so that a
+//! shader a backend cannot take fails CI, not a user. Every `.wgsl` file under the
+//! top-level `shaders/` must belong to some pass (as its main file or an imported module),
+//! and each pass' embedded text must be that file's: a file nobody composes, or a crate
+//! that embeds a stale copy, fails too.
 
+use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use naga::back::{hlsl, msl, spv};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
+use scene_core::gpu::shader::{ShaderPass, Wgsl};
 
 fn wgsl_files(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), String> {
     let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
@@ -41,21 +34,45 @@ pub fn workspace_root() -> PathBuf {
         .unwrap_or_default()
 }
 
-/// Validates and translates one WGSL source; returns the SPIR-V word count, MSL and HLSL.
-pub fn check_source(name: &str, source: &str) -> Result<(usize, String, String), String> {
-    let module = naga::front::wgsl::parse_str(source)
-        .map_err(|e| format!("{name}: parse error:\n{}", e.emit_to_string(source)))?;
+/// Every library crate's shader passes (their `SHADER_PASSES`), then the viewer's: xtask does
+/// not link the viewer (a composition point with a windowing stack), and its passes import
+/// nothing, so each `shaders/viewer/*.wgsl` is composed as a pass of its own (the viewer's
+/// tests compose its `SHADER_PASSES` through the same entry point).
+pub fn all_passes(root: &Path) -> Result<Vec<ShaderPass>, String> {
+    let mut passes = [
+        scene_core::gpu::SHADER_PASSES,
+        gbuffer::SHADER_PASSES,
+        isr::shaders::SHADER_PASSES,
+        ibrr_ldc::gpu::SHADER_PASSES,
+        relight_pr::gpu::SHADER_PASSES,
+    ]
+    .concat();
+    let mut viewer = Vec::new();
+    wgsl_files(&root.join("viewer"), &mut viewer)?;
+    viewer.sort();
+    for file in viewer {
+        let rel = file
+            .strip_prefix(root)
+            .unwrap_or(&file)
+            .display()
+            .to_string();
+        let source = std::fs::read_to_string(&file).map_err(|e| format!("{rel}: {e}"))?;
+        let path: &'static str = Box::leak(rel.into_boxed_str());
+        let source: &'static str = Box::leak(source.into_boxed_str());
+        passes.push(ShaderPass::new(path, Wgsl { path, source }, &[]));
+    }
+    Ok(passes)
+}
+
+/// Validates and translates one composed module; returns the SPIR-V word count, MSL and HLSL.
+pub fn check_module(name: &str, module: &naga::Module) -> Result<(usize, String, String), String> {
     let info = Validator::new(ValidationFlags::all(), Capabilities::all())
-        .validate(&module)
-        .map_err(|e| format!("{name}: validation error:\n{}", e.emit_to_string(source)))?;
+        .validate(module)
+        .map_err(|e| format!("{name}: validation error: {e}"))?;
     // Pipeline-overridable constants take their defaults, as a pipeline that sets none.
-    let (module, info) = naga::back::pipeline_constants::process_overrides(
-        &module,
-        &info,
-        None,
-        &Default::default(),
-    )
-    .map_err(|e| format!("{name}: overridable constants: {e}"))?;
+    let (module, info) =
+        naga::back::pipeline_constants::process_overrides(module, &info, None, &Default::default())
+            .map_err(|e| format!("{name}: overridable constants: {e}"))?;
     let (module, info) = (module.as_ref(), info.as_ref());
     let words = spv::write_vec(module, info, &spv::Options::default(), None)
         .map_err(|e| format!("{name}: SPIR-V: {e}"))?;
@@ -76,74 +93,43 @@ pub fn check_source(name: &str, source: &str) -> Result<(usize, String, String),
     Ok((words.len(), msl_src, hlsl_src))
 }
 
-/// The name of a directory's shared prelude; see the module documentation.
-pub const COMMON: &str = "common.wgsl";
-
-/// The source to validate for `file`: its text, after its directory's `common.wgsl` unless it
-/// is that file or there is none.
-fn source_of(file: &Path, rel: &str) -> Result<String, String> {
-    let mut source = String::new();
-    let common = file.with_file_name(COMMON);
-    if common.is_file() && file.file_name().is_some_and(|n| n != COMMON) {
-        source = with_parts(&common, rel)?;
-    }
-    Ok(source + &with_parts(file, rel)?)
-}
-
-/// `file`'s text after the parts its `// after:` line names (paths relative to its
-/// directory, e.g. `../scene-core/reconstruct.wgsl`).
-fn with_parts(file: &Path, rel: &str) -> Result<String, String> {
-    let own = std::fs::read_to_string(file).map_err(|e| format!("{}: {e}", file.display()))?;
-    let mut source = String::new();
-    for part in after(&own) {
-        let path = file.with_file_name(part);
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| format!("{rel}: its `// after:` part {part}: {e}"))?;
-        source.push_str(&text);
-    }
-    Ok(source + &own)
-}
-
-/// The files a WGSL source's first line, `// after: a.wgsl b.wgsl`, says come before it.
-fn after(source: &str) -> Vec<&str> {
-    source
-        .lines()
-        .next()
-        .and_then(|l| l.strip_prefix("// after:"))
-        .map(|rest| rest.split_whitespace().collect())
-        .unwrap_or_default()
-}
-
-/// Validates every `**/*.wgsl` under `root` (each after its directory's `common.wgsl`, see the
-/// module documentation); with `out`, writes `.metal` and `.hlsl` translations there. Returns
-/// the number of shaders. Fails when there are none.
-pub fn validate_all(root: &Path, out: Option<&Path>) -> Result<usize, String> {
-    let mut files = Vec::new();
-    wgsl_files(root, &mut files)?;
-    files.sort();
-    if files.is_empty() {
-        return Err(format!("no .wgsl files under {}", root.display()));
-    }
+/// Composes, validates and translates every pass of `passes` (with `out`, writes `.metal`
+/// and `.hlsl` translations there), and checks them against the files under `root`: each
+/// embedded file's text equals `root/<path>`, and every `.wgsl` under `root` is used by some
+/// pass. Returns the number of passes.
+pub fn validate_passes(
+    root: &Path,
+    passes: &[ShaderPass],
+    out: Option<&Path>,
+) -> Result<usize, String> {
     let mut errors = Vec::new();
-    for f in &files {
-        let rel = f.strip_prefix(root).unwrap_or(f).display().to_string();
-        let source = source_of(f, &rel)?;
-        let with_common =
-            f.file_name().is_some_and(|n| n != COMMON) && f.with_file_name(COMMON).is_file();
-        let name = if with_common {
-            format!("{rel} (after its directory's {COMMON})")
-        } else {
-            rel.clone()
-        };
-        match check_source(&name, &source) {
+    let mut used = BTreeSet::new();
+    for pass in passes {
+        for file in std::iter::once(&pass.main).chain(pass.library) {
+            used.insert(root.join(file.path));
+            match std::fs::read_to_string(root.join(file.path)) {
+                Ok(text) if text == file.source => {}
+                Ok(_) => errors.push(format!(
+                    "{}: the text embedded for {} differs from the file (a stale copy?)",
+                    pass.name, file.path
+                )),
+                Err(e) => errors.push(format!("{}: {}: {e}", pass.name, file.path)),
+            }
+        }
+        let result = pass
+            .compose()
+            .map_err(|e| e.to_string())
+            .and_then(|module| check_module(pass.name, &module));
+        match result {
             Ok((words, msl_src, hlsl_src)) => {
                 eprintln!(
-                    "ok  {name} (SPIR-V {words} words, MSL {} B, HLSL {} B)",
+                    "ok  {} (SPIR-V {words} words, MSL {} B, HLSL {} B)",
+                    pass.name,
                     msl_src.len(),
                     hlsl_src.len()
                 );
                 if let Some(dir) = out {
-                    let stem = dir.join(rel.replace(".wgsl", ""));
+                    let stem = dir.join(pass.name.replace([' ', '(', ')'], "_"));
                     if let Some(parent) = stem.parent() {
                         std::fs::create_dir_all(parent).map_err(|e| e.to_string())?;
                     }
@@ -156,11 +142,27 @@ pub fn validate_all(root: &Path, out: Option<&Path>) -> Result<usize, String> {
             Err(e) => errors.push(e),
         }
     }
+    let mut files = Vec::new();
+    wgsl_files(root, &mut files)?;
+    for f in files {
+        if !used.contains(&f) {
+            errors.push(format!(
+                "{}: no crate's SHADER_PASSES composes this file",
+                f.display()
+            ));
+        }
+    }
     if errors.is_empty() {
-        Ok(files.len())
+        Ok(passes.len())
     } else {
         Err(errors.join("\n"))
     }
+}
+
+/// [`validate_passes`] over every crate's passes and the workspace's `shaders/`.
+pub fn validate_all(out: Option<&Path>) -> Result<usize, String> {
+    let root = workspace_root().join("shaders");
+    validate_passes(&root, &all_passes(&root)?, out)
 }
 
 #[cfg(test)]
@@ -168,81 +170,47 @@ mod tests {
     use super::*;
 
     #[test]
-    fn broken_shaders_are_rejected() {
-        let good = "@compute @workgroup_size(1) fn main() {}";
-        assert!(check_source("good", good).is_ok());
-        // Syntax error.
-        assert!(
-            check_source("bad", "fn main( {")
-                .unwrap_err()
-                .contains("parse error")
-        );
-        // Parses but fails validation (type mismatch).
-        let invalid = "@compute @workgroup_size(1) fn main() { let x: f32 = 1u; }";
-        assert!(check_source("invalid", invalid).is_err());
-    }
-
-    #[test]
     fn the_project_shaders_are_valid() {
-        assert!(validate_all(&workspace_root().join("shaders"), None).unwrap() >= 1);
+        assert!(validate_all(None).unwrap() >= 10);
     }
 
     #[test]
-    fn common_wgsl_is_prepended_to_its_directory() {
-        let root = std::env::temp_dir().join(format!("xtask-common-wgsl-{}", std::process::id()));
+    fn stale_copies_unused_files_and_broken_passes_are_rejected() {
+        let root = std::env::temp_dir().join(format!("xtask-shaders-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&root);
-        let dir = root.join("pass");
-        std::fs::create_dir_all(dir.join("sub")).unwrap();
-        let pass = "@compute @workgroup_size(1) fn main() { let x: f32 = twice(1.0); }";
-        std::fs::write(dir.join("pass.wgsl"), pass).unwrap();
-        // Without common.wgsl, `twice` is undefined.
-        assert!(validate_all(&root, None).is_err());
-        // With it, the pass validates, and so does the common file on its own.
-        let common = "fn twice(v: f32) -> f32 { return 2.0 * v; }\n";
-        std::fs::write(dir.join(COMMON), common).unwrap();
-        assert_eq!(validate_all(&root, None), Ok(2));
-        // Only the same directory gets it, not a subdirectory.
-        std::fs::write(dir.join("sub").join("other.wgsl"), pass).unwrap();
-        assert!(
-            validate_all(&root, None)
-                .unwrap_err()
-                .contains("other.wgsl")
-        );
-        std::fs::remove_dir_all(&root).unwrap();
-    }
-
-    #[test]
-    fn after_parts_come_before_a_file_across_directories() {
-        let root = std::env::temp_dir().join(format!("xtask-after-wgsl-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&root);
-        std::fs::create_dir_all(root.join("a")).unwrap();
-        std::fs::create_dir_all(root.join("b")).unwrap();
-        std::fs::write(
-            root.join("a").join("part.wgsl"),
-            "fn half(v: f32) -> f32 { return 0.5 * v; }\n",
-        )
-        .unwrap();
-        let pass = "@compute @workgroup_size(1) fn main() { let x: f32 = half(1.0); }\n";
-        // Without its `// after:` line the pass does not know `half`.
-        std::fs::write(root.join("b").join("pass.wgsl"), pass).unwrap();
-        assert!(validate_all(&root, None).unwrap_err().contains("pass.wgsl"));
-        std::fs::write(
-            root.join("b").join("pass.wgsl"),
-            format!("// after: ../a/part.wgsl\n{pass}"),
-        )
-        .unwrap();
-        assert_eq!(validate_all(&root, None), Ok(2));
-        // A part that does not exist is named.
-        std::fs::write(
-            root.join("b").join("pass.wgsl"),
-            format!("// after: ../a/missing.wgsl\n{pass}"),
-        )
-        .unwrap();
-        assert!(
-            validate_all(&root, None)
-                .unwrap_err()
-                .contains("missing.wgsl")
-        );
+        std::fs::create_dir_all(root.join("t")).unwrap();
+        const PART: Wgsl = Wgsl {
+            path: "t/part.wgsl",
+            source: "#define_import_path t::part\nfn half(v: f32) -> f32 { return 0.5 * v; }\n",
+        };
+        const MAIN: Wgsl = Wgsl {
+            path: "t/main.wgsl",
+            source: "#import t::part::half\n@compute @workgroup_size(1) fn main() { let x: f32 = half(1.0); }\n",
+        };
+        std::fs::write(root.join(PART.path), PART.source).unwrap();
+        std::fs::write(root.join(MAIN.path), MAIN.source).unwrap();
+        let pass = ShaderPass::new("t", MAIN, &[PART]);
+        assert_eq!(validate_passes(&root, &[pass], None), Ok(1));
+        // Without the module it imports, the pass does not compose.
+        let e = validate_passes(&root, &[ShaderPass::new("t", MAIN, &[])], None).unwrap_err();
+        assert!(e.contains("t::part"), "{e}");
+        // A file no pass uses.
+        std::fs::write(root.join("t/orphan.wgsl"), "fn f() {}").unwrap();
+        let e = validate_passes(&root, &[pass], None).unwrap_err();
+        assert!(e.contains("orphan.wgsl"), "{e}");
+        std::fs::remove_file(root.join("t/orphan.wgsl")).unwrap();
+        // A crate's embedded text that is not the file's.
+        std::fs::write(root.join(PART.path), "// edited\n").unwrap();
+        let e = validate_passes(&root, &[pass], None).unwrap_err();
+        assert!(e.contains("t/part.wgsl") && e.contains("differs"), "{e}");
+        // A pass that composes but does not validate (type mismatch).
+        const BAD: Wgsl = Wgsl {
+            path: "t/main.wgsl",
+            source: "@compute @workgroup_size(1) fn main() { let x: f32 = 1u; }\n",
+        };
+        std::fs::write(root.join(BAD.path), BAD.source).unwrap();
+        std::fs::write(root.join(PART.path), PART.source).unwrap();
+        assert!(validate_passes(&root, &[ShaderPass::new("bad", BAD, &[PART])], None).is_err());
         std::fs::remove_dir_all(&root).unwrap();
     }
 }

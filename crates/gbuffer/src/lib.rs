@@ -65,6 +65,10 @@ pub mod packing;
 pub mod raster;
 pub mod reconstruct;
 
+/// Every shader pass of the crate, as `cargo xtask shaders` validates them.
+pub const SHADER_PASSES: &[scene_core::gpu::shader::ShaderPass] =
+    &[mrt::MRT, reconstruct::RECONSTRUCT];
+
 pub use downsample::{
     DownsampleMode, DownsampleStats, GpuDownsampler, coarse_size, compare_with_direct, downsample,
 };

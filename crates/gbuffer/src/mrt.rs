@@ -1,6 +1,6 @@
 //! The GPU G-buffer: a wgpu render pipeline writing albedo + radiation mask, world normal,
 //! linear depth and triangle id in one pass with multiple render targets (thesis figure
-//! 4.1), plus the depth attachment. Shader: `shaders/gbuffer/mrt.wgsl` ([`MRT_WGSL`]).
+//! 4.1), plus the depth attachment. Shader: `shaders/gbuffer/mrt.wgsl` ([`MRT`]).
 //!
 //! The result stays on the GPU as a [`GpuGBuffer`] (formats in
 //! [`GpuGBuffer::COLOR_FORMATS`]); reading it back is the separate, explicit step
@@ -14,11 +14,11 @@
 //! prepared scene ([`GBufferRenderer::prepare`]) and renders every view of it with no
 //! further upload or hashing.
 
-use std::borrow::Cow;
 use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
+use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, GpuScene, GpuVertex};
 use scene_core::view::Projection;
 use scene_core::{Error, GBuffer, GBufferRenderer, Scene, View, ViewTarget};
@@ -26,8 +26,15 @@ use wgpu::util::DeviceExt;
 
 use crate::raster::check_target;
 
-/// WGSL source of the G-buffer geometry pass.
-pub const MRT_WGSL: &str = include_str!("../shaders/mrt.wgsl");
+/// The G-buffer geometry pass (`shaders/gbuffer/mrt.wgsl`, vertex and fragment stages).
+pub const MRT: ShaderPass = ShaderPass::new(
+    "gbuffer/mrt",
+    Wgsl {
+        path: "gbuffer/mrt.wgsl",
+        source: include_str!("../shaders/mrt.wgsl"),
+    },
+    &[],
+);
 
 /// The view uniform of `mrt.wgsl` (96 bytes).
 #[repr(C)]
@@ -210,11 +217,8 @@ impl GpuRasterizer {
             )));
         }
         let device = &ctx.device;
+        let module = MRT.create_module(device)?;
         let (layout, pipeline) = ctx.validated(|| {
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("mrt.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(MRT_WGSL)),
-            });
             let storage =
                 |binding: u32, visibility: wgpu::ShaderStages| wgpu::BindGroupLayoutEntry {
                     binding,
@@ -581,5 +585,53 @@ impl GBufferRenderer for GpuRasterizer {
 
     fn render_views_gpu(&mut self, views: &[ViewTarget]) -> Result<Option<Vec<GpuGBuffer>>, Error> {
         Ok(Some(self.render_batch_gpu(self.prepared_upload()?, views)?))
+    }
+}
+
+/// Every struct written for the shader has the layout naga gives its WGSL twin (a field
+/// moved on one side fails here).
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use scene_core::check_layout;
+    use scene_core::gpu::GpuMaterial;
+
+    #[test]
+    fn uniforms_and_tables_match_their_wgsl_structs() {
+        let mrt = MRT.compose().unwrap();
+        check_layout!(
+            &mrt,
+            "ViewUniform",
+            ViewUniform {
+                view_proj,
+                eye,
+                inv_far,
+                forward,
+                orthographic,
+            }
+        )
+        .unwrap();
+        check_layout!(
+            &mrt,
+            "TextureInfo",
+            TextureInfo {
+                offset,
+                width,
+                height,
+                pad
+            }
+        )
+        .unwrap();
+        check_layout!(
+            &mrt,
+            "Material",
+            GpuMaterial {
+                albedo,
+                texture,
+                emission,
+                pad
+            }
+        )
+        .unwrap();
     }
 }

@@ -1,5 +1,5 @@
 //! World- and view-space positions from a G-buffer's depth (thesis section 4.3), on the
-//! CPU and in WGSL (`shaders/gbuffer/reconstruct.wgsl`, [`RECONSTRUCT_WGSL`]).
+//! CPU and in WGSL (`shaders/gbuffer/reconstruct.wgsl`, [`RECONSTRUCT`]).
 //!
 //! * [`FrustumReconstruction`]: the thesis' method (eqs. 23-24). The G-buffer stores linear
 //!   depth `d` = view distance along the view direction / far; the position seen at image
@@ -17,20 +17,24 @@
 //! [`reconstruct_buffer`] and [`GpuReconstructor`] reconstruct whole buffers with several
 //! taps per pixel, for the micro-benchmark in `cargo xtask bench gbuffer`.
 
-use std::borrow::Cow;
-
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use scene_core::View;
+use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{ComputePass, GpuContext, GpuError, GpuGBuffer};
 use scene_core::view::Projection;
 use wgpu::util::DeviceExt;
 
-/// WGSL source of the reconstruction passes.
-pub const RECONSTRUCT_WGSL: &str = scene_core::wgsl!(
-    scene_core::gpu::RECONSTRUCT_WGSL,
-    include_str!("../shaders/reconstruct.wgsl")
+/// The reconstruction passes (`shaders/gbuffer/reconstruct.wgsl`, one entry point per
+/// method, importing `scene_core::reconstruct`).
+pub const RECONSTRUCT: ShaderPass = ShaderPass::new(
+    "gbuffer/reconstruct",
+    Wgsl {
+        path: "gbuffer/reconstruct.wgsl",
+        source: include_str!("../shaders/reconstruct.wgsl"),
+    },
+    &[scene_core::gpu::shader::RECONSTRUCT],
 );
 
 pub use scene_core::view::FrustumReconstruction;
@@ -309,11 +313,8 @@ impl GpuReconstructor {
     /// Compiles the three pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
         let device = &ctx.device;
+        let module = RECONSTRUCT.create_module(device)?;
         let passes = ctx.validated(|| {
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("reconstruct.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(RECONSTRUCT_WGSL)),
-            });
             use scene_core::gpu::layout::{float_texture, storage_texture, texture, uniform};
             let entries = [
                 float_texture(0),
@@ -446,5 +447,31 @@ impl GpuReconstructor {
             .into_iter()
             .map(|[x, y, z, _]| Vec3::new(x, y, z))
             .collect())
+    }
+}
+
+/// The uniform has the layout naga gives its WGSL twin (a field moved on one side fails
+/// here).
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+
+    #[test]
+    fn params_match_the_wgsl_struct() {
+        let module = RECONSTRUCT.compose().unwrap();
+        scene_core::check_layout!(
+            &module,
+            "Params",
+            Params {
+                frustum,
+                inv_linear,
+                inv_view_proj,
+                lin_a,
+                lin_c,
+                taps,
+                pad,
+            }
+        )
+        .unwrap();
     }
 }

@@ -6,6 +6,7 @@
 use glam::Vec3;
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, texture, uniform};
+use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
 use scene_core::lights::LightId;
 use scene_core::view::{FrustumReconstruction, Projection};
@@ -16,11 +17,29 @@ use crate::error::IbrrError;
 use crate::ldc::Ldc;
 use crate::settings::Lookup;
 
-/// WGSL of the reconstruction pass (scene-core's reconstruction, then the pass).
-pub const RECONSTRUCT_WGSL: &str = scene_core::wgsl!(
-    scene_core::gpu::RECONSTRUCT_WGSL,
-    include_str!("../shaders/reconstruct.wgsl")
+/// The reconstruction pass (`shaders/ibrr-ldc/reconstruct.wgsl`, importing
+/// `scene_core::reconstruct`).
+pub const RECONSTRUCT: ShaderPass = ShaderPass::new(
+    "ibrr-ldc/reconstruct",
+    Wgsl {
+        path: "ibrr-ldc/reconstruct.wgsl",
+        source: include_str!("../shaders/reconstruct.wgsl"),
+    },
+    &[scene_core::gpu::shader::RECONSTRUCT],
 );
+
+/// The gather pass (`shaders/ibrr-ldc/gather.wgsl`, importing `scene_core::reconstruct`).
+pub const GATHER: ShaderPass = ShaderPass::new(
+    "ibrr-ldc/gather",
+    Wgsl {
+        path: "ibrr-ldc/gather.wgsl",
+        source: include_str!("../shaders/gather.wgsl"),
+    },
+    &[scene_core::gpu::shader::RECONSTRUCT],
+);
+
+/// Every shader pass of the IBRR, as `cargo xtask shaders` validates them.
+pub const SHADER_PASSES: &[ShaderPass] = &[RECONSTRUCT, GATHER];
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -122,7 +141,7 @@ impl GpuLdc {
         let pass = ComputePass::new(
             &ctx.device,
             "ibrr-ldc reconstruct",
-            RECONSTRUCT_WGSL,
+            &RECONSTRUCT,
             &[
                 uniform(0),
                 storage_buffer(1),
@@ -136,7 +155,8 @@ impl GpuLdc {
                 texture(9, wgpu::TextureSampleType::Uint),
             ],
             &[("LOOKUP", mode), ("AVERAGE_RADIUS", radius)],
-        );
+        )
+        .map_err(gpu)?;
         ctx.validated(|| Self {
             ctx: ctx.clone(),
             ldc_frame: ldc.frame,
@@ -342,12 +362,6 @@ impl GpuLdc {
     }
 }
 
-/// WGSL of the gather pass (scene-core's reconstruction, then the pass).
-pub const GATHER_WGSL: &str = scene_core::wgsl!(
-    scene_core::gpu::RECONSTRUCT_WGSL,
-    include_str!("../shaders/gather.wgsl")
-);
-
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct GatherParams {
@@ -409,7 +423,7 @@ impl GpuGather {
                 ComputePass::new(
                     &ctx.device,
                     "ibrr-ldc gather",
-                    GATHER_WGSL,
+                    &GATHER,
                     &[
                         uniform(0),
                         storage_buffer(1),
@@ -421,6 +435,7 @@ impl GpuGather {
                     &[],
                 )
             })
+            .map_err(gpu)?
             .map_err(gpu)?;
         let limits = ctx.device.limits();
         Ok(Self {
@@ -593,5 +608,70 @@ impl GpuGather {
             .take(n)
             .map(|x| (x[3] > 0.0).then(|| Vec3::new(x[0], x[1], x[2])))
             .collect())
+    }
+}
+
+/// Every struct written for the shaders has the layout naga gives its WGSL twin, in the
+/// module the composer builds (a field moved on one side fails here).
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use scene_core::check_layout;
+
+    #[test]
+    fn uniforms_and_tables_match_their_wgsl_structs() {
+        let reconstruct = RECONSTRUCT.compose().unwrap();
+        check_layout!(
+            &reconstruct,
+            "Params",
+            Params {
+                frustum,
+                view_projection,
+                origin,
+                eye,
+                width,
+                height,
+                resolution,
+                fallback_radius,
+                eps_distance,
+                eps_normal,
+                band,
+                triangles,
+            }
+        )
+        .unwrap();
+        check_layout!(&reconstruct, "Triangle", GpuTriangle { glow, normal }).unwrap();
+        let gather = GATHER.compose().unwrap();
+        check_layout!(
+            &gather,
+            "Params",
+            GatherParams {
+                origin,
+                irpl_position,
+                irpl_normal,
+                irpl_power,
+                resolution,
+                layers,
+                renders,
+                groups_x,
+                eps_distance,
+                eps_normal,
+                scale,
+                has_radius,
+            }
+        )
+        .unwrap();
+        check_layout!(
+            &gather,
+            "Render",
+            GpuRender {
+                view_projection,
+                frustum,
+                eye,
+                forward,
+                size
+            }
+        )
+        .unwrap();
     }
 }

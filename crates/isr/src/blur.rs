@@ -104,13 +104,6 @@ pub fn blur_pass(
         .collect()
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `blur.wgsl`), one direction per dispatch.
-pub const WGSL: &str = scene_core::wgsl!(
-    scene_core::gpu::RECONSTRUCT_WGSL,
-    include_str!("../shaders/common.wgsl"),
-    include_str!("../shaders/blur.wgsl")
-);
-
 /// The GPU pass: one pipeline per direction (the shader's `HORIZONTAL` constant) over one
 /// compiled module.
 pub(crate) struct GpuPass {
@@ -119,12 +112,9 @@ pub(crate) struct GpuPass {
 }
 
 impl GpuPass {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device) -> Result<Self, scene_core::gpu::GpuError> {
         use crate::gpu::{storage_texture_entry, texture_entry, uniform_entry};
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("isr blur"),
-            source: wgpu::ShaderSource::Wgsl(WGSL.into()),
-        });
+        let module = crate::shaders::BLUR.create_module(device)?;
         let entries = [
             uniform_entry(0),
             texture_entry(1, false),
@@ -142,9 +132,9 @@ impl GpuPass {
                 &[("HORIZONTAL", if horizontal { 1.0 } else { 0.0 })],
             )
         };
-        Self {
+        Ok(Self {
             pipelines: [make(true), make(false)],
-        }
+        })
     }
 
     /// A bind group of the `horizontal` (else vertical) pipeline.

@@ -52,6 +52,7 @@ pub mod light_set;
 pub mod lighting;
 pub mod radiosity;
 pub mod settings;
+pub mod shaders;
 pub mod shadow;
 pub mod technique;
 pub mod upsample;

@@ -103,29 +103,6 @@ pub fn compose(
     }
 }
 
-/// WGSL source of the GPU pass writing `Rgba32Float`: `shaders/isr/common.wgsl`, then the
-/// light set and shadow parts the pass shares with [`crate::light_set`] and
-/// [`crate::shadow`], the output declaration, and `lighting.wgsl`.
-pub const WGSL: &str = scene_core::wgsl!(
-    scene_core::gpu::RECONSTRUCT_WGSL,
-    include_str!("../shaders/common.wgsl"),
-    include_str!("../shaders/light_set.wgsl"),
-    include_str!("../shaders/shadow.wgsl"),
-    include_str!("../shaders/lighting_target.wgsl"),
-    include_str!("../shaders/lighting.wgsl")
-);
-
-/// The same writing `Rgba16Float` (WGSL cannot make a storage format overridable, so the
-/// pass is composed with the other output declaration).
-pub const WGSL_RGBA16F: &str = scene_core::wgsl!(
-    scene_core::gpu::RECONSTRUCT_WGSL,
-    include_str!("../shaders/common.wgsl"),
-    include_str!("../shaders/light_set.wgsl"),
-    include_str!("../shaders/shadow.wgsl"),
-    include_str!("../shaders/lighting_target16.wgsl"),
-    include_str!("../shaders/lighting.wgsl")
-);
-
 /// The light set's storage buffers the lighting pass reads.
 pub(crate) struct LightBuffers<'a> {
     pub lights: &'a wgpu::Buffer,
@@ -162,17 +139,15 @@ pub(crate) struct GpuPass {
 }
 
 impl GpuPass {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
-        let module = |source: &'static str| {
-            device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("isr lighting"),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            })
-        };
-        Self {
-            modules: [module(WGSL), module(WGSL_RGBA16F)],
+    pub(crate) fn new(device: &wgpu::Device) -> Result<Self, scene_core::gpu::GpuError> {
+        use crate::shaders::{LIGHTING, LIGHTING_RGBA16F};
+        Ok(Self {
+            modules: [
+                LIGHTING.create_module(device)?,
+                LIGHTING_RGBA16F.create_module(device)?,
+            ],
             pipelines: Default::default(),
-        }
+        })
     }
 
     /// The pipeline of `variant`.

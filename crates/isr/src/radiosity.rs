@@ -221,28 +221,21 @@ fn gather(
     gi.extend(access)
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `radiosity.wgsl`).
-pub const WGSL: &str = scene_core::wgsl!(
-    scene_core::gpu::RECONSTRUCT_WGSL,
-    include_str!("../shaders/common.wgsl"),
-    include_str!("../shaders/radiosity.wgsl")
-);
-
 /// The GPU pass.
 pub(crate) struct GpuPass {
     pub pipeline: scene_core::gpu::ComputePass,
 }
 
 impl GpuPass {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device) -> Result<Self, scene_core::gpu::GpuError> {
         use crate::gpu::{
             storage_buffer_entry, storage_texture_entry, texture_entry, uniform_entry,
         };
-        Self {
+        Ok(Self {
             pipeline: scene_core::gpu::ComputePass::new(
                 device,
                 "isr radiosity",
-                WGSL,
+                &crate::shaders::RADIOSITY,
                 &[
                     uniform_entry(0),
                     storage_buffer_entry(1),
@@ -254,8 +247,8 @@ impl GpuPass {
                     storage_texture_entry(7, wgpu::TextureFormat::Rgba32Float),
                 ],
                 &[],
-            ),
-        }
+            )?,
+        })
     }
 
     pub(crate) fn bind(

@@ -120,26 +120,19 @@ fn upsample_pixel(
     best.map_or(NOTHING, |(_, j)| values[j])
 }
 
-/// WGSL source of the GPU pass (`shaders/isr/common.wgsl` + `upsample.wgsl`).
-pub const WGSL: &str = scene_core::wgsl!(
-    scene_core::gpu::RECONSTRUCT_WGSL,
-    include_str!("../shaders/common.wgsl"),
-    include_str!("../shaders/upsample.wgsl")
-);
-
 /// The GPU pass.
 pub(crate) struct GpuPass {
     pub pipeline: scene_core::gpu::ComputePass,
 }
 
 impl GpuPass {
-    pub(crate) fn new(device: &wgpu::Device) -> Self {
+    pub(crate) fn new(device: &wgpu::Device) -> Result<Self, scene_core::gpu::GpuError> {
         use crate::gpu::{storage_texture_entry, texture_entry, uniform_entry};
-        Self {
+        Ok(Self {
             pipeline: scene_core::gpu::ComputePass::new(
                 device,
                 "isr upsample",
-                WGSL,
+                &crate::shaders::UPSAMPLE,
                 &[
                     uniform_entry(0),
                     texture_entry(1, false),
@@ -152,8 +145,8 @@ impl GpuPass {
                     storage_texture_entry(8, wgpu::TextureFormat::Rgba32Float),
                 ],
                 &[],
-            ),
-        }
+            )?,
+        })
     }
 
     pub(crate) fn bind(

@@ -7,6 +7,7 @@
 use glam::Vec3;
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{storage_buffer, storage_buffer_rw, uniform};
+use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
 use scene_core::view::FrustumReconstruction;
 use scene_core::{Image, View};
@@ -18,18 +19,35 @@ use crate::mesh::Meshing;
 use crate::packed::{Packed, Precision};
 use crate::solver::Solution;
 
-/// WGSL of the relight pass (`common.wgsl` then `relight.wgsl`).
-pub const RELIGHT_WGSL: &str = concat!(
-    include_str!("../shaders/common.wgsl"),
-    include_str!("../shaders/relight.wgsl")
+/// The packed solution and eq. 1 over it (`relight_pr::common`), which both passes import.
+pub const COMMON: Wgsl = Wgsl {
+    path: "relight-pr/common.wgsl",
+    source: include_str!("../shaders/common.wgsl"),
+};
+
+/// The relight pass (eq. 1 at every element).
+pub const RELIGHT: ShaderPass = ShaderPass::new(
+    "relight-pr/relight",
+    Wgsl {
+        path: "relight-pr/relight.wgsl",
+        source: include_str!("../shaders/relight.wgsl"),
+    },
+    &[COMMON],
 );
 
-/// WGSL of the display pass (`common.wgsl`, scene-core's reconstruction, `display.wgsl`).
-pub const DISPLAY_WGSL: &str = scene_core::wgsl!(
-    include_str!("../shaders/common.wgsl"),
-    scene_core::gpu::RECONSTRUCT_WGSL,
-    include_str!("../shaders/display.wgsl")
+/// The display pass (eq. 1 per pixel over the welded vertices; imports
+/// `scene_core::reconstruct` too).
+pub const DISPLAY: ShaderPass = ShaderPass::new(
+    "relight-pr/display",
+    Wgsl {
+        path: "relight-pr/display.wgsl",
+        source: include_str!("../shaders/display.wgsl"),
+    },
+    &[COMMON, scene_core::gpu::shader::RECONSTRUCT],
 );
+
+/// Every shader pass of relighting, as `cargo xtask shaders` validates them.
+pub const SHADER_PASSES: &[ShaderPass] = &[RELIGHT, DISPLAY];
 
 const GROUP: u32 = 64;
 const MAX_GROUPS_X: u32 = 32768;
@@ -174,7 +192,7 @@ impl GpuRelight {
         let relight_pass = ComputePass::new(
             &ctx.device,
             "relight-pr relight",
-            RELIGHT_WGSL,
+            &RELIGHT,
             &[
                 uniform(0),
                 storage_buffer(1),
@@ -182,13 +200,15 @@ impl GpuRelight {
                 storage_buffer_rw(3),
             ],
             constants,
-        );
+        )
+        .map_err(gpu)?;
         let display_entries = Self::display_entries();
+        let display_module = DISPLAY.create_module(&ctx.device).map_err(gpu)?;
         let display = |per_pixel: bool| {
-            ComputePass::new(
+            ComputePass::from_module(
                 &ctx.device,
                 "relight-pr display",
-                DISPLAY_WGSL,
+                &display_module,
                 &display_entries,
                 &[constants[0], ("PER_PIXEL_DIRECT", per_pixel as u8 as f64)],
             )
@@ -498,4 +518,55 @@ fn check_binding(what: &str, bytes: u64, limit: u64) -> Result<(), RelightError>
         }));
     }
     Ok(())
+}
+
+/// Every struct written for the shaders has the layout naga gives its WGSL twin, in the
+/// module the composer builds (a field moved on one side fails here).
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use scene_core::check_layout;
+
+    #[test]
+    fn uniforms_and_tables_match_their_wgsl_structs() {
+        let relight = RELIGHT.compose().unwrap();
+        check_layout!(
+            &relight,
+            "RelightParams",
+            RelightParams {
+                n,
+                k,
+                pad0: pad,
+                pad1: pad + 4,
+                base,
+            }
+        )
+        .unwrap();
+        let display = DISPLAY.compose().unwrap();
+        check_layout!(
+            &display,
+            "DisplayParams",
+            DisplayParams {
+                frustum,
+                width,
+                height,
+                k,
+                elements,
+                base,
+            }
+        )
+        .unwrap();
+        check_layout!(
+            &display,
+            "Element",
+            GpuElement {
+                a,
+                b,
+                c,
+                emission,
+                vertex
+            }
+        )
+        .unwrap();
+    }
 }

@@ -257,6 +257,17 @@ pub enum ImageError {
         /// What went wrong.
         message: String,
     },
+    /// The file's format needs a cargo feature of scene-core this build was made without
+    /// (`exr`).
+    #[error(
+        "{path}: reading this format needs scene-core's `{feature}` feature, which this build lacks"
+    )]
+    NotBuiltIn {
+        /// The file.
+        path: PathBuf,
+        /// The missing feature.
+        feature: &'static str,
+    },
     /// The image has a zero dimension.
     #[error("image has zero size ({width}x{height})")]
     ZeroSize {

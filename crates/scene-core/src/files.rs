@@ -3,6 +3,7 @@
 //! opening a scene by name or path ([`open`]).
 
 pub mod budget;
+#[cfg(feature = "gltf")]
 pub mod gltf_io;
 pub mod image;
 pub mod open;

@@ -27,50 +27,28 @@ use glam::{Vec3, Vec4};
 use wgpu::util::DeviceExt;
 
 pub mod compute;
+pub mod shader;
+pub mod wgsl_layout;
 pub use compute::{ComputePass, PassTimer, WORKGROUP};
+pub use wgpu::naga;
 
 use crate::gbuffer::GBuffer;
 use crate::image::Image;
 use crate::scene::Scene;
 
-/// WGSL source of the luminance compute shader (thesis eq. 17), see [`luminance_gpu`].
-pub const LUMINANCE_WGSL: &str = include_str!("../shaders/luminance.wgsl");
+/// The luminance compute shader (thesis eq. 17), see [`luminance_gpu`].
+pub const LUMINANCE: shader::ShaderPass = shader::ShaderPass::new(
+    "scene-core/luminance",
+    shader::Wgsl {
+        path: "scene-core/luminance.wgsl",
+        source: include_str!("../shaders/luminance.wgsl"),
+    },
+    &[],
+);
 
-/// WGSL of position reconstruction from depth (`View::frustum_corners`'s layout), the part
-/// every crate's passes that rebuild world positions start with: compose it with
-/// [`crate::wgsl!`], e.g. `scene_core::wgsl!(scene_core::gpu::RECONSTRUCT_WGSL,
-/// include_str!("../shaders/pass.wgsl"))`.
-pub const RECONSTRUCT_WGSL: &str = include_str!("../shaders/reconstruct.wgsl");
-
-/// Total length of `parts` (for [`crate::wgsl!`]).
-#[doc(hidden)]
-pub const fn wgsl_len(parts: &[&str]) -> usize {
-    let mut n = 0;
-    let mut i = 0;
-    while i < parts.len() {
-        n += parts[i].len();
-        i += 1;
-    }
-    n
-}
-
-/// `parts` one after the other in `N` bytes (for [`crate::wgsl!`]).
-#[doc(hidden)]
-pub const fn wgsl_join<const N: usize>(parts: &[&str]) -> [u8; N] {
-    let mut out = [0u8; N];
-    let (mut at, mut i) = (0, 0);
-    while i < parts.len() {
-        let bytes = parts[i].as_bytes();
-        let mut j = 0;
-        while j < bytes.len() {
-            out[at] = bytes[j];
-            at += 1;
-            j += 1;
-        }
-        i += 1;
-    }
-    out
-}
+/// Every shader pass of scene-core, as `cargo xtask shaders` validates them.
+pub const SHADER_PASSES: &[shader::ShaderPass] =
+    &[LUMINANCE, crate::gbuffer::downsample::DOWNSAMPLE];
 
 /// An error of the GPU layer.
 #[derive(Debug, thiserror::Error)]
@@ -98,6 +76,14 @@ pub enum GpuError {
     /// The adapter refused to create a device.
     #[error("GPU device request failed: {0}")]
     RequestDevice(String),
+    /// A shader did not compose or validate.
+    #[error("shader {pass}: {message}")]
+    Shader {
+        /// The pass ([`shader::ShaderPass::name`]).
+        pass: String,
+        /// The composer's or naga's report.
+        message: String,
+    },
     /// Copying or mapping data back to the CPU failed.
     #[error("GPU readback failed: {0}")]
     Readback(String),
@@ -799,6 +785,32 @@ impl GpuVertex {
     };
 }
 
+/// The vertex attributes sit where the Rust fields are (a field moved, or an attribute
+/// format changed, fails here); the WGSL side (`VertexIn` in `shaders/gbuffer/mrt.wgsl`)
+/// reads them by location.
+#[cfg(test)]
+mod vertex_layout_tests {
+    use super::GpuVertex;
+    use std::mem::offset_of;
+
+    #[test]
+    fn attributes_match_the_fields() {
+        let fields = [
+            offset_of!(GpuVertex, position),
+            offset_of!(GpuVertex, triangle_id),
+            offset_of!(GpuVertex, normal),
+            offset_of!(GpuVertex, material_id),
+            offset_of!(GpuVertex, uv),
+            offset_of!(GpuVertex, has_uv),
+        ];
+        for (i, (a, field)) in GpuVertex::ATTRIBUTES.iter().zip(fields).enumerate() {
+            assert_eq!((a.shader_location, a.offset as usize), (i as u32, field));
+        }
+        let last = GpuVertex::ATTRIBUTES[5];
+        assert!(last.offset + last.format.size() <= std::mem::size_of::<GpuVertex>() as u64);
+    }
+}
+
 /// One material in the material storage buffer (32 bytes). WGSL:
 ///
 /// ```wgsl
@@ -1124,7 +1136,7 @@ impl GpuGBuffer {
 }
 
 /// Per-pixel luminance of `img` computed on the GPU with the thesis' eq. 17 weights,
-/// `0.27 R + 0.67 G + 0.06 B` (the compute shader [`LUMINANCE_WGSL`],
+/// `0.27 R + 0.67 G + 0.06 B` (the compute shader [`LUMINANCE`],
 /// `shaders/scene-core/luminance.wgsl`, 8 x 8 workgroups). Row-major like
 /// [`Image::luminance`], which it matches to a few ulps.
 ///
@@ -1144,20 +1156,21 @@ pub fn luminance_gpu(ctx: &GpuContext, img: &Image) -> Result<Vec<f32>, GpuError
         let pass = ComputePass::new(
             device,
             "luminance",
-            LUMINANCE_WGSL,
+            &LUMINANCE,
             &[
                 layout::float_texture(0),
                 layout::storage_texture(1, wgpu::TextureFormat::R32Float),
             ],
             &[],
-        );
+        )?;
         let bind_group = pass.bind_buffers_then_textures(device, &[], &[&src, &dst]);
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("luminance"),
         });
         pass.dispatch(&mut encoder, &bind_group, img.width, img.height, None);
         ctx.queue.submit([encoder.finish()]);
-    })?;
+        Ok::<(), GpuError>(())
+    })??;
     ctx.read_texture_r32f(&dst)
 }
 

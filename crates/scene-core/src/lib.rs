@@ -41,10 +41,14 @@ pub mod range;
 pub mod rays;
 pub mod technique;
 
+#[cfg(feature = "gltf")]
+pub use files::gltf_io;
 pub use files::open::{OpenedScene, open_scene};
-pub use files::{budget, gltf_io, image};
+pub use files::{budget, image};
 pub use model::{builtin, contract, lights, scene, view};
-pub use rays::{ray, reference, sampling};
+#[cfg(feature = "rays")]
+pub use rays::ray;
+pub use rays::{reference, sampling};
 
 pub use budget::{Budget, BudgetError};
 pub use error::{BudgetExceeded, GltfError, ImageError, SceneError};
@@ -58,23 +62,6 @@ pub use technique::{FrameRequest, Metric, MetricValue, Refinement, Technique};
 pub use view::{FrustumCorners, HemicubeFace, Projection, View};
 
 pub use glam;
-
-/// WGSL sources joined into one `&'static str` at compile time, like `concat!` but taking
-/// constants too, so a crate's passes can start with another crate's parts (WGSL has no
-/// `#include`): `pub const WGSL: &str = scene_core::wgsl!(scene_core::gpu::RECONSTRUCT_WGSL,
-/// include_str!("../shaders/pass.wgsl"));`. Each crate packages its own `shaders/`.
-#[macro_export]
-macro_rules! wgsl {
-    ($($part:expr),+ $(,)?) => {{
-        const PARTS: &[&str] = &[$($part),+];
-        const LEN: usize = $crate::gpu::wgsl_len(PARTS);
-        const BYTES: [u8; LEN] = $crate::gpu::wgsl_join::<LEN>(PARTS);
-        match ::core::str::from_utf8(&BYTES) {
-            Ok(s) => s,
-            Err(_) => panic!("WGSL parts are UTF-8"),
-        }
-    }};
-}
 
 /// Any error of the toolkit's shared layer.
 #[derive(Debug, thiserror::Error)]

@@ -2,7 +2,9 @@
 //! tracer built on them ([`reference`]), the sampling it uses ([`sampling`]), and the
 //! default view of a scene without a camera ([`framing`]).
 
+#[cfg(feature = "rays")]
 pub mod framing;
+#[cfg(feature = "rays")]
 pub mod ray;
 pub mod reference;
 pub mod sampling;

@@ -16,18 +16,34 @@ use relight_pr::technique::Prepared;
 use relight_pr::{RelightTechnique, relight};
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, uniform};
+use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{GpuContext, GpuGBuffer};
 use scene_core::{Image, LightState, Scene, View};
 use wgpu::util::DeviceExt;
 
 use crate::mode::{Layout, Mode};
 
-/// WGSL of the resolve pass (`shaders/viewer/resolve.wgsl`).
-pub const RESOLVE_WGSL: &str = include_str!("../shaders/resolve.wgsl");
-/// WGSL of the compose pass (`shaders/viewer/compose.wgsl`).
-pub const COMPOSE_WGSL: &str = include_str!("../shaders/compose.wgsl");
-/// WGSL of the present pass (`shaders/viewer/present.wgsl`).
-pub const PRESENT_WGSL: &str = include_str!("../shaders/present.wgsl");
+macro_rules! viewer_pass {
+    ($name:literal, $file:literal) => {
+        ShaderPass::new(
+            $name,
+            Wgsl {
+                path: concat!("viewer/", $file),
+                source: include_str!(concat!("../shaders/", $file)),
+            },
+            &[],
+        )
+    };
+}
+
+/// The resolve pass (`shaders/viewer/resolve.wgsl`).
+pub const RESOLVE: ShaderPass = viewer_pass!("viewer/resolve", "resolve.wgsl");
+/// The compose pass (`shaders/viewer/compose.wgsl`).
+pub const COMPOSE: ShaderPass = viewer_pass!("viewer/compose", "compose.wgsl");
+/// The present pass (`shaders/viewer/present.wgsl`).
+pub const PRESENT: ShaderPass = viewer_pass!("viewer/present", "present.wgsl");
+/// Every shader pass of the viewer, as `cargo xtask shaders` validates them.
+pub const SHADER_PASSES: &[ShaderPass] = &[RESOLVE, COMPOSE, PRESENT];
 
 /// The ISR settings of an ISR-family mode, and which of its textures the mode shows
 /// (`None`: the output; else an intermediate buffer) with which channel (0 colour, 1 the
@@ -326,19 +342,26 @@ impl Renderer {
         let lights = LightSet::new(&scene, &ShadowSettings::default()).map_err(err)?;
         let isr = GpuIsr::new(&ctx, &lights).map_err(err)?;
         let device = &ctx.device;
+        let modules = [&RESOLVE, &COMPOSE, &PRESENT].map(|p| p.create_module(device));
+        let [resolve_module, compose_module, present_module] = modules;
+        let (resolve_module, compose_module, module) = (
+            resolve_module.map_err(err)?,
+            compose_module.map_err(err)?,
+            present_module.map_err(err)?,
+        );
         let (resolve, compose, present, present_layout) = ctx
             .validated(|| {
-                let resolve = ComputePass::new(
+                let resolve = ComputePass::from_module(
                     device,
                     "viewer resolve",
-                    RESOLVE_WGSL,
+                    &resolve_module,
                     &[uniform(0), float_texture(1), storage_buffer_rw(2)],
                     &[],
                 );
-                let compose = ComputePass::new(
+                let compose = ComputePass::from_module(
                     device,
                     "viewer compose",
-                    COMPOSE_WGSL,
+                    &compose_module,
                     &[
                         uniform(0),
                         storage_buffer(1),
@@ -348,10 +371,6 @@ impl Renderer {
                     ],
                     &[],
                 );
-                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some("viewer present"),
-                    source: wgpu::ShaderSource::Wgsl(PRESENT_WGSL.into()),
-                });
                 let entry = |binding, ty| wgpu::BindGroupLayoutEntry {
                     binding,
                     visibility: wgpu::ShaderStages::FRAGMENT,
@@ -856,5 +875,61 @@ mod tests {
                 "timestamps: {allow_cpu}"
             );
         }
+    }
+}
+
+/// The viewer's passes compose, and every uniform has the layout naga gives its WGSL twin
+/// (a field moved on one side fails here).
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use scene_core::check_layout;
+
+    #[test]
+    fn uniforms_match_their_wgsl_structs() {
+        let resolve = RESOLVE.compose().unwrap();
+        check_layout!(
+            &resolve,
+            "Params",
+            ResolveParams {
+                width,
+                height,
+                channel,
+                pad
+            }
+        )
+        .unwrap();
+        let compose = COMPOSE.compose().unwrap();
+        check_layout!(
+            &compose,
+            "Params",
+            ComposeParams {
+                width,
+                height,
+                arrangement: layout,
+                divider,
+                error_scale,
+                pad0: pad,
+                pad1: pad + 4,
+                pad2: pad + 8,
+            }
+        )
+        .unwrap();
+        let present = PRESENT.compose().unwrap();
+        check_layout!(
+            &present,
+            "Params",
+            PresentParams {
+                width,
+                height,
+                scale,
+                encode,
+                surface_width,
+                surface_height,
+                pad0: pad,
+                pad1: pad + 4,
+            }
+        )
+        .unwrap();
     }
 }

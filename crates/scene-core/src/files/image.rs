@@ -163,6 +163,7 @@ impl Image {
         Ok(())
     }
 
+    #[cfg(feature = "exr")]
     /// Writes a 32-bit float RGB OpenEXR file (linear values as they are).
     pub fn write_exr(&self, path: &Path) -> Result<(), ImageError> {
         self.check_size()?;
@@ -176,12 +177,14 @@ impl Image {
         })
     }
 
+    #[cfg(feature = "exr")]
     /// Reads the RGB channels of the first layer of an OpenEXR file (alpha ignored), under
     /// the default [`Budget`]. See [`Image::decode_exr`].
     pub fn read_exr(path: &Path) -> Result<Self, ImageError> {
         Self::read_exr_with(path, &Budget::default())
     }
 
+    #[cfg(feature = "exr")]
     /// [`Image::read_exr`] under `budget`: the file's size is checked against
     /// [`Budget::file_bytes`] before it is read.
     pub fn read_exr_with(path: &Path, budget: &Budget) -> Result<Self, ImageError> {
@@ -189,6 +192,7 @@ impl Image {
         Self::decode_exr(&bytes, path, budget)
     }
 
+    #[cfg(feature = "exr")]
     /// Decodes the RGB channels of the first layer of an OpenEXR file held in memory;
     /// `path` names it in errors.
     ///
@@ -394,7 +398,13 @@ impl Image {
     /// [`Image::read`] under `budget`.
     pub fn read_with(path: &Path, budget: &Budget) -> Result<Image, ImageError> {
         match extension(path).as_deref() {
+            #[cfg(feature = "exr")]
             Some("exr") => Self::read_exr_with(path, budget),
+            #[cfg(not(feature = "exr"))]
+            Some("exr") => Err(ImageError::NotBuiltIn {
+                path: path.to_path_buf(),
+                feature: "exr",
+            }),
             Some("png") => Self::read_png_with(path, budget),
             _ => Err(ImageError::Read {
                 path: path.to_path_buf(),

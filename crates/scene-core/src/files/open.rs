@@ -6,8 +6,10 @@
 
 use std::path::Path;
 
+#[cfg(feature = "gltf")]
 use crate::budget::Budget;
 use crate::builtin;
+#[cfg(feature = "gltf")]
 use crate::gltf_io;
 use crate::scene::Scene;
 
@@ -64,24 +66,7 @@ pub fn open_scene(spec: &str) -> Result<OpenedScene, String> {
         if !Path::new(spec).exists() {
             return Err(format!("scene file '{spec}' does not exist"));
         }
-        let options = gltf_io::ImportOptions {
-            budget: Budget::from_env()?,
-            ..Default::default()
-        };
-        let imported =
-            gltf_io::import_with(Path::new(spec), &options).map_err(|e| e.to_string())?;
-        let mut notes = Vec::new();
-        let summary = imported.summary();
-        if !summary.is_empty() {
-            notes.push(summary);
-        }
-        notes.extend(imported.warnings.iter().map(|w| format!("warning: {w}")));
-        OpenedScene {
-            scene: imported.scene,
-            notes,
-            translation: glam::Vec3::ZERO,
-        }
-        .checked(spec)
+        open_gltf(spec)
     } else {
         let scene = builtin::scene(spec).map_err(|e| e.to_string())?;
         OpenedScene {
@@ -91,6 +76,36 @@ pub fn open_scene(spec: &str) -> Result<OpenedScene, String> {
         }
         .checked(spec)
     }
+}
+
+/// Without the `gltf` feature a file can only be refused, by name.
+#[cfg(not(feature = "gltf"))]
+fn open_gltf(spec: &str) -> Result<OpenedScene, String> {
+    Err(format!(
+        "scene file '{spec}': opening glTF needs scene-core's `gltf` feature, which this build lacks"
+    ))
+}
+
+/// Imports `spec` under the environment's budget and checks the contract.
+#[cfg(feature = "gltf")]
+fn open_gltf(spec: &str) -> Result<OpenedScene, String> {
+    let options = gltf_io::ImportOptions {
+        budget: Budget::from_env()?,
+        ..Default::default()
+    };
+    let imported = gltf_io::import_with(Path::new(spec), &options).map_err(|e| e.to_string())?;
+    let mut notes = Vec::new();
+    let summary = imported.summary();
+    if !summary.is_empty() {
+        notes.push(summary);
+    }
+    notes.extend(imported.warnings.iter().map(|w| format!("warning: {w}")));
+    OpenedScene {
+        scene: imported.scene,
+        notes,
+        translation: glam::Vec3::ZERO,
+    }
+    .checked(spec)
 }
 
 #[cfg(test)]

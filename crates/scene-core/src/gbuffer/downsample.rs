@@ -1,6 +1,6 @@
 //! Coarse G-buffers: downsampling by 2 in each direction ("4 times smaller buffers",
 //! thesis section 4.2), on the CPU ([`downsample`]) and the GPU ([`GpuDownsampler`],
-//! shader `shaders/scene-core/downsample.wgsl`, [`DOWNSAMPLE_WGSL`]), with the same results.
+//! shader `shaders/scene-core/downsample.wgsl`, [`DOWNSAMPLE`]), with the same results.
 //! The one downsampling of the toolkit: the gbuffer crate re-exports it and ISR's coarse
 //! buffers come from it ([`DownsampleMode::NearestSurface`] by default).
 //!
@@ -38,8 +38,16 @@ use rayon::prelude::*;
 
 use crate::gbuffer::{BACKGROUND_ID, GBuffer};
 
-/// WGSL source of the downsampling pass (the mode is its overridable constant `MODE`).
-pub const DOWNSAMPLE_WGSL: &str = include_str!("../../shaders/downsample.wgsl");
+/// The downsampling pass (the mode is its overridable constant `MODE`).
+#[cfg(feature = "gpu")]
+pub const DOWNSAMPLE: crate::gpu::shader::ShaderPass = crate::gpu::shader::ShaderPass::new(
+    "scene-core/downsample",
+    crate::gpu::shader::Wgsl {
+        path: "scene-core/downsample.wgsl",
+        source: include_str!("../../shaders/downsample.wgsl"),
+    },
+    &[],
+);
 
 /// Relative depth tolerance of [`DownsampleMode::NearestSurface`]: samples whose linear
 /// depth differs from the nearest sample's by more than 5 % of it are another surface.
@@ -273,7 +281,7 @@ mod gpu_pass {
     use std::sync::OnceLock;
 
     use super::{
-        DOWNSAMPLE_WGSL, DownsampleMode, NEAREST_DEPTH_TOLERANCE, SURFACE_DEPTH_TOLERANCE,
+        DOWNSAMPLE, DownsampleMode, NEAREST_DEPTH_TOLERANCE, SURFACE_DEPTH_TOLERANCE,
         SURFACE_NORMAL_COS, coarse_size,
     };
     use crate::gpu::layout::{float_texture, storage_texture, texture};
@@ -297,13 +305,7 @@ mod gpu_pass {
     impl GpuDownsampler {
         /// Compiles the shader module (pipelines follow per mode).
         pub fn new(ctx: &GpuContext) -> Result<Self, GpuError> {
-            let module = ctx.validated(|| {
-                ctx.device
-                    .create_shader_module(wgpu::ShaderModuleDescriptor {
-                        label: Some("downsample.wgsl"),
-                        source: wgpu::ShaderSource::Wgsl(DOWNSAMPLE_WGSL.into()),
-                    })
-            })?;
+            let module = ctx.validated(|| DOWNSAMPLE.create_module(&ctx.device))??;
             Ok(Self {
                 ctx: ctx.clone(),
                 module,

@@ -5,7 +5,8 @@
 //! dispatched over an image in 8 x 8 workgroups. Every compute shader of scene-core, the
 //! gbuffer crate and ISR is set up through it.
 
-use std::borrow::Cow;
+use super::GpuError;
+use super::shader::ShaderPass;
 
 /// Workgroup edge of every image-space compute shader (`@workgroup_size(8, 8, 1)`).
 pub const WORKGROUP: u32 = 8;
@@ -20,21 +21,21 @@ pub struct ComputePass {
 }
 
 impl ComputePass {
-    /// Compiles `source` with `constants` (name and value of each `override` to set) and
-    /// `entries` as group 0. wgpu reports errors through the device's error scopes: wrap
-    /// the call in [`crate::gpu::GpuContext::validated`] to receive them as values.
+    /// Composes `pass` ([`ShaderPass::create_module`], an error if it does not compose) and
+    /// compiles it with `constants` (name and value of each `override` to set) and
+    /// `entries` as group 0. wgpu reports its own errors through the device's error scopes:
+    /// wrap the call in [`crate::gpu::GpuContext::validated`] to receive them as values.
     pub fn new(
         device: &wgpu::Device,
         label: &str,
-        source: &str,
+        pass: &ShaderPass,
         entries: &[wgpu::BindGroupLayoutEntry],
         constants: &[(&str, f64)],
-    ) -> Self {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(label),
-            source: wgpu::ShaderSource::Wgsl(Cow::Owned(source.to_string())),
-        });
-        Self::from_module(device, label, &module, entries, constants)
+    ) -> Result<Self, GpuError> {
+        let module = pass.create_module(device)?;
+        Ok(Self::from_module(
+            device, label, &module, entries, constants,
+        ))
     }
 
     /// The same from an already compiled module (several pipelines of one module that

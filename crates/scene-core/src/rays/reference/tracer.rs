@@ -1,0 +1,542 @@
+//! The path tracer itself (feature `rays`): BVH queries, next-event estimation with MIS,
+//! the progressive accumulator and the [`crate::Technique`] wrapper.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use glam::{DVec3, Vec2, Vec3};
+use rayon::prelude::*;
+
+use crate::image::Image;
+use crate::lights::{Emitters, LightId, LightState};
+use crate::ray::RayScene;
+use crate::sampling::{Rng, cosine_hemisphere, hash_seed, uniform_triangle};
+use crate::scene::Scene;
+use crate::view::View;
+
+use super::{Bounces, PixelClass, RR_START_DEPTH, RayStats, ReferenceOutput, ReferenceSettings};
+
+#[derive(Clone, Copy, Debug)]
+struct TriData {
+    p: [Vec3; 3],
+    n: [Vec3; 3],
+    /// Unit geometric normal from the winding (the emitting side).
+    ng: Vec3,
+    area: f32,
+    material: u32,
+    mesh: u32,
+}
+
+/// A scene prepared for path tracing: BVH, flattened triangles and emitter table.
+pub struct PathTracer<'a> {
+    scene: &'a Scene,
+    rays: RayScene,
+    tris: Vec<TriData>,
+    uvs: Vec<Option<[Vec2; 3]>>,
+    emitters: Emitters,
+    /// (direct, indirect) factors of the light state, per point light, directional light
+    /// and mesh (for its emissive triangles).
+    point_factors: Vec<[Vec3; 2]>,
+    directional_factors: Vec<[Vec3; 2]>,
+    mesh_factors: Vec<[Vec3; 2]>,
+    /// Offset of secondary ray origins, relative to the scene's extent.
+    eps: f32,
+    /// A distance longer than any ray inside the scene.
+    far: f32,
+}
+
+impl<'a> PathTracer<'a> {
+    /// Prepares `scene` (which should be validated) with every light as the scene gives it.
+    pub fn new(scene: &'a Scene) -> Self {
+        Self::with_lights(scene, &LightState::default())
+    }
+
+    /// Prepares `scene` under a light state: each light's emission is multiplied by its
+    /// colour, its direct light (emission seen directly, light arriving at the first
+    /// surface) by its `direct` factor and everything after a reflection by its `indirect`
+    /// factor; a light that is off contributes nothing and is never sampled.
+    pub fn with_lights(scene: &'a Scene, lights: &LightState) -> Self {
+        let rays = RayScene::build(scene);
+        let mut tris = Vec::with_capacity(scene.triangle_count());
+        let mut uvs = Vec::with_capacity(scene.triangle_count());
+        for (mi, mesh) in scene.meshes.iter().enumerate() {
+            for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
+                let p = t.map(|i| mesh.positions[i as usize]);
+                let c = (p[1] - p[0]).cross(p[2] - p[0]);
+                let n = t.map(|i| mesh.normals.get(i as usize).copied().unwrap_or(Vec3::ZERO));
+                tris.push(TriData {
+                    p,
+                    n,
+                    ng: c.normalize_or_zero(),
+                    area: 0.5 * c.length(),
+                    material: m,
+                    mesh: mi as u32,
+                });
+                uvs.push(mesh.uvs.as_ref().map(|uv| t.map(|i| uv[i as usize])));
+            }
+        }
+        let factors = |id: LightId| {
+            let s = lights.get(id);
+            [s.direct_factor(), s.indirect_factor()]
+        };
+        let extent = scene.extent();
+        Self {
+            scene,
+            rays,
+            tris,
+            uvs,
+            emitters: Emitters::new(scene, lights),
+            point_factors: (0..scene.point_lights.len() as u32)
+                .map(|i| factors(LightId::Point(i)))
+                .collect(),
+            directional_factors: (0..scene.directional_lights.len() as u32)
+                .map(|i| factors(LightId::Directional(i)))
+                .collect(),
+            mesh_factors: (0..scene.meshes.len() as u32)
+                .map(|i| factors(LightId::Emissive(i)))
+                .collect(),
+            eps: extent * 2e-5,
+            far: extent * 4.0,
+        }
+    }
+
+    /// What each pixel's centre sees from `view` at `width` x `height`: nothing, an
+    /// emitting surface (emission seen from either side) or a reflecting one. Error over
+    /// "lit surfaces" is measured on [`PixelClass::Surface`] pixels, so that a method's bias
+    /// on what it shades is not diluted by emitter pixels every method copies exactly.
+    pub fn pixel_classes(&self, view: &View, width: u32, height: u32) -> Vec<PixelClass> {
+        let (w, h) = (width as usize, height as usize);
+        let mut out = vec![PixelClass::Background; w * h];
+        out.par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (x, c) in row.iter_mut().enumerate() {
+                    let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
+                    let (o, d) = view.ray(uv);
+                    *c = match self.rays.closest_hit(o, d, 0.0, f32::INFINITY) {
+                        None => PixelClass::Background,
+                        Some(hit) => {
+                            let tri = &self.tris[hit.triangle as usize];
+                            if self.scene.materials[tri.material as usize].is_emissive() {
+                                PixelClass::Emitter
+                            } else {
+                                PixelClass::Surface
+                            }
+                        }
+                    };
+                }
+            });
+        out
+    }
+
+    /// The BVH, for reuse by callers.
+    pub fn ray_scene(&self) -> &RayScene {
+        &self.rays
+    }
+
+    /// One radiance sample along a ray from `origin` in unit direction `dir`.
+    pub fn radiance(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        bounces: Bounces,
+        rng: &mut Rng,
+        stats: &mut RayStats,
+    ) -> Vec3 {
+        let max_vertex = match bounces {
+            Bounces::Limited(n) => n,
+            Bounces::Unlimited => u32::MAX - 1,
+        };
+        let mut l = Vec3::ZERO;
+        let mut beta = Vec3::ONE;
+        let (mut o, mut d) = (origin, dir);
+        // Solid-angle pdf of the bounce that produced `d` (None for the camera ray).
+        let mut prev_pdf: Option<f32> = None;
+        let mut t_min = 0.0;
+        for k in 0..=max_vertex.saturating_add(1) {
+            if k == 0 {
+                stats.primary += 1;
+            } else {
+                stats.bounce += 1;
+            }
+            let Some(hit) = self.rays.closest_hit(o, d, t_min, f32::INFINITY) else {
+                break;
+            };
+            let tri = &self.tris[hit.triangle as usize];
+            let (b1, b2) = (hit.barycentric.x, hit.barycentric.y);
+            let b0 = 1.0 - b1 - b2;
+            let x = o + d * hit.t;
+            let mat = &self.scene.materials[tri.material as usize];
+            // Emission, one-sided.
+            let cos_l = tri.ng.dot(-d);
+            // Seen from the camera or from the first surface it is direct light, after a
+            // reflection indirect.
+            let factor = self.mesh_factors[tri.mesh as usize][usize::from(k > 1)];
+            if mat.is_emissive() && cos_l > 0.0 && factor != Vec3::ZERO {
+                let w = match prev_pdf {
+                    None => 1.0,
+                    Some(pb) => {
+                        let pl = self.emitters.probability_of_triangle(hit.triangle) as f32
+                            / tri.area
+                            * hit.t
+                            * hit.t
+                            / cos_l;
+                        power_heuristic(pb, pl)
+                    }
+                };
+                l += beta * mat.emission * factor * w;
+            }
+            if k > max_vertex {
+                break;
+            }
+            // Surface frame, flipped towards the incoming ray (two-sided reflection).
+            let ng = if tri.ng.dot(d) < 0.0 { tri.ng } else { -tri.ng };
+            let ns = (tri.n[0] * b0 + tri.n[1] * b1 + tri.n[2] * b2).normalize_or_zero();
+            let ns = if ns == Vec3::ZERO {
+                ng
+            } else if ns.dot(ng) < 0.0 {
+                -ns
+            } else {
+                ns
+            };
+            let uv = self.uvs[hit.triangle as usize].map(|uv| uv[0] * b0 + uv[1] * b1 + uv[2] * b2);
+            let albedo = self.scene.albedo_at(tri.material, uv);
+            let p = x + ng * self.eps;
+            l += beta
+                * albedo
+                * std::f32::consts::FRAC_1_PI
+                * self.direct(p, ns, usize::from(k > 0), rng, stats);
+            // Bounce.
+            let nd = cosine_hemisphere(ns, rng.next_vec2());
+            let cos = nd.dot(ns);
+            if nd.dot(ng) <= 0.0 || cos <= 0.0 {
+                break;
+            }
+            beta *= albedo;
+            if k + 1 >= RR_START_DEPTH {
+                // Survival equals the throughput (at most 1), so a surviving path's weight
+                // never grows: the estimator's second moment stays finite for every albedo
+                // up to [`crate::scene::ALBEDO_MAX`]. A fixed cap below the albedo (0.95
+                // before) makes the weight grow by rho/cap per bounce and the variance
+                // unbounded once rho^2 > cap (a furnace of albedo 0.999 averaged 187 for 1000).
+                let q = beta.max_element().min(1.0);
+                if q <= 0.0 || rng.next_f32() >= q {
+                    break;
+                }
+                beta /= q;
+            }
+            prev_pdf = Some(cos * std::f32::consts::FRAC_1_PI);
+            o = p;
+            d = nd;
+            t_min = 0.0;
+        }
+        l
+    }
+
+    /// Irradiance at `p` with normal `n` from all lights by next-event estimation (area
+    /// lights MIS-weighted), each light's term multiplied by its direct (`which` 0: the
+    /// first surface) or indirect (`which` 1) factor: multiply by albedo/pi for the
+    /// reflected radiance.
+    fn direct(&self, p: Vec3, n: Vec3, which: usize, rng: &mut Rng, stats: &mut RayStats) -> Vec3 {
+        let mut e = Vec3::ZERO;
+        for (light, factor) in self.scene.point_lights.iter().zip(&self.point_factors) {
+            let factor = factor[which];
+            let to = light.position - p;
+            let dist = to.length();
+            if dist <= 0.0 || factor == Vec3::ZERO {
+                continue;
+            }
+            let w = to / dist;
+            let cos = n.dot(w);
+            let f = light.falloff(dist);
+            if cos <= 0.0 || f <= 0.0 {
+                continue;
+            }
+            stats.shadow += 1;
+            if !self.rays.occluded(p, w, 0.0, dist * (1.0 - 1e-5)) {
+                e += light.intensity * factor * (f * cos);
+            }
+        }
+        for (light, factor) in self
+            .scene
+            .directional_lights
+            .iter()
+            .zip(&self.directional_factors)
+        {
+            let factor = factor[which];
+            let w = -light.direction.normalize();
+            let cos = n.dot(w);
+            if cos <= 0.0 || factor == Vec3::ZERO {
+                continue;
+            }
+            stats.shadow += 1;
+            if !self.rays.occluded(p, w, 0.0, self.far) {
+                e += light.irradiance * factor * cos;
+            }
+        }
+        let picked = if self.emitters.is_empty() {
+            None
+        } else {
+            self.emitters.pick(rng.next_f64())
+        };
+        if let Some(k) = picked {
+            let tri = &self.emitters.triangles[k];
+            let data = &self.tris[tri.triangle as usize];
+            let factor = self.mesh_factors[tri.mesh as usize][which];
+            let b = uniform_triangle(rng.next_vec2());
+            let q = data.p[0] * (1.0 - b.x - b.y) + data.p[1] * b.x + data.p[2] * b.y;
+            let to = q - p;
+            let d2 = to.length_squared();
+            if d2 > 0.0 {
+                let dist = d2.sqrt();
+                let w = to / dist;
+                let cos = n.dot(w);
+                let cos_l = data.ng.dot(-w);
+                if cos > 0.0 && cos_l > 0.0 && factor != Vec3::ZERO {
+                    stats.shadow += 1;
+                    // Stop short of the emitter by an absolute, scene-relative margin: an
+                    // occluder flush against the light must still block it.
+                    if !self.rays.occluded(p, w, 0.0, dist - 2.0 * self.eps) {
+                        let pdf_area = self.emitters.pick_probability(k) as f32 / data.area;
+                        let pl = pdf_area * d2 / cos_l;
+                        let pb = cos * std::f32::consts::FRAC_1_PI;
+                        let le = self.scene.materials[data.material as usize].emission;
+                        // Irradiance estimate Le cos / pdf (solid angle), MIS-weighted.
+                        e += le * factor * (cos / pl * power_heuristic(pl, pb));
+                    }
+                }
+            }
+        }
+        e
+    }
+}
+
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 && (a2 + b2).is_finite() {
+        a2 / (a2 + b2)
+    } else if a.is_infinite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// Progressive accumulation of samples: the image after `n` passes is the same whatever the
+/// pass sizes were.
+#[derive(Clone, Debug)]
+pub struct Accumulator {
+    width: u32,
+    height: u32,
+    sum: Vec<DVec3>,
+    sum_sq: Vec<DVec3>,
+    spp: u32,
+    stats: RayStats,
+}
+
+impl Accumulator {
+    /// An empty accumulator for `width x height` pixels.
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        Self {
+            width,
+            height,
+            sum: vec![DVec3::ZERO; n],
+            sum_sq: vec![DVec3::ZERO; n],
+            spp: 0,
+            stats: RayStats::default(),
+        }
+    }
+
+    /// Samples per pixel so far.
+    pub fn spp(&self) -> u32 {
+        self.spp
+    }
+
+    /// Ray counts and time so far.
+    pub fn stats(&self) -> RayStats {
+        self.stats
+    }
+
+    /// Adds `samples` samples per pixel. `progress(rows_done, rows_total)` is called as rows
+    /// finish (from worker threads).
+    pub fn add_pass(
+        &mut self,
+        tracer: &PathTracer<'_>,
+        view: &View,
+        bounces: Bounces,
+        seed: u64,
+        samples: u32,
+        progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+    ) -> RayStats {
+        let start = Instant::now();
+        let (w, h) = (self.width, self.height);
+        let first = self.spp;
+        // Sample indices are u32: never wrap.
+        let samples = samples.min(u32::MAX - first);
+        let done = AtomicU64::new(0);
+        let row_stats: Vec<RayStats> = self
+            .sum
+            .par_chunks_mut(w.max(1) as usize)
+            .zip(self.sum_sq.par_chunks_mut(w.max(1) as usize))
+            .enumerate()
+            .map(|(y, (sum, sum_sq))| {
+                let mut stats = RayStats::default();
+                for x in 0..w {
+                    let pixel = y as u64 * w as u64 + x as u64;
+                    for s in first..first + samples {
+                        let mut rng = Rng::new(hash_seed(seed, pixel, s as u64), 0);
+                        let jitter = rng.next_vec2();
+                        let uv = Vec2::new(
+                            (x as f32 + jitter.x) / w as f32,
+                            (y as f32 + jitter.y) / h as f32,
+                        );
+                        let (o, d) = view.ray(uv);
+                        let l = tracer.radiance(o, d, bounces, &mut rng, &mut stats);
+                        // A non-finite sample would poison the pixel: drop it (counted as 0).
+                        let l = if l.is_finite() {
+                            l.as_dvec3()
+                        } else {
+                            DVec3::ZERO
+                        };
+                        sum[x as usize] += l;
+                        sum_sq[x as usize] += l * l;
+                    }
+                }
+                if let Some(p) = progress {
+                    p(done.fetch_add(1, Ordering::Relaxed) + 1, h as u64);
+                }
+                stats
+            })
+            .collect();
+        let mut pass = RayStats::default();
+        for s in &row_stats {
+            pass.add(s);
+        }
+        pass.seconds = start.elapsed().as_secs_f64();
+        self.spp += samples;
+        self.stats.add(&pass);
+        pass
+    }
+
+    /// The mean image.
+    pub fn image(&self) -> Image {
+        let n = self.spp.max(1) as f64;
+        Image {
+            width: self.width,
+            height: self.height,
+            pixels: self.sum.iter().map(|s| (*s / n).as_vec3()).collect(),
+        }
+    }
+
+    /// Per-pixel sample variance (unbiased; zero with fewer than two samples).
+    pub fn variance(&self) -> Image {
+        let n = self.spp as f64;
+        let pixels = self
+            .sum
+            .iter()
+            .zip(&self.sum_sq)
+            .map(|(s, q)| {
+                if n < 2.0 {
+                    Vec3::ZERO
+                } else {
+                    ((*q - *s * *s / n) / (n - 1.0)).max(DVec3::ZERO).as_vec3()
+                }
+            })
+            .collect();
+        Image {
+            width: self.width,
+            height: self.height,
+            pixels,
+        }
+    }
+}
+
+/// Renders `scene` from `view` with `settings` in one call. `progress(rows_done,
+/// rows_total)` reports progress. Zero-size settings give an empty image.
+pub fn render(
+    scene: &Scene,
+    view: &View,
+    settings: &ReferenceSettings,
+    progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+) -> ReferenceOutput {
+    render_lit(scene, view, settings, &LightState::default(), progress)
+}
+
+/// [`render`] under a light state (see [`PathTracer::with_lights`]): any light alone, any
+/// recolouring, dimming, switching, and per-light direct and indirect multipliers.
+pub fn render_lit(
+    scene: &Scene,
+    view: &View,
+    settings: &ReferenceSettings,
+    lights: &LightState,
+    progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+) -> ReferenceOutput {
+    let tracer = PathTracer::with_lights(scene, lights);
+    let mut acc = Accumulator::new(settings.width, settings.height);
+    acc.add_pass(
+        &tracer,
+        view,
+        settings.bounces,
+        settings.seed,
+        settings.spp,
+        progress,
+    );
+    ReferenceOutput {
+        image: acc.image(),
+        variance: acc.variance(),
+        spp: acc.spp(),
+        stats: acc.stats(),
+    }
+}
+
+/// The reference path tracer as a [`crate::Technique`], so the harness, the tests and the
+/// scene contract treat it like every other method: `prepare` checks the scene contract
+/// ([`crate::contract::check`]) and keeps the scene, `render` traces a frame with
+/// [`ReferenceTechnique::settings`] (its width and height are the frame's) under the frame's
+/// light state.
+#[derive(Debug)]
+pub struct ReferenceTechnique {
+    /// Samples, bounces and seed (width and height come from each frame).
+    pub settings: ReferenceSettings,
+    scene: Option<std::sync::Arc<Scene>>,
+}
+
+impl ReferenceTechnique {
+    /// A reference technique with these settings.
+    pub fn new(settings: ReferenceSettings) -> Self {
+        Self {
+            settings,
+            scene: None,
+        }
+    }
+}
+
+impl crate::Technique for ReferenceTechnique {
+    fn name(&self) -> &str {
+        "reference"
+    }
+
+    fn prepare(&mut self, scene: std::sync::Arc<Scene>) -> Result<(), crate::Error> {
+        self.scene = None;
+        crate::contract::check(&scene)?;
+        self.scene = Some(scene);
+        Ok(())
+    }
+
+    fn render(&mut self, frame: &crate::FrameRequest<'_>) -> Result<Image, crate::Error> {
+        let Some(scene) = self.scene.as_ref() else {
+            return Err(crate::Error::NotPrepared("technique 'reference'".into()));
+        };
+        frame
+            .lights
+            .check(scene)
+            .map_err(crate::Error::InvalidArgument)?;
+        let settings = ReferenceSettings {
+            width: frame.width,
+            height: frame.height,
+            ..self.settings
+        };
+        Ok(render_lit(scene, &frame.view, &settings, frame.lights, None).image)
+    }
+}
