@@ -93,8 +93,14 @@ pub fn hub_costs() -> Result<(), String> {
 pub fn msrv_violations(meta: &serde_json::Value) -> Vec<String> {
     use std::collections::HashMap;
     let parse = |v: &serde_json::Value| -> Option<Vec<u32>> {
-        let s = v.as_str()?;
-        Some(s.split('.').map(|p| p.parse().unwrap_or(0)).collect())
+        // "1.88" and "1.88.0" are the same version: three components, missing ones zero.
+        let mut parts: Vec<u32> = v
+            .as_str()?
+            .split('.')
+            .map(|p| p.parse().unwrap_or(0))
+            .collect();
+        parts.resize(3, 0);
+        Some(parts)
     };
     let packages: HashMap<&str, (&str, Option<Vec<u32>>)> = meta["packages"]
         .as_array()
@@ -153,7 +159,14 @@ pub fn msrv_violations(meta: &serde_json::Value) -> Vec<String> {
             }
         }
         let Some((need, by)) = need else { continue };
-        let show = |v: &[u32]| v.iter().map(u32::to_string).collect::<Vec<_>>().join(".");
+        let show = |v: &[u32]| {
+            format!("{}.{}", v[0], v[1])
+                + &if v[2] > 0 {
+                    format!(".{}", v[2])
+                } else {
+                    String::new()
+                }
+        };
         match declared {
             Some(d) if *d >= need => {}
             Some(d) => violations.push(format!(
@@ -360,6 +373,7 @@ mod tests {
     fn a_rust_version_below_a_transitive_dependency_is_named() {
         assert!(msrv_violations(&msrv_meta(Some("1.90"), None)).is_empty());
         assert!(msrv_violations(&msrv_meta(Some("1.95.1"), None)).is_empty());
+        assert!(msrv_violations(&msrv_meta(Some("1.90.0"), None)).is_empty());
         let v = msrv_violations(&msrv_meta(Some("1.88"), None));
         assert_eq!(
             v,
