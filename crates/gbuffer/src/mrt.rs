@@ -22,7 +22,6 @@ use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, GpuScene, GpuVertex};
 use scene_core::view::Projection;
 use scene_core::{Error, GBuffer, GBufferRenderer, Scene, View, ViewTarget};
-use wgpu::util::DeviceExt;
 
 use crate::raster::check_target;
 
@@ -153,13 +152,9 @@ impl GpuPreparedScene {
         }
         let geometry = ctx.validated(|| ctx.upload_scene(scene))?;
         let storage = |label: &str, bytes: &[u8], dummy: &[u8]| {
-            ctx.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    // Empty storage bindings are invalid: upload a placeholder.
-                    contents: if bytes.is_empty() { dummy } else { bytes },
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                })
+            // Empty storage bindings are invalid: upload a placeholder.
+            let bytes = if bytes.is_empty() { dummy } else { bytes };
+            ctx.storage_with(label, bytes, wgpu::BufferUsages::COPY_DST)
         };
         let dummy4 = [0u8; 16];
         let (face_normals, texture_infos, texels) = ctx.validated(|| {
@@ -330,11 +325,9 @@ impl GpuRasterizer {
         let depth_attachment = target.depth_attachment()?;
         let device = &self.ctx.device;
         self.ctx.validated(|| {
-            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("gbuffer view"),
-                contents: bytemuck::bytes_of(&ViewUniform::new(view)),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+            let uniform = self
+                .ctx
+                .uniform_buffer("gbuffer view", &ViewUniform::new(view));
             let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("gbuffer mrt"),
                 layout: &self.layout,

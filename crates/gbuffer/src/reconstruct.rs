@@ -24,7 +24,6 @@ use scene_core::View;
 use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{ComputePass, GpuContext, GpuError, GpuGBuffer};
 use scene_core::view::Projection;
-use wgpu::util::DeviceExt;
 
 /// The reconstruction passes (`shaders/gbuffer/reconstruct.wgsl`, one entry point per
 /// method, importing `scene_core::reconstruct`).
@@ -343,20 +342,13 @@ impl GpuReconstructor {
     pub fn output_texture(&self, width: u32, height: u32) -> Result<wgpu::Texture, GpuError> {
         self.ctx.check_texture_size(width, height)?;
         self.ctx.validated(|| {
-            self.ctx.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("reconstructed positions"),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba32Float,
-                usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            })
+            self.ctx.create_texture_2d(
+                "reconstructed positions",
+                width,
+                height,
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+            )
         })
     }
 
@@ -400,11 +392,7 @@ impl GpuReconstructor {
             .unwrap_or(0);
         let hw_depth = gbuffer.depth_attachment()?;
         self.ctx.validated(|| {
-            let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("reconstruct params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+            let uniform = self.ctx.uniform_buffer("reconstruct params", &params);
             let linear = gbuffer.depth.create_view(&Default::default());
             let hw = hw_depth.create_view(&Default::default());
             let out_view = out.create_view(&Default::default());

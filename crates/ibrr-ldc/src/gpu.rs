@@ -11,7 +11,6 @@ use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
 use scene_core::lights::LightId;
 use scene_core::view::{FrustumReconstruction, Projection};
 use scene_core::{Image, LightState, Scene, View};
-use wgpu::util::DeviceExt;
 
 use crate::error::IbrrError;
 use crate::ldc::Ldc;
@@ -332,13 +331,7 @@ impl GpuLdc {
             triangles: *triangles,
         };
         let ctx = &self.ctx;
-        let uniform = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("ibrr params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let uniform = ctx.uniform_buffer("ibrr params", &params);
 
         let views = [&g.albedo, &g.normal, &g.depth, &g.triangle_id]
             .map(|t| t.create_view(&Default::default()));
@@ -559,13 +552,7 @@ impl GpuGather {
             scale,
             has_radius: radius.is_some() as u32,
         };
-        let uniform = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("gather params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let uniform = ctx.uniform_buffer("gather params", &params);
         let renders = ctx.storage_with(
             "gather renders",
             bytemuck::cast_slice(&records),

@@ -387,3 +387,14 @@ impl Technique for IbrrTechnique {
         Ok(image)
     }
 }
+
+impl scene_core::technique::StageTimings for FrameTimings {
+    fn stages(&self) -> Vec<(&'static str, Duration)> {
+        vec![
+            ("rebuild", self.rebuild),
+            ("relight", self.relight),
+            ("gbuffer", self.gbuffer),
+            ("lookup", self.lookup),
+        ]
+    }
+}

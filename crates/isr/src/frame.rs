@@ -188,3 +188,38 @@ pub(crate) fn timed<T>(f: impl FnOnce() -> T) -> (T, Duration) {
     let v = f();
     (v, start.elapsed())
 }
+
+impl scene_core::technique::StageTimings for PassTimings {
+    fn stages(&self) -> Vec<(&'static str, Duration)> {
+        vec![
+            ("downsample", self.downsample),
+            ("senders", self.senders),
+            ("radiosity", self.radiosity),
+            ("blur", self.blur),
+            ("upsample", self.upsample),
+            ("lighting", self.lighting),
+        ]
+    }
+}
+
+#[cfg(test)]
+mod stage_tests {
+    use super::*;
+    use scene_core::technique::StageTimings;
+
+    #[test]
+    fn the_stages_are_every_pass() {
+        let ms = Duration::from_millis;
+        let t = PassTimings {
+            gpu_timestamps: false,
+            downsample: ms(1),
+            senders: ms(2),
+            radiosity: ms(4),
+            blur: ms(8),
+            upsample: ms(16),
+            lighting: ms(32),
+        };
+        assert_eq!(t.total_time(), t.total());
+        assert_eq!(t.total_time(), ms(63));
+    }
+}

@@ -42,7 +42,6 @@ use scene_core::gbuffer::downsample::{GpuDownsampler, coarse_size};
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, PassTimer};
 use scene_core::lights::LightState;
 use scene_core::{GBuffer, Image, View};
-use wgpu::util::DeviceExt;
 
 use crate::geometry::Screen;
 use crate::light_set::{LightKind, LightSet};
@@ -261,34 +260,17 @@ fn view_of(t: &wgpu::Texture) -> wgpu::TextureView {
     t.create_view(&Default::default())
 }
 
-fn buffer(ctx: &GpuContext, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
-    // Storage bindings may not be empty.
-    let bytes: &[u8] = if bytes.is_empty() { &[0u8; 16] } else { bytes };
-    ctx.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: bytes,
-            usage,
-        })
-}
-
+/// An Rgba32Float texture a pass writes and a later pass (or a readback) reads.
 fn rgba_texture(ctx: &GpuContext, label: &str, width: u32, height: u32) -> wgpu::Texture {
-    ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba32Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING
+    ctx.create_texture_2d(
+        label,
+        width,
+        height,
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::TEXTURE_BINDING
             | wgpu::TextureUsages::STORAGE_BINDING
             | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    })
+    )
 }
 
 /// The inputs of a GPU frame.
@@ -440,7 +422,7 @@ impl GpuIsr {
     /// their current factors). Errors when a buffer exceeds the device's storage-buffer
     /// limit.
     pub fn new(ctx: &GpuContext, lights: &LightSet) -> Result<Self, IsrError> {
-        scoped(ctx, || Self::create(ctx, lights))
+        ctx.validated_with(|| Self::create(ctx, lights))
     }
 
     fn create(ctx: &GpuContext, scene: &LightSet) -> Result<Self, IsrError> {
@@ -485,20 +467,18 @@ impl GpuIsr {
             radiosity: radiosity::GpuPass::new(device)?,
             blur: blur::GpuPass::new(device)?,
             upsample: upsample::GpuPass::new(device)?,
-            lights: buffer(ctx, "isr lights", bytemuck::cast_slice(&lights), storage),
-            shadow_texels: buffer(
-                ctx,
+            lights: ctx.buffer_with("isr lights", bytemuck::cast_slice(&lights), storage),
+            shadow_texels: ctx.buffer_with(
                 "isr shadow maps",
                 bytemuck::cast_slice(&scene.shadow_texels),
                 storage,
             ),
-            emitter_of: buffer(
-                ctx,
+            emitter_of: ctx.buffer_with(
                 "isr emitter index",
                 bytemuck::cast_slice(per_triangle),
                 storage,
             ),
-            emitters: buffer(ctx, "isr emitters", bytemuck::cast_slice(&table), storage),
+            emitters: ctx.buffer_with("isr emitters", bytemuck::cast_slice(&table), storage),
             pattern: None,
             dummy: rgba_texture(ctx, "isr dummy", 1, 1),
             targets: None,
@@ -646,7 +626,7 @@ impl GpuIsr {
             crate::frame::check_gbuffer("coarse", c)?;
         }
         let ctx = self.ctx.clone();
-        scoped(&ctx, || self.run_uploaded(full, coarse, view, settings))
+        ctx.validated_with(|| self.run_uploaded(full, coarse, view, settings))
     }
 
     fn run_uploaded(
@@ -777,8 +757,7 @@ impl GpuIsr {
             let data = SamplePattern::new(settings.samples).to_gpu();
             self.pattern = Some((
                 settings.samples,
-                buffer(
-                    &self.ctx,
+                self.ctx.buffer_with(
                     "isr sample pattern",
                     bytemuck::cast_slice(&data),
                     wgpu::BufferUsages::STORAGE,
@@ -788,8 +767,7 @@ impl GpuIsr {
         let screen = Screen::new(inputs.view);
         let globals = Globals::new(&screen, &self.light_set, settings, full_size, coarse_size);
         // This frame's own uniforms: a second view encoded before the submit gets its own.
-        let globals = buffer(
-            &self.ctx,
+        let globals = self.ctx.buffer_with(
             "isr globals",
             bytemuck::bytes_of(&globals),
             wgpu::BufferUsages::UNIFORM,
@@ -900,27 +878,5 @@ impl GpuIsr {
             lighting_pass.dispatch(e, &bg, full.width, full.height, ts)
         });
         Ok(())
-    }
-}
-
-/// Runs `f` inside a validation error scope; a captured error becomes
-/// [`GpuError::Validation`].
-fn scoped<T>(ctx: &GpuContext, f: impl FnOnce() -> Result<T, IsrError>) -> Result<T, IsrError> {
-    let scope = ctx.device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let result = f();
-    if let Some(Some(e)) = ready(scope.pop()) {
-        return Err(GpuError::Validation(e.to_string()).into());
-    }
-    result
-}
-
-/// Blocks on a future that wgpu resolves without needing to be polled by an executor (the
-/// error scopes of native backends).
-pub(crate) fn ready<F: std::future::Future>(f: F) -> Option<F::Output> {
-    let mut f = std::pin::pin!(f);
-    let waker = std::task::Waker::noop();
-    match f.as_mut().poll(&mut std::task::Context::from_waker(waker)) {
-        std::task::Poll::Ready(v) => Some(v),
-        std::task::Poll::Pending => None,
     }
 }

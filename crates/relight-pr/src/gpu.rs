@@ -11,7 +11,6 @@ use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
 use scene_core::view::FrustumReconstruction;
 use scene_core::{Image, View};
-use wgpu::util::DeviceExt;
 
 use crate::RelightError;
 use crate::display::Welding;
@@ -343,14 +342,7 @@ impl GpuRelight {
             pad: [0; 2],
             base: base.extend(0.0).to_array(),
         };
-        let uniform = self
-            .ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("relight params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let uniform = self.ctx.uniform_buffer("relight params", &params);
         let f = self.factor_buffer(factors);
         let bind = self.relight_pass.bind(
             &self.ctx.device,
@@ -452,13 +444,7 @@ impl GpuRelight {
             base: base.extend(0.0).to_array(),
         };
         let ctx = &self.ctx;
-        let uniform = ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("display params"),
-                contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let uniform = ctx.uniform_buffer("display params", &params);
         let (pass, direct): (_, Vec<[f32; 4]>) = match pixel_direct {
             Some(values) => {
                 if values.len() != pixels * self.k {

@@ -241,3 +241,14 @@ impl Technique for RelightTechnique {
         Ok(image)
     }
 }
+
+impl scene_core::technique::StageTimings for FrameTimings {
+    fn stages(&self) -> Vec<(&'static str, Duration)> {
+        vec![
+            ("relight", self.relight),
+            ("gbuffer", self.gbuffer),
+            ("direct", self.direct),
+            ("display", self.display),
+        ]
+    }
+}

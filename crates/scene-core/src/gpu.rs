@@ -28,6 +28,7 @@ use wgpu::util::DeviceExt;
 
 pub mod compute;
 pub mod shader;
+pub mod timing;
 pub mod wgsl_layout;
 pub use compute::{ComputePass, PassTimer, WORKGROUP};
 pub use wgpu::naga;
@@ -561,14 +562,34 @@ impl GpuContext {
         bytes: &[u8],
         extra: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
-        use wgpu::util::DeviceExt;
+        self.buffer_with(label, bytes, wgpu::BufferUsages::STORAGE | extra)
+    }
+
+    /// A buffer holding `bytes` with `usage` (16 zero bytes when `bytes` is empty: bindings
+    /// may not be empty). The toolkit's one way of creating an initialised buffer.
+    pub fn buffer_with(
+        &self,
+        label: &str,
+        bytes: &[u8],
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
         let bytes: &[u8] = if bytes.is_empty() { &[0u8; 16] } else { bytes };
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents: bytes,
-                usage: wgpu::BufferUsages::STORAGE | extra,
+                usage,
             })
+    }
+
+    /// A uniform buffer holding `value` (a `#[repr(C)]` struct checked against its WGSL
+    /// twin with [`crate::check_layout!`]).
+    pub fn uniform_buffer<T: Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
+        self.buffer_with(
+            label,
+            bytemuck::bytes_of(value),
+            wgpu::BufferUsages::UNIFORM,
+        )
     }
 
     /// Reads a whole buffer back as elements of `T` (trailing bytes that do not fill a
@@ -626,6 +647,16 @@ impl GpuContext {
             Some(error) => Err(GpuError::Validation(error.to_string())),
             None => Ok(value),
         }
+    }
+
+    /// [`GpuContext::validated`] for work that has its own errors: `f`'s error, or a
+    /// captured validation error converted into the caller's error type (a method crate's
+    /// error that wraps [`GpuError`]).
+    pub fn validated_with<T, E: From<GpuError>>(
+        &self,
+        f: impl FnOnce() -> Result<T, E>,
+    ) -> Result<T, E> {
+        self.validated(f)?
     }
 }
 

@@ -58,7 +58,7 @@ pub use gbuffer::{
 pub use image::{Image, luminance};
 pub use lights::{LightId, LightSetting, LightState};
 pub use scene::{Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture};
-pub use technique::{FrameRequest, Metric, MetricValue, Refinement, Technique};
+pub use technique::{FrameRequest, Metric, MetricValue, Refinement, StageTimings, Technique};
 pub use view::{FrustumCorners, HemicubeFace, Projection, View};
 
 pub use glam;

@@ -124,3 +124,17 @@ pub trait Metric {
     /// Compares `test` against `reference` (the same size).
     fn compare(&self, reference: &Image, test: &Image) -> Result<MetricValue, Error>;
 }
+
+/// The time of each stage of a frame, in the order the stages run: the one shape every
+/// method's frame timings take (ISR's `PassTimings`, relighting's and the IBRR's
+/// `FrameTimings`, the GPU [`crate::gpu::timing::StageProfiler`]), so a harness or a viewer
+/// can list and sum any method's stages without knowing its fields.
+pub trait StageTimings {
+    /// Each stage's name and time, in order.
+    fn stages(&self) -> Vec<(&'static str, std::time::Duration)>;
+
+    /// The sum of the stages.
+    fn total_time(&self) -> std::time::Duration {
+        self.stages().iter().map(|(_, t)| *t).sum()
+    }
+}

@@ -907,7 +907,7 @@ impl App {
             // Time the frame's work, not its submission.
             let _ = ctx.device.poll(wgpu::PollType::wait_indefinitely());
         }
-        profiler.read_gpu()?;
+        profiler.read_gpu().map_err(|e| e.to_string())?;
         self.info.timestamps = profiler.uses_timestamps();
         profiler
             .times

@@ -4,7 +4,6 @@
 //! view's mean, a few times a second) are the only readbacks.
 
 use std::sync::Arc;
-use std::time::{Duration, Instant};
 
 use gbuffer::{GpuPreparedScene, GpuRasterizer};
 use glam::Vec3;
@@ -19,7 +18,6 @@ use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, 
 use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{GpuContext, GpuGBuffer};
 use scene_core::{Image, LightState, Scene, View};
-use wgpu::util::DeviceExt;
 
 use crate::mode::{Layout, Mode};
 
@@ -143,135 +141,8 @@ pub struct FrameSpec<'a> {
     pub error_scale: f32,
 }
 
-/// GPU timestamps written between the stages of a frame (inside one command encoder).
-struct Timestamps {
-    set: wgpu::QuerySet,
-    resolved: wgpu::Buffer,
-    written: u32,
-    period_ns: f32,
-}
-
-/// Most stages a frame is timed in (two modes, compose, the present pass, and spares).
-const MAX_STAGES: u32 = 16;
-
-/// Per-stage times of a frame, when `on`. Where the device can write timestamps inside a
-/// command encoder (`TIMESTAMP_QUERY_INSIDE_ENCODERS`) and is not a CPU adapter (whose
-/// timestamps do not time the work), each stage ends with a GPU timestamp and the frame is
-/// submitted as usual; elsewhere each stage is submitted on its own and waited for, giving
-/// wall-clock times of the work (slower, but true on any adapter, lavapipe included).
-pub struct Profiler<'a> {
-    ctx: &'a GpuContext,
-    on: bool,
-    last: Instant,
-    timestamps: Option<Timestamps>,
-    labels: Vec<&'static str>,
-    /// Each stage's label and time, in order (GPU stages filled in by
-    /// [`Profiler::read_gpu`]).
-    pub times: Vec<(&'static str, Duration)>,
-}
-
-impl<'a> Profiler<'a> {
-    /// A profiler that times stages when `on`; `allow_cpu` lets a CPU adapter use
-    /// timestamps too (for tests of the mechanism only).
-    pub fn new(ctx: &'a GpuContext, on: bool, allow_cpu: bool) -> Self {
-        let wanted =
-            wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
-        let usable = ctx.device.features().contains(wanted)
-            && (allow_cpu || ctx.adapter.get_info().device_type != wgpu::DeviceType::Cpu);
-        let timestamps = (on && usable).then(|| Timestamps {
-            set: ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("viewer stages"),
-                ty: wgpu::QueryType::Timestamp,
-                count: MAX_STAGES + 1,
-            }),
-            resolved: ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("viewer stages"),
-                size: (MAX_STAGES as u64 + 1) * 8,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
-            written: 0,
-            period_ns: ctx.queue.get_timestamp_period(),
-        });
-        Self {
-            ctx,
-            on,
-            last: Instant::now(),
-            timestamps,
-            labels: Vec::new(),
-            times: Vec::new(),
-        }
-    }
-
-    /// True when the stages are timed by GPU timestamps.
-    pub fn uses_timestamps(&self) -> bool {
-        self.timestamps.is_some()
-    }
-
-    /// Starts the frame (the first timestamp).
-    pub fn begin(&mut self, encoder: &mut wgpu::CommandEncoder) {
-        self.last = Instant::now();
-        if let Some(t) = self.timestamps.as_mut() {
-            encoder.write_timestamp(&t.set, 0);
-            t.written = 1;
-        }
-    }
-
-    /// Ends stage `label`.
-    pub fn mark(&mut self, label: &'static str, encoder: &mut wgpu::CommandEncoder) {
-        if !self.on {
-            return;
-        }
-        if let Some(t) = self.timestamps.as_mut() {
-            if t.written > 0 && t.written <= MAX_STAGES {
-                encoder.write_timestamp(&t.set, t.written);
-                t.written += 1;
-                self.labels.push(label);
-            }
-            return;
-        }
-        let done = std::mem::replace(
-            encoder,
-            self.ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("viewer frame"),
-                }),
-        );
-        self.ctx.queue.submit([done.finish()]);
-        let _ = self.ctx.device.poll(wgpu::PollType::wait_indefinitely());
-        let now = Instant::now();
-        self.times.push((label, now - self.last));
-        self.last = now;
-    }
-
-    /// Records the copy of the timestamps (before the frame's encoder is finished).
-    pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
-        if let Some(t) = &self.timestamps
-            && t.written > 1
-        {
-            encoder.resolve_query_set(&t.set, 0..t.written, &t.resolved, 0);
-        }
-    }
-
-    /// After the frame's submit: reads the timestamps back (only while profiling) into
-    /// [`Profiler::times`].
-    pub fn read_gpu(&mut self) -> Result<(), String> {
-        let Some(t) = &self.timestamps else {
-            return Ok(());
-        };
-        if t.written < 2 {
-            return Ok(());
-        }
-        let ticks: Vec<u64> = self.ctx.read_buffer_as(&t.resolved).map_err(err)?;
-        for (k, label) in self.labels.iter().enumerate() {
-            let ns = ticks[k + 1].saturating_sub(ticks[k]) as f64 * t.period_ns as f64;
-            self.times
-                .push((label, Duration::from_nanos(ns.max(0.0) as u64)));
-        }
-        Ok(())
-    }
-}
+/// Per-stage GPU times of a frame (scene-core's one stage profiler).
+pub use scene_core::gpu::timing::StageProfiler as Profiler;
 
 /// The viewer's GPU side.
 pub struct Renderer {
@@ -437,13 +308,7 @@ impl Renderer {
 
     /// A uniform buffer holding `params`.
     fn uniform<T: bytemuck::Pod>(&self, label: &str, params: &T) -> wgpu::Buffer {
-        self.ctx
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: bytemuck::bytes_of(params),
-                usage: wgpu::BufferUsages::UNIFORM,
-            })
+        self.ctx.uniform_buffer(label, params)
     }
 
     /// The frame size in pixels (zero before the first [`Renderer::resize`]).
@@ -837,44 +702,6 @@ mod tests {
         // The texture side limit holds too, and nothing is ever empty.
         assert_eq!(fit_frame(10000, 5000, 1.0, u64::MAX, 4096), (4096, 2048));
         assert_eq!(fit_frame(0, 0, 0.05, 128 * mib, 8192), (1, 1));
-    }
-
-    /// The stage timer's two ways on the test adapter: timestamps between stages (forced on
-    /// a CPU adapter, whose values only show the mechanism works: every stage labelled, in
-    /// order, no time negative), and wall-clock stages, which wait for each.
-    #[test]
-    fn stages_are_timed_in_order_either_way() {
-        let Some(ctx) = scene_core::gpu::gpu_test_context() else {
-            return;
-        };
-        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: None,
-            size: 1 << 20,
-            usage: wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        for allow_cpu in [true, false] {
-            let mut p = Profiler::new(&ctx, true, allow_cpu);
-            if allow_cpu && !p.uses_timestamps() {
-                eprintln!("no timestamps inside encoders on {}", ctx.adapter_summary());
-                continue;
-            }
-            let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            p.begin(&mut encoder);
-            for label in ["first", "second", "third"] {
-                encoder.clear_buffer(&buffer, 0, None);
-                p.mark(label, &mut encoder);
-            }
-            p.resolve(&mut encoder);
-            ctx.queue.submit([encoder.finish()]);
-            p.read_gpu().unwrap();
-            let labels: Vec<&str> = p.times.iter().map(|(l, _)| *l).collect();
-            assert_eq!(
-                labels,
-                ["first", "second", "third"],
-                "timestamps: {allow_cpu}"
-            );
-        }
     }
 }
 
