@@ -360,7 +360,7 @@ pub fn load_scene(spec: &str) -> Result<Scene, String> {
 /// [`scene_core::open_scene`], printing its notes; the translation it applied (a scene far
 /// from the origin is moved to it) comes with the scene.
 pub fn open_scene_noted(spec: &str) -> Result<scene_core::OpenedScene, String> {
-    let opened = scene_core::open_scene(spec)?;
+    let opened = scene_core::open_scene(spec).map_err(|e| e.to_string())?;
     for note in &opened.notes {
         eprintln!("{note}");
     }

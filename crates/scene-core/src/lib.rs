@@ -43,7 +43,7 @@ pub mod technique;
 
 #[cfg(feature = "gltf")]
 pub use files::gltf_io;
-pub use files::open::{OpenedScene, open_scene};
+pub use files::open::{OpenError, OpenedScene, open_scene};
 pub use files::{budget, image};
 pub use model::{builtin, contract, lights, scene, view};
 #[cfg(feature = "rays")]
@@ -56,7 +56,7 @@ pub use gbuffer::{
     BACKGROUND_ID, GBuffer, GBufferRenderer, HemicubeFaceBuffer, ViewTarget, hemicube_views,
 };
 pub use image::{Image, luminance};
-pub use lights::{LightId, LightSetting, LightState};
+pub use lights::{InvalidLightSetting, LightId, LightSetting, LightState, UnknownLight};
 pub use scene::{Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture};
 pub use technique::{FrameRequest, Metric, MetricValue, Refinement, StageTimings, Technique};
 pub use view::{FrustumCorners, HemicubeFace, Projection, View};

@@ -252,7 +252,7 @@ impl Step {
             let s = change.apply(LightSetting::default());
             let mut probe = LightState::default();
             probe.set(id, s);
-            probe.check(scene)?;
+            probe.check(scene).map_err(|e| e.to_string())?;
             lights.push((id, change.clone()));
         }
         if let Some(name) = &self.screenshot {

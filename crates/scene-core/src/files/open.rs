@@ -4,7 +4,7 @@
 //! Every composition point (xtask, the viewer) opens scenes through [`open_scene`], so a
 //! name means the same scene everywhere.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 #[cfg(feature = "gltf")]
 use crate::budget::Budget;
@@ -12,6 +12,38 @@ use crate::builtin;
 #[cfg(feature = "gltf")]
 use crate::gltf_io;
 use crate::scene::Scene;
+
+/// Why [`open_scene`] could not open a scene: a caller can tell a typo (no such file, an
+/// unknown built-in name) from a broken file or a scene the methods cannot take.
+#[derive(Debug, thiserror::Error)]
+pub enum OpenError {
+    /// The path names a `.gltf`/`.glb` file that does not exist.
+    #[error("scene file '{}' does not exist", .0.display())]
+    NoSuchFile(PathBuf),
+    /// Not a glTF path, and no built-in scene has this name (the error lists them).
+    #[error(transparent)]
+    UnknownBuiltin(crate::SceneError),
+    /// `DIFFUSE_GI_BUDGET` does not parse.
+    #[error("{0}")]
+    BudgetSetting(String),
+    /// The file could not be imported.
+    #[cfg(feature = "gltf")]
+    #[error(transparent)]
+    Import(#[from] crate::GltfError),
+    /// This build of scene-core has no glTF support (feature `gltf`).
+    #[error(
+        "scene file '{0}': opening glTF needs scene-core's `gltf` feature, which this build lacks"
+    )]
+    NotBuiltIn(String),
+    /// The scene breaks the contract every method holds ([`crate::contract::check`]).
+    #[error("{spec}: {source}")]
+    Contract {
+        /// What was opened.
+        spec: String,
+        /// The contract's verdict.
+        source: crate::SceneError,
+    },
+}
 
 /// A scene opened by [`open_scene`], with what the import ignored or warned about.
 #[derive(Debug)]
@@ -32,8 +64,12 @@ impl OpenedScene {
     /// Checks the scene contract ([`crate::contract::check`]: refuses a scene without
     /// geometry or beyond f32's precision), then moves the scene to the origin when it lies
     /// farther from it than its extent, noting both.
-    fn checked(mut self, spec: &str) -> Result<Self, String> {
-        let contract = crate::contract::check(&self.scene).map_err(|e| format!("{spec}: {e}"))?;
+    fn checked(mut self, spec: &str) -> Result<Self, OpenError> {
+        let contract =
+            crate::contract::check(&self.scene).map_err(|source| OpenError::Contract {
+                spec: spec.to_string(),
+                source,
+            })?;
         self.notes
             .extend(contract.notes.into_iter().map(|n| format!("note: {n}")));
         let (scene, t) = self.scene.recentred();
@@ -61,14 +97,14 @@ pub fn is_gltf_path(spec: &str) -> bool {
 /// built-in name with the list of known ones, or a scene that breaks the contract
 /// ([`crate::contract::check`]). A scene far from the origin is moved to it
 /// ([`OpenedScene::translation`]).
-pub fn open_scene(spec: &str) -> Result<OpenedScene, String> {
+pub fn open_scene(spec: &str) -> Result<OpenedScene, OpenError> {
     if is_gltf_path(spec) {
         if !Path::new(spec).exists() {
-            return Err(format!("scene file '{spec}' does not exist"));
+            return Err(OpenError::NoSuchFile(PathBuf::from(spec)));
         }
         open_gltf(spec)
     } else {
-        let scene = builtin::scene(spec).map_err(|e| e.to_string())?;
+        let scene = builtin::scene(spec).map_err(OpenError::UnknownBuiltin)?;
         OpenedScene {
             scene,
             notes: Vec::new(),
@@ -80,20 +116,18 @@ pub fn open_scene(spec: &str) -> Result<OpenedScene, String> {
 
 /// Without the `gltf` feature a file can only be refused, by name.
 #[cfg(not(feature = "gltf"))]
-fn open_gltf(spec: &str) -> Result<OpenedScene, String> {
-    Err(format!(
-        "scene file '{spec}': opening glTF needs scene-core's `gltf` feature, which this build lacks"
-    ))
+fn open_gltf(spec: &str) -> Result<OpenedScene, OpenError> {
+    Err(OpenError::NotBuiltIn(spec.to_string()))
 }
 
 /// Imports `spec` under the environment's budget and checks the contract.
 #[cfg(feature = "gltf")]
-fn open_gltf(spec: &str) -> Result<OpenedScene, String> {
+fn open_gltf(spec: &str) -> Result<OpenedScene, OpenError> {
     let options = gltf_io::ImportOptions {
-        budget: Budget::from_env()?,
+        budget: Budget::from_env().map_err(OpenError::BudgetSetting)?,
         ..Default::default()
     };
-    let imported = gltf_io::import_with(Path::new(spec), &options).map_err(|e| e.to_string())?;
+    let imported = gltf_io::import_with(Path::new(spec), &options)?;
     let mut notes = Vec::new();
     let summary = imported.summary();
     if !summary.is_empty() {
@@ -118,9 +152,14 @@ mod tests {
         assert_eq!(cornell.scene.name, "cornell");
         assert!(cornell.notes.is_empty());
         let e = open_scene("no-such-scene").unwrap_err();
-        assert!(e.contains("no-such-scene"), "{e}");
+        assert!(matches!(e, OpenError::UnknownBuiltin(_)), "{e}");
+        assert!(e.to_string().contains("no-such-scene"), "{e}");
         let e = open_scene("/nonexistent/scene.GLB").unwrap_err();
-        assert_eq!(e, "scene file '/nonexistent/scene.GLB' does not exist");
+        assert!(matches!(&e, OpenError::NoSuchFile(p) if p == Path::new("/nonexistent/scene.GLB")));
+        assert_eq!(
+            e.to_string(),
+            "scene file '/nonexistent/scene.GLB' does not exist"
+        );
         assert!(is_gltf_path("a.gltf") && is_gltf_path("B.Glb") && !is_gltf_path("cornell"));
     }
 }

@@ -127,6 +127,30 @@ impl std::fmt::Display for UnknownLight {
 
 impl std::error::Error for UnknownLight {}
 
+/// [`LightState::check`] found a setting no method can apply: which light (its id and
+/// label) and the setting.
+#[derive(Clone, Debug, PartialEq)]
+pub struct InvalidLightSetting {
+    /// The light.
+    pub light: LightId,
+    /// Its label in the scene ([`LightId::label`]).
+    pub label: String,
+    /// The offending setting.
+    pub setting: LightSetting,
+}
+
+impl std::fmt::Display for InvalidLightSetting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: light setting {:?} has a negative or non-finite multiplier",
+            self.label, self.setting
+        )
+    }
+}
+
+impl std::error::Error for InvalidLightSetting {}
+
 /// Every light source of `scene`, in a fixed order: point lights, directional lights, then
 /// emissive meshes by mesh index.
 pub fn light_ids(scene: &Scene) -> Vec<LightId> {
@@ -266,13 +290,14 @@ impl LightState {
     }
 
     /// Checks every multiplier is finite and non-negative; the error names the light.
-    pub fn check(&self, scene: &Scene) -> Result<(), String> {
+    pub fn check(&self, scene: &Scene) -> Result<(), InvalidLightSetting> {
         for (id, s) in &self.settings {
             if !s.is_finite() || s.color.min_element() < 0.0 || s.direct < 0.0 || s.indirect < 0.0 {
-                return Err(format!(
-                    "{}: light setting {s:?} has a negative or non-finite multiplier",
-                    id.label(scene)
-                ));
+                return Err(InvalidLightSetting {
+                    light: *id,
+                    label: id.label(scene),
+                    setting: *s,
+                });
             }
         }
         Ok(())
@@ -520,7 +545,9 @@ mod tests {
         assert_ne!(one.fingerprint(), LightState::default().fingerprint());
         let mut bad = LightState::default();
         bad.set_color(LightId::Point(0), Vec3::new(-1.0, 0.0, 0.0));
-        assert!(bad.check(&scene).unwrap_err().contains("point light #0"));
+        let e = bad.check(&scene).unwrap_err();
+        assert_eq!(e.light, LightId::Point(0));
+        assert!(e.to_string().contains("point light #0"), "{e}");
     }
 
     #[test]

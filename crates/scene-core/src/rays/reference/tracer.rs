@@ -531,7 +531,7 @@ impl crate::Technique for ReferenceTechnique {
         frame
             .lights
             .check(scene)
-            .map_err(crate::Error::InvalidArgument)?;
+            .map_err(|e| crate::Error::InvalidArgument(e.to_string()))?;
         let settings = ReferenceSettings {
             width: frame.width,
             height: frame.height,
