@@ -13,8 +13,8 @@
 //! `SHADER_PASSES` constant. The crate compiles a pass with [`ShaderPass::create_module`];
 //! `cargo xtask shaders` composes every crate's `SHADER_PASSES` through the same
 //! [`ShaderPass::compose`], validates the result with naga and translates it to SPIR-V, MSL
-//! and HLSL. Composing costs about a millisecond a pass and happens when a pipeline is
-//! created, never per frame.
+//! and HLSL. Composing costs 10 to 30 ms a pass once per process (then a clone from a
+//! cache) and happens when a pipeline is created, never per frame.
 //!
 //! ```
 //! use scene_core::gpu::shader::{ShaderPass, Wgsl, RECONSTRUCT};
@@ -94,7 +94,41 @@ impl ShaderPass {
 
     /// Composes the pass into one validated naga module. The error names the pass and the
     /// file, with naga_oil's report (undecorated names, source lines).
+    ///
+    /// Composing is not cheap (10 to 30 ms a pass on a 2-core machine: naga_oil builds its
+    /// regular expressions, rewrites and re-parses every module), so a composed module is
+    /// kept for the life of the process, keyed by the texts and defs: the second
+    /// `GpuIsr::new` (or any pipeline of a pass composed before) costs a clone.
     pub fn compose(&self) -> Result<naga::Module, GpuError> {
+        use std::sync::{Mutex, OnceLock};
+        static COMPOSED: OnceLock<Mutex<HashMap<u64, naga::Module>>> = OnceLock::new();
+        let key = self.key();
+        let cache = COMPOSED.get_or_init(Default::default);
+        if let Some(m) = cache.lock().ok().and_then(|c| c.get(&key).cloned()) {
+            return Ok(m);
+        }
+        let module = self.compose_uncached()?;
+        if let Ok(mut c) = cache.lock() {
+            c.insert(key, module.clone());
+        }
+        Ok(module)
+    }
+
+    /// What identifies a composition: every text (main and library, with their paths) and
+    /// every def.
+    fn key(&self) -> u64 {
+        let mut h = crate::hash::Fnv::default();
+        for file in std::iter::once(&self.main).chain(self.library) {
+            h.str(file.path).str(file.source);
+        }
+        for d in self.defs {
+            h.str(d);
+        }
+        h.finish()
+    }
+
+    /// [`ShaderPass::compose`] without the cache (what `cargo xtask shaders` times).
+    pub fn compose_uncached(&self) -> Result<naga::Module, GpuError> {
         let fail = |message: String| GpuError::Shader {
             pass: self.name.to_string(),
             message,
@@ -244,6 +278,31 @@ mod tests {
         assert_eq!(
             count(&negated.compose().unwrap()),
             count(&plain.compose().unwrap()) + 1
+        );
+    }
+
+    #[test]
+    fn the_cache_keys_on_the_texts_not_the_names() {
+        // The same pass name and file paths with another text of `t::a`: the composed
+        // module is the new text's, not the one composed before.
+        const A3: Wgsl = Wgsl {
+            path: "t/a.wgsl",
+            source: "#define_import_path t::a\nfn twice(x: f32) -> f32 { return 3.0 * x + 0.0; }",
+        };
+        let literals = |m: &naga::Module| {
+            m.functions
+                .iter()
+                .flat_map(|(_, f)| f.expressions.iter())
+                .filter(|(_, e)| matches!(e, naga::Expression::Literal(_)))
+                .count()
+        };
+        let two = ShaderPass::new("cached", MAIN, &[A, B]).compose().unwrap();
+        let three = ShaderPass::new("cached", MAIN, &[A3, B]).compose().unwrap();
+        assert_eq!(literals(&three), literals(&two) + 1);
+        // Composed again, each is what it was.
+        assert_eq!(
+            literals(&ShaderPass::new("cached", MAIN, &[A, B]).compose().unwrap()),
+            literals(&two)
         );
     }
 
