@@ -5,9 +5,8 @@
 // triangles (cosine profile, disk form factor), each with the frame's direct and indirect
 // factors, and the table of emissive triangles for directly visible emitters.
 //
-// Part of the lighting pass: crates/isr/src/lighting.rs composes common.wgsl,
-// light_set.wgsl, shadow.wgsl, lighting_target.wgsl and lighting.wgsl (the first line of
-// each file names what it needs before it; `cargo xtask shaders` follows it).
+// The module `isr::light_set`, imported by the lighting pass and by `isr::shadow`
+// (crates/isr/src/shaders.rs lists the passes and what they may import).
 
 const KIND_POINT: u32 = 0u;
 const KIND_DIRECTIONAL: u32 = 1u;
