@@ -1,0 +1,196 @@
+//! The scene on the GPU: flattened vertices ([`GpuVertex`]), materials ([`GpuMaterial`])
+//! and the uploaded buffers ([`GpuScene`]).
+
+use super::*;
+
+/// One vertex of the flattened, non-indexed scene (48 bytes).
+///
+/// Triangle `t` (global id, meshes numbered in order as in [`Scene::mesh_offsets`]) is
+/// vertices `3t, 3t + 1, 3t + 2`, so a shader can also recover it as `vertex_index / 3`.
+/// The same layout reads as a WGSL storage-buffer struct:
+///
+/// ```wgsl
+/// struct Vertex {
+///     position: vec3<f32>, triangle_id: u32,
+///     normal: vec3<f32>,   material_id: u32,
+///     uv: vec2<f32>,       has_uv: u32, pad: u32,
+/// }
+/// ```
+///
+/// As vertex attributes see [`GpuVertex::ATTRIBUTES`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuVertex {
+    /// World-space position (metres).
+    pub position: [f32; 3],
+    /// Global triangle id.
+    pub triangle_id: u32,
+    /// World-space vertex normal (unit after [`Scene::validate`]; zero if the mesh has none).
+    pub normal: [f32; 3],
+    /// Material index (into [`GpuScene::materials`] and [`Scene::materials`]).
+    pub material_id: u32,
+    /// Texture coordinates (zero when the mesh has none).
+    pub uv: [f32; 2],
+    /// 1 when the mesh has texture coordinates, 0 otherwise.
+    pub has_uv: u32,
+    /// Padding to 48 bytes (keeps the WGSL struct layout identical).
+    pub pad: u32,
+}
+
+impl GpuVertex {
+    /// Vertex attributes: location 0 position (`Float32x3`), 1 triangle id (`Uint32`),
+    /// 2 normal (`Float32x3`), 3 material id (`Uint32`), 4 uv (`Float32x2`), 5 has_uv
+    /// (`Uint32`).
+    pub const ATTRIBUTES: [wgpu::VertexAttribute; 6] = wgpu::vertex_attr_array![
+        0 => Float32x3,
+        1 => Uint32,
+        2 => Float32x3,
+        3 => Uint32,
+        4 => Float32x2,
+        5 => Uint32,
+    ];
+
+    /// The vertex buffer layout of a [`GpuScene::vertices`] buffer (per-vertex stepping).
+    pub fn buffer_layout() -> wgpu::VertexBufferLayout<'static> {
+        wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<GpuVertex>() as wgpu::BufferAddress,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &Self::ATTRIBUTES,
+        }
+    }
+
+    /// The placeholder element of an empty vertex buffer.
+    pub(super) const DUMMY: Self = Self {
+        position: [0.0; 3],
+        triangle_id: 0,
+        normal: [0.0; 3],
+        material_id: 0,
+        uv: [0.0; 2],
+        has_uv: 0,
+        pad: 0,
+    };
+}
+
+/// The vertex attributes sit where the Rust fields are (a field moved, or an attribute
+/// format changed, fails here); the WGSL side (`VertexIn` in `shaders/gbuffer/mrt.wgsl`)
+/// reads them by location.
+#[cfg(test)]
+mod vertex_layout_tests {
+    use super::GpuVertex;
+    use std::mem::offset_of;
+
+    #[test]
+    fn attributes_match_the_fields() {
+        let fields = [
+            offset_of!(GpuVertex, position),
+            offset_of!(GpuVertex, triangle_id),
+            offset_of!(GpuVertex, normal),
+            offset_of!(GpuVertex, material_id),
+            offset_of!(GpuVertex, uv),
+            offset_of!(GpuVertex, has_uv),
+        ];
+        for (i, (a, field)) in GpuVertex::ATTRIBUTES.iter().zip(fields).enumerate() {
+            assert_eq!((a.shader_location, a.offset as usize), (i as u32, field));
+        }
+        let last = GpuVertex::ATTRIBUTES[5];
+        assert!(last.offset + last.format.size() <= std::mem::size_of::<GpuVertex>() as u64);
+    }
+}
+
+/// One material in the material storage buffer (32 bytes). WGSL:
+///
+/// ```wgsl
+/// struct Material { albedo: vec3<f32>, texture: i32, emission: vec3<f32>, pad: u32 }
+/// ```
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMaterial {
+    /// Linear RGB albedo factor.
+    pub albedo: [f32; 3],
+    /// Index into [`Scene::textures`] of the albedo texture, or -1 for none.
+    pub texture: i32,
+    /// Emitted radiance, linear RGB.
+    pub emission: [f32; 3],
+    /// Padding to 32 bytes.
+    pub pad: u32,
+}
+
+impl GpuMaterial {
+    /// The placeholder element of an empty material buffer.
+    pub(super) const DUMMY: Self = Self {
+        albedo: [0.0; 3],
+        texture: -1,
+        emission: [0.0; 3],
+        pad: 0,
+    };
+}
+
+/// A scene uploaded for rasterisation and compute: flattened triangles and materials.
+///
+/// Draw it as a non-indexed triangle list of `vertex_count` vertices with
+/// [`GpuVertex::buffer_layout`]; `triangle_id = vertex_index / 3`. Both buffers have usages
+/// `STORAGE | COPY_SRC | COPY_DST` (the vertex buffer also `VERTEX`) and are never empty:
+/// a scene without triangles or materials gets one zeroed dummy element, so use the counts.
+#[derive(Debug)]
+pub struct GpuScene {
+    /// [`GpuVertex`] array, three per triangle, in global triangle id order.
+    pub vertices: wgpu::Buffer,
+    /// [`GpuMaterial`] array, in [`Scene::materials`] order.
+    pub materials: wgpu::Buffer,
+    /// Number of real vertices (`3 * triangle_count`).
+    pub vertex_count: u32,
+    /// Number of triangles.
+    pub triangle_count: u32,
+    /// Number of real materials.
+    pub material_count: u32,
+}
+
+/// The CPU side of [`GpuContext::upload_scene`]: three [`GpuVertex`] per triangle, in global
+/// triangle id order ([`Scene::mesh_offsets`]). Missing normals or UVs become zero.
+pub fn flatten_scene(scene: &Scene) -> Vec<GpuVertex> {
+    let offsets = scene.mesh_offsets();
+    let mut out = Vec::with_capacity(scene.triangle_count() * 3);
+    for (mi, mesh) in scene.meshes.iter().enumerate() {
+        for (t, (tri, &material_id)) in mesh.indices.iter().zip(&mesh.material_ids).enumerate() {
+            let triangle_id = offsets[mi] + t as u32;
+            for &i in tri {
+                let i = i as usize;
+                let uv = mesh.uvs.as_ref().and_then(|u| u.get(i).copied());
+                out.push(GpuVertex {
+                    position: mesh
+                        .positions
+                        .get(i)
+                        .copied()
+                        .unwrap_or(Vec3::ZERO)
+                        .to_array(),
+                    triangle_id,
+                    normal: mesh
+                        .normals
+                        .get(i)
+                        .copied()
+                        .unwrap_or(Vec3::ZERO)
+                        .to_array(),
+                    material_id,
+                    uv: uv.unwrap_or_default().to_array(),
+                    has_uv: u32::from(uv.is_some()),
+                    pad: 0,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The CPU side of the material buffer of [`GpuContext::upload_scene`].
+pub fn gpu_materials(scene: &Scene) -> Vec<GpuMaterial> {
+    scene
+        .materials
+        .iter()
+        .map(|m| GpuMaterial {
+            albedo: m.albedo.to_array(),
+            texture: m.albedo_texture.map_or(-1, |t| t as i32),
+            emission: m.emission.to_array(),
+            pad: 0,
+        })
+        .collect()
+}
