@@ -3,7 +3,7 @@
 //! The vocabulary every crate of the diffuse-GI toolkit speaks: the [`Scene`] model, [`View`]s
 //! (cameras, hemicube faces, shadow maps), the [`GBuffer`], the [`Technique`] and [`Metric`]
 //! traits, ray queries over a CWBVH, sampling, linear-RGB images, a headless GPU context and
-//! the ground-truth [`reference`] path tracer.
+//! the ground-truth [`reference`](mod@reference) path tracer.
 //!
 //! ```
 //! use scene_core::{builtin, reference::{self, Bounces, ReferenceSettings}, View};
@@ -22,8 +22,8 @@
 //! |---|---|---|
 //! | scene model | [`model`]: [`scene`], [`builtin`], [`lights`], [`view`] | meshes, materials, lights and their ids and state, cameras and views |
 //! | files | [`files`]: [`gltf_io`], [`image`], [`budget`] | glTF, EXR and PNG in and out, budgets against hostile files |
-//! | rays | [`rays`]: [`ray`], [`reference`], [`sampling`] | the BVH, the reference path tracer, sampling |
-//! | G-buffer | [`gbuffer`] (with [`gbuffer::downsample`]) | the currency of the screen-space methods, the renderer trait, operations on G-buffers (CPU and WGSL) |
+//! | rays | [`rays`]: [`ray`], [`reference`](mod@reference), [`sampling`] | the BVH, the reference path tracer, sampling |
+//! | G-buffer | [`gbuffer`] (with [`gbuffer::downsample`](mod@gbuffer::downsample)) | the currency of the screen-space methods, the renderer trait, operations on G-buffers (CPU and WGSL) |
 //! | GPU | [`gpu`] (with [`gpu::compute`]) | the headless context, uploads and readbacks, GPU G-buffers, the compute-pass helper and pass timer |
 //! | methods | [`technique`], [`error`], [`hash`], [`range`] | the traits the methods implement, errors, scene identity, stated ranges of user-set numbers |
 //!

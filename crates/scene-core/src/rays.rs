@@ -1,5 +1,5 @@
 //! Rays: closest-hit and occlusion queries over a CWBVH ([`ray`]), the ground-truth path
-//! tracer built on them ([`reference`]), the sampling it uses ([`sampling`]), and the
+//! tracer built on them ([`reference`](mod@reference)), the sampling it uses ([`sampling`]), and the
 //! default view of a scene without a camera ([`framing`]).
 
 #[cfg(feature = "rays")]

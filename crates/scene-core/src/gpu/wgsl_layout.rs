@@ -6,7 +6,7 @@
 //! side only, and the shader then reads the wrong bytes without any error. naga (the WGSL
 //! front end wgpu itself uses) lays out the shader's structs; [`check`] compares that
 //! layout, member by member, with the Rust struct's `offset_of!` and `size_of`. Every crate
-//! runs it in a unit test for each struct it shares with a shader, through [`check_layout!`]:
+//! runs it in a unit test for each struct it shares with a shader, through [`check_layout!`](crate::check_layout):
 //!
 //! ```
 //! # #[derive(Clone, Copy)]
