@@ -18,7 +18,7 @@ use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
-use scene_core::gpu::shader::{ShaderPass, Wgsl};
+use scene_core::gpu::shader::ShaderPass;
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, GpuScene, GpuVertex};
 use scene_core::view::Projection;
 use scene_core::{Error, GBuffer, GBufferRenderer, Scene, View, ViewTarget};
@@ -28,10 +28,7 @@ use crate::raster::check_target;
 /// The G-buffer geometry pass (`shaders/gbuffer/mrt.wgsl`, vertex and fragment stages).
 pub const MRT: ShaderPass = ShaderPass::new(
     "gbuffer/mrt",
-    Wgsl {
-        path: "gbuffer/mrt.wgsl",
-        source: include_str!("../shaders/mrt.wgsl"),
-    },
+    scene_core::wgsl_file!("gbuffer", "mrt.wgsl"),
     &[],
 );
 

@@ -21,7 +21,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use scene_core::View;
-use scene_core::gpu::shader::{ShaderPass, Wgsl};
+use scene_core::gpu::shader::ShaderPass;
 use scene_core::gpu::{ComputePass, GpuContext, GpuError, GpuGBuffer};
 use scene_core::view::Projection;
 
@@ -29,10 +29,7 @@ use scene_core::view::Projection;
 /// method, importing `scene_core::reconstruct`).
 pub const RECONSTRUCT: ShaderPass = ShaderPass::new(
     "gbuffer/reconstruct",
-    Wgsl {
-        path: "gbuffer/reconstruct.wgsl",
-        source: include_str!("../shaders/reconstruct.wgsl"),
-    },
+    scene_core::wgsl_file!("gbuffer", "reconstruct.wgsl"),
     &[scene_core::gpu::shader::RECONSTRUCT],
 );
 

@@ -6,7 +6,7 @@
 use glam::Vec3;
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, texture, uniform};
-use scene_core::gpu::shader::{ShaderPass, Wgsl};
+use scene_core::gpu::shader::ShaderPass;
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
 use scene_core::lights::LightId;
 use scene_core::view::{FrustumReconstruction, Projection};
@@ -20,20 +20,14 @@ use crate::settings::Lookup;
 /// `scene_core::reconstruct`).
 pub const RECONSTRUCT: ShaderPass = ShaderPass::new(
     "ibrr-ldc/reconstruct",
-    Wgsl {
-        path: "ibrr-ldc/reconstruct.wgsl",
-        source: include_str!("../shaders/reconstruct.wgsl"),
-    },
+    scene_core::wgsl_file!("ibrr-ldc", "reconstruct.wgsl"),
     &[scene_core::gpu::shader::RECONSTRUCT],
 );
 
 /// The gather pass (`shaders/ibrr-ldc/gather.wgsl`, importing `scene_core::reconstruct`).
 pub const GATHER: ShaderPass = ShaderPass::new(
     "ibrr-ldc/gather",
-    Wgsl {
-        path: "ibrr-ldc/gather.wgsl",
-        source: include_str!("../shaders/gather.wgsl"),
-    },
+    scene_core::wgsl_file!("ibrr-ldc", "gather.wgsl"),
     &[scene_core::gpu::shader::RECONSTRUCT],
 );
 

@@ -5,41 +5,36 @@
 //! [`crate::light_set`] and [`crate::shadow`].
 
 use scene_core::gpu::shader::{RECONSTRUCT, ShaderPass, Wgsl};
-
-macro_rules! isr_wgsl {
-    ($file:literal) => {
-        Wgsl {
-            path: concat!("isr/", $file),
-            source: include_str!(concat!("../shaders/", $file)),
-        }
-    };
-}
+use scene_core::wgsl_file;
 
 /// Globals, flags and view helpers of every ISR pass (`isr::common`).
-pub const COMMON: Wgsl = isr_wgsl!("common.wgsl");
+pub const COMMON: Wgsl = wgsl_file!("isr", "common.wgsl");
 /// The light set (`isr::light_set`).
-pub const LIGHT_SET: Wgsl = isr_wgsl!("light_set.wgsl");
+pub const LIGHT_SET: Wgsl = wgsl_file!("isr", "light_set.wgsl");
 /// Exponential shadow maps with PCF (`isr::shadow`).
-pub const SHADOW: Wgsl = isr_wgsl!("shadow.wgsl");
+pub const SHADOW: Wgsl = wgsl_file!("isr", "shadow.wgsl");
 
 /// What every ISR pass may import.
 const LIBRARY: &[Wgsl] = &[RECONSTRUCT, COMMON, LIGHT_SET, SHADOW];
 
 /// The lighting pass writing `Rgba32Float` (eq. 29).
 pub const LIGHTING: ShaderPass =
-    ShaderPass::new("isr/lighting", isr_wgsl!("lighting.wgsl"), LIBRARY);
+    ShaderPass::new("isr/lighting", wgsl_file!("isr", "lighting.wgsl"), LIBRARY);
 /// The lighting pass writing `Rgba16Float` (WGSL cannot make a storage format overridable:
 /// the variant is composed with the shader def `OUTPUT_RGBA16F`).
 pub const LIGHTING_RGBA16F: ShaderPass =
     LIGHTING.with_defs("isr/lighting (rgba16f)", &["OUTPUT_RGBA16F"]);
 /// The ISR + SSAO pass on the coarse buffers.
-pub const RADIOSITY: ShaderPass =
-    ShaderPass::new("isr/radiosity", isr_wgsl!("radiosity.wgsl"), LIBRARY);
+pub const RADIOSITY: ShaderPass = ShaderPass::new(
+    "isr/radiosity",
+    wgsl_file!("isr", "radiosity.wgsl"),
+    LIBRARY,
+);
 /// One direction of the separable blur.
-pub const BLUR: ShaderPass = ShaderPass::new("isr/blur", isr_wgsl!("blur.wgsl"), LIBRARY);
+pub const BLUR: ShaderPass = ShaderPass::new("isr/blur", wgsl_file!("isr", "blur.wgsl"), LIBRARY);
 /// Bilateral upsampling of the blurred coarse buffer.
 pub const UPSAMPLE: ShaderPass =
-    ShaderPass::new("isr/upsample", isr_wgsl!("upsample.wgsl"), LIBRARY);
+    ShaderPass::new("isr/upsample", wgsl_file!("isr", "upsample.wgsl"), LIBRARY);
 
 /// Every ISR shader pass, as `cargo xtask shaders` validates them.
 pub const SHADER_PASSES: &[ShaderPass] = &[LIGHTING, LIGHTING_RGBA16F, RADIOSITY, BLUR, UPSAMPLE];

@@ -19,18 +19,12 @@ use crate::packed::{Packed, Precision};
 use crate::solver::Solution;
 
 /// The packed solution and eq. 1 over it (`relight_pr::common`), which both passes import.
-pub const COMMON: Wgsl = Wgsl {
-    path: "relight-pr/common.wgsl",
-    source: include_str!("../shaders/common.wgsl"),
-};
+pub const COMMON: Wgsl = scene_core::wgsl_file!("relight-pr", "common.wgsl");
 
 /// The relight pass (eq. 1 at every element).
 pub const RELIGHT: ShaderPass = ShaderPass::new(
     "relight-pr/relight",
-    Wgsl {
-        path: "relight-pr/relight.wgsl",
-        source: include_str!("../shaders/relight.wgsl"),
-    },
+    scene_core::wgsl_file!("relight-pr", "relight.wgsl"),
     &[COMMON],
 );
 
@@ -38,10 +32,7 @@ pub const RELIGHT: ShaderPass = ShaderPass::new(
 /// `scene_core::reconstruct` too).
 pub const DISPLAY: ShaderPass = ShaderPass::new(
     "relight-pr/display",
-    Wgsl {
-        path: "relight-pr/display.wgsl",
-        source: include_str!("../shaders/display.wgsl"),
-    },
+    scene_core::wgsl_file!("relight-pr", "display.wgsl"),
     &[COMMON, scene_core::gpu::shader::RECONSTRUCT],
 );
 

@@ -43,10 +43,7 @@ use crate::scene::Scene;
 /// The luminance compute shader (thesis eq. 17), see [`luminance_gpu`].
 pub const LUMINANCE: shader::ShaderPass = shader::ShaderPass::new(
     "scene-core/luminance",
-    shader::Wgsl {
-        path: "scene-core/luminance.wgsl",
-        source: include_str!("../shaders/luminance.wgsl"),
-    },
+    crate::wgsl_file!("scene-core", "luminance.wgsl"),
     &[],
 );
 

@@ -15,7 +15,7 @@ use relight_pr::technique::Prepared;
 use relight_pr::{RelightTechnique, relight};
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, uniform};
-use scene_core::gpu::shader::{ShaderPass, Wgsl};
+use scene_core::gpu::shader::ShaderPass;
 use scene_core::gpu::{GpuContext, GpuGBuffer};
 use scene_core::{Image, LightState, Scene, View};
 
@@ -23,14 +23,7 @@ use crate::mode::{Layout, Mode};
 
 macro_rules! viewer_pass {
     ($name:literal, $file:literal) => {
-        ShaderPass::new(
-            $name,
-            Wgsl {
-                path: concat!("viewer/", $file),
-                source: include_str!(concat!("../shaders/", $file)),
-            },
-            &[],
-        )
+        ShaderPass::new($name, scene_core::wgsl_file!("viewer", $file), &[])
     };
 }
 

@@ -42,10 +42,7 @@ use crate::gbuffer::{BACKGROUND_ID, GBuffer};
 #[cfg(feature = "gpu")]
 pub const DOWNSAMPLE: crate::gpu::shader::ShaderPass = crate::gpu::shader::ShaderPass::new(
     "scene-core/downsample",
-    crate::gpu::shader::Wgsl {
-        path: "scene-core/downsample.wgsl",
-        source: include_str!("../../shaders/downsample.wgsl"),
-    },
+    crate::wgsl_file!("scene-core", "downsample.wgsl"),
     &[],
 );
 

@@ -53,14 +53,24 @@ pub struct Wgsl {
     pub source: &'static str,
 }
 
+/// A [`Wgsl`] of the calling crate: `wgsl_file!("isr", "common.wgsl")` embeds the crate's
+/// `shaders/common.wgsl` (its link to the top-level `shaders/isr/`) with the path
+/// `isr/common.wgsl`.
+#[macro_export]
+macro_rules! wgsl_file {
+    ($dir:literal, $file:literal) => {
+        $crate::gpu::shader::Wgsl {
+            path: concat!($dir, "/", $file),
+            source: include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/", $file)),
+        }
+    };
+}
+
 /// WGSL of world positions from linear depth (eq. 24 of the ISR thesis, generalised to
 /// orthographic views), the module `scene_core::reconstruct`: the struct
 /// `FrustumReconstruction` (see [`crate::view::FrustumReconstruction`]) and
 /// `fn reconstruct(f, uv, d) -> vec3<f32>`.
-pub const RECONSTRUCT: Wgsl = Wgsl {
-    path: "scene-core/reconstruct.wgsl",
-    source: include_str!("../../shaders/reconstruct.wgsl"),
-};
+pub const RECONSTRUCT: Wgsl = crate::wgsl_file!("scene-core", "reconstruct.wgsl");
 
 /// One compiled shader: a main file, the library files it may import (directly or through
 /// each other, in any order) and the boolean shader defs (`#ifdef NAME`) of this variant.
