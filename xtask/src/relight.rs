@@ -263,6 +263,8 @@ pub fn run(o: &Options) -> Result<(), String> {
         "form_factors": o.form_factors,
         "shots": solution.stats.shots,
         "form_factor_rows": solution.stats.form_factor_rows,
+        "reused_rows": solution.stats.reused_rows,
+        "row_cache_bytes": solution.stats.row_cache_bytes,
         "cluster_shots": solution.stats.cluster_shots,
         "unshot_fraction": solution.stats.unshot_fraction,
         "solve_seconds": solve_s,

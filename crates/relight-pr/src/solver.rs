@@ -91,6 +91,18 @@ pub struct SolverSettings {
     /// instead of 16; the estimate stays unbiased. 0 gives every receiver all rays.
     /// Default 0.01 (a facing receiver within about five patch sizes of the shooter).
     pub full_visibility_at: f32,
+    /// Bytes of memory the solve may keep computed form-factor rows in. A patch's row
+    /// (its form factors to every element, [`FormFactorMethod::Rays`] seeded by patch and
+    /// receiver, or [`FormFactorMethod::Hemicube`] rendered from the patch's centre) is the
+    /// same every time the patch shoots, and in a bright closed room a patch shoots tens or
+    /// hundreds of times before the unshot energy falls below [`Self::max_unshot`]; a kept
+    /// row is reused instead of cast again, and the solution is bit-for-bit the one
+    /// without the cache. Rows are kept sparse (8 bytes per receiver with a form factor
+    /// above 0) in the order patches first shoot, until the next row would pass this
+    /// budget; later rows are computed at every shot. 0 keeps none. Shots of small-patch
+    /// clusters ([`Self::cluster_members`]) are never kept (their rays differ per shot).
+    /// Default 256 MiB.
+    pub row_cache_bytes: usize,
 }
 
 impl Default for SolverSettings {
@@ -105,6 +117,7 @@ impl Default for SolverSettings {
             strategy: Strategy::Tagged,
             cluster_members: 32,
             full_visibility_at: 0.01,
+            row_cache_bytes: 256 << 20,
         }
     }
 }
@@ -121,8 +134,15 @@ pub struct Source {
 pub struct SolveStats {
     /// Patches shot.
     pub shots: usize,
-    /// Rows of form factors computed (one per shot and, for separate solves, per source).
+    /// Rows of form factors computed (one per shot that found no kept row and, for
+    /// separate solves, per source).
     pub form_factor_rows: usize,
+    /// Shots that reused a kept row ([`SolverSettings::row_cache_bytes`]) instead of
+    /// computing it.
+    pub reused_rows: usize,
+    /// Bytes of the kept rows at the end of the solve (the largest over sources for
+    /// separate solves).
+    pub row_cache_bytes: usize,
     /// Of the shots, those of a cluster of small patches
     /// ([`SolverSettings::cluster_members`]).
     pub cluster_shots: usize,
@@ -270,6 +290,8 @@ pub fn solve_with(
                 ambient[m] = one.ambient[0];
                 stats.shots += one.stats.shots;
                 stats.form_factor_rows += one.stats.form_factor_rows;
+                stats.reused_rows += one.stats.reused_rows;
+                stats.row_cache_bytes = stats.row_cache_bytes.max(one.stats.row_cache_bytes);
                 stats.unshot_fraction = stats.unshot_fraction.max(one.stats.unshot_fraction);
             }
             Solution {
@@ -503,6 +525,8 @@ pub(crate) fn propagate(
     let element_area = (meshing.patch_area * 0.25).max(f32::MIN_POSITIVE);
     let normals: Vec<Vec3> = els.iter().map(|e| e.normal).collect();
     let mut form = vec![0.0f32; n];
+    // Kept rows: the receivers with a form factor above 0 and their form factors.
+    let mut kept: Vec<Option<Vec<(u32, f32)>>> = vec![None; np];
     // Clusters of small patches, shot together (rays only).
     let clusters = match settings.form_factors {
         FormFactorMethod::Rays if settings.cluster_members > 1 => {
@@ -571,7 +595,13 @@ pub(crate) fn propagate(
         }
         let p = best.0;
         let patch = patches[p];
-        if let (FormFactorMethod::Hemicube { resolution }, Some(r)) =
+        if let Some(row) = &kept[p] {
+            form.iter_mut().for_each(|f| *f = 0.0);
+            for &(j, f) in row {
+                form[j as usize] = f;
+            }
+            stats.reused_rows += 1;
+        } else if let (FormFactorMethod::Hemicube { resolution }, Some(r)) =
             (settings.form_factors, renderer.as_deref_mut())
         {
             let centre = (patch.corners[0] + patch.corners[1] + patch.corners[2]) / 3.0;
@@ -631,7 +661,20 @@ pub(crate) fn propagate(
                 };
             });
         }
-        stats.form_factor_rows += 1;
+        if kept[p].is_none() {
+            stats.form_factor_rows += 1;
+            let row: Vec<(u32, f32)> = form
+                .iter()
+                .enumerate()
+                .filter(|&(_, &f)| f > 0.0)
+                .map(|(j, &f)| (j as u32, f))
+                .collect();
+            let bytes = row.len() * std::mem::size_of::<(u32, f32)>();
+            if stats.row_cache_bytes + bytes <= settings.row_cache_bytes {
+                stats.row_cache_bytes += bytes;
+                kept[p] = Some(row);
+            }
+        }
         let ue: Vec<Vec3> = unshot_emit[p * k..p * k + k].to_vec();
         let ur: Vec<Vec3> = unshot_refl[p * k..p * k + k].to_vec();
         for m in 0..k {

@@ -538,3 +538,103 @@ fn scaled_scenes_and_sixty_four_lights_give_the_same_radiosity() {
     eprintln!("64 lights: largest difference {e:.2e} of the peak");
     assert!(e < 1e-4, "64 lights: {e}");
 }
+
+/// A patch's form-factor row is the same each time it shoots, so the rows the solve keeps
+/// (`SolverSettings::row_cache_bytes`) change nothing: the solution with every row kept,
+/// with a budget that holds only some, and with none is the same bit for bit, for ray-cast
+/// and hemicube form factors; only the rows computed fall.
+#[test]
+fn kept_form_factor_rows_give_the_same_solution_bit_for_bit() {
+    let (scene, meshing, rays) = corridor_setup(256);
+    let furnace_scene = furnace(0.9, 1.0);
+    let furnace_meshing = Meshing::new(&furnace_scene, &MeshSettings::elements(96), 1).unwrap();
+    let furnace_rays = RayScene::build(&furnace_scene);
+    let cases: [(
+        &str,
+        &Scene,
+        &Meshing,
+        &RayScene,
+        relight_pr::FormFactorMethod,
+    ); 2] = [
+        (
+            "rays, corridor",
+            &scene,
+            &meshing,
+            &rays,
+            relight_pr::FormFactorMethod::Rays,
+        ),
+        (
+            "hemicube, furnace",
+            &furnace_scene,
+            &furnace_meshing,
+            &furnace_rays,
+            relight_pr::FormFactorMethod::Hemicube { resolution: 32 },
+        ),
+    ];
+    for (name, scene, meshing, rays, form_factors) in cases {
+        let solve = |row_cache_bytes: usize| {
+            let mut renderer = scene_core::gbuffer::RayCastRenderer::new();
+            let settings = SolverSettings {
+                form_factors,
+                max_unshot: 1e-3,
+                visibility_samples: 4,
+                // Every patch shoots alone, so every shot may reuse a row.
+                cluster_members: 0,
+                row_cache_bytes,
+                ..Default::default()
+            };
+            solver::solve_with(
+                scene,
+                meshing,
+                rays,
+                Some(&mut renderer),
+                &settings,
+                &mut |_| {},
+            )
+            .unwrap()
+        };
+        let none = solve(0);
+        let all = solve(usize::MAX);
+        // Room for about a third of the rows that were kept.
+        let some = solve(all.stats.row_cache_bytes / 3);
+        eprintln!(
+            "{name}: {} shots; rows computed {} / {} / {} (all kept, a third, none), \
+             {} bytes kept",
+            none.stats.shots,
+            all.stats.form_factor_rows,
+            some.stats.form_factor_rows,
+            none.stats.form_factor_rows,
+            all.stats.row_cache_bytes
+        );
+        assert_eq!(none.stats.reused_rows, 0, "{name}");
+        assert_eq!(none.stats.row_cache_bytes, 0, "{name}");
+        assert_eq!(none.stats.form_factor_rows, none.stats.shots, "{name}");
+        // Repeated shots of a patch found its row kept.
+        assert!(
+            all.stats.form_factor_rows < all.stats.shots / 2,
+            "{name}: {:?}",
+            all.stats
+        );
+        assert_eq!(
+            all.stats.form_factor_rows + all.stats.reused_rows,
+            all.stats.shots,
+            "{name}"
+        );
+        assert!(
+            some.stats.form_factor_rows > all.stats.form_factor_rows
+                && some.stats.form_factor_rows < none.stats.form_factor_rows,
+            "{name}: {:?}",
+            some.stats
+        );
+        assert!(
+            some.stats.row_cache_bytes <= all.stats.row_cache_bytes / 3,
+            "{name}"
+        );
+        for other in [&all, &some] {
+            assert_eq!(other.stats.shots, none.stats.shots, "{name}");
+            assert_eq!(other.direct, none.direct, "{name}");
+            assert_eq!(other.indirect, none.indirect, "{name}");
+            assert_eq!(other.ambient, none.ambient, "{name}");
+        }
+    }
+}
