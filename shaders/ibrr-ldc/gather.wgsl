@@ -11,8 +11,8 @@ struct Params {
     origin: vec4<f32>,
     // xyz: position; w: kind (0 point source, 1 directional source, 2 path node).
     irpl_position: vec4<f32>,
-    // xyz: normal (path nodes) or direction of travel (directional); w: falloff radius of
-    // a point source (0: inverse square).
+    // xyz: normal (path nodes), direction of travel (directional) or a spot's axis (point
+    // source); w: falloff radius of a point source (0: inverse square).
     irpl_normal: vec4<f32>,
     // xyz: power, intensity or irradiance; w: the clamp's g_max (or a huge number).
     irpl_power: vec4<f32>,
@@ -24,6 +24,12 @@ struct Params {
     eps_normal: f32,
     scale: f32,
     has_radius: u32,
+    // A point source's spot ramp: attenuation saturate(dot(axis, w) * spot_scale +
+    // spot_offset)^2 (scale 0, offset 1: no cone).
+    spot_scale: f32,
+    spot_offset: f32,
+    pad_a: u32,
+    pad_b: u32,
 }
 
 struct Render {
@@ -74,7 +80,12 @@ fn irradiance(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
                 falloff = min(1.0 / d2, 3.4028235e38);
             }
         }
-        return power * (falloff * cos_x);
+        let a = clamp(
+            dot(params.irpl_normal.xyz, -d / r) * params.spot_scale + params.spot_offset,
+            0.0,
+            1.0,
+        );
+        return power * (falloff * cos_x * a * a);
     }
     let d = p - params.irpl_position.xyz;
     let r2 = dot(d, d);

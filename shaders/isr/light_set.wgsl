@@ -1,7 +1,7 @@
 #define_import_path isr::light_set
 #import isr::common::{PI, MAX_FINITE}
 // The set of lights the lighting pass shades with (mirrors crates/isr/src/light_set.rs):
-// point lights (1/d^2 or eq. 16's window), directional lights and point samples of emissive
+// point lights (1/d^2 or eq. 16's window, and a spot's cone), directional lights and point samples of emissive
 // triangles (cosine profile, disk form factor), each with the frame's direct and indirect
 // factors, and the table of emissive triangles for directly visible emitters.
 //
@@ -39,9 +39,11 @@ struct Light {
     // The frame's factor on its direct light (LightState), and on the light it sends on to
     // be reflected (the Lit senders).
     direct: vec3<f32>,
-    pad_a: f32,
+    // A spot's cone (point lights; `direction` is its axis): the attenuation towards a
+    // point is saturate(dot(axis, w) * spot_scale + spot_offset)^2 (scale 0, offset 1: none).
+    spot_scale: f32,
     indirect: vec3<f32>,
-    pad_b: f32,
+    spot_offset: f32,
 }
 
 @group(0) @binding(6) var<storage, read> lights: array<Light>;
@@ -74,7 +76,8 @@ fn irradiance(l: Light, p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
         if (c <= 0.0) {
             return vec3<f32>(0.0);
         }
-        return l.color * (falloff(l.radius, d) * c);
+        let a = clamp(dot(l.direction, -to / d) * l.spot_scale + l.spot_offset, 0.0, 1.0);
+        return l.color * (falloff(l.radius, d) * c * a * a);
     }
     if (l.kind == KIND_DIRECTIONAL) {
         let c = -dot(n, l.direction);

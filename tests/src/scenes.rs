@@ -268,6 +268,7 @@ pub fn lit_room(point: bool, emissive_patch: bool) -> Scene {
             position: Vec3::new(0.7, 0.6, 0.8),
             intensity: Vec3::splat(0.8),
             radius: None,
+            cone: None,
         });
     }
     s.cameras.push(room_camera(lo, hi));
@@ -278,9 +279,14 @@ pub fn lit_room(point: bool, emissive_patch: bool) -> Scene {
 /// The box `[lo, hi]` with outward-facing walls (a solid block).
 pub fn closed_box_outward(mesh: &mut Mesh, lo: Vec3, hi: Vec3, material: u32) {
     let start = mesh.indices.len();
+    let first_vertex = mesh.normals.len();
     closed_box(mesh, lo, hi, material);
     for t in &mut mesh.indices[start..] {
         t.swap(1, 2);
+    }
+    // The shading normals turn with the faces (they pointed into the box).
+    for n in &mut mesh.normals[first_vertex..] {
+        *n = -*n;
     }
 }
 
@@ -446,6 +452,7 @@ pub fn random_scene(seed: u64) -> Scene {
             position: size * Vec3::new(r(), r(), r()),
             intensity: Vec3::splat(intensity),
             radius: if r() < 0.3 { Some(0.5) } else { None },
+            cone: None,
         });
     }
     if r() < 0.3 {

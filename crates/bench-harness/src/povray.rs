@@ -70,9 +70,20 @@ pub fn export(scene: &Scene, camera: &Camera, width: u32, height: u32) -> String
                 format!("fade_distance {f} fade_power 2"),
             ),
         };
+        // A spot: POV-Ray's spotlight, full inside `radius` (the inner angle) and dark past
+        // `falloff` (the outer one); its ramp between them is POV-Ray's own, not glTF's
+        // squared one, so only the full and the dark regions compare exactly.
+        let spot = l.cone.map_or(String::new(), |cone| {
+            format!(
+                " spotlight point_at {} radius {} falloff {} tightness 0",
+                v(l.position + cone.axis()),
+                cone.inner.to_degrees(),
+                cone.outer.to_degrees()
+            )
+        });
         let _ = writeln!(
             o,
-            "light_source {{ {} rgb <{},{},{}> {fade} }}",
+            "light_source {{ {} rgb <{},{},{}> {fade}{spot} }}",
             v(l.position),
             c.x,
             c.y,

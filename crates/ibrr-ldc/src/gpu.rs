@@ -364,6 +364,12 @@ struct GatherParams {
     eps_normal: f32,
     scale: f32,
     has_radius: u32,
+    /// A point source's spot ramp (scale 0, offset 1 without a cone); its axis is in
+    /// `irpl_normal.xyz`.
+    spot_scale: f32,
+    spot_offset: f32,
+    pad_a: u32,
+    pad_b: u32,
 }
 
 #[repr(C)]
@@ -525,10 +531,15 @@ impl GpuGather {
                 }
             }));
         }
-        let (kind, normal, radius) = match irpl.kind {
-            IrplKind::PointSource { radius } => (0.0, Vec3::ZERO, radius),
-            IrplKind::DirectionalSource { direction } => (1.0, direction, None),
-            IrplKind::EmitterSample | IrplKind::Bounce => (2.0, irpl.normal, None),
+        let (kind, normal, radius, (spot_scale, spot_offset)) = match irpl.kind {
+            IrplKind::PointSource { radius, cone } => (
+                0.0,
+                cone.map_or(Vec3::ZERO, |c| c.axis()),
+                radius,
+                cone.map_or((0.0, 1.0), |c| c.scale_offset()),
+            ),
+            IrplKind::DirectionalSource { direction } => (1.0, direction, None, (0.0, 1.0)),
+            IrplKind::EmitterSample | IrplKind::Bounce => (2.0, irpl.normal, None, (0.0, 1.0)),
         };
         let groups = (n as u32).div_ceil(GATHER_GROUP);
         let groups_x = groups.min(MAX_GROUPS_X);
@@ -545,6 +556,10 @@ impl GpuGather {
             eps_normal: builder.frame.eps_normal,
             scale,
             has_radius: radius.is_some() as u32,
+            spot_scale,
+            spot_offset,
+            pad_a: 0,
+            pad_b: 0,
         };
         let uniform = ctx.uniform_buffer("gather params", &params);
         let renders = ctx.storage_with(
@@ -639,6 +654,10 @@ mod layout_tests {
                 eps_normal,
                 scale,
                 has_radius,
+                spot_scale,
+                spot_offset,
+                pad_a,
+                pad_b,
             }
         )
         .unwrap();

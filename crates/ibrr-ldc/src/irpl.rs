@@ -32,6 +32,8 @@ pub enum IrplKind {
     PointSource {
         /// The light's falloff radius (`None`: inverse square).
         radius: Option<f32>,
+        /// A spot light's cone (`None`: every direction).
+        cone: Option<scene_core::lights::SpotCone>,
     },
     /// A directional light's own direct light: irradiance `power` on a surface facing
     /// it, travelling along `direction`.
@@ -91,14 +93,15 @@ impl Irpl {
     pub fn irradiance_clamped(&self, p: Vec3, n: Vec3, g_max: f32) -> Vec3 {
         match self.kind {
             IrplKind::DirectionalSource { direction } => self.power * (-n.dot(direction)).max(0.0),
-            IrplKind::PointSource { radius } => {
+            IrplKind::PointSource { radius, cone } => {
                 let d = self.position - p;
                 let r = d.length();
                 if r <= 0.0 {
                     return Vec3::ZERO;
                 }
                 let cos_x = (n.dot(d) / r).max(0.0);
-                self.power * (scene_core::lights::falloff(radius, r) * cos_x)
+                let spot = cone.map_or(1.0, |c| c.attenuation(-d / r));
+                self.power * (scene_core::lights::falloff(radius, r) * cos_x * spot)
             }
             IrplKind::EmitterSample | IrplKind::Bounce => {
                 let d = p - self.position;
@@ -289,15 +292,20 @@ fn walks(
                 position: l.position,
                 normal: Vec3::ZERO,
                 power: direct,
-                kind: IrplKind::PointSource { radius: l.radius },
+                kind: IrplKind::PointSource {
+                    radius: l.radius,
+                    cone: l.cone,
+                },
                 light: id,
                 path: u32::MAX,
                 depth: 0,
             });
         }
+        // Its power: the intensity over the solid angle it sends it (4 pi, or a spot's
+        // cone attenuation integrated).
         starts.push((
             Start::Point { light: i as u32 },
-            l.intensity * s.color * (4.0 * std::f32::consts::PI) * s.indirect,
+            l.intensity * s.color * l.solid_angle() * s.indirect,
             id,
         ));
     }
@@ -447,7 +455,18 @@ impl Walker<'_> {
         let (mut o, mut d, mut carried) = match start {
             Start::Point { light } => {
                 let l = &scene.point_lights[light as usize];
-                (l.position, uniform_sphere(Vec2::new(u1, u2)), power)
+                match &l.cone {
+                    None => (l.position, uniform_sphere(Vec2::new(u1, u2)), power),
+                    // A spot: directions uniform within its outer cone, each particle's
+                    // power weighted by the attenuation over its mean (the cone's solid
+                    // angle over the outer cone's), so the paths carry the spot's power.
+                    Some(cone) => {
+                        let dir = uniform_cone(cone, Vec2::new(u1, u2));
+                        let weight = cone.attenuation(dir) * cone.outer_solid_angle()
+                            / cone.solid_angle().max(f32::MIN_POSITIVE);
+                        (l.position, dir, power * weight)
+                    }
+                }
             }
             Start::Directional { light } => {
                 let l = &scene.directional_lights[light as usize];
@@ -542,4 +561,15 @@ impl Walker<'_> {
             t_min = 0.0;
         }
     }
+}
+
+/// A direction uniform within `cone`'s outer cone (about its axis) from `u` in [0, 1)^2:
+/// `cos` uniform in `[cos(outer), 1]`, the azimuth uniform.
+fn uniform_cone(cone: &scene_core::lights::SpotCone, u: Vec2) -> Vec3 {
+    let cos_outer = cone.outer.cos();
+    let cos = 1.0 - u.x * (1.0 - cos_outer);
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    let phi = std::f32::consts::TAU * u.y;
+    let (t, b) = scene_core::view::orthonormal_basis(cone.axis());
+    (t * (sin * phi.cos()) + b * (sin * phi.sin()) + cone.axis() * cos).normalize_or_zero()
 }

@@ -187,6 +187,7 @@ fn surfaces_no_irpl_reached_are_black_and_counted() {
         position: Vec3::ZERO,
         intensity: Vec3::ONE,
         radius: None,
+        cone: None,
     });
     s.validate().unwrap();
     let scene = Arc::new(s);

@@ -91,6 +91,7 @@ fn two_rooms(with_wall: bool) -> Scene {
         position: Vec3::new(0.9, 0.5, 0.5),
         intensity: Vec3::ONE,
         radius: None,
+        cone: None,
     });
     let cam = |x: f32, tx: f32| Camera {
         name: String::new(),

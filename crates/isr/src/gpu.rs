@@ -180,12 +180,12 @@ pub struct GpuLight {
     pub map_kind: u32,
     /// The frame's factor on its direct light.
     pub direct: [f32; 3],
-    /// Padding.
-    pub pad0: f32,
+    /// A spot's ramp scale (0 for every other light).
+    pub spot_scale: f32,
     /// The frame's factor on the light it sends on (the `Lit` senders).
     pub indirect: [f32; 3],
-    /// Padding.
-    pub pad1: f32,
+    /// A spot's ramp offset (1 for every other light).
+    pub spot_offset: f32,
 }
 
 /// The emitter table in the GPU layout: two texels per emitter, (radiance times the frame's
@@ -221,6 +221,8 @@ pub fn gpu_lights(scene: &LightSet) -> Vec<GpuLight> {
                 map_offset: u32::MAX,
                 direct: l.direct.to_array(),
                 indirect: l.indirect.to_array(),
+                spot_scale: l.spot_scale,
+                spot_offset: l.spot_offset,
                 ..Default::default()
             };
             if let (Some(map), true) = (&l.shadow, scene.shadows.enabled) {

@@ -64,6 +64,13 @@ pub struct Light {
     /// The light source it belongs to (an emitter sample: its emissive mesh). Engines
     /// number their own lights with [`LightId::Point`] and [`LightId::Directional`].
     pub id: LightId,
+    /// A spot's cone ([`Light::spot`]; point lights only, `direction` its axis): the
+    /// intensity towards unit `w` is scaled by `saturate(dot(direction, w) * spot_scale +
+    /// spot_offset)^2`, [`scene_core::lights::SpotCone::scale_offset`]. 0 and 1 (no cone)
+    /// for every other light.
+    pub spot_scale: f32,
+    /// See [`Light::spot_scale`].
+    pub spot_offset: f32,
 }
 
 impl Light {
@@ -81,6 +88,24 @@ impl Light {
             shadow: None,
             direct: Vec3::ONE,
             indirect: Vec3::ONE,
+            spot_scale: 0.0,
+            spot_offset: 1.0,
+        }
+    }
+
+    /// A spot light: [`Light::point`] limited to `cone` (glTF's cone falloff).
+    pub fn spot(
+        id: LightId,
+        position: Vec3,
+        intensity: Vec3,
+        cone: &scene_core::lights::SpotCone,
+    ) -> Self {
+        let (spot_scale, spot_offset) = cone.scale_offset();
+        Self {
+            direction: cone.axis(),
+            spot_scale,
+            spot_offset,
+            ..Self::point(id, position, intensity)
         }
     }
 
@@ -103,7 +128,7 @@ impl Light {
 
     /// Unshadowed irradiance at `p` on a surface of unit normal `n` (two-sided surfaces:
     /// `n` faces the viewer): the `k_dl` factor of listing 7 before shadowing, with eq. 16's
-    /// falloff for point lights that have a radius.
+    /// falloff for point lights that have a radius and the cone of spots.
     pub fn irradiance(&self, p: Vec3, n: Vec3) -> Vec3 {
         match self.kind {
             LightKind::Point => {
@@ -116,7 +141,9 @@ impl Light {
                 if cos <= 0.0 {
                     return Vec3::ZERO;
                 }
-                self.color * (falloff(self.radius, d) * cos)
+                let a = (self.direction.dot(-to / d) * self.spot_scale + self.spot_offset)
+                    .clamp(0.0, 1.0);
+                self.color * (falloff(self.radius, d) * cos * a * a)
             }
             LightKind::Directional => {
                 let cos = -n.dot(self.direction);
@@ -228,11 +255,19 @@ impl LightSet {
                     .radius
                     .filter(|r| *r > 0.0 && r.is_finite())
                     .unwrap_or(0.0),
-                ..Light::point(
-                    LightId::Point(i as u32),
-                    l.position,
-                    l.intensity.max(Vec3::ZERO),
-                )
+                ..match &l.cone {
+                    Some(cone) => Light::spot(
+                        LightId::Point(i as u32),
+                        l.position,
+                        l.intensity.max(Vec3::ZERO),
+                        cone,
+                    ),
+                    None => Light::point(
+                        LightId::Point(i as u32),
+                        l.position,
+                        l.intensity.max(Vec3::ZERO),
+                    ),
+                }
             });
         }
         for (i, l) in scene.directional_lights.iter().enumerate() {
@@ -528,6 +563,8 @@ fn emitters(scene: &Scene, count: u32, extent: f32) -> (EmitterTable, Vec<Light>
             radius: 0.0,
             area: share,
             shadow: None,
+            spot_scale: 0.0,
+            spot_offset: 1.0,
         });
     }
     (table, samples)

@@ -52,6 +52,7 @@ fn floor_scene(camera: Camera) -> Scene {
         position: Vec3::new(0.0, 3.0, -5.0),
         intensity: Vec3::splat(20.0),
         radius: None,
+        cone: None,
     });
     s.cameras.push(camera);
     s.validate().unwrap();

@@ -56,9 +56,9 @@ fn lights_match_light_set_wgsl() {
             forward,
             map_kind,
             direct,
-            pad_a: pad0,
+            spot_scale,
             indirect,
-            pad_b: pad1,
+            spot_offset,
         }
     )
     .unwrap();

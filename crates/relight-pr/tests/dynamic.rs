@@ -247,6 +247,7 @@ fn dynamic_objects_shadow_an_area_light() {
         position: centre,
         intensity: Vec3::ONE,
         radius: None,
+        cone: None,
     });
     assert!(matches!(
         dynamic.frame(&scene, &meshing, &solution, &rays, &state),

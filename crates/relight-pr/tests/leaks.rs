@@ -88,6 +88,7 @@ fn two_rooms_to(right: f32) -> Scene {
         position: Vec3::new(0.9, 0.5, 0.5),
         intensity: Vec3::splat(1.0),
         radius: None,
+        cone: None,
     });
     scene
 }

@@ -107,6 +107,12 @@ pub fn scene_content_hash(scene: &crate::Scene) -> u64 {
         let r = l.radius.map_or(-1.0, |r| r);
         h = words(h, bytemuck::cast_slice(&[l.position, l.intensity]));
         h = mix(h, r.to_bits() as u64);
+        if let Some(c) = &l.cone {
+            h = words(h, bytemuck::cast_slice(&[c.direction]));
+            h = mix(mix(h, c.inner.to_bits() as u64), c.outer.to_bits() as u64);
+        } else {
+            h = mix(h, u64::MAX);
+        }
     }
     h = mix(h, scene.directional_lights.len() as u64);
     for l in &scene.directional_lights {
@@ -129,12 +135,19 @@ mod tests {
         s.cameras.clear();
         assert_eq!(hash(&s), h0, "name and cameras are not content");
         type Edit = (&'static str, fn(&mut crate::Scene));
-        let edits: [Edit; 5] = [
+        let edits: [Edit; 6] = [
             ("a vertex", |s| s.meshes[0].positions[0].x += 1e-3),
             ("an albedo", |s| s.materials[0].albedo.y *= 0.5),
             ("a light position", |s| s.point_lights[0].position.y -= 0.01),
             ("a light intensity", |s| s.point_lights[0].intensity *= 2.0),
             ("a light radius", |s| s.point_lights[0].radius = Some(3.0)),
+            ("a spot cone", |s| {
+                s.point_lights[0].cone = Some(crate::lights::SpotCone {
+                    direction: glam::Vec3::NEG_Y,
+                    inner: 0.2,
+                    outer: 0.5,
+                })
+            }),
         ];
         for (what, edit) in edits {
             let mut s = base.clone();

@@ -194,6 +194,7 @@ fn an_emitter_and_a_point_light_alone_add_up_within_noise() {
         position: Vec3::new(0.15, 0.45, 0.2),
         intensity: Vec3::splat(0.05),
         radius: None,
+        cone: None,
     });
     scene.validate().unwrap();
     let s = settings(64, Bounces::Limited(2));

@@ -103,6 +103,23 @@ fn bounce_limits_truncate_the_neumann_series() {
 }
 
 fn plane_under_point_light(radius: Option<f32>) -> (Scene, PointLight) {
+    plane_under_light(radius, None)
+}
+
+/// The plane lit by a spot tilted off the vertical: full inside 0.35 rad of its axis, dark
+/// past 0.7 rad, glTF's squared ramp between.
+fn spot_cone() -> scene_core::lights::SpotCone {
+    scene_core::lights::SpotCone {
+        direction: Vec3::new(0.2, -1.0, 0.1),
+        inner: 0.35,
+        outer: 0.7,
+    }
+}
+
+fn plane_under_light(
+    radius: Option<f32>,
+    cone: Option<scene_core::lights::SpotCone>,
+) -> (Scene, PointLight) {
     let mut s = Scene::new("plane");
     s.materials
         .push(Material::diffuse("grey", Vec3::splat(0.5)));
@@ -126,6 +143,7 @@ fn plane_under_point_light(radius: Option<f32>) -> (Scene, PointLight) {
         position: Vec3::new(0.3, 1.0, -0.2),
         intensity: Vec3::new(2.0, 1.0, 0.5),
         radius,
+        cone,
     };
     s.point_lights.push(light.clone());
     s.cameras.push(Camera {
@@ -144,8 +162,10 @@ fn plane_under_point_light(radius: Option<f32>) -> (Scene, PointLight) {
 
 #[test]
 fn point_light_over_plane_matches_closed_form() {
-    for radius in [None, Some(1.8)] {
-        let (s, light) = plane_under_point_light(radius);
+    for (radius, cone) in [(None, None), (Some(1.8), None), (None, Some(spot_cone()))] {
+        let (s, light) = plane_under_light(radius, cone);
+        // Pixels wholly inside the spot's full cone, on its ramp, and dark past it.
+        let (mut full, mut ramp, mut dark) = (0, 0, 0);
         let view = View::from_camera(&s.cameras[0]);
         let (w, h) = (48u32, 48u32);
         let settings = ReferenceSettings {
@@ -164,6 +184,7 @@ fn point_light_over_plane_matches_closed_form() {
                 // pixel, as the tracer jitters its samples over the pixel.
                 let mut expected = Vec3::ZERO;
                 let mut on_plane = true;
+                let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
                 for sy in 0..16 {
                     for sx in 0..16 {
                         let uv = Vec2::new(
@@ -178,15 +199,26 @@ fn point_light_over_plane_matches_closed_form() {
                         on_plane &= light.falloff((light.position - p).length()) > 0.0;
                         let to = light.position - p;
                         let dist = to.length();
+                        // A spot's cone: its attenuation towards p (1 without a cone).
+                        let a = light.attenuation(-to / dist);
+                        (lo, hi) = (lo.min(a), hi.max(a));
                         expected += Vec3::splat(0.5 / std::f32::consts::PI)
                             * light.intensity
                             * (to.y / dist)
                             * light.falloff(dist)
+                            * a
                             / 256.0;
                     }
                 }
-                if !on_plane {
+                // Pixels straddling the spot's outer edge are skipped, as those straddling
+                // the window's: few of the 16 samples are lit there.
+                if !on_plane || (lo == 0.0 && hi > 0.0) {
                     continue;
+                }
+                match (lo, hi) {
+                    (1.0, _) => full += 1,
+                    (_, 0.0) => dark += 1,
+                    _ => ramp += 1,
                 }
                 let got = out.image.get(x, y);
                 // Jitter noise: 5 standard errors of the pixel mean, from the tracer's own
@@ -195,12 +227,16 @@ fn point_light_over_plane_matches_closed_form() {
                 let tol = se * 5.0 + Vec3::splat(2e-3 * expected.max_element() + 1e-6);
                 assert!(
                     (got - expected).abs().cmplt(tol).all(),
-                    "radius {radius:?} pixel ({x},{y}): {got} vs {expected} (tol {tol})"
+                    "radius {radius:?} cone {cone:?} pixel ({x},{y}): {got} vs {expected} (tol {tol}, attenuation {lo}..{hi})"
                 );
                 checked += 1;
             }
         }
         assert!(checked > 1000, "only {checked} pixels checked");
+        if cone.is_some() {
+            eprintln!("spot: {full} pixels in the full cone, {ramp} on the ramp, {dark} dark");
+            assert!(full > 50 && ramp > 50 && dark > 50, "{full} {ramp} {dark}");
+        }
     }
 }
 

@@ -179,9 +179,36 @@ fn bad_lights_and_cameras_are_errors() {
         position: Vec3::NAN,
         intensity: Vec3::ONE,
         radius: None,
+        cone: None,
     });
     let e = s.validate().unwrap_err();
     assert!(e.to_string().contains("bulb"), "{e}");
+    // Spot cones outside glTF's range, or without a direction, are refused naming the light
+    // and the fault.
+    for (inner, outer, direction, fault) in [
+        (0.2, 1.7, Vec3::NEG_Y, "outer 1.7"),
+        (0.5, 0.4, Vec3::NEG_Y, "inner 0.5"),
+        (0.0, 0.0, Vec3::NEG_Y, "outer 0"),
+        (0.1, 0.3, Vec3::ZERO, "direction"),
+        (0.1, 0.3, Vec3::new(f32::NAN, -1.0, 0.0), "direction"),
+    ] {
+        let mut s = one_quad();
+        s.point_lights.push(PointLight {
+            cone: Some(scene_core::lights::SpotCone {
+                direction,
+                inner,
+                outer,
+            }),
+            ..PointLight::new("spot", Vec3::Y, Vec3::ONE)
+        });
+        match s.validate().unwrap_err() {
+            SceneError::InvalidLight { light, reason } => {
+                assert_eq!(light, "point light #0 'spot'");
+                assert!(reason.contains(fault), "{reason}");
+            }
+            other => panic!("expected InvalidLight, got {other}"),
+        }
+    }
     let mut s = one_quad();
     s.cameras.push(Camera {
         name: "eye".into(),

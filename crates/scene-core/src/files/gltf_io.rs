@@ -17,8 +17,10 @@
 //!   listed in `ignored` (they are not an error). Primitives without indices get sequential
 //!   ones. An index past the primitive's vertex count is a [`GltfError::Content`] naming the
 //!   mesh and primitive.
-//! * Missing normals are left for [`Scene::validate`] to recompute (the `normals` vector is
-//!   left empty when no primitive of a mesh has normals). Texture coordinates are read only
+//! * A primitive without `NORMAL` gets flat normals, as glTF 2.0 requires of a client: each
+//!   triangle gets three vertices of its own carrying its face normal (the vertex budget is
+//!   charged for them before reading). Zero or non-finite normals in a file are left for
+//!   [`Scene::validate`] to recompute. Texture coordinates are read only
 //!   for primitives whose material has a `baseColorTexture` (from the set that texture
 //!   names, normally `TEXCOORD_0`).
 //! * Materials are imported in file order (scene material `i` is glTF material `i`);
@@ -29,8 +31,11 @@
 //!   (PNG or JPEG) and converted from sRGB to linear; only textures used that way are
 //!   imported, in glTF texture index order.
 //! * `KHR_lights_punctual`: point lights keep `color x intensity` (candela) and `range` as the
-//!   windowed-falloff radius; spot lights become point lights with a warning; directional
-//!   lights travel along the node's world -Z with irradiance `color x intensity` (lux).
+//!   windowed-falloff radius; spot lights are point lights with a
+//!   [`crate::lights::SpotCone`] (`innerConeAngle`, default 0, and `outerConeAngle`,
+//!   default pi/4, about the node's world -Z; angles outside `0 <= inner <= outer <= pi/2`
+//!   are refused by validation, naming the light); directional lights travel along the
+//!   node's world -Z with irradiance `color x intensity` (lux).
 //! * Perspective cameras: eye at the node's world origin, looking along its world -Z with its
 //!   world +Y as up; `aspectRatio` defaults to 1; a missing `zfar` (infinite projection)
 //!   becomes `max(1000 znear, 2 (distance to the scene's centre + scene extent))`. The
@@ -66,7 +71,7 @@
 //! indices are `u32`. Materials carry `baseColorFactor` (alpha 1), `metallicFactor` 0,
 //! `roughnessFactor` 1, the albedo texture as an embedded sRGB PNG, and `emissiveFactor`
 //! (normalised to a maximum of 1, with `KHR_materials_emissive_strength` carrying the scale
-//! when emission exceeds 1). Point and directional lights use `KHR_lights_punctual`;
+//! when emission exceeds 1). Point, spot and directional lights use `KHR_lights_punctual`;
 //! cameras are perspective camera nodes whose rotation points -Z at the target, with the
 //! target distance in the node's extras. Empty meshes and unreferenced textures are not
 //! written.

@@ -424,6 +424,7 @@ pub fn building(nx: u32, nz: u32) -> Scene {
                 position: c + Vec3::new(0.0, HEIGHT - 0.4, 0.0),
                 intensity: Vec3::new(1.0, 0.85, 0.65) * (2.0 + rng.next_f32()),
                 radius: None,
+                cone: None,
             });
         }
     }

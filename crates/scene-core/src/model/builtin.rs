@@ -359,6 +359,7 @@ pub fn cornell_point() -> Scene {
         position: Vec3::new(0.278, 0.5388, 0.2795),
         intensity: CORNELL_LIGHT_RADIANCE * (CORNELL_LIGHT_AREA / 4.0),
         radius: None,
+        cone: None,
     });
     s.cameras = cornell_cameras(&s);
     s
@@ -570,6 +571,7 @@ pub fn corridor() -> Scene {
             position: p(0.0, h - 0.3, -2.0 - 5.0 * i as f32),
             intensity: *c * 2.0,
             radius: None,
+            cone: None,
         });
     }
     s.cameras = vec![
@@ -845,6 +847,7 @@ pub fn cluttered_room(n: u32, seed: u64) -> Scene {
         position: Vec3::new(w * 0.6, 1.6, -d * 0.5),
         intensity: Vec3::new(3.0, 2.6, 2.0),
         radius: None,
+        cone: None,
     });
     s.cameras = vec![camera(
         "corner",
@@ -910,6 +913,7 @@ pub fn many_boxes(n: u32, seed: u64) -> Scene {
         position: Vec3::new(0.0, 3.0, 0.0),
         intensity: Vec3::splat(4.0 + half),
         radius: None,
+        cone: None,
     });
     s.cameras = vec![
         camera(

@@ -340,6 +340,92 @@ pub fn falloff(radius: Option<f32>, distance: f32) -> f32 {
     }
 }
 
+/// The cone of a spot light, as `KHR_lights_punctual` defines it: full intensity within
+/// `inner` of the axis, none beyond `outer`, and between them glTF's smooth ramp
+/// `saturate((cos_a - cos_outer) / (cos_inner - cos_outer))^2`, where `a` is the angle
+/// between the axis and the direction towards the lit point (the extension's recommended
+/// attenuation; the difference of cosines is floored at 1e-3, so `inner == outer` gives a
+/// hard edge one thousandth of a cosine wide). A [`crate::PointLight`] with a cone is a
+/// spot light; every method and the reference multiply its intensity by
+/// [`SpotCone::attenuation`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpotCone {
+    /// Direction of the axis: where the light points (any length; used normalised).
+    pub direction: Vec3,
+    /// Angle from the axis, in radians, within which the intensity is full (glTF's
+    /// `innerConeAngle`, default 0). At least 0 and at most `outer`.
+    pub inner: f32,
+    /// Angle from the axis, in radians, beyond which no light leaves (glTF's
+    /// `outerConeAngle`, default pi/4). Above 0 and at most pi/2.
+    pub outer: f32,
+}
+
+impl SpotCone {
+    /// The smallest difference `cos(inner) - cos(outer)` the ramp divides by.
+    pub const MIN_RAMP: f32 = 1e-3;
+
+    /// `(scale, offset)` of the ramp: the attenuation towards unit direction `w` is
+    /// `saturate(dot(axis, w) * scale + offset)^2` (what the shaders evaluate).
+    pub fn scale_offset(&self) -> (f32, f32) {
+        let (ci, co) = (self.inner.cos(), self.outer.cos());
+        let scale = 1.0 / (ci - co).max(Self::MIN_RAMP);
+        (scale, -co * scale)
+    }
+
+    /// The unit axis (zero for a zero direction, which validation refuses).
+    pub fn axis(&self) -> Vec3 {
+        self.direction.normalize_or_zero()
+    }
+
+    /// The factor on the intensity towards unit direction `w` (from the light), in [0, 1].
+    pub fn attenuation(&self, w: Vec3) -> f32 {
+        let (scale, offset) = self.scale_offset();
+        let a = (self.axis().dot(w) * scale + offset).clamp(0.0, 1.0);
+        a * a
+    }
+
+    /// The solid angle the cone's attenuation integrates to, `integral attenuation dw`
+    /// over the sphere (about 2 pi, a hemisphere, for `inner == outer == pi/2`): the
+    /// light's power is its intensity times this. Closed form of the ramp: with
+    /// `c_o = cos(outer)`, `w = max(cos(inner) - c_o, 1e-3)` and `t = min(c_o + w, 1)`,
+    /// `2 pi ((t - c_o)^3 / (3 w^2) + 1 - t)`.
+    pub fn solid_angle(&self) -> f32 {
+        let co = self.outer.cos();
+        let w = (self.inner.cos() - co).max(Self::MIN_RAMP);
+        let t = (co + w).min(1.0);
+        let ramp = (t - co).powi(3) / (3.0 * w * w);
+        std::f32::consts::TAU * (ramp + (1.0 - t)).max(0.0)
+    }
+
+    /// The solid angle of the outer cone, `2 pi (1 - cos(outer))`: what uniform sampling of
+    /// directions within it divides by.
+    pub fn outer_solid_angle(&self) -> f32 {
+        std::f32::consts::TAU * (1.0 - self.outer.cos())
+    }
+
+    /// Why the cone is unusable, if it is: a direction that is not finite or is zero, or
+    /// angles that are not `0 <= inner <= outer <= pi/2` with `outer > 0`.
+    pub fn fault(&self) -> Option<String> {
+        if !self.direction.is_finite() || self.direction.length_squared() < 1e-12 {
+            return Some(format!(
+                "spot direction {} is zero or not finite",
+                self.direction
+            ));
+        }
+        let ok = self.inner >= 0.0
+            && self.inner <= self.outer
+            && self.outer > 0.0
+            && self.outer <= std::f32::consts::FRAC_PI_2;
+        (!ok).then(|| {
+            format!(
+                "spot cone angles inner {} and outer {} are not 0 <= inner <= outer <= pi/2 \
+                 with outer above 0",
+                self.inner, self.outer
+            )
+        })
+    }
+}
+
 /// The weight that picks a light source by its (RGB) power: its luminance, floored at
 /// 1e-3 of its brightest channel so that saturated colours keep some weight; 0 for
 /// non-finite or non-positive power. [`Emitters`] and ibrr-ldc's particle walks use it.
@@ -490,6 +576,60 @@ impl Emitters {
 mod tests {
     use super::*;
     use crate::builtin;
+
+    /// The cone against glTF's formula at chosen angles, and its solid angle against a
+    /// midpoint quadrature of `2 pi integral attenuation d(cos)` (1e6 steps), for a wide
+    /// ramp, a hard edge, a narrow cone whose ramp passes the axis and a hemisphere.
+    #[test]
+    fn spot_cone_attenuation_and_solid_angle() {
+        let cone = |inner: f32, outer: f32| SpotCone {
+            direction: Vec3::new(0.0, -2.0, 0.0),
+            inner,
+            outer,
+        };
+        let towards = |a: f32| Vec3::new(a.sin(), -a.cos(), 0.0);
+        let c = cone(0.3, 0.6);
+        assert_eq!(c.attenuation(towards(0.0)), 1.0);
+        assert!((c.attenuation(towards(0.3)) - 1.0).abs() < 1e-5);
+        assert_eq!(c.attenuation(towards(0.61)), 0.0);
+        assert_eq!(c.attenuation(Vec3::Y), 0.0);
+        // Half way in cosine between the angles: (1/2)^2.
+        let mid = ((0.3f32.cos() + 0.6f32.cos()) / 2.0).acos();
+        assert!((c.attenuation(towards(mid)) - 0.25).abs() < 1e-4);
+        for (inner, outer) in [(0.3, 0.6), (0.5, 0.5), (0.0, 0.01), (1.5707964, 1.5707964)] {
+            let c = cone(inner, outer);
+            let steps = 1_000_000;
+            let integral: f64 = (0..steps)
+                .map(|i| {
+                    let cos = -1.0 + 2.0 * (i as f64 + 0.5) / steps as f64;
+                    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+                    let w = Vec3::new(sin as f32, -cos as f32, 0.0);
+                    c.attenuation(w) as f64 * 2.0 / steps as f64
+                })
+                .sum::<f64>()
+                * std::f64::consts::TAU;
+            let closed = c.solid_angle() as f64;
+            assert!(
+                (closed - integral).abs() < 1e-4 * integral.max(1e-3),
+                "inner {inner} outer {outer}: {closed} vs {integral}"
+            );
+            assert!(c.fault().is_none());
+        }
+        assert!((cone(1.5707964, 1.5707964).solid_angle() - std::f32::consts::TAU).abs() < 0.01);
+        for bad in [
+            cone(0.5, 0.4),
+            cone(-0.1, 0.4),
+            cone(0.0, 0.0),
+            cone(0.0, 1.6),
+            cone(0.0, f32::NAN),
+            SpotCone {
+                direction: Vec3::ZERO,
+                ..cone(0.1, 0.2)
+            },
+        ] {
+            assert!(bad.fault().is_some(), "{bad:?}");
+        }
+    }
 
     #[test]
     fn ids_cover_every_light_and_only_them() {

@@ -227,9 +227,40 @@ pub struct PointLight {
     pub intensity: Vec3,
     /// Optional radius of the windowed falloff of eq. 16.
     pub radius: Option<f32>,
+    /// The cone of a spot light (`None`: light in every direction).
+    pub cone: Option<crate::lights::SpotCone>,
 }
 
 impl PointLight {
+    /// A point light sending `intensity` in every direction, inverse-square falloff.
+    pub fn new(name: &str, position: Vec3, intensity: Vec3) -> Self {
+        Self {
+            name: name.into(),
+            position,
+            intensity,
+            radius: None,
+            cone: None,
+        }
+    }
+
+    /// The factor on the intensity towards unit direction `w` (from the light): the spot
+    /// cone's [`crate::lights::SpotCone::attenuation`], 1 without a cone.
+    pub fn attenuation(&self, w: Vec3) -> f32 {
+        self.cone.map_or(1.0, |c| c.attenuation(w))
+    }
+
+    /// The intensity towards unit direction `w` (from the light).
+    pub fn intensity_towards(&self, w: Vec3) -> Vec3 {
+        self.intensity * self.attenuation(w)
+    }
+
+    /// The solid angle its intensity is sent over: 4 pi, or the cone's
+    /// [`crate::lights::SpotCone::solid_angle`]. Its power is `intensity` times this.
+    pub fn solid_angle(&self) -> f32 {
+        self.cone
+            .map_or(4.0 * std::f32::consts::PI, |c| c.solid_angle())
+    }
+
     /// The distance falloff: `1/d^2`, or eq. 16's `saturate(1 - (d/r)^2)` when a radius is set.
     /// Never infinite: 0 at zero distance, and at most `f32::MAX` for tiny distances.
     pub fn falloff(&self, distance: f32) -> f32 {
@@ -782,6 +813,12 @@ impl Scene {
                 return Err(SceneError::InvalidLight {
                     light: label_or_index(&l.name, "point light", i),
                     reason: "position, intensity or radius not finite, or negative".into(),
+                });
+            }
+            if let Some(reason) = l.cone.as_ref().and_then(|c| c.fault()) {
+                return Err(SceneError::InvalidLight {
+                    light: label_or_index(&l.name, "point light", i),
+                    reason,
                 });
             }
             check_channels(

@@ -86,7 +86,9 @@ fn scores(scene: &Scene, cands: &[Camera]) -> Vec<usize> {
         scene.point_lights.iter().any(|l| {
             let d = l.position - p;
             let dist = d.length();
-            dist > 0.0 && !rays.occluded(p, d / dist, 0.0, dist * (1.0 - 1e-4))
+            dist > 0.0
+                && l.attenuation(-d / dist) > 0.0
+                && !rays.occluded(p, d / dist, 0.0, dist * (1.0 - 1e-4))
         }) || scene.directional_lights.iter().any(|l| {
             let d = -l.direction.normalize_or_zero();
             d != Vec3::ZERO && !rays.occluded(p, d, 0.0, far)
@@ -169,6 +171,7 @@ mod tests {
             position: Vec3::new(0.3, 0.5, 0.2),
             intensity: Vec3::ONE,
             radius: None,
+            cone: None,
         });
         let cam = framing_camera(&room);
         assert!(cam.name.contains("inside"), "{}", cam.name);

@@ -383,14 +383,19 @@ fn build_document(
         if let Some(r) = l.radius {
             light["range"] = json!(r);
         }
+        let mut node = json!({
+            "translation": l.position.to_array(),
+            "extensions": { EXT_LIGHTS: { "light": lights.len() } },
+        });
+        if let Some(c) = &l.cone {
+            // A spot points along its node's -Z.
+            light["type"] = json!("spot");
+            light["spot"] = json!({ "innerConeAngle": c.inner, "outerConeAngle": c.outer });
+            let rotation = Quat::from_rotation_arc(Vec3::NEG_Z, c.axis()).normalize();
+            node["rotation"] = json!(rotation.to_array());
+        }
         lights.push(light);
-        nodes.push(named(
-            json!({
-                "translation": l.position.to_array(),
-                "extensions": { EXT_LIGHTS: { "light": lights.len() - 1 } },
-            }),
-            &l.name,
-        ));
+        nodes.push(named(node, &l.name));
     }
     for l in &scene.directional_lights {
         let (color, intensity) = split_scale(l.irradiance);

@@ -31,8 +31,8 @@ pub struct ImportResult {
     /// Features of the file that were not imported, one entry each, as `"<kind>: <detail>"`
     /// (for example `"animation: 'Walk'"`).
     pub ignored: Vec<String>,
-    /// Adjustments made while importing (clamped albedo, spot lights imported as point
-    /// lights, dropped degenerate triangles, ...).
+    /// Adjustments made while importing (clamped albedo, dropped degenerate triangles,
+    /// ...).
     pub warnings: Vec<String>,
 }
 
@@ -50,8 +50,8 @@ pub struct ImportOptions {
 
 impl ImportResult {
     /// One line counting what was ignored, by kind, in order of first appearance, e.g.
-    /// `"ignored: 3 metallic-roughness textures, 1 spot cone (imported as point light), 2
-    /// animations"`, or `"ignored: nothing"`.
+    /// `"ignored: 3 metallic-roughness textures, 1 orthographic camera, 2 animations"`, or
+    /// `"ignored: nothing"`.
     pub fn summary(&self) -> String {
         let mut counts: Vec<(&str, usize)> = Vec::new();
         for entry in &self.ignored {
@@ -93,14 +93,13 @@ enum Ignored {
     EmissiveTexture,
     Sampler,
     Transparency,
-    SpotCone,
     OrthographicCamera,
     Extension,
     OtherScene,
 }
 
 impl Ignored {
-    const ALL: [Ignored; 16] = [
+    const ALL: [Ignored; 15] = [
         Ignored::Animation,
         Ignored::Skin,
         Ignored::MorphTargets,
@@ -113,7 +112,6 @@ impl Ignored {
         Ignored::EmissiveTexture,
         Ignored::Sampler,
         Ignored::Transparency,
-        Ignored::SpotCone,
         Ignored::OrthographicCamera,
         Ignored::Extension,
         Ignored::OtherScene,
@@ -140,10 +138,6 @@ impl Ignored {
                 "sampler settings (bilinear/repeat used)",
             ),
             Ignored::Transparency => ("transparency setting", "transparency settings"),
-            Ignored::SpotCone => (
-                "spot cone (imported as point light)",
-                "spot cones (imported as point lights)",
-            ),
             Ignored::OrthographicCamera => ("orthographic camera", "orthographic cameras"),
             Ignored::Extension => ("extension", "extensions"),
             Ignored::OtherScene => ("other scene", "other scenes"),
@@ -851,18 +845,24 @@ impl<'a> Importer<'a> {
                     });
                 }
                 kind => {
-                    if let LightKind::Spot { .. } = kind {
-                        let label = label_or_index(&name, "light", light.index());
-                        self.warnings.push(format!(
-                            "{label}: spot light imported as a point light (cone ignored)"
-                        ));
-                        self.ignore(Ignored::SpotCone, label);
-                    }
+                    // A spot points along the node's world -Z (the extension's convention).
+                    let cone = match kind {
+                        LightKind::Spot {
+                            inner_cone_angle,
+                            outer_cone_angle,
+                        } => Some(crate::lights::SpotCone {
+                            direction: world.transform_vector3(Vec3::NEG_Z).normalize_or_zero(),
+                            inner: inner_cone_angle,
+                            outer: outer_cone_angle,
+                        }),
+                        _ => None,
+                    };
                     self.scene.point_lights.push(PointLight {
                         name,
                         position: world.transform_point3(Vec3::ZERO),
                         intensity: power,
                         radius: light.range(),
+                        cone,
                     });
                 }
             }
@@ -895,7 +895,6 @@ impl<'a> Importer<'a> {
             name,
             ..Default::default()
         };
-        let mut any_normals = false;
         for (pi, prim) in mesh.primitives().enumerate() {
             let Some(data) = self.read_primitive(&label, pi, &prim)? else {
                 continue;
@@ -911,17 +910,14 @@ impl<'a> Importer<'a> {
             let base = base as u32;
             out.positions
                 .extend(data.positions.iter().map(|&p| world.transform_point3(p)));
-            match data.normals {
-                Some(normals) => {
-                    any_normals = true;
-                    out.normals.extend(normals.iter().map(|&n| {
-                        let n = (normal_matrix * n).normalize_or_zero();
-                        if n.is_finite() { n } else { Vec3::ZERO }
-                    }));
-                }
-                // Zero normals are recomputed by validation.
-                None => out.normals.resize(total, Vec3::ZERO),
-            }
+            // Every primitive has normals by now (flat ones where the file has none). Zero
+            // normals are recomputed by validation.
+            let normals = data.normals.unwrap_or_default();
+            out.normals.extend(normals.iter().map(|&n| {
+                let n = (normal_matrix * n).normalize_or_zero();
+                if n.is_finite() { n } else { Vec3::ZERO }
+            }));
+            out.normals.resize(total, Vec3::ZERO);
             match (data.uvs, &mut out.uvs) {
                 (Some(uvs), Some(all)) => all.extend(uvs),
                 (Some(uvs), None) => {
@@ -938,9 +934,6 @@ impl<'a> Importer<'a> {
             }));
             out.material_ids
                 .extend(std::iter::repeat_n(data.material, data.triangles.len()));
-        }
-        if !any_normals {
-            out.normals.clear();
         }
         if !out.indices.is_empty() {
             self.scene.meshes.push(out);
@@ -1023,12 +1016,26 @@ impl<'a> Importer<'a> {
             _ => raw_indices.saturating_sub(2),
         };
         let vertex_bytes = 12 + 12 + if tex_set.is_some() { 8 } else { 0 };
+        // Without normals every triangle gets three vertices of its own (flat normals):
+        // the file's vertices are read, then copied per corner.
+        let has_normals = prim.get(&gltf::Semantic::Normals).is_some();
+        let vertices = if has_normals {
+            n
+        } else {
+            n.max(triangles.saturating_mul(3))
+        };
+        let read_vertices = if has_normals {
+            n
+        } else {
+            n.saturating_add(triangles.saturating_mul(3))
+        };
         // Bytes: the vertex arrays; the indices as read (4 each); per triangle its index
         // triple twice (primitive, then mesh) and its material id.
         self.allowance.charge_mesh(
-            n,
+            vertices,
             triangles.saturating_mul(3),
-            n.saturating_mul(vertex_bytes)
+            read_vertices
+                .saturating_mul(vertex_bytes)
                 .saturating_add(raw_indices.saturating_mul(4))
                 .saturating_add(triangles.saturating_mul(12 + 12 + 4)),
             || at.clone(),
@@ -1143,13 +1150,53 @@ impl<'a> Importer<'a> {
                 indices.len() % 3
             ));
         }
-        Ok(Some(PrimitiveData {
+        let data = PrimitiveData {
             positions,
             normals,
             uvs,
             triangles,
             material,
+        };
+        Ok(Some(if data.normals.is_some() {
+            data
+        } else {
+            data.with_flat_normals()
         }))
+    }
+}
+
+impl PrimitiveData {
+    /// Flat normals for a primitive without `NORMAL`, as glTF 2.0 asks of a client (3.7.2.1:
+    /// "client implementations MUST calculate flat normals"): every triangle gets three
+    /// vertices of its own carrying its face normal (in the primitive's space; the mesh
+    /// builder transforms it as any normal). A degenerate triangle's normal is zero, which
+    /// validation repairs or drops with the triangle.
+    fn with_flat_normals(self) -> Self {
+        let corners = self.triangles.len() * 3;
+        let mut positions = Vec::with_capacity(corners);
+        let mut normals = Vec::with_capacity(corners);
+        let mut uvs = self.uvs.as_ref().map(|_| Vec::with_capacity(corners));
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| self.positions[i as usize]);
+            let n = (b - a).cross(c - a).normalize_or_zero();
+            for &i in t {
+                positions.push(self.positions[i as usize]);
+                normals.push(n);
+                if let (Some(out), Some(src)) = (uvs.as_mut(), self.uvs.as_ref()) {
+                    out.push(src[i as usize]);
+                }
+            }
+        }
+        let triangles = (0..self.triangles.len() as u32)
+            .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+            .collect();
+        Self {
+            positions,
+            normals: Some(normals),
+            uvs,
+            triangles,
+            material: self.material,
+        }
     }
 }
 

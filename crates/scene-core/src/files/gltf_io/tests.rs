@@ -96,12 +96,14 @@ fn test_scene() -> Scene {
             position: Vec3::new(0.5, 1.5, 0.5),
             intensity: Vec3::new(3.0, 2.0, 1.0),
             radius: Some(4.0),
+            cone: None,
         },
         PointLight {
             name: "candle".into(),
             position: Vec3::new(-1.0, 0.25, 2.0),
             intensity: Vec3::new(0.5, 0.5, 0.25),
             radius: None,
+            cone: None,
         },
     ];
     s.directional_lights = vec![DirectionalLight {
@@ -193,6 +195,11 @@ fn assert_round_trip(a: &Scene, b: &Scene) {
         assert_close(x.position, y.position, 1e-5, &x.name);
         assert_close(x.intensity, y.intensity, 1e-5, &x.name);
         assert_eq!(x.radius, y.radius);
+        assert_eq!(x.cone.is_some(), y.cone.is_some(), "{}", x.name);
+        if let (Some(cx), Some(cy)) = (&x.cone, &y.cone) {
+            assert_close(cx.axis(), cy.axis(), 1e-5, &x.name);
+            assert_eq!((cx.inner, cx.outer), (cy.inner, cy.outer), "{}", x.name);
+        }
     }
     assert_eq!(a.directional_lights.len(), b.directional_lights.len());
     for (x, y) in a.directional_lights.iter().zip(&b.directional_lights) {
@@ -521,10 +528,15 @@ fn lights_and_cameras_from_nodes() {
     );
     assert_eq!(cone.intensity, Vec3::new(10.0, 5.0, 5.0));
     assert_eq!(cone.radius, Some(5.0));
+    // The spot keeps its cone (glTF's default inner angle 0) along the node's -Z.
+    let spot = cone.cone.expect("a spot cone");
+    assert_eq!((spot.inner, spot.outer), (0.0, 0.5));
+    let q = Quat::from_xyzw(0.3, 0.2, 0.1, 0.927).normalize();
+    assert_close(spot.axis(), q * Vec3::NEG_Z, 1e-5, "spot axis");
     assert!(
+        r.warnings.iter().all(|w| !w.contains("spot")),
+        "{:?}",
         r.warnings
-            .iter()
-            .any(|w| w.contains("'cone'") && w.contains("spot"))
     );
     let green = &sc.point_lights[1];
     assert_close(
@@ -563,8 +575,7 @@ fn lights_and_cameras_from_nodes() {
 
     assert_eq!(
         r.summary(),
-        "ignored: 1 extension, 1 other scene, 1 spot cone (imported as point light), \
-         1 orthographic camera"
+        "ignored: 1 extension, 1 other scene, 1 orthographic camera"
     );
     assert!(
         r.ignored
@@ -580,13 +591,26 @@ fn strips_fans_lines_and_default_material() {
         [0.0, 1.0, 0.0],
         [1.0, 1.0, 0.0],
     ];
+    // The triangles as index triples into `quad` (without normals every corner is a
+    // vertex of its own, carrying the file's position).
+    let triples = |m: &Mesh| -> Vec<[usize; 3]> {
+        m.indices
+            .iter()
+            .map(|t| {
+                t.map(|i| {
+                    let p = m.positions[i as usize];
+                    quad.iter().position(|q| Vec3::from(*q) == p).unwrap()
+                })
+            })
+            .collect()
+    };
     // Strip without indices: sequential indices, odd triangles reversed.
     let r = import_slice(&doc(&quad, None, None, 5, |_| {}), Path::new("strip.gltf")).unwrap();
     let m = &r.scene.meshes[0];
-    assert_eq!(m.indices, [[0, 1, 2], [1, 3, 2]]);
+    assert_eq!(triples(m), [[0, 1, 2], [1, 3, 2]]);
     assert!(
         m.normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6),
-        "recomputed normals"
+        "flat normals"
     );
     assert_eq!(r.scene.materials.len(), 1);
     assert_eq!(r.scene.materials[0].name, DEFAULT_MATERIAL_NAME);
@@ -598,7 +622,7 @@ fn strips_fans_lines_and_default_material() {
         Path::new("fan.gltf"),
     )
     .unwrap();
-    assert_eq!(r.scene.meshes[0].indices, [[1, 3, 0], [3, 2, 0]]);
+    assert_eq!(triples(&r.scene.meshes[0]), [[1, 3, 0], [3, 2, 0]]);
 
     // Lines are skipped and listed, not an error.
     let lines = doc(&quad, None, Some(&[0, 1, 1, 2]), 1, |root| {
@@ -623,7 +647,7 @@ fn summary_groups_and_pluralises() {
         scene: Scene::default(),
         ignored: vec![
             "metallic-roughness texture: a".into(),
-            "spot cone (imported as point light): s".into(),
+            "orthographic camera: s".into(),
             "metallic-roughness texture: b".into(),
             "animation: x".into(),
             "metallic-roughness texture: c".into(),
@@ -633,8 +657,7 @@ fn summary_groups_and_pluralises() {
     };
     assert_eq!(
         r.summary(),
-        "ignored: 3 metallic-roughness textures, 1 spot cone (imported as point light), \
-         2 animations"
+        "ignored: 3 metallic-roughness textures, 1 orthographic camera, 2 animations"
     );
 }
 
@@ -858,4 +881,73 @@ fn zero_rotations_are_refused_and_unnormalised_ones_normalised() {
             .iter()
             .any(|w| w.contains("'sun-node'") && w.contains("normalised"))
     );
+}
+
+/// glTF 2.0 (3.7.2.1): without `NORMAL` a client computes flat normals. A roof of two
+/// triangles sharing an edge at a right angle (four shared vertices, no normals) imports
+/// with three vertices per triangle, each carrying its face's normal (smoothing would give
+/// the ridge the mean of both), under a plain, a mirroring and a non-uniform transform; a
+/// vertex budget that holds the file's four vertices but not the six corners refuses it.
+#[test]
+fn missing_normals_are_flat() {
+    let roof = [
+        [0.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [1.0, 1.0, 1.0],
+        [0.0, 0.0, 1.0],
+        [2.0, 0.0, 0.0],
+        [2.0, 0.0, 1.0],
+    ];
+    // Left slope (0, 3, 2, 1) and right slope (1, 2, 5, 4), both facing up and out; the
+    // ridge vertices 1 and 2 are shared.
+    let indices = [0, 3, 2, 0, 2, 1, 1, 2, 5, 1, 5, 4];
+    let bytes = doc(&roof, None, Some(&indices), 4, |root| {
+        root["nodes"] = json!([
+            { "name": "plain", "mesh": 0 },
+            { "name": "mirror", "mesh": 0, "scale": [-1, 1, 1] },
+            { "name": "skew", "mesh": 0, "scale": [3, 1, 0.5], "rotation": [0, 0.2588, 0, 0.9659] },
+        ]);
+        root["scenes"] = json!([{ "nodes": [0, 1, 2] }]);
+    });
+    let r = import_slice(&bytes, Path::new("roof.gltf")).unwrap();
+    assert_eq!(r.scene.meshes.len(), 3);
+    for m in &r.scene.meshes {
+        assert_eq!(m.indices.len(), 4, "{}", m.name);
+        assert_eq!(m.positions.len(), 12, "{}: a vertex per corner", m.name);
+        for t in 0..m.indices.len() {
+            let face = face_normal(m, t);
+            assert!(face.y > 0.5, "{}: triangle {t} faces {face}", m.name);
+            for i in m.indices[t] {
+                let n = m.normals[i as usize];
+                assert!(
+                    n.dot(face) > 1.0 - 1e-6,
+                    "{}: triangle {t} corner {i}: normal {n}, face {face}",
+                    m.name
+                );
+            }
+        }
+        // The two slopes meet at a right angle (an obtuse one once scaled by 3 along x):
+        // no corner carries their mean.
+        let (a, b) = (face_normal(m, 0), face_normal(m, 2));
+        let cos = if m.name == "skew" { 0.8 } else { 0.0 };
+        assert!((a.dot(b) - cos).abs() < 1e-3, "{}: {a} {b}", m.name);
+    }
+    // The plain node's corners are the file's positions in index order.
+    let plain = &r.scene.meshes[0];
+    for (k, &i) in indices.iter().enumerate() {
+        let [t, c] = [k / 3, k % 3];
+        let p = plain.positions[plain.indices[t][c] as usize];
+        assert_close(p, Vec3::from(roof[i as usize]), 0.0, "corner");
+    }
+    // Budget: 6 vertices per node in the file, 12 corners after flat normals (3 nodes).
+    let budget = |vertices| ImportOptions {
+        budget: crate::budget::Budget {
+            vertices,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    assert!(import_slice_with(&bytes, Path::new("roof.gltf"), &budget(36)).is_ok());
+    let e = import_slice_with(&bytes, Path::new("roof.gltf"), &budget(35)).unwrap_err();
+    assert!(matches!(e, GltfError::Budget(_)), "{e}");
 }

@@ -248,7 +248,8 @@ impl<'a> PathTracer<'a> {
             }
             let w = to / dist;
             let cos = n.dot(w);
-            let f = light.falloff(dist);
+            // A spot's cone: the attenuation towards p (from the light).
+            let f = light.falloff(dist) * light.attenuation(-w);
             if cos <= 0.0 || f <= 0.0 {
                 continue;
             }
