@@ -19,8 +19,9 @@
 //   normal where it cancels; it is flipped when the triangle's geometric normal faces away
 //   from the eye (sign of ng . (p0 - eye) in perspective, ng . forward in orthographic
 //   views), decided once per triangle at its first (provoking) vertex;
-// * the albedo texture lookup mirrors scene_core::Texture::sample_bilinear (repeat
-//   wrapping, texel centres at half-integers, uv (0, 0) the top-left corner).
+// * the albedo texture lookup mirrors scene_core::Texture::sample (the texture's wrap per
+//   axis and bilinear or nearest filter, texel centres at half-integers, uv (0, 0) the
+//   top-left corner).
 
 struct ViewUniform {
     view_proj: mat4x4<f32>,
@@ -43,7 +44,9 @@ struct TextureInfo {
     offset: u32,
     width: u32,
     height: u32,
-    pad: u32,
+    // scene_core::Sampler::bits: bits 0-1 the u wrap (0 repeat, 1 clamp to edge, 2
+    // mirrored repeat), 2-3 the v wrap, bit 4 nearest.
+    sampler: u32,
 }
 
 @group(0) @binding(0) var<uniform> view: ViewUniform;
@@ -96,27 +99,51 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
+// Texel index `i` of a row of `n` under wrap `mode` (scene_core::Wrap::texel).
+fn wrap_texel(i: i32, n: i32, mode: u32) -> i32 {
+    if (mode == 1u) {
+        return clamp(i, 0, n - 1);
+    }
+    if (mode == 2u) {
+        let m = ((i % (2 * n)) + 2 * n) % (2 * n);
+        return select(2 * n - 1 - m, m, m < n);
+    }
+    return ((i % n) + n) % n;
+}
+
+// `t` brought into the range wrap `mode` repeats over (scene_core::Wrap::reduce).
+fn wrap_reduce(t: f32, mode: u32) -> f32 {
+    if (mode == 1u) {
+        return clamp(t, 0.0, 1.0);
+    }
+    if (mode == 2u) {
+        return t - 2.0 * floor(t * 0.5);
+    }
+    return t - floor(t);
+}
+
 fn texel(info: TextureInfo, x: i32, y: i32) -> vec3<f32> {
-    let w = i32(info.width);
-    let h = i32(info.height);
-    let xi = ((x % w) + w) % w;
-    let yi = ((y % h) + h) % h;
+    let xi = wrap_texel(x, i32(info.width), info.sampler & 3u);
+    let yi = wrap_texel(y, i32(info.height), (info.sampler >> 2u) & 3u);
     return texels[info.offset + u32(yi) * info.width + u32(xi)].xyz;
 }
 
-// Bilinear lookup with repeat wrapping, as scene_core::Texture::sample_bilinear.
-fn sample_bilinear(index: u32, uv_in: vec2<f32>) -> vec3<f32> {
+// The texture's lookup by its sampler (bilinear or nearest, each axis wrapped by its mode),
+// as scene_core::Texture::sample.
+fn sample_texture(index: u32, uv_in: vec2<f32>) -> vec3<f32> {
     let info = texture_infos[index];
     if (info.width == 0u || info.height == 0u) {
         return vec3<f32>(0.0);
     }
-    let uv = uv_in - floor(uv_in);
-    let x = uv.x * f32(info.width) - 0.5;
-    let y = uv.y * f32(info.height) - 0.5;
-    let x0 = floor(x);
-    let y0 = floor(y);
-    let fx = x - x0;
-    let fy = y - y0;
+    let x = wrap_reduce(uv_in.x, info.sampler & 3u) * f32(info.width);
+    let y = wrap_reduce(uv_in.y, (info.sampler >> 2u) & 3u) * f32(info.height);
+    if ((info.sampler & 16u) != 0u) {
+        return texel(info, i32(floor(x)), i32(floor(y)));
+    }
+    let x0 = floor(x - 0.5);
+    let y0 = floor(y - 0.5);
+    let fx = x - 0.5 - x0;
+    let fy = y - 0.5 - y0;
     let ix = i32(x0);
     let iy = i32(y0);
     let top = mix(texel(info, ix, iy), texel(info, ix + 1, iy), fx);
@@ -137,7 +164,7 @@ fn fs_main(in: VertexOut) -> GBufferOut {
     let m = materials[in.material_id];
     var albedo = m.albedo;
     if (in.has_uv != 0u && m.texture >= 0 && u32(m.texture) < arrayLength(&texture_infos)) {
-        albedo = albedo * sample_bilinear(u32(m.texture), in.uv);
+        albedo = albedo * sample_texture(u32(m.texture), in.uv);
     }
     out.albedo = vec4<f32>(albedo, 1.0);
     var n = in.face.xyz;

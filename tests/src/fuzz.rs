@@ -152,7 +152,7 @@ pub fn targets() -> Vec<Target> {
 }
 
 /// The scene fuzz target's seeds: specs of random small scenes ([`crate::scenes::random_scene`])
-/// and of the hard cases the scene contract names, as JSON (so the fuzzer also sets their
+/// and of the hard cases the scene contract names (spots among them), as JSON (so the fuzzer also sets their
 /// numbers to 0, -1, 1e39, 1e-45 ...).
 fn scene_spec_seeds() -> Vec<Vec<u8>> {
     let mut s: Vec<String> = (0..8).map(|i| format!("{{\"seed\": {i}}}")).collect();
@@ -166,6 +166,8 @@ fn scene_spec_seeds() -> Vec<Vec<u8>> {
             r#"{"seed": 6, "camera": {"fov": 179.9, "near": 1e-30, "far": 1e30}}"#,
             r#"{"seed": 7, "lights": false, "emission": 0}"#,
             r#"{"seed": 8, "triangles": false}"#,
+            r#"{"seed": 1, "spot": [0.3, 0.6]}"#,
+            r#"{"seed": 3, "spot": [0, 1.5707964], "offset": [1e3, 0, 0]}"#,
         ]
         .map(String::from),
     );
@@ -197,6 +199,28 @@ pub fn run_scene_spec(bytes: &[u8], _ctx: &Context) -> Result<(), String> {
         s.point_lights
             .iter_mut()
             .for_each(|l| l.intensity = Vec3::splat(i));
+    }
+    // A spot: the point lights (one is added if there is none) get a cone of [inner,
+    // outer] radians pointing down.
+    if let Some(a) = v.get("spot").and_then(|x| x.as_array())
+        && a.len() == 2
+    {
+        let angle = |i: usize| a[i].as_f64().unwrap_or(0.0) as f32;
+        if s.point_lights.is_empty() {
+            // Inside the smallest room random_scene makes.
+            s.point_lights.push(scene_core::PointLight::new(
+                "spot",
+                Vec3::new(0.5, 0.45, 0.5),
+                Vec3::ONE,
+            ));
+        }
+        for l in &mut s.point_lights {
+            l.cone = Some(scene_core::lights::SpotCone {
+                direction: Vec3::new(0.1, -1.0, 0.05),
+                inner: angle(0),
+                outer: angle(1),
+            });
+        }
     }
     if let Some(a) = vec3(v.get("albedo")) {
         s.materials[0].albedo = a;

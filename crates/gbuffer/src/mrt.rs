@@ -10,7 +10,7 @@
 //! Scenes are uploaded once into a [`GpuPreparedScene`] (the flattened vertex buffer of
 //! [`scene_core::gpu::GpuScene`], per-triangle geometric normals for the two-sided flip, and
 //! the albedo textures as one texel buffer sampled bilinearly in the shader exactly like
-//! [`scene_core::Texture::sample_bilinear`]). The trait implementation keeps the last
+//! [`scene_core::Texture::sample`]). The trait implementation keeps the last
 //! prepared scene ([`GBufferRenderer::prepare`]) and renders every view of it with no
 //! further upload or hashing.
 
@@ -62,7 +62,8 @@ struct TextureInfo {
     offset: u32,
     width: u32,
     height: u32,
-    pad: u32,
+    /// [`scene_core::Sampler::bits`].
+    sampler: u32,
 }
 
 /// A scene uploaded for [`GpuRasterizer`].
@@ -143,7 +144,7 @@ impl GpuPreparedScene {
                 offset: texels.len() as u32,
                 width: if t.texels.len() == n { t.width } else { 0 },
                 height: if t.texels.len() == n { t.height } else { 0 },
-                pad: 0,
+                sampler: t.sampler.bits(),
             });
             texels.extend(t.texels.iter().take(n).map(|c| [c.x, c.y, c.z, 1.0]));
         }
@@ -608,7 +609,7 @@ mod layout_tests {
                 offset,
                 width,
                 height,
-                pad
+                sampler
             }
         )
         .unwrap();

@@ -136,6 +136,26 @@ fn gpu_matches_cpu_on_hemicubes_shadow_maps_and_textures() {
         10.0,
     );
     compare(&mut gpu, &scene, &view, 96, 96, "textured quad");
+    // glTF's other samplers: coordinates over [-0.6, 1.9] under clamp, mirrored repeat and
+    // nearest filtering, the GPU's lookup against scene-core's.
+    let mut scene = scene;
+    for uv in scene.meshes[0].uvs.iter_mut().flatten() {
+        *uv = *uv * 1.25 - scene_core::glam::Vec2::splat(0.6);
+    }
+    use scene_core::{Sampler, Wrap};
+    for (wrap_u, wrap_v, nearest) in [
+        (Wrap::ClampToEdge, Wrap::MirroredRepeat, false),
+        (Wrap::MirroredRepeat, Wrap::ClampToEdge, true),
+        (Wrap::Repeat, Wrap::MirroredRepeat, true),
+    ] {
+        scene.textures[0].sampler = Sampler {
+            wrap_u,
+            wrap_v,
+            nearest,
+        };
+        let name = format!("textured quad, {wrap_u:?}/{wrap_v:?}, nearest {nearest}");
+        compare(&mut gpu, &scene, &view, 96, 96, &name);
+    }
 }
 
 #[test]

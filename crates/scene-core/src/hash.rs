@@ -101,6 +101,7 @@ pub fn scene_content_hash(scene: &crate::Scene) -> u64 {
     for t in &scene.textures {
         h = mix(mix(h, t.width as u64), t.height as u64);
         h = words(h, bytemuck::cast_slice(&t.texels));
+        h = mix(h, u64::from(t.sampler.bits()));
     }
     h = mix(h, scene.point_lights.len() as u64);
     for l in &scene.point_lights {

@@ -57,7 +57,9 @@ pub use gbuffer::{
 };
 pub use image::{Image, luminance};
 pub use lights::{InvalidLightSetting, LightId, LightSetting, LightState, UnknownLight};
-pub use scene::{Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture};
+pub use scene::{
+    Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Sampler, Scene, Texture, Wrap,
+};
 pub use technique::{FrameRequest, Metric, MetricValue, Refinement, StageTimings, Technique};
 pub use view::{FrustumCorners, HemicubeFace, Projection, View};
 

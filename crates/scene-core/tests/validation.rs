@@ -293,7 +293,76 @@ fn huge_but_finite_values_neither_panic_nor_drop_everything() {
         width: 3,
         height: 2,
         texels: vec![Vec3::splat(0.5); 6],
+        sampler: Default::default(),
     };
-    let c = tex.sample_bilinear(scene_core::glam::Vec2::new(3e19, -7e20));
+    let c = tex.sample(scene_core::glam::Vec2::new(3e19, -7e20));
     assert!((c - Vec3::splat(0.5)).length() < 1e-6);
+}
+
+/// Texture lookups by glTF's sampler modes, against values worked out by hand on a 2x1
+/// texture [a, b] (texel centres at u = 0.25 and 0.75): nearest and bilinear, repeat,
+/// clamp to edge and mirrored repeat, inside, past and before [0, 1].
+#[test]
+fn texture_sampling_wraps_and_filters_as_gltf_says() {
+    use scene_core::glam::Vec2;
+    use scene_core::{Sampler, Wrap};
+    let (a, b) = (Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 1.0));
+    let tex = |wrap: Wrap, nearest: bool| scene_core::Texture {
+        name: "ab".into(),
+        width: 2,
+        height: 1,
+        texels: vec![a, b],
+        sampler: Sampler {
+            wrap_u: wrap,
+            wrap_v: Wrap::Repeat,
+            nearest,
+        },
+    };
+    let mid = (a + b) * 0.5;
+    let cases = [
+        (
+            Wrap::Repeat,
+            true,
+            [(0.25, a), (0.75, b), (1.25, a), (-0.25, b), (7.75, b)],
+        ),
+        (
+            Wrap::ClampToEdge,
+            true,
+            [(0.25, a), (1.5, b), (-3.0, a), (0.99, b), (1e30, b)],
+        ),
+        (
+            Wrap::MirroredRepeat,
+            true,
+            [(0.25, a), (1.25, b), (1.75, a), (-0.25, a), (2.25, a)],
+        ),
+        (
+            Wrap::Repeat,
+            false,
+            [(0.25, a), (0.5, mid), (0.0, mid), (1.0, mid), (0.75, b)],
+        ),
+        (
+            Wrap::ClampToEdge,
+            false,
+            [(0.0, a), (1.0, b), (0.5, mid), (-5.0, a), (6.0, b)],
+        ),
+        (
+            Wrap::MirroredRepeat,
+            false,
+            [(0.0, a), (1.0, b), (0.5, mid), (1.5, mid), (2.0, a)],
+        ),
+    ];
+    for (wrap, nearest, points) in cases {
+        let t = tex(wrap, nearest);
+        for (u, expected) in points {
+            let got = t.sample(Vec2::new(u, 0.5));
+            assert!(
+                (got - expected).length() < 1e-5,
+                "{wrap:?} nearest {nearest} at u = {u}: {got} vs {expected}"
+            );
+        }
+    }
+    assert_eq!(Wrap::MirroredRepeat.texel(-1, 2), 0);
+    assert_eq!(Wrap::MirroredRepeat.texel(2, 2), 1);
+    assert_eq!(Wrap::MirroredRepeat.texel(4, 2), 0);
+    assert_eq!(Wrap::ClampToEdge.texel(-9, 2), 0);
 }

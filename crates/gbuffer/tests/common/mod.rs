@@ -193,6 +193,7 @@ pub fn textured_quad_scene() -> Scene {
         width: 4,
         height: 4,
         texels,
+        sampler: Default::default(),
     });
     let mut m = Mesh {
         name: "quad".into(),

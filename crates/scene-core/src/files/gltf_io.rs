@@ -29,7 +29,10 @@
 //!   warning (glTF's default factor is 1, where radiosity diverges); emission =
 //!   `emissiveFactor x KHR_materials_emissive_strength`. `baseColorTexture`s are decoded
 //!   (PNG or JPEG) and converted from sRGB to linear; only textures used that way are
-//!   imported, in glTF texture index order.
+//!   imported, in glTF texture index order. A base colour texture's `KHR_texture_transform`
+//!   (offset, rotation, scale, and the coordinate set it names) is baked into the
+//!   primitive's texture coordinates. A texture's sampler gives its [`crate::Wrap`] per
+//!   axis and, from `magFilter`, nearest or bilinear lookups ([`crate::Sampler`]).
 //! * `KHR_lights_punctual`: point lights keep `color x intensity` (candela) and `range` as the
 //!   windowed-falloff radius; spot lights are point lights with a
 //!   [`crate::lights::SpotCone`] (`innerConeAngle`, default 0, and `outerConeAngle`,
@@ -44,8 +47,8 @@
 //!   type names is a [`GltfError::Read`].
 //! * Animations, skins (meshes are taken in their node's rest transform), morph targets,
 //!   vertex colours, metallic/roughness, normal/occlusion/emissive textures, transparency,
-//!   non-default samplers, other scenes and any extension but the two above are ignored and
-//!   listed.
+//!   other scenes and any extension but the three above are ignored and listed.
+//!   Minification filters are not used (textures have no mipmaps).
 //! * The scene is then checked with [`Scene::validate`] ([`GltfError::Invalid`] on failure;
 //!   dropped degenerate triangles become warnings). Unreadable, truncated or corrupted files
 //!   and out-of-range buffer data give [`GltfError::Read`]; nothing panics (accessors are
@@ -104,3 +107,4 @@ const TARGET_DISTANCE_KEY: &str = "target_distance";
 
 const EXT_LIGHTS: &str = "KHR_lights_punctual";
 const EXT_EMISSIVE_STRENGTH: &str = "KHR_materials_emissive_strength";
+const EXT_TEXTURE_TRANSFORM: &str = "KHR_texture_transform";

@@ -141,30 +141,105 @@ pub struct Texture {
     pub height: u32,
     /// Row-major texels, top row first, linear RGB.
     pub texels: Vec<Vec3>,
+    /// How coordinates outside [0, 1] wrap and whether texels are filtered.
+    pub sampler: Sampler,
+}
+
+/// How a texture coordinate outside [0, 1] maps onto the image (glTF's `wrapS`/`wrapT`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Wrap {
+    /// The image tiles (glTF's default).
+    #[default]
+    Repeat,
+    /// The edge texels extend.
+    ClampToEdge,
+    /// The image tiles, every other copy mirrored.
+    MirroredRepeat,
+}
+
+impl Wrap {
+    /// The texel index `i` of a row of `n` under this wrap, in `0..n` (`n` at least 1).
+    pub fn texel(self, i: i64, n: i64) -> i64 {
+        match self {
+            Wrap::Repeat => i.rem_euclid(n),
+            Wrap::ClampToEdge => i.clamp(0, n - 1),
+            Wrap::MirroredRepeat => {
+                let m = i.rem_euclid(2 * n);
+                if m < n { m } else { 2 * n - 1 - m }
+            }
+        }
+    }
+
+    /// `t` brought into the coordinate range the wrap repeats over, so that huge
+    /// coordinates cannot overflow a texel index: `[0, 1)` (repeat), `[0, 2)` (mirrored
+    /// repeat) or `[0, 1]` (clamp).
+    pub fn reduce(self, t: f32) -> f32 {
+        match self {
+            Wrap::Repeat => t - t.floor(),
+            Wrap::ClampToEdge => t.clamp(0.0, 1.0),
+            Wrap::MirroredRepeat => t - 2.0 * (t * 0.5).floor(),
+        }
+    }
+
+    /// The code the shaders use: 0 repeat, 1 clamp to edge, 2 mirrored repeat.
+    pub fn code(self) -> u32 {
+        match self {
+            Wrap::Repeat => 0,
+            Wrap::ClampToEdge => 1,
+            Wrap::MirroredRepeat => 2,
+        }
+    }
+}
+
+/// A texture's sampling: wrap per axis and filter (glTF's sampler; the default is glTF's,
+/// repeat and bilinear).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Sampler {
+    /// Wrap along u (glTF's `wrapS`).
+    pub wrap_u: Wrap,
+    /// Wrap along v (glTF's `wrapT`).
+    pub wrap_v: Wrap,
+    /// Nearest texel instead of bilinear filtering (glTF's `magFilter` `NEAREST`).
+    pub nearest: bool,
+}
+
+impl Sampler {
+    /// The shaders' packed form: bits 0-1 the u wrap code, 2-3 the v wrap code, bit 4
+    /// nearest.
+    pub fn bits(self) -> u32 {
+        self.wrap_u.code() | (self.wrap_v.code() << 2) | (u32::from(self.nearest) << 4)
+    }
 }
 
 impl Texture {
-    /// Bilinear lookup with repeat wrapping; `uv` (0, 0) is the top-left corner of the image,
-    /// as in glTF.
-    pub fn sample_bilinear(&self, uv: Vec2) -> Vec3 {
+    /// The texture's lookup at `uv` by its [`Sampler`] (bilinear or nearest, each axis
+    /// wrapped by its mode); `uv` (0, 0) is the top-left corner of the image, as in glTF,
+    /// and texel centres lie at half-integers. Black for an empty texture or a non-finite
+    /// coordinate.
+    pub fn sample(&self, uv: Vec2) -> Vec3 {
         if self.width == 0 || self.height == 0 || !uv.is_finite() {
             return Vec3::ZERO;
         }
-        let w = self.width as i64;
-        let h = self.height as i64;
-        // Wrap first so that huge coordinates cannot overflow the integer texel index.
-        let uv = uv - uv.floor();
-        let x = uv.x * self.width as f32 - 0.5;
-        let y = uv.y * self.height as f32 - 0.5;
-        let x0 = x.floor();
-        let y0 = y.floor();
-        let fx = x - x0;
-        let fy = y - y0;
+        let (w, h) = (self.width as i64, self.height as i64);
+        let Sampler {
+            wrap_u,
+            wrap_v,
+            nearest,
+        } = self.sampler;
+        // Reduce first so that huge coordinates cannot overflow the integer texel index.
+        let x = wrap_u.reduce(uv.x) * self.width as f32;
+        let y = wrap_v.reduce(uv.y) * self.height as f32;
         let at = |xi: i64, yi: i64| -> Vec3 {
-            let xi = xi.rem_euclid(w) as usize;
-            let yi = yi.rem_euclid(h) as usize;
+            let xi = wrap_u.texel(xi, w) as usize;
+            let yi = wrap_v.texel(yi, h) as usize;
             self.texels[yi * self.width as usize + xi]
         };
+        if nearest {
+            return at(x.floor() as i64, y.floor() as i64);
+        }
+        let (x, y) = (x - 0.5, y - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
         let top = at(x0, y0).lerp(at(x0 + 1, y0), fx);
         let bottom = at(x0, y0 + 1).lerp(at(x0 + 1, y0 + 1), fx);
@@ -556,7 +631,7 @@ impl Scene {
     pub fn albedo_at(&self, material: u32, uv: Option<Vec2>) -> Vec3 {
         let m = &self.materials[material as usize];
         match (m.albedo_texture, uv) {
-            (Some(t), Some(uv)) => m.albedo * self.textures[t as usize].sample_bilinear(uv),
+            (Some(t), Some(uv)) => m.albedo * self.textures[t as usize].sample(uv),
             _ => m.albedo,
         }
     }

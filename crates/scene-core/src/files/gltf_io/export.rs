@@ -20,6 +20,9 @@ const GL_FLOAT: u32 = 5126;
 pub(super) const GL_UNSIGNED_INT: u32 = 5125;
 const GL_LINEAR: u32 = 9729;
 const GL_REPEAT: u32 = 10497;
+const GL_NEAREST: u32 = 9728;
+const GL_CLAMP_TO_EDGE: u32 = 33071;
+const GL_MIRRORED_REPEAT: u32 = 33648;
 
 /// Exports a scene as `.gltf` (JSON with the buffer embedded as a base64 data URI) or `.glb`,
 /// chosen by the extension of `path` (case-insensitive).
@@ -281,6 +284,7 @@ fn build_document(
     let mut texture_map = BTreeMap::new();
     let mut images = Vec::new();
     let mut textures = Vec::new();
+    let mut samplers = Vec::new();
     for &t in &referenced {
         let tex = &scene.textures[t as usize];
         let png = encode_png(tex).map_err(|e| format!("texture {t} '{}': {e}", tex.name))?;
@@ -290,10 +294,12 @@ fn build_document(
             &tex.name,
         ));
         texture_map.insert(t, textures.len());
+        // One sampler per texture, in the same order.
         textures.push(named(
-            json!({ "source": images.len() - 1, "sampler": 0 }),
+            json!({ "source": images.len() - 1, "sampler": textures.len() }),
             &tex.name,
         ));
+        samplers.push(sampler_json(&tex.sampler));
     }
 
     let materials: Vec<Value> = scene
@@ -464,12 +470,7 @@ fn build_document(
     let has_textures = !textures.is_empty();
     set("textures", textures);
     if has_textures {
-        root["samplers"] = json!([{
-            "magFilter": GL_LINEAR,
-            "minFilter": GL_LINEAR,
-            "wrapS": GL_REPEAT,
-            "wrapT": GL_REPEAT,
-        }]);
+        root["samplers"] = json!(samplers);
     }
     if !lights.is_empty() {
         root["extensions"] = json!({ EXT_LIGHTS: { "lights": lights } });
@@ -507,4 +508,22 @@ fn encode_png(tex: &Texture) -> Result<Vec<u8>, String> {
     img.write_to(&mut out, image::ImageFormat::Png)
         .map_err(|e| e.to_string())?;
     Ok(out.into_inner())
+}
+
+/// A glTF sampler for `s`: its wrap per axis, and its filter for both magnification and
+/// minification.
+fn sampler_json(s: &crate::scene::Sampler) -> Value {
+    use crate::scene::Wrap;
+    let wrap = |w: Wrap| match w {
+        Wrap::Repeat => GL_REPEAT,
+        Wrap::ClampToEdge => GL_CLAMP_TO_EDGE,
+        Wrap::MirroredRepeat => GL_MIRRORED_REPEAT,
+    };
+    let filter = if s.nearest { GL_NEAREST } else { GL_LINEAR };
+    json!({
+        "magFilter": filter,
+        "minFilter": filter,
+        "wrapS": wrap(s.wrap_u),
+        "wrapT": wrap(s.wrap_v),
+    })
 }

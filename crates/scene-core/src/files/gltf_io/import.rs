@@ -14,13 +14,14 @@ use serde_json::Value;
 use super::uri::{self, ExternalFiles};
 use super::{
     ALBEDO_MAX, DEFAULT_ALBEDO, DEFAULT_MATERIAL_NAME, EXT_EMISSIVE_STRENGTH, EXT_LIGHTS,
-    TARGET_DISTANCE_KEY,
+    EXT_TEXTURE_TRANSFORM, TARGET_DISTANCE_KEY,
 };
 use crate::budget::{Allowance, Budget};
 use crate::error::{GltfError, ImageError};
 use crate::image::Image;
 use crate::scene::{
-    Camera, DirectionalLight, Material, Mesh, PointLight, Scene, Texture, label_or_index,
+    Camera, DirectionalLight, Material, Mesh, PointLight, Sampler, Scene, Texture, Wrap,
+    label_or_index,
 };
 
 /// What [`import`] produced: the scene plus what was left out and what was adjusted.
@@ -91,7 +92,6 @@ enum Ignored {
     NormalTexture,
     OcclusionTexture,
     EmissiveTexture,
-    Sampler,
     Transparency,
     OrthographicCamera,
     Extension,
@@ -99,7 +99,7 @@ enum Ignored {
 }
 
 impl Ignored {
-    const ALL: [Ignored; 15] = [
+    const ALL: [Ignored; 14] = [
         Ignored::Animation,
         Ignored::Skin,
         Ignored::MorphTargets,
@@ -110,7 +110,6 @@ impl Ignored {
         Ignored::NormalTexture,
         Ignored::OcclusionTexture,
         Ignored::EmissiveTexture,
-        Ignored::Sampler,
         Ignored::Transparency,
         Ignored::OrthographicCamera,
         Ignored::Extension,
@@ -133,10 +132,6 @@ impl Ignored {
             Ignored::NormalTexture => ("normal texture", "normal textures"),
             Ignored::OcclusionTexture => ("occlusion texture", "occlusion textures"),
             Ignored::EmissiveTexture => ("emissive texture", "emissive textures"),
-            Ignored::Sampler => (
-                "sampler setting (bilinear/repeat used)",
-                "sampler settings (bilinear/repeat used)",
-            ),
             Ignored::Transparency => ("transparency setting", "transparency settings"),
             Ignored::OrthographicCamera => ("orthographic camera", "orthographic cameras"),
             Ignored::Extension => ("extension", "extensions"),
@@ -542,7 +537,7 @@ impl<'a> Importer<'a> {
     fn run(&mut self) -> Result<(), GltfError> {
         let doc = self.doc;
         for ext in doc.extensions_used() {
-            if ext != EXT_LIGHTS && ext != EXT_EMISSIVE_STRENGTH {
+            if ext != EXT_LIGHTS && ext != EXT_EMISSIVE_STRENGTH && ext != EXT_TEXTURE_TRANSFORM {
                 self.ignore(Ignored::Extension, ext);
             }
         }
@@ -749,16 +744,19 @@ impl<'a> Importer<'a> {
             .name()
             .or(texture.name())
             .map_or_else(|| format!("texture {}", texture.index()), str::to_string);
-        let sampler = texture.sampler();
-        if sampler.wrap_s() != WrappingMode::Repeat
-            || sampler.wrap_t() != WrappingMode::Repeat
-            || sampler.mag_filter() == Some(MagFilter::Nearest)
-        {
-            self.ignore(
-                Ignored::Sampler,
-                format!("texture {} '{name}'", texture.index()),
-            );
-        }
+        // The sampler: wrap per axis, and nearest where the magnification filter says so
+        // (textures have no mipmaps: the magnification filter decides every lookup).
+        let gltf_sampler = texture.sampler();
+        let wrap = |w: WrappingMode| match w {
+            WrappingMode::Repeat => Wrap::Repeat,
+            WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+            WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+        };
+        let sampler = Sampler {
+            wrap_u: wrap(gltf_sampler.wrap_s()),
+            wrap_v: wrap(gltf_sampler.wrap_t()),
+            nearest: gltf_sampler.mag_filter() == Some(MagFilter::Nearest),
+        };
         let what = format!("texture {} '{name}'", texture.index());
         let path = self.path;
         let encoded: Cow<[u8]> = match image.source() {
@@ -790,6 +788,7 @@ impl<'a> Importer<'a> {
             width: decoded.width,
             height: decoded.height,
             texels: decoded.pixels,
+            sampler,
         })
     }
 
@@ -976,11 +975,26 @@ impl<'a> Importer<'a> {
             Some(m) => m as u32,
             None => self.default_material(),
         };
-        let tex_set = prim
+        // The base colour texture's coordinate set (KHR_texture_transform may name another)
+        // and its transform, baked into the coordinates below.
+        let base_color = prim
             .material()
             .pbr_metallic_roughness()
-            .base_color_texture()
-            .map(|info| info.tex_coord());
+            .base_color_texture();
+        let transform = base_color
+            .as_ref()
+            .and_then(|info| info.texture_transform())
+            .map(|t| UvTransform {
+                offset: Vec2::from(t.offset()),
+                rotation: t.rotation(),
+                scale: Vec2::from(t.scale()),
+                tex_coord: t.tex_coord(),
+            });
+        let tex_set = base_color.map(|info| {
+            transform
+                .and_then(|t| t.tex_coord)
+                .unwrap_or_else(|| info.tex_coord())
+        });
 
         let buffers = self.buffers;
         let path = self.path;
@@ -1100,7 +1114,10 @@ impl<'a> Importer<'a> {
                     if uvs.len() != n {
                         return Err(count_mismatch(&what, uvs.len(), n));
                     }
-                    Some(uvs)
+                    Some(match transform {
+                        Some(t) => uvs.into_iter().map(|uv| t.apply(uv)).collect(),
+                        None => uvs,
+                    })
                 }
                 None => {
                     self.warnings.push(format!(
@@ -1162,6 +1179,26 @@ impl<'a> Importer<'a> {
         } else {
             data.with_flat_normals()
         }))
+    }
+}
+
+/// A texture's `KHR_texture_transform`: `uv' = R(rotation) (scale * uv) + offset`, with
+/// `R` turning `(u, v)` into `(u cos + v sin, v cos - u sin)`: the extension's GLSL
+/// matrices read row by row, as Cesium Native applies them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct UvTransform {
+    offset: Vec2,
+    rotation: f32,
+    scale: Vec2,
+    /// The coordinate set it names instead of the texture info's, if any.
+    tex_coord: Option<u32>,
+}
+
+impl UvTransform {
+    fn apply(&self, uv: Vec2) -> Vec2 {
+        let s = uv * self.scale;
+        let (sin, cos) = self.rotation.sin_cos();
+        Vec2::new(s.x * cos + s.y * sin, s.y * cos - s.x * sin) + self.offset
     }
 }
 

@@ -4,7 +4,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use base64::Engine as _;
-use glam::{Quat, Vec3};
+use glam::{Quat, Vec2, Vec3};
 use serde_json::{Value, json};
 
 use super::export::{BinWriter, GL_ELEMENT_ARRAY_BUFFER, GL_UNSIGNED_INT};
@@ -54,6 +54,12 @@ fn test_scene() -> Scene {
             Vec3::new(0.2, 0.4, 0.6),
             Vec3::new(0.05, 0.5, 0.9),
         ],
+        // Not glTF's default sampler, so the round trips carry one.
+        sampler: crate::scene::Sampler {
+            wrap_u: crate::scene::Wrap::ClampToEdge,
+            wrap_v: crate::scene::Wrap::MirroredRepeat,
+            nearest: true,
+        },
     }];
     let mut room = Mesh {
         name: "room".into(),
@@ -183,6 +189,7 @@ fn assert_round_trip(a: &Scene, b: &Scene) {
     }
     assert_eq!(a.textures.len(), b.textures.len(), "texture count");
     for (x, y) in a.textures.iter().zip(&b.textures) {
+        assert_eq!(x.sampler, y.sampler, "{}", x.name);
         assert_eq!((&x.name, x.width, x.height), (&y.name, y.width, y.height));
         for (p, q) in x.texels.iter().zip(&y.texels) {
             // 8-bit sRGB quantisation.
@@ -489,7 +496,7 @@ fn lights_and_cameras_from_nodes() {
     // Half of a -45 degree turn about X: -Z turns to (0, -1, -1) / sqrt 2.
     let (s, c) = ((-22.5f32).to_radians().sin(), (-22.5f32).to_radians().cos());
     let bytes = doc(&TRI, Some(&TRI_N), None, 4, |root| {
-        root["extensionsUsed"] = json!([EXT_LIGHTS, "KHR_texture_transform"]);
+        root["extensionsUsed"] = json!([EXT_LIGHTS, "KHR_materials_clearcoat"]);
         root["extensions"] = json!({ EXT_LIGHTS: { "lights": [
             { "name": "cone", "type": "spot", "color": [1.0, 0.5, 0.5], "intensity": 10.0,
               "range": 5.0, "spot": { "outerConeAngle": 0.5 } },
@@ -579,7 +586,7 @@ fn lights_and_cameras_from_nodes() {
     );
     assert!(
         r.ignored
-            .contains(&"extension: KHR_texture_transform".to_string())
+            .contains(&"extension: KHR_materials_clearcoat".to_string())
     );
 }
 
@@ -950,4 +957,54 @@ fn missing_normals_are_flat() {
     assert!(import_slice_with(&bytes, Path::new("roof.gltf"), &budget(36)).is_ok());
     let e = import_slice_with(&bytes, Path::new("roof.gltf"), &budget(35)).unwrap_err();
     assert!(matches!(e, GltfError::Budget(_)), "{e}");
+}
+
+/// `KHR_texture_transform` on a base colour texture is baked into the texture coordinates:
+/// the test scene exported, its textured material given an offset, a rotation and a scale,
+/// imports with every textured vertex's coordinates moved as the extension says
+/// (`uv' = R (scale * uv) + offset`, R: `(u cos + v sin, v cos - u sin)`), and the
+/// extension is no longer listed as ignored.
+#[test]
+fn texture_transforms_are_baked_into_texture_coordinates() {
+    let s = test_scene();
+    let plain = export_bytes(&s, "gltf");
+    let mut root: Value = serde_json::from_slice(&plain).unwrap();
+    let (offset, rotation, scale) = (Vec2::new(0.5, -0.25), 0.3f32, Vec2::new(2.0, 3.0));
+    // Material 1 ("checker") is the textured one.
+    root["materials"][1]["pbrMetallicRoughness"]["baseColorTexture"]["extensions"] = json!({
+        "KHR_texture_transform": {
+            "offset": offset.to_array(), "rotation": rotation, "scale": scale.to_array()
+        }
+    });
+    root["extensionsUsed"]
+        .as_array_mut()
+        .map(|a| a.push(json!("KHR_texture_transform")))
+        .unwrap_or_else(|| root["extensionsUsed"] = json!(["KHR_texture_transform"]));
+    let moved = serde_json::to_vec(&root).unwrap();
+    let a = import_slice(&plain, Path::new("plain.gltf")).unwrap();
+    let b = import_slice(&moved, Path::new("moved.gltf")).unwrap();
+    assert!(
+        b.ignored
+            .iter()
+            .all(|i| !i.contains("KHR_texture_transform")),
+        "{:?}",
+        b.ignored
+    );
+    let (sin, cos) = rotation.sin_cos();
+    let mut checked = 0;
+    for (ma, mb) in a.scene.meshes.iter().zip(&b.scene.meshes) {
+        for (t, tri) in ma.indices.iter().enumerate() {
+            if ma.material_ids[t] != 1 {
+                continue;
+            }
+            for &v in tri {
+                let uv = ma.uvs.as_ref().unwrap()[v as usize] * scale;
+                let expected = Vec2::new(uv.x * cos + uv.y * sin, uv.y * cos - uv.x * sin) + offset;
+                let got = mb.uvs.as_ref().unwrap()[v as usize];
+                assert!((got - expected).length() < 1e-5, "{got} vs {expected}");
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked >= 6, "{checked} textured corners");
 }
