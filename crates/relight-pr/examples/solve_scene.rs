@@ -6,6 +6,7 @@
 //! (default `building 1024 0.001`). `FULL=F` sets `full_visibility_at`. `COMPARE=U` solves
 //! again to unshot fraction `U` (with `MEMBERS=N` cluster members and `FULL2=F`) and prints
 //! the area-weighted mean difference between the two solutions' element radiance.
+//! `ROW_CACHE_MIB=M` sets the first solve's `row_cache_bytes` (default 256).
 use relight_pr::mesh::{MeshSettings, Meshing};
 use relight_pr::solver::{self, SolverSettings};
 fn main() {
@@ -40,6 +41,8 @@ fn main() {
     let settings = SolverSettings {
         max_unshot: unshot,
         full_visibility_at: std::env::var("FULL").map_or(0.01, |m| m.parse().unwrap()),
+        row_cache_bytes: std::env::var("ROW_CACHE_MIB")
+            .map_or(256 << 20, |m| m.parse::<usize>().unwrap() << 20),
         ..Default::default()
     };
     let s = solver::solve(&scene, &m, &rays, &settings, &mut |f| {
