@@ -131,6 +131,24 @@ pub fn run(technique: &mut dyn Technique, scene: &Arc<Scene>, width: u32, height
     }
 }
 
+/// How far `image` is from `reference`: the sum over pixels and channels of `|image -
+/// reference|` over the sum of `reference` (0 for the same picture; the same measure as
+/// the tests comparing methods on hard-case scenes quote).
+pub fn relative_difference(image: &Image, reference: &Image) -> f32 {
+    let d: f32 = image
+        .pixels
+        .iter()
+        .zip(&reference.pixels)
+        .map(|(p, q)| (*p - *q).abs().element_sum())
+        .sum();
+    d / reference
+        .pixels
+        .iter()
+        .map(|p| p.element_sum())
+        .sum::<f32>()
+        .max(1e-12)
+}
+
 /// The contract every outcome must keep, whatever the scene: an image of the asked size
 /// whose pixels are all finite and non-negative, or a refusal. `Err` says what broke it.
 pub fn keeps_contract(outcome: &Outcome, width: u32, height: u32) -> Result<(), String> {

@@ -131,20 +131,10 @@ fn out_of_range_lights_and_albedos_are_refused_at_validation_naming_the_field() 
     ));
 }
 
-/// Mean absolute pixel difference over the mean: a per-pixel agreement measure.
+/// Mean absolute pixel difference over the mean of `a`, a per-pixel agreement measure:
+/// [`scenes::relative_difference`] of `b` against `a`.
 fn pixel_rel(a: &scene_core::Image, b: &scene_core::Image) -> f32 {
-    let d: f32 = a
-        .pixels
-        .iter()
-        .zip(&b.pixels)
-        .map(|(p, q)| (*p - *q).abs().element_sum())
-        .sum();
-    d / a
-        .pixels
-        .iter()
-        .map(|p| p.element_sum())
-        .sum::<f32>()
-        .max(1e-12)
+    scenes::relative_difference(b, a)
 }
 
 #[test]

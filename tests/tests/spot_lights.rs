@@ -7,7 +7,7 @@
 
 use std::sync::Arc;
 
-use golden_tests::scenes::{self, run, techniques};
+use golden_tests::scenes::{self, relative_difference as rel, run, techniques};
 use scene_core::glam::Vec3;
 use scene_core::lights::SpotCone;
 use scene_core::reference::{Bounces, ReferenceSettings, ReferenceTechnique};
@@ -40,22 +40,6 @@ fn spot_and_point() -> (Scene, Scene) {
         ..spot.clone()
     };
     (room_with(spot), room_with(point))
-}
-
-/// Mean absolute difference over the mean of `reference` (all channels).
-fn rel(image: &Image, reference: &Image) -> f32 {
-    let d: f32 = image
-        .pixels
-        .iter()
-        .zip(&reference.pixels)
-        .map(|(p, q)| (*p - *q).abs().element_sum())
-        .sum();
-    d / reference
-        .pixels
-        .iter()
-        .map(|p| p.element_sum())
-        .sum::<f32>()
-        .max(1e-12)
 }
 
 fn reference(scene: &Scene) -> Image {

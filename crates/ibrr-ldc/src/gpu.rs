@@ -8,7 +8,7 @@ use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, texture, uniform};
 use scene_core::gpu::shader::ShaderPass;
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
-use scene_core::lights::LightId;
+use scene_core::lights::{LightId, SpotRamp};
 use scene_core::view::{FrustumReconstruction, Projection};
 use scene_core::{Image, LightState, Scene, View};
 
@@ -531,15 +531,11 @@ impl GpuGather {
                 }
             }));
         }
-        let (kind, normal, radius, (spot_scale, spot_offset)) = match irpl.kind {
-            IrplKind::PointSource { radius, cone } => (
-                0.0,
-                cone.map_or(Vec3::ZERO, |c| c.axis()),
-                radius,
-                cone.map_or((0.0, 1.0), |c| c.scale_offset()),
-            ),
-            IrplKind::DirectionalSource { direction } => (1.0, direction, None, (0.0, 1.0)),
-            IrplKind::EmitterSample | IrplKind::Bounce => (2.0, irpl.normal, None, (0.0, 1.0)),
+        let none = SpotRamp::NONE;
+        let (kind, normal, radius, spot) = match irpl.kind {
+            IrplKind::PointSource { radius, spot } => (0.0, spot.axis, radius, spot),
+            IrplKind::DirectionalSource { direction } => (1.0, direction, None, none),
+            IrplKind::EmitterSample | IrplKind::Bounce => (2.0, irpl.normal, None, none),
         };
         let groups = (n as u32).div_ceil(GATHER_GROUP);
         let groups_x = groups.min(MAX_GROUPS_X);
@@ -556,8 +552,8 @@ impl GpuGather {
             eps_normal: builder.frame.eps_normal,
             scale,
             has_radius: radius.is_some() as u32,
-            spot_scale,
-            spot_offset,
+            spot_scale: spot.scale,
+            spot_offset: spot.offset,
             pad_a: 0,
             pad_b: 0,
         };

@@ -32,8 +32,9 @@ pub enum IrplKind {
     PointSource {
         /// The light's falloff radius (`None`: inverse square).
         radius: Option<f32>,
-        /// A spot light's cone (`None`: every direction).
-        cone: Option<scene_core::lights::SpotCone>,
+        /// A spot light's cone ramp ([`scene_core::lights::SpotRamp::NONE`]: every
+        /// direction).
+        spot: scene_core::lights::SpotRamp,
     },
     /// A directional light's own direct light: irradiance `power` on a surface facing
     /// it, travelling along `direction`.
@@ -93,14 +94,14 @@ impl Irpl {
     pub fn irradiance_clamped(&self, p: Vec3, n: Vec3, g_max: f32) -> Vec3 {
         match self.kind {
             IrplKind::DirectionalSource { direction } => self.power * (-n.dot(direction)).max(0.0),
-            IrplKind::PointSource { radius, cone } => {
+            IrplKind::PointSource { radius, spot } => {
                 let d = self.position - p;
                 let r = d.length();
                 if r <= 0.0 {
                     return Vec3::ZERO;
                 }
                 let cos_x = (n.dot(d) / r).max(0.0);
-                let spot = cone.map_or(1.0, |c| c.attenuation(-d / r));
+                let spot = spot.attenuation(-d / r);
                 self.power * (scene_core::lights::falloff(radius, r) * cos_x * spot)
             }
             IrplKind::EmitterSample | IrplKind::Bounce => {
@@ -294,7 +295,7 @@ fn walks(
                 power: direct,
                 kind: IrplKind::PointSource {
                     radius: l.radius,
-                    cone: l.cone,
+                    spot: scene_core::lights::SpotRamp::of(l.cone.as_ref()),
                 },
                 light: id,
                 path: u32::MAX,

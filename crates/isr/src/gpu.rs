@@ -221,8 +221,8 @@ pub fn gpu_lights(scene: &LightSet) -> Vec<GpuLight> {
                 map_offset: u32::MAX,
                 direct: l.direct.to_array(),
                 indirect: l.indirect.to_array(),
-                spot_scale: l.spot_scale,
-                spot_offset: l.spot_offset,
+                spot_scale: l.spot.scale,
+                spot_offset: l.spot.offset,
                 ..Default::default()
             };
             if let (Some(map), true) = (&l.shadow, scene.shadows.enabled) {

@@ -6,7 +6,7 @@
 //! indirect light ([`LightSet::apply`]) without rebuilding anything.
 
 use glam::{Vec2, Vec3};
-use scene_core::lights::{Emitters, LightId, LightState};
+use scene_core::lights::{Emitters, LightId, LightState, SpotRamp};
 use scene_core::ray::RayScene;
 use scene_core::sampling::{r2, uniform_triangle};
 use scene_core::{Bounds, Scene};
@@ -64,13 +64,10 @@ pub struct Light {
     /// The light source it belongs to (an emitter sample: its emissive mesh). Engines
     /// number their own lights with [`LightId::Point`] and [`LightId::Directional`].
     pub id: LightId,
-    /// A spot's cone ([`Light::spot`]; point lights only, `direction` its axis): the
-    /// intensity towards unit `w` is scaled by `saturate(dot(direction, w) * spot_scale +
-    /// spot_offset)^2`, [`scene_core::lights::SpotCone::scale_offset`]. 0 and 1 (no cone)
-    /// for every other light.
-    pub spot_scale: f32,
-    /// See [`Light::spot_scale`].
-    pub spot_offset: f32,
+    /// A spot's cone ramp ([`Light::spot`]; point lights only, its axis also in
+    /// `direction` for the shaders): the intensity towards `w` is scaled by
+    /// [`SpotRamp::attenuation`]. [`SpotRamp::NONE`] for every other light.
+    pub spot: SpotRamp,
 }
 
 impl Light {
@@ -88,8 +85,7 @@ impl Light {
             shadow: None,
             direct: Vec3::ONE,
             indirect: Vec3::ONE,
-            spot_scale: 0.0,
-            spot_offset: 1.0,
+            spot: SpotRamp::NONE,
         }
     }
 
@@ -100,11 +96,10 @@ impl Light {
         intensity: Vec3,
         cone: &scene_core::lights::SpotCone,
     ) -> Self {
-        let (spot_scale, spot_offset) = cone.scale_offset();
+        let spot = cone.ramp();
         Self {
-            direction: cone.axis(),
-            spot_scale,
-            spot_offset,
+            direction: spot.axis,
+            spot,
             ..Self::point(id, position, intensity)
         }
     }
@@ -141,9 +136,8 @@ impl Light {
                 if cos <= 0.0 {
                     return Vec3::ZERO;
                 }
-                let a = (self.direction.dot(-to / d) * self.spot_scale + self.spot_offset)
-                    .clamp(0.0, 1.0);
-                self.color * (falloff(self.radius, d) * cos * a * a)
+                let a = self.spot.attenuation(-to / d);
+                self.color * (falloff(self.radius, d) * cos * a)
             }
             LightKind::Directional => {
                 let cos = -n.dot(self.direction);
@@ -563,8 +557,7 @@ fn emitters(scene: &Scene, count: u32, extent: f32) -> (EmitterTable, Vec<Light>
             radius: 0.0,
             area: share,
             shadow: None,
-            spot_scale: 0.0,
-            spot_offset: 1.0,
+            spot: SpotRamp::NONE,
         });
     }
     (table, samples)

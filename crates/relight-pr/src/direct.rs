@@ -136,7 +136,7 @@ pub fn from_point<O: Occlusion + ?Sized>(l: &PointLight, rays: &O, x: Vec3, n: V
 fn cone_weighted_solid_angle(
     p: Vec3,
     t: &[Vec3; 3],
-    cone: &scene_core::lights::SpotCone,
+    cone: &scene_core::lights::SpotRamp,
     depth: u32,
 ) -> f32 {
     if depth == 0 {
@@ -213,10 +213,13 @@ pub fn mean_from_point<O: Occlusion + ?Sized>(
         .count();
     let omega: f32 = match &l.cone {
         None => piece.iter().map(|t| solid_angle(l.position, t)).sum(),
-        Some(cone) => piece
-            .iter()
-            .map(|t| cone_weighted_solid_angle(l.position, t, cone, 3))
-            .sum(),
+        Some(cone) => {
+            let ramp = cone.ramp();
+            piece
+                .iter()
+                .map(|t| cone_weighted_solid_angle(l.position, t, &ramp, 3))
+                .sum()
+        }
     };
     let e = l.intensity * (omega / area * seen as f32 / points.len() as f32);
     if e.is_finite() { e } else { Vec3::ZERO }

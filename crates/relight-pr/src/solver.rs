@@ -663,16 +663,14 @@ pub(crate) fn propagate(
         }
         if kept[p].is_none() {
             stats.form_factor_rows += 1;
-            let row: Vec<(u32, f32)> = form
-                .iter()
-                .enumerate()
-                .filter(|&(_, &f)| f > 0.0)
-                .map(|(j, &f)| (j as u32, f))
-                .collect();
-            let bytes = row.len() * std::mem::size_of::<(u32, f32)>();
+            // Counted before anything is allocated: once the budget is spent, a new row
+            // costs one pass over the form factors and no allocation.
+            let bytes =
+                std::mem::size_of::<(u32, f32)>() * form.iter().filter(|&&f| f > 0.0).count();
             if stats.row_cache_bytes + bytes <= settings.row_cache_bytes {
                 stats.row_cache_bytes += bytes;
-                kept[p] = Some(row);
+                let row = form.iter().enumerate().filter(|&(_, &f)| f > 0.0);
+                kept[p] = Some(row.map(|(j, &f)| (j as u32, f)).collect());
             }
         }
         let ue: Vec<Vec3> = unshot_emit[p * k..p * k + k].to_vec();

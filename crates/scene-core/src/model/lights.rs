@@ -346,8 +346,9 @@ pub fn falloff(radius: Option<f32>, distance: f32) -> f32 {
 /// between the axis and the direction towards the lit point (the extension's recommended
 /// attenuation; the difference of cosines is floored at 1e-3, so `inner == outer` gives a
 /// hard edge one thousandth of a cosine wide). A [`crate::PointLight`] with a cone is a
-/// spot light; every method and the reference multiply its intensity by
-/// [`SpotCone::attenuation`].
+/// spot light; every method and the reference multiply its intensity by the cone's
+/// attenuation, evaluated by its [`SpotRamp`] ([`SpotCone::ramp`], computed once per light
+/// where it is evaluated many times).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpotCone {
     /// Direction of the axis: where the light points (any length; used normalised).
@@ -364,12 +365,16 @@ impl SpotCone {
     /// The smallest difference `cos(inner) - cos(outer)` the ramp divides by.
     pub const MIN_RAMP: f32 = 1e-3;
 
-    /// `(scale, offset)` of the ramp: the attenuation towards unit direction `w` is
-    /// `saturate(dot(axis, w) * scale + offset)^2` (what the shaders evaluate).
-    pub fn scale_offset(&self) -> (f32, f32) {
+    /// The cone's ramp with its cosines and unit axis computed: what the methods evaluate
+    /// (the shaders take its three numbers).
+    pub fn ramp(&self) -> SpotRamp {
         let (ci, co) = (self.inner.cos(), self.outer.cos());
         let scale = 1.0 / (ci - co).max(Self::MIN_RAMP);
-        (scale, -co * scale)
+        SpotRamp {
+            axis: self.axis(),
+            scale,
+            offset: -co * scale,
+        }
     }
 
     /// The unit axis (zero for a zero direction, which validation refuses).
@@ -377,11 +382,10 @@ impl SpotCone {
         self.direction.normalize_or_zero()
     }
 
-    /// The factor on the intensity towards unit direction `w` (from the light), in [0, 1].
+    /// The factor on the intensity towards unit direction `w` (from the light), in [0, 1]:
+    /// [`SpotRamp::attenuation`] of [`SpotCone::ramp`], which this computes each call.
     pub fn attenuation(&self, w: Vec3) -> f32 {
-        let (scale, offset) = self.scale_offset();
-        let a = (self.axis().dot(w) * scale + offset).clamp(0.0, 1.0);
-        a * a
+        self.ramp().attenuation(w)
     }
 
     /// The solid angle the cone's attenuation integrates to, `integral attenuation dw`
@@ -423,6 +427,40 @@ impl SpotCone {
                 self.inner, self.outer
             )
         })
+    }
+}
+
+/// A spot cone's ramp, ready to evaluate: the attenuation towards unit direction `w` (from
+/// the light) is `saturate(dot(axis, w) * scale + offset)^2`. [`SpotRamp::NONE`] (no cone)
+/// gives 1 everywhere. The shaders evaluate the same three numbers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpotRamp {
+    /// The cone's unit axis (zero for no cone).
+    pub axis: Vec3,
+    /// The ramp's scale, `1 / max(cos inner - cos outer, 1e-3)` (0 for no cone).
+    pub scale: f32,
+    /// The ramp's offset, `-cos(outer) * scale` (1 for no cone).
+    pub offset: f32,
+}
+
+impl SpotRamp {
+    /// No cone: attenuation 1 in every direction.
+    pub const NONE: SpotRamp = SpotRamp {
+        axis: Vec3::ZERO,
+        scale: 0.0,
+        offset: 1.0,
+    };
+
+    /// The ramp of `cone`, or [`SpotRamp::NONE`].
+    pub fn of(cone: Option<&SpotCone>) -> SpotRamp {
+        cone.map_or(Self::NONE, SpotCone::ramp)
+    }
+
+    /// The factor on the intensity towards unit direction `w` (from the light), in [0, 1].
+    #[inline]
+    pub fn attenuation(&self, w: Vec3) -> f32 {
+        let a = (self.axis.dot(w) * self.scale + self.offset).clamp(0.0, 1.0);
+        a * a
     }
 }
 

@@ -37,6 +37,8 @@ pub struct PathTracer<'a> {
     /// (direct, indirect) factors of the light state, per point light, directional light
     /// and mesh (for its emissive triangles).
     point_factors: Vec<[Vec3; 2]>,
+    /// Each point light's spot ramp ([`crate::lights::SpotRamp::NONE`] without a cone).
+    point_ramps: Vec<crate::lights::SpotRamp>,
     directional_factors: Vec<[Vec3; 2]>,
     mesh_factors: Vec<[Vec3; 2]>,
     /// Offset of secondary ray origins, relative to the scene's extent.
@@ -88,6 +90,11 @@ impl<'a> PathTracer<'a> {
             emitters: Emitters::new(scene, lights),
             point_factors: (0..scene.point_lights.len() as u32)
                 .map(|i| factors(LightId::Point(i)))
+                .collect(),
+            point_ramps: scene
+                .point_lights
+                .iter()
+                .map(|l| crate::lights::SpotRamp::of(l.cone.as_ref()))
                 .collect(),
             directional_factors: (0..scene.directional_lights.len() as u32)
                 .map(|i| factors(LightId::Directional(i)))
@@ -239,7 +246,8 @@ impl<'a> PathTracer<'a> {
     /// reflected radiance.
     fn direct(&self, p: Vec3, n: Vec3, which: usize, rng: &mut Rng, stats: &mut RayStats) -> Vec3 {
         let mut e = Vec3::ZERO;
-        for (light, factor) in self.scene.point_lights.iter().zip(&self.point_factors) {
+        let points = self.scene.point_lights.iter().zip(&self.point_factors);
+        for ((light, factor), ramp) in points.zip(&self.point_ramps) {
             let factor = factor[which];
             let to = light.position - p;
             let dist = to.length();
@@ -249,7 +257,7 @@ impl<'a> PathTracer<'a> {
             let w = to / dist;
             let cos = n.dot(w);
             // A spot's cone: the attenuation towards p (from the light).
-            let f = light.falloff(dist) * light.attenuation(-w);
+            let f = light.falloff(dist) * ramp.attenuation(-w);
             if cos <= 0.0 || f <= 0.0 {
                 continue;
             }
