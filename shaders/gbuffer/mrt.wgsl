@@ -22,6 +22,8 @@
 // * the albedo texture lookup mirrors scene_core::Texture::sample (the texture's wrap per
 //   axis and bilinear or nearest filter, texel centres at half-integers, uv (0, 0) the
 //   top-left corner).
+//   top-left corner); a masked material (alpha_cutoff > 0) discards the fragment where the
+//   texture alpha falls below its cutoff, as scene_core::Scene::opaque_at decides.
 
 struct ViewUniform {
     view_proj: mat4x4<f32>,
@@ -36,7 +38,9 @@ struct Material {
     albedo: vec3<f32>,
     texture: i32,
     emission: vec3<f32>,
-    pad: u32,
+    // scene_core::Material::alpha_cutoff (0 when opaque): the fragment is discarded where
+    // the texture's alpha (texel w) falls below it.
+    alpha_cutoff: f32,
 }
 
 struct TextureInfo {
@@ -54,7 +58,8 @@ struct TextureInfo {
 // Unit geometric normal of each triangle (xyz), by global triangle id.
 @group(0) @binding(2) var<storage, read> face_normals: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> texture_infos: array<TextureInfo>;
-// All textures' linear RGB texels, top row first, one after the other.
+// All textures' linear RGB texels (w = alpha, 1 without), top row first, one after the
+// other.
 @group(0) @binding(4) var<storage, read> texels: array<vec4<f32>>;
 
 struct VertexIn {
@@ -122,18 +127,18 @@ fn wrap_reduce(t: f32, mode: u32) -> f32 {
     return t - floor(t);
 }
 
-fn texel(info: TextureInfo, x: i32, y: i32) -> vec3<f32> {
+fn texel(info: TextureInfo, x: i32, y: i32) -> vec4<f32> {
     let xi = wrap_texel(x, i32(info.width), info.sampler & 3u);
     let yi = wrap_texel(y, i32(info.height), (info.sampler >> 2u) & 3u);
-    return texels[info.offset + u32(yi) * info.width + u32(xi)].xyz;
+    return texels[info.offset + u32(yi) * info.width + u32(xi)];
 }
 
 // The texture's lookup by its sampler (bilinear or nearest, each axis wrapped by its mode),
-// as scene_core::Texture::sample.
-fn sample_texture(index: u32, uv_in: vec2<f32>) -> vec3<f32> {
+// as scene_core::Texture::sample (rgb) and Texture::sample_alpha (a).
+fn sample_texture(index: u32, uv_in: vec2<f32>) -> vec4<f32> {
     let info = texture_infos[index];
     if (info.width == 0u || info.height == 0u) {
-        return vec3<f32>(0.0);
+        return vec4<f32>(0.0);
     }
     let x = wrap_reduce(uv_in.x, info.sampler & 3u) * f32(info.width);
     let y = wrap_reduce(uv_in.y, (info.sampler >> 2u) & 3u) * f32(info.height);
@@ -163,8 +168,16 @@ fn fs_main(in: VertexOut) -> GBufferOut {
     var out: GBufferOut;
     let m = materials[in.material_id];
     var albedo = m.albedo;
+    // Alpha 1 without coordinates or a texture, as scene_core::Scene::opaque_at reads it.
+    var alpha = 1.0;
     if (in.has_uv != 0u && m.texture >= 0 && u32(m.texture) < arrayLength(&texture_infos)) {
-        albedo = albedo * sample_texture(u32(m.texture), in.uv);
+        let c = sample_texture(u32(m.texture), in.uv);
+        albedo = albedo * c.xyz;
+        alpha = c.w;
+    }
+    // Alpha masking: a hole where the alpha falls below the material's cutoff.
+    if (m.alpha_cutoff > 0.0 && alpha < m.alpha_cutoff) {
+        discard;
     }
     out.albedo = vec4<f32>(albedo, 1.0);
     var n = in.face.xyz;

@@ -75,7 +75,8 @@ pub struct GpuPreparedScene {
     pub face_normals: wgpu::Buffer,
     /// Offset and size of each albedo texture in `texels`.
     pub texture_infos: wgpu::Buffer,
-    /// Every texture's linear RGB texels (`vec4`, `w` = 1), one texture after another.
+    /// Every texture's linear RGB texels (`vec4`, `w` = alpha, 1 without), one texture after
+    /// another.
     pub texels: wgpu::Buffer,
 }
 
@@ -146,7 +147,20 @@ impl GpuPreparedScene {
                 height: if t.texels.len() == n { t.height } else { 0 },
                 sampler: t.sampler.bits(),
             });
-            texels.extend(t.texels.iter().take(n).map(|c| [c.x, c.y, c.z, 1.0]));
+            let alpha = |i: usize| {
+                t.alpha
+                    .as_ref()
+                    .and_then(|a| a.get(i))
+                    .copied()
+                    .unwrap_or(1.0)
+            };
+            texels.extend(
+                t.texels
+                    .iter()
+                    .take(n)
+                    .enumerate()
+                    .map(|(i, c)| [c.x, c.y, c.z, alpha(i)]),
+            );
         }
         let geometry = ctx.validated(|| ctx.upload_scene(scene))?;
         let storage = |label: &str, bytes: &[u8], dummy: &[u8]| {
@@ -620,7 +634,7 @@ mod layout_tests {
                 albedo,
                 texture,
                 emission,
-                pad
+                alpha_cutoff
             }
         )
         .unwrap();

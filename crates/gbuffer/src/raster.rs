@@ -352,6 +352,9 @@ struct Setup {
     tiles_x: u32,
     chunks: Vec<Chunk>,
     offsets: Vec<u32>,
+    /// Alpha-masked triangles: their fragments in a hole are discarded before the depth
+    /// test, as the GPU pass discards them.
+    cutouts: scene_core::Cutouts,
 }
 
 /// Edge-function coefficients of one edge.
@@ -446,6 +449,7 @@ impl Setup {
             tiles_x,
             chunks,
             offsets: scene.mesh_offsets(),
+            cutouts: scene_core::Cutouts::of(scene),
         }
     }
 
@@ -483,11 +487,23 @@ impl Setup {
             winner.fill(u64::MAX);
             let t = (ty * self.tiles_x + tx) as usize;
             self.for_each_in_tile(t, |ci, ti| {
-                let tri = &self.chunks[ci].tris[ti];
+                let chunk = &self.chunks[ci];
+                let tri = &chunk.tris[ti];
                 let key = ((ci as u64) << 32) | ti as u64;
+                let id = self.offsets[chunk.mesh as usize] + tri.local;
+                let masked = self.cutouts.is_masked(id);
                 scan(tri, rect, |lx, ly, z| {
                     let i = ly * TILE as usize + lx;
-                    if z < zbuf[i] {
+                    if z < zbuf[i]
+                        && (!masked
+                            || self.exists(
+                                chunk,
+                                tri,
+                                id,
+                                rect[0] + lx as u32,
+                                rect[1] + ly as u32,
+                            ))
+                    {
                         zbuf[i] = z;
                         winner[i] = key;
                     }
@@ -530,6 +546,41 @@ impl Setup {
         }
     }
 
+    /// The perspective-correct barycentric weights of the source triangle's vertices 0, 1
+    /// and 2 at the centre of pixel `(px, py)` (`None` where they are not finite).
+    fn barycentric(&self, chunk: &Chunk, tri: &Tri, px: u32, py: u32) -> Option<Vec3> {
+        let ndc = Vec3::new(
+            (px as f32 + 0.5) * self.ndc_scale.x - 1.0,
+            1.0 - (py as f32 + 0.5) * self.ndc_scale.y,
+            1.0,
+        );
+        let q = Vec3::new(
+            tri.plane[0].dot(ndc),
+            tri.plane[1].dot(ndc),
+            tri.plane[2].dot(ndc),
+        );
+        let inv = 1.0 / (q.x + q.y + q.z);
+        if !inv.is_finite() {
+            return None;
+        }
+        let b = q * inv;
+        Some(match tri.bary {
+            BARY_IDENTITY => b,
+            BARY_SWAPPED => Vec3::new(b.x, b.z, b.y),
+            i => {
+                let rows = chunk.barys[i as usize];
+                rows[0] * b.x + rows[1] * b.y + rows[2] * b.z
+            }
+        })
+    }
+
+    /// True where masked triangle `id` exists at pixel `(px, py)` (its alpha reaches the
+    /// cutoff at the pixel centre).
+    fn exists(&self, chunk: &Chunk, tri: &Tri, id: u32, px: u32, py: u32) -> bool {
+        self.barycentric(chunk, tri, px, py)
+            .is_some_and(|b| self.cutouts.opaque(id, glam::Vec2::new(b.y, b.z)))
+    }
+
     /// Shades the winning triangle `key` at pixel `(px, py)`: albedo with mask, normal
     /// facing the viewer, linear depth, global triangle id. `cache` keeps the per-triangle
     /// data of the last triangle shaded (neighbouring pixels mostly share it).
@@ -546,30 +597,7 @@ impl Setup {
         if cache.key != key {
             *cache = ShadeCache::new(scene, chunk, tri, key, &self.offsets);
         }
-        let ndc = Vec3::new(
-            (px as f32 + 0.5) * self.ndc_scale.x - 1.0,
-            1.0 - (py as f32 + 0.5) * self.ndc_scale.y,
-            1.0,
-        );
-        let q = Vec3::new(
-            tri.plane[0].dot(ndc),
-            tri.plane[1].dot(ndc),
-            tri.plane[2].dot(ndc),
-        );
-        let inv = 1.0 / (q.x + q.y + q.z);
-        if !inv.is_finite() {
-            return None;
-        }
-        let b = q * inv;
-        let bo = match tri.bary {
-            BARY_IDENTITY => b,
-            BARY_SWAPPED => Vec3::new(b.x, b.z, b.y),
-            i => {
-                let rows = chunk.barys[i as usize];
-                rows[0] * b.x + rows[1] * b.y + rows[2] * b.z
-            }
-        };
-        let bw = bo.to_array();
+        let bw = self.barycentric(chunk, tri, px, py)?.to_array();
         let depth = tri.depth[0] * bw[0] + tri.depth[1] * bw[1] + tri.depth[2] * bw[2];
         let mut n =
             (cache.normals[0] * bw[0] + cache.normals[1] * bw[1] + cache.normals[2] * bw[2])

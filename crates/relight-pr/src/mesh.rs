@@ -85,8 +85,14 @@ pub struct Element {
     pub normal: Vec3,
     /// Area.
     pub area: f32,
-    /// Albedo averaged over the element (the texture sampled at four points).
+    /// Albedo averaged over the element (the texture sampled at four points), times its
+    /// [`Element::coverage`]: an alpha-masked element reflects from its solid part only.
     pub albedo: Vec3,
+    /// The fraction of the element that exists (1 unless its material is alpha-masked,
+    /// [`scene_core::Material::alpha_cutoff`]; from 64 samples otherwise). Rays pass
+    /// through its holes; the element keeps its whole area, reflecting `coverage` of what
+    /// it receives, which is the power its solid part reflects.
+    pub coverage: f32,
     /// Emitted radiance (zero for non-emitters).
     pub emission: Vec3,
     /// The patch it belongs to.
@@ -478,15 +484,24 @@ impl Meshing {
             let patch = patches.len() as u32 - 1;
             let pieces: &[Piece] = if one { &[piece] } else { &piece.children() };
             let element_area = patch_area / pieces.len() as f32;
+            let masked = source.materials[material as usize].is_masked();
             for e in pieces {
                 let c = (e.bary[0] + e.bary[1] + e.bary[2]) / 3.0;
+                let coverage = if masked {
+                    scene_core::cutout::coverage(8, |b| {
+                        let b = e.bary[0] * (1.0 - b.x - b.y) + e.bary[1] * b.x + e.bary[2] * b.y;
+                        source.opaque_at(material, uv_of(b))
+                    })
+                } else {
+                    1.0
+                };
                 // Four albedo samples: the centroid and the midpoints towards each corner.
                 let albedo = (albedo_at(c)
                     + e.bary
                         .iter()
                         .map(|&v| albedo_at((c + v) * 0.5))
                         .sum::<Vec3>())
-                    * 0.25;
+                    * (0.25 * coverage);
                 let corner_uvs = uvs.map(|_| e.bary.map(|b| uv_of(b).unwrap_or_default()));
                 elements.push(Element {
                     corners: e.bary.map(at),
@@ -494,6 +509,7 @@ impl Meshing {
                     normal: normal_at(c),
                     area: element_area,
                     albedo,
+                    coverage,
                     emission,
                     patch,
                     source_triangle,

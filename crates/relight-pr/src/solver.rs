@@ -616,11 +616,14 @@ pub(crate) fn propagate(
             )
             .map_err(|e| RelightError::Render(Box::new(e)))?;
             // Patch-to-element form factors to the receivers' form: F_ji = F_ij A_i / A_j.
+            // An alpha-masked receiver shows the hemicube its solid part only: its
+            // irradiance is what that part receives over that part's area.
             for (j, f) in form.iter_mut().enumerate() {
-                *f = if els[j].patch as usize == p {
+                let e = &els[j];
+                *f = if e.patch as usize == p || e.coverage <= 0.0 {
                     0.0
                 } else {
-                    row[j] * patch.area / els[j].area
+                    row[j] * patch.area / (e.area * e.coverage)
                 };
             }
         } else {

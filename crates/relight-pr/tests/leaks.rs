@@ -69,6 +69,7 @@ fn two_rooms_to(right: f32) -> Scene {
         albedo: Vec3::splat(0.8),
         albedo_texture: None,
         emission: Vec3::ZERO,
+        alpha_cutoff: None,
     });
     let mut mesh = Mesh {
         name: "rooms".into(),

@@ -22,6 +22,7 @@ fn material(name: &str) -> Material {
         albedo: Vec3::splat(0.5),
         albedo_texture: None,
         emission: Vec3::ZERO,
+        alpha_cutoff: None,
     }
 }
 

@@ -23,6 +23,7 @@ fn material(albedo: f32, emission: f32) -> Material {
         albedo: Vec3::splat(albedo),
         albedo_texture: None,
         emission: Vec3::splat(emission),
+        alpha_cutoff: None,
     }
 }
 

@@ -94,6 +94,14 @@ pub enum SceneError {
         /// Its emission.
         emission: [f32; 3],
     },
+    /// A material's alpha cutoff is negative or not finite.
+    #[error("{material}: {reason}")]
+    InvalidMaterial {
+        /// The material at fault.
+        material: String,
+        /// What is wrong.
+        reason: String,
+    },
     /// A material names a texture that does not exist.
     #[error("{material}: texture {texture} does not exist (the scene has {texture_count})")]
     TextureOutOfRange {

@@ -96,12 +96,20 @@ pub fn scene_content_hash(scene: &crate::Scene) -> u64 {
     for m in &scene.materials {
         h = words(h, bytemuck::cast_slice(&[m.albedo, m.emission]));
         h = mix(h, m.albedo_texture.map_or(u64::MAX, u64::from));
+        h = mix(
+            h,
+            m.alpha_cutoff.map_or(u64::MAX, |c| u64::from(c.to_bits())),
+        );
     }
     h = mix(h, scene.textures.len() as u64);
     for t in &scene.textures {
         h = mix(mix(h, t.width as u64), t.height as u64);
         h = words(h, bytemuck::cast_slice(&t.texels));
         h = mix(h, u64::from(t.sampler.bits()));
+        h = match &t.alpha {
+            Some(a) => words(mix(h, 1), bytemuck::cast_slice(a)),
+            None => mix(h, 0),
+        };
     }
     h = mix(h, scene.point_lights.len() as u64);
     for l in &scene.point_lights {

@@ -41,11 +41,12 @@ pub mod range;
 pub mod rays;
 pub mod technique;
 
+pub use cutout::Cutouts;
 #[cfg(feature = "gltf")]
 pub use files::gltf_io;
 pub use files::open::{OpenError, OpenedScene, open_scene};
 pub use files::{budget, image};
-pub use model::{builtin, contract, lights, scene, view};
+pub use model::{builtin, contract, cutout, lights, scene, view};
 #[cfg(feature = "rays")]
 pub use rays::ray;
 pub use rays::{reference, sampling};

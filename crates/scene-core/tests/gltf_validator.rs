@@ -57,6 +57,13 @@ fn exported_builtin_scenes_pass_the_khronos_validator() {
         assert_eq!(back.scene.triangle_count(), scene.triangle_count());
         files.push(path);
     }
+    // An alpha-masked material (alphaMode MASK, an RGBA texture with a sampler).
+    let masked = masked_quad();
+    for ext in ["gltf", "glb"] {
+        let path = out.join(format!("masked.{ext}"));
+        gltf_io::export(&masked, &path).unwrap();
+        files.push(path);
+    }
     let paths: Vec<&std::path::Path> = files.iter().map(|p| p.as_path()).collect();
     if validator::assert_valid(&paths) {
         eprintln!("{} files validated: 0 errors, 0 warnings", files.len());
@@ -96,4 +103,42 @@ fn bad_vertex_attributes_are_refused_before_writing() {
         assert!(e.contains(fault), "{e}");
         assert!(!out.exists());
     }
+}
+
+/// A unit quad with texture coordinates under a 2 x 2 texture whose alpha is a
+/// checkerboard, masked at 0.5.
+fn masked_quad() -> Scene {
+    use glam::{Vec2, Vec3};
+    let mut s = Scene::new("masked");
+    s.textures.push(scene_core::Texture {
+        name: "checker".into(),
+        width: 2,
+        height: 2,
+        texels: vec![Vec3::new(0.2, 0.5, 0.8); 4],
+        alpha: Some(vec![1.0, 0.0, 0.0, 1.0]),
+        sampler: scene_core::Sampler {
+            nearest: true,
+            ..Default::default()
+        },
+    });
+    s.materials.push(scene_core::Material {
+        albedo_texture: Some(0),
+        alpha_cutoff: Some(0.5),
+        ..scene_core::Material::diffuse("leaf", Vec3::splat(0.8))
+    });
+    let mut m = scene_core::Mesh {
+        name: "quad".into(),
+        uvs: Some(Vec::new()),
+        ..Default::default()
+    };
+    m.push_quad([Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y], 0);
+    m.uvs = Some(
+        m.positions
+            .iter()
+            .map(|p| Vec2::new(p.x, 1.0 - p.y))
+            .collect(),
+    );
+    s.meshes.push(m);
+    s.validate().unwrap();
+    s
 }

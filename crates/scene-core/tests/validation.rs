@@ -293,6 +293,7 @@ fn huge_but_finite_values_neither_panic_nor_drop_everything() {
         width: 3,
         height: 2,
         texels: vec![Vec3::splat(0.5); 6],
+        alpha: None,
         sampler: Default::default(),
     };
     let c = tex.sample(scene_core::glam::Vec2::new(3e19, -7e20));
@@ -312,6 +313,7 @@ fn texture_sampling_wraps_and_filters_as_gltf_says() {
         width: 2,
         height: 1,
         texels: vec![a, b],
+        alpha: None,
         sampler: Sampler {
             wrap_u: wrap,
             wrap_v: Wrap::Repeat,

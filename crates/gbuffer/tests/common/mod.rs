@@ -193,6 +193,7 @@ pub fn textured_quad_scene() -> Scene {
         width: 4,
         height: 4,
         texels,
+        alpha: None,
         sampler: Default::default(),
     });
     let mut m = Mesh {

@@ -13,6 +13,7 @@ pub fn furnace_scene(rho: f32, mesh: Mesh) -> Scene {
         albedo: Vec3::splat(rho),
         albedo_texture: None,
         emission: Vec3::ONE,
+        alpha_cutoff: None,
     });
     scene.meshes.push(mesh);
     scene

@@ -33,6 +33,12 @@
 //!   (offset, rotation, scale, and the coordinate set it names) is baked into the
 //!   primitive's texture coordinates. A texture's sampler gives its [`crate::Wrap`] per
 //!   axis and, from `magFilter`, nearest or bilinear lookups ([`crate::Sampler`]).
+//! * `alphaMode: MASK` becomes [`crate::Material::alpha_cutoff`] = `alphaCutoff` (default
+//!   0.5) / `baseColorFactor.a` (above 1, any value up to 2, when the factor leaves no
+//!   surface), and the base colour texture keeps its alpha channel ([`crate::Texture::alpha`],
+//!   linear): every method sees holes where the alpha falls below the cutoff. `BLEND` is
+//!   read as a mask at 0.5 and listed among the ignored; `OPAQUE` ignores alpha, as glTF
+//!   says.
 //! * `KHR_lights_punctual`: point lights keep `color x intensity` (candela) and `range` as the
 //!   windowed-falloff radius; spot lights are point lights with a
 //!   [`crate::lights::SpotCone`] (`innerConeAngle`, default 0, and `outerConeAngle`,
@@ -46,7 +52,8 @@
 //!   direction. Orthographic cameras are ignored; a camera without the projection object its
 //!   type names is a [`GltfError::Read`].
 //! * Animations, skins (meshes are taken in their node's rest transform), morph targets,
-//!   vertex colours, metallic/roughness, normal/occlusion/emissive textures, transparency,
+//!   vertex colours, metallic/roughness, normal/occlusion/emissive textures, blending (see
+//!   above),
 //!   other scenes and any extension but the three above are ignored and listed.
 //!   Minification filters are not used (textures have no mipmaps).
 //! * The scene is then checked with [`Scene::validate`] ([`GltfError::Invalid`] on failure;
@@ -72,7 +79,8 @@
 //! at a material boundary are duplicated). Attributes are `POSITION` (with min/max),
 //! `NORMAL` (as repaired by [`Scene::validate`]) and `TEXCOORD_0` when the mesh has UVs;
 //! indices are `u32`. Materials carry `baseColorFactor` (alpha 1), `metallicFactor` 0,
-//! `roughnessFactor` 1, the albedo texture as an embedded sRGB PNG, and `emissiveFactor`
+//! `roughnessFactor` 1, the albedo texture as an embedded sRGB PNG (RGBA with linear
+//! alpha when it has alpha), `alphaMode: MASK` with the cutoff when masked, and `emissiveFactor`
 //! (normalised to a maximum of 1, with `KHR_materials_emissive_strength` carrying the scale
 //! when emission exceeds 1). Point, spot and directional lights use `KHR_lights_punctual`;
 //! cameras are perspective camera nodes whose rotation points -Z at the target, with the

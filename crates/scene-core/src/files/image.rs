@@ -295,7 +295,8 @@ impl Image {
     /// in errors. See [`Image::decode_texture`] for the budget and the handling of decoder
     /// faults.
     pub fn decode_png(bytes: &[u8], path: &Path, budget: &Budget) -> Result<Image, ImageError> {
-        Self::decode_srgb(bytes, Some(image::ImageFormat::Png), path, budget)
+        Self::decode_srgb(bytes, Some(image::ImageFormat::Png), path, budget, false)
+            .map(|(image, _)| image)
     }
 
     /// Decodes an 8- or 16-bit image held in memory, in whatever format its bytes show
@@ -307,7 +308,18 @@ impl Image {
     /// given the budget as its own allocation limit. A panic inside the decoder becomes
     /// [`ImageError::DecoderFault`].
     pub fn decode_texture(bytes: &[u8], path: &Path, budget: &Budget) -> Result<Image, ImageError> {
-        Self::decode_srgb(bytes, None, path, budget)
+        Self::decode_srgb(bytes, None, path, budget, false).map(|(image, _)| image)
+    }
+
+    /// [`Image::decode_texture`] that also returns the image's alpha channel (linear, in
+    /// [0, 1], one per pixel in the same order), or `None` when the image has none. The
+    /// caller budgets the alpha's 4 bytes per pixel.
+    pub fn decode_texture_with_alpha(
+        bytes: &[u8],
+        path: &Path,
+        budget: &Budget,
+    ) -> Result<(Image, Option<Vec<f32>>), ImageError> {
+        Self::decode_srgb(bytes, None, path, budget, true)
     }
 
     /// The width and height an encoded image's header declares (nothing is decoded), for
@@ -339,7 +351,8 @@ impl Image {
         format: Option<image::ImageFormat>,
         path: &Path,
         budget: &Budget,
-    ) -> Result<Image, ImageError> {
+        with_alpha: bool,
+    ) -> Result<(Image, Option<Vec<f32>>), ImageError> {
         use image::ImageDecoder as _;
         let read_err = |message: String| ImageError::Read {
             path: path.to_path_buf(),
@@ -383,11 +396,15 @@ impl Image {
         if width == 0 || height == 0 {
             return Err(read_err("image has zero size".into()));
         }
-        Ok(Image {
-            width,
-            height,
-            pixels: srgb_pixels_to_linear(&decoded),
-        })
+        let alpha = (with_alpha && decoded.color().has_alpha()).then(|| alpha_channel(&decoded));
+        Ok((
+            Image {
+                width,
+                height,
+                pixels: srgb_pixels_to_linear(&decoded),
+            },
+            alpha,
+        ))
     }
 
     /// Reads an image by extension: `.exr` or `.png`, under the default [`Budget`].
@@ -439,6 +456,26 @@ fn srgb_pixels_to_linear(img: &image::DynamicImage) -> Vec<Vec3> {
             .to_rgb32f()
             .pixels()
             .map(|p| Vec3::from(p.0.map(|c| srgb_to_linear(c.clamp(0.0, 1.0)))))
+            .collect(),
+    }
+}
+
+/// The alpha channel of a decoded image, linear in [0, 1] (glTF's alpha is not sRGB).
+fn alpha_channel(img: &image::DynamicImage) -> Vec<f32> {
+    use image::DynamicImage as D;
+    match img {
+        D::ImageLumaA8(b) => b.pixels().map(|p| p.0[1] as f32 / 255.0).collect(),
+        D::ImageRgba8(b) => b.pixels().map(|p| p.0[3] as f32 / 255.0).collect(),
+        other => other
+            .to_rgba32f()
+            .pixels()
+            .map(|p| {
+                if p.0[3].is_finite() {
+                    p.0[3].clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            })
             .collect(),
     }
 }

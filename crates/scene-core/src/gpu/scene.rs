@@ -100,7 +100,7 @@ mod vertex_layout_tests {
 /// One material in the material storage buffer (32 bytes). WGSL:
 ///
 /// ```wgsl
-/// struct Material { albedo: vec3<f32>, texture: i32, emission: vec3<f32>, pad: u32 }
+/// struct Material { albedo: vec3<f32>, texture: i32, emission: vec3<f32>, alpha_cutoff: f32 }
 /// ```
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -111,8 +111,9 @@ pub struct GpuMaterial {
     pub texture: i32,
     /// Emitted radiance, linear RGB.
     pub emission: [f32; 3],
-    /// Padding to 32 bytes.
-    pub pad: u32,
+    /// [`crate::Material::alpha_cutoff`], 0 for an opaque material: a fragment whose
+    /// texture alpha (texel `w`) falls below it is discarded.
+    pub alpha_cutoff: f32,
 }
 
 impl GpuMaterial {
@@ -121,7 +122,7 @@ impl GpuMaterial {
         albedo: [0.0; 3],
         texture: -1,
         emission: [0.0; 3],
-        pad: 0,
+        alpha_cutoff: 0.0,
     };
 }
 
@@ -190,7 +191,7 @@ pub fn gpu_materials(scene: &Scene) -> Vec<GpuMaterial> {
             albedo: m.albedo.to_array(),
             texture: m.albedo_texture.map_or(-1, |t| t as i32),
             emission: m.emission.to_array(),
-            pad: 0,
+            alpha_cutoff: m.alpha_cutoff.unwrap_or(0.0),
         })
         .collect()
 }

@@ -117,6 +117,7 @@ fn texture(name: &str, size: u32, f: impl Fn(f32, f32) -> Vec3) -> Texture {
         width: size,
         height: size,
         texels,
+        alpha: None,
         sampler: Default::default(),
     }
 }

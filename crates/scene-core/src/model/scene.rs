@@ -141,6 +141,9 @@ pub struct Texture {
     pub height: u32,
     /// Row-major texels, top row first, linear RGB.
     pub texels: Vec<Vec3>,
+    /// Optional alpha per texel (same order as `texels`, each in [0, 1]): kept only where a
+    /// material with an [`Material::alpha_cutoff`] reads it; `None` reads as alpha 1.
+    pub alpha: Option<Vec<f32>>,
     /// How coordinates outside [0, 1] wrap and whether texels are filtered.
     pub sampler: Sampler,
 }
@@ -217,8 +220,29 @@ impl Texture {
     /// and texel centres lie at half-integers. Black for an empty texture or a non-finite
     /// coordinate.
     pub fn sample(&self, uv: Vec2) -> Vec3 {
+        self.filter(uv, Vec3::ZERO, |i| self.texels[i], Vec3::lerp)
+    }
+
+    /// The texture's alpha at `uv`, filtered as [`Texture::sample`] filters colour: 1
+    /// where the texture has no alpha, 0 for an empty texture or a non-finite coordinate.
+    pub fn sample_alpha(&self, uv: Vec2) -> f32 {
+        match &self.alpha {
+            None => 1.0,
+            Some(a) => self.filter(uv, 0.0, |i| a[i], |x, y, t| x + (y - x) * t),
+        }
+    }
+
+    /// The sampler's lookup of one channel set: `at(i)` reads texel `i` (row-major),
+    /// `lerp` blends two values.
+    fn filter<T: Copy>(
+        &self,
+        uv: Vec2,
+        empty: T,
+        at: impl Fn(usize) -> T,
+        lerp: impl Fn(T, T, f32) -> T,
+    ) -> T {
         if self.width == 0 || self.height == 0 || !uv.is_finite() {
-            return Vec3::ZERO;
+            return empty;
         }
         let (w, h) = (self.width as i64, self.height as i64);
         let Sampler {
@@ -229,10 +253,10 @@ impl Texture {
         // Reduce first so that huge coordinates cannot overflow the integer texel index.
         let x = wrap_u.reduce(uv.x) * self.width as f32;
         let y = wrap_v.reduce(uv.y) * self.height as f32;
-        let at = |xi: i64, yi: i64| -> Vec3 {
+        let at = |xi: i64, yi: i64| -> T {
             let xi = wrap_u.texel(xi, w) as usize;
             let yi = wrap_v.texel(yi, h) as usize;
-            self.texels[yi * self.width as usize + xi]
+            at(yi * self.width as usize + xi)
         };
         if nearest {
             return at(x.floor() as i64, y.floor() as i64);
@@ -241,9 +265,9 @@ impl Texture {
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let top = at(x0, y0).lerp(at(x0 + 1, y0), fx);
-        let bottom = at(x0, y0 + 1).lerp(at(x0 + 1, y0 + 1), fx);
-        top.lerp(bottom, fy)
+        let top = lerp(at(x0, y0), at(x0 + 1, y0), fx);
+        let bottom = lerp(at(x0, y0 + 1), at(x0 + 1, y0 + 1), fx);
+        lerp(top, bottom, fy)
     }
 }
 
@@ -258,6 +282,12 @@ pub struct Material {
     pub albedo_texture: Option<u32>,
     /// Emitted radiance (linear RGB, the scene's emission units), non-negative.
     pub emission: Vec3,
+    /// Alpha masking (glTF's `alphaMode: MASK`): where set, the surface exists only where
+    /// the albedo texture's alpha ([`Texture::sample_alpha`]; 1 without a texture or
+    /// without alpha) is at least this value, and is a hole elsewhere: for rays, rasterised
+    /// G-buffers and shadow maps alike. glTF's `alphaCutoff / baseColorFactor.a`, so a
+    /// value above 1 makes the whole surface a hole. `None` (and 0) is opaque.
+    pub alpha_cutoff: Option<f32>,
 }
 
 impl Material {
@@ -268,6 +298,7 @@ impl Material {
             albedo,
             albedo_texture: None,
             emission: Vec3::ZERO,
+            alpha_cutoff: None,
         }
     }
 
@@ -278,12 +309,18 @@ impl Material {
             albedo,
             albedo_texture: None,
             emission,
+            alpha_cutoff: None,
         }
     }
 
     /// True when the material emits light.
     pub fn is_emissive(&self) -> bool {
         self.emission.max_element() > 0.0
+    }
+
+    /// True when the material has holes: an alpha cutoff above 0.
+    pub fn is_masked(&self) -> bool {
+        self.alpha_cutoff.is_some_and(|c| c > 0.0)
     }
 }
 
@@ -636,6 +673,21 @@ impl Scene {
         }
     }
 
+    /// True where a surface of `material` exists at texture coordinates `uv`: always for an
+    /// unmasked material, else where the albedo texture's alpha reaches the cutoff
+    /// ([`Material::alpha_cutoff`]). Without coordinates or a texture the alpha is 1.
+    pub fn opaque_at(&self, material: u32, uv: Option<Vec2>) -> bool {
+        let m = &self.materials[material as usize];
+        let Some(cutoff) = m.alpha_cutoff.filter(|&c| c > 0.0) else {
+            return true;
+        };
+        let alpha = match (m.albedo_texture, uv) {
+            (Some(t), Some(uv)) => self.textures[t as usize].sample_alpha(uv),
+            _ => 1.0,
+        };
+        alpha >= cutoff
+    }
+
     /// Checks the scene and repairs what can be repaired.
     ///
     /// Errors (each names the mesh, triangle, material or light at fault): non-finite
@@ -873,6 +925,32 @@ impl Scene {
                         reason: "texel outside [0, 1] or not finite".into(),
                     });
                 }
+                if let Some(a) = &tex.alpha {
+                    if a.len() != tex.texels.len() {
+                        return Err(SceneError::InvalidTexture {
+                            texture: label_or_index(&tex.name, "texture", t as usize),
+                            reason: format!(
+                                "{} alpha values for {} texels",
+                                a.len(),
+                                tex.texels.len()
+                            ),
+                        });
+                    }
+                    if a.iter().any(|v| !(0.0..=1.0).contains(v)) {
+                        return Err(SceneError::InvalidTexture {
+                            texture: label_or_index(&tex.name, "texture", t as usize),
+                            reason: "alpha outside [0, 1] or not finite".into(),
+                        });
+                    }
+                }
+            }
+            if let Some(c) = m.alpha_cutoff
+                && !(c.is_finite() && c >= 0.0)
+            {
+                return Err(SceneError::InvalidMaterial {
+                    material: name,
+                    reason: format!("alpha cutoff {c} is not a finite value of at least 0"),
+                });
             }
         }
         Ok(())

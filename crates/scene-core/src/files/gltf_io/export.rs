@@ -315,6 +315,10 @@ fn build_document(
                 pbr["baseColorTexture"] = json!({ "index": t });
             }
             let mut mat = named(json!({ "pbrMetallicRoughness": pbr }), &m.name);
+            if let Some(c) = m.alpha_cutoff.filter(|&c| c > 0.0) {
+                mat["alphaMode"] = json!("MASK");
+                mat["alphaCutoff"] = json!(c);
+            }
             if m.emission.max_element() > 1.0 {
                 let (factor, strength) = split_scale(m.emission);
                 mat["emissiveFactor"] = json!(factor);
@@ -486,27 +490,46 @@ fn build_document(
     Ok((root, w.bin))
 }
 
-/// Encodes linear texels as an 8-bit sRGB PNG.
+/// Encodes linear texels as an 8-bit sRGB PNG, RGBA with linear alpha when the texture
+/// has alpha.
 fn encode_png(tex: &Texture) -> Result<Vec<u8>, String> {
-    let bytes: Vec<u8> = tex
-        .texels
-        .iter()
-        .flat_map(|c| {
-            c.to_array()
-                .map(|x| (linear_to_srgb(x) * 255.0).round() as u8)
-        })
-        .collect();
-    let img = image::RgbImage::from_raw(tex.width, tex.height, bytes).ok_or_else(|| {
+    let srgb = |x: f32| (linear_to_srgb(x) * 255.0).round() as u8;
+    let size_fault = || {
         format!(
             "{} texels for {}x{}",
             tex.texels.len(),
             tex.width,
             tex.height
         )
-    })?;
+    };
     let mut out = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut out, image::ImageFormat::Png)
-        .map_err(|e| e.to_string())?;
+    match &tex.alpha {
+        Some(alpha) if alpha.len() == tex.texels.len() => {
+            let bytes: Vec<u8> = tex
+                .texels
+                .iter()
+                .zip(alpha)
+                .flat_map(|(c, &a)| {
+                    let [r, g, b] = c.to_array().map(srgb);
+                    [r, g, b, (a.clamp(0.0, 1.0) * 255.0).round() as u8]
+                })
+                .collect();
+            image::RgbaImage::from_raw(tex.width, tex.height, bytes)
+                .ok_or_else(size_fault)?
+                .write_to(&mut out, image::ImageFormat::Png)
+        }
+        _ => {
+            let bytes: Vec<u8> = tex
+                .texels
+                .iter()
+                .flat_map(|c| c.to_array().map(srgb))
+                .collect();
+            image::RgbImage::from_raw(tex.width, tex.height, bytes)
+                .ok_or_else(size_fault)?
+                .write_to(&mut out, image::ImageFormat::Png)
+        }
+    }
+    .map_err(|e| e.to_string())?;
     Ok(out.into_inner())
 }
 

@@ -132,7 +132,7 @@ impl Ignored {
             Ignored::NormalTexture => ("normal texture", "normal textures"),
             Ignored::OcclusionTexture => ("occlusion texture", "occlusion textures"),
             Ignored::EmissiveTexture => ("emissive texture", "emissive textures"),
-            Ignored::Transparency => ("transparency setting", "transparency settings"),
+            Ignored::Transparency => ("blended material", "blended materials"),
             Ignored::OrthographicCamera => ("orthographic camera", "orthographic cameras"),
             Ignored::Extension => ("extension", "extensions"),
             Ignored::OtherScene => ("other scene", "other scenes"),
@@ -678,12 +678,19 @@ impl<'a> Importer<'a> {
             .filter_map(|m| m.pbr_metallic_roughness().base_color_texture())
             .map(|info| info.texture().index())
             .collect();
+        // Textures whose alpha a masked (or blended, read as masked) material reads.
+        let with_alpha: BTreeSet<usize> = doc
+            .materials()
+            .filter(|m| m.alpha_mode() != gltf::material::AlphaMode::Opaque)
+            .filter_map(|m| m.pbr_metallic_roughness().base_color_texture())
+            .map(|info| info.texture().index())
+            .collect();
         let mut texture_map = BTreeMap::new();
         for t in used {
             let Some(texture) = doc.textures().nth(t) else {
                 continue;
             };
-            let decoded = self.decode_texture(&texture)?;
+            let decoded = self.decode_texture(&texture, with_alpha.contains(&t))?;
             texture_map.insert(t, self.scene.textures.len() as u32);
             self.scene.textures.push(decoded);
         }
@@ -724,20 +731,50 @@ impl<'a> Importer<'a> {
             if m.emissive_texture().is_some() {
                 self.ignore(Ignored::EmissiveTexture, &label);
             }
-            if f[3] < 1.0 || m.alpha_mode() != gltf::material::AlphaMode::Opaque {
-                self.ignore(Ignored::Transparency, &label);
-            }
+            // glTF 3.9.4: the alpha is baseColorFactor.a times the texture's alpha; OPAQUE
+            // ignores it, MASK keeps the surface where it reaches alphaCutoff (0.5 by
+            // default). The factor is folded into the cutoff: alpha_tex >= cutoff / factor.
+            // BLEND has no diffuse-transport meaning here: it is read as a mask at 0.5.
+            let cutoff = match m.alpha_mode() {
+                gltf::material::AlphaMode::Opaque => None,
+                gltf::material::AlphaMode::Mask => Some(m.alpha_cutoff().unwrap_or(0.5)),
+                gltf::material::AlphaMode::Blend => {
+                    self.ignore(
+                        Ignored::Transparency,
+                        format!("{label} (read as a mask at 0.5)"),
+                    );
+                    Some(0.5)
+                }
+            };
+            let alpha_cutoff = cutoff.map(|c| {
+                let c = if c.is_finite() { c.max(0.0) } else { 0.5 };
+                // A factor of 0 (or a cutoff above it) leaves no surface: any value above 1.
+                if c <= 0.0 {
+                    0.0
+                } else if f[3] > 0.0 {
+                    (c / f[3]).min(2.0)
+                } else {
+                    2.0
+                }
+            });
             self.scene.materials.push(Material {
                 name,
                 albedo,
                 albedo_texture,
                 emission,
+                alpha_cutoff,
             });
         }
         Ok(())
     }
 
-    fn decode_texture(&mut self, texture: &gltf::Texture) -> Result<Texture, GltfError> {
+    /// Decodes a base-colour texture, with its alpha channel when `with_alpha` (a masked
+    /// material reads it) and the image has one.
+    fn decode_texture(
+        &mut self,
+        texture: &gltf::Texture,
+        with_alpha: bool,
+    ) -> Result<Texture, GltfError> {
         use gltf::texture::{MagFilter, WrappingMode};
         let image = texture.source();
         let name = image
@@ -781,13 +818,21 @@ impl<'a> Importer<'a> {
         let texel_bytes = budget.check_image(u64::from(w), u64::from(h), 0, path, &what)?;
         self.allowance
             .charge_bytes(texel_bytes, || format!("{what}: {w}x{h} texels"))?;
-        let decoded =
-            Image::decode_texture(&encoded, path, self.allowance.budget()).map_err(image_error)?;
+        if with_alpha {
+            self.allowance
+                .charge_bytes(u64::from(w) * u64::from(h) * 4, || {
+                    format!("{what}: {w}x{h} alpha values")
+                })?;
+        }
+        let (decoded, alpha) =
+            Image::decode_texture_with_alpha(&encoded, path, self.allowance.budget())
+                .map_err(image_error)?;
         Ok(Texture {
             name,
             width: decoded.width,
             height: decoded.height,
             texels: decoded.pixels,
+            alpha: alpha.filter(|_| with_alpha),
             sampler,
         })
     }

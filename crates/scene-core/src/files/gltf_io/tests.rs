@@ -54,6 +54,7 @@ fn test_scene() -> Scene {
             Vec3::new(0.2, 0.4, 0.6),
             Vec3::new(0.05, 0.5, 0.9),
         ],
+        alpha: None,
         // Not glTF's default sampler, so the round trips carry one.
         sampler: crate::scene::Sampler {
             wrap_u: crate::scene::Wrap::ClampToEdge,
@@ -1007,4 +1008,38 @@ fn texture_transforms_are_baked_into_texture_coordinates() {
         }
     }
     assert!(checked >= 6, "{checked} textured corners");
+}
+
+#[test]
+fn alpha_modes_become_cutoffs() {
+    let r = import_edited(|r| {
+        let m = &mut r["materials"];
+        m[0]["alphaMode"] = json!("BLEND");
+        m[1]["alphaMode"] = json!("MASK");
+        m[1]["alphaCutoff"] = json!(0.3);
+        m[1]["pbrMetallicRoughness"]["baseColorFactor"][3] = json!(0.6);
+        m[2]["alphaMode"] = json!("MASK");
+        m[2]["pbrMetallicRoughness"]["baseColorFactor"][3] = json!(0.0);
+        m[3]["pbrMetallicRoughness"]["baseColorFactor"][3] = json!(0.5);
+    })
+    .unwrap();
+    let cutoffs: Vec<Option<f32>> = r.scene.materials.iter().map(|m| m.alpha_cutoff).collect();
+    // BLEND read as a mask at 0.5; MASK's cutoff over the factor's alpha (0.3 / 0.6); a
+    // factor of 0 leaves no surface (a cutoff above 1); OPAQUE ignores alpha.
+    assert_eq!(cutoffs[0], Some(0.5));
+    assert!((cutoffs[1].unwrap() - 0.5).abs() < 1e-6, "{cutoffs:?}");
+    assert!(cutoffs[2].unwrap() > 1.0, "{cutoffs:?}");
+    assert_eq!(cutoffs[3], None);
+    assert!(
+        r.summary().contains("1 blended material"),
+        "{}",
+        r.summary()
+    );
+    // The masked material's texture was read with its alpha: the exported RGB PNG has
+    // none, so it reads as 1 (opaque under a cutoff of 0.5).
+    let t = r.scene.materials[1].albedo_texture.unwrap() as usize;
+    assert_eq!(r.scene.textures[t].alpha, None);
+    assert!(r.scene.opaque_at(1, Some(Vec2::new(0.5, 0.5))));
+    // The emissive quad whose factor has alpha 0 is a hole everywhere.
+    assert!(!r.scene.opaque_at(2, None));
 }

@@ -301,7 +301,10 @@ impl<'a> PathTracer<'a> {
                 let w = to / dist;
                 let cos = n.dot(w);
                 let cos_l = data.ng.dot(-w);
-                if cos > 0.0 && cos_l > 0.0 && factor != Vec3::ZERO {
+                // A sample in an alpha-masked emitter's hole emits nothing (the same pick
+                // probability: the estimate stays unbiased).
+                let solid = self.rays.cutouts().opaque(tri.triangle, b);
+                if cos > 0.0 && cos_l > 0.0 && factor != Vec3::ZERO && solid {
                     stats.shadow += 1;
                     // Stop short of the emitter by an absolute, scene-relative margin: an
                     // occluder flush against the light must still block it.
