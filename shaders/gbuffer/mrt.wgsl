@@ -1,7 +1,7 @@
 // The G-buffer geometry pass: one render pass writing four colour targets at once
 // (multiple render targets, thesis figure 4.1) plus the depth attachment:
 //
-//   location 0  albedo      rgba32float  linear RGB albedo (factor x bilinear texture),
+//   location 0  albedo      rgba32float  linear RGB albedo (factor x texture x vertex colour),
 //                                        a = radiation mask (1 on geometry)
 //   location 1  normal      rgba32float  unit world normal facing the viewer, w = 0
 //   location 2  depth       r32float     linear depth: view-space distance along the view
@@ -69,6 +69,8 @@ struct VertexIn {
     @location(3) material_id: u32,
     @location(4) uv: vec2<f32>,
     @location(5) has_uv: u32,
+    // Vertex colour (scene_core::Mesh::colors; white without), multiplying the albedo.
+    @location(6) color: vec3<f32>,
 }
 
 struct VertexOut {
@@ -82,6 +84,7 @@ struct VertexOut {
     @location(5) @interpolate(flat) has_uv: u32,
     // Geometric normal in xyz; w = -1 when the shading normal must be flipped, else 1.
     @location(6) @interpolate(flat) face: vec4<f32>,
+    @location(7) color: vec3<f32>,
 }
 
 @vertex
@@ -95,6 +98,7 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.triangle_id = v.triangle_id;
     out.material_id = v.material_id;
     out.has_uv = v.has_uv;
+    out.color = v.color;
     let ng = face_normals[v.triangle_id].xyz;
     var facing = dot(ng, rel);
     if (view.orthographic != 0u) {
@@ -175,6 +179,7 @@ fn fs_main(in: VertexOut) -> GBufferOut {
         albedo = albedo * c.xyz;
         alpha = c.w;
     }
+    albedo = albedo * in.color;
     // Alpha masking: a hole where the alpha falls below the material's cutoff.
     if (m.alpha_cutoff > 0.0 && alpha < m.alpha_cutoff) {
         discard;

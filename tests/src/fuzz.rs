@@ -168,6 +168,8 @@ fn scene_spec_seeds() -> Vec<Vec<u8>> {
             r#"{"seed": 8, "triangles": false}"#,
             r#"{"seed": 1, "spot": [0.3, 0.6]}"#,
             r#"{"seed": 3, "spot": [0, 1.5707964], "offset": [1e3, 0, 0]}"#,
+            r#"{"seed": 4, "mask": 0.5, "tint": [0.9, 0.5, 0.2]}"#,
+            r#"{"seed": 5, "mask": 1.5, "lights": false}"#,
         ]
         .map(String::from),
     );
@@ -224,6 +226,36 @@ pub fn run_scene_spec(bytes: &[u8], _ctx: &Context) -> Result<(), String> {
     }
     if let Some(a) = vec3(v.get("albedo")) {
         s.materials[0].albedo = a;
+    }
+    // An alpha mask on material 0: a 4 x 4 checkerboard of alpha 0 and 1 (nearest) over
+    // texture coordinates from x and z, cut at `mask`.
+    if let Some(c) = num("mask") {
+        s.textures.push(scene_core::Texture {
+            name: "fuzz mask".into(),
+            width: 4,
+            height: 4,
+            texels: vec![Vec3::ONE; 16],
+            alpha: Some((0..16).map(|i| ((i + i / 4) % 2) as f32).collect()),
+            sampler: scene_core::Sampler {
+                nearest: true,
+                ..Default::default()
+            },
+        });
+        s.materials[0].albedo_texture = Some(s.textures.len() as u32 - 1);
+        s.materials[0].alpha_cutoff = Some(c);
+        for m in &mut s.meshes {
+            let uvs = m
+                .positions
+                .iter()
+                .map(|p| scene_core::glam::Vec2::new(p.x, p.z) * 2.0);
+            m.uvs = Some(uvs.collect());
+        }
+    }
+    // Vertex colours on every mesh.
+    if let Some(t) = vec3(v.get("tint")) {
+        for m in &mut s.meshes {
+            m.colors = Some(vec![t; m.positions.len()]);
+        }
     }
     if let Some(e) = num("emission") {
         s.materials[2].emission = Vec3::splat(e);

@@ -45,7 +45,19 @@ use scene_core::{Scene, View, gltf_io};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Add a sun to every scene opened: DX,DY,DZ=R,G,B, the direction it travels
+    /// (0,-1,0 shines straight down) and its irradiance (one number: grey). Repeatable.
+    #[arg(long = "sun", global = true, value_name = "DIR=RGB")]
+    suns: Vec<String>,
+    /// Add a point light to every scene opened: X,Y,Z=R,G,B, its position in the file's
+    /// coordinates and its intensity in W/sr (one number: grey). Repeatable.
+    #[arg(long = "point", global = true, value_name = "POS=RGB")]
+    points: Vec<String>,
 }
+
+/// The lights `--sun` and `--point` add to every scene a command opens (set once, before
+/// the command runs).
+static ADDED_LIGHTS: std::sync::OnceLock<scene_core::AddedLights> = std::sync::OnceLock::new();
 
 /// The options of `cargo xtask experiment`.
 #[derive(clap::Args, Debug)]
@@ -360,7 +372,8 @@ pub fn load_scene(spec: &str) -> Result<Scene, String> {
 /// [`scene_core::open_scene`], printing its notes; the translation it applied (a scene far
 /// from the origin is moved to it) comes with the scene.
 pub fn open_scene_noted(spec: &str) -> Result<scene_core::OpenedScene, String> {
-    let opened = scene_core::open_scene(spec).map_err(|e| e.to_string())?;
+    let added = ADDED_LIGHTS.get().cloned().unwrap_or_default();
+    let opened = scene_core::open_scene_with(spec, &added).map_err(|e| e.to_string())?;
     for note in &opened.notes {
         eprintln!("{note}");
     }
@@ -735,7 +748,19 @@ fn run(cli: Cli) -> Result<(), String> {
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    let cli = Cli::parse();
+    let mut added = scene_core::AddedLights::default();
+    let parsed = cli
+        .suns
+        .iter()
+        .try_for_each(|s| added.parse_sun(s))
+        .and_then(|()| cli.points.iter().try_for_each(|p| added.parse_point(p)));
+    if let Err(e) = parsed {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
+    }
+    ADDED_LIGHTS.set(added).ok();
+    match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");

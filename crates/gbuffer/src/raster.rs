@@ -616,6 +616,10 @@ impl Setup {
             }
             (None, None) => scene.albedo_at(cache.material, None),
         };
+        let albedo = match cache.colors {
+            Some(c) => albedo * (c[0] * bw[0] + c[1] * bw[1] + c[2] * bw[2]),
+            None => albedo,
+        };
         Some((albedo.extend(1.0), n, depth, cache.id))
     }
 }
@@ -626,6 +630,8 @@ struct ShadeCache {
     normals: [Vec3; 3],
     face_normal: Vec3,
     uvs: Option<[Vec2; 3]>,
+    /// Vertex colours, when the mesh has them.
+    colors: Option<[Vec3; 3]>,
     material: u32,
     /// The albedo when it does not vary over the triangle (no texture or no UVs).
     constant_albedo: Option<Vec3>,
@@ -639,6 +645,7 @@ impl Default for ShadeCache {
             normals: [Vec3::ZERO; 3],
             face_normal: Vec3::ZERO,
             uvs: None,
+            colors: None,
             material: 0,
             constant_albedo: None,
             id: BACKGROUND_ID,
@@ -662,6 +669,10 @@ impl ShadeCache {
             normals: idx.map(|i| mesh.normals.get(i as usize).copied().unwrap_or(Vec3::ZERO)),
             face_normal: (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero(),
             uvs,
+            colors: mesh
+                .colors
+                .as_ref()
+                .map(|c| idx.map(|i| c.get(i as usize).copied().unwrap_or(Vec3::ONE))),
             material,
             constant_albedo: (!textured || uvs.is_none()).then(|| scene.albedo_at(material, None)),
             id: offsets[chunk.mesh as usize] + tri.local,

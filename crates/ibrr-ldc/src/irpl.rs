@@ -195,7 +195,8 @@ pub(crate) fn surface_at(
         .uvs
         .as_ref()
         .map(|uvs| (0..3).map(|k| uvs[tri[k] as usize] * b[k]).sum::<Vec2>());
-    let albedo = scene.albedo_at(mesh.material_ids[r.local as usize], uv);
+    let albedo = scene.albedo_at(mesh.material_ids[r.local as usize], uv)
+        * mesh.color_at(r.local as usize, b);
     Some(Surface {
         p: o + d * hit.t,
         ng,

@@ -15,7 +15,8 @@
 //! gives the same texture), and a fan that is a disk or a half-disk. The new triangles must
 //! keep their orientation and not be degenerate; of the candidate neighbours the one whose
 //! worst new triangle is the best shaped is taken. Curved surfaces, seams and shared edges
-//! between different materials are left as they are. The output keeps every mesh (in
+//! between different materials are left as they are, and so are meshes whose vertex
+//! colours (`Mesh::colors`) vary. The output keeps every mesh (in
 //! order, so emissive-mesh light ids still hold), its vertex arrays and the materials;
 //! only the triangle lists change.
 
@@ -115,6 +116,21 @@ struct Tri {
 type MergedMesh = (Vec<[u32; 3]>, Vec<u32>, Vec<u32>, usize);
 
 fn merge_mesh(mesh: &Mesh) -> MergedMesh {
+    // Vertex colours are interpolated over the triangles as they are: a mesh whose colours
+    // vary is left unmerged (one colour everywhere merges as any mesh).
+    let varies = mesh
+        .colors
+        .as_ref()
+        .is_some_and(|c| c.iter().any(|&x| x != c[0]));
+    if varies {
+        let n = mesh.indices.len() as u32;
+        return (
+            mesh.indices.clone(),
+            mesh.material_ids.clone(),
+            (0..n).collect(),
+            0,
+        );
+    }
     // Weld by position and texture coordinate (bit for bit): a seam stays a border.
     let mut weld: HashMap<[u32; 5], u32> = HashMap::new();
     let mut pos = Vec::new();

@@ -105,6 +105,8 @@ pub struct Element {
     pub material: u32,
     /// Texture coordinates of the corners, when the scene triangle has them.
     pub uvs: Option<[Vec2; 3]>,
+    /// Vertex colours at the corners, when the scene triangle's mesh has them.
+    pub colors: Option<[Vec3; 3]>,
     /// Pressed against or inside other geometry (the floor under a box, the bottom of a
     /// box resting on it): its centroid, just off its surface, is inside a solid or lifts
     /// through another surface. It receives nothing from outside, does not reflect onto
@@ -467,7 +469,11 @@ impl Meshing {
                 if n == Vec3::ZERO { geometric } else { n }
             };
             let uv_of = |b: Vec2| uvs.map(|q| q[0] * (1.0 - b.x - b.y) + q[1] * b.x + q[2] * b.y);
-            let albedo_at = |b: Vec2| source.albedo_at(material, uv_of(b));
+            let colors = mesh.colors.as_ref().map(|c| t.map(|i| c[i as usize]));
+            let color_of =
+                |b: Vec2| colors.map(|c| c[0] * (1.0 - b.x - b.y) + c[1] * b.x + c[2] * b.y);
+            let albedo_at =
+                |b: Vec2| source.albedo_at(material, uv_of(b)) * color_of(b).unwrap_or(Vec3::ONE);
             let source_triangle = merged.as_ref().map_or(id, |m| m.origin[id as usize]);
             let patch_area = area / 4f32.powi(l as i32);
             let centre = (piece.bary[0] + piece.bary[1] + piece.bary[2]) / 3.0;
@@ -503,6 +509,8 @@ impl Meshing {
                         .sum::<Vec3>())
                     * (0.25 * coverage);
                 let corner_uvs = uvs.map(|_| e.bary.map(|b| uv_of(b).unwrap_or_default()));
+                let corner_colors =
+                    colors.map(|_| e.bary.map(|b| color_of(b).unwrap_or(Vec3::ONE)));
                 elements.push(Element {
                     corners: e.bary.map(at),
                     centroid: at(c),
@@ -515,6 +523,7 @@ impl Meshing {
                     source_triangle,
                     material,
                     uvs: corner_uvs,
+                    colors: corner_colors,
                     hidden: false,
                     open_points: 0b1111,
                 });
@@ -561,7 +570,7 @@ impl Meshing {
     }
 
     /// The elements as a scene of their own (one mesh, element `j` is triangle `j`, the
-    /// scene's materials and textures, flat element normals): what a G-buffer renderer
+    /// scene's materials and textures, the corners' vertex colours, flat element normals): what a G-buffer renderer
     /// draws so that its triangle ids are element ids.
     pub fn element_scene(&self, scene: &Scene) -> Scene {
         let mut mesh = scene_core::Mesh {
@@ -569,12 +578,17 @@ impl Meshing {
             ..Default::default()
         };
         let textured = self.elements.iter().any(|e| e.uvs.is_some());
+        let coloured = self.elements.iter().any(|e| e.colors.is_some());
         let mut uvs = Vec::new();
+        let mut colors = Vec::new();
         for (j, e) in self.elements.iter().enumerate() {
             mesh.positions.extend_from_slice(&e.corners);
             mesh.normals.extend_from_slice(&[e.normal; 3]);
             if textured {
                 uvs.extend_from_slice(&e.uvs.unwrap_or([Vec2::ZERO; 3]));
+            }
+            if coloured {
+                colors.extend_from_slice(&e.colors.unwrap_or([Vec3::ONE; 3]));
             }
             let b = 3 * j as u32;
             mesh.indices.push([b, b + 1, b + 2]);
@@ -582,6 +596,9 @@ impl Meshing {
         }
         if textured {
             mesh.uvs = Some(uvs);
+        }
+        if coloured {
+            mesh.colors = Some(colors);
         }
         let mut out = Scene::new(&format!("{} (elements)", scene.name));
         out.materials = scene.materials.clone();

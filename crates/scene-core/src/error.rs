@@ -15,7 +15,7 @@ pub enum SceneError {
         /// The vertex index.
         vertex: usize,
     },
-    /// A vertex attribute is NaN or infinite.
+    /// A vertex attribute is NaN or infinite (or, for colours, outside [0, 1]).
     #[error("{mesh}: vertex {vertex} has non-finite {attribute}")]
     NonFiniteAttribute {
         /// The mesh at fault.

@@ -1242,7 +1242,7 @@ mod tests {
         assert_eq!(m[0].texture, -1);
         assert_eq!(m[1].texture, 0);
         assert_eq!(m[1].emission, [4.0, 3.0, 2.0]);
-        assert_eq!(std::mem::size_of::<GpuVertex>(), 48);
+        assert_eq!(std::mem::size_of::<GpuVertex>(), 56);
         assert_eq!(std::mem::size_of::<GpuMaterial>(), 32);
     }
 

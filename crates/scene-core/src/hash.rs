@@ -89,6 +89,10 @@ pub fn scene_content_hash(scene: &crate::Scene) -> u64 {
             Some(uvs) => words(mix(h, 1), bytemuck::cast_slice(uvs)),
             None => mix(h, 0),
         };
+        h = match &m.colors {
+            Some(c) => words(mix(h, 1), bytemuck::cast_slice(c)),
+            None => mix(h, 0),
+        };
         h = words(h, bytemuck::cast_slice(&m.indices));
         h = words(h, bytemuck::cast_slice(&m.material_ids));
     }

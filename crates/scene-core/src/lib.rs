@@ -44,7 +44,7 @@ pub mod technique;
 pub use cutout::Cutouts;
 #[cfg(feature = "gltf")]
 pub use files::gltf_io;
-pub use files::open::{OpenError, OpenedScene, open_scene};
+pub use files::open::{AddedLights, OpenError, OpenedScene, open_scene, open_scene_with};
 pub use files::{budget, image};
 pub use model::{builtin, contract, cutout, lights, scene, view};
 #[cfg(feature = "rays")]

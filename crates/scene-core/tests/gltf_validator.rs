@@ -57,7 +57,8 @@ fn exported_builtin_scenes_pass_the_khronos_validator() {
         assert_eq!(back.scene.triangle_count(), scene.triangle_count());
         files.push(path);
     }
-    // An alpha-masked material (alphaMode MASK, an RGBA texture with a sampler).
+    // An alpha-masked material (alphaMode MASK, an RGBA texture with a sampler) on a mesh
+    // with vertex colours.
     let masked = masked_quad();
     for ext in ["gltf", "glb"] {
         let path = out.join(format!("masked.{ext}"));
@@ -105,8 +106,8 @@ fn bad_vertex_attributes_are_refused_before_writing() {
     }
 }
 
-/// A unit quad with texture coordinates under a 2 x 2 texture whose alpha is a
-/// checkerboard, masked at 0.5.
+/// A unit quad with texture coordinates and vertex colours (`COLOR_0`) under a 2 x 2
+/// texture whose alpha is a checkerboard, masked at 0.5.
 fn masked_quad() -> Scene {
     use glam::{Vec2, Vec3};
     let mut s = Scene::new("masked");

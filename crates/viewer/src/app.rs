@@ -59,7 +59,8 @@ pub fn run(args: Args) -> Result<(), String> {
         }
         .write(path)?;
     }
-    let opened = scene_core::open_scene(&args.scene).map_err(|e| e.to_string())?;
+    let opened = scene_core::open_scene_with(&args.scene, &args.added_lights()?)
+        .map_err(|e| e.to_string())?;
     for note in &opened.notes {
         eprintln!("{note}");
     }

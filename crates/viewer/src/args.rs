@@ -14,6 +14,14 @@ pub struct Args {
     /// .gltf/.glb path.
     #[arg(long, default_value = "cornell")]
     pub scene: String,
+    /// Add a sun: DX,DY,DZ=R,G,B (the direction it travels, its irradiance; one number for
+    /// grey). Repeatable.
+    #[arg(long = "sun", value_name = "DIR=RGB")]
+    pub suns: Vec<String>,
+    /// Add a point light: X,Y,Z=R,G,B (its position in the file's coordinates, its
+    /// intensity in W/sr; one number for grey). Repeatable.
+    #[arg(long = "point", value_name = "POS=RGB")]
+    pub points: Vec<String>,
     /// Window size, WIDTHxHEIGHT in physical pixels.
     #[arg(long, default_value = "960x600")]
     pub size: String,
@@ -74,6 +82,14 @@ pub struct Args {
 }
 
 impl Args {
+    /// The lights `--sun` and `--point` add to the scene.
+    pub fn added_lights(&self) -> Result<scene_core::AddedLights, String> {
+        let mut added = scene_core::AddedLights::default();
+        self.suns.iter().try_for_each(|s| added.parse_sun(s))?;
+        self.points.iter().try_for_each(|p| added.parse_point(p))?;
+        Ok(added)
+    }
+
     /// Every number against its stated range ([`scene_core::range`]), before the window
     /// opens or any work starts.
     pub fn check_numbers(&self) -> Result<(), String> {

@@ -33,6 +33,8 @@
 //!   (offset, rotation, scale, and the coordinate set it names) is baked into the
 //!   primitive's texture coordinates. A texture's sampler gives its [`crate::Wrap`] per
 //!   axis and, from `magFilter`, nearest or bilinear lookups ([`crate::Sampler`]).
+//! * `COLOR_0` (RGB or RGBA, float or normalised integers; clamped to [0, 1]) becomes
+//!   [`crate::Mesh::colors`], multiplying the albedo; its alpha is not read.
 //! * `alphaMode: MASK` becomes [`crate::Material::alpha_cutoff`] = `alphaCutoff` (default
 //!   0.5) / `baseColorFactor.a` (above 1, any value up to 2, when the factor leaves no
 //!   surface), and the base colour texture keeps its alpha channel ([`crate::Texture::alpha`],
@@ -52,7 +54,7 @@
 //!   direction. Orthographic cameras are ignored; a camera without the projection object its
 //!   type names is a [`GltfError::Read`].
 //! * Animations, skins (meshes are taken in their node's rest transform), morph targets,
-//!   vertex colours, metallic/roughness, normal/occlusion/emissive textures, blending (see
+//!   vertex colour sets past `COLOR_0`, metallic/roughness, normal/occlusion/emissive textures, blending (see
 //!   above),
 //!   other scenes and any extension but the three above are ignored and listed.
 //!   Minification filters are not used (textures have no mipmaps).
@@ -77,7 +79,8 @@
 //! triangles with the same material**, so triangle order (and thus triangle ids) survives a
 //! round trip; each primitive carries only the vertices its triangles use (shared vertices
 //! at a material boundary are duplicated). Attributes are `POSITION` (with min/max),
-//! `NORMAL` (as repaired by [`Scene::validate`]) and `TEXCOORD_0` when the mesh has UVs;
+//! `NORMAL` (as repaired by [`Scene::validate`]), `TEXCOORD_0` when the mesh has UVs and
+//! `COLOR_0` when it has vertex colours;
 //! indices are `u32`. Materials carry `baseColorFactor` (alpha 1), `metallicFactor` 0,
 //! `roughnessFactor` 1, the albedo texture as an embedded sRGB PNG (RGBA with linear
 //! alpha when it has alpha), `alphaMode: MASK` with the cutoff when masked, and `emissiveFactor`

@@ -11,7 +11,7 @@ use crate::budget::Budget;
 use crate::builtin;
 #[cfg(feature = "gltf")]
 use crate::gltf_io;
-use crate::scene::Scene;
+use crate::scene::{DirectionalLight, PointLight, Scene};
 
 /// Why [`open_scene`] could not open a scene: a caller can tell a typo (no such file, an
 /// unknown built-in name) from a broken file or a scene the methods cannot take.
@@ -35,6 +35,14 @@ pub enum OpenError {
         "scene file '{0}': opening glTF needs scene-core's `gltf` feature, which this build lacks"
     )]
     NotBuiltIn(String),
+    /// A light added on the command line ([`AddedLights`]) is invalid (the error names it).
+    #[error("{spec}: added light: {source}")]
+    AddedLight {
+        /// What was opened.
+        spec: String,
+        /// What validation said of the added light.
+        source: crate::SceneError,
+    },
     /// The scene breaks the contract every method holds ([`crate::contract::check`]).
     #[error("{spec}: {source}")]
     Contract {
@@ -86,6 +94,117 @@ impl OpenedScene {
     }
 }
 
+/// Lights a user adds to a scene as it is opened, so that a file without lights renders in
+/// one command (`--sun DIR=RGB`, `--point POS=RGB` on the command lines). They are added in
+/// the file's coordinates before the scene contract is checked, so a scene moved to the
+/// origin moves them with it, and named `sun N` and `point N` (from 1) in
+/// [`crate::lights::light_ids`] order after the file's own.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AddedLights {
+    /// Directional lights.
+    pub suns: Vec<DirectionalLight>,
+    /// Point lights.
+    pub points: Vec<PointLight>,
+}
+
+impl AddedLights {
+    /// True when nothing is added.
+    pub fn is_empty(&self) -> bool {
+        self.suns.is_empty() && self.points.is_empty()
+    }
+
+    /// Parses `DX,DY,DZ=R,G,B`: a sun travelling along `(DX, DY, DZ)` (normalised; `0,-1,0`
+    /// shines straight down) giving irradiance `(R, G, B)` on a surface facing it. A single
+    /// number for the colour is grey.
+    pub fn parse_sun(&mut self, spec: &str) -> Result<(), String> {
+        let (d, rgb) = parse_pair(spec, "--sun", "DX,DY,DZ=R,G,B")?;
+        let direction = d
+            .try_normalize()
+            .ok_or_else(|| format!("--sun {spec}: the direction is zero or not finite"))?;
+        self.suns.push(DirectionalLight {
+            name: format!("sun {}", self.suns.len() + 1),
+            direction,
+            irradiance: rgb,
+        });
+        Ok(())
+    }
+
+    /// Parses `X,Y,Z=R,G,B`: a point light at `(X, Y, Z)` (the file's coordinates) of
+    /// intensity `(R, G, B)` (W/sr, inverse-square falloff). A single number for the colour
+    /// is grey.
+    pub fn parse_point(&mut self, spec: &str) -> Result<(), String> {
+        let (position, rgb) = parse_pair(spec, "--point", "X,Y,Z=R,G,B")?;
+        self.points.push(PointLight::new(
+            &format!("point {}", self.points.len() + 1),
+            position,
+            rgb,
+        ));
+        Ok(())
+    }
+
+    /// Adds the lights to `scene` and checks them with the scene's own validation.
+    fn add_to(&self, scene: &mut Scene) -> Result<Vec<String>, crate::SceneError> {
+        scene.directional_lights.extend(self.suns.iter().cloned());
+        scene.point_lights.extend(self.points.iter().cloned());
+        scene.validate()?;
+        let mut notes: Vec<String> = self
+            .suns
+            .iter()
+            .map(|l| {
+                let (d, e) = (l.direction, l.irradiance);
+                format!(
+                    "note: added '{}' travelling ({}, {}, {}), irradiance ({}, {}, {})",
+                    l.name, d.x, d.y, d.z, e.x, e.y, e.z
+                )
+            })
+            .collect();
+        notes.extend(self.points.iter().map(|l| {
+            let (p, i) = (l.position, l.intensity);
+            format!(
+                "note: added '{}' at ({}, {}, {}), intensity ({}, {}, {})",
+                l.name, p.x, p.y, p.z, i.x, i.y, i.z
+            )
+        }));
+        Ok(notes)
+    }
+}
+
+/// `A,B,C=R,G,B` (or `=V` for grey) as two vectors, every number finite; the error names
+/// the flag and the form it expects.
+fn parse_pair(spec: &str, flag: &str, form: &str) -> Result<(glam::Vec3, glam::Vec3), String> {
+    let bad = |why: &str| format!("{flag} {spec}: {why} (expected {form})");
+    let (a, b) = spec.split_once('=').ok_or_else(|| bad("no '='"))?;
+    let numbers = |s: &str| -> Result<Vec<f32>, String> {
+        s.split(',')
+            .map(|x| {
+                let v: f32 = x
+                    .trim()
+                    .parse()
+                    .map_err(|_| bad(&format!("'{x}' is not a number")))?;
+                if v.is_finite() {
+                    Ok(v)
+                } else {
+                    Err(bad(&format!("'{x}' is not finite")))
+                }
+            })
+            .collect()
+    };
+    let a = numbers(a)?;
+    let b = numbers(b)?;
+    let [x, y, z] = a[..] else {
+        return Err(bad("three numbers before '='"));
+    };
+    let rgb = match b[..] {
+        [v] => glam::Vec3::splat(v),
+        [r, g, bl] => glam::Vec3::new(r, g, bl),
+        _ => return Err(bad("one or three numbers after '='")),
+    };
+    if rgb.min_element() < 0.0 {
+        return Err(bad("a negative colour"));
+    }
+    Ok((glam::Vec3::new(x, y, z), rgb))
+}
+
 /// True when `spec` names a glTF file (by its extension) rather than a built-in scene.
 pub fn is_gltf_path(spec: &str) -> bool {
     let lower = spec.to_ascii_lowercase();
@@ -98,11 +217,18 @@ pub fn is_gltf_path(spec: &str) -> bool {
 /// ([`crate::contract::check`]). A scene far from the origin is moved to it
 /// ([`OpenedScene::translation`]).
 pub fn open_scene(spec: &str) -> Result<OpenedScene, OpenError> {
-    if is_gltf_path(spec) {
+    open_scene_with(spec, &AddedLights::default())
+}
+
+/// [`open_scene`] with `added` lights put into the scene (in the file's coordinates, before
+/// the contract's check and the move to the origin), each noted; an invalid one is an
+/// [`OpenError::AddedLight`] naming it.
+pub fn open_scene_with(spec: &str, added: &AddedLights) -> Result<OpenedScene, OpenError> {
+    let mut opened = if is_gltf_path(spec) {
         if !Path::new(spec).exists() {
             return Err(OpenError::NoSuchFile(PathBuf::from(spec)));
         }
-        open_gltf(spec)
+        open_gltf(spec)?
     } else {
         let scene = builtin::scene(spec).map_err(OpenError::UnknownBuiltin)?;
         OpenedScene {
@@ -110,8 +236,17 @@ pub fn open_scene(spec: &str) -> Result<OpenedScene, OpenError> {
             notes: Vec::new(),
             translation: glam::Vec3::ZERO,
         }
-        .checked(spec)
+    };
+    if !added.is_empty() {
+        let notes = added
+            .add_to(&mut opened.scene)
+            .map_err(|source| OpenError::AddedLight {
+                spec: spec.to_string(),
+                source,
+            })?;
+        opened.notes.extend(notes);
     }
+    opened.checked(spec)
 }
 
 /// Without the `gltf` feature a file can only be refused, by name.
@@ -120,7 +255,7 @@ fn open_gltf(spec: &str) -> Result<OpenedScene, OpenError> {
     Err(OpenError::NotBuiltIn(spec.to_string()))
 }
 
-/// Imports `spec` under the environment's budget and checks the contract.
+/// Imports `spec` under the environment's budget (the caller checks the contract).
 #[cfg(feature = "gltf")]
 fn open_gltf(spec: &str) -> Result<OpenedScene, OpenError> {
     let options = gltf_io::ImportOptions {
@@ -134,12 +269,11 @@ fn open_gltf(spec: &str) -> Result<OpenedScene, OpenError> {
         notes.push(summary);
     }
     notes.extend(imported.warnings.iter().map(|w| format!("warning: {w}")));
-    OpenedScene {
+    Ok(OpenedScene {
         scene: imported.scene,
         notes,
         translation: glam::Vec3::ZERO,
-    }
-    .checked(spec)
+    })
 }
 
 #[cfg(test)]
@@ -161,5 +295,83 @@ mod tests {
             "scene file '/nonexistent/scene.GLB' does not exist"
         );
         assert!(is_gltf_path("a.gltf") && is_gltf_path("B.Glb") && !is_gltf_path("cornell"));
+    }
+
+    #[test]
+    fn added_lights_parse_check_and_follow_the_scene() {
+        let mut added = AddedLights::default();
+        added.parse_sun("0,-2,0=3").unwrap();
+        added.parse_point("0.5, 1.5, 0.5=1,2,3").unwrap();
+        assert_eq!(added.suns[0].direction, glam::Vec3::NEG_Y);
+        assert_eq!(added.suns[0].irradiance, glam::Vec3::splat(3.0));
+        assert_eq!(added.points[0].intensity, glam::Vec3::new(1.0, 2.0, 3.0));
+        let base = open_scene("cornell").unwrap().scene;
+        let opened = open_scene_with("cornell", &added).unwrap();
+        assert_eq!(
+            opened.scene.directional_lights.len(),
+            base.directional_lights.len() + 1
+        );
+        assert_eq!(opened.scene.point_lights.len(), base.point_lights.len() + 1);
+        assert_eq!(opened.scene.point_lights.last().unwrap().name, "point 1");
+        assert!(
+            opened.notes.iter().any(|n| n.contains("added 'sun 1'")),
+            "{:?}",
+            opened.notes
+        );
+        // Malformed specs name the flag and the form.
+        let mut a = AddedLights::default();
+        for (spec, why) in [
+            ("0,0,0=1", "zero"),
+            ("1,2=1", "three numbers"),
+            ("0,-1,0", "no '='"),
+            ("0,-1,0=1,2", "one or three"),
+            ("0,-1,0=-1", "negative"),
+            ("0,nan,0=1", "not finite"),
+            ("0,x,0=1", "not a number"),
+        ] {
+            let e = a.parse_sun(spec).unwrap_err();
+            assert!(e.contains("--sun") && e.contains(why), "{spec}: {e}");
+        }
+        // Beyond the radiometric range: the scene's validation names the added light.
+        let mut huge = AddedLights::default();
+        huge.parse_point("0,1,0=1e30").unwrap();
+        let e = open_scene_with("cornell", &huge).unwrap_err();
+        assert!(matches!(e, OpenError::AddedLight { .. }), "{e}");
+        assert!(e.to_string().contains("point 1"), "{e}");
+    }
+
+    #[cfg(feature = "gltf")]
+    #[test]
+    fn added_lights_move_with_a_recentred_file() {
+        let offset = glam::Vec3::new(100.0, 0.0, -200.0);
+        let mut far = builtin::scene("cornell").unwrap();
+        for m in &mut far.meshes {
+            m.positions.iter_mut().for_each(|p| *p += offset);
+        }
+        far.point_lights.clear();
+        far.cameras.clear();
+        let dir = std::env::temp_dir().join(format!("added-lights-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("far.glb");
+        crate::gltf_io::export(&far, &path).unwrap();
+        let spec = path.to_str().unwrap();
+        // The added point light is where the user put it in the file's coordinates, moved
+        // with the scene.
+        let plain = open_scene(spec).unwrap();
+        let mut added = AddedLights::default();
+        let at = offset + glam::Vec3::new(0.5, 0.9, 0.5);
+        added
+            .parse_point(&format!("{},{},{}=2", at.x, at.y, at.z))
+            .unwrap();
+        let opened = open_scene_with(spec, &added).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        assert_ne!(opened.translation, glam::Vec3::ZERO);
+        let p = opened.scene.point_lights[0].position;
+        assert!(
+            (p - (at + opened.translation)).length() < 1e-2,
+            "{p} {}",
+            opened.translation
+        );
+        assert_eq!(opened.translation, plain.translation);
     }
 }

@@ -139,7 +139,7 @@ fn raycast(
                         .as_ref()
                         .map(|uvs| (0..3).map(|k| uvs[tri[k] as usize] * b[k]).sum::<Vec2>());
                     let material = mesh.material_ids[r.local as usize];
-                    let albedo = scene.albedo_at(material, uv);
+                    let albedo = scene.albedo_at(material, uv) * mesh.color_at(r.local as usize, b);
                     (albedo.extend(1.0), n, depth, hit.triangle)
                 })
                 .collect()

@@ -33,21 +33,22 @@ pub struct GpuVertex {
     pub uv: [f32; 2],
     /// 1 when the mesh has texture coordinates, 0 otherwise.
     pub has_uv: u32,
-    /// Padding to 48 bytes (keeps the WGSL struct layout identical).
-    pub pad: u32,
+    /// Vertex colour multiplying the albedo ([`crate::Mesh::colors`]; white without).
+    pub color: [f32; 3],
 }
 
 impl GpuVertex {
     /// Vertex attributes: location 0 position (`Float32x3`), 1 triangle id (`Uint32`),
     /// 2 normal (`Float32x3`), 3 material id (`Uint32`), 4 uv (`Float32x2`), 5 has_uv
-    /// (`Uint32`).
-    pub const ATTRIBUTES: [wgpu::VertexAttribute; 6] = wgpu::vertex_attr_array![
+    /// (`Uint32`), 6 colour (`Float32x3`).
+    pub const ATTRIBUTES: [wgpu::VertexAttribute; 7] = wgpu::vertex_attr_array![
         0 => Float32x3,
         1 => Uint32,
         2 => Float32x3,
         3 => Uint32,
         4 => Float32x2,
         5 => Uint32,
+        6 => Float32x3,
     ];
 
     /// The vertex buffer layout of a [`GpuScene::vertices`] buffer (per-vertex stepping).
@@ -67,7 +68,7 @@ impl GpuVertex {
         material_id: 0,
         uv: [0.0; 2],
         has_uv: 0,
-        pad: 0,
+        color: [1.0; 3],
     };
 }
 
@@ -88,11 +89,12 @@ mod vertex_layout_tests {
             offset_of!(GpuVertex, material_id),
             offset_of!(GpuVertex, uv),
             offset_of!(GpuVertex, has_uv),
+            offset_of!(GpuVertex, color),
         ];
         for (i, (a, field)) in GpuVertex::ATTRIBUTES.iter().zip(fields).enumerate() {
             assert_eq!((a.shader_location, a.offset as usize), (i as u32, field));
         }
-        let last = GpuVertex::ATTRIBUTES[5];
+        let last = GpuVertex::ATTRIBUTES[6];
         assert!(last.offset + last.format.size() <= std::mem::size_of::<GpuVertex>() as u64);
     }
 }
@@ -147,7 +149,8 @@ pub struct GpuScene {
 }
 
 /// The CPU side of [`GpuContext::upload_scene`]: three [`GpuVertex`] per triangle, in global
-/// triangle id order ([`Scene::mesh_offsets`]). Missing normals or UVs become zero.
+/// triangle id order ([`Scene::mesh_offsets`]). Missing normals or UVs become zero, missing
+/// colours white.
 pub fn flatten_scene(scene: &Scene) -> Vec<GpuVertex> {
     let offsets = scene.mesh_offsets();
     let mut out = Vec::with_capacity(scene.triangle_count() * 3);
@@ -157,6 +160,7 @@ pub fn flatten_scene(scene: &Scene) -> Vec<GpuVertex> {
             for &i in tri {
                 let i = i as usize;
                 let uv = mesh.uvs.as_ref().and_then(|u| u.get(i).copied());
+                let color = mesh.colors.as_ref().and_then(|c| c.get(i).copied());
                 out.push(GpuVertex {
                     position: mesh
                         .positions
@@ -174,7 +178,7 @@ pub fn flatten_scene(scene: &Scene) -> Vec<GpuVertex> {
                     material_id,
                     uv: uv.unwrap_or_default().to_array(),
                     has_uv: u32::from(uv.is_some()),
-                    pad: 0,
+                    color: color.unwrap_or(Vec3::ONE).to_array(),
                 });
             }
         }

@@ -21,6 +21,9 @@ pub struct Mesh {
     pub normals: Vec<Vec3>,
     /// Optional texture coordinates, one per position.
     pub uvs: Option<Vec<Vec2>>,
+    /// Optional vertex colours (glTF's `COLOR_0`, linear RGB in [0, 1]), one per position,
+    /// multiplying the material's albedo (interpolated over each triangle).
+    pub colors: Option<Vec<Vec3>>,
     /// Triangles as indices into `positions`.
     pub indices: Vec<[u32; 3]>,
     /// Material index per triangle (into [`Scene::materials`]).
@@ -31,6 +34,17 @@ impl Mesh {
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.indices.len()
+    }
+
+    /// The vertex colour of triangle `triangle` at barycentric weights `w` of its three
+    /// vertices (white without colours, or for an index out of range).
+    pub fn color_at(&self, triangle: usize, w: [f32; 3]) -> Vec3 {
+        let (Some(colors), Some(t)) = (&self.colors, self.indices.get(triangle)) else {
+            return Vec3::ONE;
+        };
+        (0..3)
+            .map(|k| colors.get(t[k] as usize).copied().unwrap_or(Vec3::ONE) * w[k])
+            .sum()
     }
 
     /// Appends a planar quad `a, b, c, d` (counter-clockwise seen from the side its normal
@@ -49,6 +63,9 @@ impl Mesh {
                 Vec2::new(1.0, 1.0),
                 Vec2::new(0.0, 1.0),
             ]);
+        }
+        if let Some(colors) = &mut self.colors {
+            colors.extend_from_slice(&[Vec3::ONE; 4]);
         }
         self.indices.push([base, base + 1, base + 2]);
         self.indices.push([base, base + 2, base + 3]);
@@ -124,6 +141,9 @@ impl Mesh {
         self.normals.extend_from_slice(&[n; 3]);
         if let Some(uvs) = &mut self.uvs {
             uvs.extend_from_slice(&[Vec2::ZERO, Vec2::X, Vec2::Y]);
+        }
+        if let Some(colors) = &mut self.colors {
+            colors.extend_from_slice(&[Vec3::ONE; 3]);
         }
         self.indices.push([base, base + 1, base + 2]);
         self.material_ids.push(material);
@@ -746,6 +766,24 @@ impl Scene {
                     return Err(SceneError::NonFiniteAttribute {
                         mesh: label,
                         attribute: "uvs",
+                        vertex: v,
+                    });
+                }
+            }
+            if let Some(colors) = &mesh.colors {
+                if colors.len() != nverts {
+                    return Err(SceneError::AttributeCountMismatch {
+                        mesh: label,
+                        attribute: "colors",
+                        expected: nverts,
+                        found: colors.len(),
+                    });
+                }
+                let outside = |c: &Vec3| !(c.min_element() >= 0.0 && c.max_element() <= 1.0);
+                if let Some(v) = colors.iter().position(outside) {
+                    return Err(SceneError::NonFiniteAttribute {
+                        mesh: label,
+                        attribute: "colors (outside [0, 1])",
                         vertex: v,
                     });
                 }

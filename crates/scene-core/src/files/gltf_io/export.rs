@@ -71,6 +71,11 @@ pub fn export_with(
                 ))
             } else if a.values.iter().any(|v| !v.is_finite()) {
                 Some("a value is not finite".into())
+            } else if a.name == "COLOR_0" && mesh.colors.is_some() {
+                Some(format!(
+                    "mesh {} has colours of its own (Mesh::colors)",
+                    a.mesh
+                ))
             } else if a.name == "COLOR_0"
                 && a.values
                     .iter()
@@ -366,6 +371,14 @@ fn build_document(
             if let Some(uvs) = uvs {
                 let uv: Vec<Vec2> = used.iter().map(|&v| uvs[v as usize]).collect();
                 attributes["TEXCOORD_0"] = json!(w.vec2(&uv));
+            }
+            if let Some(colors) = mesh
+                .colors
+                .as_ref()
+                .filter(|c| c.len() == mesh.positions.len())
+            {
+                let c: Vec<Vec3> = used.iter().map(|&v| colors[v as usize]).collect();
+                attributes["COLOR_0"] = json!(w.vec3(&c, false));
             }
             for a in extra.iter().filter(|a| a.mesh == mesh_index) {
                 let values: Vec<Vec3> = used.iter().map(|&v| a.values[v as usize]).collect();

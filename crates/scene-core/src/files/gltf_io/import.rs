@@ -524,6 +524,7 @@ struct PrimitiveData {
     positions: Vec<Vec3>,
     normals: Option<Vec<Vec3>>,
     uvs: Option<Vec<Vec2>>,
+    colors: Option<Vec<Vec3>>,
     triangles: Vec<[u32; 3]>,
     material: u32,
 }
@@ -972,6 +973,16 @@ impl<'a> Importer<'a> {
                 (None, Some(all)) => all.resize(total, Vec2::ZERO),
                 (None, None) => {}
             }
+            match (data.colors, &mut out.colors) {
+                (Some(c), Some(all)) => all.extend(c),
+                (Some(c), None) => {
+                    let mut all = vec![Vec3::ONE; base as usize];
+                    all.extend(c);
+                    out.colors = Some(all);
+                }
+                (None, Some(all)) => all.resize(total, Vec3::ONE),
+                (None, None) => {}
+            }
             out.indices.extend(data.triangles.iter().map(|t| {
                 let [a, b, c] = t.map(|i| i + base);
                 if flip { [a, c, b] } else { [a, b, c] }
@@ -1012,9 +1023,6 @@ impl<'a> Importer<'a> {
         }
         if prim.morph_targets().next().is_some() {
             self.ignore(Ignored::MorphTargets, &at);
-        }
-        if prim.get(&gltf::Semantic::Colors(0)).is_some() {
-            self.ignore(Ignored::VertexColors, &at);
         }
         let material = match prim.material().index() {
             Some(m) => m as u32,
@@ -1175,6 +1183,40 @@ impl<'a> Importer<'a> {
             None => None,
         };
 
+        // COLOR_0 (linear RGB, or RGBA whose alpha is not read) multiplies the albedo.
+        let colors = match prim.get(&gltf::Semantic::Colors(0)) {
+            Some(acc) => {
+                let dims = if acc.dimensions() == Dimensions::Vec4 {
+                    Dimensions::Vec4
+                } else {
+                    Dimensions::Vec3
+                };
+                check(
+                    &acc,
+                    "COLOR_0",
+                    &[DataType::F32, DataType::U8, DataType::U16],
+                    dims,
+                )?;
+                same_count(&acc, "COLOR_0")?;
+                let colors: Vec<Vec3> = reader
+                    .read_colors(0)
+                    .map(|it| {
+                        it.into_rgb_f32()
+                            .map(|c| Vec3::from(c).clamp(Vec3::ZERO, Vec3::ONE))
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                if colors.len() != n {
+                    return Err(count_mismatch("COLOR_0", colors.len(), n));
+                }
+                Some(colors)
+            }
+            None => None,
+        };
+        if prim.get(&gltf::Semantic::Colors(1)).is_some() {
+            self.ignore(Ignored::VertexColors, format!("{at} (COLOR_1 and beyond)"));
+        }
+
         let indices: Vec<u32> = match prim.indices() {
             Some(acc) => {
                 check(
@@ -1216,6 +1258,7 @@ impl<'a> Importer<'a> {
             positions,
             normals,
             uvs,
+            colors,
             triangles,
             material,
         };
@@ -1258,6 +1301,7 @@ impl PrimitiveData {
         let mut positions = Vec::with_capacity(corners);
         let mut normals = Vec::with_capacity(corners);
         let mut uvs = self.uvs.as_ref().map(|_| Vec::with_capacity(corners));
+        let mut colors = self.colors.as_ref().map(|_| Vec::with_capacity(corners));
         for t in &self.triangles {
             let [a, b, c] = t.map(|i| self.positions[i as usize]);
             let n = (b - a).cross(c - a).normalize_or_zero();
@@ -1265,6 +1309,9 @@ impl PrimitiveData {
                 positions.push(self.positions[i as usize]);
                 normals.push(n);
                 if let (Some(out), Some(src)) = (uvs.as_mut(), self.uvs.as_ref()) {
+                    out.push(src[i as usize]);
+                }
+                if let (Some(out), Some(src)) = (colors.as_mut(), self.colors.as_ref()) {
                     out.push(src[i as usize]);
                 }
             }
@@ -1276,6 +1323,7 @@ impl PrimitiveData {
             positions,
             normals: Some(normals),
             uvs,
+            colors,
             triangles,
             material: self.material,
         }

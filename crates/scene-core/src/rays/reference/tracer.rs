@@ -33,6 +33,8 @@ pub struct PathTracer<'a> {
     rays: RayScene,
     tris: Vec<TriData>,
     uvs: Vec<Option<[Vec2; 3]>>,
+    /// Vertex colours per global triangle, where its mesh has them.
+    colors: Vec<Option<[Vec3; 3]>>,
     emitters: Emitters,
     /// (direct, indirect) factors of the light state, per point light, directional light
     /// and mesh (for its emissive triangles).
@@ -61,6 +63,7 @@ impl<'a> PathTracer<'a> {
         let rays = RayScene::build(scene);
         let mut tris = Vec::with_capacity(scene.triangle_count());
         let mut uvs = Vec::with_capacity(scene.triangle_count());
+        let mut colors = Vec::with_capacity(scene.triangle_count());
         for (mi, mesh) in scene.meshes.iter().enumerate() {
             for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
                 let p = t.map(|i| mesh.positions[i as usize]);
@@ -75,6 +78,7 @@ impl<'a> PathTracer<'a> {
                     mesh: mi as u32,
                 });
                 uvs.push(mesh.uvs.as_ref().map(|uv| t.map(|i| uv[i as usize])));
+                colors.push(mesh.colors.as_ref().map(|c| t.map(|i| c[i as usize])));
             }
         }
         let factors = |id: LightId| {
@@ -87,6 +91,7 @@ impl<'a> PathTracer<'a> {
             rays,
             tris,
             uvs,
+            colors,
             emitters: Emitters::new(scene, lights),
             point_factors: (0..scene.point_lights.len() as u32)
                 .map(|i| factors(LightId::Point(i)))
@@ -207,7 +212,9 @@ impl<'a> PathTracer<'a> {
                 ns
             };
             let uv = self.uvs[hit.triangle as usize].map(|uv| uv[0] * b0 + uv[1] * b1 + uv[2] * b2);
-            let albedo = self.scene.albedo_at(tri.material, uv);
+            let color = self.colors[hit.triangle as usize]
+                .map_or(Vec3::ONE, |c| c[0] * b0 + c[1] * b1 + c[2] * b2);
+            let albedo = self.scene.albedo_at(tri.material, uv) * color;
             let p = x + ng * self.eps;
             l += beta
                 * albedo
