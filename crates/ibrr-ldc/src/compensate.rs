@@ -176,7 +176,8 @@ fn residuals(
                         && winding.dot(d) < 0.0
                         && let Some(src) = source_of(LightId::Emissive(t.mesh))
                     {
-                        res[src][0] += mat.emission * (std::f32::consts::PI * w / rays as f32);
+                        let le = scene.triangle_emission(t.mesh as usize, t.local as usize);
+                        res[src][0] += le * (std::f32::consts::PI * w / rays as f32);
                     }
                 }
                 if any {

@@ -216,11 +216,13 @@ impl GpuLdc {
         let mut out = Vec::with_capacity(scene.triangle_count());
         for (mi, mesh) in scene.meshes.iter().enumerate() {
             let factor = lights.get(LightId::Emissive(mi as u32)).direct_factor();
-            for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
+            for (local, (t, &m)) in mesh.indices.iter().zip(&mesh.material_ids).enumerate() {
                 let mat = &scene.materials[m as usize];
                 let (glow, normal) = if mat.is_emissive() {
                     let p = t.map(|i| mesh.positions[i as usize]);
-                    (mat.emission * factor, (p[1] - p[0]).cross(p[2] - p[0]))
+                    // With an emission texture, its mean over the triangle.
+                    let le = scene.triangle_emission(mi, local);
+                    (le * factor, (p[1] - p[0]).cross(p[2] - p[0]))
                 } else {
                     (Vec3::ZERO, Vec3::ZERO)
                 };

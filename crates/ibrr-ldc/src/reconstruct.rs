@@ -396,13 +396,18 @@ pub fn shade(
             let mesh = &scene.meshes[t.mesh as usize];
             let m = mesh.material_ids[t.local as usize];
             // Only emitters need their winding and the pixel's position.
-            if let Some(mat) = scene.materials.get(m as usize).filter(|m| m.is_emissive()) {
+            if scene
+                .materials
+                .get(m as usize)
+                .is_some_and(|m| m.is_emissive())
+            {
                 let tri = mesh.indices[t.local as usize].map(|k| mesh.positions[k as usize]);
                 let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
                 let uv = pixel_uv(i as u32 % g.width, i as u32 / g.width, g.width, g.height);
                 let (eye, _) = view.ray(uv);
                 if ng.dot(recon.world(uv, g.depth[i]) - eye) < 0.0 {
-                    l += mat.emission * lights.get(LightId::Emissive(t.mesh)).direct_factor();
+                    let le = scene.triangle_emission(t.mesh as usize, t.local as usize);
+                    l += le * lights.get(LightId::Emissive(t.mesh)).direct_factor();
                 }
             }
         }

@@ -460,8 +460,8 @@ impl Meshing {
             let ns = t.map(|i| mesh.normals.get(i as usize).copied().unwrap_or(geometric));
             let uvs = mesh.uvs.as_ref().map(|uv| t.map(|i| uv[i as usize]));
             let material = mesh.material_ids[ti];
-            let emission = source.materials[material as usize].emission;
-            let light = (emission.max_element() > 0.0).then_some(LightId::Emissive(mi as u32));
+            let factor = source.materials[material as usize].emission;
+            let light = (factor.max_element() > 0.0).then_some(LightId::Emissive(mi as u32));
             let at = |b: Vec2| p[0] * (1.0 - b.x - b.y) + p[1] * b.x + p[2] * b.y;
             let normal_at = |b: Vec2| {
                 let n = ns[0] * (1.0 - b.x - b.y) + ns[1] * b.x + ns[2] * b.y;
@@ -474,6 +474,26 @@ impl Meshing {
                 |b: Vec2| colors.map(|c| c[0] * (1.0 - b.x - b.y) + c[1] * b.x + c[2] * b.y);
             let albedo_at =
                 |b: Vec2| source.albedo_at(material, uv_of(b)) * color_of(b).unwrap_or(Vec3::ONE);
+            // The patch's emission: the factor, or with an emission texture its mean over the
+            // patch (64 samples), shared by the patch's elements (the solver shoots a patch's
+            // emission as one).
+            let emission = if source.materials[material as usize]
+                .emission_texture
+                .is_some()
+                && uvs.is_some()
+            {
+                scene_core::cutout::triangle_samples(8)
+                    .map(|b| {
+                        let b = piece.bary[0] * (1.0 - b.x - b.y)
+                            + piece.bary[1] * b.x
+                            + piece.bary[2] * b.y;
+                        source.emission_at(material, uv_of(b))
+                    })
+                    .sum::<Vec3>()
+                    / 64.0
+            } else {
+                factor
+            };
             let source_triangle = merged.as_ref().map_or(id, |m| m.origin[id as usize]);
             let patch_area = area / 4f32.powi(l as i32);
             let centre = (piece.bary[0] + piece.bary[1] + piece.bary[2]) / 3.0;

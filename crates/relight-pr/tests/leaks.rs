@@ -70,6 +70,7 @@ fn two_rooms_to(right: f32) -> Scene {
         albedo_texture: None,
         emission: Vec3::ZERO,
         alpha_cutoff: None,
+        emission_texture: None,
     });
     let mut mesh = Mesh {
         name: "rooms".into(),

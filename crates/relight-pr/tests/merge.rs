@@ -23,6 +23,7 @@ fn material(name: &str) -> Material {
         albedo_texture: None,
         emission: Vec3::ZERO,
         alpha_cutoff: None,
+        emission_texture: None,
     }
 }
 

@@ -24,6 +24,7 @@ fn material(albedo: f32, emission: f32) -> Material {
         albedo_texture: None,
         emission: Vec3::splat(emission),
         alpha_cutoff: None,
+        emission_texture: None,
     }
 }
 

@@ -14,6 +14,7 @@ pub fn furnace_scene(rho: f32, mesh: Mesh) -> Scene {
         albedo_texture: None,
         emission: Vec3::ONE,
         alpha_cutoff: None,
+        emission_texture: None,
     });
     scene.meshes.push(mesh);
     scene

@@ -27,7 +27,9 @@
 //!   primitives without a material share an extra default material (albedo 0.8 grey).
 //!   albedo = `baseColorFactor.rgb`, clamped to at most [`ALBEDO_MAX`] per channel with a
 //!   warning (glTF's default factor is 1, where radiosity diverges); emission =
-//!   `emissiveFactor x KHR_materials_emissive_strength`. `baseColorTexture`s are decoded
+//!   `emissiveFactor x KHR_materials_emissive_strength`, times the `emissiveTexture` where
+//!   there is one ([`crate::Material::emission_texture`]; it reads the base colour's texture
+//!   coordinates, or its own without a base colour texture). Textures are decoded
 //!   (PNG or JPEG) and converted from sRGB to linear; only textures used that way are
 //!   imported, in glTF texture index order. A base colour texture's `KHR_texture_transform`
 //!   (offset, rotation, scale, and the coordinate set it names) is baked into the
@@ -54,7 +56,7 @@
 //!   direction. Orthographic cameras are ignored; a camera without the projection object its
 //!   type names is a [`GltfError::Read`].
 //! * Animations, skins (meshes are taken in their node's rest transform), morph targets,
-//!   vertex colour sets past `COLOR_0`, metallic/roughness, normal/occlusion/emissive textures, blending (see
+//!   vertex colour sets past `COLOR_0`, metallic/roughness, normal/occlusion textures, blending (see
 //!   above),
 //!   other scenes and any extension but the three above are ignored and listed.
 //!   Minification filters are not used (textures have no mipmaps).
@@ -82,7 +84,7 @@
 //! `NORMAL` (as repaired by [`Scene::validate`]), `TEXCOORD_0` when the mesh has UVs and
 //! `COLOR_0` when it has vertex colours;
 //! indices are `u32`. Materials carry `baseColorFactor` (alpha 1), `metallicFactor` 0,
-//! `roughnessFactor` 1, the albedo texture as an embedded sRGB PNG (RGBA with linear
+//! `roughnessFactor` 1, the albedo and emission textures as embedded sRGB PNGs (RGBA with linear
 //! alpha when it has alpha), `alphaMode: MASK` with the cutoff when masked, and `emissiveFactor`
 //! (normalised to a maximum of 1, with `KHR_materials_emissive_strength` carrying the scale
 //! when emission exceeds 1). Point, spot and directional lights use `KHR_lights_punctual`;

@@ -155,28 +155,28 @@ impl Cutouts {
     }
 }
 
-/// The fraction of a triangle that exists, from `n x n` samples: the centroids of the `n^2`
-/// equal sub-triangles of its regular subdivision, each passed to `exists` as barycentric
-/// coordinates of vertices 1 and 2. 1 when `n` is 0.
+/// The centroids of the `n^2` equal sub-triangles of a triangle's regular subdivision, as
+/// barycentric coordinates of vertices 1 and 2: `n^2` points that integrate over the
+/// triangle with equal weights.
+pub fn triangle_samples(n: u32) -> impl Iterator<Item = Vec2> {
+    let inv = 1.0 / n.max(1) as f32;
+    (0..n).flat_map(move |i| {
+        (0..n - i).flat_map(move |j| {
+            // The upward sub-triangle of cell (i, j), and the downward one beside it.
+            let up = Vec2::new(i as f32 + 1.0 / 3.0, j as f32 + 1.0 / 3.0) * inv;
+            let down = Vec2::new(i as f32 + 2.0 / 3.0, j as f32 + 2.0 / 3.0) * inv;
+            std::iter::once(up).chain((i + j + 1 < n).then_some(down))
+        })
+    })
+}
+
+/// The fraction of a triangle that exists, from `n x n` samples ([`triangle_samples`]),
+/// each passed to `exists` as barycentric coordinates of vertices 1 and 2. 1 when `n` is 0.
 pub fn coverage(n: u32, exists: impl Fn(Vec2) -> bool) -> f32 {
     if n == 0 {
         return 1.0;
     }
-    let mut hits = 0u32;
-    let inv = 1.0 / n as f32;
-    for i in 0..n {
-        for j in 0..n - i {
-            // The upward sub-triangle of cell (i, j), and the downward one beside it.
-            hits += u32::from(exists(
-                Vec2::new(i as f32 + 1.0 / 3.0, j as f32 + 1.0 / 3.0) * inv,
-            ));
-            if i + j + 1 < n {
-                hits += u32::from(exists(
-                    Vec2::new(i as f32 + 2.0 / 3.0, j as f32 + 2.0 / 3.0) * inv,
-                ));
-            }
-        }
-    }
+    let hits = triangle_samples(n).filter(|&b| exists(b)).count();
     hits as f32 / (n * n) as f32
 }
 
@@ -288,6 +288,9 @@ mod tests {
         }
         assert_eq!(coverage(8, |_| true), 1.0);
         assert_eq!(coverage(0, |_| false), 1.0);
+        assert_eq!(triangle_samples(5).count(), 25);
+        let mean: Vec2 = triangle_samples(6).sum::<Vec2>() / 36.0;
+        assert!((mean - Vec2::splat(1.0 / 3.0)).length() < 1e-6, "{mean}");
     }
 
     #[test]

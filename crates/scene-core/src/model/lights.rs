@@ -485,7 +485,8 @@ pub struct EmissiveTriangle {
     pub normal: Vec3,
     /// Area.
     pub area: f32,
-    /// Emitted radiance as the scene gives it (before any [`LightState`]).
+    /// Emitted radiance as the scene gives it (before any [`LightState`]); with an emission
+    /// texture, its mean over the triangle ([`Scene::triangle_emission`]).
     pub emission: Vec3,
     /// Sampling weight: power under the state (`luminance x area`, with a floor of 1e-3 of
     /// the brightest channel so that saturated colours keep some weight); zero for a light
@@ -524,11 +525,13 @@ impl Emitters {
             } else {
                 Vec3::ZERO
             };
-            for (t, &m) in mesh.indices.iter().zip(&mesh.material_ids) {
-                let le = scene
-                    .materials
-                    .get(m as usize)
-                    .map_or(Vec3::ZERO, |m| m.emission);
+            for (local, (t, &m)) in mesh.indices.iter().zip(&mesh.material_ids).enumerate() {
+                // The triangle's mean emission (an emission texture averaged over it).
+                let le = if scene.materials.get(m as usize).is_some() {
+                    scene.triangle_emission(mi, local)
+                } else {
+                    Vec3::ZERO
+                };
                 if le.max_element() > 0.0 && le.is_finite() {
                     let p = t.map(|i| mesh.positions[i as usize]);
                     let c = (p[1] - p[0]).cross(p[2] - p[0]);

@@ -302,6 +302,10 @@ pub struct Material {
     pub albedo_texture: Option<u32>,
     /// Emitted radiance (linear RGB, the scene's emission units), non-negative.
     pub emission: Vec3,
+    /// Optional emission texture (index into [`Scene::textures`], glTF's
+    /// `emissiveTexture`) multiplied with `emission` ([`Scene::emission_at`]): a lamp
+    /// drawn as an emissive map.
+    pub emission_texture: Option<u32>,
     /// Alpha masking (glTF's `alphaMode: MASK`): where set, the surface exists only where
     /// the albedo texture's alpha ([`Texture::sample_alpha`]; 1 without a texture or
     /// without alpha) is at least this value, and is a hole elsewhere: for rays, rasterised
@@ -318,6 +322,7 @@ impl Material {
             albedo,
             albedo_texture: None,
             emission: Vec3::ZERO,
+            emission_texture: None,
             alpha_cutoff: None,
         }
     }
@@ -329,6 +334,7 @@ impl Material {
             albedo,
             albedo_texture: None,
             emission,
+            emission_texture: None,
             alpha_cutoff: None,
         }
     }
@@ -693,6 +699,46 @@ impl Scene {
         }
     }
 
+    /// Emitted radiance of a material at texture coordinates `uv` (factor x emission
+    /// texture; the factor alone without a texture or coordinates).
+    pub fn emission_at(&self, material: u32, uv: Option<Vec2>) -> Vec3 {
+        let m = &self.materials[material as usize];
+        match (m.emission_texture, uv) {
+            (Some(t), Some(uv)) if m.is_emissive() => {
+                m.emission * self.textures[t as usize].sample(uv)
+            }
+            _ => m.emission,
+        }
+    }
+
+    /// The mean emitted radiance over triangle `local` of mesh `mesh`: the material's
+    /// emission, or with an emission texture its mean over the triangle from 64 samples
+    /// ([`crate::cutout::triangle_samples`]). What methods that treat a triangle as one
+    /// emitter (its power, its colour on screen) use.
+    pub fn triangle_emission(&self, mesh: usize, local: usize) -> Vec3 {
+        let m = &self.meshes[mesh];
+        let material = m.material_ids[local];
+        let mat = &self.materials[material as usize];
+        let Some(uvs) = m
+            .uvs
+            .as_ref()
+            .filter(|_| mat.emission_texture.is_some() && mat.is_emissive())
+        else {
+            return mat.emission;
+        };
+        let t = m.indices[local].map(|i| uvs[i as usize]);
+        let n = 8;
+        crate::cutout::triangle_samples(n)
+            .map(|b| {
+                self.emission_at(
+                    material,
+                    Some(t[0] * (1.0 - b.x - b.y) + t[1] * b.x + t[2] * b.y),
+                )
+            })
+            .sum::<Vec3>()
+            / (n * n) as f32
+    }
+
     /// True where a surface of `material` exists at texture coordinates `uv`: always for an
     /// unmasked material, else where the albedo texture's alpha reaches the cutoff
     /// ([`Material::alpha_cutoff`]). Without coordinates or a texture the alpha is 1.
@@ -932,6 +978,23 @@ impl Scene {
                 });
             }
             check_channels(|| format!("{name}: emission"), m.emission, RADIOMETRIC_MAX)?;
+            if let Some(t) = m.emission_texture
+                && self.textures.get(t as usize).is_none_or(|tex| {
+                    tex.texels.len() != tex.width as usize * tex.height as usize
+                        || tex
+                            .texels
+                            .iter()
+                            .any(|c| !c.is_finite() || c.min_element() < 0.0)
+                })
+            {
+                return Err(SceneError::InvalidMaterial {
+                    material: name,
+                    reason: format!(
+                        "emission texture {t} does not exist or is malformed (the scene has {})",
+                        self.textures.len()
+                    ),
+                });
+            }
             if let Some(t) = m.albedo_texture {
                 let Some(tex) = self.textures.get(t as usize) else {
                     return Err(SceneError::TextureOutOfRange {

@@ -284,7 +284,13 @@ fn build_document(
     let referenced: BTreeSet<u32> = scene
         .materials
         .iter()
-        .filter_map(|m| m.albedo_texture)
+        .flat_map(|m| {
+            [
+                m.albedo_texture,
+                m.emission_texture.filter(|_| m.is_emissive()),
+            ]
+        })
+        .flatten()
         .collect();
     let mut texture_map = BTreeMap::new();
     let mut images = Vec::new();
@@ -332,6 +338,13 @@ fn build_document(
                 extensions_used.insert(EXT_EMISSIVE_STRENGTH);
             } else if m.is_emissive() {
                 mat["emissiveFactor"] = json!(m.emission.to_array());
+            }
+            if let Some(t) = m
+                .emission_texture
+                .filter(|_| m.is_emissive())
+                .and_then(|t| texture_map.get(&t))
+            {
+                mat["emissiveTexture"] = json!({ "index": t });
             }
             mat
         })

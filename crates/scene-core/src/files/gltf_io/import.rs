@@ -91,7 +91,6 @@ enum Ignored {
     MetallicRoughnessTexture,
     NormalTexture,
     OcclusionTexture,
-    EmissiveTexture,
     Transparency,
     OrthographicCamera,
     Extension,
@@ -99,7 +98,7 @@ enum Ignored {
 }
 
 impl Ignored {
-    const ALL: [Ignored; 14] = [
+    const ALL: [Ignored; 13] = [
         Ignored::Animation,
         Ignored::Skin,
         Ignored::MorphTargets,
@@ -109,7 +108,6 @@ impl Ignored {
         Ignored::MetallicRoughnessTexture,
         Ignored::NormalTexture,
         Ignored::OcclusionTexture,
-        Ignored::EmissiveTexture,
         Ignored::Transparency,
         Ignored::OrthographicCamera,
         Ignored::Extension,
@@ -131,7 +129,6 @@ impl Ignored {
             }
             Ignored::NormalTexture => ("normal texture", "normal textures"),
             Ignored::OcclusionTexture => ("occlusion texture", "occlusion textures"),
-            Ignored::EmissiveTexture => ("emissive texture", "emissive textures"),
             Ignored::Transparency => ("blended material", "blended materials"),
             Ignored::OrthographicCamera => ("orthographic camera", "orthographic cameras"),
             Ignored::Extension => ("extension", "extensions"),
@@ -676,7 +673,13 @@ impl<'a> Importer<'a> {
         // Textures used as base colour, decoded in glTF texture index order.
         let used: BTreeSet<usize> = doc
             .materials()
-            .filter_map(|m| m.pbr_metallic_roughness().base_color_texture())
+            .flat_map(|m| {
+                [
+                    m.pbr_metallic_roughness().base_color_texture(),
+                    m.emissive_texture(),
+                ]
+            })
+            .flatten()
             .map(|info| info.texture().index())
             .collect();
         // Textures whose alpha a masked (or blended, read as masked) material reads.
@@ -729,9 +732,9 @@ impl<'a> Importer<'a> {
             if m.occlusion_texture().is_some() {
                 self.ignore(Ignored::OcclusionTexture, &label);
             }
-            if m.emissive_texture().is_some() {
-                self.ignore(Ignored::EmissiveTexture, &label);
-            }
+            let emission_texture = m
+                .emissive_texture()
+                .and_then(|info| texture_map.get(&info.texture().index()).copied());
             // glTF 3.9.4: the alpha is baseColorFactor.a times the texture's alpha; OPAQUE
             // ignores it, MASK keeps the surface where it reaches alphaCutoff (0.5 by
             // default). The factor is folded into the cutoff: alpha_tex >= cutoff / factor.
@@ -763,6 +766,7 @@ impl<'a> Importer<'a> {
                 albedo,
                 albedo_texture,
                 emission,
+                emission_texture,
                 alpha_cutoff,
             });
         }
@@ -1029,11 +1033,33 @@ impl<'a> Importer<'a> {
             None => self.default_material(),
         };
         // The base colour texture's coordinate set (KHR_texture_transform may name another)
-        // and its transform, baked into the coordinates below.
+        // and its transform, baked into the coordinates below; without a base colour
+        // texture, the emissive texture's. The scene keeps one set of coordinates per
+        // vertex: an emissive texture that reads other coordinates than the base colour's
+        // reads the base colour's, with a warning.
+        let emissive = prim.material().emissive_texture();
         let base_color = prim
             .material()
             .pbr_metallic_roughness()
             .base_color_texture();
+        if let (Some(b), Some(e)) = (&base_color, &emissive) {
+            let key = |i: &gltf::texture::Info| {
+                let t = i.texture_transform();
+                (
+                    t.as_ref()
+                        .and_then(|t| t.tex_coord())
+                        .unwrap_or(i.tex_coord()),
+                    t.map(|t| (t.offset(), t.rotation(), t.scale())),
+                )
+            };
+            if key(b) != key(e) {
+                self.warnings.push(format!(
+                    "{at}: the emissive texture reads other texture coordinates than the base \
+                     colour's; it reads the base colour's"
+                ));
+            }
+        }
+        let base_color = base_color.or(emissive);
         let transform = base_color
             .as_ref()
             .and_then(|info| info.texture_transform())

@@ -196,7 +196,9 @@ impl<'a> PathTracer<'a> {
                         power_heuristic(pb, pl)
                     }
                 };
-                l += beta * mat.emission * factor * w;
+                let uv =
+                    self.uvs[hit.triangle as usize].map(|uv| uv[0] * b0 + uv[1] * b1 + uv[2] * b2);
+                l += beta * self.scene.emission_at(tri.material, uv) * factor * w;
             }
             if k > max_vertex {
                 break;
@@ -319,7 +321,9 @@ impl<'a> PathTracer<'a> {
                         let pdf_area = self.emitters.pick_probability(k) as f32 / data.area;
                         let pl = pdf_area * d2 / cos_l;
                         let pb = cos * std::f32::consts::FRAC_1_PI;
-                        let le = self.scene.materials[data.material as usize].emission;
+                        let uv = self.uvs[tri.triangle as usize]
+                            .map(|uv| uv[0] * (1.0 - b.x - b.y) + uv[1] * b.x + uv[2] * b.y);
+                        let le = self.scene.emission_at(data.material, uv);
                         // Irradiance estimate Le cos / pdf (solid angle), MIS-weighted.
                         e += le * factor * (cos / pl * power_heuristic(pl, pb));
                     }
