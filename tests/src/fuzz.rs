@@ -82,7 +82,14 @@ pub fn targets() -> Vec<Target> {
             name: "glb",
             ext: "glb",
             json: false,
-            seeds: || scenes().map(|n| hostile::exported(n, "glb")).collect(),
+            seeds: || {
+                let mut s: Vec<Vec<u8>> = scenes().map(|n| hostile::exported(n, "glb")).collect();
+                s.push(hostile::exported_scene(
+                    &hostile::material_features(),
+                    "glb",
+                ));
+                s
+            },
             run: |bytes, ctx| {
                 let options = ImportOptions {
                     budget: ctx.budget,
@@ -170,6 +177,8 @@ fn scene_spec_seeds() -> Vec<Vec<u8>> {
             r#"{"seed": 3, "spot": [0, 1.5707964], "offset": [1e3, 0, 0]}"#,
             r#"{"seed": 4, "mask": 0.5, "tint": [0.9, 0.5, 0.2]}"#,
             r#"{"seed": 5, "mask": 1.5, "lights": false}"#,
+            r#"{"seed": 6, "sky": [0.5, 0.6, 0.8], "lights": false}"#,
+            r#"{"seed": 2, "sky": [1, 1, 1], "sky_directions": 3, "offset": [1e3, 0, 0]}"#,
         ]
         .map(String::from),
     );
@@ -264,6 +273,17 @@ pub fn run_scene_spec(bytes: &[u8], _ctx: &Context) -> Result<(), String> {
         s.point_lights.clear();
         s.directional_lights.clear();
     }
+    // A uniform sky of radiance `sky`, as `sky_directions` directional lights for the
+    // methods that do not integrate it; a sky the model refuses is a typed outcome.
+    if let Some(l) = vec3(v.get("sky")) {
+        let n = num("sky_directions").map_or(scene_core::sky::DEFAULT_DIRECTIONS, |n| {
+            n.clamp(0.0, u32::MAX as f32) as u32
+        });
+        match scene_core::sky::Sky::uniform(l).and_then(|sky| sky.with_directions(n)) {
+            Ok(sky) => s.sky = Some(sky),
+            Err(_) => return Ok(()),
+        }
+    }
     if v.get("triangles").and_then(|x| x.as_bool()) == Some(false) {
         s.meshes.iter_mut().for_each(|m| {
             m.indices.clear();
@@ -328,6 +348,10 @@ fn gltf_seeds() -> Vec<Vec<u8>> {
     s.push(hostile::to_bytes(&hostile::triangle_json()));
     s.push(hostile::triangle_with_buffer_uri("buf.bin"));
     s.push(hostile::triangle_with_texture(&png_seeds()[0]));
+    s.push(hostile::exported_scene(
+        &hostile::material_features(),
+        "gltf",
+    ));
     s.push(hostile::sparse_instanced(4, 3));
     s.push(hostile::camera_type_mismatch());
     s

@@ -12,10 +12,17 @@ use serde_json::{Value, json};
 
 /// A built-in scene exported as `.gltf` (`ext` "gltf") or `.glb` bytes.
 pub fn exported(name: &str, ext: &str) -> Vec<u8> {
-    let scene = builtin::scene(name).expect("built-in scene");
+    exported_scene(&builtin::scene(name).expect("built-in scene"), ext)
+}
+
+/// `scene` exported as `.gltf` or `.glb` bytes.
+pub fn exported_scene(scene: &scene_core::Scene, ext: &str) -> Vec<u8> {
+    let name = scene
+        .name
+        .replace(|c: char| !c.is_ascii_alphanumeric(), "-");
     let dir = scratch_dir("export");
     let path = dir.join(format!("{name}.{ext}"));
-    gltf_io::export(&scene, &path).expect("export a built-in scene");
+    gltf_io::export(scene, &path).expect("export a scene");
     let bytes = std::fs::read(&path).expect("read the export back");
     let _ = std::fs::remove_dir_all(&dir);
     bytes
@@ -398,4 +405,55 @@ pub fn write(dir: &Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, bytes).expect("write a hostile file");
     p
+}
+
+/// The Cornell box with the material features import reads beyond colour: its first mesh
+/// alpha-masked by an RGBA texture (nearest, clamped), its vertices coloured, and an
+/// emitting quad whose emission is a texture: a seed whose mutations reach those readers.
+pub fn material_features() -> scene_core::Scene {
+    use scene_core::glam::Vec2;
+    let mut s = builtin::scene("cornell").expect("built-in scene");
+    let n = 4usize;
+    s.textures.push(scene_core::Texture {
+        name: "mask".into(),
+        width: n as u32,
+        height: n as u32,
+        texels: vec![Vec3::new(0.8, 0.6, 0.4); n * n],
+        alpha: Some((0..n * n).map(|i| ((i + i / n) % 2) as f32).collect()),
+        sampler: scene_core::Sampler {
+            wrap_u: scene_core::Wrap::ClampToEdge,
+            wrap_v: scene_core::Wrap::MirroredRepeat,
+            nearest: true,
+        },
+    });
+    s.textures.push(scene_core::Texture {
+        name: "glow".into(),
+        width: 2,
+        height: 1,
+        texels: vec![Vec3::ONE, Vec3::splat(0.25)],
+        alpha: None,
+        sampler: Default::default(),
+    });
+    let first = s.meshes[0].material_ids[0] as usize;
+    s.materials[first].albedo_texture = Some(0);
+    s.materials[first].alpha_cutoff = Some(0.5);
+    for m in &mut s.meshes {
+        m.uvs = Some(
+            m.positions
+                .iter()
+                .map(|p| Vec2::new(p.x, p.z) * 3.0)
+                .collect(),
+        );
+        m.colors = Some(
+            m.positions
+                .iter()
+                .map(|p| (p.abs() * 2.0).fract())
+                .collect(),
+        );
+    }
+    if let Some(lamp) = s.materials.iter_mut().find(|m| m.is_emissive()) {
+        lamp.emission_texture = Some(1);
+    }
+    s.validate().expect("the feature scene is valid");
+    s
 }

@@ -210,3 +210,30 @@ fn emission_textures_round_trip_through_gltf() {
         assert!((*x - *y).length() < 1e-3, "{x} {y}");
     }
 }
+
+/// The fuzzer's seed for the material features (`hostile::material_features`) imports with
+/// each of them, so its mutations reach their readers.
+#[test]
+fn the_material_features_seed_imports_with_each_feature() {
+    for ext in ["gltf", "glb"] {
+        let bytes =
+            golden_tests::hostile::exported_scene(&golden_tests::hostile::material_features(), ext);
+        let r =
+            scene_core::gltf_io::import_slice(&bytes, std::path::Path::new(&format!("seed.{ext}")))
+                .unwrap();
+        let s = &r.scene;
+        assert!(
+            s.materials.iter().any(|m| m.alpha_cutoff == Some(0.5)),
+            "{ext}: mask"
+        );
+        assert!(s.textures.iter().any(|t| t.alpha.is_some()), "{ext}: alpha");
+        assert!(
+            s.materials.iter().any(|m| m.emission_texture.is_some()),
+            "{ext}: glow"
+        );
+        assert!(
+            s.meshes.iter().all(|m| m.colors.is_some()),
+            "{ext}: colours"
+        );
+    }
+}

@@ -53,6 +53,17 @@ struct Cli {
     /// coordinates and its intensity in W/sr (one number: grey). Repeatable.
     #[arg(long = "point", global = true, value_name = "POS=RGB")]
     points: Vec<String>,
+    /// Add a sky to every scene opened: R,G,B (one number: grey), a uniform radiance over
+    /// the upper hemisphere, or FILE.exr, an equirectangular environment map (+Y up, its
+    /// centre column along -Z). It lights surfaces through openings; it is not drawn as a
+    /// background.
+    #[arg(long = "sky", global = true, value_name = "RGB|FILE.exr")]
+    sky: Option<String>,
+    /// How many directional lights the sky becomes for the methods that do not integrate
+    /// it (DL, ISR, relighting, the IBRR): 1 to 1024, default 64 (docs/scene-core.md has
+    /// the error and cost of 16, 64 and 256).
+    #[arg(long = "sky-directions", global = true, value_name = "N")]
+    sky_directions: Option<u32>,
 }
 
 /// The lights `--sun` and `--point` add to every scene a command opens (set once, before
@@ -754,7 +765,13 @@ fn main() -> ExitCode {
         .suns
         .iter()
         .try_for_each(|s| added.parse_sun(s))
-        .and_then(|()| cli.points.iter().try_for_each(|p| added.parse_point(p)));
+        .and_then(|()| cli.points.iter().try_for_each(|p| added.parse_point(p)))
+        .and_then(|()| cli.sky.iter().try_for_each(|s| added.parse_sky(s)))
+        .and_then(|()| {
+            cli.sky_directions
+                .iter()
+                .try_for_each(|&n| added.set_sky_directions(n))
+        });
     if let Err(e) = parsed {
         eprintln!("error: {e}");
         return ExitCode::FAILURE;

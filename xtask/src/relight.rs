@@ -76,6 +76,11 @@ pub fn scene_emission(scene: &Scene, id: LightId) -> Vec3 {
     match id {
         LightId::Point(i) => scene.point_lights[i as usize].intensity,
         LightId::Directional(i) => scene.directional_lights[i as usize].irradiance,
+        // The irradiance an unoccluded floor receives from it.
+        LightId::Sky => scene
+            .sky
+            .as_ref()
+            .map_or(Vec3::ZERO, |s| s.irradiance(Vec3::Y)),
         LightId::Emissive(m) => scene.meshes[m as usize]
             .material_ids
             .iter()
@@ -238,6 +243,7 @@ pub fn run(o: &Options) -> Result<(), String> {
             let (kind, index) = match id {
                 LightId::Point(i) => ("point", i),
                 LightId::Directional(i) => ("directional", i),
+                LightId::Sky => ("sky", 0),
                 LightId::Emissive(m) => ("emissive mesh", m),
             };
             let e = scene_emission(&scene, id) * state.get(id).color;

@@ -1,5 +1,5 @@
-//! A user's glTF without lights renders in one command: `--sun DIR=RGB` and `--point
-//! POS=RGB` add lights to the scene every command opens (in the file's coordinates), noted
+//! A user's glTF without lights renders in one command: `--sun DIR=RGB`, `--point
+//! POS=RGB` and `--sky RGB|FILE.exr` add lights to the scene every command opens (in the file's coordinates), noted
 //! on stderr; malformed values are refused before any work, naming the flag.
 
 mod common;
@@ -98,11 +98,30 @@ fn a_lightless_file_renders_with_added_lights() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("added 'sun 1'"), "{err}");
+    // A uniform sky through the box's open front, in the reference and in the IBRR.
+    for (command, extra) in [
+        ("reference", &reference[..]),
+        ("ibrr", &["--ldc", "32", "--irpls", "8"][..]),
+    ] {
+        let out = format!("sky-{command}");
+        let o = run(command, &[extra, &["--sky", "0.8,0.9,1"]].concat(), &out);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{command}: {err}");
+        assert!(err.contains("added sky 'uniform sky'"), "{command}: {err}");
+        let image = scene_core::Image::read(&dir.join(&out).join("dark.exr")).unwrap();
+        assert!(
+            lit_fraction(&image) > 0.3,
+            "{command}: {}",
+            lit_fraction(&image)
+        );
+    }
     // Malformed values: refused, naming the flag, nothing written.
     for (flag, value) in [
         ("--sun", "0,0,0=1"),
         ("--point", "1,2=3"),
         ("--sun", "0,-1,0=-2"),
+        ("--sky", "blue"),
+        ("--sky", "no-such-sky.exr"),
     ] {
         let out = format!("bad{}", flag.len());
         let o = run(

@@ -91,7 +91,8 @@ pub fn export(scene: &Scene, camera: &Camera, width: u32, height: u32) -> String
         );
     }
     let centre = scene.bounds().center();
-    for l in &scene.directional_lights {
+    // The sky goes as its median-cut directions (parallel lights), as the methods see it.
+    for (_, l) in scene_core::lights::directional_sources(scene) {
         let from = centre - l.direction.normalize() * extent * 10.0;
         let c = l.irradiance / std::f32::consts::PI;
         let _ = writeln!(

@@ -140,9 +140,16 @@ pub struct IrplSet {
 /// A light's share of the particles.
 #[derive(Clone, Copy, Debug)]
 enum Start {
-    Point { light: u32 },
-    Directional { light: u32 },
-    Emitter { triangle: usize },
+    Point {
+        light: u32,
+    },
+    /// A directional light or one of the sky's directions: its unit travel direction.
+    Directional {
+        direction: Vec3,
+    },
+    Emitter {
+        triangle: usize,
+    },
 }
 
 /// Surface properties where a ray hit.
@@ -208,8 +215,9 @@ pub(crate) fn surface_at(
 /// Settings of the particle walks.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WalkSettings {
-    /// About this many IRPLs (exact sources included): the path count is the remainder
-    /// divided by the mean IRPLs per path of a pilot of 256 independent walks.
+    /// About this many IRPLs (exact sources included, except the sky's directions, which
+    /// come on top): the path count is the remainder divided by the mean IRPLs per path of
+    /// a pilot of 256 independent walks.
     pub irpls: u32,
     /// Seed of the Halton scrambling and the bounce generators.
     pub seed: u64,
@@ -311,8 +319,8 @@ fn walks(
             id,
         ));
     }
-    for (i, l) in scene.directional_lights.iter().enumerate() {
-        let id = LightId::Directional(i as u32);
+    // The scene's directional lights, then the sky as its median-cut directions.
+    for (id, l) in scene_core::lights::directional_sources(scene) {
         let s = lights.get(id);
         let dir = l.direction.normalize_or_zero();
         if !s.enabled || dir == Vec3::ZERO {
@@ -331,7 +339,7 @@ fn walks(
             });
         }
         starts.push((
-            Start::Directional { light: i as u32 },
+            Start::Directional { direction: dir },
             l.irradiance * s.color * (std::f32::consts::PI * radius * radius) * s.indirect,
             id,
         ));
@@ -360,10 +368,14 @@ fn walks(
         .map(|(_, p, _)| scene_core::lights::sampling_weight(*p))
         .collect();
     let total: f64 = weights.iter().sum();
+    // The sky's directions (one exact source each, `scene_core::sky`) come on top of the
+    // budget, so that a sky does not take the paths' share: the budget counts the other
+    // exact sources and the paths.
+    let budgeted_exact = set.irpls.iter().filter(|i| i.light != LightId::Sky).count();
     if total <= 0.0
         || (first_path.is_none()
             && settings.paths == 0
-            && settings.irpls as usize <= set.irpls.len())
+            && settings.irpls as usize <= budgeted_exact)
     {
         return set;
     }
@@ -401,7 +413,7 @@ fn walks(
             walker.walk(k, pilot_seed, &mut scratch);
         }
         let per_path = scratch.len() as f64 / PILOT as f64;
-        let wanted = (settings.irpls as usize).saturating_sub(set.irpls.len()) as f64;
+        let wanted = (settings.irpls as usize).saturating_sub(budgeted_exact) as f64;
         if per_path > 0.0 {
             (wanted / per_path).round().max(1.0) as u64
         } else {
@@ -470,9 +482,7 @@ impl Walker<'_> {
                     }
                 }
             }
-            Start::Directional { light } => {
-                let l = &scene.directional_lights[light as usize];
-                let dir = l.direction.normalize();
+            Start::Directional { direction: dir } => {
                 let (t, b) = scene_core::view::orthonormal_basis(dir);
                 let disk = scene_core::sampling::concentric_disk(Vec2::new(u1, u2)) * radius;
                 (

@@ -264,19 +264,17 @@ impl LightSet {
                 }
             });
         }
-        for (i, l) in scene.directional_lights.iter().enumerate() {
+        // The scene's directional lights, then the sky as its median-cut directions.
+        for (id, l) in scene_core::lights::directional_sources(scene) {
             let d = l.direction.normalize_or_zero();
             if d == Vec3::ZERO || !l.irradiance.is_finite() {
                 return Err(IsrError::BadScene(format!(
-                    "directional light #{i} '{}' has no direction or a non-finite irradiance",
+                    "{}: directional light '{}' has no direction or a non-finite irradiance",
+                    id.label(scene),
                     l.name
                 )));
             }
-            lights.push(Light::directional(
-                LightId::Directional(i as u32),
-                d,
-                l.irradiance.max(Vec3::ZERO),
-            ));
+            lights.push(Light::directional(id, d, l.irradiance.max(Vec3::ZERO)));
         }
         let (emitters, samples) = emitters(scene, shadows.emitter_samples, extent);
         lights.extend(samples);
@@ -398,7 +396,13 @@ impl LightSet {
             count(LightKind::EmitterSample),
         );
         let (mut cube, mut emit) = (s.cube_resolution, s.emitter_cube_resolution);
-        let dir_texels = n_dir * (s.directional_resolution as u64).pow(2);
+        let n_sky = self
+            .lights
+            .iter()
+            .filter(|l| l.kind == LightKind::Directional && l.id == LightId::Sky)
+            .count() as u64;
+        let dir_texels = (n_dir - n_sky) * (s.directional_resolution as u64).pow(2)
+            + n_sky * (s.sky_resolution as u64).pow(2);
         let total = |c: u32, e: u32| {
             dir_texels + 6 * n_point * (c as u64).pow(2) + 6 * n_emit * (e as u64).pow(2)
         };
@@ -412,7 +416,7 @@ impl LightSet {
                 needed: total(cube, emit),
                 limit: s.max_texels,
                 unit: "texels",
-                hint: "ShadowSettings::max_texels; lower directional_resolution or raise it".into(),
+                hint: "ShadowSettings::max_texels; lower directional_resolution or sky_resolution, or raise it".into(),
             }));
         }
         self.cube_resolutions = (cube, emit);
@@ -440,7 +444,11 @@ impl LightSet {
                             forward: view.forward,
                             half_extent: half,
                         },
-                        s.directional_resolution,
+                        if light.id == LightId::Sky {
+                            s.sky_resolution
+                        } else {
+                            s.directional_resolution
+                        },
                     )
                 }
                 LightKind::Point => (

@@ -294,6 +294,10 @@ pub struct ShadowSettings {
     pub enabled: bool,
     /// Texels per side of a directional light's orthographic map.
     pub directional_resolution: u32,
+    /// Texels per side of the orthographic map of each of the sky's directions
+    /// ([`scene_core::sky::Sky::lights`]): many, each carrying a small share of soft light,
+    /// so coarser than a sun's.
+    pub sky_resolution: u32,
     /// Texels per side of each cube-map face of a point light.
     pub cube_resolution: u32,
     /// Point samples standing in for the emissive triangles (0: emitters light nothing, they
@@ -323,6 +327,7 @@ impl Default for ShadowSettings {
         Self {
             enabled: true,
             directional_resolution: 1024,
+            sky_resolution: 256,
             cube_resolution: 256,
             emitter_samples: 16,
             emitter_cube_resolution: 128,
@@ -347,6 +352,7 @@ impl ShadowSettings {
         };
         for (name, r) in [
             ("directional_resolution", self.directional_resolution),
+            ("sky_resolution", self.sky_resolution),
             ("cube_resolution", self.cube_resolution),
             ("emitter_cube_resolution", self.emitter_cube_resolution),
         ] {

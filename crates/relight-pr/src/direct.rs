@@ -259,6 +259,31 @@ pub fn element_from_point<O: Occlusion + ?Sized>(
     mean_from_point(l, rays, &[e.corners], e.normal, e.area, &points[..count])
 }
 
+/// An element's mean irradiance from one analytic light of `scene` (a point or spot light,
+/// a directional light, or the sky as its median-cut directions); zero for an emissive
+/// mesh, whose light is shot by the solve. `extent` is the scene's ([`Scene::extent`]).
+pub fn element_from_analytic<O: Occlusion + ?Sized>(
+    scene: &Scene,
+    id: LightId,
+    rays: &O,
+    e: &crate::mesh::Element,
+    extent: f32,
+) -> Vec3 {
+    match id {
+        LightId::Point(i) => element_from_point(&scene.point_lights[i as usize], rays, e),
+        LightId::Directional(i) => {
+            element_from_directional(&scene.directional_lights[i as usize], rays, e, extent)
+        }
+        LightId::Sky => scene.sky.as_ref().map_or(Vec3::ZERO, |sky| {
+            sky.lights()
+                .iter()
+                .map(|l| element_from_directional(l, rays, e, extent))
+                .sum()
+        }),
+        LightId::Emissive(_) => Vec3::ZERO,
+    }
+}
+
 /// The mean irradiance over element `e` from directional light `l` in a scene of size
 /// `extent`: [`from_directional`] averaged over its open receiver points (zero for a
 /// hidden element).
@@ -310,6 +335,11 @@ impl DirectGather {
                         LightId::Point(i) => points.push(scene.point_lights[i as usize].clone()),
                         LightId::Directional(i) => {
                             suns.push(scene.directional_lights[i as usize].clone())
+                        }
+                        LightId::Sky => {
+                            if let Some(sky) = &scene.sky {
+                                suns.extend(sky.lights().iter().cloned());
+                            }
                         }
                         LightId::Emissive(_) => {
                             for p in meshing.patches.iter().filter(|p| p.light == Some(id)) {

@@ -298,22 +298,8 @@ pub fn shadowed_direct(
             let mut emissive = false;
             for &id in &source.lights {
                 match id {
-                    LightId::Point(i) => {
-                        sum += direct::element_from_point(
-                            &scene.point_lights[i as usize],
-                            &occlusion,
-                            e,
-                        )
-                    }
-                    LightId::Directional(i) => {
-                        sum += direct::element_from_directional(
-                            &scene.directional_lights[i as usize],
-                            &occlusion,
-                            e,
-                            extent,
-                        )
-                    }
                     LightId::Emissive(_) => emissive = true,
+                    _ => sum += direct::element_from_analytic(scene, id, &occlusion, e, extent),
                 }
             }
             if emissive {
@@ -323,18 +309,7 @@ pub fn shadowed_direct(
                 let analytic: Vec3 = source
                     .lights
                     .iter()
-                    .map(|&id| match id {
-                        LightId::Point(i) => {
-                            direct::element_from_point(&scene.point_lights[i as usize], rays, e)
-                        }
-                        LightId::Directional(i) => direct::element_from_directional(
-                            &scene.directional_lights[i as usize],
-                            rays,
-                            e,
-                            extent,
-                        ),
-                        LightId::Emissive(_) => Vec3::ZERO,
-                    })
+                    .map(|&id| direct::element_from_analytic(scene, id, rays, e, extent))
                     .sum();
                 let solved = (solution.direct[j * k + m] - analytic).max(Vec3::ZERO);
                 if solved != Vec3::ZERO {

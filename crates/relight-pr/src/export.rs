@@ -31,6 +31,7 @@ pub fn attribute_name(source: &Source) -> String {
         LightId::Point(i) => format!("POINT_{i}"),
         LightId::Directional(i) => format!("DIRECTIONAL_{i}"),
         LightId::Emissive(i) => format!("EMISSIVE_{i}"),
+        LightId::Sky => "SKY".to_string(),
     };
     let first = source.lights.first().map_or_else(|| "NONE".into(), id);
     if source.lights.len() > 1 {

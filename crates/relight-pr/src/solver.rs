@@ -367,23 +367,19 @@ fn solve_tagged(
             unshot_emit[p * k + m] = e * std::f32::consts::PI;
         }
     }
-    // Point and directional lights shoot their first energy analytically, with rays.
+    // Point and directional lights and the sky shoot their first energy analytically, with
+    // rays.
     let extent = scene.extent();
     for (m, source) in sources.iter().enumerate() {
         for &id in &source.lights {
             // The element's mean irradiance (visibility at its four receiver points).
-            let shoot: Box<dyn Fn(&crate::mesh::Element) -> Vec3 + Sync> = match id {
-                LightId::Point(i) => {
-                    let l = &scene.point_lights[i as usize];
-                    Box::new(move |e| direct::element_from_point(l, rays, e))
-                }
-                LightId::Directional(i) => {
-                    let l = &scene.directional_lights[i as usize];
-                    Box::new(move |e| direct::element_from_directional(l, rays, e, extent))
-                }
-                LightId::Emissive(_) => continue,
-            };
-            let received: Vec<Vec3> = els.par_iter().map(&shoot).collect();
+            if matches!(id, LightId::Emissive(_)) {
+                continue;
+            }
+            let received: Vec<Vec3> = els
+                .par_iter()
+                .map(|e| direct::element_from_analytic(scene, id, rays, e, extent))
+                .collect();
             for (j, r) in received.into_iter().enumerate() {
                 direct[j * k + m] += r;
             }

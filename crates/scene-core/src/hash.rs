@@ -131,6 +131,17 @@ pub fn scene_content_hash(scene: &crate::Scene) -> u64 {
     for l in &scene.directional_lights {
         h = words(h, bytemuck::cast_slice(&[l.direction, l.irradiance]));
     }
+    h = match &scene.sky {
+        Some(sky) => {
+            let (w, hh) = sky.size();
+            let h = mix(mix(mix(h, 1), u64::from(w)), u64::from(hh));
+            mix(
+                words(h, bytemuck::cast_slice(sky.map())),
+                u64::from(sky.directions()),
+            )
+        }
+        None => mix(h, 0),
+    };
     h
 }
 
@@ -148,12 +159,15 @@ mod tests {
         s.cameras.clear();
         assert_eq!(hash(&s), h0, "name and cameras are not content");
         type Edit = (&'static str, fn(&mut crate::Scene));
-        let edits: [Edit; 6] = [
+        let edits: [Edit; 7] = [
             ("a vertex", |s| s.meshes[0].positions[0].x += 1e-3),
             ("an albedo", |s| s.materials[0].albedo.y *= 0.5),
             ("a light position", |s| s.point_lights[0].position.y -= 0.01),
             ("a light intensity", |s| s.point_lights[0].intensity *= 2.0),
             ("a light radius", |s| s.point_lights[0].radius = Some(3.0)),
+            ("a sky", |s| {
+                s.sky = Some(crate::sky::Sky::uniform(glam::Vec3::ONE).unwrap())
+            }),
             ("a spot cone", |s| {
                 s.point_lights[0].cone = Some(crate::lights::SpotCone {
                     direction: glam::Vec3::NEG_Y,

@@ -46,7 +46,7 @@ pub use cutout::Cutouts;
 pub use files::gltf_io;
 pub use files::open::{AddedLights, OpenError, OpenedScene, open_scene, open_scene_with};
 pub use files::{budget, image};
-pub use model::{builtin, contract, cutout, lights, scene, view};
+pub use model::{builtin, contract, cutout, lights, scene, sky, view};
 #[cfg(feature = "rays")]
 pub use rays::ray;
 pub use rays::{reference, sampling};

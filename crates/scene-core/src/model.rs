@@ -2,7 +2,7 @@
 //! materials, albedo textures, lights, cameras), the built-in test scenes ([`builtin`]),
 //! light sources with stable ids and their per-frame state ([`lights`]), and views
 //! ([`view`]: cameras, hemicube faces, shadow-map views, engine matrices), the scene
-//! contract every method holds ([`contract`]), and alpha-masked surfaces as visibility
+//! contract every method holds ([`contract`]), the sky ([`sky`]), and alpha-masked surfaces as visibility
 //! sees them ([`cutout`]).
 
 pub mod building;
@@ -11,4 +11,5 @@ pub mod contract;
 pub mod cutout;
 pub mod lights;
 pub mod scene;
+pub mod sky;
 pub mod view;

@@ -22,6 +22,14 @@ pub struct Args {
     /// intensity in W/sr; one number for grey). Repeatable.
     #[arg(long = "point", value_name = "POS=RGB")]
     pub points: Vec<String>,
+    /// Add a sky: R,G,B (uniform radiance over the upper hemisphere; one number for grey)
+    /// or FILE.exr (an equirectangular environment map).
+    #[arg(long = "sky", value_name = "RGB|FILE.exr")]
+    pub sky: Option<String>,
+    /// How many directional lights the sky becomes for the methods that do not integrate
+    /// it (1 to 1024, default 64).
+    #[arg(long = "sky-directions", value_name = "N")]
+    pub sky_directions: Option<u32>,
     /// Window size, WIDTHxHEIGHT in physical pixels.
     #[arg(long, default_value = "960x600")]
     pub size: String,
@@ -82,11 +90,15 @@ pub struct Args {
 }
 
 impl Args {
-    /// The lights `--sun` and `--point` add to the scene.
+    /// The lights `--sun`, `--point` and `--sky` add to the scene.
     pub fn added_lights(&self) -> Result<scene_core::AddedLights, String> {
         let mut added = scene_core::AddedLights::default();
         self.suns.iter().try_for_each(|s| added.parse_sun(s))?;
         self.points.iter().try_for_each(|p| added.parse_point(p))?;
+        self.sky.iter().try_for_each(|s| added.parse_sky(s))?;
+        if let Some(n) = self.sky_directions {
+            added.set_sky_directions(n)?;
+        }
         Ok(added)
     }
 

@@ -95,7 +95,8 @@ impl OpenedScene {
 }
 
 /// Lights a user adds to a scene as it is opened, so that a file without lights renders in
-/// one command (`--sun DIR=RGB`, `--point POS=RGB` on the command lines). They are added in
+/// one command (`--sun DIR=RGB`, `--point POS=RGB`, `--sky RGB|FILE.exr` on the command
+/// lines). They are added in
 /// the file's coordinates before the scene contract is checked, so a scene moved to the
 /// origin moves them with it, and named `sun N` and `point N` (from 1) in
 /// [`crate::lights::light_ids`] order after the file's own.
@@ -105,12 +106,36 @@ pub struct AddedLights {
     pub suns: Vec<DirectionalLight>,
     /// Point lights.
     pub points: Vec<PointLight>,
+    /// A sky (it replaces the scene's own, if it has one).
+    pub sky: Option<crate::sky::Sky>,
 }
 
 impl AddedLights {
     /// True when nothing is added.
     pub fn is_empty(&self) -> bool {
-        self.suns.is_empty() && self.points.is_empty()
+        self.suns.is_empty() && self.points.is_empty() && self.sky.is_none()
+    }
+
+    /// Parses `R,G,B` (or one number, grey): a uniform sky of that radiance over the upper
+    /// hemisphere ([`crate::sky::Sky::uniform`]); or `FILE.exr`: an equirectangular
+    /// environment map read within the default [`crate::Budget`]
+    /// ([`crate::sky::Sky::from_image`]). The error names the flag, the file or the number.
+    pub fn parse_sky(&mut self, spec: &str) -> Result<(), String> {
+        let sky = if spec.to_ascii_lowercase().ends_with(".exr") {
+            let path = Path::new(spec);
+            let image = crate::image::Image::read_exr_with(path, &crate::Budget::default())
+                .map_err(|e| format!("--sky {spec}: {e}"))?;
+            let name = path
+                .file_name()
+                .map_or_else(|| spec.to_string(), |n| n.to_string_lossy().into_owned());
+            crate::sky::Sky::from_image(&name, &image)
+        } else {
+            let (_, rgb) = parse_pair(&format!("0,1,0={spec}"), "--sky", "R,G,B or FILE.exr")
+                .map_err(|e| e.replace("--sky 0,1,0=", "--sky "))?;
+            crate::sky::Sky::uniform(rgb)
+        };
+        self.sky = Some(sky.map_err(|e| format!("--sky {spec}: {e}"))?);
+        Ok(())
     }
 
     /// Parses `DX,DY,DZ=R,G,B`: a sun travelling along `(DX, DY, DZ)` (normalised; `0,-1,0`
@@ -142,10 +167,29 @@ impl AddedLights {
         Ok(())
     }
 
+    /// Sets how many directional lights the added sky becomes for the methods that do not
+    /// integrate it (`--sky-directions N`, 1 to [`crate::sky::MAX_DIRECTIONS`]); an error
+    /// without a sky or out of range, naming the flag.
+    pub fn set_sky_directions(&mut self, n: u32) -> Result<(), String> {
+        let sky = self
+            .sky
+            .as_ref()
+            .ok_or_else(|| format!("--sky-directions {n}: there is no --sky to apply it to"))?;
+        self.sky = Some(
+            sky.with_directions(n)
+                .map_err(|e| format!("--sky-directions {n}: {e}"))?,
+        );
+        Ok(())
+    }
+
     /// Adds the lights to `scene` and checks them with the scene's own validation.
     fn add_to(&self, scene: &mut Scene) -> Result<Vec<String>, crate::SceneError> {
         scene.directional_lights.extend(self.suns.iter().cloned());
         scene.point_lights.extend(self.points.iter().cloned());
+        let replaced = self.sky.is_some() && scene.sky.is_some();
+        if let Some(sky) = &self.sky {
+            scene.sky = Some(sky.clone());
+        }
         scene.validate()?;
         let mut notes: Vec<String> = self
             .suns
@@ -165,6 +209,24 @@ impl AddedLights {
                 l.name, p.x, p.y, p.z, i.x, i.y, i.z
             )
         }));
+        if let Some(sky) = &self.sky {
+            let (w, h) = sky.size();
+            let e = sky.irradiance(glam::Vec3::Y);
+            notes.push(format!(
+                "note: added sky '{}' ({w}x{h} map{}, as {} directions where a method does \
+                 not integrate it): an open floor receives ({}, {}, {})",
+                sky.name,
+                if replaced {
+                    ", replacing the scene's"
+                } else {
+                    ""
+                },
+                sky.lights().len(),
+                e.x,
+                e.y,
+                e.z
+            ));
+        }
         Ok(notes)
     }
 }

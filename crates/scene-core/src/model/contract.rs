@@ -7,7 +7,7 @@
 //! | case | outcome |
 //! |---|---|
 //! | no triangle (none given, or every one dropped as degenerate) | refused: [`SceneError::NoGeometry`] |
-//! | no light (no point or directional light with power, no emissive triangle) | legal: a black image; [`Contract::notes`] says why |
+//! | no light (no point or directional light with power, no sky, no emissive triangle) | legal: a black image; [`Contract::notes`] says why |
 //! | coordinates so far from the origin that f32 spaces them more than [`PRECISION_LIMIT`] of the extent apart | refused: [`SceneError::PrecisionLost`] (the file's own f32 positions have already lost it) |
 //! | geometry off the origin by more than its extent, within the limit | [`Scene::recentred`] moves it (every position, light and camera) to the origin; [`crate::open_scene`] does this with a note |
 //!
@@ -81,7 +81,7 @@ pub fn check(scene: &Scene) -> Result<Contract, SceneError> {
     contract.lit = is_lit(scene);
     if !contract.lit {
         contract.notes.push(format!(
-            "{}: the scene has no light (no point or directional light with power, no \
+            "{}: the scene has no light (no point or directional light with power, no sky, no \
              emissive triangle): every method renders it black",
             scene.name
         ));
@@ -108,6 +108,7 @@ pub fn is_lit(scene: &Scene) -> bool {
             .directional_lights
             .iter()
             .any(|l| l.irradiance.max_element() > 0.0)
+        || scene.sky.as_ref().is_some_and(|s| !s.is_black())
 }
 
 /// Bounds of the vertices that triangles use (a stray unused vertex far away does not

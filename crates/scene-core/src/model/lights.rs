@@ -37,6 +37,8 @@ pub enum LightId {
     Point(u32),
     /// `scene.directional_lights[i]`.
     Directional(u32),
+    /// `scene.sky` (as one source, whichever form a method gives it).
+    Sky,
     /// The emissive triangles of `scene.meshes[i]`, as one source.
     Emissive(u32),
 }
@@ -60,9 +62,16 @@ impl LightId {
                 "emissive mesh",
                 scene.meshes.get(i as usize).map(|m| m.name.as_str()),
             ),
+            LightId::Sky => {
+                return match &scene.sky {
+                    Some(s) if !s.name.is_empty() => format!("sky '{}'", s.name),
+                    _ => "sky".to_string(),
+                };
+            }
         };
         let i = match *self {
             LightId::Point(i) | LightId::Directional(i) | LightId::Emissive(i) => i,
+            LightId::Sky => 0,
         };
         match name {
             Some(n) if !n.is_empty() => format!("{kind} #{i} '{n}'"),
@@ -72,13 +81,14 @@ impl LightId {
 }
 
 impl LightId {
-    /// The id as command lines and replay files write it: `point:N`, `directional:N` or
-    /// `emissive:N` (N a mesh index).
+    /// The id as command lines and replay files write it: `point:N`, `directional:N`,
+    /// `sky` or `emissive:N` (N a mesh index).
     pub fn key(&self) -> String {
         match *self {
             LightId::Point(i) => format!("point:{i}"),
             LightId::Directional(i) => format!("directional:{i}"),
             LightId::Emissive(m) => format!("emissive:{m}"),
+            LightId::Sky => "sky".to_string(),
         }
     }
 
@@ -151,13 +161,16 @@ impl std::fmt::Display for InvalidLightSetting {
 
 impl std::error::Error for InvalidLightSetting {}
 
-/// Every light source of `scene`, in a fixed order: point lights, directional lights, then
-/// emissive meshes by mesh index.
+/// Every light source of `scene`, in a fixed order: point lights, directional lights, the
+/// sky, then emissive meshes by mesh index.
 pub fn light_ids(scene: &Scene) -> Vec<LightId> {
     let mut ids: Vec<LightId> = (0..scene.point_lights.len() as u32)
         .map(LightId::Point)
         .chain((0..scene.directional_lights.len() as u32).map(LightId::Directional))
         .collect();
+    if scene.sky.is_some() {
+        ids.push(LightId::Sky);
+    }
     for (i, mesh) in scene.meshes.iter().enumerate() {
         let emits = mesh.material_ids.iter().any(|&m| {
             scene
@@ -311,6 +324,7 @@ impl LightState {
                 LightId::Point(i) => (0, i),
                 LightId::Directional(i) => (1, i),
                 LightId::Emissive(i) => (2, i),
+                LightId::Sky => (3, 0),
             };
             h.u64(kind)
                 .u64(u64::from(i))
@@ -319,6 +333,20 @@ impl LightState {
         }
         h.finish()
     }
+}
+
+/// Every directional light a method that does not integrate the sky must shade, with the
+/// source it belongs to: the scene's directional lights ([`LightId::Directional`]), then
+/// the sky's median-cut directions ([`crate::sky::Sky::lights`], all [`LightId::Sky`]).
+pub fn directional_sources(scene: &Scene) -> Vec<(LightId, &crate::scene::DirectionalLight)> {
+    let own = scene.directional_lights.iter().enumerate();
+    let mut out: Vec<_> = own
+        .map(|(i, l)| (LightId::Directional(i as u32), l))
+        .collect();
+    if let Some(sky) = &scene.sky {
+        out.extend(sky.lights().iter().map(|l| (LightId::Sky, l)));
+    }
+    out
 }
 
 /// The distance falloff of a point light (thesis eq. 16 when `radius` is given): `1/d^2`,

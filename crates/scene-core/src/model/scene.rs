@@ -1,10 +1,10 @@
 //! The scene model: only what diffuse light transport needs.
 //!
 //! A [`Scene`] holds world-space triangle meshes, diffuse materials, point and directional
-//! lights and cameras. Units are metres, the frame is right-handed with +Y up (as glTF), and
-//! colours are linear RGB. [`Scene::validate`] checks the invariants every technique relies on
-//! and repairs what can be repaired without guessing (degenerate triangles are dropped,
-//! zero-length normals are recomputed).
+//! lights, an optional sky ([`crate::sky`]) and cameras. Units are metres, the frame is
+//! right-handed with +Y up (as glTF), and colours are linear RGB. [`Scene::validate`]
+//! checks the invariants every technique relies on and repairs what can be repaired
+//! without guessing (degenerate triangles are dropped, zero-length normals are recomputed).
 
 use glam::{Vec2, Vec3};
 
@@ -541,6 +541,9 @@ pub struct Scene {
     pub point_lights: Vec<PointLight>,
     /// Directional lights.
     pub directional_lights: Vec<DirectionalLight>,
+    /// The sky, if the scene is open to one ([`crate::sky`]): one light source
+    /// ([`crate::LightId::Sky`]).
+    pub sky: Option<crate::sky::Sky>,
     /// Cameras; the first is the default view.
     pub cameras: Vec<Camera>,
 }

@@ -89,14 +89,17 @@ fn scores(scene: &Scene, cands: &[Camera]) -> Vec<usize> {
             dist > 0.0
                 && l.attenuation(-d / dist) > 0.0
                 && !rays.occluded(p, d / dist, 0.0, dist * (1.0 - 1e-4))
-        }) || scene.directional_lights.iter().any(|l| {
-            let d = -l.direction.normalize_or_zero();
-            d != Vec3::ZERO && !rays.occluded(p, d, 0.0, far)
-        }) || emitter_points.iter().any(|&e| {
-            let d = e - p;
-            let dist = d.length();
-            dist > 0.0 && !rays.occluded(p, d / dist, 0.0, dist * (1.0 - 1e-4))
-        })
+        }) || crate::lights::directional_sources(scene)
+            .iter()
+            .any(|(_, l)| {
+                let d = -l.direction.normalize_or_zero();
+                d != Vec3::ZERO && !rays.occluded(p, d, 0.0, far)
+            })
+            || emitter_points.iter().any(|&e| {
+                let d = e - p;
+                let dist = d.length();
+                dist > 0.0 && !rays.occluded(p, d / dist, 0.0, dist * (1.0 - 1e-4))
+            })
     };
     let (w, h) = (16u32, 12u32);
     cands

@@ -43,6 +43,8 @@ pub struct PathTracer<'a> {
     point_ramps: Vec<crate::lights::SpotRamp>,
     directional_factors: Vec<[Vec3; 2]>,
     mesh_factors: Vec<[Vec3; 2]>,
+    /// The sky's (direct, indirect) factors, zero without a sky.
+    sky_factors: [Vec3; 2],
     /// Offset of secondary ray origins, relative to the scene's extent.
     eps: f32,
     /// A distance longer than any ray inside the scene.
@@ -107,6 +109,10 @@ impl<'a> PathTracer<'a> {
             mesh_factors: (0..scene.meshes.len() as u32)
                 .map(|i| factors(LightId::Emissive(i)))
                 .collect(),
+            sky_factors: match &scene.sky {
+                Some(sky) if !sky.is_black() => factors(LightId::Sky),
+                _ => [Vec3::ZERO; 2],
+            },
             eps: extent * 2e-5,
             far: extent * 4.0,
         }
@@ -172,6 +178,16 @@ impl<'a> PathTracer<'a> {
                 stats.bounce += 1;
             }
             let Some(hit) = self.rays.closest_hit(o, d, t_min, f32::INFINITY) else {
+                // A bounce that leaves the scene sees the sky (the camera's rays do not: the
+                // sky lights surfaces, it is not a background), MIS-weighted against the
+                // sky's next-event estimate.
+                let factor = self.sky_factors[usize::from(k > 1)];
+                if let (Some(pb), Some(sky)) = (prev_pdf, &self.scene.sky)
+                    && factor != Vec3::ZERO
+                {
+                    let w = power_heuristic(pb, sky.pdf(d));
+                    l += beta * sky.radiance(d) * factor * w;
+                }
                 break;
             };
             let tri = &self.tris[hit.triangle as usize];
@@ -290,6 +306,23 @@ impl<'a> PathTracer<'a> {
             stats.shadow += 1;
             if !self.rays.occluded(p, w, 0.0, self.far) {
                 e += light.irradiance * factor * cos;
+            }
+        }
+        if let Some(sky) = &self.scene.sky
+            && self.sky_factors[which] != Vec3::ZERO
+            && let Some((w, pdf, le)) = sky.sample(glam::Vec3::new(
+                rng.next_f32(),
+                rng.next_f32(),
+                rng.next_f32(),
+            ))
+        {
+            let cos = n.dot(w);
+            if cos > 0.0 {
+                stats.shadow += 1;
+                if !self.rays.occluded(p, w, 0.0, self.far) {
+                    let pb = cos * std::f32::consts::FRAC_1_PI;
+                    e += le * self.sky_factors[which] * (cos / pdf * power_heuristic(pdf, pb));
+                }
             }
         }
         let picked = if self.emitters.is_empty() {

@@ -1,0 +1,545 @@
+//! The sky: radiance arriving from infinitely far away, by direction, that lights a scene
+//! through its openings (a courtyard, a window).
+//!
+//! A [`Sky`] is an equirectangular (latitude-longitude) map of radiance, +Y up: a uniform
+//! sky ([`Sky::uniform`]) is a constant over the upper hemisphere and black below the
+//! horizon; an environment map ([`Sky::from_image`]) is an EXR as it is read. Pixel `(x, y)`
+//! of a `w x h` map covers the polar angles (from +Y) `theta` in `[y, y+1] pi / h` and the
+//! azimuths `phi` in `[x, x+1] 2 pi / w`, where a direction is
+//! `(sin theta sin phi, cos theta, -sin theta cos phi)`: the map's centre column looks
+//! along -Z, glTF's forward. Lookups are nearest-pixel, so the map is exactly the
+//! piecewise-constant function that [`Sky::sample`] draws from.
+//!
+//! The sky is one light source ([`crate::LightId::Sky`]): its light state recolours, dims
+//! or switches it like any other light. It lights surfaces; it is not drawn as a
+//! background (a pixel that sees no surface stays black in every method, the reference
+//! included).
+//!
+//! How methods carry it:
+//! - The reference path tracer integrates it exactly: next-event estimation that draws
+//!   directions from the map (by each pixel's power, [`Sky::sample`]), weighted by multiple
+//!   importance sampling against the cosine-weighted bounce that escapes the scene.
+//! - Every other method sees it as a set of directional lights ([`Sky::lights`]) found by
+//!   the median cut of Debevec ("A median cut algorithm for light probe sampling", 2005):
+//!   the map is split into regions of equal power, each becoming one directional light
+//!   along the region's mean direction. Each light's irradiance is the length of the
+//!   region's vector irradiance `sum L dw d`, so that a surface that sees the whole region
+//!   above its horizon receives exactly the region's light. The count is the sky's
+//!   [`Sky::directions`] (default [`DEFAULT_DIRECTIONS`]).
+
+use glam::{DVec3, Vec3};
+
+use crate::error::SceneError;
+use crate::image::Image;
+use crate::scene::{DirectionalLight, RADIOMETRIC_MAX};
+
+/// Directional lights a sky becomes for the methods that do not integrate it
+/// ([`Sky::lights`]) unless set otherwise.
+pub const DEFAULT_DIRECTIONS: u32 = 64;
+
+/// The most directional lights a sky may ask for.
+pub const MAX_DIRECTIONS: u32 = 1024;
+
+/// The map a uniform sky is held in: fine enough for the median cut to find
+/// [`DEFAULT_DIRECTIONS`] regions, small enough to cost nothing.
+const UNIFORM_MAP: (u32, u32) = (128, 64);
+
+/// Radiance from infinitely far away, by direction (see the module documentation).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sky {
+    /// Name, used in messages (the file's, or "uniform sky").
+    pub name: String,
+    width: u32,
+    height: u32,
+    radiance: Vec<Vec3>,
+    directions: u32,
+    /// Derived: the median-cut directional lights.
+    lights: Vec<DirectionalLight>,
+    /// Derived: cumulative sampling weight (power) per pixel, row-major, ending at 1.
+    cdf: Vec<f64>,
+}
+
+impl Sky {
+    /// A sky of constant `radiance` (linear RGB, W/(m^2 sr)) over the upper hemisphere and
+    /// black below the horizon: an unoccluded surface facing up receives `pi * radiance`.
+    pub fn uniform(radiance: Vec3) -> Result<Sky, SceneError> {
+        let (w, h) = UNIFORM_MAP;
+        let pixels = (0..w * h)
+            .map(|i| if i / w < h / 2 { radiance } else { Vec3::ZERO })
+            .collect();
+        Sky::from_map("uniform sky", w, h, pixels, DEFAULT_DIRECTIONS)
+    }
+
+    /// A sky from an equirectangular image (an EXR's linear radiance as read).
+    pub fn from_image(name: &str, image: &Image) -> Result<Sky, SceneError> {
+        Sky::from_map(
+            name,
+            image.width,
+            image.height,
+            image.pixels.clone(),
+            DEFAULT_DIRECTIONS,
+        )
+    }
+
+    /// A sky from `width x height` radiance values (row 0 at the zenith) that becomes
+    /// `directions` directional lights. Refuses an empty map, a size that does not match,
+    /// negative, non-finite or too large radiance ([`RADIOMETRIC_MAX`]), and a count of
+    /// directions outside `1..=`[`MAX_DIRECTIONS`], each as [`SceneError::InvalidLight`]
+    /// naming the sky and the fault.
+    pub fn from_map(
+        name: &str,
+        width: u32,
+        height: u32,
+        radiance: Vec<Vec3>,
+        directions: u32,
+    ) -> Result<Sky, SceneError> {
+        let fault = |reason: String| SceneError::InvalidLight {
+            light: format!("sky '{name}'"),
+            reason,
+        };
+        if width == 0 || height == 0 || radiance.len() as u64 != width as u64 * height as u64 {
+            return Err(fault(format!(
+                "a {width}x{height} map with {} values",
+                radiance.len()
+            )));
+        }
+        if let Some((i, c)) = radiance.iter().enumerate().find(|(_, c)| {
+            !c.is_finite() || c.min_element() < 0.0 || c.max_element() > RADIOMETRIC_MAX
+        }) {
+            return Err(fault(format!(
+                "pixel ({}, {}) has radiance {c}: negative, not finite or above {RADIOMETRIC_MAX:e}",
+                i as u32 % width,
+                i as u32 / width
+            )));
+        }
+        if !(1..=MAX_DIRECTIONS).contains(&directions) {
+            return Err(fault(format!(
+                "{directions} directions: give 1 to {MAX_DIRECTIONS}"
+            )));
+        }
+        let mut sky = Sky {
+            name: name.to_string(),
+            width,
+            height,
+            radiance,
+            directions,
+            lights: Vec::new(),
+            cdf: Vec::new(),
+        };
+        sky.derive();
+        Ok(sky)
+    }
+
+    /// The same sky as `n` directional lights (errors as [`Sky::from_map`]).
+    pub fn with_directions(&self, n: u32) -> Result<Sky, SceneError> {
+        Sky::from_map(
+            &self.name,
+            self.width,
+            self.height,
+            self.radiance.clone(),
+            n,
+        )
+    }
+
+    /// The sky with every radiance multiplied by `factor` (non-negative, finite).
+    pub fn scaled(&self, factor: Vec3) -> Result<Sky, SceneError> {
+        Sky::from_map(
+            &self.name,
+            self.width,
+            self.height,
+            self.radiance.iter().map(|c| *c * factor).collect(),
+            self.directions,
+        )
+    }
+
+    /// Width and height of the map.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// The map's radiance values, row-major from the zenith.
+    pub fn map(&self) -> &[Vec3] {
+        &self.radiance
+    }
+
+    /// How many directional lights the sky asks to become.
+    pub fn directions(&self) -> u32 {
+        self.directions
+    }
+
+    /// The median-cut directional lights (at most [`Sky::directions`]; fewer when the map
+    /// has fewer lit pixels). Empty for a black sky.
+    pub fn lights(&self) -> &[DirectionalLight] {
+        &self.lights
+    }
+
+    /// True when no direction carries light.
+    pub fn is_black(&self) -> bool {
+        self.cdf.is_empty()
+    }
+
+    /// Radiance arriving from unit direction `towards_sky` (pointing away from the scene).
+    pub fn radiance(&self, towards_sky: Vec3) -> Vec3 {
+        self.radiance[self.pixel_of(towards_sky)]
+    }
+
+    /// A direction towards the sky drawn by power from three uniform numbers (the pixel,
+    /// then a uniform point of its patch of sphere), with its solid-angle density and its
+    /// radiance; `None` for a black sky.
+    pub fn sample(&self, u: Vec3) -> Option<(Vec3, f32, Vec3)> {
+        let last = *self.cdf.last()?;
+        let pick = (f64::from(u.x) * last).min(last);
+        let i = self
+            .cdf
+            .partition_point(|c| *c <= pick)
+            .min(self.cdf.len() - 1);
+        let before = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let p_pixel = (self.cdf[i] - before) / last;
+        if p_pixel <= 0.0 {
+            return None;
+        }
+        let (x, y) = (i as u32 % self.width, i as u32 / self.width);
+        let (phi0, phi1, c0, c1) = self.bounds(x, y);
+        let phi = phi0 + (phi1 - phi0) * f64::from(u.y);
+        let cos_t = c0 + (c1 - c0) * f64::from(u.z);
+        let d = direction(phi, cos_t);
+        let omega = (phi1 - phi0) * (c0 - c1);
+        let pdf = (p_pixel / omega) as f32;
+        (pdf.is_finite() && pdf > 0.0).then_some((d.as_vec3(), pdf, self.radiance[i]))
+    }
+
+    /// The solid-angle density [`Sky::sample`] draws unit direction `towards_sky` with.
+    pub fn pdf(&self, towards_sky: Vec3) -> f32 {
+        let Some(&last) = self.cdf.last() else {
+            return 0.0;
+        };
+        let i = self.pixel_of(towards_sky);
+        let before = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let (phi0, phi1, c0, c1) = self.bounds(i as u32 % self.width, i as u32 / self.width);
+        (((self.cdf[i] - before) / last) / ((phi1 - phi0) * (c0 - c1))) as f32
+    }
+
+    /// Irradiance on an unoccluded surface of unit normal `n`, by a sum over the map's
+    /// pixels (each integrated exactly where it lies wholly above the surface's horizon):
+    /// the analytic check of the other sky integrals.
+    pub fn irradiance(&self, n: Vec3) -> Vec3 {
+        let n = n.as_dvec3();
+        let mut e = DVec3::ZERO;
+        for y in 0..self.height {
+            for x in 0..self.width {
+                let l = self.radiance[(y * self.width + x) as usize];
+                if l == Vec3::ZERO {
+                    continue;
+                }
+                // Split the pixel finely so that its part below the horizon is cut off.
+                let (phi0, phi1, c0, c1) = self.bounds(x, y);
+                let k = 8;
+                let mut cos_sum = 0.0;
+                for i in 0..k {
+                    for j in 0..k {
+                        let p0 = phi0 + (phi1 - phi0) * i as f64 / k as f64;
+                        let p1 = phi0 + (phi1 - phi0) * (i + 1) as f64 / k as f64;
+                        let a = c0 + (c1 - c0) * j as f64 / k as f64;
+                        let b = c0 + (c1 - c0) * (j + 1) as f64 / k as f64;
+                        cos_sum += n.dot(mean_direction(p0, p1, a, b)).max(0.0);
+                    }
+                }
+                e += l.as_dvec3() * cos_sum;
+            }
+        }
+        e.as_vec3()
+    }
+
+    /// The pixel index of unit direction `d`.
+    fn pixel_of(&self, d: Vec3) -> usize {
+        let d = d.as_dvec3();
+        let theta = d.y.clamp(-1.0, 1.0).acos();
+        let mut phi = d.x.atan2(-d.z);
+        if phi < 0.0 {
+            phi += std::f64::consts::TAU;
+        }
+        let x = ((phi / std::f64::consts::TAU * self.width as f64) as u32).min(self.width - 1);
+        let y = ((theta / std::f64::consts::PI * self.height as f64) as u32).min(self.height - 1);
+        (y * self.width + x) as usize
+    }
+
+    /// Pixel `(x, y)`'s azimuth range and the cosines of its polar range (top, bottom).
+    fn bounds(&self, x: u32, y: u32) -> (f64, f64, f64, f64) {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let tau = std::f64::consts::TAU;
+        let pi = std::f64::consts::PI;
+        (
+            tau * x as f64 / w,
+            tau * (x + 1) as f64 / w,
+            (pi * y as f64 / h).cos(),
+            (pi * (y + 1) as f64 / h).cos(),
+        )
+    }
+
+    /// Sampling table and median-cut lights from the map.
+    fn derive(&mut self) {
+        let (w, h) = (self.width as usize, self.height as usize);
+        // Per pixel: sampling weight (power) and vector irradiance sum L dw d, exactly.
+        let mut weight = vec![0.0f64; w * h];
+        let mut vector = vec![DVec3::ZERO; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let i = y * w + x;
+                let l = self.radiance[i];
+                if l == Vec3::ZERO {
+                    continue;
+                }
+                let (phi0, phi1, c0, c1) = self.bounds(x as u32, y as u32);
+                let omega = (phi1 - phi0) * (c0 - c1);
+                weight[i] = crate::lights::sampling_weight(l) * omega;
+                vector[i] = mean_direction(phi0, phi1, c0, c1);
+            }
+        }
+        let mut acc = 0.0;
+        let cdf: Vec<f64> = weight
+            .iter()
+            .map(|v| {
+                acc += v;
+                acc
+            })
+            .collect();
+        self.cdf = if acc > 0.0 && acc.is_finite() {
+            cdf
+        } else {
+            Vec::new()
+        };
+        self.lights = if self.cdf.is_empty() {
+            Vec::new()
+        } else {
+            median_cut(self, &weight, &vector)
+        };
+    }
+}
+
+/// The integral of the unit direction over the patch `phi0..phi1`, `cos theta` from `c0`
+/// down to `c1` (a vector whose length is at most the patch's solid angle).
+fn mean_direction(phi0: f64, phi1: f64, c0: f64, c1: f64) -> DVec3 {
+    // theta from acos(c0) to acos(c1); with dw = sin t dt dphi:
+    // x: int sin^2 t dt * int sin phi = (t/2 - sin 2t / 4) * (cos phi0 - cos phi1)
+    // y: int cos t sin t dt * (phi1 - phi0) = (sin^2 t1 - sin^2 t0)/2 * dphi
+    // z: -int sin^2 t dt * int cos phi = -(..) * (sin phi1 - sin phi0)
+    let (t0, t1) = (c0.clamp(-1.0, 1.0).acos(), c1.clamp(-1.0, 1.0).acos());
+    let s2 = |t: f64| t / 2.0 - (2.0 * t).sin() / 4.0;
+    let sin2 = s2(t1) - s2(t0);
+    let y = ((1.0 - c1 * c1) - (1.0 - c0 * c0)) / 2.0 * (phi1 - phi0);
+    DVec3::new(
+        sin2 * (phi0.cos() - phi1.cos()),
+        y,
+        -sin2 * (phi1.sin() - phi0.sin()),
+    )
+}
+
+fn direction(phi: f64, cos_t: f64) -> DVec3 {
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    DVec3::new(sin_t * phi.sin(), cos_t, -sin_t * phi.cos())
+}
+
+/// Splits the map into up to `sky.directions` regions of equal power (always the most
+/// powerful splittable region, across its longer angular side, at its power median) and
+/// makes each a directional light.
+fn median_cut(sky: &Sky, weight: &[f64], vector: &[DVec3]) -> Vec<DirectionalLight> {
+    let (w, h) = (sky.width as usize, sky.height as usize);
+    // Summed-area table of the weights.
+    let mut sat = vec![0.0f64; (w + 1) * (h + 1)];
+    for y in 0..h {
+        let mut row = 0.0;
+        for x in 0..w {
+            row += weight[y * w + x];
+            sat[(y + 1) * (w + 1) + x + 1] = sat[y * (w + 1) + x + 1] + row;
+        }
+    }
+    let sum = |r: [usize; 4]| {
+        let [x0, y0, x1, y1] = r;
+        sat[y1 * (w + 1) + x1] - sat[y0 * (w + 1) + x1] - sat[y1 * (w + 1) + x0]
+            + sat[y0 * (w + 1) + x0]
+    };
+    let mut regions: Vec<[usize; 4]> = vec![[0, 0, w, h]];
+    let mut done: Vec<[usize; 4]> = Vec::new();
+    while regions.len() + done.len() < sky.directions as usize {
+        // The most powerful region still open (ties to the first: deterministic).
+        let Some((k, _)) = regions.iter().enumerate().map(|(k, r)| (k, sum(*r))).fold(
+            None,
+            |best: Option<(usize, f64)>, (k, e)| match best {
+                Some((_, b)) if b >= e => best,
+                _ => Some((k, e)),
+            },
+        ) else {
+            break;
+        };
+        let r = regions.swap_remove(k);
+        let [x0, y0, x1, y1] = r;
+        if (x1 - x0) * (y1 - y0) <= 1 || sum(r) <= 0.0 {
+            done.push(r);
+            continue;
+        }
+        // The longer side as an angle: azimuth span times the sine at the middle row.
+        let mid_theta = std::f64::consts::PI * (y0 + y1) as f64 / (2.0 * h as f64);
+        let across = std::f64::consts::TAU * (x1 - x0) as f64 / w as f64 * mid_theta.sin();
+        let down = std::f64::consts::PI * (y1 - y0) as f64 / h as f64;
+        let split_x = (across >= down && x1 - x0 > 1) || y1 - y0 == 1;
+        let total = sum(r);
+        let (a, b) = if split_x {
+            let c = (x0 + 1..x1)
+                .find(|&c| sum([x0, y0, c, y1]) >= total / 2.0)
+                .unwrap_or(x1 - 1);
+            ([x0, y0, c, y1], [c, y0, x1, y1])
+        } else {
+            let c = (y0 + 1..y1)
+                .find(|&c| sum([x0, y0, x1, c]) >= total / 2.0)
+                .unwrap_or(y1 - 1);
+            ([x0, y0, x1, c], [x0, c, x1, y1])
+        };
+        // A part without light carries no light: it is dropped, not counted.
+        regions.extend([a, b].into_iter().filter(|r| sum(*r) > 0.0));
+    }
+    done.extend(regions);
+    // A fixed order whatever the splitting order: by region corner.
+    done.sort_unstable();
+    done.iter()
+        .filter_map(|&[x0, y0, x1, y1]| {
+            let mut power = DVec3::ZERO;
+            let mut dir = DVec3::ZERO;
+            let mut wsum = 0.0;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let i = y * w + x;
+                    if weight[i] <= 0.0 {
+                        continue;
+                    }
+                    let (phi0, phi1, c0, c1) = sky.bounds(x as u32, y as u32);
+                    let solid = (phi1 - phi0) * (c0 - c1);
+                    power += sky.radiance[i].as_dvec3() * solid;
+                    let lum = weight[i] / solid;
+                    dir += vector[i] * lum;
+                    wsum += lum * solid;
+                }
+            }
+            let len = dir.length();
+            if wsum <= 0.0 || len <= 0.0 {
+                return None;
+            }
+            Some(DirectionalLight {
+                name: format!("{} {}", sky.name, x0 * h + y0),
+                direction: (-dir / len).as_vec3(),
+                irradiance: (power * (len / wsum)).as_vec3(),
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_uniform_sky_gives_pi_radiance_to_a_floor_and_nothing_below() {
+        let l = Vec3::new(1.0, 0.5, 0.25);
+        let sky = Sky::uniform(l).unwrap();
+        let e = sky.irradiance(Vec3::Y);
+        assert!(
+            (e - l * std::f32::consts::PI).abs().max_element() < 1e-4,
+            "{e}"
+        );
+        assert_eq!(sky.irradiance(-Vec3::Y), Vec3::ZERO);
+        // A wall: half the floor's (the upper half of its hemisphere is sky).
+        let wall = sky.irradiance(Vec3::X);
+        assert!(
+            (wall - l * std::f32::consts::FRAC_PI_2).abs().max_element() < 2e-3,
+            "{wall}"
+        );
+        assert_eq!(sky.radiance(Vec3::new(0.3, 0.9, 0.1).normalize()), l);
+        assert_eq!(sky.radiance(-Vec3::Y), Vec3::ZERO);
+    }
+
+    #[test]
+    fn the_median_cut_lights_give_a_floor_and_a_tilted_roof_their_irradiance() {
+        let sky = Sky::uniform(Vec3::ONE).unwrap();
+        assert_eq!(sky.lights().len(), DEFAULT_DIRECTIONS as usize);
+        let by_lights = |n: Vec3| -> Vec3 {
+            sky.lights()
+                .iter()
+                .map(|l| l.irradiance * n.dot(-l.direction).max(0.0))
+                .sum()
+        };
+        // Wholly above the floor's horizon: exact by construction.
+        let floor = by_lights(Vec3::Y);
+        assert!(
+            (floor - sky.irradiance(Vec3::Y)).abs().max_element() < 1e-4,
+            "{floor}"
+        );
+        // Regions cut by a tilted roof's horizon: close, not exact.
+        for n in [Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.2, 1.0, -0.7), Vec3::X] {
+            let n = n.normalize();
+            let (a, b) = (by_lights(n), sky.irradiance(n));
+            assert!(
+                (a - b).abs().max_element() < 0.03 * b.max_element(),
+                "{n}: {a} {b}"
+            );
+        }
+        // The greedy cut splits the most powerful region until the count is reached: no
+        // direction carries much more than its share of the hemisphere's 2 pi L.
+        let share = std::f32::consts::TAU / sky.lights().len() as f32;
+        let hi = sky
+            .lights()
+            .iter()
+            .map(|l| l.irradiance.x)
+            .fold(0.0, f32::max);
+        assert!(hi < 1.5 * share, "{hi} against a share of {share}");
+    }
+
+    #[test]
+    fn sampling_draws_each_pixel_by_its_power_with_the_density_it_reports() {
+        // A map with a bright patch: the sampled directions' histogram follows L dw and
+        // pdf() agrees with sample()'s density; the estimator of the floor's irradiance
+        // (L cos / pdf) converges to the sum.
+        let (w, h) = (16u32, 8u32);
+        let mut map = vec![Vec3::splat(0.1); (w * h) as usize];
+        map[(2 * w + 5) as usize] = Vec3::splat(50.0);
+        map[(6 * w + 1) as usize] = Vec3::new(0.0, 0.0, 3.0);
+        let sky = Sky::from_map("test", w, h, map, 16).unwrap();
+        let mut rng = crate::sampling::Rng::new(7, 0);
+        let n = 400_000;
+        let mut e = DVec3::ZERO;
+        for _ in 0..n {
+            let (d, pdf, l) = sky
+                .sample(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()))
+                .unwrap();
+            assert!(
+                (sky.pdf(d) - pdf).abs() <= 1e-3 * pdf,
+                "{} {pdf}",
+                sky.pdf(d)
+            );
+            assert_eq!(sky.radiance(d), l);
+            e += (l * d.y.max(0.0) / pdf).as_dvec3();
+        }
+        let e = (e / n as f64).as_vec3();
+        let exact = sky.irradiance(Vec3::Y);
+        assert!(
+            (e - exact).abs().max_element() < 0.01 * exact.max_element(),
+            "{e} {exact}"
+        );
+    }
+
+    #[test]
+    fn bad_skies_are_refused_by_name() {
+        for (map, n) in [
+            (vec![Vec3::ONE; 3], 8),
+            (vec![Vec3::new(1.0, f32::NAN, 0.0); 4], 8),
+            (vec![Vec3::new(-1.0, 0.0, 0.0); 4], 8),
+            (vec![Vec3::splat(1e13); 4], 8),
+            (vec![Vec3::ONE; 4], 0),
+            (vec![Vec3::ONE; 4], MAX_DIRECTIONS + 1),
+        ] {
+            let e = Sky::from_map("bad", 2, 2, map, n).unwrap_err();
+            assert!(e.to_string().contains("sky 'bad'"), "{e}");
+        }
+        let black = Sky::from_map("black", 2, 2, vec![Vec3::ZERO; 4], 8).unwrap();
+        assert!(black.is_black() && black.lights().is_empty());
+        assert!(black.sample(Vec3::splat(0.5)).is_none());
+    }
+}
