@@ -20,6 +20,7 @@
 mod bench;
 mod bench_ibrr;
 mod bench_relight;
+mod bench_scaling;
 mod checks;
 mod experiment;
 mod fuzz;
@@ -363,7 +364,7 @@ enum Command {
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
         /// What to benchmark: `reference`, `gbuffer`, `isr`, `relight`, `relight-frames`,
-        /// `relight-dynamic` or `ibrr`.
+        /// `relight-dynamic`, `ibrr` or `scaling`.
         what: String,
         /// Worker threads.
         #[arg(long, default_value_t = 2)]
@@ -371,6 +372,10 @@ enum Command {
         /// Timed repeats after one warm-up.
         #[arg(long, default_value_t = 5)]
         repeats: usize,
+        /// `scaling` only: the largest box field, in triangles (10^5, 10^6 and 10^7 up to
+        /// it).
+        #[arg(long, default_value_t = 1_000_000)]
+        max_triangles: u64,
     },
 }
 
@@ -630,9 +635,13 @@ impl Command {
                 ranged("--jobs", *jobs, 1..=16).map(|_| ())
             }
             Command::Bench {
-                threads, repeats, ..
+                threads,
+                repeats,
+                max_triangles,
+                ..
             } => {
                 ranged("--threads", *threads, 1..=1024)?;
+                ranged("--max-triangles", *max_triangles, 100_000..=10_000_000)?;
                 ranged("--repeats", *repeats, 1..=1000).map(|_| ())
             }
             _ => Ok(()),
@@ -743,6 +752,7 @@ fn run(cli: Cli) -> Result<(), String> {
             what,
             threads,
             repeats,
+            max_triangles,
         } => match what.as_str() {
             "reference" => bench::reference(threads, repeats),
             "isr" => bench::isr(threads, repeats),
@@ -751,8 +761,9 @@ fn run(cli: Cli) -> Result<(), String> {
             "relight-frames" => bench_relight::frames(threads, repeats),
             "relight-dynamic" => bench_relight::dynamic_only(threads, repeats),
             "ibrr" => bench_ibrr::run(threads, repeats),
+            "scaling" => bench_scaling::run(threads, repeats, max_triangles),
             other => Err(format!(
-                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, ibrr)"
+                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, ibrr, scaling)"
             )),
         },
     }

@@ -124,21 +124,72 @@ fn scale_for(diagonal: f32) -> f32 {
     2f32.powi(e)
 }
 
+/// How much the BVH build spends on the tree's quality: obvhs' presets (PLOC clustering,
+/// then reinsertion; the slow ones with spatial pre-splits).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BvhQuality {
+    /// No pre-splits, a twentieth of the nodes reinserted per pass.
+    Medium,
+    /// Pre-splits, a fifth of the nodes reinserted per pass.
+    Slow,
+    /// Pre-splits, every node reinserted per pass, the deepest search.
+    VerySlow,
+}
+
+impl BvhQuality {
+    /// Above this many triangles [`RayScene::build`] takes [`BvhQuality::Medium`].
+    pub const VERY_SLOW_UP_TO: usize = 1 << 21;
+
+    /// The preset [`RayScene::build`] takes for `n` triangles: the best tree up to
+    /// [`BvhQuality::VERY_SLOW_UP_TO`] triangles, where it costs seconds and pays for itself
+    /// in any reference render; beyond, `Medium`, the one preset whose build grows about as
+    /// `n log n`. Measured on box fields on 2 cores (`cargo run --release -p scene-core
+    /// --example bvh_presets -- 1000000 10000000`; incoherent closest-hit rays):
+    ///
+    /// | triangles | Medium | Slow | VerySlow |
+    /// |---|---|---|---|
+    /// | 10^6 | 1.0 s, 1.40 Mrays/s | 1.8 s, 1.76 | 5.6 s, 2.76 |
+    /// | 10^7 | 13.7 s, 0.41 | 41.3 s, 0.68 | 168 s (`cargo xtask bench scaling`) |
+    ///
+    /// At 10^7 `Slow` pays back its 28 s only after about 28 million rays (a reference
+    /// frame of 128x96 at 512 spp), and every method builds the BVH at least once.
+    pub fn for_triangles(n: usize) -> Self {
+        if n <= Self::VERY_SLOW_UP_TO {
+            BvhQuality::VerySlow
+        } else {
+            BvhQuality::Medium
+        }
+    }
+
+    fn params(self) -> BvhBuildParams {
+        match self {
+            BvhQuality::Medium => BvhBuildParams::medium_build(),
+            BvhQuality::Slow => BvhBuildParams::slow_build(),
+            BvhQuality::VerySlow => BvhBuildParams::very_slow_build(),
+        }
+    }
+}
+
 impl RayScene {
-    /// Builds the BVH over all triangles of `scene` (which should be validated), with
-    /// obvhs' highest-quality preset (PLOC, reinsertion, spatial pre-splits): on the
-    /// 10^6-triangle `many-boxes` scene it builds in about 4 s on 2 cores and the reference
-    /// tracer reaches 5.1 Mrays/s there against 3.1 with the medium preset (1.0 s build),
-    /// the right trade for a ground-truth renderer. Alpha-masked materials
-    /// ([`crate::Material::alpha_cutoff`]) cut holes that rays pass through.
+    /// Builds the BVH over all triangles of `scene` (which should be validated), with the
+    /// preset [`BvhQuality::for_triangles`] picks: obvhs' highest-quality one up to 2^21
+    /// triangles, the medium one beyond (on the 10^6-triangle `many-boxes` scene it builds in about 4 s on 2 cores
+    /// and the reference tracer reaches 5.1 Mrays/s there against 3.1 with the medium
+    /// preset's 1.0 s build, the right trade for a ground-truth renderer). Alpha-masked
+    /// materials ([`crate::Material::alpha_cutoff`]) cut holes that rays pass through.
     pub fn build(scene: &Scene) -> Self {
+        Self::build_with(scene, BvhQuality::for_triangles(scene.triangle_count()))
+    }
+
+    /// [`RayScene::build`] with a chosen preset.
+    pub fn build_with(scene: &Scene, quality: BvhQuality) -> Self {
         let mut tris = Vec::with_capacity(scene.triangle_count());
         for mesh in &scene.meshes {
             for t in &mesh.indices {
                 tris.push(t.map(|i| mesh.positions[i as usize]));
             }
         }
-        let mut this = Self::from_triangles(&tris);
+        let mut this = Self::from_triangles_with(&tris, quality);
         this.cutouts = Cutouts::of(scene);
         this
     }
@@ -151,6 +202,11 @@ impl RayScene {
     /// Builds the BVH over bare triangles (for callers with geometry but no [`Scene`], such
     /// as an engine handing ISR its shadow casters); hit ids are indices into `triangles`.
     pub fn from_triangles(triangles: &[[Vec3; 3]]) -> Self {
+        Self::from_triangles_with(triangles, BvhQuality::for_triangles(triangles.len()))
+    }
+
+    /// [`RayScene::from_triangles`] with a chosen preset.
+    pub fn from_triangles_with(triangles: &[[Vec3; 3]], quality: BvhQuality) -> Self {
         let start = std::time::Instant::now();
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
@@ -182,7 +238,7 @@ impl RayScene {
             };
         }
         let mut core = Duration::ZERO;
-        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::very_slow_build(), &mut core);
+        let bvh = build_cwbvh_from_tris(&tris, quality.params(), &mut core);
         let global_ids = bvh.primitive_indices.clone();
         let triangles = global_ids
             .iter()
