@@ -122,13 +122,7 @@ impl AddedLights {
     /// ([`crate::sky::Sky::from_image`]). The error names the flag, the file or the number.
     pub fn parse_sky(&mut self, spec: &str) -> Result<(), String> {
         let sky = if spec.to_ascii_lowercase().ends_with(".exr") {
-            let path = Path::new(spec);
-            let image = crate::image::Image::read_exr_with(path, &crate::Budget::default())
-                .map_err(|e| format!("--sky {spec}: {e}"))?;
-            let name = path
-                .file_name()
-                .map_or_else(|| spec.to_string(), |n| n.to_string_lossy().into_owned());
-            crate::sky::Sky::from_image(&name, &image)
+            read_sky_map(spec)?
         } else {
             let (_, rgb) = parse_pair(&format!("0,1,0={spec}"), "--sky", "R,G,B or FILE.exr")
                 .map_err(|e| e.replace("--sky 0,1,0=", "--sky "))?;
@@ -229,6 +223,26 @@ impl AddedLights {
         }
         Ok(notes)
     }
+}
+
+/// An equirectangular EXR as a sky (the error names the flag and the file).
+#[cfg(feature = "exr")]
+fn read_sky_map(spec: &str) -> Result<Result<crate::sky::Sky, crate::SceneError>, String> {
+    let path = Path::new(spec);
+    let image = crate::image::Image::read_exr_with(path, &crate::Budget::default())
+        .map_err(|e| format!("--sky {spec}: {e}"))?;
+    let name = path
+        .file_name()
+        .map_or_else(|| spec.to_string(), |n| n.to_string_lossy().into_owned());
+    Ok(crate::sky::Sky::from_image(&name, &image))
+}
+
+/// Without the `exr` feature a sky map can only be refused, by name.
+#[cfg(not(feature = "exr"))]
+fn read_sky_map(spec: &str) -> Result<Result<crate::sky::Sky, crate::SceneError>, String> {
+    Err(format!(
+        "--sky {spec}: this build reads no EXR (scene-core's `exr` feature is off)"
+    ))
 }
 
 /// `A,B,C=R,G,B` (or `=V` for grey) as two vectors, every number finite; the error names
