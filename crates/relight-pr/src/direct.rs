@@ -246,6 +246,34 @@ pub fn from_directional<O: Occlusion + ?Sized>(
     l.irradiance * cos
 }
 
+/// Irradiance at `x` (unit normal `n`) from the sky: one direction drawn within each of
+/// its median-cut regions ([`scene_core::sky::Sky::sample_light`], numbers from `seed`),
+/// each shadowed by a ray. Unbiased; its noise is that of stratified sampling with one
+/// sample per region.
+pub fn sky_at<O: Occlusion + ?Sized>(
+    sky: &scene_core::sky::Sky,
+    rays: &O,
+    x: Vec3,
+    n: Vec3,
+    extent: f32,
+    seed: u64,
+) -> Vec3 {
+    let eps = 1e-4 * extent;
+    let mut e = Vec3::ZERO;
+    for k in 0..sky.lights().len() {
+        let mut rng = scene_core::sampling::Rng::new(seed, k as u64);
+        let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let Some((w, weight)) = sky.sample_light(k, u) else {
+            continue;
+        };
+        let cos = n.dot(w);
+        if cos > 0.0 && !rays.occluded(x + n * eps, w, eps, 4.0 * extent) {
+            e += weight * cos;
+        }
+    }
+    e
+}
+
 /// The mean irradiance over element `e` from point light `l` (the solver's first shot):
 /// [`mean_from_point`] over the element's triangle, visibility at its open receiver points
 /// through `rays` (zero for a hidden element).
@@ -274,6 +302,9 @@ pub fn element_from_analytic<O: Occlusion + ?Sized>(
         LightId::Directional(i) => {
             element_from_directional(&scene.directional_lights[i as usize], rays, e, extent)
         }
+        // The fixed directions: drawing within their regions at the four receiver points
+        // (`sky_at`) measured no better for the elements (0.260 against 0.257 in the window
+        // room of tests/tests/sky.rs), only noisier.
         LightId::Sky => scene.sky.as_ref().map_or(Vec3::ZERO, |sky| {
             sky.lights()
                 .iter()
@@ -315,6 +346,10 @@ struct Emitter {
 pub struct DirectGather {
     /// Per source: its point lights, directional lights and emitting patches.
     sources: Vec<(Vec<PointLight>, Vec<DirectionalLight>, Vec<Emitter>)>,
+    /// The sky, for the source that holds it (its index): at each point one direction is
+    /// drawn within each of its median-cut regions ([`scene_core::sky::Sky::sample_light`]),
+    /// so its shadows are soft as the sky's are, not 64 sharp copies.
+    sky: Option<(usize, scene_core::sky::Sky)>,
     extent: f32,
     samples: u32,
 }
@@ -324,6 +359,12 @@ impl DirectGather {
     /// `samples` visibility rays per point for each emissive source (at least one per
     /// emitting patch).
     pub fn new(scene: &Scene, meshing: &Meshing, sources: &[Source], samples: u32) -> Self {
+        let sky = scene.sky.as_ref().and_then(|sky| {
+            let m = sources
+                .iter()
+                .position(|s| s.lights.contains(&LightId::Sky))?;
+            Some((m, sky.clone()))
+        });
         let sources = sources
             .iter()
             .map(|s| {
@@ -336,11 +377,8 @@ impl DirectGather {
                         LightId::Directional(i) => {
                             suns.push(scene.directional_lights[i as usize].clone())
                         }
-                        LightId::Sky => {
-                            if let Some(sky) = &scene.sky {
-                                suns.extend(sky.lights().iter().cloned());
-                            }
-                        }
+                        // Drawn per point in `mean_over`.
+                        LightId::Sky => {}
                         LightId::Emissive(_) => {
                             for p in meshing.patches.iter().filter(|p| p.light == Some(id)) {
                                 let e = meshing.elements[p.first_element as usize].emission;
@@ -358,6 +396,7 @@ impl DirectGather {
             .collect();
         Self {
             sources,
+            sky,
             extent: scene.extent(),
             samples: samples.max(1),
         }
@@ -411,6 +450,9 @@ impl DirectGather {
                 let x = x + lift;
                 for l in suns {
                     e += from_directional(l, rays, x, n, self.extent) * inv;
+                }
+                if let Some((_, sky)) = self.sky.as_ref().filter(|(k, _)| *k == m) {
+                    e += sky_at(sky, rays, x, n, self.extent, seed ^ ((s as u64) << 40)) * inv;
                 }
                 if !emitters.is_empty() {
                     let per = (self.samples as usize).div_ceil(emitters.len()) as u32;

@@ -55,6 +55,8 @@ pub struct Sky {
     directions: u32,
     /// Derived: the median-cut directional lights.
     lights: Vec<DirectionalLight>,
+    /// Derived: each light's region of the map, pixels `[x0, y0, x1, y1)`.
+    regions: Vec<[u32; 4]>,
     /// Derived: cumulative sampling weight (power) per pixel, row-major, ending at 1.
     cdf: Vec<f64>,
 }
@@ -124,6 +126,7 @@ impl Sky {
             radiance,
             directions,
             lights: Vec::new(),
+            regions: Vec::new(),
             cdf: Vec::new(),
         };
         sky.derive();
@@ -308,11 +311,58 @@ impl Sky {
         } else {
             Vec::new()
         };
-        self.lights = if self.cdf.is_empty() {
+        let cut = if self.cdf.is_empty() {
             Vec::new()
         } else {
             median_cut(self, &weight, &vector)
         };
+        (self.lights, self.regions) = cut.into_iter().unzip();
+    }
+
+    /// A direction within the map region of light `k` ([`Sky::lights`]), drawn by power
+    /// from three uniform numbers, with the estimate's weight (radiance times solid angle
+    /// over probability, RGB): `weight * f(d)` averages to the region's integral of
+    /// `L f dw`, so summing one draw per light estimates the whole sky without bias. A
+    /// method that casts its own visibility rays uses it to soften the sharp shadows of
+    /// [`Sky::lights`]' fixed directions. `None` for `k` out of range.
+    pub fn sample_light(&self, k: usize, u: Vec3) -> Option<(Vec3, Vec3)> {
+        let [x0, y0, x1, y1] = *self.regions.get(k)?;
+        let w = self.width as usize;
+        let before = |i: usize| if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let row = |y: u32| {
+            let (a, b) = (y as usize * w + x0 as usize, y as usize * w + x1 as usize);
+            (before(a), self.cdf[b - 1])
+        };
+        let total: f64 = (y0..y1).map(|y| row(y).1 - row(y).0).sum();
+        if total <= 0.0 {
+            return None;
+        }
+        // The row, then the pixel in it, by the cumulative weights.
+        let mut pick = f64::from(u.x) * total;
+        let mut y = y1 - 1;
+        for r in y0..y1 {
+            let (a, b) = row(r);
+            if pick < b - a {
+                y = r;
+                break;
+            }
+            pick -= b - a;
+        }
+        let (a, b) = row(y);
+        let target = (a + pick).min(b);
+        let lo = y as usize * w + x0 as usize;
+        let hi = y as usize * w + x1 as usize;
+        let i = (lo + self.cdf[lo..hi].partition_point(|c| *c <= target)).min(hi - 1);
+        let p = (self.cdf[i] - before(i)) / total;
+        if p <= 0.0 {
+            return None;
+        }
+        let (phi0, phi1, c0, c1) = self.bounds(i as u32 % self.width, i as u32 / self.width);
+        let phi = phi0 + (phi1 - phi0) * f64::from(u.y);
+        let cos_t = c0 + (c1 - c0) * f64::from(u.z);
+        let omega = (phi1 - phi0) * (c0 - c1);
+        let weight = self.radiance[i].as_dvec3() * (omega / p);
+        Some((direction(phi, cos_t).as_vec3(), weight.as_vec3()))
     }
 }
 
@@ -342,7 +392,7 @@ fn direction(phi: f64, cos_t: f64) -> DVec3 {
 /// Splits the map into up to `sky.directions` regions of equal power (always the most
 /// powerful splittable region, across its longer angular side, at its power median) and
 /// makes each a directional light.
-fn median_cut(sky: &Sky, weight: &[f64], vector: &[DVec3]) -> Vec<DirectionalLight> {
+fn median_cut(sky: &Sky, weight: &[f64], vector: &[DVec3]) -> Vec<(DirectionalLight, [u32; 4])> {
     let (w, h) = (sky.width as usize, sky.height as usize);
     // Summed-area table of the weights.
     let mut sat = vec![0.0f64; (w + 1) * (h + 1)];
@@ -423,11 +473,12 @@ fn median_cut(sky: &Sky, weight: &[f64], vector: &[DVec3]) -> Vec<DirectionalLig
             if wsum <= 0.0 || len <= 0.0 {
                 return None;
             }
-            Some(DirectionalLight {
+            let light = DirectionalLight {
                 name: format!("{} {}", sky.name, x0 * h + y0),
                 direction: (-dir / len).as_vec3(),
                 irradiance: (power * (len / wsum)).as_vec3(),
-            })
+            };
+            Some((light, [x0, y0, x1, y1].map(|v| v as u32)))
         })
         .collect()
 }
@@ -523,6 +574,32 @@ mod tests {
             (e - exact).abs().max_element() < 0.01 * exact.max_element(),
             "{e} {exact}"
         );
+    }
+
+    #[test]
+    fn one_draw_per_light_region_estimates_the_whole_sky() {
+        // The uneven map's floor irradiance from one draw per region, averaged: unbiased.
+        let (w, h) = (16u32, 8u32);
+        let mut map = vec![Vec3::new(0.1, 0.2, 0.3); (w * h) as usize];
+        map[(2 * w + 5) as usize] = Vec3::new(50.0, 20.0, 5.0);
+        let sky = Sky::from_map("test", w, h, map, 12).unwrap();
+        let mut rng = crate::sampling::Rng::new(9, 0);
+        let n = 40_000;
+        let mut e = DVec3::ZERO;
+        for _ in 0..n {
+            for k in 0..sky.lights().len() {
+                let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+                let (d, weight) = sky.sample_light(k, u).unwrap();
+                e += (weight * d.y.max(0.0)).as_dvec3();
+            }
+        }
+        let e = (e / n as f64).as_vec3();
+        let exact = sky.irradiance(Vec3::Y);
+        assert!(
+            (e - exact).abs().max_element() < 0.01 * exact.max_element(),
+            "{e} {exact}"
+        );
+        assert!(sky.sample_light(sky.lights().len(), Vec3::ZERO).is_none());
     }
 
     #[test]
