@@ -131,6 +131,52 @@ pub fn run(technique: &mut dyn Technique, scene: &Arc<Scene>, width: u32, height
     }
 }
 
+/// [`run`]'s image, or a panic naming the refusal: for tests whose scene every method must
+/// render.
+pub fn render_image(t: &mut dyn Technique, scene: &Scene, width: u32, height: u32) -> Image {
+    run(t, &Arc::new(scene.clone()), width, height)
+        .image(t.name())
+        .clone()
+}
+
+/// The reference path tracer's image of `scene` (all bounces) at `spp` with `seed`.
+pub fn reference_image(scene: &Scene, spp: u32, seed: u64, width: u32, height: u32) -> Image {
+    let mut t = ReferenceTechnique::new(ReferenceSettings {
+        spp,
+        bounces: Bounces::Unlimited,
+        seed,
+        ..Default::default()
+    });
+    render_image(&mut t, scene, width, height)
+}
+
+/// The methods as the tests comparing them with the reference take them (CPU, and GPU
+/// where an adapter exists): [`techniques`] without the reference, with the IBRR at LDC 64
+/// and 64 IRPLs (at 8 its indirect noise is most of its error in rooms lit mostly
+/// indirectly).
+pub fn compared_methods() -> Vec<(&'static str, Box<dyn Technique>)> {
+    let ctx = scene_core::gpu::gpu_test_context();
+    let ibrr = || {
+        ibrr_ldc::IbrrTechnique::new(
+            ibrr_ldc::IbrrSettings {
+                resolution: 64,
+                irpls: 64,
+                ..Default::default()
+            },
+            Box::new(gbuffer::CpuRasterizer::new()),
+        )
+    };
+    techniques(ctx.as_ref())
+        .into_iter()
+        .filter(|(name, _)| *name != "reference")
+        .map(|(name, t)| match (name, &ctx) {
+            ("ibrr", _) => (name, Box::new(ibrr()) as Box<dyn Technique>),
+            ("ibrr-gpu", Some(ctx)) => (name, Box::new(ibrr().on_gpu(ctx.clone())) as _),
+            _ => (name, t),
+        })
+        .collect()
+}
+
 /// How far `image` is from `reference`: the sum over pixels and channels of `|image -
 /// reference|` over the sum of `reference` (0 for the same picture; the same measure as
 /// the tests comparing methods on hard-case scenes quote).

@@ -8,9 +8,8 @@
 
 use std::sync::Arc;
 
-use golden_tests::scenes::{self, relative_difference as rel, run, techniques};
+use golden_tests::scenes::{self, relative_difference as rel, techniques};
 use scene_core::glam::{Vec2, Vec3};
-use scene_core::reference::{Bounces, ReferenceSettings, ReferenceTechnique};
 use scene_core::scene::{Material, Mesh, Sampler, Scene, Texture};
 use scene_core::{GBufferRenderer, Image, Technique, View};
 
@@ -119,19 +118,11 @@ fn room(grille: Grille) -> Scene {
 }
 
 fn reference(scene: &Scene, seed: u64) -> Image {
-    let mut t = ReferenceTechnique::new(ReferenceSettings {
-        spp: 512,
-        bounces: Bounces::Unlimited,
-        seed,
-        ..Default::default()
-    });
-    render(&mut t, scene)
+    scenes::reference_image(scene, 512, seed, W, H)
 }
 
 fn render(t: &mut dyn Technique, scene: &Scene) -> Image {
-    run(t, &Arc::new(scene.clone()), W, H)
-        .image(t.name())
-        .clone()
+    scenes::render_image(t, scene, W, H)
 }
 
 /// The grille's fixture is what it claims: the masked quad, its twin and the unmasked

@@ -6,11 +6,8 @@
 //! picture of the textured panel much closer to its picture of the twin than with the
 //! texture ignored (the whole panel emitting, twice the power).
 
-use std::sync::Arc;
-
-use golden_tests::scenes::{self, relative_difference as rel, run, techniques};
+use golden_tests::scenes::{self, relative_difference as rel, techniques};
 use scene_core::glam::{Vec2, Vec3};
-use scene_core::reference::{Bounces, ReferenceSettings, ReferenceTechnique};
 use scene_core::scene::{Material, Sampler, Scene, Texture};
 use scene_core::{Image, Technique};
 
@@ -103,19 +100,11 @@ fn room(panel: Panel) -> Scene {
 }
 
 fn render(t: &mut dyn Technique, scene: &Scene) -> Image {
-    run(t, &Arc::new(scene.clone()), W, H)
-        .image(t.name())
-        .clone()
+    scenes::render_image(t, scene, W, H)
 }
 
 fn reference(scene: &Scene, seed: u64) -> Image {
-    let mut t = ReferenceTechnique::new(ReferenceSettings {
-        spp: 512,
-        bounces: Bounces::Unlimited,
-        seed,
-        ..Default::default()
-    });
-    render(&mut t, scene)
+    scenes::reference_image(scene, 512, seed, W, H)
 }
 
 #[test]

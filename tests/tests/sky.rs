@@ -8,10 +8,10 @@
 
 use std::sync::Arc;
 
-use golden_tests::scenes::{self, relative_difference as rel, run, techniques};
+use golden_tests::scenes::{self, relative_difference as rel};
 use scene_core::glam::Vec3;
 use scene_core::lights::{LightId, LightState};
-use scene_core::reference::{Bounces, ReferenceSettings, ReferenceTechnique};
+use scene_core::reference::{ReferenceSettings, ReferenceTechnique};
 use scene_core::scene::{Camera, Material, Mesh, Scene};
 use scene_core::sky::Sky;
 use scene_core::{FrameRequest, Image, Technique};
@@ -23,44 +23,15 @@ const H: u32 = 36;
 const ROOM_SPP: u32 = 2048;
 
 fn reference(scene: &Scene, spp: u32, seed: u64) -> Image {
-    let mut t = ReferenceTechnique::new(ReferenceSettings {
-        spp,
-        bounces: Bounces::Unlimited,
-        seed,
-        ..Default::default()
-    });
-    render(&mut t, scene)
+    scenes::reference_image(scene, spp, seed, W, H)
 }
 
 fn render(t: &mut dyn Technique, scene: &Scene) -> Image {
-    run(t, &Arc::new(scene.clone()), W, H)
-        .image(t.name())
-        .clone()
+    scenes::render_image(t, scene, W, H)
 }
 
-/// The methods at small settings, CPU and GPU where an adapter exists (the spot test's
-/// list: the IBRR at LDC 64 and 64 IRPLs).
 fn methods() -> Vec<(&'static str, Box<dyn Technique>)> {
-    let ctx = scene_core::gpu::gpu_test_context();
-    let ibrr = || {
-        ibrr_ldc::IbrrTechnique::new(
-            ibrr_ldc::IbrrSettings {
-                resolution: 64,
-                irpls: 64,
-                ..Default::default()
-            },
-            Box::new(gbuffer::CpuRasterizer::new()),
-        )
-    };
-    techniques(ctx.as_ref())
-        .into_iter()
-        .filter(|(name, _)| *name != "reference")
-        .map(|(name, t)| match (name, &ctx) {
-            ("ibrr", _) => (name, Box::new(ibrr()) as Box<dyn Technique>),
-            ("ibrr-gpu", Some(ctx)) => (name, Box::new(ibrr().on_gpu(ctx.clone())) as _),
-            _ => (name, t),
-        })
-        .collect()
+    scenes::compared_methods()
 }
 
 /// A grey floor seen from above, nothing else: under a sky it reflects `albedo / pi` times

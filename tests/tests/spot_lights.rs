@@ -5,12 +5,9 @@
 //! closer than its own picture of the point light that the spot would have been without its
 //! cone (what importing spots as points gave).
 
-use std::sync::Arc;
-
-use golden_tests::scenes::{self, relative_difference as rel, run, techniques};
+use golden_tests::scenes::{self, relative_difference as rel};
 use scene_core::glam::Vec3;
 use scene_core::lights::SpotCone;
-use scene_core::reference::{Bounces, ReferenceSettings, ReferenceTechnique};
 use scene_core::scene::{PointLight, Scene};
 use scene_core::{Image, Technique};
 
@@ -47,45 +44,15 @@ fn reference(scene: &Scene) -> Image {
 }
 
 fn reference_seeded(scene: &Scene, seed: u64) -> Image {
-    let mut t = ReferenceTechnique::new(ReferenceSettings {
-        spp: 512,
-        bounces: Bounces::Unlimited,
-        seed,
-        ..Default::default()
-    });
-    render(&mut t, scene)
+    scenes::reference_image(scene, 512, seed, W, H)
 }
 
-/// The methods at small settings (CPU, and GPU where an adapter exists): the scene
-/// contract's list, with the IBRR at LDC 64 and 64 IRPLs (at 8 its indirect noise is most
-/// of its error, and a spot's room is mostly lit indirectly).
 fn methods() -> Vec<(&'static str, Box<dyn Technique>)> {
-    let ctx = scene_core::gpu::gpu_test_context();
-    let ibrr = || {
-        ibrr_ldc::IbrrTechnique::new(
-            ibrr_ldc::IbrrSettings {
-                resolution: 64,
-                irpls: 64,
-                ..Default::default()
-            },
-            Box::new(gbuffer::CpuRasterizer::new()),
-        )
-    };
-    techniques(ctx.as_ref())
-        .into_iter()
-        .filter(|(name, _)| *name != "reference")
-        .map(|(name, t)| match (name, &ctx) {
-            ("ibrr", _) => (name, Box::new(ibrr()) as Box<dyn Technique>),
-            ("ibrr-gpu", Some(ctx)) => (name, Box::new(ibrr().on_gpu(ctx.clone())) as _),
-            _ => (name, t),
-        })
-        .collect()
+    scenes::compared_methods()
 }
 
 fn render(t: &mut dyn Technique, scene: &Scene) -> Image {
-    run(t, &Arc::new(scene.clone()), W, H)
-        .image(t.name())
-        .clone()
+    scenes::render_image(t, scene, W, H)
 }
 
 #[test]

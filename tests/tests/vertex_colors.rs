@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use golden_tests::scenes::{self, relative_difference as rel, run, techniques};
+use golden_tests::scenes::{self, relative_difference as rel, techniques};
 use scene_core::glam::{Vec2, Vec3};
 use scene_core::scene::{Material, Mesh, Scene};
 use scene_core::{GBufferRenderer, Image, Technique, View};
@@ -32,9 +32,7 @@ fn room(coloured: bool) -> Scene {
 }
 
 fn render(t: &mut dyn Technique, scene: &Scene) -> Image {
-    run(t, &Arc::new(scene.clone()), W, H)
-        .image(t.name())
-        .clone()
+    scenes::render_image(t, scene, W, H)
 }
 
 #[test]

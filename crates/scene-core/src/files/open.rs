@@ -124,9 +124,8 @@ impl AddedLights {
         let sky = if spec.to_ascii_lowercase().ends_with(".exr") {
             read_sky_map(spec)?
         } else {
-            let (_, rgb) = parse_pair(&format!("0,1,0={spec}"), "--sky", "R,G,B or FILE.exr")
-                .map_err(|e| e.replace("--sky 0,1,0=", "--sky "))?;
-            crate::sky::Sky::uniform(rgb)
+            let bad = |why: &str| format!("--sky {spec}: {why} (expected R,G,B or FILE.exr)");
+            crate::sky::Sky::uniform(parse_rgb(spec, &bad)?)
         };
         self.sky = Some(sky.map_err(|e| format!("--sky {spec}: {e}"))?);
         Ok(())
@@ -250,35 +249,40 @@ fn read_sky_map(spec: &str) -> Result<Result<crate::sky::Sky, crate::SceneError>
 fn parse_pair(spec: &str, flag: &str, form: &str) -> Result<(glam::Vec3, glam::Vec3), String> {
     let bad = |why: &str| format!("{flag} {spec}: {why} (expected {form})");
     let (a, b) = spec.split_once('=').ok_or_else(|| bad("no '='"))?;
-    let numbers = |s: &str| -> Result<Vec<f32>, String> {
-        s.split(',')
-            .map(|x| {
-                let v: f32 = x
-                    .trim()
-                    .parse()
-                    .map_err(|_| bad(&format!("'{x}' is not a number")))?;
-                if v.is_finite() {
-                    Ok(v)
-                } else {
-                    Err(bad(&format!("'{x}' is not finite")))
-                }
-            })
-            .collect()
-    };
-    let a = numbers(a)?;
-    let b = numbers(b)?;
-    let [x, y, z] = a[..] else {
+    let [x, y, z] = parse_numbers(a, &bad)?[..] else {
         return Err(bad("three numbers before '='"));
     };
-    let rgb = match b[..] {
+    Ok((glam::Vec3::new(x, y, z), parse_rgb(b, &bad)?))
+}
+
+/// `R,G,B` or one number (grey), finite and not negative; `bad` words the error.
+fn parse_rgb(s: &str, bad: &dyn Fn(&str) -> String) -> Result<glam::Vec3, String> {
+    let rgb = match parse_numbers(s, bad)?[..] {
         [v] => glam::Vec3::splat(v),
-        [r, g, bl] => glam::Vec3::new(r, g, bl),
-        _ => return Err(bad("one or three numbers after '='")),
+        [r, g, b] => glam::Vec3::new(r, g, b),
+        _ => return Err(bad("one or three numbers for the colour")),
     };
     if rgb.min_element() < 0.0 {
         return Err(bad("a negative colour"));
     }
-    Ok((glam::Vec3::new(x, y, z), rgb))
+    Ok(rgb)
+}
+
+/// Comma-separated finite numbers; `bad` words the error.
+fn parse_numbers(s: &str, bad: &dyn Fn(&str) -> String) -> Result<Vec<f32>, String> {
+    s.split(',')
+        .map(|x| {
+            let v: f32 = x
+                .trim()
+                .parse()
+                .map_err(|_| bad(&format!("'{x}' is not a number")))?;
+            if v.is_finite() {
+                Ok(v)
+            } else {
+                Err(bad(&format!("'{x}' is not finite")))
+            }
+        })
+        .collect()
 }
 
 /// True when `spec` names a glTF file (by its extension) rather than a built-in scene.

@@ -201,14 +201,9 @@ impl Sky {
         if p_pixel <= 0.0 {
             return None;
         }
-        let (x, y) = (i as u32 % self.width, i as u32 / self.width);
-        let (phi0, phi1, c0, c1) = self.bounds(x, y);
-        let phi = phi0 + (phi1 - phi0) * f64::from(u.y);
-        let cos_t = c0 + (c1 - c0) * f64::from(u.z);
-        let d = direction(phi, cos_t);
-        let omega = (phi1 - phi0) * (c0 - c1);
+        let (d, omega) = self.point_in_pixel(i, u);
         let pdf = (p_pixel / omega) as f32;
-        (pdf.is_finite() && pdf > 0.0).then_some((d.as_vec3(), pdf, self.radiance[i]))
+        (pdf.is_finite() && pdf > 0.0).then_some((d, pdf, self.radiance[i]))
     }
 
     /// The solid-angle density [`Sky::sample`] draws unit direction `towards_sky` with.
@@ -234,8 +229,29 @@ impl Sky {
                 if l == Vec3::ZERO {
                     continue;
                 }
-                // Split the pixel finely so that its part below the horizon is cut off.
                 let (phi0, phi1, c0, c1) = self.bounds(x, y);
+                // A patch wholly above the horizon integrates exactly as one (the cosine is
+                // linear in the direction), one wholly below gives nothing: every point is
+                // within `r` (half its polar span plus half its azimuth span) of its centre.
+                let r = 0.5 * (c1.clamp(-1.0, 1.0).acos() - c0.clamp(-1.0, 1.0).acos())
+                    + 0.5 * (phi1 - phi0);
+                let (theta_mid, phi_mid) = (
+                    0.5 * (c0.clamp(-1.0, 1.0).acos() + c1.clamp(-1.0, 1.0).acos()),
+                    0.5 * (phi0 + phi1),
+                );
+                let centre = DVec3::new(
+                    theta_mid.sin() * phi_mid.sin(),
+                    theta_mid.cos(),
+                    -theta_mid.sin() * phi_mid.cos(),
+                );
+                let side = n.dot(centre);
+                if r < std::f64::consts::FRAC_PI_2 && side.abs() > r.sin() {
+                    if side > 0.0 {
+                        e += l.as_dvec3() * n.dot(mean_direction(phi0, phi1, c0, c1));
+                    }
+                    continue;
+                }
+                // Cut by the horizon: split it finely so that the part below is cut off.
                 let k = 8;
                 let mut cos_sum = 0.0;
                 for i in 0..k {
@@ -357,12 +373,20 @@ impl Sky {
         if p <= 0.0 {
             return None;
         }
+        let (d, omega) = self.point_in_pixel(i, u);
+        let weight = self.radiance[i].as_dvec3() * (omega / p);
+        Some((d, weight.as_vec3()))
+    }
+
+    /// A direction uniform over pixel `i`'s patch of sphere from `u.y` (azimuth) and `u.z`
+    /// (cosine of the polar angle), and the patch's solid angle.
+    fn point_in_pixel(&self, i: usize, u: Vec3) -> (Vec3, f64) {
         let (phi0, phi1, c0, c1) = self.bounds(i as u32 % self.width, i as u32 / self.width);
         let phi = phi0 + (phi1 - phi0) * f64::from(u.y);
         let cos_t = c0 + (c1 - c0) * f64::from(u.z);
-        let omega = (phi1 - phi0) * (c0 - c1);
-        let weight = self.radiance[i].as_dvec3() * (omega / p);
-        Some((direction(phi, cos_t).as_vec3(), weight.as_vec3()))
+        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+        let d = DVec3::new(sin_t * phi.sin(), cos_t, -sin_t * phi.cos());
+        (d.as_vec3(), (phi1 - phi0) * (c0 - c1))
     }
 }
 
@@ -382,11 +406,6 @@ fn mean_direction(phi0: f64, phi1: f64, c0: f64, c1: f64) -> DVec3 {
         y,
         -sin2 * (phi1.sin() - phi0.sin()),
     )
-}
-
-fn direction(phi: f64, cos_t: f64) -> DVec3 {
-    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-    DVec3::new(sin_t * phi.sin(), cos_t, -sin_t * phi.cos())
 }
 
 /// Splits the map into up to `sky.directions` regions of equal power (always the most
@@ -543,16 +562,22 @@ mod tests {
         assert!(hi < 1.5 * share, "{hi} against a share of {share}");
     }
 
+    /// A 16x8 map of `sky` with a `sun` pixel high in it and a blue one below the horizon,
+    /// as `directions` lights.
+    fn uneven(sky: Vec3, sun: Vec3, directions: u32) -> Sky {
+        let (w, h) = (16u32, 8u32);
+        let mut map = vec![sky; (w * h) as usize];
+        map[(2 * w + 5) as usize] = sun;
+        map[(6 * w + 1) as usize] = Vec3::new(0.0, 0.0, 3.0);
+        Sky::from_map("test", w, h, map, directions).unwrap()
+    }
+
     #[test]
     fn sampling_draws_each_pixel_by_its_power_with_the_density_it_reports() {
         // A map with a bright patch: the sampled directions' histogram follows L dw and
         // pdf() agrees with sample()'s density; the estimator of the floor's irradiance
         // (L cos / pdf) converges to the sum.
-        let (w, h) = (16u32, 8u32);
-        let mut map = vec![Vec3::splat(0.1); (w * h) as usize];
-        map[(2 * w + 5) as usize] = Vec3::splat(50.0);
-        map[(6 * w + 1) as usize] = Vec3::new(0.0, 0.0, 3.0);
-        let sky = Sky::from_map("test", w, h, map, 16).unwrap();
+        let sky = uneven(Vec3::splat(0.1), Vec3::splat(50.0), 16);
         let mut rng = crate::sampling::Rng::new(7, 0);
         let n = 400_000;
         let mut e = DVec3::ZERO;
@@ -579,10 +604,7 @@ mod tests {
     #[test]
     fn one_draw_per_light_region_estimates_the_whole_sky() {
         // The uneven map's floor irradiance from one draw per region, averaged: unbiased.
-        let (w, h) = (16u32, 8u32);
-        let mut map = vec![Vec3::new(0.1, 0.2, 0.3); (w * h) as usize];
-        map[(2 * w + 5) as usize] = Vec3::new(50.0, 20.0, 5.0);
-        let sky = Sky::from_map("test", w, h, map, 12).unwrap();
+        let sky = uneven(Vec3::new(0.1, 0.2, 0.3), Vec3::new(50.0, 20.0, 5.0), 12);
         let mut rng = crate::sampling::Rng::new(9, 0);
         let n = 40_000;
         let mut e = DVec3::ZERO;
