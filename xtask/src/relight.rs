@@ -32,9 +32,19 @@ pub struct Options {
     /// Hemicube resolution (with --form-factors hemicube).
     #[arg(long, default_value_t = 128)]
     pub hemicube_resolution: u32,
-    /// Stop when the unshot fraction of the emitted energy is below this.
+    /// Stop when the unshot fraction of the emitted energy is below this (progressive
+    /// solver).
     #[arg(long, default_value_t = 1e-3)]
     pub max_unshot: f64,
+    /// The solver: progressive (the paper's progressive refinement, one shot at a time) or
+    /// hierarchical (hierarchical radiosity with clustering: links between clusters of
+    /// elements, for scenes of 10^5 elements and more).
+    #[arg(long, default_value = "progressive")]
+    pub solver: String,
+    /// Opening criterion of the hierarchical solver: nodes are linked as points when their
+    /// radii sum to less than this fraction of their distance.
+    #[arg(long, default_value_t = relight_pr::HierarchySettings::default().opening)]
+    pub opening: f32,
     /// Direct light at display: pixels (gathered per pixel, the default) or elements
     /// (interpolated from the solution like the indirect light, the paper's display).
     #[arg(long, default_value = "pixels")]
@@ -58,6 +68,7 @@ impl Options {
         ranged("--split-depth", self.split_depth, 0..=10)?;
         ranged("--hemicube-resolution", self.hemicube_resolution, 16..=2048)?;
         ranged("--max-unshot", self.max_unshot, 1e-6..=1.0)?;
+        ranged("--opening", self.opening, 0.01..=1.0)?;
         ranged("--subpixels", self.subpixels, 1..=256)?;
         ranged("--emitter-rays", self.emitter_rays, 1..=1024)?;
         Ok(())
@@ -160,9 +171,22 @@ pub fn run(o: &Options) -> Result<(), String> {
         },
         other => return Err(format!("--form-factors {other}: expected rays or hemicube")),
     };
+    let hierarchy = match o.solver.as_str() {
+        "progressive" => None,
+        "hierarchical" => Some(relight_pr::HierarchySettings {
+            opening: o.opening,
+            ..Default::default()
+        }),
+        other => {
+            return Err(format!(
+                "--solver {other}: expected progressive or hierarchical"
+            ));
+        }
+    };
     let settings = SolverSettings {
         form_factors,
         max_unshot: o.max_unshot,
+        hierarchy,
         ..Default::default()
     };
     let direct = match o.direct.as_str() {
@@ -273,6 +297,21 @@ pub fn run(o: &Options) -> Result<(), String> {
         "row_cache_bytes": solution.stats.row_cache_bytes,
         "cluster_shots": solution.stats.cluster_shots,
         "unshot_fraction": solution.stats.unshot_fraction,
+        "solver": o.solver,
+        "hierarchy": solution.stats.hierarchy.map(|h| serde_json::json!({
+            "nodes": h.nodes,
+            "direct_far_links": h.direct_far_links,
+            "direct_near_links": h.direct_near_links,
+            "far_links": h.far_links,
+            "near_links": h.near_links,
+            "link_bytes": h.link_bytes,
+            "node_bytes": h.node_bytes,
+            "bounces": h.bounces,
+            "tree_seconds": h.tree_time.as_secs_f64(),
+            "analytic_seconds": h.analytic_time.as_secs_f64(),
+            "link_seconds": h.link_time.as_secs_f64(),
+            "gather_seconds": h.gather_time.as_secs_f64(),
+        })),
         "solve_seconds": solve_s,
         "relight_ms": relight_ms,
         "direct": o.direct,

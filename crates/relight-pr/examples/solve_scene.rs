@@ -6,7 +6,11 @@
 //! (default `building 1024 0.001`). `FULL=F` sets `full_visibility_at`. `COMPARE=U` solves
 //! again to unshot fraction `U` (with `MEMBERS=N` cluster members and `FULL2=F`) and prints
 //! the area-weighted mean difference between the two solutions' element radiance.
-//! `ROW_CACHE_MIB=M` sets the first solve's `row_cache_bytes` (default 256).
+//! `ROW_CACHE_MIB=M` sets the first solve's `row_cache_bytes` (default 256). `DUMP=FILE`
+//! writes the first solve's element radiance (RGB f32, little-endian) to `FILE`, and
+//! `AGAINST=FILE` compares the first solve with such a file (emitters left out). `HIER=1`
+//! makes the first solve hierarchical (`OPENING`, `LINK_ERROR`, `VIS_RAYS`, `TOLERANCE`
+//! set its settings). `PART=direct|indirect` dumps and compares one part of the light.
 use relight_pr::mesh::{MeshSettings, Meshing};
 use relight_pr::solver::{self, SolverSettings};
 fn main() {
@@ -43,6 +47,19 @@ fn main() {
         full_visibility_at: std::env::var("FULL").map_or(0.01, |m| m.parse().unwrap()),
         row_cache_bytes: std::env::var("ROW_CACHE_MIB")
             .map_or(256 << 20, |m| m.parse::<usize>().unwrap() << 20),
+        hierarchy: std::env::var("HIER").ok().map(|_| {
+            let var = |name: &str, default: f64| {
+                std::env::var(name).map_or(default, |v| v.parse::<f64>().unwrap())
+            };
+            let d = relight_pr::HierarchySettings::default();
+            relight_pr::HierarchySettings {
+                opening: var("OPENING", d.opening as f64) as f32,
+                link_error: var("LINK_ERROR", d.link_error),
+                visibility_rays: var("VIS_RAYS", d.visibility_rays as f64) as u32,
+                tolerance: var("TOLERANCE", d.tolerance),
+                ..d
+            }
+        }),
         ..Default::default()
     };
     let s = solver::solve(&scene, &m, &rays, &settings, &mut |f| {
@@ -54,6 +71,45 @@ fn main() {
     })
     .unwrap();
     println!("solve {:.2?}: {:?}", t.elapsed(), s.stats);
+    if let Ok(path) = std::env::var("DUMP") {
+        // Element radiance (RGB f32, little-endian) under the default light state.
+        let st = part_state(&scene);
+        let r = relight_pr::relight::radiance(&m, &s, &st);
+        let bytes: Vec<u8> = r
+            .iter()
+            .flat_map(|c| c.to_array())
+            .flat_map(f32::to_le_bytes)
+            .collect();
+        std::fs::write(&path, bytes).unwrap();
+        println!("wrote {path}");
+    }
+    if let Ok(path) = std::env::var("AGAINST") {
+        // The area-weighted mean difference from a dumped solution (same meshing).
+        let st = part_state(&scene);
+        let a = relight_pr::relight::radiance(&m, &s, &st);
+        let bytes = std::fs::read(&path).unwrap();
+        let b: Vec<f32> = bytes
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        let (mut diff, mut sum, mut bias) = (0.0f64, 0.0f64, 0.0f64);
+        for (j, e) in m.elements.iter().enumerate() {
+            if e.hidden || e.emission != glam::Vec3::ZERO {
+                continue;
+            }
+            let w = e.area as f64;
+            let other = scene_core::luminance(glam::Vec3::from_slice(&b[3 * j..3 * j + 3]));
+            let mine = scene_core::luminance(a[j]);
+            diff += w * (mine - other).abs() as f64;
+            bias += w * (mine - other) as f64;
+            sum += w * other as f64;
+        }
+        println!(
+            "against {path}: area-weighted |diff| / mean {:.4}, bias {:.4}",
+            diff / sum,
+            bias / sum
+        );
+    }
     if let Ok(c) = std::env::var("COMPARE") {
         let c: f64 = c.parse().unwrap();
         let t = std::time::Instant::now();
@@ -92,4 +148,22 @@ fn main() {
             bias / sum
         );
     }
+}
+
+/// The light state of `PART=direct|indirect` (every light's other part at 0), else the
+/// default.
+fn part_state(scene: &scene_core::Scene) -> scene_core::lights::LightState {
+    let mut st = scene_core::lights::LightState::default();
+    if let Ok(part) = std::env::var("PART") {
+        for id in scene_core::lights::light_ids(scene) {
+            let mut setting = st.get(id);
+            match part.as_str() {
+                "direct" => setting.indirect = 0.0,
+                "indirect" => setting.direct = 0.0,
+                other => panic!("PART={other}: direct or indirect"),
+            }
+            st.set(id, setting);
+        }
+    }
+    st
 }

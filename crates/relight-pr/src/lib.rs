@@ -27,7 +27,9 @@
 //! The pieces: [`mesh`] (patches and elements sized from the scene), [`form_factor`]
 //! (closed-form point-to-polygon form factors with ray-cast visibility), [`solver`] (the
 //! figure 2 loop, the two baselines of Table 1, direct and indirect apart, ambient term),
-//! [`relight`] (eq. 1 for any light state), [`display`] (smooth interpolation over a
+//! [`hierarchical`] (hierarchical radiosity with clustering, the
+//! same tagged solution from links between clusters; opt-in, for large scenes), [`relight`]
+//! (eq. 1 for any light state), [`display`] (smooth interpolation over a
 //! camera G-buffer of the element scene), [`dynamic`] (moving lights and dynamic objects,
 //! section 2.4), [`technique`] (`RelightTechnique`, a `scene_core::Technique`). `docs/relight-pr.md` has the design, the tests
 //! and the measured figures.
@@ -38,6 +40,7 @@ pub mod dynamic;
 pub mod export;
 pub mod form_factor;
 pub mod gpu;
+pub mod hierarchical;
 pub mod merge;
 pub mod mesh;
 pub mod packed;
@@ -45,6 +48,7 @@ pub mod relight;
 pub mod solver;
 pub mod technique;
 
+pub use hierarchical::{HierarchySettings, HierarchyStats};
 pub use mesh::{MeshBudget, MeshSettings, Meshing};
 pub use solver::{FormFactorMethod, Solution, SolverSettings, Strategy, solve, solve_with};
 pub use technique::RelightTechnique;

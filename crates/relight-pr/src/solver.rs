@@ -103,6 +103,13 @@ pub struct SolverSettings {
     /// clusters ([`Self::cluster_members`]) are never kept (their rays differ per shot).
     /// Default 256 MiB.
     pub row_cache_bytes: usize,
+    /// Solve by hierarchical radiosity with clustering ([`crate::hierarchical`]) instead of
+    /// progressive refinement: links between clusters of elements where their error allows,
+    /// so that the cost follows the links, not elements times shots. `max_unshot`,
+    /// `max_shots`, `cluster_members` and `row_cache_bytes` do not apply; the strategy must
+    /// be [`Strategy::Tagged`] or [`Strategy::Combined`], the form factors
+    /// [`FormFactorMethod::Rays`]. Default `None` (progressive refinement, the paper's).
+    pub hierarchy: Option<crate::hierarchical::HierarchySettings>,
 }
 
 impl Default for SolverSettings {
@@ -118,6 +125,7 @@ impl Default for SolverSettings {
             cluster_members: 32,
             full_visibility_at: 0.01,
             row_cache_bytes: 256 << 20,
+            hierarchy: None,
         }
     }
 }
@@ -150,6 +158,8 @@ pub struct SolveStats {
     pub unshot_fraction: f64,
     /// Wall-clock time.
     pub time: Duration,
+    /// What the hierarchical solve built (`None` for progressive refinement).
+    pub hierarchy: Option<crate::hierarchical::HierarchyStats>,
 }
 
 /// k single-source solutions over one meshing.
@@ -242,6 +252,22 @@ pub fn solve_with(
     check_and_prepare(scene, meshing, &mut renderer, settings)?;
     let start = Instant::now();
     let sources = sources(scene, &settings.banks)?;
+    if let Some(h) = &settings.hierarchy {
+        let sources = match (settings.strategy, settings.form_factors) {
+            (Strategy::Tagged, FormFactorMethod::Rays) => sources,
+            (Strategy::Combined, FormFactorMethod::Rays) => vec![Source {
+                lights: sources.iter().flat_map(|s| s.lights.clone()).collect(),
+            }],
+            _ => {
+                return Err(RelightError::InvalidSetting(
+                    "the hierarchical solve takes the tagged or combined strategy with ray-cast \
+                     form factors"
+                        .into(),
+                ));
+            }
+        };
+        return crate::hierarchical::solve(scene, meshing, rays, sources, settings, h, progress);
+    }
     let mut solution = match settings.strategy {
         Strategy::Tagged => solve_tagged(
             scene,

@@ -1,0 +1,1228 @@
+//! Hierarchical radiosity with clustering, tagged per light source: the solve that scales
+//! to scenes of 10^5 elements (beyond the paper, whose progressive refinement costs one row
+//! of form factors over every element per shot).
+//!
+//! After Hanrahan, Salzman and Aupperle (1991, hierarchical radiosity: links between
+//! pieces of the scene at the level their error allows), Smits, Arvo and Greenberg (1994)
+//! and Sillion (1995) (clusters: links between groups of surfaces, not only between
+//! subdivisions of one). The meshing's elements are the leaves; above them a binary tree
+//! of clusters, grouped first by orientation (so a cluster's surfaces face one way) and
+//! then in space. A **link** from a sender node to a receiver node carries light between
+//! every pair of their leaves at once:
+//!
+//! - far links (`(r_R + r_S) / d` below [`HierarchySettings::opening`], or a transfer too
+//!   small to matter, [`HierarchySettings::link_error`]) treat both ends as points at
+//!   their area-weighted centres `d` apart along the unit direction `w`. A cluster sends
+//!   as the vector `P = sum_l B_l A_l n_l` of its leaves (radiosity `B`, area `A`, normal
+//!   `n`) and receives the vector irradiance `w (-w . P) V / (pi d^2)`, which each leaf `l`
+//!   below it reads as `n_l . (that)`: the point form factor `A cos cos / (pi d^2)`
+//!   (eq. 4 of Hanrahan et al.) summed over the leaves without visiting them. This is exact
+//!   in the cosines when every leaf of each end faces the other end, which the refinement
+//!   guarantees (else it splits); `V` is the visible fraction of rays between random points
+//!   of the two ends ([`HierarchySettings::visibility_rays`]). A partly visible link that
+//!   carries enough light is split too, so that a cluster straddling a wall does not spread
+//!   light onto its hidden side;
+//! - near links (two elements too close for a point) use the closed-form point-to-triangle
+//!   form factor at the receiver's points with ray-cast visibility
+//!   ([`crate::form_factor::point_to_triangle_adaptive`]), as the progressive solve does.
+//!
+//! Refinement is the "BF" oracle of Hanrahan et al. with an estimated radiosity: a link is
+//! kept as soon as it is geometrically far enough or carries less than
+//! [`HierarchySettings::link_error`] of the scene's power. Two link sets are refined: one
+//! from the emitters (their emission is known), giving the direct light of emissive meshes,
+//! and one for reflected light, refined against the radiosity the direct light leaves
+//! (point, spot, directional lights and the sky are shot analytically onto the elements, as
+//! in [`crate::solver`]). The solve is then a Jacobi iteration (gather over the links,
+//! push down the tree, reflect at the leaves) per source at once, each source's energy
+//! tagged as in the paper's eq. 1, until what one bounce adds falls below
+//! [`HierarchySettings::tolerance`] of the first; the bounces left are added as each
+//! element's last bounce times the geometric series of the bounce ratio (where the
+//! progressive solve adds Cohen's uniform ambient term). The result is a [`Solution`] like the progressive solve's:
+//! relighting, display, export and the GPU paths use it unchanged.
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use glam::Vec3;
+use rayon::prelude::*;
+use scene_core::lights::LightId;
+use scene_core::ray::RayScene;
+use scene_core::sampling::{Rng, hash_seed, uniform_triangle};
+use scene_core::{Scene, luminance};
+
+use crate::RelightError;
+use crate::direct;
+use crate::form_factor::point_to_triangle_adaptive;
+use crate::mesh::Meshing;
+use crate::solver::{Solution, SolveStats, SolverSettings, Source};
+
+/// Parameters of the hierarchical solve ([`SolverSettings::hierarchy`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HierarchySettings {
+    /// A link between two nodes is far enough to treat them as points when the sum of
+    /// their radii is below this fraction of their distance (Barnes and Hut's opening
+    /// criterion). Smaller is more accurate and makes more links. Default 0.25.
+    pub opening: f32,
+    /// A link whose transfer is bounded by this fraction of the scene's (estimated) power
+    /// is kept at any distance (the BF criterion of Hanrahan et al.). Default 1e-6.
+    pub link_error: f64,
+    /// Visibility rays per far link. Default 4.
+    pub visibility_rays: u32,
+    /// Stop when one bounce adds less than this fraction of the first bounce's power.
+    /// Default 1e-3.
+    pub tolerance: f64,
+    /// Stop after this many bounces anyway. Default 500.
+    pub max_bounces: usize,
+    /// Most links (both sets); more is refused with [`RelightError::Budget`] while
+    /// refining. Default 2^27 (3 GiB of links).
+    pub max_links: usize,
+}
+
+impl Default for HierarchySettings {
+    fn default() -> Self {
+        Self {
+            opening: 0.25,
+            link_error: 1e-6,
+            visibility_rays: 4,
+            tolerance: 1e-3,
+            max_bounces: 500,
+            max_links: 1 << 27,
+        }
+    }
+}
+
+impl HierarchySettings {
+    /// Checks the ranges.
+    pub fn check(&self) -> Result<(), RelightError> {
+        let ok = self.opening > 0.0
+            && self.opening <= 1.0
+            && self.link_error.is_finite()
+            && self.link_error >= 0.0
+            && (1..=1024).contains(&self.visibility_rays)
+            && self.tolerance.is_finite()
+            && self.tolerance > 0.0
+            && self.max_bounces >= 1;
+        if ok {
+            Ok(())
+        } else {
+            Err(RelightError::InvalidSetting(format!(
+                "hierarchy: opening {} (in (0, 1]), link_error {} (at least 0), visibility_rays \
+                 {} (1 to 1024), tolerance {} (above 0), max_bounces {} (at least 1)",
+                self.opening,
+                self.link_error,
+                self.visibility_rays,
+                self.tolerance,
+                self.max_bounces
+            )))
+        }
+    }
+}
+
+/// What a hierarchical solve built and how long each part took.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct HierarchyStats {
+    /// Nodes of the cluster tree (leaves are the elements that are not hidden).
+    pub nodes: usize,
+    /// Far links (node to node) from the emitters.
+    pub direct_far_links: usize,
+    /// Near links (element to element) from the emitters.
+    pub direct_near_links: usize,
+    /// Far links of reflected light.
+    pub far_links: usize,
+    /// Near links of reflected light.
+    pub near_links: usize,
+    /// Bytes of all links.
+    pub link_bytes: usize,
+    /// Bytes of the per-node, per-source vectors the gather keeps (sent and received).
+    pub node_bytes: usize,
+    /// Bounces iterated.
+    pub bounces: usize,
+    /// Building the tree.
+    pub tree_time: Duration,
+    /// The analytic lights' direct light on the elements.
+    pub analytic_time: Duration,
+    /// Refining both link sets (visibility rays and form factors).
+    pub link_time: Duration,
+    /// The iteration.
+    pub gather_time: Duration,
+}
+
+/// Bytes of one far link.
+pub const FAR_LINK_BYTES: usize = std::mem::size_of::<FarLink>();
+/// Bytes of one near link.
+pub const NEAR_LINK_BYTES: usize = std::mem::size_of::<NearLink>();
+/// Bytes per node and source of the gather's vectors (sent and received, RGB per axis).
+pub const NODE_SOURCE_BYTES: usize = 2 * 3 * 12;
+
+const NONE: u32 = u32::MAX;
+
+/// A node of the cluster tree. Nodes are in pre-order (a parent before its children).
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    /// Its leaves: `order[first..first + count]` (element ids).
+    first: u32,
+    count: u32,
+    /// Children, or [`NONE`] for a leaf.
+    children: [u32; 2],
+    /// Area-weighted centroid of its leaves.
+    centre: Vec3,
+    /// Radius of a sphere about `centre` holding its leaves.
+    radius: f32,
+    lo: Vec3,
+    hi: Vec3,
+    /// Mean normal (area-weighted, unit; zero where they cancel).
+    normal: Vec3,
+    /// Half-angle of a cone about `normal` holding every leaf's normal (pi when none does).
+    cone: f32,
+    /// Smallest and largest `normal . x` over its leaves' corners (for flat nodes).
+    plane: [f32; 2],
+    area: f32,
+}
+
+impl Node {
+    fn leaf(&self) -> bool {
+        self.children[0] == NONE
+    }
+    /// Every leaf's normal is `normal` (to rounding).
+    fn flat(&self) -> bool {
+        self.cone < 1e-4
+    }
+}
+
+/// The cluster tree over the elements that are not hidden.
+struct Tree {
+    nodes: Vec<Node>,
+    /// Element ids in leaf order.
+    order: Vec<u32>,
+    /// Prefix sums of leaf area in `order` (`len + 1` entries).
+    area_prefix: Vec<f64>,
+    /// The leaf node of each element ([`NONE`] for hidden ones).
+    leaf_of: Vec<u32>,
+    /// Whether the node's leaves see each other ([`Tree::find_coherent`]): only such nodes
+    /// end far links. Empty until found.
+    coherent: Vec<bool>,
+}
+
+/// The orientation class of a normal: its cube-map face and a 3 x 3 cell on it (axis
+/// directions at cell centres).
+fn orientation_class(n: Vec3) -> u32 {
+    let a = n.abs();
+    let (face, u, v, d) = if a.x >= a.y && a.x >= a.z {
+        (if n.x > 0.0 { 0 } else { 1 }, n.y, n.z, a.x)
+    } else if a.y >= a.z {
+        (if n.y > 0.0 { 2 } else { 3 }, n.x, n.z, a.y)
+    } else {
+        (if n.z > 0.0 { 4 } else { 5 }, n.x, n.y, a.z)
+    };
+    let cell = |t: f32| (((t / d.max(1e-12) + 1.0) * 1.5) as u32).min(2);
+    face * 9 + cell(u) * 3 + cell(v)
+}
+
+impl Tree {
+    fn build(meshing: &Meshing) -> Self {
+        let els = &meshing.elements;
+        let mut keyed: Vec<(u32, u32)> = (0..els.len() as u32)
+            .filter(|&j| {
+                let e = &els[j as usize];
+                !e.hidden && e.area > 0.0 && e.area.is_finite()
+            })
+            .map(|j| (orientation_class(els[j as usize].normal), j))
+            .collect();
+        keyed.sort_unstable();
+        let class: Vec<u32> = keyed.iter().map(|k| k.0).collect();
+        let mut order: Vec<u32> = keyed.iter().map(|k| k.1).collect();
+        let mut nodes = Vec::with_capacity(2 * order.len());
+        if !order.is_empty() {
+            let count = order.len();
+            build_node(els, &class, &mut order, 0, count, &mut nodes);
+        }
+        let mut area_prefix = Vec::with_capacity(order.len() + 1);
+        let mut sum = 0.0f64;
+        area_prefix.push(0.0);
+        for &j in &order {
+            sum += els[j as usize].area as f64;
+            area_prefix.push(sum);
+        }
+        let mut leaf_of = vec![NONE; els.len()];
+        for (i, node) in nodes.iter().enumerate() {
+            if node.leaf() {
+                leaf_of[order[node.first as usize] as usize] = i as u32;
+            }
+        }
+        Self {
+            nodes,
+            order,
+            area_prefix,
+            leaf_of,
+            coherent: Vec::new(),
+        }
+    }
+
+    /// Finds which nodes are coherent: leaves are; a cluster is when
+    /// [`COHERENCE_RAYS`] segments between points of its leaves (stratified over its
+    /// leaves in tree order, each point lifted off its surface by the cluster's radius, over
+    /// furniture, or halfway to the surface above it) are all open. A cluster of floor elements running under a wall into the
+    /// next room is not: a far link would carry light through the wall to the elements on
+    /// its far side (as receiver), or from them (as sender).
+    fn find_coherent(&mut self, meshing: &Meshing, rays: &RayScene) {
+        let els = &meshing.elements;
+        let tree = &*self;
+        let coherent: Vec<bool> = tree
+            .nodes
+            .par_iter()
+            .enumerate()
+            .map(|(i, node)| {
+                if node.leaf() {
+                    return true;
+                }
+                let lift = COHERENCE_LIFT * node.radius;
+                let mut rng = Rng::new(hash_seed(0xc0e7, i as u64, 0), 0x5e);
+                let point = |u: f32, rng: &mut Rng| {
+                    let e = &els[tree.leaf_at(node, u) as usize];
+                    let t = uniform_triangle(rng.next_vec2());
+                    let x =
+                        e.corners[0] * (1.0 - t.x - t.y) + e.corners[1] * t.x + e.corners[2] * t.y;
+                    // Lifted, but no further than halfway to the first surface above (a
+                    // point lifted through the ceiling would see over every wall).
+                    let room = rays
+                        .closest_hit(x, e.normal, 1e-4 * lift, 2.0 * lift)
+                        .map_or(lift, |h| 0.5 * h.t);
+                    x + e.normal * lift.min(room)
+                };
+                (0..COHERENCE_RAYS).all(|p| {
+                    let u = (p as f32 + rng.next_f32()) / (2 * COHERENCE_RAYS) as f32;
+                    let a = point(u, &mut rng);
+                    let b = point(u + 0.5, &mut rng);
+                    !direct::segment_blocked(rays, a, b)
+                })
+            })
+            .collect();
+        self.coherent = coherent;
+    }
+}
+
+/// A partly visible far link is split when its transfer bound exceeds this multiple of the
+/// [`HierarchySettings::link_error`] threshold.
+const PARTIAL_SPLIT: f64 = 16.0;
+
+/// How far [`Tree::find_coherent`] lifts its points, in cluster radii (over tables and
+/// books, not over walls).
+const COHERENCE_LIFT: f32 = 1.0;
+
+/// Segments tested per cluster by [`Tree::find_coherent`].
+pub const COHERENCE_RAYS: u32 = 8;
+
+impl Tree {
+    /// The leaf (element id) of node `n` at area fraction `u` in `[0, 1)`.
+    fn leaf_at(&self, n: &Node, u: f32) -> u32 {
+        let (a, b) = (n.first as usize, (n.first + n.count) as usize);
+        let (lo, hi) = (self.area_prefix[a], self.area_prefix[b]);
+        let target = lo + (hi - lo) * u as f64;
+        let i = self.area_prefix[a + 1..=b].partition_point(|&s| s <= target);
+        self.order[(a + i).min(b - 1)]
+    }
+}
+
+/// Builds the node over `order[first..first + count]` (sorted by orientation class) and
+/// its subtree in pre-order; returns its index.
+fn build_node(
+    els: &[crate::mesh::Element],
+    class: &[u32],
+    order: &mut [u32],
+    first: usize,
+    count: usize,
+    nodes: &mut Vec<Node>,
+) -> u32 {
+    let index = nodes.len();
+    if count == 1 {
+        let e = &els[order[first] as usize];
+        let (lo, hi) = e.corners.iter().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(a, b), &c| (a.min(c), b.max(c)),
+        );
+        let normal = e.normal;
+        let offsets = e.corners.map(|c| normal.dot(c));
+        nodes.push(Node {
+            first: first as u32,
+            count: 1,
+            children: [NONE; 2],
+            centre: e.centroid,
+            radius: e
+                .corners
+                .iter()
+                .map(|c| c.distance(e.centroid))
+                .fold(0.0, f32::max),
+            lo,
+            hi,
+            normal,
+            cone: 0.0,
+            plane: [
+                offsets.iter().copied().fold(f32::MAX, f32::min),
+                offsets.iter().copied().fold(f32::MIN, f32::max),
+            ],
+            area: e.area,
+        });
+        return index as u32;
+    }
+    nodes.push(Node {
+        first: first as u32,
+        count: count as u32,
+        children: [NONE; 2],
+        centre: Vec3::ZERO,
+        radius: 0.0,
+        lo: Vec3::ZERO,
+        hi: Vec3::ZERO,
+        normal: Vec3::ZERO,
+        cone: 0.0,
+        plane: [0.0; 2],
+        area: 0.0,
+    });
+    let range = first..first + count;
+    let split = if class[first] != class[first + count - 1] {
+        // Orientation classes first: the class boundary nearest the middle.
+        let mid = first + count / 2;
+        let mut best = (usize::MAX, first + 1);
+        for i in range.clone().skip(1) {
+            if class[i] != class[i - 1] && i.abs_diff(mid) < best.0 {
+                best = (i.abs_diff(mid), i);
+            }
+        }
+        best.1 - first
+    } else {
+        // Then space: the median along the longest axis of the centroids' bounds.
+        let slice = &mut order[range.clone()];
+        let (lo, hi) = slice.iter().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(a, b), &j| {
+                let c = els[j as usize].centroid;
+                (a.min(c), b.max(c))
+            },
+        );
+        let axis = (hi - lo).max_position();
+        let half = count / 2;
+        slice.select_nth_unstable_by(half, |&a, &b| {
+            let (ca, cb) = (els[a as usize].centroid, els[b as usize].centroid);
+            ca[axis].total_cmp(&cb[axis]).then(a.cmp(&b))
+        });
+        half
+    };
+    let left = build_node(els, class, order, first, split, nodes);
+    let right = build_node(els, class, order, first + split, count - split, nodes);
+    let (l, r) = (nodes[left as usize], nodes[right as usize]);
+    let area = l.area + r.area;
+    let centre = (l.centre * l.area + r.centre * r.area) / area.max(f32::MIN_POSITIVE);
+    let (lo, hi) = (l.lo.min(r.lo), l.hi.max(r.hi));
+    let radius = (hi - centre).max(centre - lo).length();
+    let sum = l.normal * l.area + r.normal * r.area;
+    let (normal, cone) = if sum.length() > 1e-6 * area {
+        let n = sum.normalize();
+        let angle = |m: Vec3| n.dot(m).clamp(-1.0, 1.0).acos();
+        let cone = (angle(l.normal) + l.cone).max(angle(r.normal) + r.cone);
+        (n, cone.min(std::f32::consts::PI))
+    } else {
+        (Vec3::ZERO, std::f32::consts::PI)
+    };
+    let plane = if cone < 1e-4 {
+        // Both children flat with (to rounding) this normal: their offsets compare.
+        [l.plane[0].min(r.plane[0]), l.plane[1].max(r.plane[1])]
+    } else {
+        [0.0; 2]
+    };
+    nodes[index] = Node {
+        first: first as u32,
+        count: count as u32,
+        children: [left, right],
+        centre,
+        radius,
+        lo,
+        hi,
+        normal,
+        cone,
+        plane,
+        area,
+    };
+    index as u32
+}
+
+/// A link between two nodes treated as points: the receiver gets
+/// `w (-w . P_sender) g` (vector irradiance), `g = V / (pi d^2)`.
+#[derive(Clone, Copy, Debug)]
+struct FarLink {
+    receiver: u32,
+    sender: u32,
+    w: Vec3,
+    g: f32,
+}
+
+/// A link between two elements: the receiver's irradiance gains `f B_sender`.
+#[derive(Clone, Copy, Debug)]
+struct NearLink {
+    receiver: u32,
+    sender: u32,
+    f: f32,
+}
+
+/// How the leaves of node `a` see the region of node `b`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Facing {
+    /// In front of (or on) every leaf's plane.
+    Front,
+    /// Behind (or on) every leaf's plane: nothing passes.
+    Behind,
+    /// Neither.
+    Mixed,
+}
+
+fn facing(a: &Node, b: &Node, tol: f32) -> Facing {
+    if a.flat() {
+        // b's box against a's planes, exactly.
+        let n = a.normal;
+        let (mut min, mut max) = (0.0f32, 0.0f32);
+        for i in 0..3 {
+            let (p, q) = (n[i] * b.lo[i], n[i] * b.hi[i]);
+            min += p.min(q);
+            max += p.max(q);
+        }
+        if min >= a.plane[1] - tol {
+            Facing::Front
+        } else if max <= a.plane[0] + tol {
+            Facing::Behind
+        } else {
+            Facing::Mixed
+        }
+    } else {
+        let d = b.centre - a.centre;
+        let dist = d.length();
+        let reach = a.radius + b.radius;
+        if a.normal == Vec3::ZERO || dist <= reach {
+            return Facing::Mixed;
+        }
+        let beta = (reach / dist).min(1.0).asin();
+        let angle = (a.normal.dot(d / dist)).clamp(-1.0, 1.0).acos();
+        let half = std::f32::consts::FRAC_PI_2;
+        if angle + a.cone + beta < half {
+            Facing::Front
+        } else if angle - a.cone - beta > half {
+            Facing::Behind
+        } else {
+            Facing::Mixed
+        }
+    }
+}
+
+/// What the refinement decides for a pair (receiver, sender).
+enum Step {
+    Drop,
+    Far(FarLink),
+    Near(NearLink),
+    Split([(u32, u32); 4], usize),
+}
+
+/// The refinement of one link set: the tree, each node's (estimated) power in the set,
+/// and the limits.
+struct Refiner<'a> {
+    tree: &'a Tree,
+    meshing: &'a Meshing,
+    rays: &'a RayScene,
+    power: &'a [f64],
+    /// Transfers below this are kept at any distance.
+    small: f64,
+    settings: &'a HierarchySettings,
+    /// The opening criterion of this set.
+    opening: f32,
+    samples: u32,
+    full_at: f32,
+    tol: f32,
+    /// Distinguishes the sets' ray seeds.
+    set: u64,
+    links: &'a AtomicUsize,
+    over: &'a AtomicBool,
+}
+
+impl Refiner<'_> {
+    fn decide(&self, r: u32, s: u32) -> Step {
+        let nodes = &self.tree.nodes;
+        let (rn, sn) = (&nodes[r as usize], &nodes[s as usize]);
+        if r == s {
+            if rn.leaf() {
+                return Step::Drop;
+            }
+            let [a, b] = rn.children;
+            return Step::Split([(a, a), (a, b), (b, a), (b, b)], 4);
+        }
+        if self.power[s as usize] <= 0.0 {
+            return Step::Drop;
+        }
+        let (fr, fs) = (facing(rn, sn, self.tol), facing(sn, rn, self.tol));
+        if fr == Facing::Behind || fs == Facing::Behind {
+            return Step::Drop;
+        }
+        let both_leaves = rn.leaf() && sn.leaf();
+        let d = sn.centre - rn.centre;
+        let dist = d.length();
+        let reach = rn.radius + sn.radius;
+        if dist > 0.0 && dist.is_finite() {
+            let w = d / dist;
+            let gap = (dist - reach).max(0.0) as f64;
+            let bound = if gap > 0.0 {
+                (self.power[s as usize] * rn.area as f64 / (std::f64::consts::PI * gap * gap))
+                    .min(self.power[s as usize])
+            } else {
+                self.power[s as usize]
+            };
+            let small = bound <= self.small;
+            let front = fr == Facing::Front && fs == Facing::Front && dist > reach;
+            // A pair whose ends are flat and face each other at their centres, but reach
+            // across each other's planes (a book's side and the floor around it): a point
+            // link gives the part of one end behind the other's plane light it should not
+            // get. That is good enough when the ends are small against their distance (the
+            // part behind is then seen at a grazing angle) or the transfer too small to
+            // matter; closer, they are split.
+            let grazing =
+                rn.flat() && sn.flat() && rn.normal.dot(w) > 0.0 && sn.normal.dot(w) < 0.0;
+            let far = (front || grazing) && reach < self.opening * dist;
+            let coherent = self.tree.coherent[r as usize] && self.tree.coherent[s as usize];
+            if coherent && (far || (small && (front || grazing))) {
+                let v = self.visibility(rn, sn, r, s);
+                if v <= 0.0 {
+                    return Step::Drop;
+                }
+                // A partly visible link that carries light is split: something stands
+                // between its ends, and the link would spread its shadow over them. (Its
+                // ends are coherent: no wall runs through either.)
+                if v >= 1.0 || small || both_leaves || bound <= PARTIAL_SPLIT * self.small {
+                    let g = v / (std::f32::consts::PI * dist * dist);
+                    return Step::Far(FarLink {
+                        receiver: r,
+                        sender: s,
+                        w,
+                        g,
+                    });
+                }
+            }
+        }
+        if both_leaves {
+            return self.near(r, s);
+        }
+        // Split: the end whose facing is mixed, else the larger.
+        let split_r = match (rn.leaf(), sn.leaf()) {
+            (true, _) => false,
+            (_, true) => true,
+            _ => {
+                let (cr, cs) = (
+                    self.tree.coherent[r as usize],
+                    self.tree.coherent[s as usize],
+                );
+                match (fr == Facing::Mixed || !cr, fs == Facing::Mixed || !cs) {
+                    (true, false) => true,
+                    (false, true) => false,
+                    _ => rn.radius >= sn.radius,
+                }
+            }
+        };
+        if split_r {
+            let [a, b] = rn.children;
+            Step::Split([(a, s), (b, s), (0, 0), (0, 0)], 2)
+        } else {
+            let [a, b] = sn.children;
+            Step::Split([(r, a), (r, b), (0, 0), (0, 0)], 2)
+        }
+    }
+
+    /// The visible fraction of rays between points of the two nodes (leaves picked by
+    /// area, points uniform on them).
+    fn visibility(&self, rn: &Node, sn: &Node, r: u32, s: u32) -> f32 {
+        let els = &self.meshing.elements;
+        let count = self.settings.visibility_rays;
+        let mut rng = Rng::new(hash_seed(self.set, r as u64, s as u64), 0x71);
+        let mut seen = 0u32;
+        for i in 0..count {
+            let u = (i as f32 + rng.next_f32()) / count as f32;
+            let v = (i as f32 + rng.next_f32()) / count as f32;
+            let (a, b) = (
+                &els[self.tree.leaf_at(rn, u) as usize],
+                &els[self.tree.leaf_at(sn, v) as usize],
+            );
+            let point = |e: &crate::mesh::Element, rng: &mut Rng| {
+                let t = uniform_triangle(rng.next_vec2());
+                e.corners[0] * (1.0 - t.x - t.y) + e.corners[1] * t.x + e.corners[2] * t.y
+            };
+            let (x, q) = (point(a, &mut rng), point(b, &mut rng));
+            let dist = x.distance(q);
+            if dist > 0.0 && direct::sees_surface_point(self.rays, x, a.normal, q, dist) {
+                seen += 1;
+            }
+        }
+        seen as f32 / count as f32
+    }
+
+    /// The near link from element leaf `s` to element leaf `r`: the closed-form form factor
+    /// at the receiver's open points with ray-cast visibility.
+    fn near(&self, r: u32, s: u32) -> Step {
+        let nodes = &self.tree.nodes;
+        let els = &self.meshing.elements;
+        let (rj, sj) = (
+            self.tree.order[nodes[r as usize].first as usize],
+            self.tree.order[nodes[s as usize].first as usize],
+        );
+        let (e, t) = (&els[rj as usize], &els[sj as usize]);
+        let (points, count) = e.open_receiver_points();
+        if count == 0 {
+            return Step::Drop;
+        }
+        let per_point = self.samples.div_ceil(count as u32);
+        let f = points[..count]
+            .iter()
+            .map(|&(p, x)| {
+                point_to_triangle_adaptive(
+                    x,
+                    e.normal,
+                    &t.corners,
+                    t.normal,
+                    self.rays,
+                    (per_point, self.full_at),
+                    hash_seed(self.set ^ 0x4e45, ((sj as u64) << 32) | rj as u64, p as u64),
+                )
+            })
+            .sum::<f32>()
+            / count as f32;
+        if f > 0.0 {
+            Step::Near(NearLink {
+                receiver: rj,
+                sender: sj,
+                f,
+            })
+        } else {
+            Step::Drop
+        }
+    }
+
+    /// Refines `(r, s)` depth first into `far` and `near`.
+    fn refine(&self, r: u32, s: u32, far: &mut Vec<FarLink>, near: &mut Vec<NearLink>) {
+        if self.over.load(Ordering::Relaxed) {
+            return;
+        }
+        match self.decide(r, s) {
+            Step::Drop => {}
+            Step::Far(l) => {
+                far.push(l);
+                self.count();
+            }
+            Step::Near(l) => {
+                near.push(l);
+                self.count();
+            }
+            Step::Split(pairs, n) => {
+                for &(a, b) in &pairs[..n] {
+                    self.refine(a, b, far, near);
+                }
+            }
+        }
+    }
+
+    fn count(&self) {
+        if self.links.fetch_add(1, Ordering::Relaxed) + 1 > self.settings.max_links {
+            self.over.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// All links of the set, sorted by receiver then sender (whatever the thread count).
+    fn links(&self) -> Result<(Vec<FarLink>, Vec<NearLink>), RelightError> {
+        let (mut far, mut near) = (Vec::new(), Vec::new());
+        if self.tree.nodes.is_empty() {
+            return Ok((far, near));
+        }
+        // Breadth first until there is work for every thread, then depth first in parallel.
+        let mut frontier = vec![(0u32, 0u32)];
+        while !frontier.is_empty() && frontier.len() < 4096 {
+            let mut next = Vec::new();
+            for &(r, s) in &frontier {
+                match self.decide(r, s) {
+                    Step::Drop => {}
+                    Step::Far(l) => {
+                        far.push(l);
+                        self.count();
+                    }
+                    Step::Near(l) => {
+                        near.push(l);
+                        self.count();
+                    }
+                    Step::Split(pairs, n) => next.extend_from_slice(&pairs[..n]),
+                }
+            }
+            frontier = next;
+        }
+        let parts: Vec<(Vec<FarLink>, Vec<NearLink>)> = frontier
+            .par_iter()
+            .map(|&(r, s)| {
+                let (mut f, mut n) = (Vec::new(), Vec::new());
+                self.refine(r, s, &mut f, &mut n);
+                (f, n)
+            })
+            .collect();
+        if self.over.load(Ordering::Relaxed) {
+            return Err(RelightError::Budget(scene_core::BudgetExceeded {
+                what: "the hierarchical solve's links".into(),
+                needed: self.links.load(Ordering::Relaxed) as u64,
+                limit: self.settings.max_links as u64,
+                unit: "links",
+                hint: "raise HierarchySettings::max_links, or raise opening or link_error".into(),
+            }));
+        }
+        for (f, n) in parts {
+            far.extend(f);
+            near.extend(n);
+        }
+        far.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
+        near.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
+        Ok((far, near))
+    }
+}
+
+/// Offsets of a receiver-sorted link list: `offsets[i]..offsets[i + 1]` are receiver
+/// `i`'s links.
+fn offsets(receivers: impl Iterator<Item = u32>, count: usize) -> Vec<u32> {
+    let mut offsets = vec![0u32; count + 1];
+    for r in receivers {
+        offsets[r as usize + 1] += 1;
+    }
+    for i in 0..count {
+        offsets[i + 1] += offsets[i];
+    }
+    offsets
+}
+
+/// One link set ready to gather.
+struct LinkSet {
+    far: Vec<FarLink>,
+    far_offsets: Vec<u32>,
+    near: Vec<NearLink>,
+    near_offsets: Vec<u32>,
+}
+
+impl LinkSet {
+    fn new((far, near): (Vec<FarLink>, Vec<NearLink>), nodes: usize, elements: usize) -> Self {
+        let far_offsets = offsets(far.iter().map(|l| l.receiver), nodes);
+        let near_offsets = offsets(near.iter().map(|l| l.receiver), elements);
+        Self {
+            far,
+            far_offsets,
+            near,
+            near_offsets,
+        }
+    }
+
+    fn bytes(&self) -> usize {
+        self.far.len() * FAR_LINK_BYTES
+            + self.near.len() * NEAR_LINK_BYTES
+            + (self.far_offsets.len() + self.near_offsets.len()) * 4
+    }
+}
+
+/// Scratch of the gather: per node and source, the vector a node sends (`sum B A n`, RGB per
+/// axis) and the vector irradiance it receives.
+struct Gather {
+    k: usize,
+    sent: Vec<[Vec3; 3]>,
+    received: Vec<[Vec3; 3]>,
+    /// Per node, bit `m` of word `m / 64`: whether it sends anything of source `m`
+    /// (a source lights a few rooms of a building; the gather skips the rest).
+    active: Vec<u64>,
+}
+
+impl Gather {
+    fn new(nodes: usize, k: usize) -> Self {
+        Self {
+            k,
+            sent: vec![[Vec3::ZERO; 3]; nodes * k],
+            received: vec![[Vec3::ZERO; 3]; nodes * k],
+            active: vec![0; nodes * k.div_ceil(64)],
+        }
+    }
+}
+
+impl Gather {
+    /// The irradiance every element receives over `links` from radiosity `b`
+    /// (element-major `j * k + m`), into `out` (same layout; hidden elements zero).
+    fn run(
+        &mut self,
+        tree: &Tree,
+        meshing: &Meshing,
+        links: &LinkSet,
+        b: &[Vec3],
+        out: &mut [Vec3],
+    ) {
+        let k = self.k;
+        let els = &meshing.elements;
+        let nodes = &tree.nodes;
+        // Pull: leaves from their radiosity, parents as the sum of their children (pre-order:
+        // children after parents).
+        self.sent
+            .par_chunks_mut(k)
+            .zip(nodes.par_iter())
+            .for_each(|(sent, node)| {
+                if node.leaf() {
+                    let j = tree.order[node.first as usize] as usize;
+                    let (a, n) = (els[j].area, els[j].normal);
+                    for m in 0..k {
+                        let w = b[j * k + m] * a;
+                        sent[m] = [w * n.x, w * n.y, w * n.z];
+                    }
+                }
+            });
+        let words = k.div_ceil(64);
+        for i in (0..nodes.len()).rev() {
+            let [l, r] = nodes[i].children;
+            if l != NONE {
+                for m in 0..k {
+                    let (a, c) = (self.sent[l as usize * k + m], self.sent[r as usize * k + m]);
+                    self.sent[i * k + m] = [a[0] + c[0], a[1] + c[1], a[2] + c[2]];
+                }
+                for w in 0..words {
+                    self.active[i * words + w] =
+                        self.active[l as usize * words + w] | self.active[r as usize * words + w];
+                }
+            } else {
+                for w in 0..words {
+                    let mut bits = 0u64;
+                    for m in w * 64..(w * 64 + 64).min(k) {
+                        if self.sent[i * k + m] != [Vec3::ZERO; 3] {
+                            bits |= 1 << (m - w * 64);
+                        }
+                    }
+                    self.active[i * words + w] = bits;
+                }
+            }
+        }
+        // Gather over the far links, receiver by receiver.
+        let sent = &self.sent;
+        let active = &self.active;
+        self.received
+            .par_chunks_mut(k)
+            .enumerate()
+            .for_each(|(i, recv)| {
+                recv.fill([Vec3::ZERO; 3]);
+                let (a, z) = (
+                    links.far_offsets[i] as usize,
+                    links.far_offsets[i + 1] as usize,
+                );
+                for l in &links.far[a..z] {
+                    let w = l.w;
+                    let s = l.sender as usize;
+                    for word in 0..words {
+                        let mut bits = active[s * words + word];
+                        while bits != 0 {
+                            let m = word * 64 + bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            let p = &sent[s * k + m];
+                            let out = -(p[0] * w.x + p[1] * w.y + p[2] * w.z) * l.g;
+                            recv[m][0] += out * w.x;
+                            recv[m][1] += out * w.y;
+                            recv[m][2] += out * w.z;
+                        }
+                    }
+                }
+            });
+        // Push down to the leaves.
+        for (i, node) in nodes.iter().enumerate() {
+            let [l, r] = node.children;
+            if l != NONE {
+                for m in 0..k {
+                    let v = self.received[i * k + m];
+                    for c in [l, r] {
+                        let d = &mut self.received[c as usize * k + m];
+                        d[0] += v[0];
+                        d[1] += v[1];
+                        d[2] += v[2];
+                    }
+                }
+            }
+        }
+        // Leaves read their irradiance, plus their near links.
+        out.par_iter_mut().for_each(|v| *v = Vec3::ZERO);
+        let received = &self.received;
+        out.par_chunks_mut(k).enumerate().for_each(|(j, e)| {
+            let leaf = tree.leaf_of[j];
+            if leaf == NONE {
+                return;
+            }
+            let n = els[j].normal;
+            for m in 0..k {
+                let v = received[leaf as usize * k + m];
+                e[m] = (v[0] * n.x + v[1] * n.y + v[2] * n.z).max(Vec3::ZERO);
+            }
+            let (a, z) = (
+                links.near_offsets[j] as usize,
+                links.near_offsets[j + 1] as usize,
+            );
+            for l in &links.near[a..z] {
+                for m in 0..k {
+                    e[m] += b[l.sender as usize * k + m] * l.f;
+                }
+            }
+        });
+    }
+}
+
+/// The hierarchical solve of `meshing` for `sources` (from [`crate::solver::solve_with`],
+/// whose checks have run). `progress` gets 1 while links are refined, then the fraction of
+/// the first bounce's power the last bounce added.
+pub(crate) fn solve(
+    scene: &Scene,
+    meshing: &Meshing,
+    rays: &RayScene,
+    sources: Vec<Source>,
+    settings: &SolverSettings,
+    hierarchy: &HierarchySettings,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Solution, RelightError> {
+    hierarchy.check()?;
+    let start = Instant::now();
+    let (n, k) = (meshing.elements.len(), sources.len());
+    let els = &meshing.elements;
+    let mut stats = HierarchyStats::default();
+    let t = Instant::now();
+    let mut tree = Tree::build(meshing);
+    tree.find_coherent(meshing, rays);
+    stats.tree_time = t.elapsed();
+    stats.nodes = tree.nodes.len();
+    let node_bytes = tree.nodes.len() * k * NODE_SOURCE_BYTES;
+    let limit = crate::mesh::MeshBudget::default().max_solution_bytes;
+    if node_bytes as u64 > limit {
+        return Err(RelightError::Budget(scene_core::BudgetExceeded {
+            what: format!(
+                "the hierarchical solve's node vectors ({} nodes, {k} sources)",
+                tree.nodes.len()
+            ),
+            needed: node_bytes as u64,
+            limit,
+            unit: "bytes",
+            hint: "fewer elements (MeshSettings::target_elements) or light banks".into(),
+        }));
+    }
+    stats.node_bytes = node_bytes;
+    let source_of = |id: LightId| sources.iter().position(|s| s.lights.contains(&id));
+    // Emission (radiosity pi L) per element and source, and the analytic lights' direct
+    // irradiance.
+    let mut emission = vec![Vec3::ZERO; n * k];
+    for patch in &meshing.patches {
+        if let Some(m) = patch.light.and_then(source_of) {
+            let first = patch.first_element as usize;
+            for j in first..first + patch.element_count as usize {
+                if !els[j].hidden {
+                    emission[j * k + m] = els[j].emission * std::f32::consts::PI;
+                }
+            }
+        }
+    }
+    let t = Instant::now();
+    let extent = scene.extent();
+    let mut direct = vec![Vec3::ZERO; n * k];
+    for (m, source) in sources.iter().enumerate() {
+        for &id in &source.lights {
+            if matches!(id, LightId::Emissive(_)) {
+                continue;
+            }
+            let received: Vec<Vec3> = els
+                .par_iter()
+                .map(|e| direct::element_from_analytic(scene, id, rays, e, extent))
+                .collect();
+            for (j, r) in received.into_iter().enumerate() {
+                direct[j * k + m] += r;
+            }
+        }
+    }
+    stats.analytic_time = t.elapsed();
+    let indirect = vec![Vec3::ZERO; n * k];
+    if k == 0 || tree.nodes.is_empty() {
+        stats.link_bytes = 0;
+        return Ok(finish(
+            sources,
+            n,
+            direct,
+            indirect,
+            vec![Vec3::ZERO; k],
+            stats,
+            0.0,
+            start,
+        ));
+    }
+    let node_power = |leaf_power: &dyn Fn(usize) -> f64| -> Vec<f64> {
+        let mut power = vec![0.0f64; tree.nodes.len()];
+        for (i, node) in tree.nodes.iter().enumerate().rev() {
+            power[i] = if node.leaf() {
+                leaf_power(tree.order[node.first as usize] as usize)
+            } else {
+                power[node.children[0] as usize] + power[node.children[1] as usize]
+            };
+        }
+        power
+    };
+    let links = AtomicUsize::new(0);
+    let over = AtomicBool::new(false);
+    let refiner = |power: &[f64], set: u64, opening: f32| -> Result<LinkSet, RelightError> {
+        let r = Refiner {
+            tree: &tree,
+            meshing,
+            rays,
+            power,
+            small: hierarchy.link_error * power.first().copied().unwrap_or(0.0),
+            settings: hierarchy,
+            opening,
+            samples: settings.visibility_samples,
+            full_at: settings.full_visibility_at,
+            tol: 1e-6 * extent,
+            set,
+            links: &links,
+            over: &over,
+        };
+        Ok(LinkSet::new(r.links()?, tree.nodes.len(), n))
+    };
+    let t = Instant::now();
+    progress(1.0);
+    let area = |j: usize| els[j].area as f64;
+    let lum =
+        |v: &[Vec3], j: usize| -> f64 { (0..k).map(|m| luminance(v[j * k + m]) as f64).sum() };
+    let total_area: f64 = tree.area_prefix.last().copied().unwrap_or(0.0);
+    let emit_power = node_power(&|j| lum(&emission, j) * area(j));
+    let direct_links = refiner(&emit_power, 1, 0.5 * hierarchy.opening)?;
+    stats.link_time += t.elapsed();
+    let mut gather = Gather::new(tree.nodes.len(), k);
+    let t = Instant::now();
+    let mut direct_emit = vec![Vec3::ZERO; n * k];
+    if emit_power[0] > 0.0 {
+        gather.run(&tree, meshing, &direct_links, &emission, &mut direct_emit);
+    }
+    direct
+        .par_iter_mut()
+        .zip(direct_emit.par_iter())
+        .for_each(|(d, e)| *d += *e);
+    stats.gather_time += t.elapsed();
+    // The radiosity the reflection links are refined against: what the direct light
+    // leaves, times the bounces a mean albedo adds, and a floor for surfaces the direct
+    // light misses (they receive the indirect light).
+    let rho_mean: f64 = tree
+        .order
+        .iter()
+        .map(|&j| luminance(els[j as usize].albedo) as f64 * area(j as usize))
+        .sum::<f64>()
+        / total_area.max(f64::MIN_POSITIVE);
+    let boost = 1.0 / (1.0 - rho_mean.min(0.95));
+    let reflected = |j: usize| luminance(els[j].albedo) as f64 * lum(&direct, j) * area(j);
+    let first_power: f64 = (0..n).map(reflected).sum();
+    let floor = rho_mean * boost * first_power / total_area.max(f64::MIN_POSITIVE);
+    let refl_power = node_power(&|j| {
+        (reflected(j) * boost + luminance(els[j].albedo) as f64 * floor * area(j)).max(0.0)
+    });
+    let t = Instant::now();
+    let refl_links = refiner(&refl_power, 2, hierarchy.opening)?;
+    stats.link_time += t.elapsed();
+    stats.direct_far_links = direct_links.far.len();
+    stats.direct_near_links = direct_links.near.len();
+    stats.far_links = refl_links.far.len();
+    stats.near_links = refl_links.near.len();
+    stats.link_bytes = direct_links.bytes() + refl_links.bytes();
+    drop(direct_links);
+    // Bounces: delta_{t+1} = gather(rho delta_t), starting from the direct light.
+    let t = Instant::now();
+    let mut indirect = indirect;
+    let reflect = |e: &[Vec3], out: &mut [Vec3]| {
+        out.par_chunks_mut(k).enumerate().for_each(|(j, o)| {
+            let rho = els[j].albedo;
+            for m in 0..k {
+                o[m] = if els[j].hidden {
+                    Vec3::ZERO
+                } else {
+                    rho * e[j * k + m]
+                };
+            }
+        });
+    };
+    let power_of = |e: &[Vec3]| -> f64 {
+        (0..n)
+            .map(|j| luminance(els[j].albedo) as f64 * lum(e, j) * area(j))
+            .sum()
+    };
+    let mut b = vec![Vec3::ZERO; n * k];
+    let mut delta = vec![Vec3::ZERO; n * k];
+    reflect(&direct, &mut b);
+    let mut fraction = if first_power > 0.0 { 1.0 } else { 0.0 };
+    // The ratio of the last bounce's power to the one before.
+    let mut ratio = 0.0f64;
+    while fraction > hierarchy.tolerance && stats.bounces < hierarchy.max_bounces {
+        gather.run(&tree, meshing, &refl_links, &b, &mut delta);
+        indirect
+            .par_iter_mut()
+            .zip(delta.par_iter())
+            .for_each(|(i, d)| *i += *d);
+        stats.bounces += 1;
+        let p = power_of(&delta);
+        crate::solver::check_energy(stats.bounces, p / first_power)?;
+        ratio = p / first_power / fraction;
+        fraction = p / first_power;
+        reflect(&delta, &mut b);
+        progress(fraction);
+    }
+    // The bounces not iterated, where the settings ask for the ambient term: each element's
+    // last bounce times the geometric series of the bounce ratio, `q / (1 - q)`. Unlike
+    // Cohen's uniform term (the progressive solve's), it stays where the light went: an
+    // element the last bounce did not reach gets nothing (a uniform term would light every
+    // element some stray link touched, a room behind a wall included).
+    let mut ambient = vec![Vec3::ZERO; k];
+    if settings.ambient && fraction > 0.0 && ratio.is_finite() {
+        let q = ratio.clamp(0.0, 0.95) as f32;
+        let series = q / (1.0 - q);
+        indirect
+            .par_iter_mut()
+            .zip(delta.par_iter())
+            .for_each(|(i, d)| *i += *d * series);
+        for (m, a) in ambient.iter_mut().enumerate() {
+            let sum: Vec3 = (0..n).map(|j| delta[j * k + m] * els[j].area).sum();
+            *a = sum * series / total_area as f32;
+        }
+    }
+    stats.gather_time += t.elapsed();
+    Ok(finish(
+        sources, n, direct, indirect, ambient, stats, fraction, start,
+    ))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    sources: Vec<Source>,
+    n: usize,
+    direct: Vec<Vec3>,
+    indirect: Vec<Vec3>,
+    ambient: Vec<Vec3>,
+    hierarchy: HierarchyStats,
+    fraction: f64,
+    start: Instant,
+) -> Solution {
+    Solution {
+        sources,
+        elements: n,
+        direct,
+        indirect,
+        ambient,
+        stats: SolveStats {
+            unshot_fraction: fraction,
+            time: start.elapsed(),
+            hierarchy: Some(hierarchy),
+            ..Default::default()
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn orientation_classes_put_axes_at_cell_centres() {
+        assert_eq!(orientation_class(Vec3::X), 4);
+        assert_eq!(orientation_class(Vec3::NEG_Y), 3 * 9 + 4);
+        // A normal 40 degrees off +Z leaves the centre cell.
+        let tilted = Vec3::new(40f32.to_radians().sin(), 0.0, 40f32.to_radians().cos());
+        assert_ne!(orientation_class(tilted), 4 * 9 + 4);
+    }
+}
