@@ -183,6 +183,7 @@ pub fn run(o: &Options) -> Result<(), String> {
             ));
         }
     };
+    let hierarchical = hierarchy.is_some();
     let settings = SolverSettings {
         form_factors,
         max_unshot: o.max_unshot,
@@ -207,12 +208,24 @@ pub fn run(o: &Options) -> Result<(), String> {
         Box::new(gbuffer::CpuRasterizer::new()),
     );
     technique.direct = direct;
-    let bar = crate::progress_bar(1000, "solving (unshot fraction, log scale, per mille)");
+    let bar = crate::progress_bar(
+        1000,
+        if hierarchical {
+            "solving (links, then bounces; per mille of the work)"
+        } else {
+            "solving (unshot fraction, log scale, per mille)"
+        },
+    );
     let target = o.max_unshot.max(1e-12).log10();
     let t0 = Instant::now();
     technique
         .prepare_with_progress(scene.clone(), &mut |f| {
-            let done = (f.max(1e-12).log10() / target).clamp(0.0, 1.0);
+            // The hierarchical solve reports the share of its work left.
+            let done = if hierarchical {
+                (1.0 - f).clamp(0.0, 1.0)
+            } else {
+                (f.max(1e-12).log10() / target).clamp(0.0, 1.0)
+            };
             bar.set_position((done * 1000.0) as u64);
         })
         .map_err(|e| e.to_string())?;

@@ -101,7 +101,10 @@ fn the_hierarchical_solver_renders_what_the_progressive_one_does() {
     // The same picture: per-pixel direct light is the same gather; the indirect light
     // comes from either solve (within the solves' 6 % bound of tests/hierarchical.rs).
     let (a, b) = (hierarchical.mean(), progressive.mean());
-    assert!((a - b).abs().max_element() <= 0.06 * b.max_element(), "{a} against {b}");
+    assert!(
+        (a - b).abs().max_element() <= 0.06 * b.max_element(),
+        "{a} against {b}"
+    );
     let bad = xtask()
         .args(["relight", "--scene", "cornell", "--solver", "gauss-seidel"])
         .output()

@@ -227,7 +227,9 @@ pub fn sources(scene: &Scene, banks: &[Vec<LightId>]) -> Result<Vec<Source>, Rel
 
 /// Solves `meshing` of `scene` with `settings` (its strategy and banks). `rays` must be
 /// built from `scene` (the visibility of form factors and of point and directional
-/// lights). `progress` is called after each shot with the unshot fraction. The ray-cast
+/// lights). `progress` is called after each shot with the unshot fraction (the
+/// hierarchical solve, [`SolverSettings::hierarchy`], calls it with the share of its work
+/// left, from 1 to 0). The ray-cast
 /// method needs no renderer; for [`FormFactorMethod::Hemicube`] use [`solve_with`].
 pub fn solve(
     scene: &Scene,

@@ -228,3 +228,22 @@ fn bad_hierarchy_settings_are_refused_by_name() {
     let e = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap_err();
     assert!(e.to_string().contains("links"), "{e}");
 }
+
+#[test]
+fn the_hierarchical_solve_reports_its_progress_from_one_to_zero() {
+    let scene = scene_core::builtin::scene("cornell").unwrap();
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(256), 1).unwrap();
+    let rays = RayScene::build(&scene);
+    let mut seen = Vec::new();
+    solver::solve(&scene, &meshing, &rays, &hierarchical(), &mut |f| {
+        seen.push(f)
+    })
+    .unwrap();
+    assert_eq!(seen.first(), Some(&1.0));
+    assert_eq!(seen.last(), Some(&0.0));
+    assert!(seen.windows(2).all(|w| w[1] <= w[0]), "{seen:?}");
+    // The links (most of the time) move it, not only the bounces: the reflected light's
+    // links report 32 parts, down to 0.1 (to rounding).
+    let during_links = seen.iter().filter(|&&f| f > 0.1 - 1e-9 && f < 1.0).count();
+    assert!(during_links >= 32, "{seen:?}");
+}
