@@ -1180,6 +1180,20 @@ pub(crate) fn solve(
             .map(|j| luminance(els[j].albedo) as f64 * lum(e, j) * area(j))
             .sum()
     };
+    // Each element's sum of form factors over the links: what it would receive if every
+    // surface had unit radiosity. In a closed room it is 1; far links, treating their ends
+    // as points, can make it a little more, and at an albedo near 1 every bounce would
+    // then gain energy. An element whose sum is above 1 has its gathered light scaled to 1.
+    let normalise: Vec<f32> = {
+        let mut unit_gather = Gather::new(tree.nodes.len(), 1);
+        let ones: Vec<Vec3> = els
+            .iter()
+            .map(|e| if e.hidden { Vec3::ZERO } else { Vec3::ONE })
+            .collect();
+        let mut sums = vec![Vec3::ZERO; n];
+        unit_gather.run(&tree, meshing, &refl_links, &ones, &mut sums);
+        sums.iter().map(|s| 1.0 / s.x.max(1.0)).collect()
+    };
     let mut b = vec![Vec3::ZERO; n * k];
     let mut delta = vec![Vec3::ZERO; n * k];
     reflect(&direct, &mut b);
@@ -1188,6 +1202,14 @@ pub(crate) fn solve(
     let mut ratio = 0.0f64;
     while fraction > hierarchy.tolerance && stats.bounces < hierarchy.max_bounces {
         gather.run(&tree, meshing, &refl_links, &b, &mut delta);
+        delta
+            .par_chunks_mut(k)
+            .zip(normalise.par_iter())
+            .for_each(|(d, &f)| {
+                if f < 1.0 {
+                    d.iter_mut().for_each(|v| *v *= f);
+                }
+            });
         indirect
             .par_iter_mut()
             .zip(delta.par_iter())

@@ -247,3 +247,45 @@ fn the_hierarchical_solve_reports_its_progress_from_one_to_zero() {
     let during_links = seen.iter().filter(|&&f| f > 0.1 - 1e-9 && f < 1.0).count();
     assert!(during_links >= 32, "{seen:?}");
 }
+
+#[test]
+fn hard_cases_stay_finite_in_the_hierarchical_solve() {
+    // A closed box without lights solves to no sources and relights black; the same box
+    // emitting everywhere with an albedo of 0.999 (thousands of bounces to converge) stops
+    // at the bounce cap with every element finite, at least the first bounce's light and
+    // below the furnace's limit.
+    let v = Vec3::new;
+    let mut mesh = scene_core::scene::Mesh::default();
+    for q in [
+        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
+        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
+        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
+        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
+        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
+        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
+    ] {
+        mesh.push_quad(q, 0);
+    }
+    let mut dark = furnace_scene(0.5, mesh.clone());
+    dark.materials[0].emission = Vec3::ZERO;
+    let meshing = Meshing::new(&dark, &MeshSettings::elements(256), 0).unwrap();
+    let s = solve(&dark, &meshing, &hierarchical());
+    assert_eq!(s.k(), 0);
+    let out = relight::radiance(&meshing, &s, &LightState::default());
+    assert!(out.iter().all(|c| *c == Vec3::ZERO));
+
+    let rho = 0.999f32;
+    let white = furnace_scene(rho, mesh);
+    let meshing = Meshing::new(&white, &MeshSettings::elements(256), 1).unwrap();
+    let s = solve(&white, &meshing, &hierarchical());
+    let h = s.stats.hierarchy.unwrap();
+    assert_eq!(h.bounces, HierarchySettings::default().max_bounces);
+    let out = relight::radiance(&meshing, &s, &LightState::default());
+    for (c, e) in out.iter().zip(&meshing.elements) {
+        if e.hidden {
+            continue;
+        }
+        assert!(c.is_finite(), "{c}");
+        assert!(c.x >= 1.0 + rho * 0.9 && c.x <= 1.02 / (1.0 - rho), "{c}");
+    }
+}
