@@ -21,14 +21,8 @@ fn v(x: f32, y: f32, z: f32) -> Vec3 {
 
 /// The unit furnace box's walls but the floor (counter-clockwise seen from inside).
 fn walls(mesh: &mut Mesh) {
-    for q in [
-        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
-        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
-        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
-        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
-        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
-    ] {
-        mesh.push_quad(q, 0);
+    for q in &common::unit_box_faces()[1..] {
+        mesh.push_quad(*q, 0);
     }
 }
 

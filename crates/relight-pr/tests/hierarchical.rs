@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::furnace_scene;
+use common::{furnace_scene, unit_box};
 use glam::Vec3;
 use relight_pr::mesh::{MeshSettings, Meshing};
 use relight_pr::solver::{self, Solution, SolverSettings};
@@ -105,19 +105,7 @@ fn the_hierarchical_solve_matches_the_progressive_one_on_the_built_in_scenes() {
 #[test]
 fn the_hierarchical_furnace_holds() {
     // The closed unit box emitting 1 and reflecting rho everywhere: L / (1 - rho).
-    let v = Vec3::new;
-    let mut mesh = scene_core::scene::Mesh::default();
-    // The unit box's six faces, counter-clockwise seen from inside.
-    for q in [
-        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
-        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
-        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
-        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
-        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
-        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
-    ] {
-        mesh.push_quad(q, 0);
-    }
+    let mesh = unit_box();
     for rho in [0.3f32, 0.5] {
         let scene = furnace_scene(rho, mesh.clone());
         let meshing = Meshing::new(&scene, &MeshSettings::elements(768), 1).unwrap();
@@ -254,18 +242,7 @@ fn hard_cases_stay_finite_in_the_hierarchical_solve() {
     // emitting everywhere with an albedo of 0.999 (thousands of bounces to converge) stops
     // at the bounce cap with every element finite, at least the first bounce's light and
     // below the furnace's limit.
-    let v = Vec3::new;
-    let mut mesh = scene_core::scene::Mesh::default();
-    for q in [
-        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
-        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
-        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
-        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
-        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
-        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
-    ] {
-        mesh.push_quad(q, 0);
-    }
+    let mesh = unit_box();
     let mut dark = furnace_scene(0.5, mesh.clone());
     dark.materials[0].emission = Vec3::ZERO;
     let meshing = Meshing::new(&dark, &MeshSettings::elements(256), 0).unwrap();

@@ -29,3 +29,26 @@ pub fn max_relative(a: &[Vec3], b: &[Vec3]) -> f32 {
         .fold(0.0f32, f32::max)
         / peak
 }
+
+/// The faces of the unit box `[0, 1]^3` facing in (counter-clockwise seen from inside):
+/// the floor first, then the ceiling and the four walls.
+pub fn unit_box_faces() -> [[Vec3; 4]; 6] {
+    let v = Vec3::new;
+    [
+        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
+        [v(0., 1., 0.), v(1., 1., 0.), v(1., 1., 1.), v(0., 1., 1.)],
+        [v(0., 0., 0.), v(1., 0., 0.), v(1., 1., 0.), v(0., 1., 0.)],
+        [v(0., 0., 1.), v(0., 1., 1.), v(1., 1., 1.), v(1., 0., 1.)],
+        [v(0., 0., 0.), v(0., 1., 0.), v(0., 1., 1.), v(0., 0., 1.)],
+        [v(1., 0., 0.), v(1., 0., 1.), v(1., 1., 1.), v(1., 1., 0.)],
+    ]
+}
+
+/// The unit box `[0, 1]^3` as six quads facing in.
+pub fn unit_box() -> Mesh {
+    let mut mesh = Mesh::default();
+    for q in unit_box_faces() {
+        mesh.push_quad(q, 0);
+    }
+    mesh
+}
