@@ -4,35 +4,26 @@
 
 mod common;
 
-use common::xtask;
+use common::{run_with_summary, xtask};
 
 #[test]
 fn ibrr_writes_the_view_and_the_summary() {
     let out = std::env::temp_dir().join(format!("xtask-ibrr-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let run = |extra: &[&str]| {
-        let o = xtask()
-            .args([
-                "ibrr",
-                "--scene",
-                "cornell-point",
-                "--ldc",
-                "32",
-                "--irpls",
-                "12",
-            ])
-            .args(["--width", "32", "--height", "24"])
-            .args(extra)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let summary: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                .unwrap();
-        let image = scene_core::Image::read(&out.join("cornell-point.exr")).unwrap();
-        (summary, image)
+        let mut c = xtask();
+        c.args([
+            "ibrr",
+            "--scene",
+            "cornell-point",
+            "--ldc",
+            "32",
+            "--irpls",
+            "12",
+        ])
+        .args(["--width", "32", "--height", "24"])
+        .args(extra);
+        run_with_summary(c, &out, "cornell-point")
     };
     let (summary, white) = run(&[]);
     assert!(out.join("cornell-point.png").is_file());

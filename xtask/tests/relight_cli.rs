@@ -5,26 +5,18 @@
 
 mod common;
 
-use common::xtask;
+use common::{run_with_summary, xtask};
 
 #[test]
 fn relight_writes_the_view_and_the_summary_with_the_given_lights() {
     let out = std::env::temp_dir().join(format!("xtask-relight-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     let run = |light: &str| {
-        let o = xtask()
-            .args(["relight", "--scene", "cornell-point", "--elements", "128"])
+        let mut c = xtask();
+        c.args(["relight", "--scene", "cornell-point", "--elements", "128"])
             .args(["--width", "32", "--height", "24", "--max-unshot", "0.01"])
-            .args(["--light", light, "--out"])
-            .arg(&out)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let summary: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                .unwrap();
-        let image = scene_core::Image::read(&out.join("cornell-point.exr")).unwrap();
-        (summary, image)
+            .args(["--light", light]);
+        run_with_summary(c, &out, "cornell-point")
     };
     let (summary, lit) = run("point:0=3,2,1");
     assert_eq!(summary["lights"][0]["id"], "point:0");
@@ -77,20 +69,11 @@ fn an_unknown_light_id_lists_the_scene_s_lights() {
 fn the_hierarchical_solver_renders_what_the_progressive_one_does() {
     let dir = std::env::temp_dir().join(format!("xtask-relight-h-{}", std::process::id()));
     let run = |solver: &str| {
-        let out = dir.join(solver);
-        let o = xtask()
-            .args(["relight", "--scene", "cornell", "--elements", "256"])
+        let mut c = xtask();
+        c.args(["relight", "--scene", "cornell", "--elements", "256"])
             .args(["--width", "32", "--height", "24", "--max-unshot", "0.001"])
-            .args(["--solver", solver, "--out"])
-            .arg(&out)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let summary: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap())
-                .unwrap();
-        let image = scene_core::Image::read(&out.join("cornell.exr")).unwrap();
-        (summary, image)
+            .args(["--solver", solver]);
+        run_with_summary(c, &dir.join(solver), "cornell")
     };
     let (p, progressive) = run("progressive");
     let (h, hierarchical) = run("hierarchical");

@@ -198,8 +198,8 @@ struct Tree {
     area_prefix: Vec<f64>,
     /// The leaf node of each element ([`NONE`] for hidden ones).
     leaf_of: Vec<u32>,
-    /// Whether the node's leaves see each other ([`Tree::find_coherent`]): only such nodes
-    /// end far links. Empty until found.
+    /// Whether the node's leaves see each other ([`Tree::coherence`]): only such nodes
+    /// end far links.
     coherent: Vec<bool>,
 }
 
@@ -219,7 +219,9 @@ fn orientation_class(n: Vec3) -> u32 {
 }
 
 impl Tree {
-    fn build(meshing: &Meshing) -> Self {
+    /// The tree over `meshing`'s elements, with its clusters' coherence found through
+    /// `rays`.
+    fn build(meshing: &Meshing, rays: &RayScene) -> Self {
         let els = &meshing.elements;
         let mut keyed: Vec<(u32, u32)> = (0..els.len() as u32)
             .filter(|&j| {
@@ -249,26 +251,27 @@ impl Tree {
                 leaf_of[order[node.first as usize] as usize] = i as u32;
             }
         }
-        Self {
+        let mut tree = Self {
             nodes,
             order,
             area_prefix,
             leaf_of,
             coherent: Vec::new(),
-        }
+        };
+        tree.coherent = tree.coherence(meshing, rays);
+        tree
     }
 
-    /// Finds which nodes are coherent: leaves are; a cluster is when
+    /// Which nodes are coherent: leaves are; a cluster is when
     /// [`COHERENCE_RAYS`] segments between points of its leaves (stratified over its
     /// leaves in tree order, each point lifted off its surface by the cluster's radius, over
     /// furniture, or halfway to the surface above it) are all open. A cluster of floor elements running under a wall into the
     /// next room is not: a far link would carry light through the wall to the elements on
     /// its far side (as receiver), or from them (as sender).
-    fn find_coherent(&mut self, meshing: &Meshing, rays: &RayScene) {
+    fn coherence(&self, meshing: &Meshing, rays: &RayScene) -> Vec<bool> {
         let els = &meshing.elements;
-        let tree = &*self;
-        let coherent: Vec<bool> = tree
-            .nodes
+        let tree = self;
+        tree.nodes
             .par_iter()
             .enumerate()
             .map(|(i, node)| {
@@ -296,8 +299,7 @@ impl Tree {
                     !direct::segment_blocked(rays, a, b)
                 })
             })
-            .collect();
-        self.coherent = coherent;
+            .collect()
     }
 }
 
@@ -305,11 +307,11 @@ impl Tree {
 /// [`HierarchySettings::link_error`] threshold.
 const PARTIAL_SPLIT: f64 = 16.0;
 
-/// How far [`Tree::find_coherent`] lifts its points, in cluster radii (over tables and
+/// How far [`Tree::coherence`] lifts its points, in cluster radii (over tables and
 /// books, not over walls).
 const COHERENCE_LIFT: f32 = 1.0;
 
-/// Segments tested per cluster by [`Tree::find_coherent`].
+/// Segments tested per cluster by [`Tree::coherence`].
 pub const COHERENCE_RAYS: u32 = 8;
 
 impl Tree {
@@ -719,25 +721,39 @@ impl Refiner<'_> {
         }
     }
 
+    /// Decides `(r, s)`: a link goes into `far` or `near` (counted against the budget), a
+    /// split returns the pairs to refine.
+    fn step(
+        &self,
+        r: u32,
+        s: u32,
+        far: &mut Vec<FarLink>,
+        near: &mut Vec<NearLink>,
+    ) -> Option<([(u32, u32); 4], usize)> {
+        match self.decide(r, s) {
+            Step::Drop => None,
+            Step::Far(l) => {
+                far.push(l);
+                self.count();
+                None
+            }
+            Step::Near(l) => {
+                near.push(l);
+                self.count();
+                None
+            }
+            Step::Split(pairs, n) => Some((pairs, n)),
+        }
+    }
+
     /// Refines `(r, s)` depth first into `far` and `near`.
     fn refine(&self, r: u32, s: u32, far: &mut Vec<FarLink>, near: &mut Vec<NearLink>) {
         if self.over.load(Ordering::Relaxed) {
             return;
         }
-        match self.decide(r, s) {
-            Step::Drop => {}
-            Step::Far(l) => {
-                far.push(l);
-                self.count();
-            }
-            Step::Near(l) => {
-                near.push(l);
-                self.count();
-            }
-            Step::Split(pairs, n) => {
-                for &(a, b) in &pairs[..n] {
-                    self.refine(a, b, far, near);
-                }
+        if let Some((pairs, n)) = self.step(r, s, far, near) {
+            for &(a, b) in &pairs[..n] {
+                self.refine(a, b, far, near);
             }
         }
     }
@@ -763,17 +779,8 @@ impl Refiner<'_> {
         while !frontier.is_empty() && frontier.len() < 4096 {
             let mut next = Vec::new();
             for &(r, s) in &frontier {
-                match self.decide(r, s) {
-                    Step::Drop => {}
-                    Step::Far(l) => {
-                        far.push(l);
-                        self.count();
-                    }
-                    Step::Near(l) => {
-                        near.push(l);
-                        self.count();
-                    }
-                    Step::Split(pairs, n) => next.extend_from_slice(&pairs[..n]),
+                if let Some((pairs, n)) = self.step(r, s, &mut far, &mut near) {
+                    next.extend_from_slice(&pairs[..n]);
                 }
             }
             frontier = next;
@@ -967,11 +974,11 @@ impl Gather {
             }
         }
         // Leaves read their irradiance, plus their near links.
-        out.par_iter_mut().for_each(|v| *v = Vec3::ZERO);
         let received = &self.received;
         out.par_chunks_mut(k).enumerate().for_each(|(j, e)| {
             let leaf = tree.leaf_of[j];
             if leaf == NONE {
+                e.fill(Vec3::ZERO);
                 return;
             }
             let n = els[j].normal;
@@ -1011,8 +1018,7 @@ pub(crate) fn solve(
     let els = &meshing.elements;
     let mut stats = HierarchyStats::default();
     let t = Instant::now();
-    let mut tree = Tree::build(meshing);
-    tree.find_coherent(meshing, rays);
+    let tree = Tree::build(meshing, rays);
     stats.tree_time = t.elapsed();
     stats.nodes = tree.nodes.len();
     let node_bytes = tree.nodes.len() * k * NODE_SOURCE_BYTES;
@@ -1047,20 +1053,7 @@ pub(crate) fn solve(
     let t = Instant::now();
     let extent = scene.extent();
     let mut direct = vec![Vec3::ZERO; n * k];
-    for (m, source) in sources.iter().enumerate() {
-        for &id in &source.lights {
-            if matches!(id, LightId::Emissive(_)) {
-                continue;
-            }
-            let received: Vec<Vec3> = els
-                .par_iter()
-                .map(|e| direct::element_from_analytic(scene, id, rays, e, extent))
-                .collect();
-            for (j, r) in received.into_iter().enumerate() {
-                direct[j * k + m] += r;
-            }
-        }
-    }
+    crate::solver::analytic_direct(scene, meshing, rays, &sources, &mut direct);
     stats.analytic_time = t.elapsed();
     let indirect = vec![Vec3::ZERO; n * k];
     if k == 0 || tree.nodes.is_empty() {

@@ -398,21 +398,7 @@ fn solve_tagged(
     // Point and directional lights and the sky shoot their first energy analytically, with
     // rays.
     let extent = scene.extent();
-    for (m, source) in sources.iter().enumerate() {
-        for &id in &source.lights {
-            // The element's mean irradiance (visibility at its four receiver points).
-            if matches!(id, LightId::Emissive(_)) {
-                continue;
-            }
-            let received: Vec<Vec3> = els
-                .par_iter()
-                .map(|e| direct::element_from_analytic(scene, id, rays, e, extent))
-                .collect();
-            for (j, r) in received.into_iter().enumerate() {
-                direct[j * k + m] += r;
-            }
-        }
-    }
+    analytic_direct(scene, meshing, rays, &sources, &mut direct);
     // What the analytic shots left on the patches to reflect.
     reflect_onto_patches(meshing, &direct, k, &mut unshot_refl);
     let mut state = Shooting {
@@ -436,6 +422,34 @@ fn solve_tagged(
         ambient,
         stats,
     })
+}
+
+/// Adds to `direct` (element-major, `j * k + m` for the `k` `sources`) each element's mean
+/// irradiance from the analytic lights of each source: point and spot lights, directional
+/// lights and the sky ([`direct::element_from_analytic`], visibility at the element's
+/// receiver points). Emissive meshes are left to the solve.
+pub(crate) fn analytic_direct(
+    scene: &Scene,
+    meshing: &Meshing,
+    rays: &RayScene,
+    sources: &[Source],
+    direct: &mut [Vec3],
+) {
+    let (els, k, extent) = (&meshing.elements, sources.len(), scene.extent());
+    for (m, source) in sources.iter().enumerate() {
+        for &id in &source.lights {
+            if matches!(id, LightId::Emissive(_)) {
+                continue;
+            }
+            let received: Vec<Vec3> = els
+                .par_iter()
+                .map(|e| direct::element_from_analytic(scene, id, rays, e, extent))
+                .collect();
+            for (j, r) in received.into_iter().enumerate() {
+                direct[j * k + m] += r;
+            }
+        }
+    }
 }
 
 /// The coarsest hemicube form factors are taken with: at a resolution of 1 the top face's
