@@ -36,15 +36,26 @@ pub struct Options {
     /// solver).
     #[arg(long, default_value_t = 1e-3)]
     pub max_unshot: f64,
-    /// The solver: progressive (the paper's progressive refinement, one shot at a time) or
+    /// The solver: progressive (the paper's progressive refinement, one shot at a time),
     /// hierarchical (hierarchical radiosity with clustering: links between clusters of
-    /// elements, for scenes of 10^5 elements and more).
-    #[arg(long, default_value = "progressive")]
+    /// elements, for scenes of 10^5 elements and more) or auto (hierarchical above 8 192
+    /// elements, with the flags' settings).
+    #[arg(long, default_value = "auto")]
     pub solver: String,
     /// Opening criterion of the hierarchical solver: nodes are linked as points when their
     /// radii sum to less than this fraction of their distance.
     #[arg(long, default_value_t = relight_pr::HierarchySettings::default().opening)]
     pub opening: f32,
+    /// Hierarchical solver: a link whose transfer is bounded by this fraction of the
+    /// scene's power is kept at any distance (the BF criterion).
+    #[arg(long, default_value_t = relight_pr::HierarchySettings::default().link_error)]
+    pub link_error: f64,
+    /// Hierarchical solver: visibility rays per far link.
+    #[arg(long, default_value_t = relight_pr::HierarchySettings::default().visibility_rays)]
+    pub visibility_rays: u32,
+    /// Hierarchical solver: visibility rays per near link (element to element).
+    #[arg(long, default_value_t = relight_pr::HierarchySettings::default().near_rays)]
+    pub near_rays: u32,
     /// Direct light at display: pixels (gathered per pixel, the default) or elements
     /// (interpolated from the solution like the indirect light, the paper's display).
     #[arg(long, default_value = "pixels")]
@@ -69,6 +80,9 @@ impl Options {
         ranged("--hemicube-resolution", self.hemicube_resolution, 16..=2048)?;
         ranged("--max-unshot", self.max_unshot, 1e-6..=1.0)?;
         ranged("--opening", self.opening, 0.01..=1.0)?;
+        ranged("--link-error", self.link_error, 0.0..=1.0)?;
+        ranged("--visibility-rays", self.visibility_rays, 1..=1024)?;
+        ranged("--near-rays", self.near_rays, 1..=1024)?;
         ranged("--subpixels", self.subpixels, 1..=256)?;
         ranged("--emitter-rays", self.emitter_rays, 1..=1024)?;
         Ok(())
@@ -171,23 +185,28 @@ pub fn run(o: &Options) -> Result<(), String> {
         },
         other => return Err(format!("--form-factors {other}: expected rays or hemicube")),
     };
-    let hierarchy = match o.solver.as_str() {
-        "progressive" => None,
-        "hierarchical" => Some(relight_pr::HierarchySettings {
-            opening: o.opening,
-            ..Default::default()
-        }),
+    let flags = relight_pr::HierarchySettings {
+        opening: o.opening,
+        link_error: o.link_error,
+        visibility_rays: o.visibility_rays,
+        near_rays: o.near_rays,
+        ..Default::default()
+    };
+    let (hierarchy, hierarchy_above) = match o.solver.as_str() {
+        "progressive" => (None, 0),
+        "hierarchical" => (Some(flags), 0),
+        "auto" => (Some(flags), SolverSettings::default().hierarchy_above),
         other => {
             return Err(format!(
-                "--solver {other}: expected progressive or hierarchical"
+                "--solver {other}: expected auto, progressive or hierarchical"
             ));
         }
     };
-    let hierarchical = hierarchy.is_some();
     let settings = SolverSettings {
         form_factors,
         max_unshot: o.max_unshot,
         hierarchy,
+        hierarchy_above,
         ..Default::default()
     };
     let direct = match o.direct.as_str() {
@@ -210,22 +229,12 @@ pub fn run(o: &Options) -> Result<(), String> {
     technique.direct = direct;
     let bar = crate::progress_bar(
         1000,
-        if hierarchical {
-            "solving (links, then bounces; per mille of the work)"
-        } else {
-            "solving (unshot fraction, log scale, per mille)"
-        },
+        "solving (per mille of the work: the hierarchical solve's links then bounces, or \
+         the progressive solve's unshot fraction on a log scale)",
     );
-    let target = o.max_unshot.max(1e-12).log10();
     let t0 = Instant::now();
     technique
-        .prepare_with_progress(scene.clone(), &mut |f| {
-            // The hierarchical solve reports the share of its work left.
-            let done = if hierarchical {
-                (1.0 - f).clamp(0.0, 1.0)
-            } else {
-                (f.max(1e-12).log10() / target).clamp(0.0, 1.0)
-            };
+        .prepare_with_share_done(scene.clone(), &mut |done| {
             bar.set_position((done * 1000.0) as u64);
         })
         .map_err(|e| e.to_string())?;
@@ -310,7 +319,12 @@ pub fn run(o: &Options) -> Result<(), String> {
         "row_cache_bytes": solution.stats.row_cache_bytes,
         "cluster_shots": solution.stats.cluster_shots,
         "unshot_fraction": solution.stats.unshot_fraction,
-        "solver": o.solver,
+        "solver": if solution.stats.hierarchy.is_some() {
+            "hierarchical"
+        } else {
+            "progressive"
+        },
+        "solver_asked": o.solver,
         "hierarchy": solution.stats.hierarchy.map(|h| serde_json::json!({
             "nodes": h.nodes,
             "direct_far_links": h.direct_far_links,

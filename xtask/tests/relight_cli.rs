@@ -78,7 +78,13 @@ fn the_hierarchical_solver_renders_what_the_progressive_one_does() {
     let (p, progressive) = run("progressive");
     let (h, hierarchical) = run("hierarchical");
     assert_eq!(h["solver"], "hierarchical");
+    assert_eq!(p["solver"], "progressive");
     assert!(p["hierarchy"].is_null());
+    // The default picks by the meshing's size: cornell's 256-element target stays
+    // progressive, and says so.
+    let (auto, _) = run("auto");
+    assert_eq!(auto["solver_asked"], "auto");
+    assert_eq!(auto["solver"], "progressive");
     assert!(h["hierarchy"]["far_links"].as_u64().unwrap() > 0, "{h}");
     assert!(h["hierarchy"]["link_bytes"].as_u64().unwrap() > 0, "{h}");
     // The same picture: per-pixel direct light is the same gather; the indirect light

@@ -1,4 +1,4 @@
-//! Mesh and solve a built-in scene, printing the meshing's counts (merged triangles,
+//! Mesh and solve a built-in scene (or a glTF file), printing the meshing's counts (merged triangles,
 //! one-element patches, splits, hidden elements), progress every 10 s and the solve's
 //! statistics: how the figures in `docs/relight-pr.md` ("Large scenes") were measured.
 //!
@@ -9,15 +9,17 @@
 //! `ROW_CACHE_MIB=M` sets the first solve's `row_cache_bytes` (default 256). `DUMP=FILE`
 //! writes the first solve's element radiance (RGB f32, little-endian) to `FILE`, and
 //! `AGAINST=FILE` compares the first solve with such a file (emitters left out). `HIER=1`
-//! makes the first solve hierarchical (`OPENING`, `LINK_ERROR`, `VIS_RAYS`, `TOLERANCE`
-//! set its settings). `PART=direct|indirect` dumps and compares one part of the light.
+//! makes the first solve hierarchical (`OPENING`, `LINK_ERROR`, `VIS_RAYS`, `NEAR_RAYS`,
+//! `TOLERANCE` set its settings). `PART=direct|indirect` dumps and compares one part of the
+//! light.
 use relight_pr::mesh::{MeshSettings, Meshing};
 use relight_pr::solver::{self, SolverSettings};
 fn main() {
     let name = std::env::args().nth(1).unwrap_or("building".into());
     let elements: usize = std::env::args().nth(2).map_or(1024, |s| s.parse().unwrap());
     let unshot: f64 = std::env::args().nth(3).map_or(1e-3, |s| s.parse().unwrap());
-    let scene = scene_core::builtin::scene(&name).unwrap();
+    // A built-in name or a glTF file (opened as xtask does, without added lights).
+    let scene = scene_core::open_scene(&name).unwrap().scene;
     let t = std::time::Instant::now();
     let rays = scene_core::ray::RayScene::build(&scene);
     println!("rays {:.2?}", t.elapsed());
@@ -47,6 +49,7 @@ fn main() {
         full_visibility_at: std::env::var("FULL").map_or(0.01, |m| m.parse().unwrap()),
         row_cache_bytes: std::env::var("ROW_CACHE_MIB")
             .map_or(256 << 20, |m| m.parse::<usize>().unwrap() << 20),
+        hierarchy_above: 0,
         hierarchy: std::env::var("HIER").ok().map(|_| {
             let var = |name: &str, default: f64| {
                 std::env::var(name).map_or(default, |v| v.parse::<f64>().unwrap())
@@ -56,6 +59,7 @@ fn main() {
                 opening: var("OPENING", d.opening as f64) as f32,
                 link_error: var("LINK_ERROR", d.link_error),
                 visibility_rays: var("VIS_RAYS", d.visibility_rays as f64) as u32,
+                near_rays: var("NEAR_RAYS", d.near_rays as f64) as u32,
                 tolerance: var("TOLERANCE", d.tolerance),
                 ..d
             }
@@ -121,6 +125,7 @@ fn main() {
                 max_unshot: c,
                 cluster_members: std::env::var("MEMBERS").map_or(32, |m| m.parse().unwrap()),
                 full_visibility_at: std::env::var("FULL2").map_or(0.01, |m| m.parse().unwrap()),
+                hierarchy: None,
                 ..Default::default()
             },
             &mut |_| {},

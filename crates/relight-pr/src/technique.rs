@@ -118,12 +118,50 @@ impl RelightTechnique {
         self.prepared
     }
 
-    /// [`Technique::prepare`] reporting the solver's unshot fraction to `progress` after
-    /// every shot.
+    /// [`Technique::prepare`] reporting the solver's progress after every shot: the
+    /// progressive solve's unshot fraction, or the hierarchical solve's share of its work
+    /// left ([`SolverSettings::hierarchy_for`] says which runs). A caller that shows a
+    /// bar uses [`RelightTechnique::prepare_with_share_done`].
     pub fn prepare_with_progress(
         &mut self,
         scene: Arc<Scene>,
         progress: &mut dyn FnMut(f64),
+    ) -> Result<(), Error> {
+        self.prepare_mapped(scene, &mut |f, _| progress(f))
+    }
+
+    /// [`Technique::prepare`] reporting the share of the solve done, from 0 to 1, whichever
+    /// solver runs: the progressive solve's unshot fraction on a log scale from 1 down to
+    /// [`SolverSettings::max_unshot`], the hierarchical solve's share of work left turned
+    /// around.
+    pub fn prepare_with_share_done(
+        &mut self,
+        scene: Arc<Scene>,
+        done: &mut dyn FnMut(f64),
+    ) -> Result<(), Error> {
+        let target = self.solver.max_unshot.clamp(1e-12, 0.5).log10();
+        self.prepare_mapped(scene, &mut |f, hierarchical| {
+            done(if hierarchical {
+                (1.0 - f).clamp(0.0, 1.0)
+            } else {
+                (f.max(1e-12).log10() / target).clamp(0.0, 1.0)
+            })
+        })
+    }
+
+    /// Whether the last `prepare` solved hierarchically (`None` before one).
+    pub fn solved_hierarchically(&self) -> Option<bool> {
+        self.prepared
+            .as_ref()
+            .map(|p| p.solution.stats.hierarchy.is_some())
+    }
+
+    /// Meshes and solves, telling `progress` the solver's figure and whether the solve is
+    /// hierarchical.
+    fn prepare_mapped(
+        &mut self,
+        scene: Arc<Scene>,
+        progress: &mut dyn FnMut(f64, bool),
     ) -> Result<(), Error> {
         self.prepared = None;
         self.cache = None;
@@ -131,6 +169,8 @@ impl RelightTechnique {
         let k = solver::sources(&scene, &self.solver.banks)?.len();
         let rays = RayScene::build(&scene);
         let meshing = Meshing::with_rays(&scene, &self.mesh, k, &rays)?;
+        let hierarchical = self.solver.hierarchy_for(meshing.elements.len()).is_some();
+        let progress = &mut |f: f64| progress(f, hierarchical);
         let solution = solver::solve_with(
             &scene,
             &meshing,

@@ -17,6 +17,7 @@ use scene_core::ray::RayScene;
 fn hierarchical() -> SolverSettings {
     SolverSettings {
         hierarchy: Some(HierarchySettings::default()),
+        hierarchy_above: 0,
         ..Default::default()
     }
 }
@@ -193,6 +194,7 @@ fn bad_hierarchy_settings_are_refused_by_name() {
     ] {
         let settings = SolverSettings {
             hierarchy: Some(h),
+            hierarchy_above: 0,
             ..Default::default()
         };
         let e = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap_err();
@@ -211,6 +213,7 @@ fn bad_hierarchy_settings_are_refused_by_name() {
             max_links: 100,
             ..Default::default()
         }),
+        hierarchy_above: 0,
         ..Default::default()
     };
     let e = solver::solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap_err();

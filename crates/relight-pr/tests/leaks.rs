@@ -116,6 +116,7 @@ fn the_dark_room_stays_dark_with_both_form_factor_methods() {
             max_unshot: 1e-2,
             visibility_samples: 8,
             hierarchy,
+            hierarchy_above: 0,
             ..Default::default()
         };
         let mut renderer = RayCastRenderer::new();
@@ -251,6 +252,7 @@ fn a_floor_running_under_the_wall_does_not_carry_light_through_it() {
                 max_unshot: 1e-2,
                 visibility_samples: 8,
                 hierarchy,
+                hierarchy_above: 0,
                 ..Default::default()
             },
             Box::new(RayCastRenderer::new()),

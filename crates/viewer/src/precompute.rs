@@ -100,8 +100,9 @@ impl<T: Send + 'static> Background<T> {
     }
 }
 
-/// Relighting's precomputation: mesh, tagged progressive refinement until the unshot
-/// fraction reaches the solver's threshold (progress is `1 - unshot`).
+/// Relighting's precomputation: mesh and solve (progressive refinement until the unshot
+/// fraction reaches the solver's threshold, or hierarchically for large meshings; progress
+/// is the share of the solve done).
 pub fn relight(
     scene: Arc<Scene>,
     mesh: MeshSettings,
@@ -109,7 +110,7 @@ pub fn relight(
 ) -> Background<RelightTechnique> {
     Background::spawn("relight solve", move |report| {
         let mut t = RelightTechnique::new(mesh, solver, Box::new(CpuRasterizer::new()));
-        t.prepare_with_progress(scene, &mut |unshot| report(1.0 - unshot))
+        t.prepare_with_share_done(scene, &mut |done| report(done))
             .map_err(|e| format!("relighting: {e}"))?;
         Ok(t)
     })
