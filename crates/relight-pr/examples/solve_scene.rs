@@ -1,17 +1,18 @@
-//! Mesh and solve a built-in scene (or a glTF file), printing the meshing's counts (merged triangles,
-//! one-element patches, splits, hidden elements), progress every 10 s and the solve's
-//! statistics: how the figures in `docs/relight-pr.md` ("Large scenes") were measured.
+//! Mesh and solve a built-in scene (or a glTF file), printing the meshing's counts
+//! (merged triangles, one-element patches, splits, hidden elements), progress every 10 s and
+//! the solve's statistics: how the figures in `docs/relight-pr.md` ("Large scenes") were
+//! measured.
 //!
 //! `cargo run --release -p relight-pr --example solve_scene -- [SCENE] [ELEMENTS] [MAX_UNSHOT]`
 //! (default `building 1024 0.001`). `FULL=F` sets `full_visibility_at`. `COMPARE=U` solves
 //! again to unshot fraction `U` (with `MEMBERS=N` cluster members and `FULL2=F`) and prints
 //! the area-weighted mean difference between the two solutions' element radiance.
-//! `ROW_CACHE_MIB=M` sets the first solve's `row_cache_bytes` (default 256). `DUMP=FILE`
-//! writes the first solve's element radiance (RGB f32, little-endian) to `FILE`, and
-//! `AGAINST=FILE` compares the first solve with such a file (emitters left out). `HIER=1`
-//! makes the first solve hierarchical (`OPENING`, `LINK_ERROR`, `VIS_RAYS`, `NEAR_RAYS`,
-//! `TOLERANCE` set its settings). `PART=direct|indirect` dumps and compares one part of the
-//! light.
+//! `SPLIT_DEPTH=N` sets the meshing's splits at walls (default 6). `ROW_CACHE_MIB=M` sets
+//! the first solve's `row_cache_bytes` (default 256). `DUMP=FILE` writes the first solve's
+//! element radiance (RGB f32, little-endian) to `FILE`, and `AGAINST=FILE` compares the
+//! first solve with such a file (emitters left out). `HIER=1` makes the first solve
+//! hierarchical (`OPENING`, `LINK_ERROR`, `VIS_RAYS`, `NEAR_RAYS`, `TOLERANCE` set its
+//! settings). `PART=direct|indirect` dumps and compares one part of the light.
 use relight_pr::mesh::{MeshSettings, Meshing};
 use relight_pr::solver::{self, SolverSettings};
 fn main() {
@@ -26,7 +27,10 @@ fn main() {
     let t = std::time::Instant::now();
     let m = Meshing::with_rays(
         &scene,
-        &MeshSettings::elements(elements),
+        &MeshSettings {
+            split_depth: std::env::var("SPLIT_DEPTH").map_or(6, |v| v.parse().unwrap()),
+            ..MeshSettings::elements(elements)
+        },
         scene_core::lights::light_ids(&scene).len(),
         &rays,
     )

@@ -26,7 +26,9 @@ pub struct MeshSettings {
     /// corners and edge midpoints (just above its surface, by ray) is split again, up to
     /// this many levels, so that no element mixes light from both sides of a wall (parts
     /// inside a closed solid, such as the floor under a wall's slab, do not count). 0 turns
-    /// it off. Default 6 (patch edges down to 1/64).
+    /// it off. Default 6 (patch edges down to 1/64, and pieces no smaller than the
+    /// target's patch area over `4^split_depth`: a triangle already far below the element
+    /// size asked for is not split further).
     pub split_depth: u32,
     /// Merge coplanar triangles first ([`crate::merge::merge_coplanar`]), so that a flat
     /// wall cut into a fine grid by its modeller meshes like one polygon. Default true.
@@ -407,8 +409,13 @@ impl Meshing {
                         stack.extend(piece.children().map(|c| (c, l + 1)));
                         continue;
                     }
+                    // The finest split is relative to the target's patch size, not to the
+                    // triangle's: a chair's 1 cm triangle on the floor stays whole instead of
+                    // splitting into 4^6 pieces far below the element size asked for.
+                    let finest = patch_area / 4f32.powi(settings.split_depth as i32);
                     let straddles = rays.as_ref().is_some_and(|r| {
                         l < base + settings.split_depth
+                            && area / 4f32.powi(l as i32) > finest * (1.0 + 1e-4)
                             && straddles(r, &face_normals, piece.bary.map(at), geometric, lift)
                     });
                     if straddles {
