@@ -309,3 +309,56 @@ fn a_floor_running_under_the_wall_does_not_carry_light_through_it() {
         }
     }
 }
+
+/// The splits at walls stop at a size relative to the target, not to each triangle: a
+/// small tile lying on the floor across the wall is split while its pieces are larger than
+/// the target's patch area over `4^split_depth`, and no further (counted from the tile's
+/// own size, its pieces went down to 1 cm, where they stop straddling the slab, far below
+/// the element size asked for); the floor under the wall still splits.
+#[test]
+fn splits_at_walls_stop_at_a_size_set_by_the_target() {
+    let mut scene = rooms_on_one_floor();
+    // A 4 cm tile 1 mm above the floor, crossing the 1 cm slab at x = 1.
+    let y = 0.001;
+    scene.meshes[0].push_quad(
+        [
+            Vec3::new(0.98, y, 0.48),
+            Vec3::new(0.98, y, 0.52),
+            Vec3::new(1.02, y, 0.52),
+            Vec3::new(1.02, y, 0.48),
+        ],
+        0,
+    );
+    scene.validate().unwrap();
+    // A coarse target: its finest split (patches of about 2.7 cm) is larger than the
+    // pieces the tile would reach if counted from its own size (1 cm, where its pieces stop
+    // straddling the 1 cm slab).
+    let settings = MeshSettings {
+        merge_coplanar: false,
+        ..MeshSettings::elements(16)
+    };
+    let m = Meshing::new(&scene, &settings, 1).unwrap();
+    let finest = m.patch_area / 4f32.powi(settings.split_depth as i32);
+    let tile: Vec<f32> = m
+        .elements
+        .iter()
+        .filter(|e| (e.centroid.y - y).abs() < 1e-5)
+        .map(|e| e.area)
+        .collect();
+    let tile_area = 0.04 * 0.04;
+    assert!(!tile.is_empty());
+    assert!(
+        (tile.iter().sum::<f32>() - tile_area).abs() < 1e-3 * tile_area,
+        "{tile:?}"
+    );
+    // Its pieces stay above a quarter of the finest size (a split quarters a patch larger
+    // than it), or whole: its two triangles, smaller than that, are not split at all.
+    let smallest = tile.iter().copied().fold(f32::MAX, f32::min);
+    let bound = (0.25 * finest).min(0.5 * tile_area);
+    assert!(
+        smallest >= bound * (1.0 - 1e-3),
+        "smallest piece {smallest}, finest patch {finest}, {} pieces",
+        tile.len()
+    );
+    assert!(m.split_patches > 0);
+}
