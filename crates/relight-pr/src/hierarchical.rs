@@ -538,7 +538,8 @@ fn facing(a: &Node, b: &Node, b_corners: Option<&[Vec3; 3]>, tol: f32) -> Facing
         // its centre from `a.normal`: Front when `angle + cone + beta < pi / 2`, Behind
         // when `angle - cone - beta > pi / 2`, compared through cosines (no inverse
         // trigonometry in the refinement's inner loop).
-        let (sb, cb) = (reach / dist, (1.0 - (reach / dist).powi(2)).max(0.0).sqrt());
+        let sb = reach / dist;
+        let cb = (1.0 - sb * sb).max(0.0).sqrt();
         let [sc, cc] = a.cone_sin_cos;
         let (sin_phi, cos_phi) = (sc * cb + cc * sb, cc * cb - sc * sb);
         let cos_angle = a.normal.dot(d / dist);
@@ -646,25 +647,27 @@ impl Refiner<'_> {
             // nothing, for 20 % of the building's time. It keeps its own distance
             // whatever the links' opening: culling nearer pairs measured 1.4 % dark on
             // `building-2x1` (rays miss the openings between close clusters).
+            let linkable = coherent && (far || (small && (front || grazing)));
             let far_apart = dist > reach && reach < self.cull_opening * dist;
-            if !(coherent && (far || (small && (front || grazing))))
+            if !linkable
                 && !both_leaves
                 && far_apart
-                && self.visibility_with(rn, sn, r, s, CULL_RAYS, true) <= 0.0
+                && self.visibility(rn, sn, r, s, CULL_RAYS) <= 0.0
             {
                 return Step::Drop;
             }
-            if coherent && (far || (small && (front || grazing))) {
-                // A link too weak to be split for a partial shadow only needs its
-                // visibility's expectation: one ray ([`MINOR_RAYS`]); the others get
-                // [`HierarchySettings::visibility_rays`], enough to see a partial shadow.
-                let minor = small || bound <= PARTIAL_SPLIT * self.small;
+            if linkable {
+                // A link too weak to be split for a partial shadow (a `small` one included)
+                // only needs its visibility's expectation: one ray ([`MINOR_RAYS`]); the
+                // others get [`HierarchySettings::visibility_rays`], enough to see a
+                // partial shadow.
+                let minor = bound <= PARTIAL_SPLIT * self.small;
                 let rays = if minor {
                     MINOR_RAYS.min(self.settings.visibility_rays)
                 } else {
                     self.settings.visibility_rays
                 };
-                let v = self.visibility_with(rn, sn, r, s, rays, false);
+                let v = self.visibility(rn, sn, r, s, rays);
                 if v <= 0.0 {
                     return Step::Drop;
                 }
@@ -711,9 +714,8 @@ impl Refiner<'_> {
     }
 
     /// The visible fraction of `count` rays between points of the two nodes (leaves picked
-    /// by area, points uniform on them), or with `any`, 1 as soon as one ray is open
-    /// (and 0 when none is).
-    fn visibility_with(&self, rn: &Node, sn: &Node, r: u32, s: u32, count: u32, any: bool) -> f32 {
+    /// by area, points uniform on them).
+    fn visibility(&self, rn: &Node, sn: &Node, r: u32, s: u32, count: u32) -> f32 {
         let els = &self.meshing.elements;
         let mut rng = Rng::new(hash_seed(self.set, r as u64, s as u64), 0x71);
         let mut seen = 0u32;
@@ -731,9 +733,6 @@ impl Refiner<'_> {
             let (x, q) = (point(a, &mut rng), point(b, &mut rng));
             let dist = x.distance(q);
             if dist > 0.0 && direct::sees_surface_point(self.rays, x, a.normal, q, dist) {
-                if any {
-                    return 1.0;
-                }
                 seen += 1;
             }
         }

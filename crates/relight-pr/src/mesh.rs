@@ -383,6 +383,10 @@ impl Meshing {
             None => Vec::new(),
         };
         let lift = 1e-4 * scene.extent();
+        // The finest split is relative to the target's patch size, not to the triangle's: a
+        // chair's 1 cm triangle on the floor stays whole instead of splitting into 4^6
+        // pieces far below the element size asked for.
+        let finest = patch_area / 4f32.powi(settings.split_depth as i32) * (1.0 + 1e-4);
         let mut leaves: Vec<(u32, Piece, u32)> = Vec::new();
         let mut split_patches = 0usize;
         let mut global = 0u32;
@@ -409,17 +413,13 @@ impl Meshing {
                         stack.extend(piece.children().map(|c| (c, l + 1)));
                         continue;
                     }
-                    // The finest split is relative to the target's patch size, not to the
-                    // triangle's: a chair's 1 cm triangle on the floor stays whole instead of
-                    // splitting into 4^6 pieces far below the element size asked for.
-                    let finest = patch_area / 4f32.powi(settings.split_depth as i32);
+                    let piece_area = area / 4f32.powi(l as i32);
                     let straddles = rays.as_ref().is_some_and(|r| {
                         l < base + settings.split_depth
-                            && area / 4f32.powi(l as i32) > finest * (1.0 + 1e-4)
+                            && piece_area > finest
                             && straddles(r, &face_normals, piece.bary.map(at), geometric, lift)
                     });
                     if straddles {
-                        let piece_area = area / 4f32.powi(l as i32);
                         count += 16 - elements_per(piece_area, l);
                         patch_count += 3;
                         if count > budget.max_elements as u64 {

@@ -149,13 +149,6 @@ impl RelightTechnique {
         })
     }
 
-    /// Whether the last `prepare` solved hierarchically (`None` before one).
-    pub fn solved_hierarchically(&self) -> Option<bool> {
-        self.prepared
-            .as_ref()
-            .map(|p| p.solution.stats.hierarchy.is_some())
-    }
-
     /// Meshes and solves, telling `progress` the solver's figure and whether the solve is
     /// hierarchical.
     fn prepare_mapped(
