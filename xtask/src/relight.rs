@@ -56,6 +56,11 @@ pub struct Options {
     /// Hierarchical solver: visibility rays per near link (element to element).
     #[arg(long, default_value_t = relight_pr::HierarchySettings::default().near_rays)]
     pub near_rays: u32,
+    /// Hierarchical solver: the element budget. Clusters no wider than this many target
+    /// elements' radii are not split (a file's small triangles are solved as clusters of
+    /// about an element's size); 0 refines down to the elements.
+    #[arg(long, default_value_t = relight_pr::HierarchySettings::default().cluster_radius)]
+    pub cluster_radius: f32,
     /// Direct light at display: pixels (gathered per pixel, the default) or elements
     /// (interpolated from the solution like the indirect light, the paper's display).
     #[arg(long, default_value = "pixels")]
@@ -83,6 +88,7 @@ impl Options {
         ranged("--link-error", self.link_error, 0.0..=1.0)?;
         ranged("--visibility-rays", self.visibility_rays, 1..=1024)?;
         ranged("--near-rays", self.near_rays, 1..=1024)?;
+        ranged("--cluster-radius", self.cluster_radius, 0.0..=16.0)?;
         ranged("--subpixels", self.subpixels, 1..=256)?;
         ranged("--emitter-rays", self.emitter_rays, 1..=1024)?;
         Ok(())
@@ -190,6 +196,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         link_error: o.link_error,
         visibility_rays: o.visibility_rays,
         near_rays: o.near_rays,
+        cluster_radius: o.cluster_radius,
         ..Default::default()
     };
     let (hierarchy, hierarchy_above) = match o.solver.as_str() {
@@ -331,6 +338,10 @@ pub fn run(o: &Options) -> Result<(), String> {
             "direct_near_links": h.direct_near_links,
             "far_links": h.far_links,
             "near_links": h.near_links,
+            "direct_cluster_links": h.direct_cluster_links,
+            "cluster_links": h.cluster_links,
+            "budget_nodes": h.budget_nodes,
+            "cluster_radius": o.cluster_radius,
             "link_bytes": h.link_bytes,
             "node_bytes": h.node_bytes,
             "bounces": h.bounces,

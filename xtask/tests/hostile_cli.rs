@@ -285,6 +285,14 @@ fn numbers_out_of_range_are_refused_before_any_work() {
             vec!["relight", "--exposure", "NaN", "--out", o],
             "--exposure = NaN",
         ),
+        (
+            vec!["relight", "--cluster-radius", "NaN", "--out", o],
+            "--cluster-radius = NaN",
+        ),
+        (
+            vec!["relight", "--cluster-radius", "17", "--out", o],
+            "--cluster-radius = 17",
+        ),
         (vec!["ibrr", "--irpls", "0", "--out", o], "--irpls = 0"),
         (
             vec!["reference", "--exposure", "NaN", "--out", o],

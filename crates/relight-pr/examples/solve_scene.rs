@@ -11,16 +11,24 @@
 //! the first solve's `row_cache_bytes` (default 256). `DUMP=FILE` writes the first solve's
 //! element radiance (RGB f32, little-endian) to `FILE`, and `AGAINST=FILE` compares the
 //! first solve with such a file (emitters left out). `HIER=1` makes the first solve
-//! hierarchical (`OPENING`, `LINK_ERROR`, `VIS_RAYS`, `NEAR_RAYS`, `TOLERANCE` set its
-//! settings). `PART=direct|indirect` dumps and compares one part of the light.
+//! hierarchical (`OPENING`, `LINK_ERROR`, `VIS_RAYS`, `NEAR_RAYS`, `TOLERANCE`, `CLUSTER`
+//! set its settings). `SUN=DIR=RGB` and `SKY=RGB` add lights as `--sun` and `--sky` do. `PART=direct|indirect` dumps and compares one part of the light.
 use relight_pr::mesh::{MeshSettings, Meshing};
 use relight_pr::solver::{self, SolverSettings};
 fn main() {
     let name = std::env::args().nth(1).unwrap_or("building".into());
     let elements: usize = std::env::args().nth(2).map_or(1024, |s| s.parse().unwrap());
     let unshot: f64 = std::env::args().nth(3).map_or(1e-3, |s| s.parse().unwrap());
-    // A built-in name or a glTF file (opened as xtask does, without added lights).
-    let scene = scene_core::open_scene(&name).unwrap().scene;
+    // A built-in name or a glTF file (opened as xtask does), with `SUN=DIR=RGB` and
+    // `SKY=RGB` added as `--sun` and `--sky` add them.
+    let mut added = scene_core::AddedLights::default();
+    if let Ok(sun) = std::env::var("SUN") {
+        added.parse_sun(&sun).unwrap();
+    }
+    if let Ok(sky) = std::env::var("SKY") {
+        added.parse_sky(&sky).unwrap();
+    }
+    let scene = scene_core::open_scene_with(&name, &added).unwrap().scene;
     let t = std::time::Instant::now();
     let rays = scene_core::ray::RayScene::build(&scene);
     println!("rays {:.2?}", t.elapsed());
@@ -65,6 +73,7 @@ fn main() {
                 visibility_rays: var("VIS_RAYS", d.visibility_rays as f64) as u32,
                 near_rays: var("NEAR_RAYS", d.near_rays as f64) as u32,
                 tolerance: var("TOLERANCE", d.tolerance),
+                cluster_radius: var("CLUSTER", d.cluster_radius as f64) as f32,
                 ..d
             }
         }),

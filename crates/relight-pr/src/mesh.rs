@@ -122,6 +122,12 @@ pub struct Element {
 }
 
 impl Element {
+    /// A point uniform over the element, from a point `u` of the unit square.
+    pub fn uniform_point(&self, u: Vec2) -> Vec3 {
+        let t = scene_core::sampling::uniform_triangle(u);
+        self.corners[0] * (1.0 - t.x - t.y) + self.corners[1] * t.x + self.corners[2] * t.y
+    }
+
     /// Where the element receives: the centroids of its four midpoint-subdivision
     /// children, equal weights (exact for irradiance that varies linearly over it). Four
     /// points instead of the centroid alone make an element's value its average, which
