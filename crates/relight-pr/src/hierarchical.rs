@@ -381,34 +381,87 @@ const CLUSTER_SAMPLES: u32 = 2;
 /// The most an element's gathered light is scaled up by the normalisation.
 const NORMALISE_MAX: f32 = 2.0;
 
-/// Rays per element of [`closedness`].
+/// Rays per element of [`closedness`]; [`CLOSED_RAYS_OPEN`] in all where any misses.
 const CLOSED_RAYS: u32 = 32;
 
-/// Per element, the share of its cosine-weighted hemisphere in which a ray meets a surface
-/// ([`CLOSED_RAYS`] stratified rays from points spread over it): the sum of its exact form
-/// factors to every surface. 0 for hidden elements.
-fn closedness(meshing: &Meshing, rays: &RayScene, extent: f32) -> Vec<f32> {
+/// Rays per element of [`closedness`] where the first [`CLOSED_RAYS`] did not all meet a
+/// surface (a window's share of the hemisphere has 4x less noise).
+const CLOSED_RAYS_OPEN: u32 = 128;
+
+/// Per element, the share of its cosine-weighted hemisphere in which a ray meets the front
+/// of a surface that reflects (stratified rays from points spread over it): the sum of its
+/// exact form factors to the surfaces its links can reach. Black surfaces count as open
+/// (the refinement drops senders that send nothing); a ray whose first hit is a back face
+/// started inside a solid and is not counted. `None` where no ray met a surface that
+/// reflects: the links' sum is then kept.
+fn closedness(scene: &Scene, meshing: &Meshing, rays: &RayScene, extent: f32) -> Vec<Option<f32>> {
+    let offsets = scene.mesh_offsets();
+    // Which side of the triangle a ray along `d` meets.
+    enum Side {
+        Reflects,
+        Black,
+        Back,
+    }
+    let side = |triangle: u32, d: Vec3| {
+        let m = offsets
+            .partition_point(|&o| o <= triangle)
+            .saturating_sub(1);
+        let mesh = &scene.meshes[m];
+        let local = (triangle - offsets[m]) as usize;
+        let t = mesh.indices[local];
+        let p = t.map(|i| mesh.positions[i as usize]);
+        let mut g = (p[1] - p[0]).cross(p[2] - p[0]);
+        if !mesh.normals.is_empty() {
+            let shading: Vec3 = t.iter().map(|&i| mesh.normals[i as usize]).sum();
+            if g.dot(shading) < 0.0 {
+                g = -g;
+            }
+        }
+        let material = &scene.materials[mesh.material_ids[local] as usize];
+        if g.dot(d) >= 0.0 {
+            Side::Back
+        } else if luminance(material.albedo) > 0.0 {
+            Side::Reflects
+        } else {
+            Side::Black
+        }
+    };
     meshing
         .elements
         .par_iter()
         .enumerate()
         .map(|(j, e)| {
             if e.hidden {
-                return 0.0;
+                return Some(0.0);
             }
             let mut rng = Rng::new(hash_seed(0xc105ed, j as u64, 0), 0x29);
             let offset = rng.next_vec2();
-            let hits = (0..CLOSED_RAYS)
-                .filter(|&i| {
+            // Rays that first meet a back face start inside a solid (a point of the shelf
+            // under a book): they are not counted.
+            let (mut hits, mut valid, mut cast) = (0u32, 0u32, 0u32);
+            for round in [CLOSED_RAYS, CLOSED_RAYS_OPEN] {
+                if cast == round || (cast > 0 && hits == valid) {
+                    break;
+                }
+                for i in cast..round {
                     let x = e.uniform_point(rng.next_vec2());
                     let d = scene_core::sampling::cosine_hemisphere(
                         e.normal,
                         scene_core::sampling::r2(i as u64, offset),
                     );
-                    rays.occluded(x + e.normal * (1e-5 * extent), d, 0.0, f32::MAX)
-                })
-                .count();
-            hits as f32 / CLOSED_RAYS as f32
+                    let hit = rays.closest_hit(x + e.normal * (1e-5 * extent), d, 0.0, f32::MAX);
+                    match hit.map(|h| side(h.triangle, d)) {
+                        Some(Side::Back) => {}
+                        Some(Side::Reflects) => {
+                            hits += 1;
+                            valid += 1;
+                        }
+                        _ => valid += 1,
+                    }
+                }
+                cast = round;
+            }
+            (hits > 0).then(|| hits as f32 / valid as f32)
         })
         .collect()
 }
@@ -419,6 +472,9 @@ const CLUSTER_LEAVES: u32 = 32;
 
 /// A close cluster link takes this fraction of the samples of one apart as its points.
 const CLOSE_SHARE: u32 = 1;
+
+/// Points tried on a leaf for one above a cluster link's receiving point's horizon.
+const HORIZON_TRIES: u32 = 4;
 
 /// Visibility rays per point of a close cluster link.
 const CLOSE_RAYS: u32 = 1;
@@ -872,9 +928,9 @@ impl Refiner<'_> {
     /// wider than the larger radius), each takes one sender leaf `j` picked by area and
     /// one ray: `A_s F V / A_j` estimates the sum. Close (touching clusters, a cup on a
     /// table), one leaf picked by area would put the light of a tiny leaf next to `x` on
-    /// a sixteenth of the samples, 1000 times too bright: each of `count / 4` points sums
-    /// the closed forms over the sender's leaves (or [`CLUSTER_LEAVES`] of them, one per
-    /// stratum of equal area) and estimates their visibility with 4 rays to leaves
+    /// one sample in eight, a thousand times too bright: each point sums the closed
+    /// forms over the sender's leaves (or [`CLUSTER_LEAVES`] of them, one per stratum of
+    /// equal area) and estimates their visibility with [`CLOSE_RAYS`] rays to leaves
     /// picked in proportion to what they send it.
     fn cluster(&self, r: u32, s: u32, count: u32, close: bool) -> Step {
         let els = &self.meshing.elements;
@@ -884,37 +940,65 @@ impl Refiner<'_> {
             hash_seed(self.set ^ 0xc1u64 << 32, r as u64, s as u64),
             0x73,
         );
-        let point = |e: &crate::mesh::Element, rng: &mut Rng| e.uniform_point(rng.next_vec2());
-        // The form factor from `x` (normal `n`) to leaf `j`, its front only.
-        let form_factor = |x: Vec3, n: Vec3, j: &crate::mesh::Element| {
-            if j.area > 0.0 && j.normal.dot(x - j.centroid) > 0.0 {
-                crate::form_factor::point_to_polygon(x, n, &j.corners)
-            } else {
-                0.0
+        // The unoccluded form factor from `x` (normal `n`, on element `own`) to leaf `j`:
+        // the closed form with the near links' test of `j`'s front (a receiver in its
+        // plane sees it edge-on), and nothing from `x`'s own element (on a smooth-shaded
+        // mesh its shading normal would put `x` in front of it).
+        let form_factor = |x: Vec3, n: Vec3, own: u32, j: u32| {
+            let b = &els[j as usize];
+            if j == own || b.area <= 0.0 {
+                return 0.0;
             }
+            crate::form_factor::point_to_triangle(
+                x,
+                n,
+                &b.corners,
+                b.normal,
+                None::<&RayScene>,
+                0,
+                0,
+            )
+        };
+        // Whether `x` sees a random point of leaf `j` above its tangent plane (the part
+        // the form factor counts; a point below would be hidden by `x`'s own surface). A
+        // leaf found wholly below after a few tries counts as hidden: its sliver above
+        // carries little, and counting it seen let light under a wall (a floor piece
+        // across it is such a sliver).
+        let sees = |x: Vec3, n: Vec3, j: u32, rng: &mut Rng| {
+            let b = &els[j as usize];
+            for _ in 0..HORIZON_TRIES {
+                let q = b.uniform_point(rng.next_vec2());
+                let d = q - x;
+                let dist = d.length();
+                if dist > 0.0 && n.dot(d) > 0.0 {
+                    return direct::sees_surface_point(self.rays, x, n, q, dist);
+                }
+            }
+            false
         };
         let points = if close {
             (count / CLOSE_SHARE).max(1)
         } else {
             count
         };
+        // Apart, point `i` of the receiver takes a leaf of the sender's stratum
+        // `i + shift`: pairing strata in order would pair the near parts of the two
+        // clusters with each other, and the far with the far, never across.
+        let shift = rng.below(points);
         let mut sum = 0.0f32;
         let mut terms: Vec<(f32, u32)> = Vec::new();
         for i in 0..points {
             let u = (i as f32 + rng.next_f32()) / points as f32;
-            let a = &els[self.tree.leaf_at(rn, u) as usize];
-            let x = point(a, &mut rng);
+            let own = self.tree.leaf_at(rn, u);
+            let a = &els[own as usize];
+            let x = a.uniform_point(rng.next_vec2());
             if !close {
-                let v = (i as f32 + rng.next_f32()) / points as f32;
-                let b = &els[self.tree.leaf_at(sn, v) as usize];
-                let f = form_factor(x, a.normal, b);
-                let q = point(b, &mut rng);
-                let dist = x.distance(q);
-                if f > 0.0
-                    && dist > 0.0
-                    && direct::sees_surface_point(self.rays, x, a.normal, q, dist)
-                {
-                    sum += f * sn.area / b.area;
+                let stratum = (i + shift) % points;
+                let v = (stratum as f32 + rng.next_f32()) / points as f32;
+                let j = self.tree.leaf_at(sn, v);
+                let f = form_factor(x, a.normal, own, j);
+                if f > 0.0 && sees(x, a.normal, j, &mut rng) {
+                    sum += f * sn.area / els[j as usize].area;
                 }
                 continue;
             }
@@ -929,13 +1013,12 @@ impl Refiner<'_> {
                     self.tree
                         .leaf_at(sn, (t as f32 + rng.next_f32()) / leaves as f32)
                 };
-                let b = &els[j as usize];
-                let f = form_factor(x, a.normal, b);
+                let f = form_factor(x, a.normal, own, j);
                 if f > 0.0 {
                     let weight = if sn.count <= CLUSTER_LEAVES {
                         1.0
                     } else {
-                        sn.area / (leaves as f32 * b.area)
+                        sn.area / (leaves as f32 * els[j as usize].area)
                     };
                     unoccluded += f * weight;
                     terms.push((unoccluded, j));
@@ -948,17 +1031,13 @@ impl Refiner<'_> {
             for _ in 0..CLOSE_RAYS {
                 let pick = rng.next_f32() * unoccluded;
                 let at = terms.partition_point(|t| t.0 <= pick).min(terms.len() - 1);
-                let b = &els[terms[at].1 as usize];
-                let q = point(b, &mut rng);
-                let dist = x.distance(q);
-                if dist > 0.0 && direct::sees_surface_point(self.rays, x, a.normal, q, dist) {
+                if sees(x, a.normal, terms[at].1, &mut rng) {
                     seen += 1;
                 }
             }
             sum += unoccluded * seen as f32 / CLOSE_RAYS as f32;
         }
         let c = sum / (points as f32 * sn.area);
-
         if c > 0.0 && c.is_finite() {
             Step::Cluster(ClusterLink {
                 receiver: r,
@@ -1446,7 +1525,8 @@ pub(crate) fn solve(
         let mut count = 0;
         while let Some(i) = stack.pop() {
             let node = &tree.nodes[i as usize];
-            if node.leaf() || node.radius <= budget_radius {
+            let incoherent_flat = node.flat() && !tree.coherent[i as usize];
+            if node.leaf() || (node.radius <= budget_radius && !incoherent_flat) {
                 count += 1;
             } else {
                 stack.extend(node.children);
@@ -1566,15 +1646,12 @@ pub(crate) fn solve(
             .collect();
         let mut sums = vec![Vec3::ZERO; n];
         unit_gather.run(&tree, meshing, &refl_links, &ones, &mut sums);
-        let closed = closedness(meshing, rays, extent);
+        let closed = closedness(scene, meshing, rays, extent);
         sums.iter()
             .zip(&closed)
-            .map(|(s, &c)| {
-                if s.x > 0.0 {
-                    (c / s.x).min(NORMALISE_MAX)
-                } else {
-                    1.0
-                }
+            .map(|(s, &c)| match c {
+                Some(c) if s.x > 0.0 => (c / s.x).min(NORMALISE_MAX),
+                _ => 1.0,
             })
             .collect()
     };
