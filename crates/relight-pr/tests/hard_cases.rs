@@ -199,3 +199,95 @@ fn albedo_near_and_at_one() {
     assert!(out.iter().all(|c| c.is_finite() && c.min_element() > 0.0));
     assert!(scene.validate().is_err(), "validation refuses albedo 1");
 }
+
+/// Surfaces touching face to face in the hierarchical solve at the element budget: the
+/// box on the floor and the slab against the wall, their faces cut into 2 cm quads
+/// (merging off) and meshed at a target of 48 elements, so that they are clusters far
+/// below the budget, touching the floor and the wall (the close cluster links' case).
+/// Every element stays finite and the visible ones keep the furnace.
+#[test]
+fn touching_clusters_stay_finite_and_keep_the_furnace() {
+    let mut mesh = Mesh::default();
+    walls(&mut mesh);
+    mesh.push_quad(
+        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
+        0,
+    );
+    let solids = [
+        (v(0.3, 0.0, 0.3), v(0.6, 0.25, 0.6)),
+        (v(0.0, 0.5, 0.2), v(0.1, 0.9, 0.7)),
+    ];
+    // Each solid's six faces as grids of quads about 2 cm across, facing out.
+    for (lo, hi) in solids {
+        let (c, h) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
+        for axis in 0..3 {
+            for sign in [-1.0f32, 1.0] {
+                let n = Vec3::AXES[axis] * sign;
+                let (u, w) = (Vec3::AXES[(axis + 1) % 3], Vec3::AXES[(axis + 2) % 3]);
+                let (hu, hw) = (h[(axis + 1) % 3], h[(axis + 2) % 3]);
+                let (nu, nw) = ((hu / 0.01).ceil() as usize, (hw / 0.01).ceil() as usize);
+                let at = |i: usize, j: usize| {
+                    c + n * h[axis]
+                        + u * hu * (2.0 * i as f32 / nu as f32 - 1.0)
+                        + w * hw * (2.0 * j as f32 / nw as f32 - 1.0)
+                };
+                for i in 0..nu {
+                    for j in 0..nw {
+                        let q = [at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1)];
+                        // Counter-clockwise seen from outside (along n).
+                        let flip = (q[1] - q[0]).cross(q[3] - q[0]).dot(n) < 0.0;
+                        mesh.push_quad(if flip { [q[0], q[3], q[2], q[1]] } else { q }, 0);
+                    }
+                }
+            }
+        }
+    }
+    let rho = 0.5;
+    let scene = furnace_scene(rho, mesh);
+    let settings = SolverSettings {
+        hierarchy: Some(relight_pr::HierarchySettings::default()),
+        hierarchy_above: 0,
+        ..Default::default()
+    };
+    let (meshing, out) = solve_meshed(
+        &scene,
+        &MeshSettings {
+            merge_coplanar: false,
+            ..MeshSettings::elements(48)
+        },
+        &settings,
+    );
+    let expect = 1.0 / (1.0 - rho);
+    let (mut sum, mut area, mut worst) = (0.0f32, 0.0f32, 0.0f32);
+    for (j, (e, c)) in meshing.elements.iter().zip(&out).enumerate() {
+        assert!(c.is_finite() && c.min_element() >= 0.0, "element {j}: {c}");
+        if e.hidden {
+            continue;
+        }
+        let x = e.centroid + e.normal * 1e-4;
+        let outside = !(x.cmpge(Vec3::ZERO).all() && x.cmple(Vec3::ONE).all());
+        let pressed = solids
+            .iter()
+            .any(|(lo, hi)| x.cmpgt(*lo).all() && x.cmplt(*hi).all());
+        if !(outside || pressed) {
+            worst = worst.max((c.x - expect).abs() / expect);
+            sum += c.x * e.area;
+            area += e.area;
+        }
+    }
+    let mean = sum / area;
+    eprintln!(
+        "{} elements: visible mean {mean} against {expect}, worst element {worst}",
+        meshing.elements.len()
+    );
+    assert!(
+        (mean - expect).abs() <= 0.01 * expect,
+        "visible mean {mean}"
+    );
+    // Measured 15.6 %, against 4.7 % with `cluster_radius: 0`: a few clusters on the
+    // slab's face and the box's top read 10-16 % dark, every leaf alike, from the
+    // emitters' light (which is not normalised: the rays that measure the share of a
+    // hemisphere a surface covers would be too few for a small lamp). Not explained yet
+    // (docs/relight-pr.md, "The element budget"); this bound keeps it from growing.
+    assert!(worst <= 0.2, "worst visible element {worst}");
+}
