@@ -26,6 +26,33 @@ fn walls(mesh: &mut Mesh) {
     }
 }
 
+/// The furnace box, floor included.
+fn enclosure() -> Mesh {
+    let mut mesh = Mesh::default();
+    walls(&mut mesh);
+    mesh.push_quad(
+        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
+        0,
+    );
+    mesh
+}
+
+/// A box resting on the floor and a slab pressed against a wall (corners).
+const SOLIDS: [(Vec3, Vec3); 2] = [
+    (Vec3::new(0.3, 0.0, 0.3), Vec3::new(0.6, 0.25, 0.6)),
+    (Vec3::new(0.0, 0.5, 0.2), Vec3::new(0.1, 0.9, 0.7)),
+];
+
+/// Whether an element (just off its surface at `x`) faces out of the enclosure or into
+/// one of the solids: no light reaches it.
+fn pressed_or_outside(x: Vec3) -> bool {
+    let outside = !(x.cmpge(Vec3::ZERO).all() && x.cmple(Vec3::ONE).all());
+    outside
+        || SOLIDS
+            .iter()
+            .any(|(lo, hi)| x.cmpgt(*lo).all() && x.cmplt(*hi).all())
+}
+
 fn solve(scene: &Scene, elements: usize, settings: &SolverSettings) -> (Meshing, Vec<Vec3>) {
     solve_meshed(scene, &MeshSettings::elements(elements), settings)
 }
@@ -97,16 +124,8 @@ fn slivers_and_degenerate_triangles_keep_the_furnace() {
 fn surfaces_touching_face_to_face_stay_finite() {
     // A box resting on the floor and a slab pressed against a wall: faces at zero distance
     // from the floor and the wall, facing them (a 1/r^2 kernel would blow up there).
-    let mut mesh = Mesh::default();
-    walls(&mut mesh);
-    mesh.push_quad(
-        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
-        0,
-    );
-    let solids = [
-        (v(0.3, 0.0, 0.3), v(0.6, 0.25, 0.6)),
-        (v(0.0, 0.5, 0.2), v(0.1, 0.9, 0.7)),
-    ];
+    let mut mesh = enclosure();
+    let solids = SOLIDS;
     for (lo, hi) in solids {
         mesh.push_box((lo + hi) * 0.5, (hi - lo) * 0.5, 0.0, 0);
     }
@@ -126,11 +145,7 @@ fn surfaces_touching_face_to_face_stay_finite() {
         // behind the slab), or facing out of the enclosure through it (the box's bottom):
         // no light reaches it; only its own emission.
         let x = e.centroid + e.normal * 1e-4;
-        let outside = !(x.cmpge(Vec3::ZERO).all() && x.cmple(Vec3::ONE).all());
-        let pressed = solids
-            .iter()
-            .any(|(lo, hi)| x.cmpgt(*lo).all() && x.cmplt(*hi).all());
-        if outside || pressed {
+        if pressed_or_outside(x) {
             hidden += 1;
             assert!(
                 c.x >= 1.0 / std::f32::consts::PI && c.x <= expect * 1.02,
@@ -207,16 +222,8 @@ fn albedo_near_and_at_one() {
 /// Every element stays finite and the visible ones keep the furnace.
 #[test]
 fn touching_clusters_stay_finite_and_keep_the_furnace() {
-    let mut mesh = Mesh::default();
-    walls(&mut mesh);
-    mesh.push_quad(
-        [v(0., 0., 0.), v(0., 0., 1.), v(1., 0., 1.), v(1., 0., 0.)],
-        0,
-    );
-    let solids = [
-        (v(0.3, 0.0, 0.3), v(0.6, 0.25, 0.6)),
-        (v(0.0, 0.5, 0.2), v(0.1, 0.9, 0.7)),
-    ];
+    let mut mesh = enclosure();
+    let solids = SOLIDS;
     // Each solid's six faces as grids of quads about 2 cm across, facing out.
     for (lo, hi) in solids {
         let (c, h) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
@@ -265,11 +272,7 @@ fn touching_clusters_stay_finite_and_keep_the_furnace() {
             continue;
         }
         let x = e.centroid + e.normal * 1e-4;
-        let outside = !(x.cmpge(Vec3::ZERO).all() && x.cmple(Vec3::ONE).all());
-        let pressed = solids
-            .iter()
-            .any(|(lo, hi)| x.cmpgt(*lo).all() && x.cmplt(*hi).all());
-        if !(outside || pressed) {
+        if !pressed_or_outside(x) {
             worst = worst.max((c.x - expect).abs() / expect);
             sum += c.x * e.area;
             area += e.area;

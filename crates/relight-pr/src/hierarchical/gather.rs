@@ -1,0 +1,261 @@
+//! The links of the hierarchical solve and their gather: far, near and cluster links
+//! sorted by receiver, and one Jacobi step over them (pull up the tree, gather, push down,
+//! read at the leaves).
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::tree::{NONE, Tree};
+use super::{CLUSTER_LINK_BYTES, FAR_LINK_BYTES, Links, NEAR_LINK_BYTES};
+use crate::mesh::Meshing;
+
+/// A link between two nodes treated as points: the receiver gets
+/// `w (-w . P_sender) g` (vector irradiance), `g = V / (pi d^2)`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct FarLink {
+    pub(super) receiver: u32,
+    pub(super) sender: u32,
+    pub(super) w: Vec3,
+    pub(super) g: f32,
+}
+
+/// A link between two elements: the receiver's irradiance gains `f B_sender`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct NearLink {
+    pub(super) receiver: u32,
+    pub(super) sender: u32,
+    pub(super) f: f32,
+}
+
+/// A link between two clusters at the element budget: every leaf of the receiver gains
+/// irradiance `c Phi_sender`, `Phi` the sender's power `sum B A` ([`Refiner::cluster`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct ClusterLink {
+    pub(super) receiver: u32,
+    pub(super) sender: u32,
+    pub(super) c: f32,
+}
+
+/// Offsets of a receiver-sorted link list: `offsets[i]..offsets[i + 1]` are receiver
+/// `i`'s links.
+pub(super) fn offsets(receivers: impl Iterator<Item = u32>, count: usize) -> Vec<u32> {
+    let mut offsets = vec![0u32; count + 1];
+    for r in receivers {
+        offsets[r as usize + 1] += 1;
+    }
+    for i in 0..count {
+        offsets[i + 1] += offsets[i];
+    }
+    offsets
+}
+
+/// One link set ready to gather.
+pub(super) struct LinkSet {
+    pub(super) far: Vec<FarLink>,
+    pub(super) far_offsets: Vec<u32>,
+    pub(super) near: Vec<NearLink>,
+    pub(super) near_offsets: Vec<u32>,
+    pub(super) cluster: Vec<ClusterLink>,
+    pub(super) cluster_offsets: Vec<u32>,
+}
+
+impl LinkSet {
+    pub(super) fn new(links: Links, nodes: usize, elements: usize) -> Self {
+        let far_offsets = offsets(links.far.iter().map(|l| l.receiver), nodes);
+        let near_offsets = offsets(links.near.iter().map(|l| l.receiver), elements);
+        let cluster_offsets = offsets(links.cluster.iter().map(|l| l.receiver), nodes);
+        Self {
+            far: links.far,
+            far_offsets,
+            near: links.near,
+            near_offsets,
+            cluster: links.cluster,
+            cluster_offsets,
+        }
+    }
+
+    pub(super) fn bytes(&self) -> usize {
+        self.far.len() * FAR_LINK_BYTES
+            + self.near.len() * NEAR_LINK_BYTES
+            + self.cluster.len() * CLUSTER_LINK_BYTES
+            + (self.far_offsets.len() + self.near_offsets.len() + self.cluster_offsets.len()) * 4
+    }
+}
+
+/// Scratch of the gather: per node and source, the vector a node sends (`sum B A n`, RGB per
+/// axis) and the vector irradiance it receives.
+pub(super) struct Gather {
+    pub(super) k: usize,
+    pub(super) sent: Vec<[Vec3; 3]>,
+    pub(super) received: Vec<[Vec3; 3]>,
+    /// Per node and source, the power it sends (`sum B A`, RGB) and the mean irradiance its
+    /// cluster links bring it.
+    pub(super) power: Vec<Vec3>,
+    pub(super) mean: Vec<Vec3>,
+    /// Per node, bit `m` of word `m / 64`: whether it sends anything of source `m`
+    /// (a source lights a few rooms of a building; the gather skips the rest).
+    pub(super) active: Vec<u64>,
+}
+
+impl Gather {
+    pub(super) fn new(nodes: usize, k: usize) -> Self {
+        Self {
+            k,
+            sent: vec![[Vec3::ZERO; 3]; nodes * k],
+            received: vec![[Vec3::ZERO; 3]; nodes * k],
+            power: vec![Vec3::ZERO; nodes * k],
+            mean: vec![Vec3::ZERO; nodes * k],
+            active: vec![0; nodes * k.div_ceil(64)],
+        }
+    }
+}
+
+impl Gather {
+    /// The irradiance every element receives over `links` from radiosity `b`
+    /// (element-major `j * k + m`), into `out` (same layout; hidden elements zero).
+    pub(super) fn run(
+        &mut self,
+        tree: &Tree,
+        meshing: &Meshing,
+        links: &LinkSet,
+        b: &[Vec3],
+        out: &mut [Vec3],
+    ) {
+        let k = self.k;
+        let els = &meshing.elements;
+        let nodes = &tree.nodes;
+        // Pull: leaves from their radiosity, parents as the sum of their children (pre-order:
+        // children after parents).
+        self.sent
+            .par_chunks_mut(k)
+            .zip(self.power.par_chunks_mut(k))
+            .zip(nodes.par_iter())
+            .for_each(|((sent, power), node)| {
+                if node.leaf() {
+                    let j = tree.order[node.first as usize] as usize;
+                    let (a, n) = (els[j].area, els[j].normal);
+                    for m in 0..k {
+                        let w = b[j * k + m] * a;
+                        sent[m] = [w * n.x, w * n.y, w * n.z];
+                        power[m] = w;
+                    }
+                }
+            });
+        let words = k.div_ceil(64);
+        for i in (0..nodes.len()).rev() {
+            let [l, r] = nodes[i].children;
+            if l != NONE {
+                for m in 0..k {
+                    let (a, c) = (self.sent[l as usize * k + m], self.sent[r as usize * k + m]);
+                    self.sent[i * k + m] = [a[0] + c[0], a[1] + c[1], a[2] + c[2]];
+                    self.power[i * k + m] =
+                        self.power[l as usize * k + m] + self.power[r as usize * k + m];
+                }
+                for w in 0..words {
+                    self.active[i * words + w] =
+                        self.active[l as usize * words + w] | self.active[r as usize * words + w];
+                }
+            } else {
+                for w in 0..words {
+                    let mut bits = 0u64;
+                    for m in w * 64..(w * 64 + 64).min(k) {
+                        if self.sent[i * k + m] != [Vec3::ZERO; 3] {
+                            bits |= 1 << (m - w * 64);
+                        }
+                    }
+                    self.active[i * words + w] = bits;
+                }
+            }
+        }
+        // Gather over the far and cluster links, receiver by receiver.
+        let sent = &self.sent;
+        let power = &self.power;
+        let active = &self.active;
+        self.received
+            .par_chunks_mut(k)
+            .zip(self.mean.par_chunks_mut(k))
+            .enumerate()
+            .for_each(|(i, (recv, mean))| {
+                recv.fill([Vec3::ZERO; 3]);
+                mean.fill(Vec3::ZERO);
+                let (a, z) = (
+                    links.cluster_offsets[i] as usize,
+                    links.cluster_offsets[i + 1] as usize,
+                );
+                for l in &links.cluster[a..z] {
+                    let s = l.sender as usize;
+                    each_active(&active[s * words..(s + 1) * words], |m| {
+                        mean[m] += power[s * k + m] * l.c;
+                    });
+                }
+                let (a, z) = (
+                    links.far_offsets[i] as usize,
+                    links.far_offsets[i + 1] as usize,
+                );
+                for l in &links.far[a..z] {
+                    let w = l.w;
+                    let s = l.sender as usize;
+                    each_active(&active[s * words..(s + 1) * words], |m| {
+                        let p = &sent[s * k + m];
+                        let out = -(p[0] * w.x + p[1] * w.y + p[2] * w.z) * l.g;
+                        recv[m][0] += out * w.x;
+                        recv[m][1] += out * w.y;
+                        recv[m][2] += out * w.z;
+                    });
+                }
+            });
+        // Push down to the leaves.
+        for (i, node) in nodes.iter().enumerate() {
+            let [l, r] = node.children;
+            if l != NONE {
+                for m in 0..k {
+                    let v = self.received[i * k + m];
+                    let e = self.mean[i * k + m];
+                    for c in [l, r] {
+                        let d = &mut self.received[c as usize * k + m];
+                        d[0] += v[0];
+                        d[1] += v[1];
+                        d[2] += v[2];
+                        self.mean[c as usize * k + m] += e;
+                    }
+                }
+            }
+        }
+        // Leaves read their irradiance, plus their cluster links' and near links'.
+        let received = &self.received;
+        let mean = &self.mean;
+        out.par_chunks_mut(k).enumerate().for_each(|(j, e)| {
+            let leaf = tree.leaf_of[j];
+            if leaf == NONE {
+                e.fill(Vec3::ZERO);
+                return;
+            }
+            let n = els[j].normal;
+            for m in 0..k {
+                let v = received[leaf as usize * k + m];
+                e[m] = (v[0] * n.x + v[1] * n.y + v[2] * n.z).max(Vec3::ZERO)
+                    + mean[leaf as usize * k + m];
+            }
+            let (a, z) = (
+                links.near_offsets[j] as usize,
+                links.near_offsets[j + 1] as usize,
+            );
+            for l in &links.near[a..z] {
+                for m in 0..k {
+                    e[m] += b[l.sender as usize * k + m] * l.f;
+                }
+            }
+        });
+    }
+}
+
+/// Calls `f` with each source whose bit is set in `words` (bit `m` of word `m / 64`).
+fn each_active(words: &[u64], mut f: impl FnMut(usize)) {
+    for (word, &w) in words.iter().enumerate() {
+        let mut bits = w;
+        while bits != 0 {
+            f(word * 64 + bits.trailing_zeros() as usize);
+            bits &= bits - 1;
+        }
+    }
+}
