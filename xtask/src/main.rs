@@ -274,6 +274,11 @@ enum Command {
         /// Output directory.
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Also write the scene, camera and settings as a Mitsuba 3 scene in this directory
+        /// (`bench_harness::mitsuba`; `python3 xtask/scripts/mitsuba_render.py DIR` renders
+        /// and times it).
+        #[arg(long)]
+        mitsuba: Option<PathBuf>,
     },
     /// Radiosity relighting: mesh and solve a scene with light-tagged progressive
     /// refinement, relight it with the given light settings and write the view from a
@@ -539,6 +544,7 @@ fn reference(
     seed: u64,
     exposure: f32,
     out: &Path,
+    mitsuba: Option<&Path>,
 ) -> Result<(), String> {
     // The numbers were checked by `Command::check_numbers`.
     check_out_dir(out)?;
@@ -546,6 +552,16 @@ fn reference(
     let cam = scene_camera(&scene, camera)?;
     let cam = cam.with_aspect(width as f32 / height as f32);
     let view = View::from_camera(&cam);
+    if let Some(dir) = mitsuba {
+        check_out_dir(dir)?;
+        let limit = match bounces {
+            Bounces::Limited(n) => Some(n),
+            Bounces::Unlimited => None,
+        };
+        let xml = bench_harness::mitsuba::export(&scene, &cam, width, height, spp, limit, dir)
+            .map_err(|e| e.to_string())?;
+        eprintln!("Mitsuba scene: {}", xml.display());
+    }
     std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let stem = Path::new(&scene.name)
         .file_stem()
@@ -677,8 +693,18 @@ fn run(cli: Cli) -> Result<(), String> {
             seed,
             exposure,
             out,
+            mitsuba,
         } => reference(
-            &scene, camera, width, height, spp, bounces, seed, exposure, &out,
+            &scene,
+            camera,
+            width,
+            height,
+            spp,
+            bounces,
+            seed,
+            exposure,
+            &out,
+            mitsuba.as_deref(),
         ),
         Command::Relight(options) => relight::run(&options),
         Command::Ibrr(options) => ibrr::run(&options),

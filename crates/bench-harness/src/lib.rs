@@ -68,6 +68,7 @@ pub mod cache;
 pub mod cameras;
 pub mod experiment;
 pub mod merge;
+pub mod mitsuba;
 pub mod plots;
 pub mod povray;
 pub mod report;
