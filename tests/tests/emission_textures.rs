@@ -226,3 +226,43 @@ fn the_material_features_seed_imports_with_each_feature() {
         );
     }
 }
+
+/// The reference samples an emission texture by its texels' power
+/// (`scene_core::lights::EmissionPattern`): its direct light from the checkerboard panel
+/// has the same mean as from the twin (four quads, two of them emitting, sampled by
+/// triangle power) and nearly its noise, where sampling each triangle uniformly by area
+/// spent half the light samples on dark texels.
+#[test]
+fn the_reference_samples_emission_textures_by_their_texels() {
+    use scene_core::reference::{Bounces, ReferenceSettings, render};
+    let settings = ReferenceSettings {
+        width: W,
+        height: H,
+        spp: 256,
+        bounces: Bounces::Limited(0),
+        seed: 9,
+    };
+    let out = |scene: &Scene| {
+        let cam = scene.cameras[0].with_aspect(W as f32 / H as f32);
+        render(scene, &scene_core::View::from_camera(&cam), &settings, None)
+    };
+    let (tex, twin) = (out(&room(Panel::Textured)), out(&room(Panel::Twin)));
+    let sum = |i: &Image| {
+        i.pixels
+            .iter()
+            .map(|p| f64::from(p.x + p.y + p.z))
+            .sum::<f64>()
+    };
+    let (m_tex, m_twin) = (sum(&tex.image), sum(&twin.image));
+    // The means' standard error from the per-pixel variances.
+    let se = ((sum(&tex.variance) + sum(&twin.variance)) / f64::from(settings.spp)).sqrt();
+    let ratio = sum(&tex.variance) / sum(&twin.variance);
+    eprintln!(
+        "direct light: textured {m_tex:.3}, twin {m_twin:.3} (SE {se:.3}); variance ratio {ratio:.3}"
+    );
+    assert!(
+        (m_tex - m_twin).abs() < 4.0 * se,
+        "{m_tex} vs {m_twin}, SE {se}"
+    );
+    assert!(ratio < 1.3, "textured panel's variance {ratio}x the twin's");
+}

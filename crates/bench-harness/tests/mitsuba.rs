@@ -11,7 +11,11 @@ use scene_core::builtin;
 /// (vertex count, face count) from a binary PLY's header, and the body's length.
 fn ply_counts(path: &Path) -> (usize, usize, usize) {
     let bytes = std::fs::read(path).unwrap();
-    let end = bytes.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
     let header = std::str::from_utf8(&bytes[..end]).unwrap();
     let count = |what: &str| -> usize {
         header
@@ -32,7 +36,10 @@ fn every_triangle_is_written_once_with_its_material() {
         let scene = builtin::scene(name).unwrap();
         let xml = mitsuba::export(&scene, &scene.cameras[0], 32, 24, 4, bounces, &dir).unwrap();
         let text = std::fs::read_to_string(&xml).unwrap();
-        assert!(text.contains(&format!("name=\"max_depth\" value=\"{depth}\"")), "{name}");
+        assert!(
+            text.contains(&format!("name=\"max_depth\" value=\"{depth}\"")),
+            "{name}"
+        );
         let mut faces = 0;
         let mut shapes = 0;
         for (mi, mesh) in scene.meshes.iter().enumerate() {
@@ -47,7 +54,10 @@ fn every_triangle_is_written_once_with_its_material() {
                 // 8 floats a vertex, a count byte and 3 indices a face.
                 assert_eq!(body, v * 32 + f * 13, "{name} {file}");
                 let shape = format!("value=\"{file}\"/>\n    <ref id=\"m{m}\"/>");
-                assert!(text.contains(&shape), "{name}: {file} without material m{m}");
+                assert!(
+                    text.contains(&shape),
+                    "{name}: {file} without material m{m}"
+                );
                 faces += f;
                 shapes += 1;
             }

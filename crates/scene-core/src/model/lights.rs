@@ -25,7 +25,7 @@
 
 use std::collections::BTreeMap;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use crate::image::luminance;
 use crate::scene::Scene;
@@ -535,6 +535,129 @@ pub struct Emitters {
     pub total_weight: f64,
     /// Per global triangle id: index into `triangles`, or `u32::MAX`.
     pub per_triangle: Vec<u32>,
+    /// Per entry of `triangles`: where an emission texture varies over the triangle, the
+    /// distribution of light samples over its sub-triangles by their emitted power
+    /// ([`Emitters::point_on`]); `None` samples the triangle uniformly by area.
+    pub patterns: Vec<Option<EmissionPattern>>,
+}
+
+/// The sub-triangles per side of an emission-textured triangle's regular subdivision that
+/// [`EmissionPattern`] weighs: `TEXEL_GRID^2 = 64` sub-triangles, the same ones whose
+/// centroids give the triangle's mean emission ([`Scene::triangle_emission`]).
+pub const TEXEL_GRID: u32 = 8;
+
+/// How an emission-textured triangle's light samples are spread over it: a cumulative
+/// distribution over the `TEXEL_GRID^2` sub-triangles of its regular subdivision (in the
+/// order of [`crate::cutout::triangle_samples`]) by each one's emitted power, so that a lamp
+/// drawn as an emissive map is sampled where its texels shine. Each sub-triangle's weight
+/// is the largest emission found at its centroid and half way from the centroid to each
+/// corner (so that a sub-triangle partly lit is not starved), floored at 1 % of the
+/// triangle's largest weight (every point keeps a positive density).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EmissionPattern {
+    cdf: Vec<f32>,
+}
+
+impl EmissionPattern {
+    /// The pattern of `weight` (a power at barycentric coordinates of vertices 1 and 2);
+    /// `None` when the weights are uniform (sampling by area is then the same) or not
+    /// positive.
+    pub fn new(weight: impl Fn(Vec2) -> f64) -> Option<Self> {
+        let n = TEXEL_GRID as f32;
+        let w: Vec<f64> = (0..TEXEL_GRID * TEXEL_GRID)
+            .map(|s| {
+                let corners = sub_triangle(s).map(|c| c / n);
+                let centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
+                corners
+                    .iter()
+                    .map(|&c| weight(0.5 * (centroid + c)))
+                    .fold(weight(centroid), f64::max)
+            })
+            .map(|w| if w.is_finite() && w > 0.0 { w } else { 0.0 })
+            .collect();
+        let max = w.iter().copied().fold(0.0, f64::max);
+        if max <= 0.0 || w.iter().all(|&x| x == max) {
+            return None;
+        }
+        let floored: Vec<f64> = w.iter().map(|&x| x.max(0.01 * max)).collect();
+        let total: f64 = floored.iter().sum();
+        let mut acc = 0.0;
+        let mut cdf: Vec<f32> = floored
+            .iter()
+            .map(|&x| {
+                acc += x;
+                (acc / total) as f32
+            })
+            .collect();
+        *cdf.last_mut()? = 1.0;
+        Some(Self { cdf })
+    }
+
+    fn probability(&self, s: usize) -> f32 {
+        self.cdf[s] - if s == 0 { 0.0 } else { self.cdf[s - 1] }
+    }
+
+    /// A point (barycentric coordinates of vertices 1 and 2) from `u_sub` in [0, 1), which
+    /// picks the sub-triangle, and `b`, a point uniform by area over a whole triangle (which
+    /// is placed in the sub-triangle); with its density relative to uniform sampling by
+    /// area.
+    pub fn point(&self, u_sub: f32, b: Vec2) -> (Vec2, f32) {
+        let s = self
+            .cdf
+            .partition_point(|&c| c <= u_sub)
+            .min(self.cdf.len() - 1);
+        let [c0, c1, c2] = sub_triangle(s as u32);
+        let p = (c0 + (c1 - c0) * b.x + (c2 - c0) * b.y) / TEXEL_GRID as f32;
+        (p, self.density_of(s))
+    }
+
+    /// The density relative to uniform sampling by area at barycentric coordinates `b`.
+    pub fn density(&self, b: Vec2) -> f32 {
+        self.density_of(sub_triangle_at(b) as usize)
+    }
+
+    fn density_of(&self, s: usize) -> f32 {
+        self.probability(s) * (TEXEL_GRID * TEXEL_GRID) as f32
+    }
+}
+
+/// Corners, in grid units (barycentric coordinates of vertices 1 and 2 times
+/// [`TEXEL_GRID`]), of sub-triangle `s` in the order of [`crate::cutout::triangle_samples`]:
+/// row `i` holds the upward triangles `(i, j)` and the downward ones beside them,
+/// alternating.
+fn sub_triangle(s: u32) -> [Vec2; 3] {
+    let n = TEXEL_GRID;
+    // Row i starts at i (2n - i).
+    let mut i = 0;
+    while i + 1 < n && (i + 1) * (2 * n - (i + 1)) <= s {
+        i += 1;
+    }
+    let k = s - i * (2 * n - i);
+    let (j, down) = (k / 2, k % 2 == 1);
+    let (x, y) = (i as f32, j as f32);
+    if down {
+        [
+            Vec2::new(x + 1.0, y),
+            Vec2::new(x, y + 1.0),
+            Vec2::new(x + 1.0, y + 1.0),
+        ]
+    } else {
+        [
+            Vec2::new(x, y),
+            Vec2::new(x + 1.0, y),
+            Vec2::new(x, y + 1.0),
+        ]
+    }
+}
+
+/// The sub-triangle (as [`sub_triangle`] numbers them) holding barycentric coordinates `b`.
+fn sub_triangle_at(b: Vec2) -> u32 {
+    let n = TEXEL_GRID;
+    let g = (b * n as f32).max(Vec2::ZERO);
+    let i = (g.x.floor() as u32).min(n - 1);
+    let j = (g.y.floor() as u32).min(n - 1 - i);
+    let down = g.x - i as f32 + g.y - j as f32 > 1.0 && i + j + 1 < n;
+    i * (2 * n - i) + 2 * j + u32::from(down)
 }
 
 impl Emitters {
@@ -566,6 +689,7 @@ impl Emitters {
                     let area = 0.5 * c.length();
                     let weight = sampling_weight(le * scale) * f64::from(area);
                     e.per_triangle.push(e.triangles.len() as u32);
+                    e.patterns.push(emission_pattern(scene, mi, local, scale));
                     e.triangles.push(EmissiveTriangle {
                         triangle: global,
                         mesh: mi as u32,
@@ -606,6 +730,41 @@ impl Emitters {
         e
     }
 
+    /// [`Emitters::pick`] and a number in [0, 1) left over from `u` for the next choice
+    /// (where `u` fell within the picked triangle's interval), so that a pattern's
+    /// sub-triangle costs no further random number.
+    pub fn pick_with_rest(&self, u: f64) -> Option<(usize, f32)> {
+        let k = self.pick(u)?;
+        let before = if k == 0 { 0.0 } else { self.cdf[k - 1] };
+        let p = self.pick_probability(k);
+        let rest = if p > 0.0 { (u - before) / p } else { 0.0 };
+        Some((k, (rest as f32).clamp(0.0, 1.0 - f32::EPSILON)))
+    }
+
+    /// A point on triangle `k` (barycentric coordinates of vertices 1 and 2) for light
+    /// sampling, from `u_sub` in [0, 1) (the pattern's sub-triangle) and `b` (a point
+    /// uniform by area over a triangle), with its density relative to uniform sampling by
+    /// area: `b` itself and 1 where the triangle has no [`EmissionPattern`].
+    pub fn point_on(&self, k: usize, u_sub: f32, b: Vec2) -> (Vec2, f32) {
+        match self.patterns.get(k).and_then(Option::as_ref) {
+            Some(p) => p.point(u_sub, b),
+            None => (b, 1.0),
+        }
+    }
+
+    /// The density [`Emitters::point_on`] gives barycentric coordinates `b` of global
+    /// triangle `triangle`, relative to uniform sampling by area (1 without a pattern).
+    pub fn density_on(&self, triangle: u32, b: Vec2) -> f32 {
+        match self.per_triangle.get(triangle as usize) {
+            Some(&k) if k != u32::MAX => self
+                .patterns
+                .get(k as usize)
+                .and_then(Option::as_ref)
+                .map_or(1.0, |p| p.density(b)),
+            _ => 1.0,
+        }
+    }
+
     /// True when no triangle can be picked.
     pub fn is_empty(&self) -> bool {
         self.cdf.is_empty()
@@ -641,10 +800,86 @@ impl Emitters {
     }
 }
 
+/// The [`EmissionPattern`] of triangle `local` of mesh `mesh` under the state's colour
+/// `scale`: `None` unless its material has an emission texture and the mesh coordinates.
+fn emission_pattern(
+    scene: &Scene,
+    mesh: usize,
+    local: usize,
+    scale: Vec3,
+) -> Option<EmissionPattern> {
+    let m = &scene.meshes[mesh];
+    let material = m.material_ids[local];
+    let mat = scene.materials.get(material as usize)?;
+    mat.emission_texture?;
+    let uvs = m.uvs.as_ref()?;
+    let t = m.indices[local].map(|i| uvs[i as usize]);
+    EmissionPattern::new(|b| {
+        let uv = t[0] * (1.0 - b.x - b.y) + t[1] * b.x + t[2] * b.y;
+        sampling_weight(scene.emission_at(material, Some(uv)) * scale)
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::builtin;
+
+    /// The sub-triangles tile the triangle in `triangle_samples`' order, each point maps back
+    /// to the sub-triangle it was drawn in with the density it was drawn with, and the
+    /// densities integrate to one.
+    #[test]
+    fn emission_patterns_sample_what_they_evaluate() {
+        let n = TEXEL_GRID as f32;
+        for (s, c) in crate::cutout::triangle_samples(TEXEL_GRID).enumerate() {
+            let [a, b, d] = sub_triangle(s as u32).map(|p| p / n);
+            assert!(((a + b + d) / 3.0 - c).length() < 1e-6, "sub-triangle {s}");
+            assert_eq!(sub_triangle_at(c), s as u32);
+            // Equal areas: an eighth of the grid's cell squared over two.
+            let area = 0.5 * (b - a).perp_dot(d - a).abs();
+            assert!(
+                (area - 0.5 / (n * n)).abs() < 1e-6,
+                "sub-triangle {s}: {area}"
+            );
+        }
+        // A bright disc in one corner of the triangle, dark elsewhere.
+        let weight = |b: Vec2| {
+            if (b - Vec2::new(0.8, 0.1)).length() < 0.15 {
+                1.0
+            } else {
+                0.0
+            }
+        };
+        let p = EmissionPattern::new(weight).expect("a varying pattern");
+        assert!(
+            EmissionPattern::new(|_| 2.0).is_none(),
+            "uniform weights need no pattern"
+        );
+        assert!(EmissionPattern::new(|_| 0.0).is_none());
+        let total: f32 = (0..(TEXEL_GRID * TEXEL_GRID) as usize)
+            .map(|s| p.density_of(s) / (n * n))
+            .sum();
+        assert!((total - 1.0).abs() < 1e-5, "{total}");
+        let mut rng = crate::sampling::Rng::new(3, 0);
+        let mut in_disc = 0;
+        for _ in 0..4000 {
+            let (u, v) = (rng.next_f32(), rng.next_vec2());
+            let su = v.x.sqrt();
+            let b = Vec2::new(su * (1.0 - v.y), su * v.y);
+            let (q, density) = p.point(u, b);
+            assert!(
+                q.x >= -1e-6 && q.y >= -1e-6 && q.x + q.y <= 1.0 + 1e-6,
+                "{q}"
+            );
+            assert!(
+                (p.density(q) - density).abs() <= 1e-4 * density,
+                "{q}: {density}"
+            );
+            in_disc += usize::from(weight(q) > 0.0);
+        }
+        // The disc covers 0.15^2 pi / 0.5 = 14 % of the triangle; most samples land on it.
+        assert!(in_disc > 4000 * 6 / 10, "{in_disc} of 4000 in the disc");
+    }
 
     /// The cone against glTF's formula at chosen angles, and its solid angle against a
     /// midpoint quadrature of `2 pi integral attenuation d(cos)` (1e6 steps), for a wide

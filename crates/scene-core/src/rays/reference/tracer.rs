@@ -205,6 +205,7 @@ impl<'a> PathTracer<'a> {
                     None => 1.0,
                     Some(pb) => {
                         let pl = self.emitters.probability_of_triangle(hit.triangle) as f32
+                            * self.emitters.density_on(hit.triangle, hit.barycentric)
                             / tri.area
                             * hit.t
                             * hit.t
@@ -328,13 +329,16 @@ impl<'a> PathTracer<'a> {
         let picked = if self.emitters.is_empty() {
             None
         } else {
-            self.emitters.pick(rng.next_f64())
+            self.emitters.pick_with_rest(rng.next_f64())
         };
-        if let Some(k) = picked {
+        if let Some((k, rest)) = picked {
             let tri = &self.emitters.triangles[k];
             let data = &self.tris[tri.triangle as usize];
             let factor = self.mesh_factors[tri.mesh as usize][which];
-            let b = uniform_triangle(rng.next_vec2());
+            // Uniform by area, or by an emission texture's power (its pattern).
+            let (b, density) = self
+                .emitters
+                .point_on(k, rest, uniform_triangle(rng.next_vec2()));
             let q = data.p[0] * (1.0 - b.x - b.y) + data.p[1] * b.x + data.p[2] * b.y;
             let to = q - p;
             let d2 = to.length_squared();
@@ -351,7 +355,8 @@ impl<'a> PathTracer<'a> {
                     // Stop short of the emitter by an absolute, scene-relative margin: an
                     // occluder flush against the light must still block it.
                     if !self.rays.occluded(p, w, 0.0, dist - 2.0 * self.eps) {
-                        let pdf_area = self.emitters.pick_probability(k) as f32 / data.area;
+                        let pdf_area =
+                            self.emitters.pick_probability(k) as f32 * density / data.area;
                         let pl = pdf_area * d2 / cos_l;
                         let pb = cos * std::f32::consts::FRAC_1_PI;
                         let uv = self.uvs[tri.triangle as usize]
