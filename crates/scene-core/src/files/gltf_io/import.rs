@@ -1235,6 +1235,20 @@ impl<'a> Importer<'a> {
                 if colors.len() != n {
                     return Err(count_mismatch("COLOR_0", colors.len(), n));
                 }
+                // glTF multiplies COLOR_0's alpha into a masked material's alpha; here only
+                // the texture's alpha cuts holes, so a vertex alpha below 1 is reported.
+                let masked = prim.material().alpha_mode() != gltf::material::AlphaMode::Opaque;
+                if masked
+                    && dims == Dimensions::Vec4
+                    && reader
+                        .read_colors(0)
+                        .is_some_and(|it| it.into_rgba_f32().any(|c| c[3] < 1.0))
+                {
+                    self.ignore(
+                        Ignored::VertexColors,
+                        format!("{at} (COLOR_0's alpha on a masked material)"),
+                    );
+                }
                 Some(colors)
             }
             None => None,

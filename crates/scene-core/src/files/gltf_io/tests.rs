@@ -1043,3 +1043,54 @@ fn alpha_modes_become_cutoffs() {
     // The emissive quad whose factor has alpha 0 is a hole everywhere.
     assert!(!r.scene.opaque_at(2, None));
 }
+
+/// glTF multiplies COLOR_0's alpha into a masked material's alpha; the importer cuts holes
+/// by the texture's alpha only, so a vertex alpha below 1 under a mask is reported as
+/// ignored, and one on an opaque material (where glTF ignores alpha too) is not.
+#[test]
+fn vertex_alpha_on_a_masked_material_is_reported() {
+    for (mode, alpha, reported) in [
+        ("MASK", 0.5, true),
+        ("MASK", 1.0, false),
+        ("OPAQUE", 0.5, false),
+    ] {
+        let bytes = doc(&TRI, Some(&TRI_N), None, 4, |root| {
+            let rgba: Vec<u8> = (0..3)
+                .flat_map(|_| [1.0f32, 1.0, 1.0, alpha])
+                .flat_map(f32::to_le_bytes)
+                .collect();
+            let uri = format!(
+                "data:application/octet-stream;base64,{}",
+                base64::engine::general_purpose::STANDARD.encode(&rgba)
+            );
+            let buffer = root["buffers"].as_array().unwrap().len();
+            root["buffers"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!({ "byteLength": 48, "uri": uri }));
+            let view = root["bufferViews"].as_array().unwrap().len();
+            root["bufferViews"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!({ "buffer": buffer, "byteLength": 48 }));
+            let accessor = root["accessors"].as_array().unwrap().len();
+            root["accessors"].as_array_mut().unwrap().push(
+                json!({ "bufferView": view, "componentType": 5126, "count": 3, "type": "VEC4" }),
+            );
+            root["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(accessor);
+            root["meshes"][0]["primitives"][0]["material"] = json!(0);
+            root["materials"] = json!([{ "alphaMode": mode }]);
+        });
+        let r = import_slice(&bytes, Path::new("tinted.gltf")).unwrap();
+        let found = r.ignored.iter().any(|i| i.contains("COLOR_0's alpha"));
+        assert_eq!(
+            found, reported,
+            "{mode} with alpha {alpha}: {:?}",
+            r.ignored
+        );
+        assert!(
+            r.scene.meshes[0].colors.is_some(),
+            "{mode}: the colours are read"
+        );
+    }
+}
