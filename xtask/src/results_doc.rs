@@ -222,6 +222,12 @@ pub fn render(r: &Results, results_name: &str) -> String {
         }
         let _ = writeln!(o);
     }
+    let _ = writeln!(
+        o,
+        "The same job on a public interior (the Breakfast Room, a glTF without lights, lit \
+         by `--sun` and `--sky`) is written up by hand in \
+         [results-interior.md](results-interior.md).\n"
+    );
     let _ = writeln!(o, "## What the numbers show\n\n{}", findings(r));
     let body = bench_harness::report::markdown(r, Some("isr-80"));
     // The report's own title and first paragraph are replaced by the provenance above.
