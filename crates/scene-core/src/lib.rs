@@ -62,7 +62,7 @@ pub use scene::{
     Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Sampler, Scene, Texture, Wrap,
 };
 pub use technique::{FrameRequest, Metric, MetricValue, Refinement, StageTimings, Technique};
-pub use view::{FrustumCorners, HemicubeFace, Projection, View};
+pub use view::{DepthConvention, FrustumCorners, HemicubeFace, Projection, View};
 
 pub use glam;
 

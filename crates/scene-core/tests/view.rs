@@ -223,3 +223,121 @@ fn views_round_trip_through_engine_matrices() {
     assert!(e.contains("rotation"), "{e}");
     assert!(View::from_matrices(m, glam::Mat4::IDENTITY * 0.0).is_err());
 }
+
+/// The projections engines use, built by glam's Direct3D-range (depth in [0, 1]) helpers
+/// (Bevy's camera is `perspective_infinite_reverse_rh`, the same matrix): each gives the same view as the standard finite one,
+/// a far plane at infinity becomes `near x DEPTH_RANGE_MAX`, and the convention turns the
+/// depth each matrix writes back into the distance it was written at.
+#[test]
+fn reverse_z_and_infinite_projections_are_read() {
+    use glam::camera::rh::proj::directx as dx;
+    use glam::{Mat4, Vec4};
+    use scene_core::scene::DEPTH_RANGE_MAX;
+    let (fov, aspect, near, far) = (0.9f32, 1.6f32, 0.05f32, 80.0f32);
+    let eye = glam::Vec3::new(1.0, 2.0, 3.0);
+    let m =
+        glam::camera::rh::view::look_at_mat4(eye, glam::Vec3::new(0.5, 1.0, -2.0), glam::Vec3::Y);
+    let standard = View::from_matrices(m, dx::perspective(fov, aspect, near, far)).unwrap();
+    let cases = [
+        (
+            "standard",
+            dx::perspective(fov, aspect, near, far),
+            false,
+            false,
+        ),
+        (
+            "reverse",
+            dx::perspective(fov, aspect, far, near),
+            true,
+            false,
+        ),
+        (
+            "infinite",
+            dx::perspective_infinite(fov, aspect, near),
+            false,
+            true,
+        ),
+        (
+            "infinite reverse (Bevy)",
+            dx::perspective_infinite_reverse(fov, aspect, near),
+            true,
+            true,
+        ),
+    ];
+    for (name, p, reverse, infinite) in cases {
+        let (v, depth) = View::from_host_matrices(m, p).unwrap();
+        assert_eq!(
+            (depth.reverse, depth.infinite),
+            (reverse, infinite),
+            "{name}"
+        );
+        assert!(!depth.orthographic, "{name}");
+        assert!(v.eye.abs_diff_eq(standard.eye, 1e-5), "{name}");
+        assert!(v.forward.abs_diff_eq(standard.forward, 1e-6), "{name}");
+        assert!(v.up.abs_diff_eq(standard.up, 1e-6), "{name}");
+        assert_eq!(v.projection, standard.projection, "{name}");
+        assert!(
+            (v.near - near).abs() < 1e-6 * near,
+            "{name}: near {}",
+            v.near
+        );
+        let want_far = if infinite {
+            near * DEPTH_RANGE_MAX
+        } else {
+            far
+        };
+        assert!(
+            (v.far - want_far).abs() < 1e-4 * want_far,
+            "{name}: far {}",
+            v.far
+        );
+        // The depth the matrix writes at distance t, read back.
+        for t in [near, 0.3, 1.0, 7.5, 79.0] {
+            let clip = p * Vec4::new(0.0, 0.0, -t, 1.0);
+            let d = clip.z / clip.w;
+            assert!((0.0..=1.0).contains(&d), "{name}: depth {d} at {t}");
+            assert!(
+                (depth.depth(t) - d).abs() < 1e-6,
+                "{name}: {} vs {d}",
+                depth.depth(t)
+            );
+            let back = depth.distance(d);
+            // Reversed depth keeps its precision far away; standard depth loses it as 1 / d.
+            let tol = if reverse { 1e-5 } else { 2e-3 };
+            assert!((back - t).abs() < tol * t, "{name}: {back} at {t}");
+            assert!(
+                (depth.linear_depth(d) - t / v.far).abs() < tol * t / v.far,
+                "{name}"
+            );
+        }
+        // The far plane: a point at infinity reads as the end of the toolkit's range.
+        if infinite {
+            let d_inf = if reverse { 0.0 } else { 1.0 };
+            assert_eq!(depth.linear_depth(d_inf), 1.0, "{name}");
+        }
+    }
+    // Orthographic, standard and reversed.
+    let o = dx::orthographic(-2.0, 2.0, -1.0, 1.0, 0.5, 30.0);
+    let o_rev = dx::orthographic(-2.0, 2.0, -1.0, 1.0, 30.0, 0.5);
+    let (a, da) = View::from_host_matrices(m, o).unwrap();
+    let (b, db) = View::from_host_matrices(m, o_rev).unwrap();
+    assert!(da.orthographic && !da.reverse && db.reverse);
+    assert_eq!(a.projection, b.projection);
+    assert!((a.near - 0.5).abs() < 1e-5 && (b.near - 0.5).abs() < 1e-5);
+    assert!((a.far - 30.0).abs() < 1e-3 && (b.far - 30.0).abs() < 1e-3);
+    assert!((db.distance(db.depth(12.0)) - 12.0).abs() < 1e-4);
+    // What cannot be read is refused, naming it.
+    let mut flat = dx::perspective_infinite_reverse(fov, aspect, near);
+    flat.w_axis.z = 0.0;
+    let e = View::from_matrices(m, flat).unwrap_err().to_string();
+    assert!(e.contains("does not vary"), "{e}");
+    let mut ortho_inf = o;
+    ortho_inf.z_axis.z = 0.0;
+    let e = View::from_matrices(m, ortho_inf).unwrap_err().to_string();
+    assert!(e.contains("no far plane"), "{e}");
+    // Near behind the eye (a perspective whose depth is 0 at a negative distance).
+    let e = View::from_matrices(m, dx::perspective(fov, aspect, -1.0, far))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("near"), "{e}");
+}

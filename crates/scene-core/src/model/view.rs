@@ -56,6 +56,63 @@ pub struct View {
     pub far: f32,
 }
 
+/// How an engine's depth buffer encodes distance, read off its projection matrix by
+/// [`View::from_host_matrices`]: standard or reversed, with a finite far plane or one at
+/// infinity, perspective or orthographic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DepthConvention {
+    /// Depth 1 at the near plane, falling with distance (reverse-Z).
+    pub reverse: bool,
+    /// The far plane at infinity (depth 1, or 0 reversed, never reached).
+    pub infinite: bool,
+    /// Depth linear in distance.
+    pub orthographic: bool,
+    /// The projection's z row: depth `d = (m32 - m22 t) / t` at distance `t` in perspective,
+    /// `d = m32 - m22 t` orthographic.
+    m22: f64,
+    m32: f64,
+    /// The view's far plane, which the toolkit's linear depth divides by.
+    far: f32,
+}
+
+impl DepthConvention {
+    /// The distance along the view direction of a point at hardware depth `d` (infinite at
+    /// an infinite far plane, not finite for depths the projection never writes).
+    pub fn distance(&self, d: f32) -> f32 {
+        let d = f64::from(d);
+        let t = if self.orthographic {
+            (self.m32 - d) / self.m22
+        } else if d + self.m22 == 0.0 {
+            // The far plane at infinity (whichever sign the zero has).
+            f64::INFINITY
+        } else {
+            self.m32 / (d + self.m22)
+        };
+        t as f32
+    }
+
+    /// The toolkit's linear depth (distance / the view's far plane, see the module
+    /// documentation) of hardware depth `d`, in [0, 1]: a point beyond the view's far plane
+    /// (only with an infinite far plane: `near x` [`crate::scene::DEPTH_RANGE_MAX`]) reads
+    /// as 1.
+    pub fn linear_depth(&self, d: f32) -> f32 {
+        let t = self.distance(d) / self.far;
+        if t.is_nan() { 1.0 } else { t.clamp(0.0, 1.0) }
+    }
+
+    /// The hardware depth of a point at distance `t` (the inverse of
+    /// [`DepthConvention::distance`]).
+    pub fn depth(&self, t: f32) -> f32 {
+        let t = f64::from(t);
+        let d = if self.orthographic {
+            self.m32 - self.m22 * t
+        } else {
+            (self.m32 - self.m22 * t) / t
+        };
+        d as f32
+    }
+}
+
 /// The centre of pixel `(x, y)` of a `width x height` image in image coordinates
 /// (`(0, 0)` top-left, `(1, 1)` bottom-right): where every G-buffer renderer samples and
 /// every image-space pass reconstructs.
@@ -250,15 +307,36 @@ impl View {
     }
 
     /// The view of an engine's own matrices: `view` maps world to view space (right-handed,
-    /// looking down -Z, +Y up, no scale) and `projection` maps view space to clip space in
-    /// wgpu's convention (depth in [0, 1]: glam's `perspective_rh`, `orthographic_rh` and
-    /// their off-axis forms). OpenGL-style matrices (depth in [-1, 1]) must be converted
-    /// first.
+    /// looking down -Z, +Y up, no scale) and `projection` maps view space to clip space with
+    /// depth in [0, 1] (wgpu's and Direct3D's range), in any of the conventions engines use:
+    /// standard (depth 0 at the near plane) or reversed (depth 1 at the near plane, as Bevy
+    /// and most current engines), with a finite far plane or one at infinity (glam's
+    /// `perspective_rh`, `perspective_infinite_rh`, `perspective_infinite_reverse_rh` and
+    /// `orthographic_rh`, their off-axis forms, and each with near and far swapped).
+    /// [`View::from_host_matrices`] also returns how the engine's depth buffer encodes
+    /// distance.
     ///
-    /// Errors name what does not fit: a view matrix that is not a rotation and a
-    /// translation, a projection that is neither perspective nor orthographic, or planes
-    /// that do not satisfy `0 < near < far` (`0 <= near` for orthographic).
+    /// The view's own depth (the toolkit's G-buffers) is always standard and finite: a far
+    /// plane at infinity becomes `near x` [`crate::scene::DEPTH_RANGE_MAX`], the deepest
+    /// range the toolkit renders.
+    ///
+    /// OpenGL-style matrices (depth in [-1, 1]) cannot be told apart from a [0, 1] matrix
+    /// with other planes and must be converted first. Errors name what does not fit: a view
+    /// matrix that is not a rotation and a translation, a projection that is neither
+    /// perspective nor orthographic, a depth that does not vary with distance, planes that do
+    /// not satisfy `0 < near < far` (`0 <= near` for orthographic), or an orthographic
+    /// projection without a far plane.
     pub fn from_matrices(view: Mat4, projection: Mat4) -> Result<View, crate::Error> {
+        Self::from_host_matrices(view, projection).map(|(v, _)| v)
+    }
+
+    /// [`View::from_matrices`] with the engine's depth convention, which turns the values of
+    /// its depth buffer into distances ([`DepthConvention::distance`]) and into the
+    /// toolkit's linear depth ([`DepthConvention::linear_depth`]).
+    pub fn from_host_matrices(
+        view: Mat4,
+        projection: Mat4,
+    ) -> Result<(View, DepthConvention), crate::Error> {
         let bad = |why: String| {
             Err(crate::Error::InvalidArgument(format!(
                 "View::from_matrices: {why}"
@@ -291,65 +369,94 @@ impl View {
         if a == 0.0 || bb == 0.0 {
             return bad("the projection has a zero scale".into());
         }
-        let (proj, near, far) = if p.z_axis.w == -1.0 && p.w_axis.w == 0.0 {
-            let (c, d) = (p.z_axis.x, p.z_axis.y);
-            let (m22, m32) = (p.z_axis.z, p.w_axis.z);
-            if m22 == 0.0 || 1.0 + m22 == 0.0 {
-                return bad("the perspective projection has no finite depth range".into());
-            }
-            // In f64: with far/near large, 1 + m22 is a small difference.
-            let near = m32 / m22;
-            let far = (m22 as f64 * near as f64 / (1.0 + m22 as f64)) as f32;
-            (
-                Projection::Perspective {
-                    left: (c - 1.0) / a,
-                    right: (c + 1.0) / a,
-                    bottom: (d - 1.0) / bb,
-                    top: (d + 1.0) / bb,
-                },
-                near,
-                far,
-            )
-        } else if p.z_axis.w == 0.0 && p.w_axis.w == 1.0 {
-            let (e, g) = (p.w_axis.x, p.w_axis.y);
-            let (m22, m32) = (p.z_axis.z, p.w_axis.z);
-            if m22 == 0.0 {
-                return bad("the orthographic projection has no depth range".into());
-            }
-            let near = m32 / m22;
-            let far = near - 1.0 / m22;
-            (
-                Projection::Orthographic {
-                    left: (-1.0 - e) / a,
-                    right: (1.0 - e) / a,
-                    bottom: (-1.0 - g) / bb,
-                    top: (1.0 - g) / bb,
-                },
-                near,
-                far,
-            )
-        } else {
+        // Hardware depth at distance t along the view: (m32 - m22 t) / t for a perspective,
+        // m32 - m22 t for an orthographic projection. In f64: with far/near large, 1 + m22
+        // is a small difference.
+        let (m22, m32) = (f64::from(p.z_axis.z), f64::from(p.w_axis.z));
+        let perspective = p.z_axis.w == -1.0 && p.w_axis.w == 0.0;
+        let orthographic = p.z_axis.w == 0.0 && p.w_axis.w == 1.0;
+        if !(perspective || orthographic) {
             return bad(
                 "the projection is neither perspective (w = -z) nor orthographic (w = 1)".into(),
             );
+        }
+        // The distances where depth is 0 and where it is 1 (infinite where never).
+        let (at0, at1) = if perspective {
+            if m32 == 0.0 {
+                return bad(
+                    "the perspective projection's depth does not vary with distance (z row 0)"
+                        .into(),
+                );
+            }
+            // A zero denominator is a plane at infinity (m22 = 0 reversed, -1 standard).
+            let at = |den: f64| if den == 0.0 { f64::INFINITY } else { m32 / den };
+            (at(m22), at(1.0 + m22))
+        } else {
+            if m22 == 0.0 {
+                return bad(
+                    "the orthographic projection's depth does not vary with distance (no far \
+                     plane)"
+                        .into(),
+                );
+            }
+            (m32 / m22, (m32 - 1.0) / m22)
         };
-        let near_ok = match proj {
-            Projection::Perspective { .. } => near > 0.0,
-            Projection::Orthographic { .. } => near >= 0.0,
-        };
-        if !(near_ok && far > near && far.is_finite()) {
+        // Perspective depth falls with distance where m32 > 0; orthographic where m22 > 0.
+        let reverse = if perspective { m32 > 0.0 } else { m22 > 0.0 };
+        let (near, far) = if reverse { (at1, at0) } else { (at0, at1) };
+        let infinite = far == f64::INFINITY;
+        let near_ok = if perspective { near > 0.0 } else { near >= 0.0 };
+        if !(near_ok && far > near && near.is_finite()) {
             return bad(format!(
-                "near {near} and far {far} do not satisfy 0 < near < far"
+                "near {near} and far {far} do not satisfy 0 {} near < far",
+                if perspective { "<" } else { "<=" }
             ));
         }
-        Ok(View {
+        let (near, far) = (near as f32, far as f32);
+        let far = if infinite {
+            near * crate::scene::DEPTH_RANGE_MAX
+        } else {
+            far
+        };
+        if !(far.is_finite() && far > near) {
+            return bad(format!(
+                "near {near} and far {far} are not a usable depth range"
+            ));
+        }
+        let proj = if perspective {
+            let (c, d) = (p.z_axis.x, p.z_axis.y);
+            Projection::Perspective {
+                left: (c - 1.0) / a,
+                right: (c + 1.0) / a,
+                bottom: (d - 1.0) / bb,
+                top: (d + 1.0) / bb,
+            }
+        } else {
+            let (e, g) = (p.w_axis.x, p.w_axis.y);
+            Projection::Orthographic {
+                left: (-1.0 - e) / a,
+                right: (1.0 - e) / a,
+                bottom: (-1.0 - g) / bb,
+                top: (1.0 - g) / bb,
+            }
+        };
+        let v = View {
             eye,
             forward: -b.normalize(),
             up: u.normalize(),
             projection: proj,
             near,
             far,
-        })
+        };
+        let convention = DepthConvention {
+            reverse,
+            infinite,
+            orthographic,
+            m22,
+            m32,
+            far,
+        };
+        Ok((v, convention))
     }
 
     /// The camera of a symmetric perspective view (`None` for off-axis or orthographic
