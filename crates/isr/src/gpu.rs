@@ -356,6 +356,41 @@ enum Recorder<'a> {
 }
 
 impl Recorder<'_> {
+    /// Writes `bytes` into `target` before the frame's passes: by a copy recorded in the
+    /// frame's encoder, staged in `belt` (the wall-clock recorder submits each pass at once
+    /// and writes through the queue).
+    fn upload(
+        &mut self,
+        belt: &mut wgpu::util::StagingBelt,
+        ctx: &GpuContext,
+        target: &wgpu::Buffer,
+        bytes: &[u8],
+    ) {
+        let encoder = match self {
+            Recorder::Into(encoder) => &mut **encoder,
+            Recorder::Timestamps(encoder, ..) => encoder,
+            Recorder::WallClock(..) => {
+                ctx.queue.write_buffer(target, 0, bytes);
+                return;
+            }
+        };
+        let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) else {
+            return;
+        };
+        belt.write_buffer(encoder, target, 0, size)
+            .copy_from_slice(bytes);
+    }
+
+    /// Closes the frame's staging: its chunks come back to `belt` once the encoder's
+    /// submission has run.
+    fn finish(&mut self, belt: &mut wgpu::util::StagingBelt) {
+        match self {
+            Recorder::Into(encoder) => belt.finish_and_recall_on_submit(encoder),
+            Recorder::Timestamps(encoder, ..) => belt.finish_and_recall_on_submit(encoder),
+            Recorder::WallClock(..) => {}
+        }
+    }
+
     /// Records the dispatches of one pass: `f` gets the encoder and the timestamp writes to
     /// put on its compute pass (at most one timed compute pass per call).
     fn pass(
@@ -386,11 +421,14 @@ impl Recorder<'_> {
 /// upsample, lighting).
 const MAX_TIMED_PASSES: u32 = 7;
 
-/// ISR on the GPU for one light set: pipelines, the lights, shadow maps and emitters in
-/// storage buffers, and intermediate textures (recreated when the size changes). Each
-/// recorded frame gets its own uniform buffer, so several views can be encoded before one
-/// submit; a new [`LightState`] rewrites the light buffers ([`GpuIsr::apply`]) and compiles
-/// nothing.
+/// ISR on the GPU for one light set: pipelines (all compiled in [`GpuIsr::new`]), the
+/// lights, shadow maps and emitters in storage buffers, and intermediate textures
+/// (recreated when the size changes). A frame's uniforms are copied into one buffer by a
+/// command of the frame's own encoder (staged in a `wgpu::util::StagingBelt` whose chunks
+/// return when their submission has run), so several views can be encoded before one
+/// submit; the bind groups are kept while the frame's textures stay the same. A steady
+/// stream of frames therefore creates no GPU object (tested with wgpu's counters). A new
+/// [`LightState`] rewrites the light buffers ([`GpuIsr::apply`]) and compiles nothing.
 pub struct GpuIsr {
     ctx: GpuContext,
     extent: f32,
@@ -408,6 +446,52 @@ pub struct GpuIsr {
     pattern: Option<(u32, wgpu::Buffer)>,
     dummy: wgpu::Texture,
     targets: Option<Targets>,
+    /// Bumped whenever `targets` or `pattern` is recreated (the cached bind groups
+    /// reference them).
+    generation: u64,
+    /// The frame's uniforms: one buffer, rewritten by a copy recorded in each frame's own
+    /// encoder (so frames encoded before one submit each read their own values).
+    globals: wgpu::Buffer,
+    /// Where those copies are staged: chunks return once their submission has run, so a
+    /// steady stream of frames allocates nothing.
+    belt: wgpu::util::StagingBelt,
+    /// The bind groups of the last frame's inputs, reused while they stay the same.
+    bound: Option<Bound>,
+}
+
+/// What a frame's bind groups depend on: the caller's textures (by identity), the
+/// intermediate textures and pattern (by generation) and the passes that run.
+#[derive(Clone, Debug, PartialEq)]
+struct BindKey {
+    full: [wgpu::Texture; 4],
+    coarse: Option<[wgpu::Texture; 4]>,
+    output: wgpu::Texture,
+    generation: u64,
+    downsample: scene_core::gbuffer::DownsampleMode,
+    run_isr: bool,
+    lit: bool,
+    blur: bool,
+    half: bool,
+}
+
+/// A frame's bind groups (`None` for passes that do not run).
+struct Bound {
+    key: BindKey,
+    downsample: Option<wgpu::BindGroup>,
+    senders: Option<wgpu::BindGroup>,
+    radiosity: Option<wgpu::BindGroup>,
+    blur: Option<[wgpu::BindGroup; 2]>,
+    upsample: Option<wgpu::BindGroup>,
+    compose: wgpu::BindGroup,
+}
+
+fn textures_of(g: &GpuGBuffer) -> [wgpu::Texture; 4] {
+    [
+        g.albedo.clone(),
+        g.normal.clone(),
+        g.depth.clone(),
+        g.triangle_id.clone(),
+    ]
 }
 
 impl std::fmt::Debug for GpuIsr {
@@ -484,7 +568,39 @@ impl GpuIsr {
             pattern: None,
             dummy: rgba_texture(ctx, "isr dummy", 1, 1),
             targets: None,
+            generation: 0,
+            globals: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("isr globals"),
+                size: std::mem::size_of::<Globals>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            belt: wgpu::util::StagingBelt::new(device.clone(), 4096),
+            bound: None,
         };
+        // Every pipeline now, none in a frame: a first frame must not hitch.
+        this.downsample.compile_all()?;
+        for variant in [
+            Variant::Senders,
+            Variant::Compose {
+                with_isr: false,
+                half: false,
+            },
+            Variant::Compose {
+                with_isr: true,
+                half: false,
+            },
+            Variant::Compose {
+                with_isr: false,
+                half: true,
+            },
+            Variant::Compose {
+                with_isr: true,
+                half: true,
+            },
+        ] {
+            this.lighting.pipeline(device, variant);
+        }
         Ok(this)
     }
 
@@ -548,8 +664,10 @@ impl GpuIsr {
             .map_err(|e| GpuError::Readback(format!("device poll failed: {e}")).into())
     }
 
-    /// Records one frame into `encoder`. The frame's uniforms go into a buffer of its own,
-    /// so several frames (views) may be encoded before one submit. Nothing is read back.
+    /// Records one frame into `encoder`. The frame's uniforms are copied in by a command of
+    /// `encoder` itself, so several frames (views) may be encoded before one submit; the
+    /// encoder must be submitted (the staging chunk returns then). Nothing is read back, and
+    /// once the textures have been seen no GPU object is created.
     /// `output` must be `full`'s size, `Rgba32Float` or `Rgba16Float`, with
     /// `STORAGE_BINDING` usage; the G-buffers must have [`GpuGBuffer`]'s formats
     /// ([`GpuGBuffer::from_textures`] checks an engine's own textures).
@@ -718,6 +836,7 @@ impl GpuIsr {
         }
         let ctx = &self.ctx;
         let (cw, ch) = coarse;
+        self.generation += 1;
         self.targets = Some(Targets {
             full,
             coarse,
@@ -757,6 +876,7 @@ impl GpuIsr {
             .is_none_or(|(n, _)| *n != settings.samples)
         {
             let data = SamplePattern::new(settings.samples).to_gpu();
+            self.generation += 1;
             self.pattern = Some((
                 settings.samples,
                 self.ctx.buffer_with(
@@ -768,12 +888,106 @@ impl GpuIsr {
         }
         let screen = Screen::new(inputs.view);
         let globals = Globals::new(&screen, &self.light_set, settings, full_size, coarse_size);
-        // This frame's own uniforms: a second view encoded before the submit gets its own.
-        let globals = self.ctx.buffer_with(
-            "isr globals",
+        // This frame's uniforms, copied into the one globals buffer by a command of the
+        // frame's own encoder (so a second view encoded before the submit reads its own).
+        rec.upload(
+            &mut self.belt,
+            &self.ctx,
+            &self.globals,
             bytemuck::bytes_of(&globals),
-            wgpu::BufferUsages::UNIFORM,
         );
+        let run_isr = !settings.is_direct_only() && self.light_set.has_light();
+        let key = BindKey {
+            full: textures_of(full),
+            coarse: inputs.coarse.map(textures_of),
+            output: output.clone(),
+            generation: self.generation,
+            downsample: settings.downsample,
+            run_isr,
+            lit: settings.indirect && settings.sender == Sender::Lit,
+            blur: settings.blur_radius > 0,
+            half: key_half(output),
+        };
+        if self.bound.as_ref().is_none_or(|b| b.key != key) {
+            self.bound = None;
+            self.bound = Some(self.bind(inputs, settings, output, key)?);
+        }
+        let (Some(t), Some(b)) = (self.targets.as_ref(), self.bound.as_ref()) else {
+            return Err(IsrError::SizeMismatch("no intermediate textures".into()));
+        };
+        let coarse: &GpuGBuffer = match (inputs.coarse, t.coarse_gbuffer.as_ref()) {
+            (Some(c), _) => c,
+            (None, Some(own)) => {
+                let mut result = Ok(());
+                if let Some(bg) = &b.downsample {
+                    rec.pass(Stage::Downsample, |e, ts| {
+                        result = self
+                            .downsample
+                            .encode_bound(e, bg, own, settings.downsample, ts);
+                    });
+                }
+                result?;
+                own
+            }
+            (None, None) => return Err(IsrError::SizeMismatch("no coarse buffer".into())),
+        };
+        let device = &self.ctx.device;
+        if let Some(bg) = &b.senders {
+            let lp = self.lighting.pipeline(device, Variant::Senders);
+            rec.pass(Stage::Senders, |e, ts| {
+                lp.dispatch(e, bg, coarse.width, coarse.height, ts)
+            });
+        }
+        if let Some(bg) = &b.radiosity {
+            rec.pass(Stage::Radiosity, |e, ts| {
+                self.radiosity
+                    .pipeline
+                    .dispatch(e, bg, coarse.width, coarse.height, ts)
+            });
+        }
+        if let Some([h, v]) = &b.blur {
+            rec.pass(Stage::Blur, |e, ts| {
+                self.blur
+                    .pipeline(true)
+                    .dispatch(e, h, coarse.width, coarse.height, ts)
+            });
+            rec.pass(Stage::Blur, |e, ts| {
+                self.blur
+                    .pipeline(false)
+                    .dispatch(e, v, coarse.width, coarse.height, ts)
+            });
+        }
+        if let Some(bg) = &b.upsample {
+            rec.pass(Stage::Upsample, |e, ts| {
+                self.upsample
+                    .pipeline
+                    .dispatch(e, bg, full.width, full.height, ts)
+            });
+        }
+        let lighting_pass = self.lighting.pipeline(
+            device,
+            Variant::Compose {
+                with_isr: run_isr,
+                half: key_half(output),
+            },
+        );
+        let bg = &b.compose;
+        rec.pass(Stage::Lighting, |e, ts| {
+            lighting_pass.dispatch(e, bg, full.width, full.height, ts)
+        });
+        rec.finish(&mut self.belt);
+        Ok(())
+    }
+
+    /// The bind groups of a frame with `key` (made when the inputs change; a steady stream
+    /// of frames on the same textures reuses them and creates no GPU object).
+    fn bind(
+        &self,
+        inputs: &GpuIsrInputs<'_>,
+        settings: &IsrSettings,
+        output: &wgpu::Texture,
+        key: BindKey,
+    ) -> Result<Bound, IsrError> {
         let device = &self.ctx.device;
         let Some(t) = self.targets.as_ref() else {
             return Err(IsrError::SizeMismatch("no intermediate textures".into()));
@@ -781,104 +995,95 @@ impl GpuIsr {
         let Some((_, pattern)) = self.pattern.as_ref() else {
             return Err(IsrError::SizeMismatch("no sample pattern".into()));
         };
-        let coarse: &GpuGBuffer = match (inputs.coarse, t.coarse_gbuffer.as_ref()) {
-            (Some(c), _) => c,
-            (None, Some(own)) => {
-                let mut result = Ok(());
-                rec.pass(Stage::Downsample, |e, ts| {
-                    result = self
-                        .downsample
-                        .encode_timed(e, full, own, settings.downsample, ts);
-                });
-                result?;
-                own
-            }
+        let full = inputs.full;
+        let (coarse, downsample) = match (inputs.coarse, t.coarse_gbuffer.as_ref()) {
+            (Some(c), _) => (c, None),
+            (None, Some(own)) => (
+                own,
+                Some(self.downsample.bind(full, own, settings.downsample)?),
+            ),
             (None, None) => return Err(IsrError::SizeMismatch("no coarse buffer".into())),
         };
-        let run_isr = !settings.is_direct_only() && self.light_set.has_light();
         let light_buffers = lighting::LightBuffers {
             lights: &self.lights,
             shadow_texels: &self.shadow_texels,
             emitter_of: &self.emitter_of,
             emitters: &self.emitters,
         };
-        if run_isr {
-            let lit = settings.indirect && settings.sender == Sender::Lit;
-            if lit {
+        let globals = &self.globals;
+        let (mut senders, mut radiosity, mut blur, mut upsample) = (None, None, None, None);
+        if key.run_isr {
+            if key.lit {
                 let lp = self.lighting.pipeline(device, Variant::Senders);
-                let bg = lighting::bind(
+                senders = Some(lighting::bind(
                     lp,
                     device,
-                    &globals,
+                    globals,
                     coarse,
                     &self.dummy,
                     &light_buffers,
                     &view_of(&t.senders),
-                );
-                rec.pass(Stage::Senders, |e, ts| {
-                    lp.dispatch(e, &bg, coarse.width, coarse.height, ts)
-                });
+                ));
             }
-            let senders = if lit { &t.senders } else { &self.dummy };
-            let bg = self
-                .radiosity
-                .bind(device, &globals, pattern, coarse, senders, &t.radiosity);
-            rec.pass(Stage::Radiosity, |e, ts| {
-                self.radiosity
-                    .pipeline
-                    .dispatch(e, &bg, coarse.width, coarse.height, ts)
-            });
-            let blurred = if settings.blur_radius > 0 {
-                let h = self
-                    .blur
-                    .bind(device, true, &globals, coarse, &t.radiosity, &t.tmp);
-                let v = self
-                    .blur
-                    .bind(device, false, &globals, coarse, &t.tmp, &t.blurred);
-                rec.pass(Stage::Blur, |e, ts| {
+            let senders_tex = if key.lit { &t.senders } else { &self.dummy };
+            radiosity = Some(self.radiosity.bind(
+                device,
+                globals,
+                pattern,
+                coarse,
+                senders_tex,
+                &t.radiosity,
+            ));
+            let blurred = if key.blur {
+                blur = Some([
                     self.blur
-                        .pipeline(true)
-                        .dispatch(e, &h, coarse.width, coarse.height, ts)
-                });
-                rec.pass(Stage::Blur, |e, ts| {
+                        .bind(device, true, globals, coarse, &t.radiosity, &t.tmp),
                     self.blur
-                        .pipeline(false)
-                        .dispatch(e, &v, coarse.width, coarse.height, ts)
-                });
+                        .bind(device, false, globals, coarse, &t.tmp, &t.blurred),
+                ]);
                 &t.blurred
             } else {
                 &t.radiosity
             };
-            let bg = self
-                .upsample
-                .bind(device, &globals, full, coarse, blurred, &t.upsampled);
-            rec.pass(Stage::Upsample, |e, ts| {
-                self.upsample
-                    .pipeline
-                    .dispatch(e, &bg, full.width, full.height, ts)
-            });
+            upsample =
+                Some(
+                    self.upsample
+                        .bind(device, globals, full, coarse, blurred, &t.upsampled),
+                );
         }
-        let out_view = view_of(output);
-        let isr_tex = if run_isr { &t.upsampled } else { &self.dummy };
-        let lighting_pass = self.lighting.pipeline(
+        let isr_tex = if key.run_isr {
+            &t.upsampled
+        } else {
+            &self.dummy
+        };
+        let compose_pass = self.lighting.pipeline(
             device,
             Variant::Compose {
-                with_isr: run_isr,
-                half: output.format() == wgpu::TextureFormat::Rgba16Float,
+                with_isr: key.run_isr,
+                half: key.half,
             },
         );
-        let bg = lighting::bind(
-            lighting_pass,
+        let compose = lighting::bind(
+            compose_pass,
             device,
-            &globals,
+            globals,
             full,
             isr_tex,
             &light_buffers,
-            &out_view,
+            &view_of(output),
         );
-        rec.pass(Stage::Lighting, |e, ts| {
-            lighting_pass.dispatch(e, &bg, full.width, full.height, ts)
-        });
-        Ok(())
+        Ok(Bound {
+            key,
+            downsample,
+            senders,
+            radiosity,
+            blur,
+            upsample,
+            compose,
+        })
     }
+}
+
+fn key_half(output: &wgpu::Texture) -> bool {
+    output.format() == wgpu::TextureFormat::Rgba16Float
 }

@@ -251,3 +251,108 @@ fn the_technique_runs_on_the_gpu() {
     assert!(mean_error(&a, &b) < 1e-3 * image_mean(&a));
     assert!(gpu.last_timings().lighting > std::time::Duration::ZERO);
 }
+
+/// wgpu's live-object counters (the `counters` feature) as (name, count).
+fn live_objects(ctx: &GpuContext) -> Vec<(&'static str, isize)> {
+    let c = ctx.device.get_internal_counters().hal;
+    vec![
+        ("buffers", c.buffers.read()),
+        ("textures", c.textures.read()),
+        ("texture views", c.texture_views.read()),
+        ("bind groups", c.bind_groups.read()),
+        ("bind group layouts", c.bind_group_layouts.read()),
+        ("pipeline layouts", c.pipeline_layouts.read()),
+        ("compute pipelines", c.compute_pipelines.read()),
+        ("render pipelines", c.render_pipelines.read()),
+        ("shader modules", c.shader_modules.read()),
+        ("samplers", c.samplers.read()),
+        ("query sets", c.query_sets.read()),
+    ]
+}
+
+/// A frame recorded into the caller's encoder creates no GPU object once its inputs have
+/// been seen (wgpu's counters just before and just after `encode`, before the submit could
+/// free anything), and none compiles a pipeline, not even the first. Two views encoded
+/// before one submit each get their own uniforms.
+#[test]
+fn steady_state_frames_create_no_gpu_objects() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let setup = Setup::builtin("cornell", 0, 64, 48);
+    let mut gpu = GpuIsr::new(&ctx, &setup.prepared).unwrap();
+    let full = GpuGBuffer::upload(&ctx, &setup.full).unwrap();
+    let target = output(&ctx, 64, 48, wgpu::TextureFormat::Rgba32Float);
+    assert!(
+        live_objects(&ctx)[0].1 > 0,
+        "wgpu's counters read zero: built without its `counters` feature"
+    );
+    for (name, s) in [
+        ("default", IsrSettings::default()),
+        ("dl", IsrSettings::dl()),
+    ] {
+        for frame in 0..5 {
+            let inputs = GpuIsrInputs {
+                full: &full,
+                coarse: None,
+                view: &setup.view,
+            };
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            let before = live_objects(&ctx);
+            gpu.encode(&mut encoder, &inputs, &s, &target).unwrap();
+            let after = live_objects(&ctx);
+            ctx.queue.submit([encoder.finish()]);
+            gpu.wait().unwrap();
+            for ((what, b), (_, a)) in before.iter().zip(&after) {
+                let pipelines = what.contains("pipeline") || what.contains("shader");
+                if frame >= 2 || pipelines {
+                    assert_eq!(a - b, 0, "{name}, frame {frame}: {} {what} created", a - b);
+                }
+            }
+        }
+    }
+    // Two views before one submit: each as when rendered alone.
+    let other = {
+        let mut v = setup.view;
+        v.eye += v.right() * 0.05;
+        v
+    };
+    let s = IsrSettings::default();
+    let alone = |view: &scene_core::View, gpu: &mut GpuIsr| {
+        let t = output(&ctx, 64, 48, wgpu::TextureFormat::Rgba32Float);
+        let inputs = GpuIsrInputs {
+            full: &full,
+            coarse: None,
+            view,
+        };
+        gpu.render(&inputs, &s, &t).unwrap();
+        ctx.read_texture_bytes(&t).unwrap()
+    };
+    let (a_alone, b_alone) = (alone(&setup.view, &mut gpu), alone(&other, &mut gpu));
+    assert_ne!(
+        a_alone, b_alone,
+        "the two views must differ for the check to mean anything"
+    );
+    let (ta, tb) = (
+        output(&ctx, 64, 48, wgpu::TextureFormat::Rgba32Float),
+        output(&ctx, 64, 48, wgpu::TextureFormat::Rgba32Float),
+    );
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    for (view, t) in [(&setup.view, &ta), (&other, &tb)] {
+        let inputs = GpuIsrInputs {
+            full: &full,
+            coarse: None,
+            view,
+        };
+        gpu.encode(&mut encoder, &inputs, &s, t).unwrap();
+    }
+    ctx.queue.submit([encoder.finish()]);
+    assert!(
+        ctx.read_texture_bytes(&ta).unwrap() == a_alone,
+        "first view"
+    );
+    assert!(
+        ctx.read_texture_bytes(&tb).unwrap() == b_alone,
+        "second view"
+    );
+}

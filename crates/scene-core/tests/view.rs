@@ -230,8 +230,8 @@ fn views_round_trip_through_engine_matrices() {
 /// depth each matrix writes back into the distance it was written at.
 #[test]
 fn reverse_z_and_infinite_projections_are_read() {
-    use glam::camera::rh::proj::directx as dx;
     use glam::Vec4;
+    use glam::camera::rh::proj::directx as dx;
     use scene_core::scene::DEPTH_RANGE_MAX;
     let (fov, aspect, near, far) = (0.9f32, 1.6f32, 0.05f32, 80.0f32);
     let eye = glam::Vec3::new(1.0, 2.0, 3.0);

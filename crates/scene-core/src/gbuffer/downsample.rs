@@ -362,9 +362,31 @@ mod gpu_pass {
                     ),
                 });
             }
+            let bind_group = self.bind(fine, coarse, mode)?;
+            self.encode_bound(encoder, &bind_group, coarse, mode, timestamps)
+        }
+
+        /// Compiles every mode's pipeline now (each is otherwise compiled when first used),
+        /// so that no frame compiles one.
+        pub fn compile_all(&self) -> Result<(), GpuError> {
+            for mode in DownsampleMode::ALL {
+                self.pass(mode)?;
+            }
+            Ok(())
+        }
+
+        /// The bind group of a pass from `fine` into `coarse` in `mode`, for
+        /// [`GpuDownsampler::encode_bound`]: a caller that keeps it records frames without
+        /// creating any GPU object.
+        pub fn bind(
+            &self,
+            fine: &GpuGBuffer,
+            coarse: &GpuGBuffer,
+            mode: DownsampleMode,
+        ) -> Result<wgpu::BindGroup, GpuError> {
             let pass = self.pass(mode)?;
             self.ctx.validated(|| {
-                let bind_group = pass.bind_buffers_then_textures(
+                pass.bind_buffers_then_textures(
                     &self.ctx.device,
                     &[],
                     &[
@@ -377,9 +399,23 @@ mod gpu_pass {
                         &coarse.depth,
                         &coarse.triangle_id,
                     ],
-                );
-                pass.dispatch(encoder, &bind_group, cw, ch, timestamps);
+                )
             })
+        }
+
+        /// Records the pass with a bind group from [`GpuDownsampler::bind`] (made for the
+        /// same `coarse` buffer and `mode`).
+        pub fn encode_bound(
+            &self,
+            encoder: &mut wgpu::CommandEncoder,
+            bind_group: &wgpu::BindGroup,
+            coarse: &GpuGBuffer,
+            mode: DownsampleMode,
+            timestamps: Option<wgpu::ComputePassTimestampWrites<'_>>,
+        ) -> Result<(), GpuError> {
+            let pass = self.pass(mode)?;
+            pass.dispatch(encoder, bind_group, coarse.width, coarse.height, timestamps);
+            Ok(())
         }
 
         /// Records the pass from `fine` into `coarse` (which must have [`coarse_size`]).
