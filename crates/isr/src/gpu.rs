@@ -39,7 +39,7 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use scene_core::gbuffer::downsample::{GpuDownsampler, coarse_size};
-use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, PassTimer};
+use scene_core::gpu::{FrameWriter, GpuContext, GpuError, GpuGBuffer, PassTimer};
 use scene_core::lights::LightState;
 use scene_core::{GBuffer, Image, View};
 
@@ -357,36 +357,28 @@ enum Recorder<'a> {
 
 impl Recorder<'_> {
     /// Writes `bytes` into `target` before the frame's passes: by a copy recorded in the
-    /// frame's encoder, staged in `belt` (the wall-clock recorder submits each pass at once
-    /// and writes through the queue).
+    /// frame's encoder (the wall-clock recorder submits each pass at once and writes
+    /// through the queue).
     fn upload(
         &mut self,
-        belt: &mut wgpu::util::StagingBelt,
+        writer: &FrameWriter,
         ctx: &GpuContext,
         target: &wgpu::Buffer,
         bytes: &[u8],
     ) {
-        let encoder = match self {
-            Recorder::Into(encoder) => &mut **encoder,
-            Recorder::Timestamps(encoder, ..) => encoder,
-            Recorder::WallClock(..) => {
-                ctx.queue.write_buffer(target, 0, bytes);
-                return;
-            }
-        };
-        let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) else {
-            return;
-        };
-        belt.write_buffer(encoder, target, 0, size)
-            .copy_from_slice(bytes);
+        match self {
+            Recorder::Into(encoder) => writer.write(encoder, target, 0, bytes),
+            Recorder::Timestamps(encoder, ..) => writer.write(encoder, target, 0, bytes),
+            Recorder::WallClock(..) => ctx.queue.write_buffer(target, 0, bytes),
+        }
     }
 
-    /// Closes the frame's staging: its chunks come back to `belt` once the encoder's
-    /// submission has run.
-    fn finish(&mut self, belt: &mut wgpu::util::StagingBelt) {
+    /// Closes the frame's staging: its chunks come back once the encoder's submission has
+    /// run.
+    fn finish(&mut self, writer: &FrameWriter) {
         match self {
-            Recorder::Into(encoder) => belt.finish_and_recall_on_submit(encoder),
-            Recorder::Timestamps(encoder, ..) => belt.finish_and_recall_on_submit(encoder),
+            Recorder::Into(encoder) => writer.finish(encoder),
+            Recorder::Timestamps(encoder, ..) => writer.finish(encoder),
             Recorder::WallClock(..) => {}
         }
     }
@@ -454,7 +446,7 @@ pub struct GpuIsr {
     globals: wgpu::Buffer,
     /// Where those copies are staged: chunks return once their submission has run, so a
     /// steady stream of frames allocates nothing.
-    belt: wgpu::util::StagingBelt,
+    writer: FrameWriter,
     /// The bind groups of the last frame's inputs, reused while they stay the same.
     bound: Option<Bound>,
 }
@@ -575,7 +567,7 @@ impl GpuIsr {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
-            belt: wgpu::util::StagingBelt::new(device.clone(), 4096),
+            writer: FrameWriter::new(device, 4096),
             bound: None,
         };
         // Every pipeline now, none in a frame: a first frame must not hitch.
@@ -891,7 +883,7 @@ impl GpuIsr {
         // This frame's uniforms, copied into the one globals buffer by a command of the
         // frame's own encoder (so a second view encoded before the submit reads its own).
         rec.upload(
-            &mut self.belt,
+            &self.writer,
             &self.ctx,
             &self.globals,
             bytemuck::bytes_of(&globals),
@@ -975,7 +967,7 @@ impl GpuIsr {
         rec.pass(Stage::Lighting, |e, ts| {
             lighting_pass.dispatch(e, bg, full.width, full.height, ts)
         });
-        rec.finish(&mut self.belt);
+        rec.finish(&self.writer);
         Ok(())
     }
 

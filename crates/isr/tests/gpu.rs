@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use scene_core::FrameRequest;
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{GpuContext, GpuGBuffer, gpu_test_context};
+use scene_core::gpu::{GpuContext, GpuGBuffer, ObjectCounts, gpu_test_context};
 use scene_core::{Technique, builtin};
 
 fn all_settings() -> Vec<(&'static str, IsrSettings)> {
@@ -252,24 +252,6 @@ fn the_technique_runs_on_the_gpu() {
     assert!(gpu.last_timings().lighting > std::time::Duration::ZERO);
 }
 
-/// wgpu's live-object counters (the `counters` feature) as (name, count).
-fn live_objects(ctx: &GpuContext) -> Vec<(&'static str, isize)> {
-    let c = ctx.device.get_internal_counters().hal;
-    vec![
-        ("buffers", c.buffers.read()),
-        ("textures", c.textures.read()),
-        ("texture views", c.texture_views.read()),
-        ("bind groups", c.bind_groups.read()),
-        ("bind group layouts", c.bind_group_layouts.read()),
-        ("pipeline layouts", c.pipeline_layouts.read()),
-        ("compute pipelines", c.compute_pipelines.read()),
-        ("render pipelines", c.render_pipelines.read()),
-        ("shader modules", c.shader_modules.read()),
-        ("samplers", c.samplers.read()),
-        ("query sets", c.query_sets.read()),
-    ]
-}
-
 /// A frame recorded into the caller's encoder creates no GPU object once its inputs have
 /// been seen (wgpu's counters just before and just after `encode`, before the submit could
 /// free anything), and none compiles a pipeline, not even the first. Two views encoded
@@ -284,7 +266,7 @@ fn steady_state_frames_create_no_gpu_objects() {
     let full = GpuGBuffer::upload(&ctx, &setup.full).unwrap();
     let target = output(&ctx, 64, 48, wgpu::TextureFormat::Rgba32Float);
     assert!(
-        live_objects(&ctx)[0].1 > 0,
+        ObjectCounts::available(&ctx.device),
         "wgpu's counters read zero: built without its `counters` feature"
     );
     for (name, s) in [
@@ -298,16 +280,14 @@ fn steady_state_frames_create_no_gpu_objects() {
                 view: &setup.view,
             };
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            let before = live_objects(&ctx);
+            let before = ObjectCounts::of(&ctx.device);
             gpu.encode(&mut encoder, &inputs, &s, &target).unwrap();
-            let after = live_objects(&ctx);
+            let created = before.created_since(&ObjectCounts::of(&ctx.device));
             ctx.queue.submit([encoder.finish()]);
             gpu.wait().unwrap();
-            for ((what, b), (_, a)) in before.iter().zip(&after) {
-                let pipelines = what.contains("pipeline") || what.contains("shader");
-                if frame >= 2 || pipelines {
-                    assert_eq!(a - b, 0, "{name}, frame {frame}: {} {what} created", a - b);
-                }
+            assert_eq!(created.pipelines, 0, "{name}, frame {frame}: {created}");
+            if frame >= 2 {
+                assert!(created.is_zero(), "{name}, frame {frame}: {created}");
             }
         }
     }

@@ -27,12 +27,14 @@ use glam::{Vec3, Vec4};
 use wgpu::util::DeviceExt;
 
 pub mod compute;
+pub mod frame;
 pub mod layout;
 mod scene;
 pub mod shader;
 pub mod timing;
 pub mod wgsl_layout;
 pub use compute::{ComputePass, PassTimer, WORKGROUP};
+pub use frame::{FrameWriter, KeptBuffer, ObjectCounts};
 pub use scene::{GpuMaterial, GpuScene, GpuVertex, flatten_scene, gpu_materials};
 pub use wgpu::naga;
 

@@ -1,0 +1,184 @@
+//! What every method's GPU frame uses so that a steady stream of frames creates no GPU
+//! object (issue 30's frame contract): per-frame data written by commands of the frame's own
+//! encoder ([`FrameWriter`]), buffers kept while their data fits ([`KeptBuffer`]), and wgpu's
+//! live-object counters to check it ([`ObjectCounts`]).
+//!
+//! Why commands of the frame's encoder rather than `Queue::write_buffer`: a queue write lands
+//! before the next submission's first command, so two frames encoded before one submit would
+//! both read the second frame's values. A copy recorded in the encoder lands between the
+//! passes of the frames, in order.
+
+use std::sync::Mutex;
+
+/// Writes a frame's data (uniforms, light factors, per-pixel inputs) into buffers by copies
+/// recorded in the frame's own encoder, staged in a `wgpu::util::StagingBelt` whose chunks
+/// return once the encoder's submission has run: after the first frames, no buffer is
+/// created. Call [`FrameWriter::finish`] on the encoder after the frame's last write; the
+/// encoder must then be submitted (an encoder dropped unsubmitted keeps its chunk, and the
+/// next frame stages into a new one).
+pub struct FrameWriter {
+    belt: Mutex<wgpu::util::StagingBelt>,
+}
+
+impl std::fmt::Debug for FrameWriter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FrameWriter").finish_non_exhaustive()
+    }
+}
+
+impl FrameWriter {
+    /// A writer staging in chunks of at least `chunk_bytes` (a larger write gets a chunk of
+    /// its own size, reused by later frames of that size).
+    pub fn new(device: &wgpu::Device, chunk_bytes: u64) -> Self {
+        Self {
+            belt: Mutex::new(wgpu::util::StagingBelt::new(
+                device.clone(),
+                chunk_bytes.max(256),
+            )),
+        }
+    }
+
+    /// Records a copy of `bytes` into `target` at `offset` (multiples of 4; `target` needs
+    /// `COPY_DST`). Empty `bytes` record nothing.
+    pub fn write(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &wgpu::Buffer,
+        offset: u64,
+        bytes: &[u8],
+    ) {
+        let Some(size) = wgpu::BufferSize::new(bytes.len() as u64) else {
+            return;
+        };
+        let mut belt = self.belt.lock().unwrap_or_else(|e| e.into_inner());
+        belt.write_buffer(encoder, target, offset, size)
+            .copy_from_slice(bytes);
+    }
+
+    /// Closes the frame's staging: its chunks come back when `encoder`'s submission has run.
+    pub fn finish(&self, encoder: &wgpu::CommandEncoder) {
+        let mut belt = self.belt.lock().unwrap_or_else(|e| e.into_inner());
+        belt.finish_and_recall_on_submit(encoder);
+    }
+}
+
+/// A buffer that is kept while what it must hold fits, and replaced (with a new
+/// [`KeptBuffer::generation`], so bind groups over it are remade) when it must grow.
+#[derive(Debug)]
+pub struct KeptBuffer {
+    label: &'static str,
+    usage: wgpu::BufferUsages,
+    buffer: Option<wgpu::Buffer>,
+    generation: u64,
+}
+
+impl KeptBuffer {
+    /// No buffer yet; `usage` gains `COPY_DST`.
+    pub fn new(label: &'static str, usage: wgpu::BufferUsages) -> Self {
+        Self {
+            label,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            buffer: None,
+            generation: 0,
+        }
+    }
+
+    /// The buffer, at least `bytes` long (at least 16: bindings may not be empty); created
+    /// or replaced only when the current one is too small.
+    pub fn ensure(&mut self, device: &wgpu::Device, bytes: u64) -> &wgpu::Buffer {
+        let bytes = bytes.max(16).next_multiple_of(16);
+        if self.buffer.as_ref().is_none_or(|b| b.size() < bytes) {
+            self.generation += 1;
+            self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(self.label),
+                size: bytes,
+                usage: self.usage,
+                mapped_at_creation: false,
+            }));
+        }
+        self.buffer.as_ref().expect("created above")
+    }
+
+    /// Bumped each time the buffer is replaced.
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+}
+
+/// Live GPU objects of a device by kind, from wgpu's internal counters (the `counters`
+/// feature, on in this workspace): read just before and just after recording a frame, the
+/// difference is what the frame created (nothing is freed in between: wgpu frees objects
+/// only when the device is polled after their last use).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ObjectCounts {
+    /// Buffers.
+    pub buffers: isize,
+    /// Textures.
+    pub textures: isize,
+    /// Texture views.
+    pub texture_views: isize,
+    /// Bind groups.
+    pub bind_groups: isize,
+    /// Render and compute pipelines, pipeline layouts, bind group layouts and shader
+    /// modules together.
+    pub pipelines: isize,
+    /// Samplers and query sets.
+    pub other: isize,
+}
+
+impl ObjectCounts {
+    /// The device's live objects now. All zero when wgpu was built without `counters`
+    /// ([`ObjectCounts::available`] tells).
+    pub fn of(device: &wgpu::Device) -> Self {
+        let c = device.get_internal_counters().hal;
+        Self {
+            buffers: c.buffers.read(),
+            textures: c.textures.read(),
+            texture_views: c.texture_views.read(),
+            bind_groups: c.bind_groups.read(),
+            pipelines: c.render_pipelines.read()
+                + c.compute_pipelines.read()
+                + c.pipeline_layouts.read()
+                + c.bind_group_layouts.read()
+                + c.shader_modules.read(),
+            other: c.samplers.read() + c.query_sets.read(),
+        }
+    }
+
+    /// True when the counters count (some object exists on any device that ran anything).
+    pub fn available(device: &wgpu::Device) -> bool {
+        Self::of(device) != Self::default()
+    }
+
+    /// What `after` has more than `self`.
+    pub fn created_since(&self, after: &ObjectCounts) -> ObjectCounts {
+        ObjectCounts {
+            buffers: after.buffers - self.buffers,
+            textures: after.textures - self.textures,
+            texture_views: after.texture_views - self.texture_views,
+            bind_groups: after.bind_groups - self.bind_groups,
+            pipelines: after.pipelines - self.pipelines,
+            other: after.other - self.other,
+        }
+    }
+
+    /// True when every count is zero.
+    pub fn is_zero(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+impl std::fmt::Display for ObjectCounts {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} buffers, {} textures, {} texture views, {} bind groups, {} pipelines, {} other",
+            self.buffers,
+            self.textures,
+            self.texture_views,
+            self.bind_groups,
+            self.pipelines,
+            self.other
+        )
+    }
+}
