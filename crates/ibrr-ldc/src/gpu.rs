@@ -7,7 +7,7 @@ use glam::Vec3;
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, texture, uniform};
 use scene_core::gpu::shader::ShaderPass;
-use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
+use scene_core::gpu::{FrameWriter, GpuContext, GpuError, GpuGBuffer, KeptBuffer};
 use scene_core::lights::{LightId, SpotRamp};
 use scene_core::view::{FrustumReconstruction, Projection};
 use scene_core::{Image, LightState, Scene, View};
@@ -78,9 +78,25 @@ pub struct GpuLdc {
     lookup: Lookup,
     fallback_radius: u32,
     bytes: u64,
-    /// The glow table of the last frame and what it was built for (scene address, triangle
-    /// count, light fingerprint): rebuilt and uploaded only when the lights change.
-    glow: Option<((usize, usize, u64), wgpu::Buffer, u32)>,
+    /// What the glow table was last built for (scene address, triangle count, light
+    /// fingerprint) and its length: rebuilt and written (into `glow_buffer`, by a copy in the
+    /// frame's encoder) only when the lights change.
+    glow: Option<((usize, usize, u64), u32)>,
+    glow_buffer: KeptBuffer,
+    /// A frame's parameters go into `params` by a copy in the frame's own encoder.
+    writer: FrameWriter,
+    params: wgpu::Buffer,
+    /// The bind group and what it was made for.
+    bound: Option<(BindKey, wgpu::BindGroup)>,
+}
+
+/// What the frame's bind group depends on: the G-buffer's textures and the output by
+/// identity, and the glow buffer's generation.
+#[derive(Clone, Debug, PartialEq)]
+struct BindKey {
+    textures: [wgpu::Texture; 4],
+    output: wgpu::Buffer,
+    glow: u64,
 }
 
 impl std::fmt::Debug for GpuLdc {
@@ -173,6 +189,15 @@ impl GpuLdc {
             fallback_radius,
             bytes: ldc.offsets.len() as u64 * 4 + layers * 48,
             glow: None,
+            glow_buffer: KeptBuffer::new("ibrr triangles", wgpu::BufferUsages::STORAGE),
+            writer: FrameWriter::new(&ctx.device, 4096),
+            params: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("ibrr params"),
+                size: std::mem::size_of::<Params>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            bound: None,
         })
         .map_err(gpu)
     }
@@ -302,16 +327,19 @@ impl GpuLdc {
             scene.triangle_count(),
             lights.fingerprint(),
         );
-        if self.glow.as_ref().is_none_or(|(k, _, _)| *k != key) {
+        let glow_table = if self.glow.as_ref().is_none_or(|(k, _)| *k != key) {
             let table = Self::triangles(scene, lights);
-            let buffer = self.ctx.storage_with(
-                "ibrr triangles",
-                bytemuck::cast_slice(&table),
-                wgpu::BufferUsages::empty(),
-            );
-            self.glow = Some((key, buffer, table.len() as u32));
-        }
-        let (_, tri, triangles) = self.glow.as_ref().expect("built above");
+            self.glow = Some((key, table.len() as u32));
+            Some(table)
+        } else {
+            None
+        };
+        let triangles = self.glow.as_ref().map_or(0, |(_, n)| *n);
+        let glow_bytes = u64::from(triangles) * std::mem::size_of::<GpuTriangle>() as u64;
+        let tri = self
+            .glow_buffer
+            .ensure(&self.ctx.device, glow_bytes)
+            .clone();
         let params = Params {
             frustum: FrustumReconstruction::new(view).uniform(),
             view_projection: view.view_projection().to_cols_array_2d(),
@@ -324,29 +352,50 @@ impl GpuLdc {
             eps_distance: f.eps_distance,
             eps_normal: f.eps_normal,
             band: f.band,
-            triangles: *triangles,
+            triangles,
         };
         let ctx = &self.ctx;
-        let uniform = ctx.uniform_buffer("ibrr params", &params);
-
-        let views = [&g.albedo, &g.normal, &g.depth, &g.triangle_id]
-            .map(|t| t.create_view(&Default::default()));
-        let bind = self.pass.bind(
-            &ctx.device,
-            &[
-                uniform.as_entire_binding(),
-                self.offsets.as_entire_binding(),
-                self.planes.as_entire_binding(),
-                self.values.as_entire_binding(),
-                tri.as_entire_binding(),
-                output.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&views[0]),
-                wgpu::BindingResource::TextureView(&views[1]),
-                wgpu::BindingResource::TextureView(&views[2]),
-                wgpu::BindingResource::TextureView(&views[3]),
+        let bind_key = BindKey {
+            textures: [
+                g.albedo.clone(),
+                g.normal.clone(),
+                g.depth.clone(),
+                g.triangle_id.clone(),
             ],
-        );
-        self.pass.dispatch(encoder, &bind, w, h, None);
+            output: output.clone(),
+            glow: self.glow_buffer.generation(),
+        };
+        if self.bound.as_ref().is_none_or(|(k, _)| *k != bind_key) {
+            let views = [&g.albedo, &g.normal, &g.depth, &g.triangle_id]
+                .map(|t| t.create_view(&Default::default()));
+            let bind = self.pass.bind(
+                &ctx.device,
+                &[
+                    self.params.as_entire_binding(),
+                    self.offsets.as_entire_binding(),
+                    self.planes.as_entire_binding(),
+                    self.values.as_entire_binding(),
+                    tri.as_entire_binding(),
+                    output.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&views[0]),
+                    wgpu::BindingResource::TextureView(&views[1]),
+                    wgpu::BindingResource::TextureView(&views[2]),
+                    wgpu::BindingResource::TextureView(&views[3]),
+                ],
+            );
+            self.bound = Some((bind_key, bind));
+        }
+        self.writer
+            .write(encoder, &self.params, 0, bytemuck::bytes_of(&params));
+        if let Some(table) = glow_table {
+            self.writer
+                .write(encoder, &tri, 0, bytemuck::cast_slice(&table));
+        }
+        self.writer.finish(encoder);
+        let Some((_, bind)) = self.bound.as_ref() else {
+            unreachable!("made above")
+        };
+        self.pass.dispatch(encoder, bind, w, h, None);
         Ok(())
     }
 }

@@ -172,3 +172,77 @@ fn the_gpu_gather_builds_the_ldc_the_cpu_gather_builds() {
         );
     }
 }
+
+/// Frames recorded into the caller's encoder create no GPU object once their inputs have
+/// been seen, while an emitter changes colour every frame (the glow table is rewritten in
+/// place): wgpu's counters just before and after `encode`. Two light states encoded before
+/// one submit each get their own parameters and glow.
+#[test]
+fn steady_state_frames_create_no_gpu_objects() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    use scene_core::gpu::ObjectCounts;
+    assert!(
+        ObjectCounts::available(&ctx.device),
+        "wgpu built without `counters`"
+    );
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let settings = IbrrSettings {
+        resolution: 32,
+        irpls: 16,
+        ..Default::default()
+    };
+    let mut t = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+    t.prepare(scene.clone()).unwrap();
+    let ldc = t.ldc().unwrap();
+    let (w, h) = (48, 36);
+    let frame = FrameRequest::camera(&scene.cameras[0], w, h);
+    let g = RayCastRenderer::new()
+        .render(&scene, &frame.view, w, h)
+        .unwrap();
+    let gg = GpuGBuffer::upload(&ctx, &g).unwrap();
+    let emitter = *light_ids(&scene)
+        .iter()
+        .find(|i| matches!(i, LightId::Emissive(_)))
+        .expect("cornell has an emissive panel");
+    let state = |k: usize| {
+        let mut s = LightState::default();
+        s.set_color(emitter, glam::Vec3::new(1.0, 0.3 * k as f32, 0.5));
+        s
+    };
+    let mut gpu_ldc = GpuLdc::new(&ctx, ldc, Lookup::Nearest, settings.fallback_radius).unwrap();
+    let output = ctx.pixel_buffer("ibrr", w, h);
+    let mut images = Vec::new();
+    for k in 0..6 {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let before = ObjectCounts::of(&ctx.device);
+        gpu_ldc
+            .encode(&mut encoder, &scene, &gg, &frame.view, &state(k), &output)
+            .unwrap();
+        let created = before.created_since(&ObjectCounts::of(&ctx.device));
+        ctx.queue.submit([encoder.finish()]);
+        images.push(ctx.read_buffer_as::<[f32; 4]>(&output).unwrap());
+        assert_eq!(created.pipelines, 0, "frame {k}: {created}");
+        if k >= 2 {
+            assert!(created.is_zero(), "frame {k}: {created}");
+        }
+    }
+    assert_ne!(images[0], images[5], "the glow's colour must show");
+    let (a, b) = (ctx.pixel_buffer("a", w, h), ctx.pixel_buffer("b", w, h));
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    for (k, out) in [(0, &a), (5, &b)] {
+        gpu_ldc
+            .encode(&mut encoder, &scene, &gg, &frame.view, &state(k), out)
+            .unwrap();
+    }
+    ctx.queue.submit([encoder.finish()]);
+    assert!(
+        ctx.read_buffer_as::<[f32; 4]>(&a).unwrap() == images[0],
+        "first state"
+    );
+    assert!(
+        ctx.read_buffer_as::<[f32; 4]>(&b).unwrap() == images[5],
+        "second state"
+    );
+}

@@ -8,7 +8,7 @@ use glam::Vec3;
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{storage_buffer, storage_buffer_rw, uniform};
 use scene_core::gpu::shader::{ShaderPass, Wgsl};
-use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
+use scene_core::gpu::{FrameWriter, GpuContext, GpuError, GpuGBuffer, KeptBuffer};
 use scene_core::view::FrustumReconstruction;
 use scene_core::{Image, View};
 
@@ -78,7 +78,6 @@ pub struct GpuRelight {
     k: usize,
     elements: usize,
     precision: Precision,
-    element_words: wgpu::Buffer,
     vertex_words: wgpu::Buffer,
     element_table: wgpu::Buffer,
     irradiance: wgpu::Buffer,
@@ -86,6 +85,28 @@ pub struct GpuRelight {
     display_pass: ComputePass,
     display_per_pixel: ComputePass,
     bytes: u64,
+    /// A frame's parameters and factors are copied into these by commands of the frame's
+    /// own encoder ([`FrameWriter`]): a steady stream of frames creates no GPU object.
+    writer: FrameWriter,
+    relight_params: wgpu::Buffer,
+    relight_factors: wgpu::Buffer,
+    relight_bind: wgpu::BindGroup,
+    display_params: wgpu::Buffer,
+    display_factors: wgpu::Buffer,
+    /// The per-pixel direct light (grown when a frame needs more).
+    direct: std::sync::Mutex<KeptBuffer>,
+    /// The display's bind group and what it was made for.
+    display_bind: std::sync::Mutex<Option<(DisplayKey, wgpu::BindGroup)>>,
+}
+
+/// What the display's bind group depends on: the G-buffer's textures and the output by
+/// identity, the pass, and the direct-light buffer's generation.
+#[derive(Clone, Debug, PartialEq)]
+struct DisplayKey {
+    textures: [wgpu::Texture; 3],
+    output: wgpu::Buffer,
+    per_pixel: bool,
+    direct: u64,
 }
 
 impl std::fmt::Debug for GpuRelight {
@@ -206,16 +227,61 @@ impl GpuRelight {
         let (display_pass, display_per_pixel) = (display(false), display(true));
         let n = packed.n;
         let vertex_words: &[u32] = vertex.map_or(&[], |v| &v.words);
+        let device = &ctx.device;
+        let buffer = |label: &str, bytes: u64, usage: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(16).next_multiple_of(16),
+                usage: usage | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let factor_bytes = packed.k as u64 * 32;
+        let element_words = ctx.storage_with(
+            "packed solution",
+            bytemuck::cast_slice(&packed.words),
+            wgpu::BufferUsages::empty(),
+        );
+        let irradiance = ctx.storage_with(
+            "relit irradiance",
+            &vec![0u8; n.max(1) * 16],
+            wgpu::BufferUsages::COPY_SRC,
+        );
+        let relight_params = buffer(
+            "relight params",
+            std::mem::size_of::<RelightParams>() as u64,
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let relight_factors = buffer("relight factors", factor_bytes, wgpu::BufferUsages::STORAGE);
+        let relight_bind = relight_pass.bind(
+            device,
+            &[
+                relight_params.as_entire_binding(),
+                element_words.as_entire_binding(),
+                relight_factors.as_entire_binding(),
+                irradiance.as_entire_binding(),
+            ],
+        );
         ctx.validated(|| Self {
+            writer: FrameWriter::new(device, 4096),
+            relight_params,
+            relight_factors,
+            relight_bind,
+            display_params: buffer(
+                "display params",
+                std::mem::size_of::<DisplayParams>() as u64,
+                wgpu::BufferUsages::UNIFORM,
+            ),
+            display_factors: buffer("display factors", factor_bytes, wgpu::BufferUsages::STORAGE),
+            direct: std::sync::Mutex::new(KeptBuffer::new(
+                "pixel direct",
+                wgpu::BufferUsages::STORAGE,
+            )),
+            display_bind: std::sync::Mutex::new(None),
             ctx: ctx.clone(),
             k: packed.k,
             elements: n,
             precision: packed.precision,
-            element_words: ctx.storage_with(
-                "packed solution",
-                bytemuck::cast_slice(&packed.words),
-                wgpu::BufferUsages::empty(),
-            ),
             vertex_words: ctx.storage_with(
                 "packed vertex solution",
                 bytemuck::cast_slice(vertex_words),
@@ -226,11 +292,7 @@ impl GpuRelight {
                 bytemuck::cast_slice(table),
                 wgpu::BufferUsages::empty(),
             ),
-            irradiance: ctx.storage_with(
-                "relit irradiance",
-                &vec![0u8; n.max(1) * 16],
-                wgpu::BufferUsages::COPY_SRC,
-            ),
+            irradiance,
             relight_pass,
             display_pass,
             display_per_pixel,
@@ -294,16 +356,12 @@ impl GpuRelight {
         self.precision
     }
 
-    fn factor_buffer(&self, factors: &[(Vec3, Vec3)]) -> wgpu::Buffer {
-        let data: Vec<[f32; 4]> = factors
+    /// The factor pairs as the shaders read them (two `vec4` per source).
+    fn factor_data(factors: &[(Vec3, Vec3)]) -> Vec<[f32; 4]> {
+        factors
             .iter()
             .flat_map(|(d, i)| [d.extend(0.0).to_array(), i.extend(0.0).to_array()])
-            .collect();
-        self.ctx.storage_with(
-            "light factors",
-            bytemuck::cast_slice(&data),
-            wgpu::BufferUsages::empty(),
-        )
+            .collect()
     }
 
     fn check_factors(&self, factors: &[(Vec3, Vec3)]) -> Result<(), RelightError> {
@@ -333,24 +391,27 @@ impl GpuRelight {
             pad: [0; 2],
             base: base.extend(0.0).to_array(),
         };
-        let uniform = self.ctx.uniform_buffer("relight params", &params);
-        let f = self.factor_buffer(factors);
-        let bind = self.relight_pass.bind(
-            &self.ctx.device,
-            &[
-                uniform.as_entire_binding(),
-                self.element_words.as_entire_binding(),
-                f.as_entire_binding(),
-                self.irradiance.as_entire_binding(),
-            ],
+        self.writer.write(
+            encoder,
+            &self.relight_params,
+            0,
+            bytemuck::bytes_of(&params),
         );
+        let data = Self::factor_data(factors);
+        self.writer.write(
+            encoder,
+            &self.relight_factors,
+            0,
+            bytemuck::cast_slice(&data),
+        );
+        self.writer.finish(encoder);
         let groups = (self.elements as u32).div_ceil(GROUP).max(1);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("relight-pr relight"),
             timestamp_writes: timestamps,
         });
         pass.set_pipeline(&self.relight_pass.pipeline);
-        pass.set_bind_group(0, &bind, &[]);
+        pass.set_bind_group(0, &self.relight_bind, &[]);
         pass.dispatch_workgroups(groups.min(MAX_GROUPS_X), groups.div_ceil(MAX_GROUPS_X), 1);
         Ok(())
     }
@@ -435,7 +496,6 @@ impl GpuRelight {
             base: base.extend(0.0).to_array(),
         };
         let ctx = &self.ctx;
-        let uniform = ctx.uniform_buffer("display params", &params);
         let (pass, direct): (_, Vec<[f32; 4]>) = match pixel_direct {
             Some(values) => {
                 if values.len() != pixels * self.k {
@@ -452,29 +512,57 @@ impl GpuRelight {
             }
             None => (&self.display_pass, Vec::new()),
         };
-        let f = self.factor_buffer(factors);
-        let direct_buf = ctx.storage_with(
-            "pixel direct",
-            bytemuck::cast_slice(&direct),
-            wgpu::BufferUsages::empty(),
+        let mut kept = self.direct.lock().unwrap_or_else(|e| e.into_inner());
+        let direct_buf = kept
+            .ensure(&ctx.device, std::mem::size_of_val(direct.as_slice()) as u64)
+            .clone();
+        let key = DisplayKey {
+            textures: [g.albedo.clone(), g.depth.clone(), g.triangle_id.clone()],
+            output: output.clone(),
+            per_pixel: pixel_direct.is_some(),
+            direct: kept.generation(),
+        };
+        drop(kept);
+        let mut cached = self.display_bind.lock().unwrap_or_else(|e| e.into_inner());
+        if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+            let views =
+                [&g.albedo, &g.depth, &g.triangle_id].map(|t| t.create_view(&Default::default()));
+            let bind = pass.bind(
+                &ctx.device,
+                &[
+                    self.display_params.as_entire_binding(),
+                    self.vertex_words.as_entire_binding(),
+                    self.display_factors.as_entire_binding(),
+                    self.element_table.as_entire_binding(),
+                    direct_buf.as_entire_binding(),
+                    output.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&views[0]),
+                    wgpu::BindingResource::TextureView(&views[1]),
+                    wgpu::BindingResource::TextureView(&views[2]),
+                ],
+            );
+            *cached = Some((key, bind));
+        }
+        let Some((_, bind)) = cached.as_ref() else {
+            unreachable!("made above")
+        };
+        self.writer.write(
+            encoder,
+            &self.display_params,
+            0,
+            bytemuck::bytes_of(&params),
         );
-        let views =
-            [&g.albedo, &g.depth, &g.triangle_id].map(|t| t.create_view(&Default::default()));
-        let bind = pass.bind(
-            &ctx.device,
-            &[
-                uniform.as_entire_binding(),
-                self.vertex_words.as_entire_binding(),
-                f.as_entire_binding(),
-                self.element_table.as_entire_binding(),
-                direct_buf.as_entire_binding(),
-                output.as_entire_binding(),
-                wgpu::BindingResource::TextureView(&views[0]),
-                wgpu::BindingResource::TextureView(&views[1]),
-                wgpu::BindingResource::TextureView(&views[2]),
-            ],
+        let data = Self::factor_data(factors);
+        self.writer.write(
+            encoder,
+            &self.display_factors,
+            0,
+            bytemuck::cast_slice(&data),
         );
-        pass.dispatch(encoder, &bind, w, h, None);
+        self.writer
+            .write(encoder, &direct_buf, 0, bytemuck::cast_slice(&direct));
+        self.writer.finish(encoder);
+        pass.dispatch(encoder, bind, w, h, None);
         Ok(())
     }
 }

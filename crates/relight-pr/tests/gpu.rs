@@ -247,3 +247,67 @@ fn a_scene_without_lights_displays_black_on_the_gpu() {
         meshing.elements.len()
     );
 }
+
+/// Frames recorded into the caller's encoder (relight, then the display with per-pixel
+/// direct light) create no GPU object once their inputs have been seen, while the lights
+/// change colour every frame (wgpu's counters just before and after recording); and a
+/// relight and a display of two light states encoded before one submit each use their own
+/// factors.
+#[test]
+fn steady_state_frames_create_no_gpu_objects() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    use scene_core::gpu::ObjectCounts;
+    assert!(
+        ObjectCounts::available(&ctx.device),
+        "wgpu built without `counters`"
+    );
+    let (scene, meshing, solution, rays) = solved();
+    let welding = Welding::new(&meshing, scene.extent());
+    let (w, h) = (48, 32);
+    let (view, g, gg) = element_gbuffer(&ctx, &scene, &meshing, w, h);
+    let gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
+    let gather = DirectGather::new(&scene, &meshing, &solution.sources, 4);
+    let values = pixel_direct(&gather, &rays, &g, &view, 4);
+    let output = ctx.pixel_buffer("display", w, h);
+    let mut frames = Vec::new();
+    for frame in 0..6 {
+        let mut state = LightState::default();
+        state.set_color(LightId::Point(0), Vec3::new(1.0, 0.2 * frame as f32, 0.5));
+        let (f, base) = relight::weights(&solution, &state, true);
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let before = ObjectCounts::of(&ctx.device);
+        gpu.encode_relight(&mut encoder, &f, base, None).unwrap();
+        gpu.encode_display(&mut encoder, &gg, &view, &f, base, Some(&values), &output)
+            .unwrap();
+        let created = before.created_since(&ObjectCounts::of(&ctx.device));
+        ctx.queue.submit([encoder.finish()]);
+        let image: Vec<[f32; 4]> = ctx.read_buffer_as(&output).unwrap();
+        frames.push(image);
+        assert_eq!(created.pipelines, 0, "frame {frame}: {created}");
+        if frame >= 2 {
+            assert!(created.is_zero(), "frame {frame}: {created}");
+        }
+    }
+    assert_ne!(frames[0], frames[5], "the colour change must show");
+    // Two states in one submission: each display as when submitted alone.
+    let (a, b) = (ctx.pixel_buffer("a", w, h), ctx.pixel_buffer("b", w, h));
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    for (frame, out) in [(0, &a), (5, &b)] {
+        let mut state = LightState::default();
+        state.set_color(LightId::Point(0), Vec3::new(1.0, 0.2 * frame as f32, 0.5));
+        let (f, base) = relight::weights(&solution, &state, true);
+        gpu.encode_display(&mut encoder, &gg, &view, &f, base, Some(&values), out)
+            .unwrap();
+    }
+    ctx.queue.submit([encoder.finish()]);
+    assert!(
+        ctx.read_buffer_as::<[f32; 4]>(&a).unwrap() == frames[0],
+        "first state"
+    );
+    assert!(
+        ctx.read_buffer_as::<[f32; 4]>(&b).unwrap() == frames[5],
+        "second state"
+    );
+}
