@@ -1,16 +1,19 @@
 //! ISR as an engine plug-in: the engine's own G-buffer textures, camera matrices and light
 //! list, with no scene-core `Scene`.
 //!
-//! The "engine" here draws a room corner (a floor and a back wall) by casting rays
-//! analytically, writes its G-buffer into raw wgpu textures, builds its camera matrices and
-//! hands ISR a point light and the triangles that cast shadows. ISR records its passes into
-//! the engine's command encoder; a light change between frames only rewrites a buffer.
+//! The "engine" here creates its own wgpu device (ISR runs on it through
+//! `GpuContext::from_device`), draws a room corner (a floor and a back wall) by casting rays
+//! analytically, writes its G-buffer into raw wgpu textures, builds its camera matrices
+//! (reverse-Z with the far plane at infinity, as Bevy does) and hands ISR a point light and
+//! the triangles that cast shadows. ISR records its passes into the engine's command
+//! encoder; a light change between frames only rewrites a buffer, and a steady-state frame
+//! creates no GPU object (the last line counts them from wgpu's counters).
 //!
 //! Run with `cargo run --release -p isr --example engine`.
 
-use glam::{Mat4, Vec3, Vec4};
+use glam::{Mat4, Vec3};
 use isr::{GpuIsr, GpuIsrInputs, IsrSettings, Light, LightSet, ShadowSettings};
-use scene_core::gpu::{GpuContext, GpuGBuffer};
+use scene_core::gpu::{GpuContext, GpuGBuffer, ObjectCounts};
 use scene_core::lights::{LightId, LightState};
 use scene_core::{BACKGROUND_ID, View};
 
@@ -36,24 +39,14 @@ fn casters() -> Vec<[Vec3; 3]> {
     t
 }
 
-/// The engine's camera matrices (right-handed, wgpu depth range).
+/// The engine's camera matrices: right-handed, depth in [0, 1], reversed (1 at the near
+/// plane) with the far plane at infinity.
 fn matrices(eye: Vec3, target: Vec3) -> (Mat4, Mat4) {
-    let f = (target - eye).normalize();
-    let s = f.cross(Vec3::Y).normalize();
-    let u = s.cross(f);
-    let view = Mat4::from_cols(
-        Vec4::new(s.x, u.x, -f.x, 0.0),
-        Vec4::new(s.y, u.y, -f.y, 0.0),
-        Vec4::new(s.z, u.z, -f.z, 0.0),
-        Vec4::new(-s.dot(eye), -u.dot(eye), f.dot(eye), 1.0),
-    );
-    let (fov, aspect, near, far) = (1.0f32, W as f32 / H as f32, 0.05f32, 20.0f32);
-    let h = 1.0 / (0.5 * fov).tan();
-    let proj = Mat4::from_cols(
-        Vec4::new(h / aspect, 0.0, 0.0, 0.0),
-        Vec4::new(0.0, h, 0.0, 0.0),
-        Vec4::new(0.0, 0.0, far / (near - far), -1.0),
-        Vec4::new(0.0, 0.0, near * far / (near - far), 0.0),
+    let view = glam::camera::rh::view::look_at_mat4(eye, target, Vec3::Y);
+    let proj = glam::camera::rh::proj::directx::perspective_infinite_reverse(
+        1.0,
+        W as f32 / H as f32,
+        0.05,
     );
     (view, proj)
 }
@@ -123,8 +116,22 @@ fn texture(
     t
 }
 
+/// The engine's own device and queue (any wgpu device will do).
+fn engine_device() -> Result<(wgpu::Device, wgpu::Queue), Box<dyn std::error::Error>> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default()))?;
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("engine"),
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }))?;
+    Ok((device, queue))
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let ctx = GpuContext::new()?;
+    let (device, queue) = engine_device()?;
+    let ctx = GpuContext::from_device(device, queue);
     println!("adapter: {}", ctx.adapter_summary());
 
     // Once: the engine's lights and shadow casters.
@@ -155,15 +162,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         view: &view,
     };
     let mut means = Vec::new();
-    for (label, colour) in [
+    let mut steady = ObjectCounts::default();
+    for (frame, (label, colour)) in [
         ("white light", Vec3::ONE),
         ("amber light", Vec3::new(1.0, 0.6, 0.2)),
-    ] {
+        ("blue light", Vec3::new(0.3, 0.5, 1.0)),
+        ("amber light", Vec3::new(1.0, 0.6, 0.2)),
+    ]
+    .into_iter()
+    .enumerate()
+    {
         let mut state = LightState::new();
         state.set_color(LightId::Point(0), colour);
-        isr.apply(&state); // rewrites the light buffer; nothing is recompiled
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let before = ObjectCounts::of(&ctx.device);
+        isr.apply(&state); // rewrites the light buffer; nothing is recompiled
         isr.encode(&mut encoder, &inputs, &IsrSettings::default(), &target)?;
+        let created = before.created_since(&ObjectCounts::of(&ctx.device));
+        if frame > 0 {
+            steady = created;
+        }
         ctx.queue.submit([encoder.finish()]);
         let pixels = ctx.read_texture_rgba32f(&target)?;
         let mean = pixels
@@ -188,5 +206,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     // Blue is dimmed to 0.2 by the amber light: the frame followed the light change.
     assert!(means[1].z < 0.3 * means[0].z && means[1].x > 0.9 * means[0].x);
+    if !ObjectCounts::available(&ctx.device) {
+        println!("steady-state frame: wgpu was built without its `counters` feature");
+    } else {
+        println!(
+            "steady-state frame: {} buffers, {} textures, {} bind groups, {} pipelines created",
+            steady.buffers, steady.textures, steady.bind_groups, steady.pipelines
+        );
+    }
     Ok(())
 }

@@ -449,6 +449,8 @@ pub struct GpuIsr {
     writer: FrameWriter,
     /// The bind groups of the last frame's inputs, reused while they stay the same.
     bound: Option<Bound>,
+    /// Set by [`GpuIsr::apply`]: the next frame rewrites the light and emitter buffers.
+    lights_changed: bool,
 }
 
 /// What a frame's bind groups depend on: the caller's textures (by identity), the
@@ -569,6 +571,7 @@ impl GpuIsr {
             }),
             writer: FrameWriter::new(device, 4096),
             bound: None,
+            lights_changed: false,
         };
         // Every pipeline now, none in a frame: a first frame must not hitch.
         this.downsample.compile_all()?;
@@ -602,9 +605,9 @@ impl GpuIsr {
     }
 
     /// Applies a frame's light settings: each light's direct and indirect factors are
-    /// rewritten in the light buffers (when `state` differs from the last one applied).
-    /// Nothing is recompiled or rebuilt. Takes effect at the next submit, like every
-    /// queue write.
+    /// rewritten in the light buffers (when `state` differs from the last one applied) by
+    /// copies recorded in the next frame's encoder, before its passes. Nothing is
+    /// recompiled, rebuilt or allocated.
     pub fn apply(&mut self, state: &LightState) {
         let fingerprint = state.fingerprint();
         if fingerprint == self.light_state {
@@ -612,18 +615,7 @@ impl GpuIsr {
         }
         self.light_state = fingerprint;
         self.light_set.apply(state);
-        let lights = gpu_lights(&self.light_set);
-        if !lights.is_empty() {
-            self.ctx
-                .queue
-                .write_buffer(&self.lights, 0, bytemuck::cast_slice(&lights));
-        }
-        let table = gpu_emitters(&self.light_set);
-        if !table.is_empty() {
-            self.ctx
-                .queue
-                .write_buffer(&self.emitters, 0, bytemuck::cast_slice(&table));
-        }
+        self.lights_changed = true;
     }
 
     /// A `width x height` `Rgba32Float` texture usable as [`GpuIsr::render`]'s output (with
@@ -888,6 +880,22 @@ impl GpuIsr {
             &self.globals,
             bytemuck::bytes_of(&globals),
         );
+        if std::mem::take(&mut self.lights_changed) {
+            let lights = gpu_lights(&self.light_set);
+            rec.upload(
+                &self.writer,
+                &self.ctx,
+                &self.lights,
+                bytemuck::cast_slice(&lights),
+            );
+            let table = gpu_emitters(&self.light_set);
+            rec.upload(
+                &self.writer,
+                &self.ctx,
+                &self.emitters,
+                bytemuck::cast_slice(&table),
+            );
+        }
         let run_isr = !settings.is_direct_only() && self.light_set.has_light();
         let key = BindKey {
             full: textures_of(full),

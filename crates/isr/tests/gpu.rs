@@ -253,7 +253,7 @@ fn the_technique_runs_on_the_gpu() {
 }
 
 /// A frame recorded into the caller's encoder creates no GPU object once its inputs have
-/// been seen (wgpu's counters just before and just after `encode`, before the submit could
+/// been seen, while the lights change colour every frame (wgpu's counters just before and just after `encode`, before the submit could
 /// free anything), and none compiles a pipeline, not even the first. Two views encoded
 /// before one submit each get their own uniforms.
 #[test]
@@ -281,6 +281,12 @@ fn steady_state_frames_create_no_gpu_objects() {
             };
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
             let before = ObjectCounts::of(&ctx.device);
+            // The light changes colour every frame.
+            let mut state = scene_core::LightState::default();
+            for id in scene_core::lights::light_ids(&setup.scene) {
+                state.set_color(id, glam::Vec3::new(1.0, 0.5 + 0.1 * frame as f32, 0.7));
+            }
+            gpu.apply(&state);
             gpu.encode(&mut encoder, &inputs, &s, &target).unwrap();
             let created = before.created_since(&ObjectCounts::of(&ctx.device));
             ctx.queue.submit([encoder.finish()]);

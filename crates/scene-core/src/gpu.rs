@@ -131,14 +131,17 @@ impl GpuError {
     }
 }
 
-/// A headless wgpu instance, adapter, device and queue.
+/// A wgpu device and queue every GPU path of the toolkit runs on: one this crate created
+/// ([`GpuContext::new`], headless, with its instance and adapter), or a host engine's own
+/// ([`GpuContext::from_device`]).
 #[derive(Clone, Debug)]
 pub struct GpuContext {
-    /// The wgpu instance (backends from `WGPU_BACKEND`).
-    pub instance: wgpu::Instance,
-    /// The chosen adapter.
-    pub adapter: wgpu::Adapter,
-    /// The device, created with the adapter's own limits (not the downlevel defaults).
+    /// The wgpu instance (backends from `WGPU_BACKEND`); `None` on a host's device.
+    pub instance: Option<wgpu::Instance>,
+    /// The chosen adapter; `None` on a host's device.
+    pub adapter: Option<wgpu::Adapter>,
+    /// The device (one this crate made gets the adapter's own limits, not the downlevel
+    /// defaults).
     pub device: wgpu::Device,
     /// The device's queue.
     pub queue: wgpu::Queue,
@@ -237,17 +240,35 @@ impl GpuContext {
                 ))
             })?;
         Ok(Self {
-            instance,
-            adapter,
+            instance: Some(instance),
+            adapter: Some(adapter),
             device,
             queue,
         })
     }
 
+    /// A context on a host engine's own device and queue: every method's GPU path then
+    /// creates its pipelines, buffers and textures on that device, and records into the
+    /// host's encoders. The toolkit needs no feature beyond wgpu's defaults (timestamps are
+    /// used where the device has them); its limits are the device's.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Self {
+        Self {
+            instance: None,
+            adapter: None,
+            device,
+            queue,
+        }
+    }
+
+    /// What the device says of its adapter.
+    pub fn adapter_info(&self) -> wgpu::AdapterInfo {
+        self.device.adapter_info()
+    }
+
     /// A one-line description of the adapter: name, backend and device type, e.g.
     /// `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
     pub fn adapter_summary(&self) -> String {
-        summary_of(&self.adapter.get_info())
+        summary_of(&self.adapter_info())
     }
 
     /// Checks a 2D texture size against zero and the device's `max_texture_dimension_2d`.

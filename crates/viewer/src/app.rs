@@ -338,7 +338,10 @@ impl App {
             Some(&surface),
         ))
         .map_err(|e| format!("no adapter can present to the window ({e}): {DISPLAY_HELP}"))?;
-        let caps = surface.get_capabilities(&ctx.adapter);
+        let Some(adapter) = ctx.adapter.as_ref() else {
+            return Err("the GPU context has no adapter to present with".into());
+        };
+        let caps = surface.get_capabilities(adapter);
         let format = caps
             .formats
             .iter()
@@ -787,7 +790,11 @@ impl App {
             return Ok(());
         };
         // Keep the surface's vsync in step with the panel.
-        let caps = gfx.surface.get_capabilities(&gfx.renderer.ctx.adapter);
+        // The viewer's own context always has its adapter (it made it for the surface).
+        let Some(adapter) = gfx.renderer.ctx.adapter.as_ref() else {
+            return Ok(());
+        };
+        let caps = gfx.surface.get_capabilities(adapter);
         let mode = present_mode(&caps, self.state.vsync);
         if mode != gfx.config.present_mode {
             gfx.config.present_mode = mode;

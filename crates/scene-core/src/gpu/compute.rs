@@ -166,7 +166,7 @@ impl PassTimer {
             .device
             .features()
             .contains(wgpu::Features::TIMESTAMP_QUERY)
-            || ctx.adapter.get_info().device_type == wgpu::DeviceType::Cpu
+            || ctx.adapter_info().device_type == wgpu::DeviceType::Cpu
             || passes == 0
         {
             return None;

@@ -44,7 +44,7 @@ impl<'a> StageProfiler<'a> {
         let wanted =
             wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS;
         let usable = ctx.device.features().contains(wanted)
-            && (allow_cpu || ctx.adapter.get_info().device_type != wgpu::DeviceType::Cpu);
+            && (allow_cpu || ctx.adapter_info().device_type != wgpu::DeviceType::Cpu);
         let timestamps = (on && usable).then(|| Timestamps {
             set: ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("stage profiler"),
