@@ -216,11 +216,10 @@ fn steady_state_frames_create_no_gpu_objects() {
     let mut images = Vec::new();
     for k in 0..6 {
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        let before = ObjectCounts::of(&ctx.device);
-        gpu_ldc
-            .encode(&mut encoder, &scene, &gg, &frame.view, &state(k), &output)
-            .unwrap();
-        let created = before.created_since(&ObjectCounts::of(&ctx.device));
+        let (result, created) = ObjectCounts::during(&ctx.device, || {
+            gpu_ldc.encode(&mut encoder, &scene, &gg, &frame.view, &state(k), &output)
+        });
+        result.unwrap();
         ctx.queue.submit([encoder.finish()]);
         images.push(ctx.read_buffer_as::<[f32; 4]>(&output).unwrap());
         assert_eq!(created.pipelines, 0, "frame {k}: {created}");

@@ -175,10 +175,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut state = LightState::new();
         state.set_color(LightId::Point(0), colour);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        let before = ObjectCounts::of(&ctx.device);
-        isr.apply(&state); // rewrites the light buffer; nothing is recompiled
-        isr.encode(&mut encoder, &inputs, &IsrSettings::default(), &target)?;
-        let created = before.created_since(&ObjectCounts::of(&ctx.device));
+        let (result, created) = ObjectCounts::during(&ctx.device, || {
+            isr.apply(&state); // rewrites the light buffer; nothing is recompiled
+            isr.encode(&mut encoder, &inputs, &IsrSettings::default(), &target)
+        });
+        result?;
         if frame > 0 {
             steady = created;
         }

@@ -280,15 +280,16 @@ fn steady_state_frames_create_no_gpu_objects() {
                 view: &setup.view,
             };
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            let before = ObjectCounts::of(&ctx.device);
             // The light changes colour every frame.
             let mut state = scene_core::LightState::default();
             for id in scene_core::lights::light_ids(&setup.scene) {
                 state.set_color(id, glam::Vec3::new(1.0, 0.5 + 0.1 * frame as f32, 0.7));
             }
-            gpu.apply(&state);
-            gpu.encode(&mut encoder, &inputs, &s, &target).unwrap();
-            let created = before.created_since(&ObjectCounts::of(&ctx.device));
+            let (result, created) = ObjectCounts::during(&ctx.device, || {
+                gpu.apply(&state);
+                gpu.encode(&mut encoder, &inputs, &s, &target)
+            });
+            result.unwrap();
             ctx.queue.submit([encoder.finish()]);
             gpu.wait().unwrap();
             assert_eq!(created.pipelines, 0, "{name}, frame {frame}: {created}");

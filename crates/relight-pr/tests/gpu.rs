@@ -277,11 +277,11 @@ fn steady_state_frames_create_no_gpu_objects() {
         state.set_color(LightId::Point(0), Vec3::new(1.0, 0.2 * frame as f32, 0.5));
         let (f, base) = relight::weights(&solution, &state, true);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        let before = ObjectCounts::of(&ctx.device);
-        gpu.encode_relight(&mut encoder, &f, base, None).unwrap();
-        gpu.encode_display(&mut encoder, &gg, &view, &f, base, Some(&values), &output)
-            .unwrap();
-        let created = before.created_since(&ObjectCounts::of(&ctx.device));
+        let (result, created) = ObjectCounts::during(&ctx.device, || {
+            gpu.encode_relight(&mut encoder, &f, base, None)?;
+            gpu.encode_display(&mut encoder, &gg, &view, &f, base, Some(&values), &output)
+        });
+        result.unwrap();
         ctx.queue.submit([encoder.finish()]);
         let image: Vec<[f32; 4]> = ctx.read_buffer_as(&output).unwrap();
         frames.push(image);

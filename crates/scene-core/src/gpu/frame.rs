@@ -150,6 +150,14 @@ impl ObjectCounts {
         Self::of(device) != Self::default()
     }
 
+    /// Runs `record` (a frame's recording, before its submit) and returns its result with
+    /// the objects it created on `device`.
+    pub fn during<T>(device: &wgpu::Device, record: impl FnOnce() -> T) -> (T, ObjectCounts) {
+        let before = Self::of(device);
+        let result = record();
+        (result, before.created_since(&Self::of(device)))
+    }
+
     /// What `after` has more than `self`.
     pub fn created_since(&self, after: &ObjectCounts) -> ObjectCounts {
         ObjectCounts {
