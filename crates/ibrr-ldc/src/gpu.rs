@@ -88,6 +88,8 @@ pub struct GpuLdc {
     params: wgpu::Buffer,
     /// The bind group and what it was made for.
     bound: Option<(BindKey, wgpu::BindGroup)>,
+    /// Relit layer values from [`GpuLdc::update_values`], written in the next frame.
+    pending_values: Option<Vec<[f32; 4]>>,
 }
 
 /// What the frame's bind group depends on: the G-buffer's textures and the output by
@@ -198,6 +200,7 @@ impl GpuLdc {
                 mapped_at_creation: false,
             }),
             bound: None,
+            pending_values: None,
         })
         .map_err(gpu)
     }
@@ -216,9 +219,9 @@ impl GpuLdc {
             .collect()
     }
 
-    /// Replaces the layers' values with `ldc`'s (the same LDC relit, [`Ldc::relight`]):
-    /// one buffer write, no new allocation on the GPU. Errors when `ldc` has another
-    /// number of layers than the one uploaded.
+    /// Replaces the layers' values with `ldc`'s (the same LDC relit, [`Ldc::relight`]): a
+    /// copy recorded in the next frame's encoder ([`GpuLdc::encode`]), no new allocation on
+    /// the GPU. Errors when `ldc` has another number of layers than the one uploaded.
     pub fn update_values(&mut self, ldc: &Ldc) -> Result<(), IbrrError> {
         let values = Self::values_of(ldc);
         let bytes = std::mem::size_of_val(values.as_slice()) as u64;
@@ -229,9 +232,10 @@ impl GpuLdc {
                 self.values.size() / 32
             )));
         }
-        self.ctx
-            .queue
-            .write_buffer(&self.values, 0, bytemuck::cast_slice(&values));
+        // Written by a copy in the next frame's encoder, before its pass (a queue write
+        // would stage a buffer of its own, and land before earlier frames of the same
+        // submission).
+        self.pending_values = Some(values);
         Ok(())
     }
 
@@ -387,6 +391,10 @@ impl GpuLdc {
         }
         self.writer
             .write(encoder, &self.params, 0, bytemuck::bytes_of(&params));
+        if let Some(values) = self.pending_values.take() {
+            self.writer
+                .write(encoder, &self.values, 0, bytemuck::cast_slice(&values));
+        }
         if let Some(table) = glow_table {
             self.writer
                 .write(encoder, &tri, 0, bytemuck::cast_slice(&table));

@@ -1,0 +1,133 @@
+//! The image-based radiosity representation as an engine plug-in: the engine's own device
+//! and camera matrices, the light recoloured every frame without rebuilding the layered
+//! depth cube.
+//!
+//! The "engine" creates its own wgpu device (the IBRR runs on it through
+//! `GpuContext::from_device`) and a camera as a reverse-Z projection with the far plane at
+//! infinity (as Bevy builds it). Once, the IBRR builds its LDC for the Cornell box (light
+//! kept per source). Each frame recombines the layers' light for the frame's colour of the
+//! ceiling panel (`IbrrTechnique::relight`, on the CPU), and records the copy of the relit
+//! values and the reconstruction into the engine's encoder. The last line counts the GPU
+//! objects a steady-state frame created (wgpu's counters): all zero.
+//!
+//! Until the one frame contract of issue 30 exists, the reconstruction reads a G-buffer in
+//! the toolkit's float formats with triangle ids, rendered here by scene-core's ray caster
+//! and uploaded once for the still camera; docs/engine.md says what is missing.
+//!
+//! Run with `cargo run --release -p ibrr-ldc --example engine`.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup};
+use scene_core::gbuffer::RayCastRenderer;
+use scene_core::gpu::{GpuContext, GpuGBuffer, ObjectCounts};
+use scene_core::lights::{LightId, LightState, light_ids};
+use scene_core::{GBufferRenderer, Technique, View, builtin};
+
+const W: u32 = 160;
+const H: u32 = 120;
+
+/// The engine's own device and queue (any wgpu device will do).
+fn engine_device() -> Result<(wgpu::Device, wgpu::Queue), Box<dyn std::error::Error>> {
+    let instance =
+        wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default()))?;
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("engine"),
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }))?;
+    Ok((device, queue))
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let (device, queue) = engine_device()?;
+    let ctx = GpuContext::from_device(device, queue);
+    println!("adapter: {}", ctx.adapter_summary());
+
+    // Once: the LDC, its light kept per source.
+    let scene = Arc::new(builtin::scene("cornell")?);
+    let settings = IbrrSettings {
+        resolution: 96,
+        irpls: 48,
+        ..Default::default()
+    };
+    let mut ibrr = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+    ibrr.prepare(scene.clone())?;
+    let ldc = ibrr.ldc().ok_or("the LDC was not built")?;
+    let mut gpu = GpuLdc::new(&ctx, ldc, Lookup::Bilinear, settings.fallback_radius)?;
+    println!(
+        "LDC: {} layers, {} KiB on the GPU",
+        ldc.layer_count(),
+        gpu.bytes() / 1024
+    );
+
+    // The engine's camera (the scene's, as engine matrices: reverse-Z, infinite far).
+    let cam = &scene.cameras[0];
+    let view_m = glam::camera::rh::view::look_at_mat4(cam.position, cam.target, cam.up);
+    let proj_m = glam::camera::rh::proj::directx::perspective_infinite_reverse(
+        cam.fov_y,
+        W as f32 / H as f32,
+        cam.near,
+    );
+    let (view, depth) = View::from_host_matrices(view_m, proj_m)?;
+    println!(
+        "camera: reverse-Z {}, infinite far {}",
+        depth.reverse, depth.infinite
+    );
+    let g = GpuGBuffer::upload(&ctx, &RayCastRenderer::new().render(&scene, &view, W, H)?)?;
+    let output = ctx.pixel_buffer("engine frame", W, H);
+
+    let panel = *light_ids(&scene)
+        .iter()
+        .find(|i| matches!(i, LightId::Emissive(_)))
+        .ok_or("the scene has no emissive panel")?;
+    let mut steady = ObjectCounts::default();
+    let mut means = Vec::new();
+    for (frame, colour) in [
+        Vec3::ONE,
+        Vec3::new(1.0, 0.6, 0.2),
+        Vec3::new(0.3, 0.5, 1.0),
+        Vec3::new(1.0, 0.6, 0.2),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let mut state = LightState::new();
+        state.set_color(panel, colour);
+        // The layers' light recombined for the frame (CPU), then copied in by the frame.
+        ibrr.relight(&state)?
+            .ok_or("the light state needs a rebuild")?;
+        let ldc = ibrr.ldc().ok_or("the LDC was not built")?;
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let (result, created) = ObjectCounts::during(&ctx.device, || {
+            gpu.update_values(ldc)?;
+            gpu.encode(&mut encoder, &scene, &g, &view, &state, &output)
+        });
+        result?;
+        if frame > 0 {
+            steady = created;
+        }
+        ctx.queue.submit([encoder.finish()]);
+        let pixels: Vec<[f32; 4]> = ctx.read_buffer_as(&output)?;
+        let mean = pixels
+            .iter()
+            .take((W * H) as usize)
+            .fold(Vec3::ZERO, |s, p| s + Vec3::new(p[0], p[1], p[2]))
+            / (W * H) as f32;
+        println!("panel {colour}: mean radiance {mean:.4}");
+        means.push(mean);
+    }
+    // The amber light dims blue to 0.2: the frame followed the light change.
+    assert!(means[1].z < 0.3 * means[0].z && means[1].x > 0.9 * means[0].x);
+    if ObjectCounts::available(&ctx.device) {
+        println!(
+            "steady-state frame: {} buffers, {} textures, {} bind groups, {} pipelines created",
+            steady.buffers, steady.textures, steady.bind_groups, steady.pipelines
+        );
+    } else {
+        println!("steady-state frame: wgpu was built without its `counters` feature");
+    }
+    Ok(())
+}
