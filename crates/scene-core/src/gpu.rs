@@ -28,6 +28,7 @@ use wgpu::util::DeviceExt;
 
 pub mod compute;
 pub mod frame;
+pub mod host;
 pub mod layout;
 mod scene;
 pub mod shader;
@@ -35,6 +36,7 @@ pub mod timing;
 pub mod wgsl_layout;
 pub use compute::{ComputePass, PassTimer, WORKGROUP};
 pub use frame::{FrameWriter, KeptBuffer, ObjectCounts};
+pub use host::{HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
 pub use scene::{GpuMaterial, GpuScene, GpuVertex, flatten_scene, gpu_materials};
 pub use wgpu::naga;
 
@@ -50,8 +52,11 @@ pub const LUMINANCE: shader::ShaderPass = shader::ShaderPass::new(
 );
 
 /// Every shader pass of scene-core, as `cargo xtask shaders` validates them.
-pub const SHADER_PASSES: &[shader::ShaderPass] =
-    &[LUMINANCE, crate::gbuffer::downsample::DOWNSAMPLE];
+pub const SHADER_PASSES: &[shader::ShaderPass] = &[
+    LUMINANCE,
+    crate::gbuffer::downsample::DOWNSAMPLE,
+    host::HOST_GBUFFER,
+];
 
 /// An error of the GPU layer.
 #[derive(Debug, thiserror::Error)]
@@ -117,6 +122,14 @@ pub enum GpuError {
         expected: &'static str,
         /// The texture's format.
         found: wgpu::TextureFormat,
+    },
+    /// One of an engine's G-buffer textures cannot be read ([`host::HostGBuffer::check`]).
+    #[error("the engine's {texture} texture: {problem}")]
+    HostTexture {
+        /// Which texture: albedo, normal, depth or triangle id.
+        texture: &'static str,
+        /// What is wrong with it.
+        problem: String,
     },
     /// wgpu reported a validation error (a bug in the calling code or a missing usage flag).
     #[error("GPU validation error: {0}")]

@@ -100,6 +100,12 @@ impl DepthConvention {
         if t.is_nan() { 1.0 } else { t.clamp(0.0, 1.0) }
     }
 
+    /// The projection's `m22` and `m32` and the view's far plane, as the GPU reads them
+    /// (`crate::gpu::host`).
+    pub fn parts(&self) -> (f32, f32, f32) {
+        (self.m22 as f32, self.m32 as f32, self.far)
+    }
+
     /// The hardware depth of a point at distance `t` (the inverse of
     /// [`DepthConvention::distance`]).
     pub fn depth(&self, t: f32) -> f32 {
