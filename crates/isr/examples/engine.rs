@@ -2,9 +2,11 @@
 //! list, with no scene-core `Scene`.
 //!
 //! The "engine" here creates its own wgpu device (ISR runs on it through
-//! `GpuContext::from_device`), draws a room corner (a floor and a back wall) by casting rays
-//! analytically, writes its G-buffer into raw wgpu textures, builds its camera matrices
-//! (reverse-Z with the far plane at infinity, as Bevy does) and hands ISR a point light and
+//! `GpuContext::from_device`), builds its camera matrices (reverse-Z with the far plane at
+//! infinity, as Bevy does), draws a room corner (a floor and a back wall) by casting rays
+//! analytically into a G-buffer in its own compact formats (8-bit sRGB albedo, octahedral
+//! half-float normals, its `Depth32Float` depth buffer, no triangle ids), which
+//! `HostGBufferPass` turns into the toolkit's each frame, and hands ISR a point light and
 //! the triangles that cast shadows. ISR records its passes into the engine's command
 //! encoder; a light change between frames only rewrites a buffer, and a steady-state frame
 //! creates no GPU object (the last line counts them from wgpu's counters).
@@ -13,9 +15,9 @@
 
 use glam::{Mat4, Vec3};
 use isr::{GpuIsr, GpuIsrInputs, IsrSettings, Light, LightSet, ShadowSettings};
-use scene_core::gpu::{GpuContext, GpuGBuffer, ObjectCounts};
+use scene_core::gpu::{GpuContext, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts, host};
 use scene_core::lights::{LightId, LightState};
-use scene_core::{BACKGROUND_ID, View};
+use scene_core::{DepthConvention, View};
 
 const W: u32 = 320;
 const H: u32 = 240;
@@ -51,25 +53,47 @@ fn matrices(eye: Vec3, target: Vec3) -> (Mat4, Mat4) {
     (view, proj)
 }
 
-/// The engine's G-buffer texels in ISR's formats.
+/// The engine's G-buffer texels in its own compact formats: albedo as 8-bit sRGB, normals
+/// as octahedral half floats, depth in its reverse-Z convention (0 where nothing is drawn),
+/// no triangle ids.
 struct EngineGBuffer {
-    albedo: Vec<[f32; 4]>,
-    normal: Vec<[f32; 4]>,
+    albedo: Vec<[u8; 4]>,
+    normal: Vec<[u16; 2]>,
     depth: Vec<f32>,
-    id: Vec<u32>,
 }
 
-/// The engine's G-buffer pass (here: rays against the two planes).
-fn gbuffer(view: &View) -> EngineGBuffer {
+fn srgb8(l: f32) -> u8 {
+    let c = if l <= 0.0031308 {
+        12.92 * l
+    } else {
+        1.055 * l.powf(1.0 / 2.4) - 0.055
+    };
+    (c.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+fn octahedral(n: Vec3) -> [u16; 2] {
+    let p = n / (n.x.abs() + n.y.abs() + n.z.abs());
+    let e = if p.z >= 0.0 {
+        [p.x, p.y]
+    } else {
+        let s = |v: f32| if v >= 0.0 { 1.0 } else { -1.0 };
+        [(1.0 - p.y.abs()) * s(p.x), (1.0 - p.x.abs()) * s(p.y)]
+    };
+    e.map(|x| half::f16::from_f32(x).to_bits())
+}
+
+/// The engine's G-buffer pass (here: rays against the two planes), writing its depth in
+/// the convention of its projection.
+fn gbuffer(view: &View, depth_of: &DepthConvention) -> EngineGBuffer {
     let n = (W * H) as usize;
-    let (mut albedo, mut normal) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
-    let (mut depth, mut id) = (vec![1.0f32; n], vec![BACKGROUND_ID; n]);
+    let (mut albedo, mut normal) = (vec![[0u8; 4]; n], vec![[0u16; 2]; n]);
+    let mut depth = vec![0.0f32; n];
     for y in 0..H {
         for x in 0..W {
             let uv = glam::Vec2::new((x as f32 + 0.5) / W as f32, (y as f32 + 0.5) / H as f32);
             let (o, d) = view.ray(uv);
-            let floor = (-o.y / d.y, Vec3::Y, [0.6, 0.6, 0.6], 0u32);
-            let wall = (-o.z / d.z, Vec3::Z, [0.7, 0.15, 0.1], 2u32);
+            let floor = (-o.y / d.y, Vec3::Y, [0.6, 0.6, 0.6]);
+            let wall = (-o.z / d.z, Vec3::Z, [0.7, 0.15, 0.1]);
             let hit = [floor, wall]
                 .into_iter()
                 .filter(|(t, ..)| *t > 0.0)
@@ -78,12 +102,11 @@ fn gbuffer(view: &View) -> EngineGBuffer {
                     p.x.abs() <= 2.0 && (0.0..=4.0).contains(&p.z) && (0.0..=3.0).contains(&p.y)
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0));
-            if let Some((t, nrm, c, tri)) = hit {
+            if let Some((t, nrm, c)) = hit {
                 let i = (y * W + x) as usize;
-                albedo[i] = [c[0], c[1], c[2], 1.0];
-                normal[i] = nrm.extend(0.0).to_array();
-                depth[i] = view.linear_depth(o + d * t);
-                id[i] = tri;
+                albedo[i] = [srgb8(c[0]), srgb8(c[1]), srgb8(c[2]), 255];
+                normal[i] = octahedral(nrm);
+                depth[i] = depth_of.depth((o + d * t - view.eye).dot(view.forward));
             }
         }
     }
@@ -91,7 +114,6 @@ fn gbuffer(view: &View) -> EngineGBuffer {
         albedo,
         normal,
         depth,
-        id,
     }
 }
 
@@ -143,17 +165,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let lights = LightSet::from_lights(vec![light], &casters(), &ShadowSettings::default())?;
     let mut isr = GpuIsr::new(&ctx, &lights)?;
 
-    // Per frame: the engine's matrices and G-buffer textures.
+    // The engine's matrices and G-buffer textures in its own formats; each frame turns
+    // them into the toolkit's (one compute pass in the engine's encoder).
     let (view_m, proj_m) = matrices(Vec3::new(0.0, 1.6, 5.5), Vec3::new(0.0, 0.8, 0.0));
-    let view = View::from_matrices(view_m, proj_m)?;
-    let e = gbuffer(&view);
+    let (view, depth_of) = View::from_host_matrices(view_m, proj_m)?;
+    let e = gbuffer(&view, &depth_of);
     use wgpu::TextureFormat as F;
-    let g = GpuGBuffer::from_textures(
-        texture(&ctx, F::Rgba32Float, 16, bytemuck::cast_slice(&e.albedo)),
-        texture(&ctx, F::Rgba32Float, 16, bytemuck::cast_slice(&e.normal)),
-        texture(&ctx, F::R32Float, 4, bytemuck::cast_slice(&e.depth)),
-        texture(&ctx, F::R32Uint, 4, bytemuck::cast_slice(&e.id)),
-    )?;
+    let albedo = texture(&ctx, F::Rgba8UnormSrgb, 4, bytemuck::cast_slice(&e.albedo));
+    let normal = texture(&ctx, F::Rg16Float, 4, bytemuck::cast_slice(&e.normal));
+    let depth = host::depth_texture_from(&ctx, W, H, &e.depth)?;
+    let host = HostGBuffer {
+        albedo: &albedo,
+        normal: &normal,
+        depth: &depth,
+        triangle_id: None,
+    };
+    let mut convert = HostGBufferPass::new(&ctx)?;
+    let g = GpuGBuffer::new(&ctx, W, H)?;
     // The engine's HDR target (Rgba16Float works too; Rgba32Float here to read it back).
     let target = isr.output_texture(W, H)?;
     let inputs = GpuIsrInputs {
@@ -176,8 +204,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         state.set_color(LightId::Point(0), colour);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         let (result, created) = ObjectCounts::during(&ctx.device, || {
+            convert.encode(&mut encoder, &host, &depth_of, &g)?;
             isr.apply(&state); // rewrites the light buffer; nothing is recompiled
             isr.encode(&mut encoder, &inputs, &IsrSettings::default(), &target)
+                .map_err(Box::<dyn std::error::Error>::from)
         });
         result?;
         if frame > 0 {

@@ -315,3 +315,111 @@ impl HostGBufferPass {
         Ok(())
     }
 }
+
+/// A `width x height` `Depth32Float` texture holding `values` (row-major), drawn by a
+/// full-screen triangle that writes `frag_depth` (depth textures cannot be written by
+/// copies): what a test or an example needs to stand in for an engine's depth buffer. The
+/// texture has `RENDER_ATTACHMENT | TEXTURE_BINDING` usage.
+pub fn depth_texture_from(
+    ctx: &GpuContext,
+    width: u32,
+    height: u32,
+    values: &[f32],
+) -> Result<wgpu::Texture, GpuError> {
+    ctx.check_texture_size(width, height)?;
+    if values.len() != width as usize * height as usize {
+        return Err(GpuError::InvalidSize {
+            width,
+            height,
+            reason: format!("{} depth values for {width}x{height} pixels", values.len()),
+        });
+    }
+    let device = &ctx.device;
+    let src = format!(
+        "@group(0) @binding(0) var<storage, read> depth: array<f32>;
+         @vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {{
+             let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+             return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+         }}
+         @fragment fn fs(@builtin(position) p: vec4<f32>) -> @builtin(frag_depth) f32 {{
+             return depth[u32(p.y) * {width}u + u32(p.x)];
+         }}"
+    );
+    ctx.validated(|| {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("depth texture from values"),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("depth texture from values"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &[],
+            }),
+            primitive: Default::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: wgpu::TextureFormat::Depth32Float,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            multiview_mask: None,
+            cache: None,
+        });
+        let buffer = ctx.storage_with(
+            "depth values",
+            bytemuck::cast_slice(values),
+            wgpu::BufferUsages::empty(),
+        );
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: buffer.as_entire_binding(),
+            }],
+        });
+        let t = ctx.create_texture_2d(
+            "depth from values",
+            width,
+            height,
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let view = t.create_view(&Default::default());
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: None,
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(0.5),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        t
+    })
+}
