@@ -3,7 +3,8 @@
 //! (`cargo xtask reference --mitsuba DIR`; `xtask/scripts/mitsuba_render.py` renders it).
 //!
 //! What is written into the directory:
-//! - `scene.xml`: Mitsuba's `path` integrator with the bounce limit mapped to `max_depth`
+//! - `scene.xml`: every BSDF a `twosided` `diffuse` (the toolkit's surfaces reflect on both
+//!   sides); Mitsuba's `path` integrator with the bounce limit mapped to `max_depth`
 //!   (bounce limit `b` is `max_depth = b + 2`: one vertex for the camera ray's hit, one for
 //!   its direct light; unlimited is `-1`), Russian roulette from the fourth vertex as ours, a
 //!   perspective sensor with the camera's vertical field of view and a box filter, and one
@@ -98,8 +99,13 @@ pub fn export(
             }
             None => format!("<rgb name=\"reflectance\" value=\"{}\"/>", v(m.albedo)),
         };
-        let diffuse =
-            |id: &str| format!("<bsdf type=\"diffuse\"{id}>\n      {albedo}\n    </bsdf>");
+        // Two-sided, as the toolkit's surfaces reflect (Mitsuba's diffuse BSDF alone is
+        // black from behind).
+        let diffuse = |id: &str| {
+            format!(
+                "<bsdf type=\"twosided\"{id}>\n      <bsdf type=\"diffuse\">\n        {albedo}\n      </bsdf>\n    </bsdf>"
+            )
+        };
         let masked = m
             .alpha_cutoff
             .filter(|c| *c > 0.0)

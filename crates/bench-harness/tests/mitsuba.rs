@@ -63,6 +63,12 @@ fn every_triangle_is_written_once_with_its_material() {
             }
         }
         assert_eq!(faces, scene.triangle_count(), "{name}");
+        // Every material reflects on both sides, as the toolkit's do.
+        assert_eq!(
+            text.matches("type=\"twosided\"").count(),
+            scene.materials.len(),
+            "{name}"
+        );
         assert_eq!(text.matches("<shape ").count(), shapes, "{name}");
         let emitters = scene.materials.iter().filter(|m| m.is_emissive()).count();
         assert_eq!(emitters > 0, text.contains("type=\"area\""), "{name}");
