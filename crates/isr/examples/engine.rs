@@ -237,13 +237,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     // Blue is dimmed to 0.2 by the amber light: the frame followed the light change.
     assert!(means[1].z < 0.3 * means[0].z && means[1].x > 0.9 * means[0].x);
-    if !ObjectCounts::available(&ctx.device) {
-        println!("steady-state frame: wgpu was built without its `counters` feature");
-    } else {
-        println!(
-            "steady-state frame: {} buffers, {} textures, {} bind groups, {} pipelines created",
-            steady.buffers, steady.textures, steady.bind_groups, steady.pipelines
-        );
-    }
+    println!("{}", steady.steady_state_line(&ctx.device));
     Ok(())
 }

@@ -254,13 +254,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     // The amber light dims blue to 0.2: the frame followed the light change.
     assert!(means[1].z < 0.3 * means[0].z && means[1].x > 0.9 * means[0].x);
-    if ObjectCounts::available(&ctx.device) {
-        println!(
-            "steady-state frame: {} buffers, {} textures, {} bind groups, {} pipelines created",
-            steady.buffers, steady.textures, steady.bind_groups, steady.pipelines
-        );
-    } else {
-        println!("steady-state frame: wgpu was built without its `counters` feature");
-    }
+    println!("{}", steady.steady_state_line(&ctx.device));
     Ok(())
 }

@@ -170,6 +170,20 @@ impl ObjectCounts {
         }
     }
 
+    /// The line the engine examples end with: `steady-state frame: B buffers, T textures, G
+    /// bind groups, P pipelines created` for these counts, or a note that `device`'s wgpu
+    /// was built without its `counters` feature.
+    pub fn steady_state_line(&self, device: &wgpu::Device) -> String {
+        if Self::available(device) {
+            format!(
+                "steady-state frame: {} buffers, {} textures, {} bind groups, {} pipelines created",
+                self.buffers, self.textures, self.bind_groups, self.pipelines
+            )
+        } else {
+            "steady-state frame: wgpu was built without its `counters` feature".into()
+        }
+    }
+
     /// True when every count is zero.
     pub fn is_zero(&self) -> bool {
         *self == Self::default()
