@@ -193,12 +193,11 @@ impl GpuLdc {
             glow: None,
             glow_buffer: KeptBuffer::new("ibrr triangles", wgpu::BufferUsages::STORAGE),
             writer: FrameWriter::new(&ctx.device, 4096),
-            params: ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("ibrr params"),
-                size: std::mem::size_of::<Params>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
+            params: ctx.frame_buffer(
+                "ibrr params",
+                std::mem::size_of::<Params>() as u64,
+                wgpu::BufferUsages::UNIFORM,
+            ),
             bound: None,
             pending_values: None,
         })

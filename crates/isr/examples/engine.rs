@@ -117,25 +117,9 @@ fn gbuffer(view: &View, depth_of: &DepthConvention) -> EngineGBuffer {
     }
 }
 
-fn texture(
-    ctx: &GpuContext,
-    format: wgpu::TextureFormat,
-    texel: u32,
-    data: &[u8],
-) -> wgpu::Texture {
-    let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST;
-    let t = ctx.create_texture_2d("engine gbuffer", W, H, format, usage);
-    ctx.queue.write_texture(
-        t.as_image_copy(),
-        data,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(W * texel),
-            rows_per_image: None,
-        },
-        t.size(),
-    );
-    t
+fn texture(ctx: &GpuContext, format: wgpu::TextureFormat, data: &[u8]) -> wgpu::Texture {
+    let usage = wgpu::TextureUsages::TEXTURE_BINDING;
+    ctx.texture_with("engine gbuffer", (W, H), format, usage, data)
 }
 
 /// The engine's own device and queue (any wgpu device will do).
@@ -171,8 +155,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (view, depth_of) = View::from_host_matrices(view_m, proj_m)?;
     let e = gbuffer(&view, &depth_of);
     use wgpu::TextureFormat as F;
-    let albedo = texture(&ctx, F::Rgba8UnormSrgb, 4, bytemuck::cast_slice(&e.albedo));
-    let normal = texture(&ctx, F::Rg16Float, 4, bytemuck::cast_slice(&e.normal));
+    let albedo = texture(&ctx, F::Rgba8UnormSrgb, bytemuck::cast_slice(&e.albedo));
+    let normal = texture(&ctx, F::Rg16Float, bytemuck::cast_slice(&e.normal));
     let depth = host::depth_texture_from(&ctx, W, H, &e.depth)?;
     let host = HostGBuffer {
         albedo: &albedo,

@@ -563,12 +563,11 @@ impl GpuIsr {
             dummy: rgba_texture(ctx, "isr dummy", 1, 1),
             targets: None,
             generation: 0,
-            globals: device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("isr globals"),
-                size: std::mem::size_of::<Globals>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
+            globals: ctx.frame_buffer(
+                "isr globals",
+                std::mem::size_of::<Globals>() as u64,
+                wgpu::BufferUsages::UNIFORM,
+            ),
             writer: FrameWriter::new(device, 4096),
             bound: None,
             lights_changed: false,

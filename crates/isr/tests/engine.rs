@@ -215,31 +215,20 @@ fn reverse_z_and_infinite_inputs_give_the_standard_image() {
     };
     let own = render(&GpuGBuffer::upload(&ctx, &setup.full).unwrap(), &setup.view);
     let g = &setup.full;
-    let upload = |format: wgpu::TextureFormat, texel: u32, bytes: &[u8]| {
-        let t = ctx.create_texture_2d(
+    let upload = |format: wgpu::TextureFormat, bytes: &[u8]| {
+        ctx.texture_with(
             "engine",
-            w,
-            h,
+            (w, h),
             format,
-            wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        );
-        ctx.queue.write_texture(
-            t.as_image_copy(),
+            wgpu::TextureUsages::TEXTURE_BINDING,
             bytes,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(w * texel),
-                rows_per_image: None,
-            },
-            t.size(),
-        );
-        t
+        )
     };
     use wgpu::TextureFormat as F;
-    let albedo = upload(F::Rgba32Float, 16, bytemuck::cast_slice(&g.albedo));
+    let albedo = upload(F::Rgba32Float, bytemuck::cast_slice(&g.albedo));
     let normals: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
-    let normal = upload(F::Rgba32Float, 16, bytemuck::cast_slice(&normals));
-    let ids = upload(F::R32Uint, 4, bytemuck::cast_slice(&g.triangle_id));
+    let normal = upload(F::Rgba32Float, bytemuck::cast_slice(&normals));
+    let ids = upload(F::R32Uint, bytemuck::cast_slice(&g.triangle_id));
     let cam = setup.scene.cameras[0].with_aspect(w as f32 / h as f32);
     let mut convert = HostGBufferPass::new(&ctx).unwrap();
     for (name, projection) in [

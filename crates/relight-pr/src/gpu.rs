@@ -228,14 +228,6 @@ impl GpuRelight {
         let n = packed.n;
         let vertex_words: &[u32] = vertex.map_or(&[], |v| &v.words);
         let device = &ctx.device;
-        let buffer = |label: &str, bytes: u64, usage: wgpu::BufferUsages| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes.max(16).next_multiple_of(16),
-                usage: usage | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
         let factor_bytes = packed.k as u64 * 32;
         let element_words = ctx.storage_with(
             "packed solution",
@@ -247,12 +239,13 @@ impl GpuRelight {
             &vec![0u8; n.max(1) * 16],
             wgpu::BufferUsages::COPY_SRC,
         );
-        let relight_params = buffer(
+        let relight_params = ctx.frame_buffer(
             "relight params",
             std::mem::size_of::<RelightParams>() as u64,
             wgpu::BufferUsages::UNIFORM,
         );
-        let relight_factors = buffer("relight factors", factor_bytes, wgpu::BufferUsages::STORAGE);
+        let relight_factors =
+            ctx.frame_buffer("relight factors", factor_bytes, wgpu::BufferUsages::STORAGE);
         let relight_bind = relight_pass.bind(
             device,
             &[
@@ -267,12 +260,16 @@ impl GpuRelight {
             relight_params,
             relight_factors,
             relight_bind,
-            display_params: buffer(
+            display_params: ctx.frame_buffer(
                 "display params",
                 std::mem::size_of::<DisplayParams>() as u64,
                 wgpu::BufferUsages::UNIFORM,
             ),
-            display_factors: buffer("display factors", factor_bytes, wgpu::BufferUsages::STORAGE),
+            display_factors: ctx.frame_buffer(
+                "display factors",
+                factor_bytes,
+                wgpu::BufferUsages::STORAGE,
+            ),
             direct: std::sync::Mutex::new(KeptBuffer::new(
                 "pixel direct",
                 wgpu::BufferUsages::STORAGE,

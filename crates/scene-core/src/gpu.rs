@@ -394,9 +394,31 @@ impl GpuContext {
         })
     }
 
+    /// A 2D texture of `format` holding `bytes` (tightly packed rows, top row first), with
+    /// `usage` plus `COPY_DST`: an engine's texture in a test or an example.
+    pub fn texture_with(
+        &self,
+        label: &str,
+        (width, height): (u32, u32),
+        format: wgpu::TextureFormat,
+        usage: wgpu::TextureUsages,
+        bytes: &[u8],
+    ) -> wgpu::Texture {
+        let texture = self.create_texture_2d(
+            label,
+            width,
+            height,
+            format,
+            usage | wgpu::TextureUsages::COPY_DST,
+        );
+        let texel = format.block_copy_size(None).unwrap_or(4);
+        self.write_texture_2d(&texture, bytes, texel);
+        texture
+    }
+
     /// Writes tightly packed rows into mip 0 of a 2D texture (`Queue::write_texture` needs no
     /// 256-byte row alignment).
-    fn write_texture_2d(&self, texture: &wgpu::Texture, bytes: &[u8], texel_size: u32) {
+    pub fn write_texture_2d(&self, texture: &wgpu::Texture, bytes: &[u8], texel_size: u32) {
         let (width, height) = (texture.width(), texture.height());
         self.queue.write_texture(
             wgpu::TexelCopyTextureInfo {
@@ -616,6 +638,17 @@ impl GpuContext {
                 contents: bytes,
                 usage,
             })
+    }
+
+    /// A zeroed buffer of at least `bytes` (rounded up to 16) with `usage` plus `COPY_DST`:
+    /// where a frame's data is copied in ([`frame::FrameWriter`]) frame after frame.
+    pub fn frame_buffer(&self, label: &str, bytes: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes.max(16).next_multiple_of(16),
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
     }
 
     /// A uniform buffer holding `value` (a `#[repr(C)]` struct checked against its WGSL

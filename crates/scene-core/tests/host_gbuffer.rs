@@ -48,27 +48,17 @@ fn texture(
     usage: wgpu::TextureUsages,
     bytes: Option<&[u8]>,
 ) -> wgpu::Texture {
-    let t = ctx.create_texture_2d(
-        "engine",
-        W,
-        H,
-        format,
-        usage | wgpu::TextureUsages::COPY_DST,
-    );
-    if let Some(bytes) = bytes {
-        let texel = format.block_copy_size(None).unwrap();
-        ctx.queue.write_texture(
-            t.as_image_copy(),
-            bytes,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(W * texel),
-                rows_per_image: None,
-            },
-            t.size(),
-        );
+    match bytes {
+        Some(bytes) => ctx.texture_with("engine", (W, H), format, usage, bytes),
+        // COPY_DST keeps a texture without TEXTURE_BINDING a valid texture to refuse.
+        None => ctx.create_texture_2d(
+            "engine",
+            W,
+            H,
+            format,
+            usage | wgpu::TextureUsages::COPY_DST,
+        ),
     }
-    t
 }
 
 fn depth_buffer(ctx: &GpuContext, values: &[f32]) -> wgpu::Texture {

@@ -222,12 +222,11 @@ impl HostGBufferPass {
         Ok(Self {
             ctx: ctx.clone(),
             passes,
-            params: device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("host gbuffer params"),
-                size: std::mem::size_of::<Params>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
+            params: ctx.frame_buffer(
+                "host gbuffer params",
+                std::mem::size_of::<Params>() as u64,
+                wgpu::BufferUsages::UNIFORM,
+            ),
             writer: FrameWriter::new(device, 1024),
             no_ids: ctx.create_texture_2d(
                 "host gbuffer: no ids",
@@ -422,4 +421,28 @@ pub fn depth_texture_from(
         ctx.queue.submit([encoder.finish()]);
         t
     })
+}
+
+#[cfg(test)]
+mod tests {
+    /// The parameters written from Rust have the layout naga gives `Params` in the shader.
+    #[test]
+    fn params_match_the_shader() {
+        let module = super::HOST_GBUFFER.compose().unwrap();
+        crate::check_layout!(
+            &module,
+            "Params",
+            super::Params {
+                m22,
+                m32,
+                far,
+                flags,
+                width,
+                height,
+                pad0: pad,
+                pad1: pad + 4,
+            }
+        )
+        .unwrap();
+    }
 }
