@@ -14,7 +14,7 @@
 //! its own element scene (its triangle ids are elements), rendered here by scene-core's ray
 //! caster and uploaded once for the still camera; docs/engine.md says what is missing.
 //!
-//! Run with `cargo run --release -p relight-pr --example engine`.
+//! Run with `cargo run --release -p relight-pr --example relight_engine`.
 
 use std::sync::Arc;
 

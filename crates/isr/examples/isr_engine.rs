@@ -11,7 +11,7 @@
 //! encoder; a light change between frames only rewrites a buffer, and a steady-state frame
 //! creates no GPU object (the last line counts them from wgpu's counters).
 //!
-//! Run with `cargo run --release -p isr --example engine`.
+//! Run with `cargo run --release -p isr --example isr_engine`.
 
 use glam::{Mat4, Vec3};
 use isr::{GpuIsr, GpuIsrInputs, IsrSettings, Light, LightSet, ShadowSettings};

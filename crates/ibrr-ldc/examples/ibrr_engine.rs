@@ -14,7 +14,7 @@
 //! the toolkit's float formats with triangle ids, rendered here by scene-core's ray caster
 //! and uploaded once for the still camera; docs/engine.md says what is missing.
 //!
-//! Run with `cargo run --release -p ibrr-ldc --example engine`.
+//! Run with `cargo run --release -p ibrr-ldc --example ibrr_engine`.
 
 use std::sync::Arc;
 
