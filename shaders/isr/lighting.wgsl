@@ -1,11 +1,11 @@
 #import isr::common::{FLAG_INDIRECT, FLAG_SSAO, FLAG_AO_INDIRECT_ONLY, BACKGROUND, PI, MAX_FINITE, has_flag, pixel_uv, world, to_viewer, usable_normal, g}
-#import isr::light_set::{lights, irradiance, emission}
-#import isr::shadow::{visibility}
+#import scene_core::light_set::{lights, irradiance, emission}
+#import scene_core::shadow::{ShadowParams, visibility}
 // The lighting phase (thesis section 4.5, eq. 29, listing 7; mirrors
 // crates/isr/src/lighting.rs).
 //
-// Direct light C_0 / pi * sum_l E_l V_l over the light set (light_set.wgsl), each light
-// shadowed by its ESM (shadow.wgsl). MODE_SENDERS writes the direct radiance (the Lit
+// Direct light C_0 / pi * sum_l E_l V_l over the light set (scene-core's light_set.wgsl), each light
+// shadowed by its ESM (scene-core's shadow.wgsl). MODE_SENDERS writes the direct radiance (the Lit
 // senders of the ISR pass); MODE_COMPOSE composes eq. 29 with the upsampled ISR/SSAO buffer
 // (when HAS_ISR) and adds the emission of visible emitters (front side only).
 
@@ -34,6 +34,7 @@ override HAS_ISR: bool = true;
 fn shadowed_irradiance(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     var e = vec3<f32>(0.0);
     let count = g.config.z;
+    let sp = ShadowParams(g.filters.w, g.shadow.x, g.shadow.y, g.forward_extent.w);
     for (var i = 0u; i < count; i++) {
         let l = lights[i];
         var factor = l.direct;
@@ -44,7 +45,7 @@ fn shadowed_irradiance(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
         if (all(li == vec3<f32>(0.0))) {
             continue;
         }
-        e += li * visibility(l, p, n);
+        e += li * visibility(l, p, n, sp);
     }
     return e;
 }

@@ -61,7 +61,8 @@ pub struct Options {
     /// about an element's size); 0 refines down to the elements.
     #[arg(long, default_value_t = relight_pr::HierarchySettings::default().cluster_radius)]
     pub cluster_radius: f32,
-    /// Direct light at display: pixels (gathered per pixel, the default) or elements
+    /// Direct light at display: pixels (gathered per pixel, the default), shadow-maps
+    /// (scene-core's shadow-mapped lights evaluated per pixel every frame) or elements
     /// (interpolated from the solution like the indirect light, the paper's display).
     #[arg(long, default_value = "pixels")]
     pub direct: String,
@@ -222,7 +223,12 @@ pub fn run(o: &Options) -> Result<(), String> {
             emitter_rays: o.emitter_rays,
         },
         "elements" => DirectLight::Elements,
-        other => return Err(format!("--direct {other}: expected pixels or elements")),
+        "shadow-maps" => DirectLight::shadow_maps(),
+        other => {
+            return Err(format!(
+                "--direct {other}: expected pixels, shadow-maps or elements"
+            ));
+        }
     };
     let ids = light_ids(&scene);
     let mut technique = RelightTechnique::new(

@@ -44,11 +44,10 @@ use scene_core::lights::LightState;
 use scene_core::{GBuffer, Image, View};
 
 use crate::geometry::Screen;
-use crate::light_set::{LightKind, LightSet};
+use crate::light_set::LightSet;
 use crate::lighting::Variant;
 use crate::radiosity::SamplePattern;
 use crate::settings::{Blur, Estimator, IsrSettings, Sender};
-use crate::shadow::MapKind;
 use crate::{IsrError, PassTimings, blur, lighting, radiosity, upsample};
 
 /// Workgroup edge of every ISR shader (8 x 8 invocations).
@@ -146,100 +145,7 @@ impl Globals {
     }
 }
 
-/// One light in the light storage buffer (`Light` in `light_set.wgsl`, 144 bytes).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuLight {
-    /// Position.
-    pub position: [f32; 3],
-    /// 0 point, 1 directional, 2 emitter sample.
-    pub kind: u32,
-    /// Intensity, irradiance or radiance.
-    pub color: [f32; 3],
-    /// Eq. 16's radius (0: inverse square).
-    pub radius: f32,
-    /// Travel direction or emitting normal.
-    pub direction: [f32; 3],
-    /// Emitter area of a sample.
-    pub area: f32,
-    /// Orthographic map: right vector.
-    pub right: [f32; 3],
-    /// Orthographic map: half width.
-    pub half_extent: f32,
-    /// Orthographic map: up vector.
-    pub up: [f32; 3],
-    /// Texels per side.
-    pub map_res: u32,
-    /// Orthographic map: eye.
-    pub eye: [f32; 3],
-    /// First texel, or `u32::MAX` without a map.
-    pub map_offset: u32,
-    /// Orthographic map: direction.
-    pub forward: [f32; 3],
-    /// 0 cube, 1 orthographic.
-    pub map_kind: u32,
-    /// The frame's factor on its direct light.
-    pub direct: [f32; 3],
-    /// A spot's ramp scale (0 for every other light).
-    pub spot_scale: f32,
-    /// The frame's factor on the light it sends on (the `Lit` senders).
-    pub indirect: [f32; 3],
-    /// A spot's ramp offset (1 for every other light).
-    pub spot_offset: f32,
-}
-
-/// The emitter table in the GPU layout: two texels per emitter, (radiance times the frame's
-/// direct factor, 0) and (unit normal of the emitting side, 0).
-pub fn gpu_emitters(scene: &LightSet) -> Vec<[f32; 4]> {
-    let e = &scene.emitters;
-    let mut table = Vec::with_capacity(2 * e.entries.len());
-    for (k, (l, n)) in e.entries.iter().enumerate() {
-        let f = e.direct.get(k).copied().unwrap_or(glam::Vec3::ONE);
-        table.push((*l * f).extend(0.0).to_array());
-        table.push(n.extend(0.0).to_array());
-    }
-    table
-}
-
-/// The lights of `scene` in the GPU layout.
-pub fn gpu_lights(scene: &LightSet) -> Vec<GpuLight> {
-    scene
-        .lights
-        .iter()
-        .map(|l| {
-            let mut g = GpuLight {
-                position: l.position.to_array(),
-                kind: match l.kind {
-                    LightKind::Point => 0,
-                    LightKind::Directional => 1,
-                    LightKind::EmitterSample => 2,
-                },
-                color: l.color.to_array(),
-                radius: l.radius,
-                direction: l.direction.to_array(),
-                area: l.area,
-                map_offset: u32::MAX,
-                direct: l.direct.to_array(),
-                indirect: l.indirect.to_array(),
-                spot_scale: l.spot.scale,
-                spot_offset: l.spot.offset,
-                ..Default::default()
-            };
-            if let (Some(map), true) = (&l.shadow, scene.shadows.enabled) {
-                g.map_res = map.resolution;
-                g.map_offset = map.offset as u32;
-                let (eye, right, up, forward, half_extent) = map.frame();
-                g.map_kind = u32::from(matches!(map.kind, MapKind::Ortho { .. }));
-                g.eye = eye.to_array();
-                g.right = right.to_array();
-                g.up = up.to_array();
-                g.forward = forward.to_array();
-                g.half_extent = half_extent;
-            }
-            g
-        })
-        .collect()
-}
+pub use scene_core::shadowed_lights::gpu::{GpuLight, gpu_emitters, gpu_lights};
 
 // ---- pipeline helpers used by the pass modules ----
 

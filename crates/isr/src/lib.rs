@@ -36,11 +36,13 @@
 //!   [`scene_core::GBufferRenderer`].
 //!
 //! The passes, each a module here and a shader in `shaders/isr/`: [`lighting`] (also the
-//! `Lit` senders on the coarse buffer; its shader is composed of `light_set.wgsl`,
-//! `shadow.wgsl` and `lighting.wgsl`, mirroring [`light_set`], [`shadow`] and [`lighting`]),
-//! [`radiosity`] (ISR + SSAO), [`blur`], [`upsample`]. The coarse buffers come from
-//! scene-core's downsampling ([`downsample()`], `shaders/scene-core/downsample.wgsl`).
-//! [`shadow`] builds the maps on the CPU (they are view-independent).
+//! `Lit` senders on the coarse buffer; its shader is `lighting.wgsl` importing scene-core's
+//! `light_set.wgsl` and `shadow.wgsl`), [`radiosity`] (ISR + SSAO), [`blur`], [`upsample`].
+//! The coarse buffers come from scene-core's downsampling ([`downsample()`],
+//! `shaders/scene-core/downsample.wgsl`). The lights and their exponential shadow maps are
+//! scene-core's [`shadowed_lights`](scene_core::shadowed_lights), shared with relighting's
+//! per-frame direct light and re-exported here as [`light_set`] and [`shadow`]; the maps
+//! are built on the CPU (they are view-independent).
 //! `docs/isr.md` has the design decisions, the readings of the thesis' equations and the
 //! measured errors and timings.
 
@@ -48,14 +50,15 @@ pub mod blur;
 pub mod frame;
 pub mod geometry;
 pub mod gpu;
-pub mod light_set;
 pub mod lighting;
 pub mod radiosity;
 pub mod settings;
 pub mod shaders;
-pub mod shadow;
 pub mod technique;
 pub mod upsample;
+
+pub use scene_core::shadowed_lights as light_set;
+pub use scene_core::shadowed_lights::esm as shadow;
 
 pub use frame::{Frame, IsrInputs, PassTimings, render_cpu, render_image};
 pub use gpu::{GpuIsr, GpuIsrInputs, Intermediate};
@@ -130,6 +133,27 @@ pub enum IsrError {
     /// An error of the shared layer (G-buffer rendering).
     #[error(transparent)]
     Core(#[from] Box<scene_core::Error>),
+}
+
+/// The light set's errors keep their ISR names (ISR built its own light set before it moved
+/// to scene-core).
+impl From<scene_core::shadowed_lights::LightSetError> for IsrError {
+    fn from(e: scene_core::shadowed_lights::LightSetError) -> Self {
+        use scene_core::shadowed_lights::LightSetError as E;
+        match e {
+            E::InvalidSetting {
+                name,
+                value,
+                reason,
+            } => IsrError::InvalidSetting {
+                name,
+                value,
+                reason,
+            },
+            E::BadScene(s) => IsrError::BadScene(s),
+            E::Budget(b) => IsrError::Budget(b),
+        }
+    }
 }
 
 /// Keeps the error's kind across the [`scene_core::Technique`] boundary: GPU and shared-layer

@@ -1,7 +1,7 @@
 //! The ISR passes' WGSL (`shaders/isr/`, reached through the crate's `shaders` link), as
 //! scene-core's shader composer joins them: `common.wgsl` is the module `isr::common`
-//! (importing `scene_core::reconstruct`), the lighting pass imports the light set
-//! (`isr::light_set`) and the shadow maps (`isr::shadow`) it shares with
+//! (importing `scene_core::reconstruct`), the lighting pass imports scene-core's light set
+//! (`scene_core::light_set`) and shadow maps (`scene_core::shadow`), the WGSL twins of
 //! [`crate::light_set`] and [`crate::shadow`].
 
 use scene_core::gpu::shader::{RECONSTRUCT, ShaderPass, Wgsl};
@@ -9,10 +9,7 @@ use scene_core::wgsl_file;
 
 /// Globals, flags and view helpers of every ISR pass (`isr::common`).
 pub const COMMON: Wgsl = wgsl_file!("isr", "common.wgsl");
-/// The light set (`isr::light_set`).
-pub const LIGHT_SET: Wgsl = wgsl_file!("isr", "light_set.wgsl");
-/// Exponential shadow maps with PCF (`isr::shadow`).
-pub const SHADOW: Wgsl = wgsl_file!("isr", "shadow.wgsl");
+pub use scene_core::shadowed_lights::gpu::{LIGHT_SET, SHADOW};
 
 /// What every ISR pass may import.
 const LIBRARY: &[Wgsl] = &[RECONSTRUCT, COMMON, LIGHT_SET, SHADOW];

@@ -114,7 +114,7 @@ impl Technique for IsrTechnique {
         self.gpu = None;
         scene_core::contract::check(&scene)?;
         self.renderer.prepare(scene.clone())?;
-        let lights = LightSet::new(&scene, &self.shadows)?;
+        let lights = LightSet::new(&scene, &self.shadows).map_err(crate::IsrError::from)?;
         self.prepared = Some((scene, lights));
         Ok(())
     }

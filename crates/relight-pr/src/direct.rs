@@ -37,6 +37,35 @@ pub enum DirectLight {
         /// Visibility rays per footprint point for each emissive source.
         emitter_rays: u32,
     },
+    /// Evaluated at every pixel of every frame from scene-core's shadow-mapped lights
+    /// ([`scene_core::shadowed_lights`], the exponential shadow maps ISR's direct light
+    /// uses): one lookup per light at the pixel's centre, summed per source. Point, spot
+    /// and directional lights and the sky's directions each have their map; an emissive
+    /// source is `emitter_samples` point samples drawn by power over its triangles, each
+    /// with a cube map. The maps are view-independent and built once; nothing is reused
+    /// from one view to the next, so a moving camera costs what a still one does, on the
+    /// CPU ([`crate::display::pixel_direct_shadowed`]) and on the GPU
+    /// ([`crate::gpu::GpuRelight::encode_display_shadowed`]).
+    ShadowMaps {
+        /// Point samples standing in for the emissive triangles
+        /// ([`scene_core::shadowed_lights::ShadowSettings::emitter_samples`]).
+        emitter_samples: u32,
+    },
+}
+
+impl DirectLight {
+    /// [`DirectLight::ShadowMaps`] with scene-core's default emitter samples.
+    pub fn shadow_maps() -> Self {
+        DirectLight::ShadowMaps {
+            emitter_samples: scene_core::shadowed_lights::ShadowSettings::default().emitter_samples,
+        }
+    }
+
+    /// Whether the display adds a per-pixel direct light (the elements then carry the
+    /// indirect light only).
+    pub fn is_per_pixel(&self) -> bool {
+        !matches!(self, DirectLight::Elements)
+    }
 }
 
 /// Anything that answers shadow rays: the scene's BVH ([`RayScene`]), or the scene with

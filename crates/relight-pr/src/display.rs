@@ -11,6 +11,7 @@ use std::collections::HashMap;
 use glam::Vec3;
 use rayon::prelude::*;
 use scene_core::sampling::{hash_seed, r2};
+use scene_core::shadowed_lights::LightSet;
 use scene_core::{GBuffer, Image, View};
 
 use crate::direct::DirectGather;
@@ -216,6 +217,56 @@ pub fn pixel_direct<O: crate::direct::Occlusion + ?Sized>(
             gather.mean_over(rays, points, quad.as_ref().map(|q| &q[..]), n, i as u64, o);
         },
     );
+    out
+}
+
+/// Which of `sources` holds each light of `set` (its slot in the per-pixel direct light),
+/// `None` for a light no source holds.
+pub fn light_slots(set: &LightSet, sources: &[crate::solver::Source]) -> Vec<Option<usize>> {
+    set.lights
+        .iter()
+        .map(|l| sources.iter().position(|s| s.lights.contains(&l.id)))
+        .collect()
+}
+
+/// The direct irradiance from every source at every pixel of `g` (a G-buffer seen from
+/// `view`) from the shadow-mapped lights of `set` ([`DirectLight::ShadowMaps`]): at each
+/// pixel's centre, each light's irradiance times its shadow factor (eq. 30 of the ISR
+/// thesis, [`LightSet::light_irradiance`]) is added to its source's slot (`slots`,
+/// [`light_slots`]), pixel-major (`i * k + m`), before the frame's factors; zero on
+/// background. The CPU twin of relighting's GPU direct pass.
+///
+/// [`DirectLight::ShadowMaps`]: crate::direct::DirectLight::ShadowMaps
+pub fn pixel_direct_shadowed(
+    set: &LightSet,
+    slots: &[Option<usize>],
+    k: usize,
+    g: &GBuffer,
+    view: &View,
+) -> Vec<Vec3> {
+    let (w, h) = (g.width, g.height);
+    let mut out = vec![Vec3::ZERO; g.len() * k];
+    if k == 0 {
+        return out;
+    }
+    out.par_chunks_mut(k).enumerate().for_each(|(i, o)| {
+        if g.is_background(i) {
+            return;
+        }
+        let uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
+        let p = view.reconstruct_world(uv, g.depth[i]);
+        let n = g.normal[i];
+        for (j, slot) in slots.iter().enumerate() {
+            if let Some(m) = slot.filter(|m| *m < k) {
+                o[m] += set.light_irradiance(j, p, n);
+            }
+        }
+        for v in o.iter_mut() {
+            if !v.is_finite() {
+                *v = Vec3::ZERO;
+            }
+        }
+    });
     out
 }
 

@@ -1,7 +1,10 @@
 //! Relighting on the GPU (wgpu compute, `shaders/relight-pr/`): eq. 1 over the packed
 //! element solution ([`GpuRelight::relight`]), and the paper's "hardware" display: the
 //! per-light radiosity at the welded vertices combined with the frame's light factors per
-//! pixel in one pass over a G-buffer of the element scene ([`GpuRelight::display`]). The
+//! pixel in one pass over a G-buffer of the element scene ([`GpuRelight::display`]), with
+//! the direct light from the elements, from per-pixel values the caller gathered, or from
+//! scene-core's shadow-mapped lights evaluated per frame by a pass of its own
+//! ([`GpuRelight::set_shadowed_direct`], [`GpuRelight::encode_display_shadowed`]). The
 //! solution is uploaded once; a frame uploads only the k factor pairs.
 
 use glam::Vec3;
@@ -9,6 +12,8 @@ use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{storage_buffer, storage_buffer_rw, uniform};
 use scene_core::gpu::shader::{ShaderPass, Wgsl};
 use scene_core::gpu::{FrameWriter, GpuContext, GpuError, GpuGBuffer, KeptBuffer};
+use scene_core::shadowed_lights::LightSet;
+use scene_core::shadowed_lights::gpu::{LIGHT_SET, SHADOW, ShadowParams, gpu_lights};
 use scene_core::view::FrustumReconstruction;
 use scene_core::{Image, View};
 
@@ -36,8 +41,16 @@ pub const DISPLAY: ShaderPass = ShaderPass::new(
     &[COMMON, scene_core::gpu::shader::RECONSTRUCT],
 );
 
+/// The per-frame direct pass: scene-core's shadow-mapped lights at every pixel, summed per
+/// source ([`crate::direct::DirectLight::ShadowMaps`]).
+pub const DIRECT: ShaderPass = ShaderPass::new(
+    "relight-pr/direct",
+    scene_core::wgsl_file!("relight-pr", "direct.wgsl"),
+    &[scene_core::gpu::shader::RECONSTRUCT, LIGHT_SET, SHADOW],
+);
+
 /// Every shader pass of relighting, as `cargo xtask shaders` validates them.
-pub const SHADER_PASSES: &[ShaderPass] = &[RELIGHT, DISPLAY];
+pub const SHADER_PASSES: &[ShaderPass] = &[RELIGHT, DISPLAY, DIRECT];
 
 const GROUP: u32 = 64;
 const MAX_GROUPS_X: u32 = 32768;
@@ -60,6 +73,17 @@ struct DisplayParams {
     k: u32,
     elements: u32,
     base: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct DirectParams {
+    frustum: [[f32; 4]; 6],
+    width: u32,
+    height: u32,
+    k: u32,
+    lights: u32,
+    shadow: ShadowParams,
 }
 
 #[repr(C)]
@@ -97,6 +121,34 @@ pub struct GpuRelight {
     direct: std::sync::Mutex<KeptBuffer>,
     /// The display's bind group and what it was made for.
     display_bind: std::sync::Mutex<Option<(DisplayKey, wgpu::BindGroup)>>,
+    /// The shadow-mapped lights of the per-frame direct pass, once set.
+    shadowed: Option<ShadowedDirect>,
+}
+
+/// Scene-core's shadow-mapped lights on the GPU and the pass that evaluates them per pixel
+/// into the display's per-pixel direct buffer.
+struct ShadowedDirect {
+    pass: ComputePass,
+    params: wgpu::Buffer,
+    lights: wgpu::Buffer,
+    texels: wgpu::Buffer,
+    slots: wgpu::Buffer,
+    count: u32,
+    shadow: ShadowParams,
+    /// The pass' bind group and what it was made for: the G-buffer's normal, depth and id
+    /// textures and the direct buffer's generation.
+    bind: std::sync::Mutex<Option<(([wgpu::Texture; 3], u64), wgpu::BindGroup)>>,
+}
+
+/// Where a display takes its direct light from.
+#[derive(Clone, Copy)]
+enum Direct<'a> {
+    /// The elements (the paper's display).
+    Elements,
+    /// Values the caller gathered, pixel-major.
+    Values(&'a [Vec3]),
+    /// The shadow-mapped lights, evaluated by the direct pass in the same encoder.
+    Shadowed,
 }
 
 /// What the display's bind group depends on: the G-buffer's textures and the output by
@@ -275,6 +327,7 @@ impl GpuRelight {
                 wgpu::BufferUsages::STORAGE,
             )),
             display_bind: std::sync::Mutex::new(None),
+            shadowed: None,
             ctx: ctx.clone(),
             k: packed.k,
             elements: n,
@@ -446,12 +499,37 @@ impl GpuRelight {
         base: Vec3,
         pixel_direct: Option<&[Vec3]>,
     ) -> Result<Image, RelightError> {
+        let direct = pixel_direct.map_or(Direct::Elements, Direct::Values);
+        self.display_with(g, view, factors, base, direct)
+    }
+
+    /// [`GpuRelight::display`] with the direct light of the shadow-mapped lights set by
+    /// [`GpuRelight::set_shadowed_direct`], evaluated at every pixel on the GPU: equals
+    /// [`crate::display::compose`] over [`crate::display::pixel_direct_shadowed`].
+    pub fn display_shadowed(
+        &self,
+        g: &GpuGBuffer,
+        view: &View,
+        factors: &[(Vec3, Vec3)],
+        base: Vec3,
+    ) -> Result<Image, RelightError> {
+        self.display_with(g, view, factors, base, Direct::Shadowed)
+    }
+
+    fn display_with(
+        &self,
+        g: &GpuGBuffer,
+        view: &View,
+        factors: &[(Vec3, Vec3)],
+        base: Vec3,
+        direct: Direct<'_>,
+    ) -> Result<Image, RelightError> {
         let (w, h) = (g.width, g.height);
         let pixels = w as usize * h as usize;
         let ctx = &self.ctx;
         let image = ctx.pixel_buffer("relight image", w, h);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        self.encode_display(&mut encoder, g, view, factors, base, pixel_direct, &image)?;
+        self.encode_display_with(&mut encoder, g, view, factors, base, direct, &image)?;
         ctx.queue.submit([encoder.finish()]);
         let v: Vec<[f32; 4]> = ctx.read_buffer_as(&image).map_err(gpu)?;
         Ok(Image {
@@ -463,6 +541,92 @@ impl GpuRelight {
                 .map(|p| Vec3::new(p[0], p[1], p[2]))
                 .collect(),
         })
+    }
+
+    /// Uploads `set` (scene-core's shadow-mapped lights of the scene this solution is of)
+    /// with `slots`, the source that holds each light ([`crate::display::light_slots`]),
+    /// and compiles the direct pass: what [`GpuRelight::encode_display_shadowed`] reads.
+    /// Once per scene or light rig (the maps are view-independent), never per frame.
+    /// Fails on a slot count that is not the set's light count, and with
+    /// [`RelightError::Budget`] before allocating maps over the adapter's binding limit.
+    pub fn set_shadowed_direct(
+        &mut self,
+        set: &LightSet,
+        slots: &[Option<usize>],
+    ) -> Result<(), RelightError> {
+        if slots.len() != set.lights.len() {
+            return Err(RelightError::InvalidSetting(format!(
+                "{} light slots for {} lights",
+                slots.len(),
+                set.lights.len()
+            )));
+        }
+        let ctx = &self.ctx;
+        let limits = ctx.device.limits();
+        let limit = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        let lights = gpu_lights(set);
+        let texel_bytes = set.shadow_texels.len() as u64 * 4;
+        check_binding("shadow maps", texel_bytes, limit)?;
+        check_binding("light table", std::mem::size_of_val(lights.as_slice()) as u64, limit)?;
+        let pass = ComputePass::new(
+            &ctx.device,
+            "relight-pr direct",
+            &DIRECT,
+            &[
+                uniform(0),
+                storage_buffer(1),
+                storage_buffer_rw(2),
+                scene_core::gpu::layout::float_texture(3),
+                scene_core::gpu::layout::float_texture(4),
+                scene_core::gpu::layout::texture(5, wgpu::TextureSampleType::Uint),
+                storage_buffer(6),
+                storage_buffer(7),
+            ],
+            &[],
+        )
+        .map_err(gpu)?;
+        // Storage bindings may not be empty: a set without lights or maps binds one zero.
+        let nonempty = |bytes: &[u8], min: usize| {
+            let mut v = bytes.to_vec();
+            v.resize(v.len().max(min), 0);
+            v
+        };
+        let slot_words: Vec<u32> = slots
+            .iter()
+            .map(|s| s.map_or(u32::MAX, |m| m as u32))
+            .collect();
+        let shadowed = ctx
+            .validated(|| ShadowedDirect {
+                params: ctx.frame_buffer(
+                    "relight direct params",
+                    std::mem::size_of::<DirectParams>() as u64,
+                    wgpu::BufferUsages::UNIFORM,
+                ),
+                lights: ctx.storage_with(
+                    "relight direct lights",
+                    &nonempty(bytemuck::cast_slice(&lights), 144),
+                    wgpu::BufferUsages::empty(),
+                ),
+                texels: ctx.storage_with(
+                    "relight direct shadow maps",
+                    &nonempty(bytemuck::cast_slice(&set.shadow_texels), 4),
+                    wgpu::BufferUsages::empty(),
+                ),
+                slots: ctx.storage_with(
+                    "relight direct slots",
+                    &nonempty(bytemuck::cast_slice(&slot_words), 4),
+                    wgpu::BufferUsages::empty(),
+                ),
+                count: lights.len() as u32,
+                shadow: ShadowParams::of(set),
+                pass,
+                bind: std::sync::Mutex::new(None),
+            })
+            .map_err(gpu)?;
+        self.shadowed = Some(shadowed);
+        Ok(())
     }
 
     /// Records [`GpuRelight::display`] into `encoder`, writing the image into `output` (at
@@ -480,12 +644,45 @@ impl GpuRelight {
         pixel_direct: Option<&[Vec3]>,
         output: &wgpu::Buffer,
     ) -> Result<(), RelightError> {
+        let direct = pixel_direct.map_or(Direct::Elements, Direct::Values);
+        self.encode_display_with(encoder, g, view, factors, base, direct, output)
+    }
+
+    /// Records [`GpuRelight::display_shadowed`] into `encoder`: the direct pass (every
+    /// shadow-mapped light at every pixel of `g`, per source) and the display reading it,
+    /// into `output` as [`GpuRelight::encode_display`] does. What a frame of a moving camera
+    /// costs: nothing is kept from the previous view. Fails when
+    /// [`GpuRelight::set_shadowed_direct`] was not called.
+    pub fn encode_display_shadowed(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        g: &GpuGBuffer,
+        view: &View,
+        factors: &[(Vec3, Vec3)],
+        base: Vec3,
+        output: &wgpu::Buffer,
+    ) -> Result<(), RelightError> {
+        self.encode_display_with(encoder, g, view, factors, base, Direct::Shadowed, output)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn encode_display_with(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        g: &GpuGBuffer,
+        view: &View,
+        factors: &[(Vec3, Vec3)],
+        base: Vec3,
+        direct_in: Direct<'_>,
+        output: &wgpu::Buffer,
+    ) -> Result<(), RelightError> {
         self.check_factors(factors)?;
         let (w, h) = (g.width, g.height);
         GpuContext::check_pixel_buffer(output, w, h, "display output").map_err(gpu)?;
         let pixels = w as usize * h as usize;
+        let frustum = FrustumReconstruction::new(view).uniform();
         let params = DisplayParams {
-            frustum: FrustumReconstruction::new(view).uniform(),
+            frustum,
             width: w,
             height: h,
             k: self.k as u32,
@@ -493,8 +690,8 @@ impl GpuRelight {
             base: base.extend(0.0).to_array(),
         };
         let ctx = &self.ctx;
-        let (pass, direct): (_, Vec<[f32; 4]>) = match pixel_direct {
-            Some(values) => {
+        let (pass, direct, direct_bytes): (_, Vec<[f32; 4]>, u64) = match direct_in {
+            Direct::Values(values) => {
                 if values.len() != pixels * self.k {
                     return Err(RelightError::InvalidSetting(format!(
                         "per-pixel direct light of {} values for {pixels} pixels and {} sources",
@@ -502,22 +699,33 @@ impl GpuRelight {
                         self.k
                     )));
                 }
+                let v: Vec<[f32; 4]> = values.iter().map(|v| v.extend(0.0).to_array()).collect();
+                let bytes = std::mem::size_of_val(v.as_slice()) as u64;
+                (&self.display_per_pixel, v, bytes)
+            }
+            Direct::Shadowed => {
+                if self.shadowed.is_none() {
+                    return Err(RelightError::InvalidSetting(
+                        "no shadow-mapped lights on the GPU: call set_shadowed_direct first"
+                            .into(),
+                    ));
+                }
                 (
                     &self.display_per_pixel,
-                    values.iter().map(|v| v.extend(0.0).to_array()).collect(),
+                    Vec::new(),
+                    (pixels * self.k) as u64 * 16,
                 )
             }
-            None => (&self.display_pass, Vec::new()),
+            Direct::Elements => (&self.display_pass, Vec::new(), 0),
         };
         let mut kept = self.direct.lock().unwrap_or_else(|e| e.into_inner());
-        let direct_buf = kept
-            .ensure(&ctx.device, std::mem::size_of_val(direct.as_slice()) as u64)
-            .clone();
+        let direct_buf = kept.ensure(&ctx.device, direct_bytes).clone();
+        let generation = kept.generation();
         let key = DisplayKey {
             textures: [g.albedo.clone(), g.depth.clone(), g.triangle_id.clone()],
             output: output.clone(),
-            per_pixel: pixel_direct.is_some(),
-            direct: kept.generation(),
+            per_pixel: !matches!(direct_in, Direct::Elements),
+            direct: generation,
         };
         drop(kept);
         let mut cached = self.display_bind.lock().unwrap_or_else(|e| e.into_inner());
@@ -543,6 +751,46 @@ impl GpuRelight {
         let Some((_, bind)) = cached.as_ref() else {
             unreachable!("made above")
         };
+        // The direct pass' bind group (shadow-mapped lights only).
+        let shadowed = match (direct_in, &self.shadowed) {
+            (Direct::Shadowed, Some(s)) if self.k > 0 => {
+                let key = (
+                    [g.normal.clone(), g.depth.clone(), g.triangle_id.clone()],
+                    generation,
+                );
+                let mut cached = s.bind.lock().unwrap_or_else(|e| e.into_inner());
+                if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+                    let views = [&g.normal, &g.depth, &g.triangle_id]
+                        .map(|t| t.create_view(&Default::default()));
+                    let bind = s.pass.bind(
+                        &ctx.device,
+                        &[
+                            s.params.as_entire_binding(),
+                            s.slots.as_entire_binding(),
+                            direct_buf.as_entire_binding(),
+                            wgpu::BindingResource::TextureView(&views[0]),
+                            wgpu::BindingResource::TextureView(&views[1]),
+                            wgpu::BindingResource::TextureView(&views[2]),
+                            s.lights.as_entire_binding(),
+                            s.texels.as_entire_binding(),
+                        ],
+                    );
+                    *cached = Some((key, bind));
+                }
+                let params = DirectParams {
+                    frustum,
+                    width: w,
+                    height: h,
+                    k: self.k as u32,
+                    lights: s.count,
+                    shadow: s.shadow,
+                };
+                self.writer
+                    .write(encoder, &s.params, 0, bytemuck::bytes_of(&params));
+                Some((s, cached))
+            }
+            _ => None,
+        };
         self.writer.write(
             encoder,
             &self.display_params,
@@ -559,6 +807,11 @@ impl GpuRelight {
         self.writer
             .write(encoder, &direct_buf, 0, bytemuck::cast_slice(&direct));
         self.writer.finish(encoder);
+        if let Some((s, cached)) = &shadowed {
+            if let Some((_, bind)) = cached.as_ref() {
+                s.pass.dispatch(encoder, bind, w, h, None);
+            }
+        }
         pass.dispatch(encoder, bind, w, h, None);
         Ok(())
     }
@@ -615,6 +868,20 @@ mod layout_tests {
                 k,
                 elements,
                 base,
+            }
+        )
+        .unwrap();
+        let direct = DIRECT.compose().unwrap();
+        check_layout!(
+            &direct,
+            "DirectParams",
+            DirectParams {
+                frustum,
+                width,
+                height,
+                k,
+                lights,
+                shadow,
             }
         )
         .unwrap();

@@ -10,7 +10,9 @@ use scene_core::ray::RayScene;
 use scene_core::{Error, FrameRequest, GBufferRenderer, Image, Scene, Technique};
 
 use crate::direct::{DirectGather, DirectLight};
-use crate::display::{PixelDirect, Shading, Welding, compose, pixel_direct};
+use crate::display::{
+    PixelDirect, Shading, Welding, compose, light_slots, pixel_direct, pixel_direct_shadowed,
+};
 use crate::mesh::{MeshSettings, Meshing};
 use crate::relight;
 use crate::solver::{self, Solution, SolverSettings};
@@ -37,8 +39,10 @@ pub struct FrameTimings {
     pub relight: Duration,
     /// The G-buffer of the element scene.
     pub gbuffer: Duration,
-    /// The per-pixel direct light of every source ([`DirectLight::PerPixel`]); zero when
-    /// the view and size are those of the previous frame (the gather is reused).
+    /// The per-pixel direct light of every source: the gather of [`DirectLight::PerPixel`]
+    /// (zero when the view and size are those of the previous frame: the gather is
+    /// reused), or the shadow-map lookups of [`DirectLight::ShadowMaps`] (every frame; the
+    /// maps themselves are built once, in `prepare` or the first frame that asks for them).
     pub direct: Duration,
     /// Vertex averaging and per-pixel interpolation.
     pub display: Duration,
@@ -51,6 +55,14 @@ struct DirectCache {
     size: (u32, u32),
     settings: DirectLight,
     values: Vec<glam::Vec3>,
+}
+
+/// The shadow-mapped lights of [`DirectLight::ShadowMaps`] and each light's source.
+#[derive(Debug)]
+struct ShadowedLights {
+    emitter_samples: u32,
+    set: scene_core::shadowed_lights::LightSet,
+    slots: Vec<Option<usize>>,
 }
 
 /// Radiosity relighting as a [`Technique`].
@@ -67,6 +79,7 @@ pub struct RelightTechnique {
     renderer: Box<dyn GBufferRenderer + Send>,
     prepared: Option<Prepared>,
     cache: Option<DirectCache>,
+    shadowed: Option<ShadowedLights>,
     timings: FrameTimings,
     name: String,
 }
@@ -96,6 +109,7 @@ impl RelightTechnique {
             renderer,
             prepared: None,
             cache: None,
+            shadowed: None,
             timings: FrameTimings::default(),
             name: "relight".into(),
         }
@@ -158,6 +172,7 @@ impl RelightTechnique {
     ) -> Result<(), Error> {
         self.prepared = None;
         self.cache = None;
+        self.shadowed = None;
         scene_core::contract::check(&scene)?;
         let k = solver::sources(&scene, &self.solver.banks)?.len();
         let rays = RayScene::build(&scene);
@@ -182,7 +197,37 @@ impl RelightTechnique {
             welding,
             rays,
         });
+        if let DirectLight::ShadowMaps { emitter_samples } = self.direct {
+            self.shadowed_lights(emitter_samples)?;
+        }
         Ok(())
+    }
+
+    /// The shadow-mapped lights for `emitter_samples`, built on first use (the maps do not
+    /// depend on the view).
+    fn shadowed_lights(&mut self, emitter_samples: u32) -> Result<&ShadowedLights, Error> {
+        let Some(p) = self.prepared.as_ref() else {
+            return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
+        };
+        if self
+            .shadowed
+            .as_ref()
+            .is_none_or(|s| s.emitter_samples != emitter_samples)
+        {
+            let settings = scene_core::shadowed_lights::ShadowSettings {
+                emitter_samples,
+                ..Default::default()
+            };
+            let set = scene_core::shadowed_lights::LightSet::new(&p.scene, &settings)
+                .map_err(|e| Error::method("relight-pr", e))?;
+            let slots = light_slots(&set, &p.solution.sources);
+            self.shadowed = Some(ShadowedLights {
+                emitter_samples,
+                set,
+                slots,
+            });
+        }
+        Ok(self.shadowed.as_ref().expect("built above"))
     }
 
     /// The times of the last frame.
@@ -201,13 +246,21 @@ impl Technique for RelightTechnique {
     }
 
     fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
-        let Some(p) = self.prepared.as_ref() else {
+        if self.prepared.is_none() {
             return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
+        }
+        // Built before the frame's clock starts only when the mode changed after prepare.
+        if let DirectLight::ShadowMaps { emitter_samples } = self.direct {
+            self.shadowed_lights(emitter_samples)?;
+        }
+        let Some(p) = self.prepared.as_ref() else {
+            unreachable!("checked above")
         };
         let t0 = std::time::Instant::now();
-        let irradiance = match self.direct {
-            DirectLight::Elements => relight::irradiance(&p.solution, frame.lights),
-            DirectLight::PerPixel { .. } => relight::indirect_irradiance(&p.solution, frame.lights),
+        let irradiance = if self.direct.is_per_pixel() {
+            relight::indirect_irradiance(&p.solution, frame.lights)
+        } else {
+            relight::irradiance(&p.solution, frame.lights)
         };
         let glow = relight::glow(&p.meshing, &p.solution, frame.lights);
         let factors: Vec<glam::Vec3> = relight::factors(&p.solution, frame.lights)
@@ -221,25 +274,44 @@ impl Technique for RelightTechnique {
             .render_view(&frame.view, frame.width, frame.height)?;
         let gbuffer_time = t1.elapsed();
         let t3 = std::time::Instant::now();
-        if let DirectLight::PerPixel {
-            subpixels,
-            emitter_rays,
-        } = self.direct
-        {
-            let size = (frame.width, frame.height);
-            let fresh = self.cache.as_ref().is_some_and(|c| {
-                c.view == frame.view && c.size == size && c.settings == self.direct
-            });
-            if !fresh {
-                let gather =
-                    DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, emitter_rays);
+        match self.direct {
+            DirectLight::PerPixel {
+                subpixels,
+                emitter_rays,
+            } => {
+                let size = (frame.width, frame.height);
+                let fresh = self.cache.as_ref().is_some_and(|c| {
+                    c.view == frame.view && c.size == size && c.settings == self.direct
+                });
+                if !fresh {
+                    let gather =
+                        DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, emitter_rays);
+                    self.cache = Some(DirectCache {
+                        view: frame.view,
+                        size,
+                        settings: self.direct,
+                        values: pixel_direct(&gather, &p.rays, &g, &frame.view, subpixels),
+                    });
+                }
+            }
+            DirectLight::ShadowMaps { .. } => {
+                let Some(s) = self.shadowed.as_ref() else {
+                    unreachable!("built above")
+                };
                 self.cache = Some(DirectCache {
                     view: frame.view,
-                    size,
+                    size: (frame.width, frame.height),
                     settings: self.direct,
-                    values: pixel_direct(&gather, &p.rays, &g, &frame.view, subpixels),
+                    values: pixel_direct_shadowed(
+                        &s.set,
+                        &s.slots,
+                        p.solution.k(),
+                        &g,
+                        &frame.view,
+                    ),
                 });
             }
+            DirectLight::Elements => {}
         }
         let direct_time = t3.elapsed();
         let t2 = std::time::Instant::now();
@@ -247,11 +319,13 @@ impl Technique for RelightTechnique {
             Shading::Smooth => p.welding.vertex_values(&p.meshing, &irradiance),
             Shading::Flat => Vec::new(),
         };
-        let direct = match (self.direct, &self.cache) {
-            (DirectLight::PerPixel { .. }, Some(c)) => Some(PixelDirect {
-                values: &c.values,
-                factors: &factors,
-            }),
+        let direct = match &self.cache {
+            Some(c) if self.direct.is_per_pixel() && c.settings == self.direct => {
+                Some(PixelDirect {
+                    values: &c.values,
+                    factors: &factors,
+                })
+            }
             _ => None,
         };
         let image = compose(

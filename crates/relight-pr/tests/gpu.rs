@@ -1,13 +1,16 @@
 //! The packed layout and the GPU passes against the CPU: eq. 1 from packed f32 words equals
 //! the solution's own relight, f16 storage stays within half-float rounding, the GPU
 //! relight pass equals the CPU one at both precisions, and the hardware display equals
-//! the CPU display (with direct light from the elements and per pixel).
+//! the CPU display (with direct light from the elements, per pixel, and from the
+//! shadow-mapped lights evaluated per frame by the GPU's own direct pass).
 
 use std::sync::Arc;
 
 use glam::Vec3;
 use relight_pr::direct::DirectGather;
-use relight_pr::display::{PixelDirect, Shading, Welding, compose, pixel_direct};
+use relight_pr::display::{
+    PixelDirect, Shading, Welding, compose, light_slots, pixel_direct, pixel_direct_shadowed,
+};
 use relight_pr::gpu::GpuRelight;
 use relight_pr::packed::{Packed, Precision};
 use relight_pr::{MeshSettings, Meshing, Solution, SolverSettings, relight, solve};
@@ -15,6 +18,7 @@ use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{GpuGBuffer, gpu_test_context};
 use scene_core::lights::{LightId, LightState};
 use scene_core::ray::RayScene;
+use scene_core::shadowed_lights::{LightSet, ShadowSettings};
 use scene_core::{GBufferRenderer, Scene, View, builtin};
 
 fn solved() -> (Arc<Scene>, Meshing, Solution, RayScene) {
@@ -310,4 +314,89 @@ fn steady_state_frames_create_no_gpu_objects() {
         ctx.read_buffer_as::<[f32; 4]>(&b).unwrap() == frames[5],
         "second state"
     );
+}
+
+/// Small shadow maps for the tests (the defaults' 256-texel cube faces cost seconds in an
+/// unoptimised test build).
+fn test_shadows() -> ShadowSettings {
+    ShadowSettings {
+        cube_resolution: 64,
+        emitter_samples: 8,
+        emitter_cube_resolution: 32,
+        directional_resolution: 256,
+        ..Default::default()
+    }
+}
+
+/// The per-frame direct light of the shadow-mapped lights, evaluated by the GPU's direct
+/// pass in the display's encoder, equals the CPU twin (`pixel_direct_shadowed` + `compose`)
+/// per pixel within rounding, under a light state that recolours, dims and switches; a
+/// display asked for before the lights are set, or with a slot list of another length, is
+/// a typed error; and steady frames create no GPU object.
+#[test]
+fn shadowed_direct_display_equals_the_cpu_twin() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let (scene, meshing, solution, _) = solved();
+    let welding = Welding::new(&meshing, scene.extent());
+    let state = edited(&scene);
+    let (w, h) = (64, 48);
+    let (view, g, gg) = element_gbuffer(&ctx, &scene, &meshing, w, h);
+    let mut gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
+    let glow = relight::glow(&meshing, &solution, &state);
+    let (f, base) = relight::weights(&solution, &state, true);
+    let direct_factors: Vec<Vec3> = f.iter().map(|(d, _)| *d).collect();
+    assert!(gpu.display_shadowed(&gg, &view, &f, base).is_err());
+
+    let set = LightSet::new(&scene, &test_shadows()).unwrap();
+    let slots = light_slots(&set, &solution.sources);
+    assert!(slots.iter().all(Option::is_some), "every light has a source");
+    assert!(gpu.set_shadowed_direct(&set, &slots[1..]).is_err());
+    gpu.set_shadowed_direct(&set, &slots).unwrap();
+
+    let values = pixel_direct_shadowed(&set, &slots, solution.k(), &g, &view);
+    let e = relight::indirect_irradiance(&solution, &state);
+    let vertex = welding.vertex_values(&meshing, &e);
+    let cpu = compose(
+        &meshing,
+        &welding,
+        &g,
+        &view,
+        &e,
+        &vertex,
+        &glow,
+        Shading::Smooth,
+        Some(PixelDirect {
+            values: &values,
+            factors: &direct_factors,
+        }),
+    );
+    let lit = values.iter().filter(|v| v.max_element() > 0.0).count();
+    assert!(lit > values.len() / 4, "the maps light the corridor: {lit}");
+    let got = gpu.display_shadowed(&gg, &view, &f, base).unwrap();
+    let err = rel_max(&got.pixels, &cpu.pixels);
+    eprintln!("hardware display, direct from shadow maps: {err:.2e} of the peak");
+    assert!(err < 1e-4, "{err}");
+
+    use scene_core::gpu::ObjectCounts;
+    let output = ctx.pixel_buffer("display", w, h);
+    for frame in 0..4 {
+        let mut state = LightState::default();
+        state.set_color(LightId::Point(0), Vec3::new(1.0, 0.3 * frame as f32, 0.5));
+        let (f, base) = relight::weights(&solution, &state, true);
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let (result, created) = ObjectCounts::during(&ctx.device, || {
+            gpu.encode_relight(&mut encoder, &f, base, None)?;
+            gpu.encode_display_shadowed(&mut encoder, &gg, &view, &f, base, &output)
+        });
+        result.unwrap();
+        ctx.queue.submit([encoder.finish()]);
+        let image: Vec<[f32; 4]> = ctx.read_buffer_as(&output).unwrap();
+        assert!(image.iter().any(|p| p[0] > 0.0), "frame {frame} is lit");
+        assert_eq!(created.pipelines, 0, "frame {frame}: {created}");
+        if frame >= 2 {
+            assert!(created.is_zero(), "frame {frame}: {created}");
+        }
+    }
 }

@@ -23,6 +23,7 @@
 //! | scene model | [`model`]: [`scene`], [`builtin`], [`lights`], [`view`] | meshes, materials, lights and their ids and state, cameras and views |
 //! | files | [`files`]: [`gltf_io`], [`image`], [`budget`] | glTF, EXR and PNG in and out, budgets against hostile files |
 //! | rays | [`rays`]: [`ray`], [`reference`](mod@reference), [`sampling`] | the BVH, the reference path tracer, sampling |
+//! | direct light | [`shadowed_lights`] (with [`shadowed_lights::esm`]) | lights with exponential shadow maps, evaluated per pixel by ISR and relighting (CPU and WGSL) |
 //! | G-buffer | [`gbuffer`] (with [`gbuffer::downsample`](mod@gbuffer::downsample)) | the currency of the screen-space methods, the renderer trait, operations on G-buffers (CPU and WGSL) |
 //! | GPU | [`gpu`] (with [`gpu::compute`]) | the headless context, uploads and readbacks, GPU G-buffers, the compute-pass helper and pass timer |
 //! | methods | [`technique`], [`error`], [`hash`], [`range`] | the traits the methods implement, errors, scene identity, stated ranges of user-set numbers |
@@ -39,6 +40,8 @@ pub mod hash;
 pub mod model;
 pub mod range;
 pub mod rays;
+#[cfg(feature = "rays")]
+pub mod shadowed_lights;
 pub mod technique;
 
 pub use cutout::Cutouts;

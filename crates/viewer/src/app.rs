@@ -440,7 +440,10 @@ impl App {
             match done {
                 Some(Ok(t)) => {
                     self.relight = None;
-                    match gfx.renderer.set_relight(t) {
+                    match gfx
+                        .renderer
+                        .set_relight(t, self.args.relight_direct == "shadow-maps")
+                    {
                         Ok(p) => {
                             eprintln!(
                                 "relighting ready (unshot fraction {:.2e})",
@@ -824,6 +827,8 @@ impl App {
         self.info.adapter = ctx.adapter_summary();
         self.info.size = self.size;
         self.info.relight = self.relight_status.clone();
+        self.info.relight_shadow_maps =
+            gfx.renderer.relight.is_some() && self.args.relight_direct == "shadow-maps";
         self.info.relight_direct = match (&self.direct, gfx.renderer.relight.as_ref()) {
             (Some(_), Some(r)) => Some(r.has_direct(&view, self.size)),
             _ => None,

@@ -40,10 +40,12 @@ pub struct Args {
     /// Relighting's element target (its mesh density).
     #[arg(long, default_value_t = 1024)]
     pub relight_elements: usize,
-    /// Where relighting's direct light comes from: `pixels` (gathered per pixel with rays
-    /// while the camera stands still, `RelightTechnique`'s default; from the elements while
-    /// it moves) or `elements` (always from the elements, the paper's display).
-    #[arg(long, default_value = "pixels", value_parser = ["pixels", "elements"])]
+    /// Where relighting's direct light comes from: `shadow-maps` (scene-core's shadow-mapped
+    /// lights evaluated on the GPU every frame, moving or not), `pixels` (gathered per pixel
+    /// with rays while the camera stands still, `RelightTechnique`'s default; from the
+    /// elements while it moves) or `elements` (always from the elements, the paper's
+    /// display).
+    #[arg(long, default_value = "shadow-maps", value_parser = ["shadow-maps", "pixels", "elements"])]
     pub relight_direct: String,
     /// Do not start relighting's solve at launch (it starts when the mode is first chosen).
     #[arg(long)]

@@ -86,6 +86,9 @@ pub struct RelightGpu {
     elements: GpuPreparedScene,
     /// The per-pixel direct light of one view and size, when gathered.
     direct: Option<(View, (u32, u32), Vec<Vec3>)>,
+    /// The direct light comes from scene-core's shadow-mapped lights, evaluated on the GPU
+    /// every frame (`--relight-direct shadow-maps`).
+    shadowed: bool,
 }
 
 impl RelightGpu {
@@ -359,14 +362,19 @@ impl Renderer {
         Ok(())
     }
 
-    /// Uploads relighting's solution (after its solve); returns what was prepared, shared.
-    pub fn set_relight(&mut self, technique: RelightTechnique) -> Result<Arc<Prepared>, String> {
+    /// Uploads relighting's solution (after its solve), with `shadow_maps` its lights' shadow
+    /// maps for the per-frame direct light too; returns what was prepared, shared.
+    pub fn set_relight(
+        &mut self,
+        technique: RelightTechnique,
+        shadow_maps: bool,
+    ) -> Result<Arc<Prepared>, String> {
         let p = Arc::new(
             technique
                 .into_prepared()
                 .ok_or("relighting was not prepared")?,
         );
-        let gpu = GpuRelight::new(
+        let mut gpu = GpuRelight::new(
             &self.ctx,
             &p.meshing,
             &p.welding,
@@ -374,6 +382,11 @@ impl Renderer {
             Precision::F32,
         )
         .map_err(err)?;
+        if shadow_maps {
+            let set = LightSet::new(&p.scene, &ShadowSettings::default()).map_err(err)?;
+            let slots = relight_pr::display::light_slots(&set, &p.solution.sources);
+            gpu.set_shadowed_direct(&set, &slots).map_err(err)?;
+        }
         let elements = self
             .raster
             .upload(&p.meshing.element_scene(&p.scene))
@@ -383,6 +396,7 @@ impl Renderer {
             gpu,
             elements,
             direct: None,
+            shadowed: shadow_maps,
         });
         Ok(p)
     }
@@ -498,8 +512,17 @@ impl Renderer {
                         .encode(encoder, &r.elements, spec.view, &t.element_gbuffer)
                         .map_err(err)?;
                     let (factors, base) = relight::weights(&p.solution, spec.lights, true);
-                    r.gpu
-                        .encode_display(
+                    if r.shadowed {
+                        r.gpu.encode_display_shadowed(
+                            encoder,
+                            &t.element_gbuffer,
+                            spec.view,
+                            &factors,
+                            base,
+                            &t.slots[slot],
+                        )
+                    } else {
+                        r.gpu.encode_display(
                             encoder,
                             &t.element_gbuffer,
                             spec.view,
@@ -508,7 +531,8 @@ impl Renderer {
                             direct,
                             &t.slots[slot],
                         )
-                        .map_err(err)?;
+                    }
+                    .map_err(err)?;
                 }
                 None => encoder.clear_buffer(&t.slots[slot], 0, None),
             },

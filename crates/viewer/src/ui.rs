@@ -88,6 +88,8 @@ pub struct PanelInfo {
     /// Relighting's per-pixel direct light: `Some(true)` in hand for this view,
     /// `Some(false)` being gathered (the elements' meanwhile), `None` not used.
     pub relight_direct: Option<bool>,
+    /// Relighting's direct light comes from the shadow maps, every frame.
+    pub relight_shadow_maps: bool,
     /// The IBRR's construction.
     pub ibrr: Option<JobStatus>,
     /// True when the IBRR on the GPU was built for other light settings.
@@ -272,6 +274,9 @@ pub fn panel(
                 }
                 Some(false) => {
                     ui.label("relighting's direct light: from the elements (gathering per pixel)");
+                }
+                None if info.relight_shadow_maps => {
+                    ui.label("relighting's direct light: shadow maps, every frame");
                 }
                 None => {}
             }

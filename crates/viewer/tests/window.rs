@@ -380,7 +380,8 @@ fn a_replay_through_every_mode_matches_the_library_frame_by_frame() {
     }
 
     let scene = scene();
-    let mut relight = relight_technique(&scene, DirectLight::default());
+    // The viewer's default: direct light from the shadow maps, per frame.
+    let mut relight = relight_technique(&scene, DirectLight::shadow_maps());
     let mut ibrr = IbrrTechnique::new(
         IbrrSettings {
             resolution: LDC,

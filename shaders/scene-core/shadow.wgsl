@@ -1,9 +1,23 @@
-#define_import_path isr::shadow
-#import isr::common::{MIN_POSITIVE, MAX_FINITE, g}
-#import isr::light_set::{NO_MAP, MAP_CUBE, Light}
-// Exponential shadow maps with PCF (thesis section 4.6, eq. 30, listing 8; mirrors
-// crates/isr/src/shadow.rs): V = bilinear PCF of exp(-c max(r - o, 0)) over the four
-// nearest texels of a light's log-space-filtered map (cube or orthographic).
+#define_import_path scene_core::shadow
+#import scene_core::light_set::{NO_MAP, MAP_CUBE, Light}
+// Exponential shadow maps with PCF (ISR thesis section 4.6, eq. 30, listing 8; mirrors
+// crates/scene-core/src/shadowed_lights/esm.rs): V = bilinear PCF of exp(-c max(r - o, 0))
+// over the four nearest texels of a light's log-space-filtered map (cube or orthographic).
+
+const MIN_POSITIVE: f32 = 1.17549435e-38;
+const MAX_FINITE: f32 = 3.40282347e38;
+
+// The lookup's parameters; crates/scene-core/src/shadowed_lights/gpu.rs `ShadowParams`.
+struct ShadowParams {
+    // The ESM exponent c of eq. 30.
+    esm_exponent: f32,
+    // Receivers move this many texels along their normal.
+    normal_offset: f32,
+    // Constant depth bias in texels.
+    depth_bias: f32,
+    // The scene's extent, the unit of the maps' depths.
+    extent: f32,
+}
 
 // Every map's texels, concatenated (Light.map_offset is a map's first texel).
 @group(0) @binding(7) var<storage, read> shadow_texels: array<f32>;
@@ -14,7 +28,7 @@ fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
     if (d <= 0.0) {
         return 1.0;
     }
-    // Capped at 80 (exp(-80) is still a normal f32), as crates/isr/src/shadow.rs.
+    // Capped at 80 (exp(-80) is still a normal f32), as esm.rs.
     return exp(-min(c * d, 80.0));
 }
 
@@ -66,17 +80,17 @@ fn cube_face(d: vec3<f32>) -> vec3<f32> {
 }
 
 // The shadow factor of l's map for a receiver at p with unit normal n.
-fn visibility(l: Light, p: vec3<f32>, n: vec3<f32>) -> f32 {
+fn visibility(l: Light, p: vec3<f32>, n: vec3<f32>, s: ShadowParams) -> f32 {
     if (l.map_offset == NO_MAP) {
         return 1.0;
     }
     let res = l.map_res;
-    let c = g.filters.w;
-    let extent = g.forward_extent.w;
+    let c = s.esm_exponent;
+    let extent = s.extent;
     if (l.map_kind == MAP_CUBE) {
         let dist = length(p - l.position);
         let texel = 2.0 * dist / f32(res);
-        let q = p + n * (g.shadow.x * texel);
+        let q = p + n * (s.normal_offset * texel);
         let d = q - l.position;
         let len = length(d);
         if (!(len > 0.0 && len <= MAX_FINITE)) {
@@ -84,17 +98,17 @@ fn visibility(l: Light, p: vec3<f32>, n: vec3<f32>) -> f32 {
         }
         let f = cube_face(d);
         let face_len = res * res;
-        let receiver = (len - g.shadow.y * texel) / extent;
+        let receiver = (len - s.depth_bias * texel) / extent;
         return pcf(l.map_offset + u32(f.z) * face_len, res, f.xy, c, receiver);
     }
     let texel = 2.0 * l.half_extent / f32(res);
-    let q = p + n * (g.shadow.x * texel);
+    let q = p + n * (s.normal_offset * texel);
     let rel = q - l.eye;
     let uv = vec2<f32>(
         0.5 * (dot(rel, l.right) / l.half_extent + 1.0),
         0.5 * (1.0 - dot(rel, l.up) / l.half_extent),
     );
-    let receiver = (dot(rel, l.forward) - g.shadow.y * texel) / extent;
+    let receiver = (dot(rel, l.forward) - s.depth_bias * texel) / extent;
     return pcf(l.map_offset, res, uv, c, receiver);
 }
 

@@ -1,19 +1,153 @@
-//! The set of lights the lighting phase shades with ([`LightSet`]): lights (point,
-//! directional, and point samples standing in for emissive triangles), their shadow maps and
-//! a table of emissive triangles, prepared once, from a scene-core [`Scene`]
-//! ([`LightSet::new`]) or from an engine's own light list and shadow-casting triangles
-//! ([`LightSet::from_lights`]). Per frame, a [`LightState`] scales each light's direct and
-//! indirect light ([`LightSet::apply`]) without rebuilding anything.
+//! Lights with exponential shadow maps, shared by every method that shades direct light per
+//! pixel from a G-buffer: ISR's lighting phase and its `dl` technique (ISR thesis section
+//! 4.5, listing 7; shadows section 4.6, eq. 30, listing 8, in [`esm`]) and relighting's
+//! per-frame direct light.
+//!
+//! A [`LightSet`] holds lights (point, spot, directional, the sky's directions, and point
+//! samples standing in for emissive triangles), their shadow maps and a table of emissive
+//! triangles, prepared once from a [`Scene`] ([`LightSet::new`]) or from an engine's own
+//! light list and shadow-casting triangles ([`LightSet::from_lights`]). Per frame, a
+//! [`LightState`] scales each light's direct and indirect light ([`LightSet::apply`])
+//! without rebuilding anything. The WGSL twins are `shaders/scene-core/light_set.wgsl`
+//! (`scene_core::light_set`) and `shaders/scene-core/shadow.wgsl` (`scene_core::shadow`);
+//! [`gpu`] packs a set for them.
 
 use glam::{Vec2, Vec3};
-use scene_core::lights::{Emitters, LightId, LightState, SpotRamp};
-use scene_core::ray::RayScene;
-use scene_core::sampling::{r2, uniform_triangle};
-use scene_core::{Bounds, Scene};
+use crate::lights::{Emitters, LightId, LightState, SpotRamp};
+use crate::ray::RayScene;
+use crate::sampling::{r2, uniform_triangle};
+use crate::{Bounds, BudgetExceeded, Scene};
 
-use crate::IsrError;
-use crate::settings::ShadowSettings;
-use crate::shadow::{self, MapKind, ShadowMap};
+pub mod esm;
+#[cfg(feature = "gpu")]
+pub mod gpu;
+
+use esm::{MapKind, ShadowMap};
+
+/// Why a [`LightSet`] could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum LightSetError {
+    /// A [`ShadowSettings`] field is out of range.
+    #[error("invalid shadow setting {name} = {value}: {reason}")]
+    InvalidSetting {
+        /// The field.
+        name: &'static str,
+        /// Its value.
+        value: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A light or shadow caster is not usable (not finite, no direction), named.
+    #[error("{0}")]
+    BadScene(String),
+    /// The shadow maps do not fit [`ShadowSettings::max_texels`].
+    #[error("budget exceeded: {0}")]
+    Budget(BudgetExceeded),
+}
+
+/// The exponential shadow maps (eq. 30, listing 8), built once per scene by
+/// [`LightSet::new`]: they do not depend on the camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowSettings {
+    /// Shadows on; off, every light reaches every surface facing it.
+    pub enabled: bool,
+    /// Texels per side of a directional light's orthographic map.
+    pub directional_resolution: u32,
+    /// Texels per side of the orthographic map of each of the sky's directions
+    /// ([`scene_core::sky::Sky::lights`]): many, each carrying a small share of soft light,
+    /// so coarser than a sun's.
+    pub sky_resolution: u32,
+    /// Texels per side of each cube-map face of a point light.
+    pub cube_resolution: u32,
+    /// Point samples standing in for the emissive triangles (0: emitters light nothing, they
+    /// are only seen).
+    pub emitter_samples: u32,
+    /// Texels per side of each cube-map face of an emitter sample.
+    pub emitter_cube_resolution: u32,
+    /// The ESM exponent `c` of eq. 30, applied to depths measured in units of the scene's
+    /// extent (so the softness does not depend on the scene's unit). Maps are filtered in
+    /// log space and every exponential is of a non-positive argument, so no value of `c`
+    /// can overflow f32 (the thesis' `exp(90 z)` of a stored depth `z` near 1 would).
+    pub esm_exponent: f32,
+    /// Taps on each side of the log-space Gaussian prefilter of the maps (0: none); at most 4.
+    pub filter_radius: u32,
+    /// Receivers are moved this many shadow-map texels along their normal before the lookup
+    /// (against self-shadowing).
+    pub normal_offset: f32,
+    /// Constant depth bias in shadow-map texels.
+    pub depth_bias: f32,
+    /// Budget of shadow-map texels over all maps. Cube maps are halved in resolution (down to
+    /// 16 texels) until they fit; beyond that [`LightSet::new`] fails.
+    pub max_texels: u64,
+}
+
+impl Default for ShadowSettings {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            directional_resolution: 1024,
+            sky_resolution: 256,
+            cube_resolution: 256,
+            emitter_samples: 16,
+            emitter_cube_resolution: 128,
+            esm_exponent: 200.0,
+            filter_radius: 1,
+            normal_offset: 1.5,
+            depth_bias: 1.0,
+            max_texels: 1 << 25,
+        }
+    }
+}
+
+impl ShadowSettings {
+    /// Checks every parameter.
+    pub fn validate(&self) -> Result<(), LightSetError> {
+        let bad = |name: &'static str, value: String, reason: &str| {
+            Err(LightSetError::InvalidSetting {
+                name,
+                value,
+                reason: reason.into(),
+            })
+        };
+        for (name, r) in [
+            ("directional_resolution", self.directional_resolution),
+            ("sky_resolution", self.sky_resolution),
+            ("cube_resolution", self.cube_resolution),
+            ("emitter_cube_resolution", self.emitter_cube_resolution),
+        ] {
+            if !(1..=8192).contains(&r) {
+                return bad(name, r.to_string(), "must be in 1..=8192");
+            }
+        }
+        if self.emitter_samples > 4096 {
+            return bad(
+                "emitter_samples",
+                self.emitter_samples.to_string(),
+                "at most 4096",
+            );
+        }
+        if !(self.esm_exponent.is_finite() && self.esm_exponent > 0.0) {
+            return bad(
+                "esm_exponent",
+                self.esm_exponent.to_string(),
+                "must be positive and finite",
+            );
+        }
+        if self.filter_radius > 4 {
+            return bad("filter_radius", self.filter_radius.to_string(), "at most 4");
+        }
+        for (name, v) in [
+            ("normal_offset", self.normal_offset),
+            ("depth_bias", self.depth_bias),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(name, v.to_string(), "must be finite and >= 0");
+            }
+        }
+        Ok(())
+    }
+}
+
 
 /// What kind of light a [`Light`] is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -94,7 +228,7 @@ impl Light {
         id: LightId,
         position: Vec3,
         intensity: Vec3,
-        cone: &scene_core::lights::SpotCone,
+        cone: &crate::lights::SpotCone,
     ) -> Self {
         let spot = cone.ramp();
         Self {
@@ -166,9 +300,9 @@ impl Light {
 }
 
 /// The distance falloff of a point light whose eq. 16 radius is `radius` (0: inverse
-/// square): scene-core's [`scene_core::lights::falloff`].
+/// square): scene-core's [`crate::lights::falloff`].
 pub fn falloff(radius: f32, d: f32) -> f32 {
-    scene_core::lights::falloff((radius > 0.0).then_some(radius), d)
+    crate::lights::falloff((radius > 0.0).then_some(radius), d)
 }
 
 /// Emissive triangles, for the emission of directly visible emitters.
@@ -202,9 +336,9 @@ impl EmitterTable {
     }
 }
 
-/// The lights ISR shades with: lights, shadow maps and emissive triangles. View-independent;
-/// build it once per scene ([`crate::Technique::prepare`](scene_core::Technique::prepare)
-/// does) or once per engine light rig, and [`LightSet::apply`] each frame's [`LightState`].
+/// Lights, their shadow maps and the emissive triangles. View-independent: build it once per
+/// scene (the methods' [`Technique::prepare`](crate::Technique::prepare) does) or once per
+/// engine light rig, and [`LightSet::apply`] each frame's [`LightState`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightSet {
     /// The scene's extent (diagonal of its bounds; 1 when empty): the unit of relative
@@ -233,13 +367,13 @@ impl LightSet {
     ///
     /// Errors on invalid settings, non-finite light data, or shadow maps that do not fit
     /// `shadows.max_texels` even at 16 texels per cube face.
-    pub fn new(scene: &Scene, shadows: &ShadowSettings) -> Result<Self, IsrError> {
+    pub fn new(scene: &Scene, shadows: &ShadowSettings) -> Result<Self, LightSetError> {
         shadows.validate()?;
         let extent = scene.extent();
         let mut lights = Vec::new();
         for (i, l) in scene.point_lights.iter().enumerate() {
             if !(l.position.is_finite() && l.intensity.is_finite()) {
-                return Err(IsrError::BadScene(format!(
+                return Err(LightSetError::BadScene(format!(
                     "point light #{i} '{}' is not finite",
                     l.name
                 )));
@@ -265,10 +399,10 @@ impl LightSet {
             });
         }
         // The scene's directional lights, then the sky as its median-cut directions.
-        for (id, l) in scene_core::lights::directional_sources(scene) {
+        for (id, l) in crate::lights::directional_sources(scene) {
             let d = l.direction.normalize_or_zero();
             if d == Vec3::ZERO || !l.irradiance.is_finite() {
-                return Err(IsrError::BadScene(format!(
+                return Err(LightSetError::BadScene(format!(
                     "{}: directional light '{}' has no direction or a non-finite irradiance",
                     id.label(scene),
                     l.name
@@ -297,9 +431,9 @@ impl LightSet {
     /// A light set from an engine's own lights (made with [`Light::point`] and
     /// [`Light::directional`]; [`LightKind::EmitterSample`]s are accepted too) and the
     /// triangles that cast their shadows, with no [`Scene`]. The shadow maps are rendered
-    /// over `casters` by ISR's own ray-cast pass; with no casters, or with
-    /// `shadows.enabled` off, the lights are unshadowed. The extent (the unit of ISR's
-    /// relative radii and of shadow depths) is the diagonal of the bounds of the casters and
+    /// over `casters` by a ray-cast pass (one ray per texel); with no casters, or with
+    /// `shadows.enabled` off, the lights are unshadowed. The extent (the unit of relative
+    /// radii and of shadow depths) is the diagonal of the bounds of the casters and
     /// the point lights.
     ///
     /// Errors on invalid settings, a non-finite light or caster, a directional light with
@@ -308,7 +442,7 @@ impl LightSet {
         lights: Vec<Light>,
         casters: &[[Vec3; 3]],
         shadows: &ShadowSettings,
-    ) -> Result<Self, IsrError> {
+    ) -> Result<Self, LightSetError> {
         shadows.validate()?;
         let mut bounds = Bounds::EMPTY;
         for (i, l) in lights.iter().enumerate() {
@@ -318,13 +452,13 @@ impl LightSet {
                 && l.radius.is_finite()
                 && l.area.is_finite();
             if !finite {
-                return Err(IsrError::BadScene(format!(
+                return Err(LightSetError::BadScene(format!(
                     "light #{i} ({:?}) is not finite",
                     l.id
                 )));
             }
             if l.kind == LightKind::Directional && l.direction == Vec3::ZERO {
-                return Err(IsrError::BadScene(format!(
+                return Err(LightSetError::BadScene(format!(
                     "directional light #{i} ({:?}) has no direction",
                     l.id
                 )));
@@ -335,7 +469,7 @@ impl LightSet {
         }
         for (i, t) in casters.iter().enumerate() {
             if !t.iter().all(|p| p.is_finite()) {
-                return Err(IsrError::BadScene(format!(
+                return Err(LightSetError::BadScene(format!(
                     "shadow caster #{i} is not finite"
                 )));
             }
@@ -387,7 +521,7 @@ impl LightSet {
             .collect();
     }
 
-    fn build_shadow_maps(&mut self, rays: impl FnOnce() -> RayScene) -> Result<(), IsrError> {
+    fn build_shadow_maps(&mut self, rays: impl FnOnce() -> RayScene) -> Result<(), LightSetError> {
         let s = &self.shadows;
         let count = |kind: LightKind| self.lights.iter().filter(|l| l.kind == kind).count() as u64;
         let (n_point, n_dir, n_emit) = (
@@ -411,7 +545,7 @@ impl LightSet {
             emit = (emit / 2).max(16.min(emit));
         }
         if total(cube, emit) > s.max_texels {
-            return Err(IsrError::Budget(scene_core::BudgetExceeded {
+            return Err(LightSetError::Budget(BudgetExceeded {
                 what: "shadow maps at 16 texels per cube face".into(),
                 needed: total(cube, emit),
                 limit: s.max_texels,
@@ -435,7 +569,7 @@ impl LightSet {
         for light in &mut self.lights {
             let (kind, res) = match light.kind {
                 LightKind::Directional => {
-                    let view = scene_core::View::orthographic_fit(center, light.direction, half);
+                    let view = crate::View::orthographic_fit(center, light.direction, half);
                     (
                         MapKind::Ortho {
                             eye: view.eye,
@@ -472,16 +606,16 @@ impl LightSet {
                     } else {
                         (p - bounds.min).abs().max((p - bounds.max).abs()).length()
                     };
-                    shadow::render_cube(&rays, p, res, extent, far / extent + 1.0)
+                    esm::render_cube(&rays, p, res, extent, far / extent + 1.0)
                 }
-                MapKind::Ortho { .. } => shadow::render_ortho(&rays, &kind, res, extent),
+                MapKind::Ortho { .. } => esm::render_ortho(&rays, &kind, res, extent),
             };
             let faces = if matches!(kind, MapKind::Cube { .. }) {
                 6
             } else {
                 1
             };
-            shadow::log_filter(&mut map, res, faces, filter, c);
+            esm::log_filter(&mut map, res, faces, filter, c);
             light.shadow = Some(ShadowMap::new(texels.len(), res, kind));
             texels.extend_from_slice(&map);
         }
@@ -490,8 +624,8 @@ impl LightSet {
     }
 
     /// True when the scene has any light: a light, an emitter sample or a visible emitter.
-    /// Without any, nothing can be bounced and ISR adds nothing (which matters for
-    /// [`crate::Sender::Albedo`], whose senders do not depend on the lights).
+    /// Without any, nothing can be bounced (ISR then adds nothing, even with senders that do
+    /// not depend on the lights).
     pub fn has_light(&self) -> bool {
         !self.lights.is_empty() || !self.emitters.entries.is_empty()
     }
@@ -500,22 +634,26 @@ impl LightSet {
     /// lighting times listing 8's shadow factor (eq. 30) per light, each light scaled by its
     /// factor for `part`.
     pub fn irradiance(&self, p: Vec3, n: Vec3, part: Part) -> Vec3 {
-        let mut e = Vec3::ZERO;
-        for light in &self.lights {
-            let l = light.irradiance(p, n);
-            if l == Vec3::ZERO {
-                continue;
-            }
-            let l = l * light.factor(part);
-            let v = match (&light.shadow, self.shadows.enabled) {
-                (Some(map), true) => {
-                    shadow::visibility(&self.shadow_texels, map, p, n, self.extent, &self.shadows)
-                }
-                _ => 1.0,
-            };
-            e += l * v;
+        (0..self.lights.len())
+            .map(|i| self.light_irradiance(i, p, n) * self.lights[i].factor(part))
+            .sum()
+    }
+
+    /// The shadowed irradiance at `p` (unit normal `n`) from light `index` alone, before its
+    /// frame factors: what a caller that weighs lights itself (relighting's sources) sums.
+    pub fn light_irradiance(&self, index: usize, p: Vec3, n: Vec3) -> Vec3 {
+        let light = &self.lights[index];
+        let l = light.irradiance(p, n);
+        if l == Vec3::ZERO {
+            return l;
         }
-        e
+        let v = match (&light.shadow, self.shadows.enabled) {
+            (Some(map), true) => {
+                esm::visibility(&self.shadow_texels, map, p, n, self.extent, &self.shadows)
+            }
+            _ => 1.0,
+        };
+        l * v
     }
 }
 
@@ -574,7 +712,7 @@ fn emitters(scene: &Scene, count: u32, extent: f32) -> (EmitterTable, Vec<Light>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use scene_core::builtin;
+    use crate::builtin;
 
     #[test]
     fn emitter_samples_carry_the_emitters_power() {
@@ -659,6 +797,6 @@ mod tests {
             },
         )
         .unwrap_err();
-        assert!(matches!(e, IsrError::Budget(_)), "{e}");
+        assert!(matches!(e, LightSetError::Budget(_)), "{e}");
     }
 }

@@ -1,12 +1,15 @@
-#define_import_path isr::light_set
-#import isr::common::{PI, MAX_FINITE}
-// The set of lights the lighting pass shades with (mirrors crates/isr/src/light_set.rs):
+#define_import_path scene_core::light_set
+// The set of lights a pass shades with (mirrors crates/scene-core/src/shadowed_lights/mod.rs):
 // point lights (1/d^2 or eq. 16's window, and a spot's cone), directional lights and point samples of emissive
 // triangles (cosine profile, disk form factor), each with the frame's direct and indirect
 // factors, and the table of emissive triangles for directly visible emitters.
 //
-// The module `isr::light_set`, imported by the lighting pass and by `isr::shadow`
-// (crates/isr/src/shaders.rs lists the passes and what they may import).
+// The module `scene_core::light_set`, imported by `scene_core::shadow`, ISR's lighting pass
+// and relighting's direct pass. Its storage buffers sit at bindings 6, 8 and 9 of group 0
+// (crates/scene-core/src/shadowed_lights/gpu.rs).
+
+const PI: f32 = 3.14159265358979;
+const MAX_FINITE: f32 = 3.40282347e38;
 
 const KIND_POINT: u32 = 0u;
 const KIND_DIRECTIONAL: u32 = 1u;
@@ -14,7 +17,7 @@ const KIND_EMITTER: u32 = 2u;
 const NO_MAP: u32 = 0xffffffffu;
 const MAP_CUBE: u32 = 0u;
 
-// One light; crates/isr/src/gpu.rs `GpuLight` writes it.
+// One light; crates/scene-core/src/shadowed_lights/gpu.rs `GpuLight` writes it.
 struct Light {
     position: vec3<f32>,
     kind: u32,

@@ -1,6 +1,6 @@
 //! Exponential shadow maps with PCF (section 4.6, eq. 30, listing 8).
 //!
-//! The maps do not depend on the camera, so [`crate::LightSet::new`] builds them once per
+//! The maps do not depend on the camera, so [`super::LightSet::new`] builds them once per
 //! scene, on the CPU, by casting one ray per texel through the scene's BVH (the depth a
 //! rasteriser would store at the texel centre): an orthographic map for each directional
 //! light and a six-face cube map for each point light and each emitter sample. Depths are
@@ -21,11 +21,11 @@
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use scene_core::ray::RayScene;
+use crate::ray::RayScene;
 
-use crate::settings::ShadowSettings;
+use super::ShadowSettings;
 
-/// The kind and placement of one shadow map inside [`crate::LightSet::shadow_texels`].
+/// The kind and placement of one shadow map inside [`super::LightSet::shadow_texels`].
 ///
 /// Besides [`MapKind`], the map keeps its frame in plain fields that are always written
 /// (zero where a kind has no use for them), and [`visibility`] reads only those: reading a

@@ -1,0 +1,152 @@
+//! The IBRR on an engine's G-buffer (docs/engine.md): the engine's albedo and normal
+//! textures and its depth buffer in the reverse-Z, infinite-far convention most engines
+//! use, converted by scene-core's `HostGBufferPass`, with the engine's triangle ids and
+//! without any, give the reconstruction of the toolkit's own G-buffer of the same view.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup};
+use scene_core::gbuffer::RayCastRenderer;
+use scene_core::gpu::{GpuGBuffer, HostGBuffer, HostGBufferPass, gpu_test_context, host};
+use scene_core::lights::LightState;
+use scene_core::{FrameRequest, GBufferRenderer, Image, Scene, Technique, View, builtin};
+
+/// Pixels whose triangle in `g` emits light (their glow needs the triangle's id).
+fn emitter_pixels(scene: &Scene, g: &scene_core::GBuffer) -> Vec<bool> {
+    let offsets = scene.mesh_offsets();
+    (0..g.len())
+        .map(|i| {
+            !g.is_background(i)
+                && scene
+                    .triangle_ref(&offsets, g.triangle_id[i])
+                    .is_some_and(|r| {
+                        let m = scene.meshes[r.mesh as usize].material_ids[r.local as usize];
+                        scene.materials[m as usize].emission.max_element() > 0.0
+                    })
+        })
+        .collect()
+}
+
+/// The conversion rounds each distance by a few f32 units in the last place (scene-core's
+/// host G-buffer test measures 8.8e-8 reversed), so the images agree to that order: the
+/// mean difference within 1e-4 of the image's mean, and no more than 0.5 % of the pixels
+/// off by over 1e-3 of the peak (a sample on one of the reconstruction's plane or
+/// visibility thresholds may flip). Without ids, the pixels of emitters lose their glow
+/// (the methods treat a surface without an id as one that emits nothing) and are left out.
+#[test]
+fn an_engine_gbuffer_in_reverse_z_gives_the_own_gbuffers_image() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let settings = IbrrSettings {
+        resolution: 48,
+        irpls: 24,
+        ..Default::default()
+    };
+    let mut t = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+    t.prepare(scene.clone()).unwrap();
+    let ldc = t.ldc().unwrap();
+    let (w, h) = (64, 48);
+    let frame = FrameRequest::camera(&scene.cameras[0], w, h);
+    let g = RayCastRenderer::new()
+        .render(&scene, &frame.view, w, h)
+        .unwrap();
+    let lights = LightState::default();
+    let mut gpu_ldc = GpuLdc::new(&ctx, ldc, Lookup::Bilinear, settings.fallback_radius).unwrap();
+    let (own, _) = gpu_ldc
+        .render(
+            &scene,
+            &GpuGBuffer::upload(&ctx, &g).unwrap(),
+            &frame.view,
+            &lights,
+        )
+        .unwrap();
+    let emitters = emitter_pixels(&scene, &g);
+    assert!(emitters.iter().any(|e| *e), "the panel is in view");
+
+    let upload = |format: wgpu::TextureFormat, bytes: &[u8]| {
+        ctx.texture_with(
+            "engine",
+            (w, h),
+            format,
+            wgpu::TextureUsages::TEXTURE_BINDING,
+            bytes,
+        )
+    };
+    use wgpu::TextureFormat as F;
+    let albedo = upload(F::Rgba32Float, bytemuck::cast_slice(&g.albedo));
+    let normals: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
+    let normal = upload(F::Rgba32Float, bytemuck::cast_slice(&normals));
+    let ids = upload(F::R32Uint, bytemuck::cast_slice(&g.triangle_id));
+    let cam = scene.cameras[0].with_aspect(w as f32 / h as f32);
+    let projection =
+        glam::camera::rh::proj::directx::perspective_infinite_reverse(cam.fov_y, cam.aspect, cam.near);
+    let (view, convention) = View::from_host_matrices(frame.view.view_matrix(), projection).unwrap();
+    assert!(convention.reverse);
+    let values: Vec<f32> = (0..g.len())
+        .map(|i| {
+            if g.is_background(i) {
+                0.0
+            } else {
+                convention.depth(g.depth[i] * frame.view.far)
+            }
+        })
+        .collect();
+    let depth = host::depth_texture_from(&ctx, w, h, &values).unwrap();
+    let mut convert = HostGBufferPass::new(&ctx).unwrap();
+    for (name, triangle_id) in [("with ids", Some(&ids)), ("without ids", None)] {
+        let host = HostGBuffer {
+            albedo: &albedo,
+            normal: &normal,
+            depth: &depth,
+            triangle_id,
+        };
+        let converted = GpuGBuffer::new(&ctx, w, h).unwrap();
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        convert
+            .encode(&mut encoder, &host, &convention, &converted)
+            .unwrap();
+        ctx.queue.submit([encoder.finish()]);
+        let (img, _) = gpu_ldc.render(&scene, &converted, &view, &lights).unwrap();
+        let keep: Vec<usize> = (0..g.len())
+            .filter(|&i| triangle_id.is_some() || !emitters[i])
+            .collect();
+        let mean = |image: &Image| {
+            keep.iter()
+                .map(|&i| f64::from(image.pixels[i].element_sum()))
+                .sum::<f64>()
+                / keep.len() as f64
+        };
+        let diff = keep
+            .iter()
+            .map(|&i| f64::from((own.pixels[i] - img.pixels[i]).abs().element_sum()))
+            .sum::<f64>()
+            / keep.len() as f64;
+        let peak = keep
+            .iter()
+            .map(|&i| own.pixels[i].max_element())
+            .fold(0.0f32, f32::max);
+        let off = keep
+            .iter()
+            .filter(|&&i| (own.pixels[i] - img.pixels[i]).abs().max_element() > 1e-3 * peak)
+            .count();
+        let m = mean(&own);
+        eprintln!(
+            "{name}: mean difference {:.2e} of the mean, {off} of {} pixels above 1e-3 of the peak",
+            diff / m,
+            keep.len()
+        );
+        assert!(m > 0.0 && mean(&img) > 0.0, "{name}: lit");
+        assert!(diff <= 1e-4 * m, "{name}: {diff} against a mean of {m}");
+        assert!(off * 200 <= keep.len(), "{name}: {off} pixels");
+        if triangle_id.is_none() {
+            // The emitters' own pixels: the glow is gone, what they reflect is kept.
+            let glowing = (0..g.len()).filter(|&i| emitters[i]).collect::<Vec<_>>();
+            let own_sum: Vec3 = glowing.iter().map(|&i| own.pixels[i]).sum();
+            let got_sum: Vec3 = glowing.iter().map(|&i| img.pixels[i]).sum();
+            assert!(got_sum.element_sum() < 0.5 * own_sum.element_sum());
+        }
+    }
+}
