@@ -82,7 +82,7 @@ pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
         let t0 = Instant::now();
         let prepared = pool
             .install(|| LightSet::new(&scene, &isr::ShadowSettings::default()))
-            .map_err(err)?;
+            .map_err(|e| e.to_string())?;
         let prepare = t0.elapsed();
         let full = RayCastRenderer::new()
             .render(&scene, &view, w, h)

@@ -81,9 +81,11 @@ fn an_engine_gbuffer_in_reverse_z_gives_the_own_gbuffers_image() {
     let normal = upload(F::Rgba32Float, bytemuck::cast_slice(&normals));
     let ids = upload(F::R32Uint, bytemuck::cast_slice(&g.triangle_id));
     let cam = scene.cameras[0].with_aspect(w as f32 / h as f32);
-    let projection =
-        glam::camera::rh::proj::directx::perspective_infinite_reverse(cam.fov_y, cam.aspect, cam.near);
-    let (view, convention) = View::from_host_matrices(frame.view.view_matrix(), projection).unwrap();
+    let projection = glam::camera::rh::proj::directx::perspective_infinite_reverse(
+        cam.fov_y, cam.aspect, cam.near,
+    );
+    let (view, convention) =
+        View::from_host_matrices(frame.view.view_matrix(), projection).unwrap();
     assert!(convention.reverse);
     let values: Vec<f32> = (0..g.len())
         .map(|i| {

@@ -39,25 +39,30 @@ pub enum DirectLight {
     },
     /// Evaluated at every pixel of every frame from scene-core's shadow-mapped lights
     /// ([`scene_core::shadowed_lights`], the exponential shadow maps ISR's direct light
-    /// uses): one lookup per light at the pixel's centre, summed per source. Point, spot
-    /// and directional lights and the sky's directions each have their map; an emissive
-    /// source is `emitter_samples` point samples drawn by power over its triangles, each
-    /// with a cube map. The maps are view-independent and built once; nothing is reused
-    /// from one view to the next, so a moving camera costs what a still one does, on the
-    /// CPU ([`crate::display::pixel_direct_shadowed`]) and on the GPU
+    /// uses), averaged over the pixel's footprint as the reference averages a pixel
+    /// ([`crate::display::pixel_direct_shadowed`]): point, spot and directional lights and
+    /// the sky's directions each have their map; an emissive source is `emitter_samples`
+    /// point samples drawn by power over its triangles, each with a cube map. The maps are
+    /// view-independent and built once; nothing is reused from one view to the next, so a
+    /// moving camera costs what a still one does, on the CPU and on the GPU
     /// ([`crate::gpu::GpuRelight::encode_display_shadowed`]).
     ShadowMaps {
         /// Point samples standing in for the emissive triangles
         /// ([`scene_core::shadowed_lights::ShadowSettings::emitter_samples`]).
         emitter_samples: u32,
+        /// Points per side of the grid over each pixel's footprint (1 to
+        /// [`crate::display::MAX_FOOTPRINT`]; 1 evaluates the pixel's centre only).
+        footprint: u32,
     },
 }
 
 impl DirectLight {
-    /// [`DirectLight::ShadowMaps`] with scene-core's default emitter samples.
+    /// [`DirectLight::ShadowMaps`] with scene-core's default emitter samples and a 3 x 3
+    /// footprint grid.
     pub fn shadow_maps() -> Self {
         DirectLight::ShadowMaps {
             emitter_samples: scene_core::shadowed_lights::ShadowSettings::default().emitter_samples,
+            footprint: 3,
         }
     }
 

@@ -11,10 +11,10 @@ use std::collections::HashMap;
 use glam::Vec3;
 use rayon::prelude::*;
 use scene_core::sampling::{hash_seed, r2};
-use scene_core::shadowed_lights::LightSet;
+use scene_core::shadowed_lights::{LightKind, LightSet};
 use scene_core::{GBuffer, Image, View};
 
-use crate::direct::DirectGather;
+use crate::direct::{DirectGather, solid_angle};
 use scene_core::ray::RayScene;
 
 use crate::mesh::Meshing;
@@ -229,12 +229,38 @@ pub fn light_slots(set: &LightSet, sources: &[crate::solver::Source]) -> Vec<Opt
         .collect()
 }
 
+/// Where the ray through image point `uv` of `view` meets the plane through `centre` with
+/// unit normal `n`: `None` when the ray is within a cosine of 1e-3 of parallel to the
+/// plane or meets it behind its origin. The ray is the line through the points
+/// [`View::reconstruct_world`] gives at linear depths 0 and 1, as the GPU direct pass
+/// builds it from the same reconstruction.
+pub fn on_pixel_plane(view: &View, uv: glam::Vec2, centre: Vec3, n: Vec3) -> Option<Vec3> {
+    let o = view.reconstruct_world(uv, 0.0);
+    let d = (view.reconstruct_world(uv, 1.0) - o).normalize_or_zero();
+    let den = n.dot(d);
+    let t = n.dot(centre - o) / den;
+    (den.abs() > 1e-3 && t.is_finite() && t > 0.0).then(|| o + d * t)
+}
+
+/// Largest [`DirectLight::ShadowMaps`] footprint grid (16 points a pixel).
+///
+/// [`DirectLight::ShadowMaps`]: crate::direct::DirectLight::ShadowMaps
+pub const MAX_FOOTPRINT: u32 = 4;
+
 /// The direct irradiance from every source at every pixel of `g` (a G-buffer seen from
-/// `view`) from the shadow-mapped lights of `set` ([`DirectLight::ShadowMaps`]): at each
-/// pixel's centre, each light's irradiance times its shadow factor (eq. 30 of the ISR
-/// thesis, [`LightSet::light_irradiance`]) is added to its source's slot (`slots`,
-/// [`light_slots`]), pixel-major (`i * k + m`), before the frame's factors; zero on
-/// background. The CPU twin of relighting's GPU direct pass.
+/// `view`) from the shadow-mapped lights of `set` ([`DirectLight::ShadowMaps`]), averaged
+/// over the pixel's footprint as a pixel of the reference is: `footprint` x `footprint`
+/// points on a regular grid over the pixel, met with the plane of its surface point and
+/// normal ([`on_pixel_plane`]; a point whose ray grazes the plane keeps the centre), each
+/// light's irradiance times its shadow factor (eq. 30 of the ISR thesis,
+/// [`LightSet::light_irradiance`]) averaged over them. A point light with the
+/// inverse-square falloff (and a footprint over 1 whose four corners meet the plane) is
+/// integrated in closed form instead, as the per-pixel gather does: `I Omega / A` over the
+/// footprint quad (cosines included, so a hot spot narrower than a pixel keeps its
+/// energy), times a spot's attenuation towards the footprint's centre and the points' mean
+/// shadow factor. Each light is added to its source's slot (`slots`, [`light_slots`]),
+/// pixel-major (`i * k + m`), before the frame's factors; zero on background. The CPU twin
+/// of relighting's GPU direct pass (`shaders/relight-pr/direct.wgsl`).
 ///
 /// [`DirectLight::ShadowMaps`]: crate::direct::DirectLight::ShadowMaps
 pub fn pixel_direct_shadowed(
@@ -243,30 +269,79 @@ pub fn pixel_direct_shadowed(
     k: usize,
     g: &GBuffer,
     view: &View,
+    footprint: u32,
 ) -> Vec<Vec3> {
     let (w, h) = (g.width, g.height);
     let mut out = vec![Vec3::ZERO; g.len() * k];
     if k == 0 {
         return out;
     }
-    out.par_chunks_mut(k).enumerate().for_each(|(i, o)| {
-        if g.is_background(i) {
-            return;
-        }
-        let uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
-        let p = view.reconstruct_world(uv, g.depth[i]);
-        let n = g.normal[i];
-        for (j, slot) in slots.iter().enumerate() {
-            if let Some(m) = slot.filter(|m| *m < k) {
-                o[m] += set.light_irradiance(j, p, n);
+    let m = footprint.clamp(1, MAX_FOOTPRINT);
+    let pixel = glam::Vec2::new(1.0 / w as f32, 1.0 / h as f32);
+    out.par_chunks_mut(k).enumerate().for_each_init(
+        || Vec::with_capacity((m * m) as usize),
+        |points, (i, o)| {
+            if g.is_background(i) {
+                return;
             }
-        }
-        for v in o.iter_mut() {
-            if !v.is_finite() {
-                *v = Vec3::ZERO;
+            let uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
+            let c = view.reconstruct_world(uv, g.depth[i]);
+            let n = g.normal[i];
+            points.clear();
+            for sy in 0..m {
+                for sx in 0..m {
+                    let at = |s: u32| (s as f32 + 0.5) / m as f32 - 0.5;
+                    let q = uv + glam::Vec2::new(at(sx), at(sy)) * pixel;
+                    points.push(if m == 1 {
+                        c
+                    } else {
+                        on_pixel_plane(view, q, c, n).unwrap_or(c)
+                    });
+                }
             }
-        }
-    });
+            let quad = match [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)]
+                .map(|(a, b)| on_pixel_plane(view, uv + glam::Vec2::new(a, b) * pixel, c, n))
+            {
+                [Some(a), Some(b), Some(c), Some(d)] if m > 1 => Some([[a, b, c], [a, c, d]]),
+                _ => None,
+            };
+            let inv = 1.0 / points.len() as f32;
+            for (j, slot) in slots.iter().enumerate() {
+                let Some(s) = slot.filter(|s| *s < k) else {
+                    continue;
+                };
+                let light = &set.lights[j];
+                o[s] += match &quad {
+                    Some(tris) if light.kind == LightKind::Point && light.radius == 0.0 => {
+                        let to = light.position - c;
+                        let area: f32 = tris
+                            .iter()
+                            .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
+                            .sum();
+                        if n.dot(to) <= 0.0 || area.is_nan() || area <= 0.0 {
+                            continue;
+                        }
+                        let omega: f32 = tris.iter().map(|t| solid_angle(light.position, t)).sum();
+                        let cone = light.spot.attenuation(-to.normalize_or_zero());
+                        let seen: f32 = points.iter().map(|&p| set.light_visibility(j, p, n)).sum();
+                        light.color * (omega / area * cone * (seen * inv))
+                    }
+                    _ => {
+                        points
+                            .iter()
+                            .map(|&p| set.light_irradiance(j, p, n))
+                            .sum::<Vec3>()
+                            * inv
+                    }
+                };
+            }
+            for v in o.iter_mut() {
+                if !v.is_finite() {
+                    *v = Vec3::ZERO;
+                }
+            }
+        },
+    );
     out
 }
 

@@ -82,8 +82,10 @@ struct DirectParams {
     width: u32,
     height: u32,
     k: u32,
-    lights: u32,
-    shadow: ShadowParams,
+    light_count: u32,
+    shadow_params: ShadowParams,
+    footprint: u32,
+    pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -135,10 +137,15 @@ struct ShadowedDirect {
     slots: wgpu::Buffer,
     count: u32,
     shadow: ShadowParams,
+    footprint: u32,
     /// The pass' bind group and what it was made for: the G-buffer's normal, depth and id
     /// textures and the direct buffer's generation.
-    bind: std::sync::Mutex<Option<(([wgpu::Texture; 3], u64), wgpu::BindGroup)>>,
+    bind: std::sync::Mutex<Option<(DirectKey, wgpu::BindGroup)>>,
 }
+
+/// What the direct pass' bind group depends on: the G-buffer's normal, depth and id
+/// textures by identity and the direct buffer's generation.
+type DirectKey = ([wgpu::Texture; 3], u64);
 
 /// Where a display takes its direct light from.
 #[derive(Clone, Copy)]
@@ -545,15 +552,24 @@ impl GpuRelight {
 
     /// Uploads `set` (scene-core's shadow-mapped lights of the scene this solution is of)
     /// with `slots`, the source that holds each light ([`crate::display::light_slots`]),
-    /// and compiles the direct pass: what [`GpuRelight::encode_display_shadowed`] reads.
-    /// Once per scene or light rig (the maps are view-independent), never per frame.
-    /// Fails on a slot count that is not the set's light count, and with
+    /// and compiles the direct pass: what [`GpuRelight::encode_display_shadowed`] reads,
+    /// averaging each pixel over a `footprint` x `footprint` grid
+    /// ([`crate::display::pixel_direct_shadowed`]). Once per scene or light rig (the maps
+    /// are view-independent), never per frame. Fails on a slot count that is not the set's
+    /// light count or a footprint outside 1 to [`crate::display::MAX_FOOTPRINT`], and with
     /// [`RelightError::Budget`] before allocating maps over the adapter's binding limit.
     pub fn set_shadowed_direct(
         &mut self,
         set: &LightSet,
         slots: &[Option<usize>],
+        footprint: u32,
     ) -> Result<(), RelightError> {
+        if !(1..=crate::display::MAX_FOOTPRINT).contains(&footprint) {
+            return Err(RelightError::InvalidSetting(format!(
+                "footprint {footprint}: expected 1 to {}",
+                crate::display::MAX_FOOTPRINT
+            )));
+        }
         if slots.len() != set.lights.len() {
             return Err(RelightError::InvalidSetting(format!(
                 "{} light slots for {} lights",
@@ -569,7 +585,11 @@ impl GpuRelight {
         let lights = gpu_lights(set);
         let texel_bytes = set.shadow_texels.len() as u64 * 4;
         check_binding("shadow maps", texel_bytes, limit)?;
-        check_binding("light table", std::mem::size_of_val(lights.as_slice()) as u64, limit)?;
+        check_binding(
+            "light table",
+            std::mem::size_of_val(lights.as_slice()) as u64,
+            limit,
+        )?;
         let pass = ComputePass::new(
             &ctx.device,
             "relight-pr direct",
@@ -621,6 +641,7 @@ impl GpuRelight {
                 ),
                 count: lights.len() as u32,
                 shadow: ShadowParams::of(set),
+                footprint,
                 pass,
                 bind: std::sync::Mutex::new(None),
             })
@@ -706,8 +727,7 @@ impl GpuRelight {
             Direct::Shadowed => {
                 if self.shadowed.is_none() {
                     return Err(RelightError::InvalidSetting(
-                        "no shadow-mapped lights on the GPU: call set_shadowed_direct first"
-                            .into(),
+                        "no shadow-mapped lights on the GPU: call set_shadowed_direct first".into(),
                     ));
                 }
                 (
@@ -782,8 +802,10 @@ impl GpuRelight {
                     width: w,
                     height: h,
                     k: self.k as u32,
-                    lights: s.count,
-                    shadow: s.shadow,
+                    light_count: s.count,
+                    shadow_params: s.shadow,
+                    footprint: s.footprint,
+                    pad: [0; 3],
                 };
                 self.writer
                     .write(encoder, &s.params, 0, bytemuck::bytes_of(&params));
@@ -807,10 +829,10 @@ impl GpuRelight {
         self.writer
             .write(encoder, &direct_buf, 0, bytemuck::cast_slice(&direct));
         self.writer.finish(encoder);
-        if let Some((s, cached)) = &shadowed {
-            if let Some((_, bind)) = cached.as_ref() {
-                s.pass.dispatch(encoder, bind, w, h, None);
-            }
+        if let Some((s, cached)) = &shadowed
+            && let Some((_, bind)) = cached.as_ref()
+        {
+            s.pass.dispatch(encoder, bind, w, h, None);
         }
         pass.dispatch(encoder, bind, w, h, None);
         Ok(())
@@ -880,8 +902,12 @@ mod layout_tests {
                 width,
                 height,
                 k,
-                lights,
-                shadow,
+                light_count,
+                shadow_params,
+                footprint,
+                pad0: pad,
+                pad1: pad + 4,
+                pad2: pad + 8,
             }
         )
         .unwrap();

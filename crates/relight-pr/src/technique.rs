@@ -197,7 +197,10 @@ impl RelightTechnique {
             welding,
             rays,
         });
-        if let DirectLight::ShadowMaps { emitter_samples } = self.direct {
+        if let DirectLight::ShadowMaps {
+            emitter_samples, ..
+        } = self.direct
+        {
             self.shadowed_lights(emitter_samples)?;
         }
         Ok(())
@@ -250,7 +253,10 @@ impl Technique for RelightTechnique {
             return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
         }
         // Built before the frame's clock starts only when the mode changed after prepare.
-        if let DirectLight::ShadowMaps { emitter_samples } = self.direct {
+        if let DirectLight::ShadowMaps {
+            emitter_samples, ..
+        } = self.direct
+        {
             self.shadowed_lights(emitter_samples)?;
         }
         let Some(p) = self.prepared.as_ref() else {
@@ -294,7 +300,7 @@ impl Technique for RelightTechnique {
                     });
                 }
             }
-            DirectLight::ShadowMaps { .. } => {
+            DirectLight::ShadowMaps { footprint, .. } => {
                 let Some(s) = self.shadowed.as_ref() else {
                     unreachable!("built above")
                 };
@@ -308,6 +314,7 @@ impl Technique for RelightTechnique {
                         p.solution.k(),
                         &g,
                         &frame.view,
+                        footprint,
                     ),
                 });
             }

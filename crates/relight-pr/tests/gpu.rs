@@ -351,11 +351,16 @@ fn shadowed_direct_display_equals_the_cpu_twin() {
 
     let set = LightSet::new(&scene, &test_shadows()).unwrap();
     let slots = light_slots(&set, &solution.sources);
-    assert!(slots.iter().all(Option::is_some), "every light has a source");
-    assert!(gpu.set_shadowed_direct(&set, &slots[1..]).is_err());
-    gpu.set_shadowed_direct(&set, &slots).unwrap();
+    assert!(
+        slots.iter().all(Option::is_some),
+        "every light has a source"
+    );
+    assert!(gpu.set_shadowed_direct(&set, &slots[1..], 3).is_err());
+    assert!(gpu.set_shadowed_direct(&set, &slots, 0).is_err());
+    assert!(gpu.set_shadowed_direct(&set, &slots, 5).is_err());
+    gpu.set_shadowed_direct(&set, &slots, 3).unwrap();
 
-    let values = pixel_direct_shadowed(&set, &slots, solution.k(), &g, &view);
+    let values = pixel_direct_shadowed(&set, &slots, solution.k(), &g, &view, 3);
     let e = relight::indirect_irradiance(&solution, &state);
     let vertex = welding.vertex_values(&meshing, &e);
     let cpu = compose(

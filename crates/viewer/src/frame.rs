@@ -385,7 +385,12 @@ impl Renderer {
         if shadow_maps {
             let set = LightSet::new(&p.scene, &ShadowSettings::default()).map_err(err)?;
             let slots = relight_pr::display::light_slots(&set, &p.solution.sources);
-            gpu.set_shadowed_direct(&set, &slots).map_err(err)?;
+            let footprint = match relight_pr::direct::DirectLight::shadow_maps() {
+                relight_pr::direct::DirectLight::ShadowMaps { footprint, .. } => footprint,
+                _ => 1,
+            };
+            gpu.set_shadowed_direct(&set, &slots, footprint)
+                .map_err(err)?;
         }
         let elements = self
             .raster

@@ -19,9 +19,9 @@
 //! texels (the world size of a texel where it lies), projected into the map, and eq. 30 is
 //! evaluated at the four nearest texels and blended bilinearly (PCF).
 
+use crate::ray::RayScene;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
-use crate::ray::RayScene;
 
 use super::ShadowSettings;
 

@@ -12,11 +12,11 @@
 //! (`scene_core::light_set`) and `shaders/scene-core/shadow.wgsl` (`scene_core::shadow`);
 //! [`gpu`] packs a set for them.
 
-use glam::{Vec2, Vec3};
 use crate::lights::{Emitters, LightId, LightState, SpotRamp};
 use crate::ray::RayScene;
 use crate::sampling::{r2, uniform_triangle};
 use crate::{Bounds, BudgetExceeded, Scene};
+use glam::{Vec2, Vec3};
 
 pub mod esm;
 #[cfg(feature = "gpu")]
@@ -147,7 +147,6 @@ impl ShadowSettings {
         Ok(())
     }
 }
-
 
 /// What kind of light a [`Light`] is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -642,18 +641,22 @@ impl LightSet {
     /// The shadowed irradiance at `p` (unit normal `n`) from light `index` alone, before its
     /// frame factors: what a caller that weighs lights itself (relighting's sources) sums.
     pub fn light_irradiance(&self, index: usize, p: Vec3, n: Vec3) -> Vec3 {
-        let light = &self.lights[index];
-        let l = light.irradiance(p, n);
+        let l = self.lights[index].irradiance(p, n);
         if l == Vec3::ZERO {
             return l;
         }
-        let v = match (&light.shadow, self.shadows.enabled) {
+        l * self.light_visibility(index, p, n)
+    }
+
+    /// The shadow factor of light `index` at `p` (unit normal `n`): eq. 30 with listing 8's
+    /// PCF on its map, 1 without a map or with shadows off.
+    pub fn light_visibility(&self, index: usize, p: Vec3, n: Vec3) -> f32 {
+        match (&self.lights[index].shadow, self.shadows.enabled) {
             (Some(map), true) => {
                 esm::visibility(&self.shadow_texels, map, p, n, self.extent, &self.shadows)
             }
             _ => 1.0,
-        };
-        l * v
+        }
     }
 }
 
