@@ -330,3 +330,114 @@ pub fn run(threads: usize, repeats: usize) -> Result<(), String> {
     dynamic(&pool, repeats)?;
     solve_1e4(&pool)
 }
+
+/// `cargo xtask bench relight-direct`: what a new view's direct light costs at 256 x 192 on
+/// the built-in scenes (camera 0, 1024-element solve): the per-pixel ray gather
+/// (`DirectLight::PerPixel`, 8 footprint points, 4 emitter rays) and the shadow-mapped
+/// lights (`DirectLight::ShadowMaps`, 3 x 3 footprint points) on the CPU (the given
+/// threads), and on the GPU (whatever adapter wgpu picks) the display with the gathered
+/// values uploaded against the display with the shadow-map pass in its encoder, each with
+/// its readback; the shadow maps' one-time build beside. Medians of `repeats` after a
+/// warm-up.
+pub fn direct(threads: usize, repeats: usize) -> Result<(), String> {
+    use relight_pr::direct::DirectGather;
+    use relight_pr::display::{Welding, light_slots, pixel_direct, pixel_direct_shadowed};
+    use scene_core::GBufferRenderer;
+    use scene_core::gbuffer::RayCastRenderer;
+    use scene_core::shadowed_lights::{LightSet, ShadowSettings};
+
+    let pool = worker_pool(threads)?;
+    let gpu = gpu_or_say_why();
+    let (w, h) = (256u32, 192u32);
+    println!(
+        "\nRelighting's direct light for a new view, {w} x {h}, ms (CPU {threads} threads{})",
+        gpu.as_ref()
+            .map_or(String::new(), |c| format!("; GPU {}", c.adapter_summary()))
+    );
+    println!(
+        "{:>14} {:>11} {:>11} {:>11} {:>13} {:>13}",
+        "scene", "maps build", "CPU gather", "CPU maps", "GPU gathered", "GPU maps"
+    );
+    for name in ["cornell", "cornell-point", "corridor"] {
+        let scene = Arc::new(builtin::scene(name).map_err(|e| e.to_string())?);
+        let k = scene_core::lights::light_ids(&scene).len();
+        let meshing =
+            Meshing::new(&scene, &MeshSettings::elements(1024), k).map_err(|e| e.to_string())?;
+        let rays = RayScene::build(&scene);
+        let settings = SolverSettings {
+            max_unshot: 1e-3,
+            ..Default::default()
+        };
+        let solution = pool
+            .install(|| relight_pr::solve(&scene, &meshing, &rays, &settings, &mut |_| {}))
+            .map_err(|e| e.to_string())?;
+        let view =
+            scene_core::View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
+        let mut renderer = RayCastRenderer::new();
+        renderer
+            .prepare(Arc::new(meshing.element_scene(&scene)))
+            .map_err(|e| e.to_string())?;
+        let g = renderer
+            .render_view(&view, w, h)
+            .map_err(|e| e.to_string())?;
+        let t0 = Instant::now();
+        let set = pool
+            .install(|| LightSet::new(&scene, &ShadowSettings::default()))
+            .map_err(|e| e.to_string())?;
+        let build = t0.elapsed().as_secs_f64() * 1e3;
+        let slots = light_slots(&set, &solution.sources);
+        let gather = DirectGather::new(&scene, &meshing, &solution.sources, 4);
+        let mut values = Vec::new();
+        let cpu_gather = time_ms(repeats, || {
+            values = pool.install(|| pixel_direct(&gather, &rays, &g, &view, 8));
+            Ok(())
+        })?;
+        let cpu_maps = time_ms(repeats, || {
+            pool.install(|| pixel_direct_shadowed(&set, &slots, solution.k(), &g, &view, 3));
+            Ok(())
+        })?;
+        let (gpu_gathered, gpu_maps) = match &gpu {
+            None => ("-".to_string(), "-".to_string()),
+            Some(ctx) => {
+                let welding = Welding::new(&meshing, scene.extent());
+                let mut relit = relight_pr::gpu::GpuRelight::new(
+                    ctx,
+                    &meshing,
+                    &welding,
+                    &solution,
+                    Precision::F32,
+                )
+                .map_err(|e| e.to_string())?;
+                relit
+                    .set_shadowed_direct(&set, &slots, 3)
+                    .map_err(|e| e.to_string())?;
+                let gg = scene_core::gpu::GpuGBuffer::upload(ctx, &g).map_err(|e| e.to_string())?;
+                let (f, base) = relight_pr::relight::weights(
+                    &solution,
+                    &scene_core::LightState::default(),
+                    true,
+                );
+                let gathered = time_ms(repeats, || {
+                    relit
+                        .display(&gg, &view, &f, base, Some(&values))
+                        .map(|_| ())
+                        .map_err(|e| e.to_string())
+                })?;
+                let maps = time_ms(repeats, || {
+                    relit
+                        .display_shadowed(&gg, &view, &f, base)
+                        .map(|_| ())
+                        .map_err(|e| e.to_string())
+                })?;
+                (format!("{gathered:.1}"), format!("{maps:.1}"))
+            }
+        };
+        println!(
+            "{name:>14} {build:>11.1} {cpu_gather:>11.1} {cpu_maps:>11.1} {gpu_gathered:>13} {gpu_maps:>13}"
+        );
+    }
+    println!(
+        "(GPU gathered: the display with the CPU gather's values uploaded, the gather itself not included; GPU maps: the shadow-map pass and the display.)"
+    );
+    Ok(())
+}

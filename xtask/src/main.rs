@@ -369,7 +369,7 @@ enum Command {
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
         /// What to benchmark: `reference`, `gbuffer`, `isr`, `relight`, `relight-frames`,
-        /// `relight-dynamic`, `ibrr` or `scaling`.
+        /// `relight-dynamic`, `relight-direct`, `ibrr` or `scaling`.
         what: String,
         /// Worker threads.
         #[arg(long, default_value_t = 2)]
@@ -786,10 +786,11 @@ fn run(cli: Cli) -> Result<(), String> {
             "relight" => bench_relight::run(threads, repeats),
             "relight-frames" => bench_relight::frames(threads, repeats),
             "relight-dynamic" => bench_relight::dynamic_only(threads, repeats),
+            "relight-direct" => bench_relight::direct(threads, repeats),
             "ibrr" => bench_ibrr::run(threads, repeats),
             "scaling" => bench_scaling::run(threads, repeats, max_triangles),
             other => Err(format!(
-                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, ibrr, scaling)"
+                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, relight-direct, ibrr, scaling)"
             )),
         },
     }
