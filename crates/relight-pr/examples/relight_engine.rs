@@ -5,10 +5,12 @@
 //! `GpuContext::from_device`), holds a room as raw vertex, index and material arrays (a
 //! floor, a ceiling, four walls and a block, lit by a point light) and a camera as a
 //! reverse-Z projection with the far plane at infinity (as Bevy builds it). Once, the example
-//! builds a scene-core `Scene` from those arrays and solves it with the light tagged; each
-//! frame records eq. 1 and the display into the engine's encoder with the frame's light
-//! colour. The last line counts the GPU objects a steady-state frame created (wgpu's
-//! counters): all zero.
+//! builds a scene-core `Scene` from those arrays, solves it with the light tagged and builds
+//! the light's shadow maps (`scene_core::shadowed_lights`); each frame records eq. 1, the
+//! direct light from the shadow maps at every pixel and the display into the engine's
+//! encoder with the frame's light colour (nothing is kept from one view to the next, so a
+//! moving camera costs the same). The last line counts the GPU objects a steady-state frame
+//! created (wgpu's counters): all zero.
 //!
 //! Until the one frame contract of issue 30 exists, relighting's display reads a G-buffer of
 //! its own element scene (its triangle ids are elements), rendered here by scene-core's ray
@@ -19,7 +21,7 @@
 use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
-use relight_pr::display::Welding;
+use relight_pr::display::{Welding, light_slots};
 use relight_pr::gpu::GpuRelight;
 use relight_pr::packed::Precision;
 use relight_pr::{MeshSettings, Meshing, SolverSettings, relight, solve};
@@ -27,6 +29,7 @@ use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{GpuContext, GpuGBuffer, ObjectCounts};
 use scene_core::lights::{LightId, LightState, light_ids};
 use scene_core::ray::RayScene;
+use scene_core::shadowed_lights::{LightSet, ShadowSettings};
 use scene_core::{GBufferRenderer, Material, Mesh, PointLight, Scene, View};
 
 const W: u32 = 160;
@@ -199,7 +202,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &mut |_| {},
     )?;
     let welding = Welding::new(&meshing, scene.extent());
-    let gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F16)?;
+    let mut gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F16)?;
+    // The direct light per frame: the lamp's shadow map, evaluated over each pixel's
+    // footprint on a 3 x 3 grid.
+    let lights = LightSet::new(&scene, &ShadowSettings::default())?;
+    gpu.set_shadowed_direct(&lights, &light_slots(&lights, &solution.sources), 3)?;
     println!(
         "solved: {} elements, {} light source(s), {} KiB on the GPU",
         meshing.elements.len(),
@@ -236,7 +243,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         let (result, created) = ObjectCounts::during(&ctx.device, || {
             gpu.encode_relight(&mut encoder, &factors, base, None)?;
-            gpu.encode_display(&mut encoder, &g, &view, &factors, base, None, &output)
+            gpu.encode_display_shadowed(&mut encoder, &g, &view, &factors, base, &output)
         });
         result?;
         if frame > 0 {
