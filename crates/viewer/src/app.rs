@@ -738,6 +738,7 @@ impl App {
         if let Some(r) = replayed {
             step.reference_spp = r.reference_spp;
             step.rebuild_ibrr = r.rebuild_ibrr;
+            step.no_wait = r.no_wait;
         }
         let same = self.last_recorded.as_ref() == Some(&step);
         if same && screenshot.is_none() && replayed.is_none() {
@@ -761,6 +762,7 @@ impl App {
         let replaying = self.steps.is_some();
         let mut want_spp = None;
         let mut replayed = None;
+        let mut wait = replaying;
         if let Some(steps) = &self.steps {
             let Some(step) = steps.get(self.step).cloned() else {
                 event_loop.exit();
@@ -768,6 +770,7 @@ impl App {
             };
             self.step += 1;
             want_spp = step.reference_spp;
+            wait = !step.no_wait;
             self.apply_step(&step);
             replayed = Some(step);
         } else {
@@ -781,12 +784,12 @@ impl App {
             self.moved |= self.state.camera.advance(&motion, dt);
         }
         self.ensure_jobs();
-        self.collect_jobs(replaying)?;
+        self.collect_jobs(wait)?;
         let (w, h) = self.size;
         let camera = self.state.camera.camera_at(w, h);
         let view = View::from_camera(&camera);
         self.update_reference(&view, want_spp)?;
-        self.update_direct(&view, replaying)?;
+        self.update_direct(&view, wait)?;
         let error_scale = self.error_scale();
 
         let Some(gfx) = self.gfx.as_mut() else {

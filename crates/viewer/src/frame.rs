@@ -449,7 +449,8 @@ impl Renderer {
     }
 
     /// Records `mode` into its buffer (`slot` 0 or 1; the reference has its own). A mode
-    /// whose precomputation is not done yet leaves a black buffer.
+    /// whose precomputation is not done yet (relighting's solve, the IBRR's construction)
+    /// shows direct light (DL) meanwhile, never a black frame; the panel says so.
     fn encode_mode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
@@ -539,7 +540,7 @@ impl Renderer {
                     }
                     .map_err(err)?;
                 }
-                None => encoder.clear_buffer(&t.slots[slot], 0, None),
+                None => return self.encode_mode(encoder, spec, Mode::Dl, slot, gbuffer_done),
             },
             Mode::Ibrr => match self.ibrr.as_mut() {
                 Some(b) => {
@@ -563,7 +564,7 @@ impl Renderer {
                         )
                         .map_err(err)?;
                 }
-                None => encoder.clear_buffer(&t.slots[slot], 0, None),
+                None => return self.encode_mode(encoder, spec, Mode::Dl, slot, gbuffer_done),
             },
             _ => {}
         }

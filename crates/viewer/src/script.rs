@@ -107,6 +107,11 @@ pub struct Step {
     /// Wait until the reference holds exactly this many samples per pixel of this view.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference_spp: Option<u32>,
+    /// Take this step's frame without waiting for the precomputations of the modes on
+    /// screen (a replay otherwise waits, so that its frames show finished methods): a
+    /// method still precomputing shows direct light, as it does to a user.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub no_wait: bool,
     /// Save the frame as `NAME.exr`, `NAME.png` and `NAME.json` in the screenshot folder.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub screenshot: Option<String>,
@@ -136,6 +141,8 @@ pub struct CheckedStep {
     pub rebuild_ibrr: bool,
     /// Reference samples per pixel to wait for.
     pub reference_spp: Option<u32>,
+    /// Do not wait for precomputations.
+    pub no_wait: bool,
     /// Screenshot name.
     pub screenshot: Option<String>,
 }
@@ -281,6 +288,7 @@ impl Step {
             lights,
             rebuild_ibrr: self.rebuild_ibrr,
             reference_spp: self.reference_spp,
+            no_wait: self.no_wait,
             screenshot: self.screenshot.clone(),
         })
     }

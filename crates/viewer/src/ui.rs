@@ -128,7 +128,7 @@ fn status_line(ui: &mut egui::Ui, name: &str, status: &JobStatus) {
         }
         JobStatus::Running(p, t) => {
             ui.add(egui::ProgressBar::new(*p as f32).text(format!(
-                "{name}: {:.0} % ({:.1} s)",
+                "{name}: {:.0} % ({:.1} s); DL shown meanwhile",
                 p * 100.0,
                 t.as_secs_f64()
             )));

@@ -752,3 +752,50 @@ fn a_scene_without_lights_replays_through_every_mode_black() {
         );
     }
 }
+
+/// While a method precomputes, its frame is direct light, never black: a replayed frame in
+/// relighting mode taken without waiting (`"no_wait": true`) while a 200 000-element solve
+/// has only begun equals the library's DL frame.
+#[test]
+fn a_method_still_precomputing_shows_direct_light() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let dir = out_dir("precomputing");
+    let file = dir.join("walk.json");
+    std::fs::write(
+        &file,
+        r#"{"version": 1, "steps": [{"scene_camera": 0, "mode": "relight", "no_wait": true, "screenshot": "early"}]}"#,
+    )
+    .unwrap();
+    let runner = display_runner().expect("checked by context()");
+    let size = format!("{WIDTH}x{HEIGHT}");
+    let shots = dir.join("shots");
+    let out = viewer(
+        &runner,
+        &[
+            "--scene",
+            "cornell",
+            "--size",
+            &size,
+            "--relight-elements",
+            "200000",
+            "--replay",
+            file.to_str().unwrap(),
+            "--screenshots",
+            shots.to_str().unwrap(),
+        ],
+    );
+    let text = output_text(&out);
+    assert!(out.status.success(), "the replay failed: {text}");
+    assert!(
+        !text.contains("relighting ready"),
+        "the solve finished before the frame: {text}"
+    );
+    let s = shot(&dir, "early");
+    assert_eq!(s.meta["mode"].as_str(), Some("relight"));
+    let scene = scene();
+    let dl = isr_frame(&ctx, &scene, Mode::Dl, &s);
+    assert!(dl.mean().element_sum() > 0.0);
+    assert_matches("relight while solving", &s.image, &dl);
+}
