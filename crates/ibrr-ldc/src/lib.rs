@@ -35,7 +35,7 @@ pub mod technique;
 
 pub use construct::{Construction, ConstructionStats};
 pub use error::IbrrError;
-pub use gpu::GpuLdc;
+pub use gpu::{GpuLdc, IbrrFrame};
 pub use irpl::{Irpl, IrplKind, IrplSet};
 pub use ldc::{Ldc, LdcFrame};
 pub use reconstruct::{Reconstruction, Served, lookup, reconstruct, shade};

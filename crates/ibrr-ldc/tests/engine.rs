@@ -152,3 +152,138 @@ fn an_engine_gbuffer_in_reverse_z_gives_the_own_gbuffers_image() {
         }
     }
 }
+
+/// The IBRR on the frame contract (`IbrrFrame` as a `GpuFrame`): its target holds the
+/// reconstruction `GpuLdc` reads back (same pass, then the copy into the texture), under the
+/// default light state and after a recolouring (against a second construction from the
+/// same seed relit on its own); a frame under an unchanged light state creates no GPU
+/// object, and a light change only staging buffers.
+#[test]
+fn the_frame_contract_gives_the_reconstruction_and_creates_nothing_per_frame() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    use scene_core::gpu::{FrameInputs, GpuFrame, ObjectCounts};
+    use scene_core::lights::{LightId, light_ids};
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let settings = IbrrSettings {
+        resolution: 32,
+        irpls: 16,
+        ..Default::default()
+    };
+    let technique = || {
+        let mut t = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
+        t.prepare(scene.clone()).unwrap();
+        t
+    };
+    let (w, h) = (48, 36);
+    let frame = FrameRequest::camera(&scene.cameras[0], w, h);
+    let g = RayCastRenderer::new()
+        .render(&scene, &frame.view, w, h)
+        .unwrap();
+    let gg = GpuGBuffer::upload(&ctx, &g).unwrap();
+    let emitter = *light_ids(&scene)
+        .iter()
+        .find(|i| matches!(i, LightId::Emissive(_)))
+        .unwrap();
+    let recoloured = {
+        let mut s = LightState::default();
+        s.set_color(emitter, Vec3::new(1.0, 0.4, 0.1));
+        s
+    };
+    // The library's images: a second construction, relit and read back by GpuLdc.
+    let mut other = technique();
+    let expected: Vec<Image> = [LightState::default(), recoloured.clone()]
+        .iter()
+        .map(|state| {
+            other.relight(state).unwrap().unwrap();
+            let mut gpu = GpuLdc::new(
+                &ctx,
+                other.ldc().unwrap(),
+                settings.lookup,
+                settings.fallback_radius,
+            )
+            .unwrap();
+            gpu.render(&scene, &gg, &frame.view, state).unwrap().0
+        })
+        .collect();
+
+    let mut method = ibrr_ldc::IbrrFrame::new(&ctx, technique(), scene.clone()).unwrap();
+    assert_eq!(method.name(), "ibrr");
+    let target = ctx.create_texture_2d(
+        "frame target",
+        w,
+        h,
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+    );
+    let wrong = ctx.create_texture_2d(
+        "wrong target",
+        w + 1,
+        h,
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::STORAGE_BINDING,
+    );
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    let default = LightState::default();
+    let inputs = |lights| FrameInputs {
+        gbuffer: &gg,
+        view: &frame.view,
+        lights,
+    };
+    assert!(
+        method
+            .encode(&mut encoder, &inputs(&default), &wrong)
+            .is_err()
+    );
+    let states = [
+        &default,
+        &default,
+        &recoloured,
+        &recoloured,
+        &default,
+        &default,
+    ];
+    for (k, state) in states.into_iter().enumerate() {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let (result, created) = ObjectCounts::during(&ctx.device, || {
+            method.encode(&mut encoder, &inputs(state), &target)
+        });
+        result.unwrap();
+        ctx.queue.submit([encoder.finish()]);
+        let got: Vec<Vec3> = ctx
+            .read_texture_rgba32f(&target)
+            .unwrap()
+            .iter()
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect();
+        let want = &expected[usize::from(state != &default)];
+        let worst = got
+            .iter()
+            .zip(&want.pixels)
+            .map(|(a, b)| (*a - *b).abs().max_element())
+            .fold(0.0f32, f32::max);
+        let peak = want
+            .pixels
+            .iter()
+            .map(|p| p.max_element())
+            .fold(0.0f32, f32::max);
+        eprintln!(
+            "frame {k}: worst difference {worst:.2e} of a peak {peak:.2e}; created {created}"
+        );
+        assert!(worst <= 1e-5 * peak, "frame {k}: {worst}");
+        assert_eq!(created.pipelines, 0, "frame {k}: {created}");
+        let changed = k > 0 && states[k] != states[k - 1];
+        if changed {
+            // A light change stages the recombined values (every layer's light, far more
+            // than a frame's uniforms) in the writer's belt, which may take a new staging
+            // chunk while the last one is still on its way back: only staging buffers.
+            assert!(
+                created.textures == 0 && created.bind_groups == 0 && created.texture_views == 0,
+                "frame {k}: {created}"
+            );
+        } else if k > 0 {
+            assert!(created.is_zero(), "frame {k}: {created}");
+        }
+    }
+}

@@ -61,7 +61,7 @@ pub use scene_core::shadowed_lights as light_set;
 pub use scene_core::shadowed_lights::esm as shadow;
 
 pub use frame::{Frame, IsrInputs, PassTimings, render_cpu, render_image};
-pub use gpu::{GpuIsr, GpuIsrInputs, Intermediate};
+pub use gpu::{GpuIsr, GpuIsrInputs, Intermediate, IsrFrame};
 pub use light_set::{Light, LightKind, LightSet, Part};
 pub use scene_core::gbuffer::downsample::{DownsampleMode, coarse_size, downsample};
 pub use settings::{Blur, Estimator, IsrSettings, Radius, Sender, ShadowSettings};

@@ -288,3 +288,92 @@ fn reverse_z_and_infinite_inputs_give_the_standard_image() {
         assert!(off * 200 <= own.pixels.len(), "{name}: {off} pixels");
     }
 }
+
+/// ISR and DL on the frame contract (`IsrFrame` as a `GpuFrame`): the target of each frame
+/// holds what `GpuIsr::render` writes for the same light state (bit for bit: the same
+/// passes), a light change shows in the next frame, a target of the wrong size is refused,
+/// and steady frames create no GPU object.
+#[test]
+fn the_frame_contract_gives_isr_and_dl_and_creates_nothing_per_frame() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    use isr::IsrFrame;
+    use scene_core::LightState;
+    use scene_core::gpu::{FrameInputs, GpuFrame, ObjectCounts};
+    let setup = Setup::builtin("cornell-point", 0, 48, 36);
+    let (w, h) = (48, 36);
+    let gg = GpuGBuffer::upload(&ctx, &setup.full).unwrap();
+    let mut dim = LightState::default();
+    dim.set_color(LightId::Point(0), Vec3::new(1.0, 0.5, 0.25));
+    let target = |label| {
+        ctx.create_texture_2d(
+            label,
+            w,
+            h,
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        )
+    };
+    for (name, settings) in [("isr", IsrSettings::default()), ("dl", IsrSettings::dl())] {
+        // The library's frames, one GpuIsr per light state.
+        let expected: Vec<Vec<[f32; 4]>> = [LightState::default(), dim.clone()]
+            .iter()
+            .map(|state| {
+                let mut gpu = GpuIsr::new(&ctx, &setup.prepared).unwrap();
+                gpu.apply(state);
+                let out = target("expected");
+                let inputs = GpuIsrInputs {
+                    full: &gg,
+                    coarse: None,
+                    view: &setup.view,
+                };
+                gpu.render(&inputs, &settings, &out).unwrap();
+                ctx.read_texture_rgba32f(&out).unwrap()
+            })
+            .collect();
+        assert_ne!(expected[0], expected[1], "{name}: the light change shows");
+        let mut method = IsrFrame::new(GpuIsr::new(&ctx, &setup.prepared).unwrap(), settings);
+        assert_eq!(method.name(), name);
+        let out = target("frame");
+        let default = LightState::default();
+        let wrong = ctx.create_texture_2d(
+            "wrong",
+            w,
+            h + 1,
+            wgpu::TextureFormat::Rgba32Float,
+            wgpu::TextureUsages::STORAGE_BINDING,
+        );
+        let inputs = |lights| FrameInputs {
+            gbuffer: &gg,
+            view: &setup.view,
+            lights,
+        };
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        assert!(
+            method
+                .encode(&mut encoder, &inputs(&default), &wrong)
+                .is_err()
+        );
+        for (k, state) in [&default, &default, &dim, &default, &dim, &dim]
+            .into_iter()
+            .enumerate()
+        {
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            let (result, created) = ObjectCounts::during(&ctx.device, || {
+                method.encode(&mut encoder, &inputs(state), &out)
+            });
+            result.unwrap();
+            ctx.queue.submit([encoder.finish()]);
+            let got = ctx.read_texture_rgba32f(&out).unwrap();
+            assert!(
+                got == expected[usize::from(state != &default)],
+                "{name} frame {k}: not the library's frame"
+            );
+            assert_eq!(created.pipelines, 0, "{name} frame {k}: {created}");
+            if k >= 2 {
+                assert!(created.is_zero(), "{name} frame {k}: {created}");
+            }
+        }
+    }
+}

@@ -35,7 +35,10 @@ pub mod shader;
 pub mod timing;
 pub mod wgsl_layout;
 pub use compute::{ComputePass, PassTimer, WORKGROUP};
-pub use frame::{FrameWriter, KeptBuffer, ObjectCounts};
+pub use frame::{
+    FrameInputs, FrameWriter, GpuFrame, KeptBuffer, ObjectCounts, PixelsToTexture,
+    check_frame_target,
+};
 pub use host::{HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
 pub use scene::{GpuMaterial, GpuScene, GpuVertex, flatten_scene, gpu_materials};
 pub use wgpu::naga;
@@ -56,6 +59,8 @@ pub const SHADER_PASSES: &[shader::ShaderPass] = &[
     LUMINANCE,
     crate::gbuffer::downsample::DOWNSAMPLE,
     host::HOST_GBUFFER,
+    frame::PIXELS_TO_TEXTURE,
+    frame::PIXELS_TO_TEXTURE_RGBA16F,
 ];
 
 /// An error of the GPU layer.

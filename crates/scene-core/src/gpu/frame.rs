@@ -1,6 +1,10 @@
-//! What every method's GPU frame uses so that a steady stream of frames creates no GPU
-//! object (issue 30's frame contract): per-frame data written by commands of the frame's own
-//! encoder ([`FrameWriter`]), buffers kept while their data fits ([`KeptBuffer`]), and wgpu's
+//! The GPU frame contract every method meets (issue 30, docs/engine.md): [`GpuFrame`], one
+//! short trait whose `encode` records a frame into the host's encoder from
+//! [`FrameInputs`] (the G-buffer, the view, the frame's light state) into the host's target
+//! texture; and what a method's frame uses so that a steady stream of frames creates no GPU
+//! object: per-frame data written by commands of the frame's own encoder
+//! ([`FrameWriter`]), buffers kept while their data fits ([`KeptBuffer`]), a pass that
+//! turns a method's pixel buffer into the target ([`PixelsToTexture`]), and wgpu's
 //! live-object counters to check it ([`ObjectCounts`]).
 //!
 //! Why commands of the frame's encoder rather than `Queue::write_buffer`: a queue write lands
@@ -202,5 +206,170 @@ impl std::fmt::Display for ObjectCounts {
             self.pipelines,
             self.other
         )
+    }
+}
+
+/// What one frame of any method reads: the G-buffer of the frame's view (the toolkit's own,
+/// or the host's converted by [`super::HostGBufferPass`]), the view (from the host's
+/// matrices by [`crate::View::from_host_matrices`]) and the frame's light state.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameInputs<'a> {
+    /// The frame's G-buffer.
+    pub gbuffer: &'a super::GpuGBuffer,
+    /// The frame's view.
+    pub view: &'a crate::View,
+    /// The frame's light state (recolour, dim, switch, direct and indirect multipliers).
+    pub lights: &'a crate::LightState,
+}
+
+/// The one GPU frame contract: a method prepared on the host's device (its constructor, on
+/// a [`super::GpuContext`] made with [`super::GpuContext::from_device`]; pipelines are
+/// compiled there, never in `encode`) records each frame into the host's encoder.
+///
+/// The shape is that of wgpu's examples' `render` and of a render-graph node: inputs in, one
+/// target out, nothing submitted, nothing read back. Implemented by ISR and DL
+/// (`isr::IsrFrame`) and the IBRR (`ibrr_ldc::IbrrFrame`); relighting's display still needs
+/// a G-buffer of its own element scene (docs/engine.md).
+pub trait GpuFrame {
+    /// The method's short name.
+    fn name(&self) -> &str;
+
+    /// Records one frame into `encoder`: reads `inputs`, writes radiance (`rgb`, `a` = 1)
+    /// into `target`, an `Rgba32Float` or `Rgba16Float` texture of the G-buffer's size with
+    /// `STORAGE_BINDING` usage ([`check_frame_target`]). Once the inputs' textures and the
+    /// target have been seen, a frame creates no GPU object.
+    fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &FrameInputs<'_>,
+        target: &wgpu::Texture,
+    ) -> Result<(), crate::Error>;
+}
+
+/// Checks a frame target: `width x height`, `Rgba32Float` or `Rgba16Float`, with
+/// `STORAGE_BINDING` usage; the error names what is wrong.
+pub fn check_frame_target(
+    target: &wgpu::Texture,
+    width: u32,
+    height: u32,
+) -> Result<(), super::GpuError> {
+    let format = target.format();
+    if !matches!(
+        format,
+        wgpu::TextureFormat::Rgba32Float | wgpu::TextureFormat::Rgba16Float
+    ) {
+        return Err(super::GpuError::WrongFormat {
+            found: format,
+            expected: "Rgba32Float or Rgba16Float (the frame target)",
+        });
+    }
+    if (target.width(), target.height()) != (width, height) {
+        return Err(super::GpuError::InvalidSize {
+            width: target.width(),
+            height: target.height(),
+            reason: format!("the frame target must be the G-buffer's {width}x{height}"),
+        });
+    }
+    if !target
+        .usage()
+        .contains(wgpu::TextureUsages::STORAGE_BINDING)
+    {
+        return Err(super::GpuError::InvalidSize {
+            width,
+            height,
+            reason: "the frame target lacks STORAGE_BINDING usage".into(),
+        });
+    }
+    Ok(())
+}
+
+/// The pass writing a pixel buffer into a frame target (`Rgba32Float`).
+pub const PIXELS_TO_TEXTURE: super::shader::ShaderPass = super::shader::ShaderPass::new(
+    "scene-core/pixels_to_texture",
+    crate::wgsl_file!("scene-core", "pixels_to_texture.wgsl"),
+    &[],
+);
+/// The same writing `Rgba16Float`.
+pub const PIXELS_TO_TEXTURE_RGBA16F: super::shader::ShaderPass = PIXELS_TO_TEXTURE.with_defs(
+    "scene-core/pixels_to_texture (rgba16f)",
+    &["OUTPUT_RGBA16F"],
+);
+
+/// Writes a method's pixel buffer (one `vec4<f32>` per pixel, row-major, radiance in
+/// `rgb`) into a frame target, alpha 1, in one compute pass of the frame's encoder; its bind
+/// group is kept while the buffer and the target stay the same. Both pipelines are compiled
+/// in [`PixelsToTexture::new`].
+pub struct PixelsToTexture {
+    rgba32f: super::compute::ComputePass,
+    rgba16f: super::compute::ComputePass,
+    bound: Mutex<Option<((wgpu::Buffer, wgpu::Texture), wgpu::BindGroup)>>,
+}
+
+impl std::fmt::Debug for PixelsToTexture {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PixelsToTexture").finish_non_exhaustive()
+    }
+}
+
+impl PixelsToTexture {
+    /// Compiles both variants on `ctx`'s device.
+    pub fn new(ctx: &super::GpuContext) -> Result<Self, super::GpuError> {
+        use super::layout::{storage_buffer, storage_texture};
+        let make = |pass: &super::shader::ShaderPass, format| {
+            super::compute::ComputePass::new(
+                &ctx.device,
+                "scene-core pixels to texture",
+                pass,
+                &[storage_buffer(0), storage_texture(1, format)],
+                &[],
+            )
+        };
+        Ok(Self {
+            rgba32f: make(&PIXELS_TO_TEXTURE, wgpu::TextureFormat::Rgba32Float)?,
+            rgba16f: make(&PIXELS_TO_TEXTURE_RGBA16F, wgpu::TextureFormat::Rgba16Float)?,
+            bound: Mutex::new(None),
+        })
+    }
+
+    /// Records the copy of `pixels` into `target` (checked by [`check_frame_target`] against
+    /// its own size; `pixels` must hold at least one `vec4<f32>` per texel).
+    pub fn encode(
+        &self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        pixels: &wgpu::Buffer,
+        target: &wgpu::Texture,
+    ) -> Result<(), super::GpuError> {
+        let (w, h) = (target.width(), target.height());
+        check_frame_target(target, w, h)?;
+        if pixels.size() < u64::from(w) * u64::from(h) * 16 {
+            return Err(super::GpuError::BadLength {
+                what: "the pixel buffer (bytes)",
+                expected: w as usize * h as usize * 16,
+                found: pixels.size() as usize,
+            });
+        }
+        let pass = if target.format() == wgpu::TextureFormat::Rgba16Float {
+            &self.rgba16f
+        } else {
+            &self.rgba32f
+        };
+        let key = (pixels.clone(), target.clone());
+        let mut bound = self.bound.lock().unwrap_or_else(|e| e.into_inner());
+        if bound.as_ref().is_none_or(|(k, _)| *k != key) {
+            let view = target.create_view(&Default::default());
+            let bind = pass.bind(
+                device,
+                &[
+                    pixels.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&view),
+                ],
+            );
+            *bound = Some((key, bind));
+        }
+        if let Some((_, bind)) = bound.as_ref() {
+            pass.dispatch(encoder, bind, w, h, None);
+        }
+        Ok(())
     }
 }
