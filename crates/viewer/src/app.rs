@@ -575,19 +575,28 @@ impl App {
             lights: self.state.lights.fingerprint(),
         };
         if needed && r.key.as_ref() != Some(&key) {
+            // A light change at the same view and size keeps the last image on screen until
+            // the restarted reference's first pass (one sample per pixel) replaces it: never
+            // a black half. A new view or size clears it (the old image would not line up).
+            let same_view = r
+                .key
+                .as_ref()
+                .is_some_and(|k| k.view == key.view && k.size == key.size);
             r.generation += 1;
             r.key = Some(key);
             r.spp = 0;
             r.pixels.clear();
             r.error = None;
             r.running = true;
-            let mut encoder = gfx
-                .renderer
-                .ctx
-                .device
-                .create_command_encoder(&Default::default());
-            gfx.renderer.clear_reference(&mut encoder);
-            gfx.renderer.ctx.queue.submit([encoder.finish()]);
+            if !same_view {
+                let mut encoder = gfx
+                    .renderer
+                    .ctx
+                    .device
+                    .create_command_encoder(&Default::default());
+                gfx.renderer.clear_reference(&mut encoder);
+                gfx.renderer.ctx.queue.submit([encoder.finish()]);
+            }
             r.worker.start(Job {
                 generation: r.generation,
                 view: *view,

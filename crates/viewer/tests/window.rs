@@ -799,3 +799,43 @@ fn a_method_still_precomputing_shows_direct_light() {
     assert!(dl.mean().element_sum() > 0.0);
     assert_matches("relight while solving", &s.image, &dl);
 }
+
+/// After a light change at the same view, the split view's reference half keeps the last
+/// image until the restarted reference's first pass replaces it, instead of going black: a
+/// frame taken right after the change (the restart has no pass yet) shows the reference as
+/// it was.
+#[test]
+fn a_light_change_keeps_the_reference_half_until_its_first_new_pass() {
+    let Some(_ctx) = context() else {
+        return;
+    };
+    let dir = out_dir("reference-restart");
+    let scene = scene();
+    let key = scene_core::lights::light_ids(&scene)[0].key();
+    let steps = format!(
+        r#"{{"scene_camera": 0, "mode": "dl", "layout": "split", "right": "reference",
+            "divider": 0.5, "reference_spp": 2, "screenshot": "before"}},
+           {{"lights": [{{"light": "{key}", "color": [1.0, 0.35, 0.2]}}], "screenshot": "after"}}"#
+    );
+    replay(&dir, &steps);
+    let before = shot(&dir, "before");
+    let after = shot(&dir, "after");
+    let w = before.image.width;
+    let right = |img: &Image| -> Vec<Vec3> {
+        img.pixels
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i as u32 % w > w / 2 + 1)
+            .map(|(_, p)| *p)
+            .collect()
+    };
+    let (b, a) = (right(&before.image), right(&after.image));
+    let sum = |v: &[Vec3]| v.iter().map(|p| p.element_sum()).sum::<f32>();
+    assert!(sum(&b) > 0.0, "the reference was drawn");
+    assert!(
+        sum(&a) > 0.5 * sum(&b),
+        "the reference half went black after the light change: {} against {}",
+        sum(&a),
+        sum(&b)
+    );
+}
