@@ -667,6 +667,38 @@ impl GpuIsr {
         Ok((image, timings))
     }
 
+    /// One frame from a G-buffer already on the GPU (a GPU rasteriser's, or the host's
+    /// converted by [`scene_core::gpu::HostGBufferPass`]), the coarse buffer made on the GPU,
+    /// the image read back: what the GPU [`crate::IsrTechnique`] runs when its renderer
+    /// keeps the G-buffer on the GPU, with no read-back and upload of the G-buffer.
+    pub fn render_gpu_gbuffer(
+        &mut self,
+        full: &GpuGBuffer,
+        view: &View,
+        settings: &IsrSettings,
+    ) -> Result<(Image, PassTimings), IsrError> {
+        let ctx = self.ctx.clone();
+        ctx.validated_with(|| {
+            let output = rgba_texture(&ctx, "isr output", full.width, full.height);
+            let inputs = GpuIsrInputs {
+                full,
+                coarse: None,
+                view,
+            };
+            let timings = self.render_timed(&inputs, settings, &output)?;
+            let texels = ctx.read_texture_rgba32f(&output)?;
+            let image = Image {
+                width: full.width,
+                height: full.height,
+                pixels: texels
+                    .into_iter()
+                    .map(|[r, g, b, _]| glam::Vec3::new(r, g, b))
+                    .collect(),
+            };
+            Ok((image, timings))
+        })
+    }
+
     /// [`GpuIsr::render_gbuffers`] with the coarse buffer made on the GPU.
     pub fn render_gbuffer(
         &mut self,

@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use scene_core::{Error, FrameRequest, GBufferRenderer, Image, Scene, Technique};
+use scene_core::{Error, FrameRequest, GBufferRenderer, Image, Scene, Technique, ViewTarget};
 
 use crate::frame::{IsrInputs, PassTimings, render_cpu, timed};
 use crate::light_set::LightSet;
@@ -135,9 +135,9 @@ impl Technique for IsrTechnique {
             return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
         };
         lights.apply(frame.lights);
-        let full = self.renderer.render_view(&frame.view, width, height)?;
         match &self.backend {
             Backend::Cpu => {
+                let full = self.renderer.render_view(&frame.view, width, height)?;
                 let (coarse, t_down) = timed(|| downsample(&full, self.settings.downsample));
                 let inputs = IsrInputs {
                     full: &full,
@@ -157,7 +157,21 @@ impl Technique for IsrTechnique {
                     return Err(Error::NotPrepared("the GPU ISR pipelines".into()));
                 };
                 gpu.apply(frame.lights);
-                let (image, timings) = gpu.render_gbuffer(&full, &frame.view, &self.settings)?;
+                // A renderer that rasterises on the GPU hands its G-buffer over where it
+                // is (the frame contract's input): no read-back and upload again; only the
+                // image is read back. Others render on the CPU and are uploaded.
+                let target = ViewTarget::new(frame.view, width, height);
+                let on_gpu = self
+                    .renderer
+                    .render_views_gpu(std::slice::from_ref(&target))?
+                    .and_then(|mut g| g.pop());
+                let (image, timings) = match on_gpu {
+                    Some(g) => gpu.render_gpu_gbuffer(&g, &frame.view, &self.settings)?,
+                    None => {
+                        let full = self.renderer.render_view(&frame.view, width, height)?;
+                        gpu.render_gbuffer(&full, &frame.view, &self.settings)?
+                    }
+                };
                 self.timings = timings;
                 Ok(image)
             }

@@ -343,3 +343,86 @@ fn steady_state_frames_create_no_gpu_objects() {
         "second view"
     );
 }
+
+/// A renderer whose G-buffers stay on the GPU and which refuses to render one on the CPU.
+struct GpuOnly {
+    inner: RayCastRenderer,
+    ctx: scene_core::gpu::GpuContext,
+}
+
+impl scene_core::GBufferRenderer for GpuOnly {
+    fn name(&self) -> &str {
+        "gpu-only"
+    }
+
+    fn prepare(&mut self, scene: Arc<scene_core::Scene>) -> Result<(), scene_core::Error> {
+        self.inner.prepare(scene)
+    }
+
+    fn prepared_scene(&self) -> Option<&Arc<scene_core::Scene>> {
+        self.inner.prepared_scene()
+    }
+
+    fn render_views(
+        &mut self,
+        _: &[scene_core::ViewTarget],
+    ) -> Result<Vec<scene_core::GBuffer>, scene_core::Error> {
+        Err(scene_core::Error::InvalidArgument(
+            "a G-buffer was asked for on the CPU".into(),
+        ))
+    }
+
+    fn render_views_gpu(
+        &mut self,
+        views: &[scene_core::ViewTarget],
+    ) -> Result<Option<Vec<GpuGBuffer>>, scene_core::Error> {
+        let on_cpu = self.inner.render_views(views)?;
+        let mut out = Vec::new();
+        for g in &on_cpu {
+            out.push(GpuGBuffer::upload(&self.ctx, g)?);
+        }
+        Ok(Some(out))
+    }
+}
+
+/// The GPU technique takes a G-buffer that its renderer keeps on the GPU where it is (no
+/// read-back and upload again): with a renderer that refuses CPU G-buffers it renders, and
+/// its image is the one of the same G-buffer uploaded.
+#[test]
+fn the_gpu_technique_takes_a_gpu_gbuffer_where_it_is() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let frame = FrameRequest::camera(&scene.cameras[0], 48, 36);
+    let mut uploaded = IsrTechnique::new(IsrSettings::default(), Box::new(RayCastRenderer::new()))
+        .with_shadows(small_shadows())
+        .with_backend(Backend::Gpu(ctx.clone()));
+    let gpu_only = GpuOnly {
+        inner: RayCastRenderer::new(),
+        ctx: ctx.clone(),
+    };
+    let mut resident = IsrTechnique::new(IsrSettings::default(), Box::new(gpu_only))
+        .with_shadows(small_shadows())
+        .with_backend(Backend::Gpu(ctx.clone()));
+    uploaded.prepare(scene.clone()).unwrap();
+    resident.prepare(scene.clone()).unwrap();
+    let a = uploaded.render(&frame).unwrap();
+    let b = resident.render(&frame).unwrap();
+    assert!(image_mean(&a) > 0.0);
+    assert!(
+        a.pixels == b.pixels,
+        "the same G-buffer gives the same image"
+    );
+    // On the CPU backend the renderer's refusal surfaces as the technique's error.
+    let mut cpu = IsrTechnique::new(
+        IsrSettings::default(),
+        Box::new(GpuOnly {
+            inner: RayCastRenderer::new(),
+            ctx,
+        }),
+    )
+    .with_shadows(small_shadows());
+    cpu.prepare(scene.clone()).unwrap();
+    assert!(cpu.render(&frame).is_err());
+}
