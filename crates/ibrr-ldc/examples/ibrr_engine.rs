@@ -1,27 +1,31 @@
-//! The image-based radiosity representation as an engine plug-in: the engine's own device
-//! and camera matrices, the light recoloured every frame without rebuilding the layered
-//! depth cube.
+//! The image-based radiosity representation as an engine plug-in: the engine's own device,
+//! camera matrices and compact G-buffer, the light recoloured every frame without
+//! rebuilding the layered depth cube, through the one frame contract
+//! (`scene_core::gpu::GpuFrame`).
 //!
 //! The "engine" creates its own wgpu device (the IBRR runs on it through
-//! `GpuContext::from_device`) and a camera as a reverse-Z projection with the far plane at
-//! infinity (as Bevy builds it). Once, the IBRR builds its LDC for the Cornell box (light
-//! kept per source). Each frame recombines the layers' light for the frame's colour of the
-//! ceiling panel (`IbrrTechnique::relight`, on the CPU), and records the copy of the relit
-//! values and the reconstruction into the engine's encoder. The last line counts the GPU
-//! objects a steady-state frame created (wgpu's counters): all zero.
-//!
-//! Until the one frame contract of issue 30 exists, the reconstruction reads a G-buffer in
-//! the toolkit's float formats with triangle ids, rendered here by scene-core's ray caster
-//! and uploaded once for the still camera; docs/engine.md says what is missing.
+//! `GpuContext::from_device`), a camera as a reverse-Z projection with the far plane at
+//! infinity (as Bevy builds it) and a G-buffer in its own compact formats: 8-bit sRGB
+//! albedo, octahedral half-float normals, its reverse-Z `Depth32Float` depth buffer, no
+//! triangle ids (stood in for here by scene-core's ray caster, packed by
+//! `CompactGBuffer`). Once, the IBRR builds its LDC for the Cornell box (light kept per
+//! source). Each frame converts the engine's G-buffer (`HostGBufferPass`) and records
+//! `IbrrFrame::encode` into the engine's encoder and its target texture: the layers' light
+//! recombined for the frame's colour of the ceiling panel on the CPU, the relit values
+//! copied in, the reconstruction. Without ids the panel's own pixels do not glow (docs/
+//! engine.md). The last line counts the GPU objects a steady-state frame created (wgpu's
+//! counters): all zero.
 //!
 //! Run with `cargo run --release -p ibrr-ldc --example ibrr_engine`.
 
 use std::sync::Arc;
 
 use glam::Vec3;
-use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup};
+use ibrr_ldc::{IbrrFrame, IbrrSettings, IbrrTechnique};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{GpuContext, GpuGBuffer, ObjectCounts};
+use scene_core::gpu::{
+    CompactGBuffer, FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
+};
 use scene_core::lights::{LightId, LightState, light_ids};
 use scene_core::{GBufferRenderer, Technique, View, builtin};
 
@@ -55,13 +59,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mut ibrr = IbrrTechnique::new(settings, Box::new(RayCastRenderer::new()));
     ibrr.prepare(scene.clone())?;
-    let ldc = ibrr.ldc().ok_or("the LDC was not built")?;
-    let mut gpu = GpuLdc::new(&ctx, ldc, Lookup::Bilinear, settings.fallback_radius)?;
-    println!(
-        "LDC: {} layers, {} KiB on the GPU",
-        ldc.layer_count(),
-        gpu.bytes() / 1024
-    );
+    let layers = ibrr.ldc().ok_or("the LDC was not built")?.layer_count();
+    let mut method = IbrrFrame::new(&ctx, ibrr, scene.clone())?;
+    println!("LDC: {layers} layers");
 
     // The engine's camera (the scene's, as engine matrices: reverse-Z, infinite far).
     let cam = &scene.cameras[0];
@@ -76,8 +76,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "camera: reverse-Z {}, infinite far {}",
         depth.reverse, depth.infinite
     );
-    let g = GpuGBuffer::upload(&ctx, &RayCastRenderer::new().render(&scene, &view, W, H)?)?;
-    let output = ctx.pixel_buffer("engine frame", W, H);
+    // The engine's G-buffer in its compact formats, converted each frame.
+    let own = RayCastRenderer::new().render(&scene, &view, W, H)?;
+    let engine = CompactGBuffer::from_gbuffer(&ctx, &own, view.far, &depth)?;
+    let mut convert = HostGBufferPass::new(&ctx)?;
+    let g = GpuGBuffer::new(&ctx, W, H)?;
+    let target = ctx.create_texture_2d(
+        "engine frame",
+        W,
+        H,
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+    );
 
     let panel = *light_ids(&scene)
         .iter()
@@ -96,24 +106,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     {
         let mut state = LightState::new();
         state.set_color(panel, colour);
-        // The layers' light recombined for the frame (CPU), then copied in by the frame.
-        ibrr.relight(&state)?
-            .ok_or("the light state needs a rebuild")?;
-        let ldc = ibrr.ldc().ok_or("the LDC was not built")?;
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         let (result, created) = ObjectCounts::during(&ctx.device, || {
-            gpu.update_values(ldc)?;
-            gpu.encode(&mut encoder, &scene, &g, &view, &state, &output)
+            convert.encode(&mut encoder, &engine.host(), &depth, &g)?;
+            let inputs = FrameInputs {
+                gbuffer: &g,
+                view: &view,
+                lights: &state,
+            };
+            method.encode(&mut encoder, &inputs, &target)
         });
         result?;
         if frame > 0 {
             steady = created;
         }
         ctx.queue.submit([encoder.finish()]);
-        let pixels: Vec<[f32; 4]> = ctx.read_buffer_as(&output)?;
+        let pixels = ctx.read_texture_rgba32f(&target)?;
         let mean = pixels
             .iter()
-            .take((W * H) as usize)
             .fold(Vec3::ZERO, |s, p| s + Vec3::new(p[0], p[1], p[2]))
             / (W * H) as f32;
         println!("panel {colour}: mean radiance {mean:.4}");

@@ -15,6 +15,7 @@
 
 use glam::{Mat4, Vec3};
 use isr::{GpuIsr, GpuIsrInputs, IsrSettings, Light, LightSet, ShadowSettings};
+use scene_core::gpu::host::{octahedral_f16, srgb8};
 use scene_core::gpu::{GpuContext, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts, host};
 use scene_core::lights::{LightId, LightState};
 use scene_core::{DepthConvention, View};
@@ -62,26 +63,6 @@ struct EngineGBuffer {
     depth: Vec<f32>,
 }
 
-fn srgb8(l: f32) -> u8 {
-    let c = if l <= 0.0031308 {
-        12.92 * l
-    } else {
-        1.055 * l.powf(1.0 / 2.4) - 0.055
-    };
-    (c.clamp(0.0, 1.0) * 255.0).round() as u8
-}
-
-fn octahedral(n: Vec3) -> [u16; 2] {
-    let p = n / (n.x.abs() + n.y.abs() + n.z.abs());
-    let e = if p.z >= 0.0 {
-        [p.x, p.y]
-    } else {
-        let s = |v: f32| if v >= 0.0 { 1.0 } else { -1.0 };
-        [(1.0 - p.y.abs()) * s(p.x), (1.0 - p.x.abs()) * s(p.y)]
-    };
-    e.map(|x| half::f16::from_f32(x).to_bits())
-}
-
 /// The engine's G-buffer pass (here: rays against the two planes), writing its depth in
 /// the convention of its projection.
 fn gbuffer(view: &View, depth_of: &DepthConvention) -> EngineGBuffer {
@@ -105,7 +86,7 @@ fn gbuffer(view: &View, depth_of: &DepthConvention) -> EngineGBuffer {
             if let Some((t, nrm, c)) = hit {
                 let i = (y * W + x) as usize;
                 albedo[i] = [srgb8(c[0]), srgb8(c[1]), srgb8(c[2]), 255];
-                normal[i] = octahedral(nrm);
+                normal[i] = octahedral_f16(nrm);
                 depth[i] = depth_of.depth((o + d * t - view.eye).dot(view.forward));
             }
         }

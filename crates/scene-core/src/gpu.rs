@@ -39,7 +39,7 @@ pub use frame::{
     FrameInputs, FrameWriter, GpuFrame, KeptBuffer, ObjectCounts, PixelsToTexture,
     check_frame_target,
 };
-pub use host::{HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
+pub use host::{CompactGBuffer, HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
 pub use scene::{GpuMaterial, GpuScene, GpuVertex, flatten_scene, gpu_materials};
 pub use wgpu::naga;
 

@@ -446,3 +446,100 @@ mod tests {
         .unwrap();
     }
 }
+
+/// An 8-bit sRGB code of a linear value in [0, 1] (the sRGB transfer function, rounded):
+/// how an engine stores albedo in `Rgba8UnormSrgb`.
+pub fn srgb8(linear: f32) -> u8 {
+    let c = if linear <= 0.003_130_8 {
+        12.92 * linear
+    } else {
+        1.055 * linear.powf(1.0 / 2.4) - 0.055
+    };
+    (c.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// A unit normal in the octahedral encoding as two half floats (`Rg16Float`), the compact
+/// normal format engines keep and [`HostGBufferPass`] decodes.
+pub fn octahedral_f16(n: glam::Vec3) -> [u16; 2] {
+    let p = n / (n.x.abs() + n.y.abs() + n.z.abs());
+    let e = if p.z >= 0.0 {
+        [p.x, p.y]
+    } else {
+        let s = |v: f32| if v >= 0.0 { 1.0 } else { -1.0 };
+        [(1.0 - p.y.abs()) * s(p.x), (1.0 - p.x.abs()) * s(p.y)]
+    };
+    e.map(|x| half::f16::from_f32(x).to_bits())
+}
+
+/// An engine's G-buffer in compact formats made from a toolkit [`crate::GBuffer`], standing
+/// in for an engine in tests and examples: albedo as 8-bit sRGB (`Rgba8UnormSrgb`), normals
+/// as octahedral half floats (`Rg16Float`), the depth buffer (`Depth32Float`) in the
+/// engine's convention with its clear value (1, or 0 reversed) where nothing is drawn, no
+/// triangle ids.
+#[derive(Debug)]
+pub struct CompactGBuffer {
+    /// `Rgba8UnormSrgb` albedo.
+    pub albedo: wgpu::Texture,
+    /// `Rg16Float` octahedral normals.
+    pub normal: wgpu::Texture,
+    /// `Depth32Float` depth in the engine's convention.
+    pub depth: wgpu::Texture,
+}
+
+impl CompactGBuffer {
+    /// `g` (seen by a view whose far plane is `far`) in compact formats, its depth written
+    /// in `convention` ([`crate::View::from_host_matrices`]).
+    pub fn from_gbuffer(
+        ctx: &GpuContext,
+        g: &crate::GBuffer,
+        far: f32,
+        convention: &DepthConvention,
+    ) -> Result<Self, GpuError> {
+        let (w, h) = (g.width, g.height);
+        ctx.check_texture_size(w, h)?;
+        let albedo: Vec<[u8; 4]> = g
+            .albedo
+            .iter()
+            .map(|a| [srgb8(a.x), srgb8(a.y), srgb8(a.z), 255])
+            .collect();
+        let normal: Vec<[u16; 2]> = g.normal.iter().map(|n| octahedral_f16(*n)).collect();
+        let clear = if convention.reverse { 0.0 } else { 1.0 };
+        let depth: Vec<f32> = (0..g.len())
+            .map(|i| {
+                if g.is_background(i) {
+                    clear
+                } else {
+                    convention.depth(g.depth[i] * far)
+                }
+            })
+            .collect();
+        let usage = wgpu::TextureUsages::TEXTURE_BINDING;
+        Ok(Self {
+            albedo: ctx.texture_with(
+                "engine albedo",
+                (w, h),
+                wgpu::TextureFormat::Rgba8UnormSrgb,
+                usage,
+                bytemuck::cast_slice(&albedo),
+            ),
+            normal: ctx.texture_with(
+                "engine normals",
+                (w, h),
+                wgpu::TextureFormat::Rg16Float,
+                usage,
+                bytemuck::cast_slice(&normal),
+            ),
+            depth: depth_texture_from(ctx, w, h, &depth)?,
+        })
+    }
+
+    /// The textures as [`HostGBufferPass`] reads them (no ids).
+    pub fn host(&self) -> HostGBuffer<'_> {
+        HostGBuffer {
+            albedo: &self.albedo,
+            normal: &self.normal,
+            depth: &self.depth,
+            triangle_id: None,
+        }
+    }
+}
