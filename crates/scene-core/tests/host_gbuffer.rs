@@ -315,3 +315,46 @@ fn textures_an_engine_cannot_hand_over_are_refused_by_name() {
         "normal"
     );
 }
+
+/// `CompactGBuffer` (what the examples stand in for an engine with) packs a G-buffer as this
+/// file's own encoders do: the same 8-bit sRGB codes and the same octahedral half floats on
+/// every surface pixel.
+#[test]
+fn compact_gbuffer_packs_as_the_independent_encoders() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    use scene_core::gpu::CompactGBuffer;
+    let scene = builtin::scene("cornell").unwrap();
+    let view = View::from_camera(&scene.cameras[0].with_aspect(W as f32 / H as f32));
+    let g = RayCastRenderer::new().render(&scene, &view, W, H).unwrap();
+    let (_, convention) = View::from_host_matrices(
+        view.view_matrix(),
+        glam::camera::rh::proj::directx::perspective_infinite_reverse(
+            scene.cameras[0].fov_y,
+            W as f32 / H as f32,
+            scene.cameras[0].near,
+        ),
+    )
+    .unwrap();
+    let packed = CompactGBuffer::from_gbuffer(&ctx, &g, view.far, &convention).unwrap();
+    let albedo = ctx.read_texture_bytes(&packed.albedo).unwrap();
+    let normal: Vec<u16> =
+        bytemuck::cast_slice(&ctx.read_texture_bytes(&packed.normal).unwrap()).to_vec();
+    let mut surfaces = 0;
+    for i in 0..g.len() {
+        if g.is_background(i) {
+            continue;
+        }
+        surfaces += 1;
+        let a = g.albedo[i];
+        let want: Vec<u8> = [a.x, a.y, a.z, 1.0]
+            .iter()
+            .map(|c| (srgb_encode(c.clamp(0.0, 1.0)) * 255.0).round() as u8)
+            .collect();
+        assert_eq!(&albedo[4 * i..4 * i + 4], &want[..], "albedo at {i}");
+        let o = octahedral(g.normal[i]).map(|x| half::f16::from_f32(x).to_bits());
+        assert_eq!(&normal[2 * i..2 * i + 2], &o[..], "normal at {i}");
+    }
+    assert!(surfaces > 1000);
+}

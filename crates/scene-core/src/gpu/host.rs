@@ -459,9 +459,14 @@ pub fn srgb8(linear: f32) -> u8 {
 }
 
 /// A unit normal in the octahedral encoding as two half floats (`Rg16Float`), the compact
-/// normal format engines keep and [`HostGBufferPass`] decodes.
+/// normal format engines keep and [`HostGBufferPass`] decodes; a zero or non-finite normal
+/// (background) encodes as zeros.
 pub fn octahedral_f16(n: glam::Vec3) -> [u16; 2] {
-    let p = n / (n.x.abs() + n.y.abs() + n.z.abs());
+    let l1 = n.x.abs() + n.y.abs() + n.z.abs();
+    if !(l1 > 0.0 && l1.is_finite()) {
+        return [0; 2];
+    }
+    let p = n / l1;
     let e = if p.z >= 0.0 {
         [p.x, p.y]
     } else {
@@ -513,7 +518,8 @@ impl CompactGBuffer {
                 }
             })
             .collect();
-        let usage = wgpu::TextureUsages::TEXTURE_BINDING;
+        // Readable too, so a test can check what was packed.
+        let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC;
         Ok(Self {
             albedo: ctx.texture_with(
                 "engine albedo",
