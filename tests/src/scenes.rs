@@ -11,7 +11,8 @@ use scene_core::scene::{Camera, DirectionalLight, Material, Mesh, PointLight, Sc
 use scene_core::{Error, FrameRequest, Image, SceneError, Technique};
 
 /// Every method at a tiny setting, on the CPU and, with `gpu`, on the GPU too: DL, ISR,
-/// relighting (64 elements), the IBRR (LDC 32, 8 IRPLs) and the reference (4 spp).
+/// relighting (64 elements; direct light gathered per pixel, and from shadow maps), the
+/// IBRR (LDC 32, 8 IRPLs) and the reference (4 spp).
 pub fn techniques(
     gpu: Option<&scene_core::gpu::GpuContext>,
 ) -> Vec<(&'static str, Box<dyn Technique>)> {
@@ -44,6 +45,18 @@ pub fn techniques(
                 relight_pr::SolverSettings::default(),
                 Box::new(CpuRasterizer::new()),
             )),
+        ),
+        (
+            "relight-maps",
+            Box::new({
+                let mut t = relight_pr::RelightTechnique::new(
+                    relight_pr::MeshSettings::elements(64),
+                    relight_pr::SolverSettings::default(),
+                    Box::new(CpuRasterizer::new()),
+                );
+                t.direct = relight_pr::direct::DirectLight::shadow_maps();
+                t
+            }),
         ),
         (
             "ibrr",
