@@ -8,7 +8,7 @@
 //! infinity (as Bevy builds it) and a G-buffer in its own compact formats: 8-bit sRGB
 //! albedo, octahedral half-float normals, its reverse-Z `Depth32Float` depth buffer, no
 //! triangle ids (stood in for here by scene-core's ray caster, packed by
-//! `CompactGBuffer`). Once, the IBRR builds its LDC for the Cornell box (light kept per
+//! `EngineGBuffer`). Once, the IBRR builds its LDC for the Cornell box (light kept per
 //! source). Each frame converts the engine's G-buffer (`HostGBufferPass`) and records
 //! `IbrrFrame::encode` into the engine's encoder and its target texture: the layers' light
 //! recombined for the frame's colour of the ceiling panel on the CPU, the relit values
@@ -24,7 +24,7 @@ use glam::Vec3;
 use ibrr_ldc::{IbrrFrame, IbrrSettings, IbrrTechnique};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{
-    CompactGBuffer, FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
+    EngineGBuffer, FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
 };
 use scene_core::lights::{LightId, LightState, light_ids};
 use scene_core::{GBufferRenderer, Technique, View, builtin};
@@ -78,7 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     // The engine's G-buffer in its compact formats, converted each frame.
     let own = RayCastRenderer::new().render(&scene, &view, W, H)?;
-    let engine = CompactGBuffer::from_gbuffer(&ctx, &own, view.far, &depth)?;
+    let engine = EngineGBuffer::compact(&ctx, &own, view.far, &depth)?;
     let mut convert = HostGBufferPass::new(&ctx)?;
     let g = GpuGBuffer::new(&ctx, W, H)?;
     let target = ctx.create_texture_2d(

@@ -124,10 +124,7 @@ impl GpuLdc {
         lookup: Lookup,
         fallback_radius: u32,
     ) -> Result<Self, IbrrError> {
-        let limits = ctx.device.limits();
-        let limit = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let limit = ctx.storage_binding_limit();
         let layers = ldc.layer_count() as u64;
         for (what, bytes) in [
             ("per-pixel layer offsets", ldc.offsets.len() as u64 * 4),
@@ -488,7 +485,6 @@ impl GpuGather {
             })
             .map_err(gpu)?
             .map_err(gpu)?;
-        let limits = ctx.device.limits();
         Ok(Self {
             ctx: ctx.clone(),
             pass,
@@ -496,9 +492,7 @@ impl GpuGather {
             pixels: None,
             capacity: 0,
             uploaded: 0,
-            limit: limits
-                .max_storage_buffer_binding_size
-                .min(limits.max_buffer_size),
+            limit: ctx.storage_binding_limit(),
         })
     }
 

@@ -8,25 +8,9 @@ use std::sync::Arc;
 use glam::Vec3;
 use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{GpuGBuffer, HostGBuffer, HostGBufferPass, gpu_test_context, host};
+use scene_core::gpu::{EngineGBuffer, GpuGBuffer, HostGBuffer, HostGBufferPass, gpu_test_context};
 use scene_core::lights::LightState;
-use scene_core::{FrameRequest, GBufferRenderer, Image, Scene, Technique, View, builtin};
-
-/// Pixels whose triangle in `g` emits light (their glow needs the triangle's id).
-fn emitter_pixels(scene: &Scene, g: &scene_core::GBuffer) -> Vec<bool> {
-    let offsets = scene.mesh_offsets();
-    (0..g.len())
-        .map(|i| {
-            !g.is_background(i)
-                && scene
-                    .triangle_ref(&offsets, g.triangle_id[i])
-                    .is_some_and(|r| {
-                        let m = scene.meshes[r.mesh as usize].material_ids[r.local as usize];
-                        scene.materials[m as usize].emission.max_element() > 0.0
-                    })
-        })
-        .collect()
-}
+use scene_core::{FrameRequest, GBufferRenderer, Image, Technique, View, builtin};
 
 /// The conversion rounds each distance by a few f32 units in the last place (scene-core's
 /// host G-buffer test measures 8.8e-8 reversed), so the images agree to that order: the
@@ -63,23 +47,9 @@ fn an_engine_gbuffer_in_reverse_z_gives_the_own_gbuffers_image() {
             &lights,
         )
         .unwrap();
-    let emitters = emitter_pixels(&scene, &g);
+    let emitters = g.emitter_mask(&scene);
     assert!(emitters.iter().any(|e| *e), "the panel is in view");
 
-    let upload = |format: wgpu::TextureFormat, bytes: &[u8]| {
-        ctx.texture_with(
-            "engine",
-            (w, h),
-            format,
-            wgpu::TextureUsages::TEXTURE_BINDING,
-            bytes,
-        )
-    };
-    use wgpu::TextureFormat as F;
-    let albedo = upload(F::Rgba32Float, bytemuck::cast_slice(&g.albedo));
-    let normals: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
-    let normal = upload(F::Rgba32Float, bytemuck::cast_slice(&normals));
-    let ids = upload(F::R32Uint, bytemuck::cast_slice(&g.triangle_id));
     let cam = scene.cameras[0].with_aspect(w as f32 / h as f32);
     let projection = glam::camera::rh::proj::directx::perspective_infinite_reverse(
         cam.fov_y, cam.aspect, cam.near,
@@ -87,23 +57,15 @@ fn an_engine_gbuffer_in_reverse_z_gives_the_own_gbuffers_image() {
     let (view, convention) =
         View::from_host_matrices(frame.view.view_matrix(), projection).unwrap();
     assert!(convention.reverse);
-    let values: Vec<f32> = (0..g.len())
-        .map(|i| {
-            if g.is_background(i) {
-                0.0
-            } else {
-                convention.depth(g.depth[i] * frame.view.far)
-            }
-        })
-        .collect();
-    let depth = host::depth_texture_from(&ctx, w, h, &values).unwrap();
+    let engine = EngineGBuffer::float(&ctx, &g, frame.view.far, &convention, true).unwrap();
     let mut convert = HostGBufferPass::new(&ctx).unwrap();
-    for (name, triangle_id) in [("with ids", Some(&ids)), ("without ids", None)] {
+    for (name, triangle_id) in [
+        ("with ids", engine.triangle_id.as_ref()),
+        ("without ids", None),
+    ] {
         let host = HostGBuffer {
-            albedo: &albedo,
-            normal: &normal,
-            depth: &depth,
             triangle_id,
+            ..engine.host()
         };
         let converted = GpuGBuffer::new(&ctx, w, h).unwrap();
         let mut encoder = ctx.device.create_command_encoder(&Default::default());

@@ -645,15 +645,24 @@ impl GpuIsr {
         view: &View,
         settings: &IsrSettings,
     ) -> Result<(Image, PassTimings), IsrError> {
+        let gfull = GpuGBuffer::upload(&self.ctx, full)?;
+        let gcoarse = coarse
+            .map(|c| GpuGBuffer::upload(&self.ctx, c))
+            .transpose()?;
+        self.run_read_back(&gfull, gcoarse.as_ref(), view, settings)
+    }
+
+    /// One timed frame from G-buffers on the GPU into a new output texture, read back.
+    fn run_read_back(
+        &mut self,
+        full: &GpuGBuffer,
+        coarse: Option<&GpuGBuffer>,
+        view: &View,
+        settings: &IsrSettings,
+    ) -> Result<(Image, PassTimings), IsrError> {
         let ctx = self.ctx.clone();
-        let gfull = GpuGBuffer::upload(&ctx, full)?;
-        let gcoarse = coarse.map(|c| GpuGBuffer::upload(&ctx, c)).transpose()?;
         let output = rgba_texture(&ctx, "isr output", full.width, full.height);
-        let inputs = GpuIsrInputs {
-            full: &gfull,
-            coarse: gcoarse.as_ref(),
-            view,
-        };
+        let inputs = GpuIsrInputs { full, coarse, view };
         let timings = self.render_timed(&inputs, settings, &output)?;
         let texels = ctx.read_texture_rgba32f(&output)?;
         let image = Image {
@@ -678,25 +687,7 @@ impl GpuIsr {
         settings: &IsrSettings,
     ) -> Result<(Image, PassTimings), IsrError> {
         let ctx = self.ctx.clone();
-        ctx.validated_with(|| {
-            let output = rgba_texture(&ctx, "isr output", full.width, full.height);
-            let inputs = GpuIsrInputs {
-                full,
-                coarse: None,
-                view,
-            };
-            let timings = self.render_timed(&inputs, settings, &output)?;
-            let texels = ctx.read_texture_rgba32f(&output)?;
-            let image = Image {
-                width: full.width,
-                height: full.height,
-                pixels: texels
-                    .into_iter()
-                    .map(|[r, g, b, _]| glam::Vec3::new(r, g, b))
-                    .collect(),
-            };
-            Ok((image, timings))
-        })
+        ctx.validated_with(|| self.run_read_back(full, None, view, settings))
     }
 
     /// [`GpuIsr::render_gbuffers`] with the coarse buffer made on the GPU.
@@ -710,27 +701,6 @@ impl GpuIsr {
     }
 
     fn check_output(&self, output: &wgpu::Texture, full: &GpuGBuffer) -> Result<(), IsrError> {
-        let format = output.format();
-        if !matches!(
-            format,
-            wgpu::TextureFormat::Rgba32Float | wgpu::TextureFormat::Rgba16Float
-        ) {
-            return Err(GpuError::WrongFormat {
-                expected: "Rgba32Float or Rgba16Float",
-                found: format,
-            }
-            .into());
-        }
-        if !output
-            .usage()
-            .contains(wgpu::TextureUsages::STORAGE_BINDING)
-        {
-            return Err(GpuError::Validation(format!(
-                "the ISR output texture needs STORAGE_BINDING usage (has {:?})",
-                output.usage()
-            ))
-            .into());
-        }
         if (output.width(), output.height()) != (full.width, full.height) {
             return Err(IsrError::SizeMismatch(format!(
                 "output texture {}x{}, G-buffer {}x{}",
@@ -740,7 +710,12 @@ impl GpuIsr {
                 full.height
             )));
         }
-        Ok(())
+        // Format and usage: the frame contract's target check.
+        Ok(scene_core::gpu::check_frame_target(
+            output,
+            full.width,
+            full.height,
+        )?)
     }
 
     fn ensure_targets(

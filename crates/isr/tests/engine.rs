@@ -192,7 +192,7 @@ fn reverse_z_and_infinite_inputs_give_the_standard_image() {
     let Some(ctx) = gpu_test_context() else {
         return;
     };
-    use scene_core::gpu::{HostGBuffer, HostGBufferPass, host};
+    use scene_core::gpu::{EngineGBuffer, HostGBufferPass};
     let setup = Setup::builtin("cornell", 0, 64, 48);
     let (w, h) = (64, 48);
     let s = IsrSettings::default();
@@ -215,20 +215,6 @@ fn reverse_z_and_infinite_inputs_give_the_standard_image() {
     };
     let own = render(&GpuGBuffer::upload(&ctx, &setup.full).unwrap(), &setup.view);
     let g = &setup.full;
-    let upload = |format: wgpu::TextureFormat, bytes: &[u8]| {
-        ctx.texture_with(
-            "engine",
-            (w, h),
-            format,
-            wgpu::TextureUsages::TEXTURE_BINDING,
-            bytes,
-        )
-    };
-    use wgpu::TextureFormat as F;
-    let albedo = upload(F::Rgba32Float, bytemuck::cast_slice(&g.albedo));
-    let normals: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
-    let normal = upload(F::Rgba32Float, bytemuck::cast_slice(&normals));
-    let ids = upload(F::R32Uint, bytemuck::cast_slice(&g.triangle_id));
     let cam = setup.scene.cameras[0].with_aspect(w as f32 / h as f32);
     let mut convert = HostGBufferPass::new(&ctx).unwrap();
     for (name, projection) in [
@@ -242,23 +228,9 @@ fn reverse_z_and_infinite_inputs_give_the_standard_image() {
     ] {
         let (view, convention) =
             scene_core::View::from_host_matrices(setup.view.view_matrix(), projection).unwrap();
-        let clear = if convention.reverse { 0.0 } else { 1.0 };
-        let values: Vec<f32> = (0..g.len())
-            .map(|i| {
-                if g.triangle_id[i] == scene_core::BACKGROUND_ID {
-                    clear
-                } else {
-                    convention.depth(g.depth[i] * setup.view.far)
-                }
-            })
-            .collect();
-        let depth = host::depth_texture_from(&ctx, w, h, &values).unwrap();
-        let host = HostGBuffer {
-            albedo: &albedo,
-            normal: &normal,
-            depth: &depth,
-            triangle_id: Some(&ids),
-        };
+        // The engine's float textures, its ids and its depth buffer in this convention.
+        let engine = EngineGBuffer::float(&ctx, g, setup.view.far, &convention, true).unwrap();
+        let host = engine.host();
         let converted = GpuGBuffer::new(&ctx, w, h).unwrap();
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         convert

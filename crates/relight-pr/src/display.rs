@@ -189,13 +189,6 @@ pub fn pixel_direct<O: crate::direct::Occlusion + ?Sized>(
             let centre_uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
             let centre = view.reconstruct_world(centre_uv, g.depth[i]);
             let n = g.normal[i];
-            // Where the ray through `uv` meets the pixel's plane (none when grazing).
-            let on_plane = |uv: glam::Vec2| {
-                let (origin, dir) = view.ray(uv);
-                let den = n.dot(dir);
-                let t = n.dot(centre - origin) / den;
-                (den.abs() > 1e-3 && t.is_finite() && t > 0.0).then(|| origin + dir * t)
-            };
             let offset = r2(hash_seed(i as u64, 0xd1ec7, 0), glam::Vec2::ZERO);
             points.clear();
             points.push(centre);
@@ -203,17 +196,12 @@ pub fn pixel_direct<O: crate::direct::Occlusion + ?Sized>(
                 points.clear();
                 for s in 0..subpixels {
                     let uv = centre_uv + (r2(s as u64, offset) - 0.5) * pixel;
-                    points.push(on_plane(uv).unwrap_or(centre));
+                    points.push(on_pixel_plane(view, uv, centre, n).unwrap_or(centre));
                 }
             }
-            let corners = [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)]
-                .map(|(a, b)| on_plane(centre_uv + glam::Vec2::new(a, b) * pixel));
-            let quad = match corners {
-                [Some(a), Some(b), Some(c), Some(d)] if subpixels > 1 => {
-                    Some([[a, b, c], [a, c, d]])
-                }
-                _ => None,
-            };
+            let quad = (subpixels > 1)
+                .then(|| footprint_quad(view, centre_uv, pixel, centre, n))
+                .flatten();
             gather.mean_over(rays, points, quad.as_ref().map(|q| &q[..]), n, i as u64, o);
         },
     );
@@ -240,6 +228,25 @@ pub fn on_pixel_plane(view: &View, uv: glam::Vec2, centre: Vec3, n: Vec3) -> Opt
     let den = n.dot(d);
     let t = n.dot(centre - o) / den;
     (den.abs() > 1e-3 && t.is_finite() && t > 0.0).then(|| o + d * t)
+}
+
+/// A pixel's footprint on the plane of its surface point `centre` (unit normal `n`) as two
+/// triangles: the pixel's corners (`uv` plus or minus half of `pixel`) met with the plane
+/// ([`on_pixel_plane`]); `None` when a corner's ray grazes it. Shared by the per-pixel
+/// gather and the shadow-map direct light (whose WGSL twin builds the same quad).
+pub fn footprint_quad(
+    view: &View,
+    uv: glam::Vec2,
+    pixel: glam::Vec2,
+    centre: Vec3,
+    n: Vec3,
+) -> Option<[[Vec3; 3]; 2]> {
+    match [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)]
+        .map(|(a, b)| on_pixel_plane(view, uv + glam::Vec2::new(a, b) * pixel, centre, n))
+    {
+        [Some(a), Some(b), Some(c), Some(d)] => Some([[a, b, c], [a, c, d]]),
+        _ => None,
+    }
 }
 
 /// Largest [`DirectLight::ShadowMaps`] footprint grid (16 points a pixel).
@@ -299,12 +306,18 @@ pub fn pixel_direct_shadowed(
                     });
                 }
             }
-            let quad = match [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)]
-                .map(|(a, b)| on_pixel_plane(view, uv + glam::Vec2::new(a, b) * pixel, c, n))
-            {
-                [Some(a), Some(b), Some(c), Some(d)] if m > 1 => Some([[a, b, c], [a, c, d]]),
-                _ => None,
-            };
+            // The footprint quad and its area, once a pixel (the closed form of every
+            // inverse-square point light uses them).
+            let quad = (m > 1)
+                .then(|| footprint_quad(view, uv, pixel, c, n))
+                .flatten()
+                .map(|tris| {
+                    let area: f32 = tris
+                        .iter()
+                        .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
+                        .sum();
+                    (tris, area)
+                });
             let inv = 1.0 / points.len() as f32;
             for (j, slot) in slots.iter().enumerate() {
                 let Some(s) = slot.filter(|s| *s < k) else {
@@ -312,12 +325,8 @@ pub fn pixel_direct_shadowed(
                 };
                 let light = &set.lights[j];
                 o[s] += match &quad {
-                    Some(tris) if light.kind == LightKind::Point && light.radius == 0.0 => {
-                        let to = light.position - c;
-                        let area: f32 = tris
-                            .iter()
-                            .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
-                            .sum();
+                    Some((tris, area)) if light.kind == LightKind::Point && light.radius == 0.0 => {
+                        let (to, area) = (light.position - c, *area);
                         if n.dot(to) <= 0.0 || area.is_nan() || area <= 0.0 {
                             continue;
                         }

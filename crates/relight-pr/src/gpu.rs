@@ -192,10 +192,7 @@ impl GpuRelight {
     ) -> Result<Self, RelightError> {
         let k = solution.k();
         let n = meshing.elements.len();
-        let limits = ctx.device.limits();
-        let limit = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let limit = ctx.storage_binding_limit();
         let words = (n * k * precision.words()) as u64 * 4;
         let vertex_bytes = (welding.vertices * k * precision.words()) as u64 * 4;
         for (what, bytes) in [
@@ -244,10 +241,7 @@ impl GpuRelight {
         vertex: Option<&Packed>,
         table: &[GpuElement],
     ) -> Result<Self, RelightError> {
-        let limits = ctx.device.limits();
-        let limit = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let limit = ctx.storage_binding_limit();
         let vertex_bytes = vertex.map_or(0, Packed::bytes);
         let table_bytes = std::mem::size_of_val(table) as u64;
         for (what, bytes) in [
@@ -578,10 +572,7 @@ impl GpuRelight {
             )));
         }
         let ctx = &self.ctx;
-        let limits = ctx.device.limits();
-        let limit = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let limit = ctx.storage_binding_limit();
         let lights = gpu_lights(set);
         let texel_bytes = set.shadow_texels.len() as u64 * 4;
         check_binding("shadow maps", texel_bytes, limit)?;

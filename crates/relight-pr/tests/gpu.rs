@@ -73,6 +73,41 @@ fn element_gbuffer(
     (view, g, gg)
 }
 
+/// The CPU display of `g` under `state` (smooth shading): with per-pixel direct `values`
+/// the elements carry the indirect light only and each pixel adds its own direct light
+/// times the state's direct factors; without, the elements carry both.
+fn cpu_display(
+    meshing: &Meshing,
+    welding: &Welding,
+    solution: &Solution,
+    state: &LightState,
+    (g, view): (&scene_core::GBuffer, &View),
+    values: Option<&[Vec3]>,
+) -> scene_core::Image {
+    let e = match values {
+        Some(_) => relight::indirect_irradiance(solution, state),
+        None => relight::irradiance(solution, state),
+    };
+    let vertex = welding.vertex_values(meshing, &e);
+    let glow = relight::glow(meshing, solution, state);
+    let (f, _) = relight::weights(solution, state, true);
+    let factors: Vec<Vec3> = f.iter().map(|(d, _)| *d).collect();
+    compose(
+        meshing,
+        welding,
+        g,
+        view,
+        &e,
+        &vertex,
+        &glow,
+        Shading::Smooth,
+        values.map(|values| PixelDirect {
+            values,
+            factors: &factors,
+        }),
+    )
+}
+
 fn rel_max(a: &[Vec3], b: &[Vec3]) -> f32 {
     let scale = b.iter().map(|v| v.abs().max_element()).fold(0.0, f32::max);
     assert!(scale > 0.0);
@@ -160,24 +195,10 @@ fn hardware_display_equals_the_cpu_display() {
     let (w, h) = (64, 48);
     let (view, g, gg) = element_gbuffer(&ctx, &scene, &meshing, w, h);
     let gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
-    let glow = relight::glow(&meshing, &solution, &state);
     let (f, base) = relight::weights(&solution, &state, true);
-    let direct_factors: Vec<Vec3> = f.iter().map(|(d, _)| *d).collect();
 
     // Direct light from the elements (the paper's display).
-    let e = relight::irradiance(&solution, &state);
-    let vertex = welding.vertex_values(&meshing, &e);
-    let cpu = compose(
-        &meshing,
-        &welding,
-        &g,
-        &view,
-        &e,
-        &vertex,
-        &glow,
-        Shading::Smooth,
-        None,
-    );
+    let cpu = cpu_display(&meshing, &welding, &solution, &state, (&g, &view), None);
     let got = gpu.display(&gg, &view, &f, base, None).unwrap();
     let err = rel_max(&got.pixels, &cpu.pixels);
     eprintln!("hardware display, direct from elements: {err:.2e} of the peak");
@@ -186,21 +207,13 @@ fn hardware_display_equals_the_cpu_display() {
     // Direct light per pixel.
     let gather = DirectGather::new(&scene, &meshing, &solution.sources, 4);
     let values = pixel_direct(&gather, &rays, &g, &view, 4);
-    let e = relight::indirect_irradiance(&solution, &state);
-    let vertex = welding.vertex_values(&meshing, &e);
-    let cpu = compose(
+    let cpu = cpu_display(
         &meshing,
         &welding,
-        &g,
-        &view,
-        &e,
-        &vertex,
-        &glow,
-        Shading::Smooth,
-        Some(PixelDirect {
-            values: &values,
-            factors: &direct_factors,
-        }),
+        &solution,
+        &state,
+        (&g, &view),
+        Some(&values),
     );
     let got = gpu.display(&gg, &view, &f, base, Some(&values)).unwrap();
     let err = rel_max(&got.pixels, &cpu.pixels);
@@ -344,9 +357,7 @@ fn shadowed_direct_display_equals_the_cpu_twin() {
     let (w, h) = (64, 48);
     let (view, g, gg) = element_gbuffer(&ctx, &scene, &meshing, w, h);
     let mut gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
-    let glow = relight::glow(&meshing, &solution, &state);
     let (f, base) = relight::weights(&solution, &state, true);
-    let direct_factors: Vec<Vec3> = f.iter().map(|(d, _)| *d).collect();
     assert!(gpu.display_shadowed(&gg, &view, &f, base).is_err());
 
     let set = LightSet::new(&scene, &test_shadows()).unwrap();
@@ -361,21 +372,13 @@ fn shadowed_direct_display_equals_the_cpu_twin() {
     gpu.set_shadowed_direct(&set, &slots, 3).unwrap();
 
     let values = pixel_direct_shadowed(&set, &slots, solution.k(), &g, &view, 3);
-    let e = relight::indirect_irradiance(&solution, &state);
-    let vertex = welding.vertex_values(&meshing, &e);
-    let cpu = compose(
+    let cpu = cpu_display(
         &meshing,
         &welding,
-        &g,
-        &view,
-        &e,
-        &vertex,
-        &glow,
-        Shading::Smooth,
-        Some(PixelDirect {
-            values: &values,
-            factors: &direct_factors,
-        }),
+        &solution,
+        &state,
+        (&g, &view),
+        Some(&values),
     );
     let lit = values.iter().filter(|v| v.max_element() > 0.0).count();
     assert!(lit > values.len() / 4, "the maps light the corridor: {lit}");

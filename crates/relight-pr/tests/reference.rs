@@ -106,18 +106,7 @@ fn emitter_pixels_at(scene: &scene_core::Scene, camera: &scene_core::Camera) -> 
     use scene_core::GBufferRenderer;
     let view = View::from_camera(&camera.with_aspect(W as f32 / H as f32));
     let g = RayCastRenderer::new().render(scene, &view, W, H).unwrap();
-    let offsets = scene.mesh_offsets();
-    (0..g.len())
-        .map(|i| {
-            !g.is_background(i)
-                && scene
-                    .triangle_ref(&offsets, g.triangle_id[i])
-                    .is_some_and(|r| {
-                        let m = scene.meshes[r.mesh as usize].material_ids[r.local as usize];
-                        scene.materials[m as usize].emission.max_element() > 0.0
-                    })
-        })
-        .collect()
+    g.emitter_mask(scene)
 }
 
 #[test]

@@ -69,6 +69,25 @@ impl GBuffer {
         self.triangle_id[index] == BACKGROUND_ID
     }
 
+    /// Per pixel, whether its triangle (in `scene`, the scene this G-buffer was rendered
+    /// of) has an emissive material: the pixels whose glow comes from the triangle id.
+    pub fn emitter_mask(&self, scene: &Scene) -> Vec<bool> {
+        let offsets = scene.mesh_offsets();
+        self.triangle_id
+            .iter()
+            .map(|&id| {
+                id != BACKGROUND_ID
+                    && scene.triangle_ref(&offsets, id).is_some_and(|r| {
+                        let m = scene.meshes[r.mesh as usize].material_ids[r.local as usize];
+                        scene
+                            .materials
+                            .get(m as usize)
+                            .is_some_and(|m| m.is_emissive())
+                    })
+            })
+            .collect()
+    }
+
     /// The background mask for all pixels.
     pub fn background_mask(&self) -> Vec<bool> {
         self.triangle_id
@@ -304,5 +323,27 @@ mod tests {
             let m = mesh.material_ids[r.local as usize] as usize;
             assert_eq!(g.albedo[i].truncate(), scene.materials[m].albedo);
         }
+    }
+
+    #[test]
+    fn the_emitter_mask_marks_the_ceiling_panel_only() {
+        let scene = crate::builtin::scene("cornell").unwrap();
+        let view = View::from_camera(&scene.cameras[0]);
+        let g = RayCastRenderer::new()
+            .render(&scene, &view, 32, 32)
+            .unwrap();
+        let mask = g.emitter_mask(&scene);
+        let panel = mask.iter().filter(|&&e| e).count();
+        assert!(panel > 0 && panel < g.len() / 10, "{panel} panel pixels");
+        // A marked pixel reconstructs onto the panel's plane, just under the ceiling, and
+        // faces down; background is never marked.
+        for i in (0..g.len()).filter(|&i| mask[i]) {
+            assert!(!g.is_background(i));
+            assert!(g.normal[i].y < -0.99, "pixel {i}: normal {}", g.normal[i]);
+        }
+        let lit: usize = (0..g.len())
+            .filter(|&i| !mask[i] && !g.is_background(i))
+            .count();
+        assert!(lit > g.len() / 2);
     }
 }

@@ -39,7 +39,7 @@ pub use frame::{
     FrameInputs, FrameWriter, GpuFrame, KeptBuffer, ObjectCounts, PixelsToTexture,
     check_frame_target,
 };
-pub use host::{CompactGBuffer, HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
+pub use host::{EngineGBuffer, HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
 pub use scene::{GpuMaterial, GpuScene, GpuVertex, flatten_scene, gpu_materials};
 pub use wgpu::naga;
 
@@ -593,6 +593,16 @@ impl GpuContext {
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         })
+    }
+
+    /// The largest storage buffer this device can bind, in bytes: the smaller of its
+    /// storage-binding and buffer-size limits. What a method checks its buffers against
+    /// before allocating them.
+    pub fn storage_binding_limit(&self) -> u64 {
+        let limits = self.device.limits();
+        limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size)
     }
 
     /// Checks that `buffer` holds a `vec4<f32>` per pixel of a `width x height` image

@@ -316,7 +316,7 @@ fn textures_an_engine_cannot_hand_over_are_refused_by_name() {
     );
 }
 
-/// `CompactGBuffer` (what the examples stand in for an engine with) packs a G-buffer as this
+/// `EngineGBuffer::compact` (what the examples stand in for an engine with) packs a G-buffer as this
 /// file's own encoders do: the same 8-bit sRGB codes and the same octahedral half floats on
 /// every surface pixel.
 #[test]
@@ -324,7 +324,7 @@ fn compact_gbuffer_packs_as_the_independent_encoders() {
     let Some(ctx) = gpu_test_context() else {
         return;
     };
-    use scene_core::gpu::CompactGBuffer;
+    use scene_core::gpu::EngineGBuffer;
     let scene = builtin::scene("cornell").unwrap();
     let view = View::from_camera(&scene.cameras[0].with_aspect(W as f32 / H as f32));
     let g = RayCastRenderer::new().render(&scene, &view, W, H).unwrap();
@@ -337,7 +337,7 @@ fn compact_gbuffer_packs_as_the_independent_encoders() {
         ),
     )
     .unwrap();
-    let packed = CompactGBuffer::from_gbuffer(&ctx, &g, view.far, &convention).unwrap();
+    let packed = EngineGBuffer::compact(&ctx, &g, view.far, &convention).unwrap();
     let albedo = ctx.read_texture_bytes(&packed.albedo).unwrap();
     let normal: Vec<u16> =
         bytemuck::cast_slice(&ctx.read_texture_bytes(&packed.normal).unwrap()).to_vec();

@@ -318,16 +318,13 @@ impl Renderer {
     /// shrunk (keeping the aspect ratio) until a frame buffer fits the adapter's
     /// storage-binding and buffer limits and its 2D texture limit.
     pub fn fit(&self, width: u32, height: u32, scale: f32) -> (u32, u32) {
-        let limits = self.ctx.device.limits();
-        let max_bytes = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let max_bytes = self.ctx.storage_binding_limit();
         fit_frame(
             width,
             height,
             scale,
             max_bytes,
-            limits.max_texture_dimension_2d,
+            self.ctx.device.limits().max_texture_dimension_2d,
         )
     }
 
@@ -339,10 +336,7 @@ impl Renderer {
         let ctx = &self.ctx;
         ctx.check_texture_size(width, height).map_err(err)?;
         let bytes = width as u64 * height as u64 * 16;
-        let limits = ctx.device.limits();
-        let limit = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
+        let limit = ctx.storage_binding_limit();
         if bytes > limit {
             return Err(format!(
                 "a {width}x{height} frame needs {bytes}-byte buffers; this adapter binds at most {limit}"

@@ -274,11 +274,10 @@ pub fn check_frame_target(
         .usage()
         .contains(wgpu::TextureUsages::STORAGE_BINDING)
     {
-        return Err(super::GpuError::InvalidSize {
-            width,
-            height,
-            reason: "the frame target lacks STORAGE_BINDING usage".into(),
-        });
+        return Err(super::GpuError::Validation(format!(
+            "the frame target needs STORAGE_BINDING usage (has {:?})",
+            target.usage()
+        )));
     }
     Ok(())
 }

@@ -476,38 +476,100 @@ pub fn octahedral_f16(n: glam::Vec3) -> [u16; 2] {
     e.map(|x| half::f16::from_f32(x).to_bits())
 }
 
-/// An engine's G-buffer in compact formats made from a toolkit [`crate::GBuffer`], standing
-/// in for an engine in tests and examples: albedo as 8-bit sRGB (`Rgba8UnormSrgb`), normals
-/// as octahedral half floats (`Rg16Float`), the depth buffer (`Depth32Float`) in the
-/// engine's convention with its clear value (1, or 0 reversed) where nothing is drawn, no
-/// triangle ids.
+/// An engine's G-buffer made from a toolkit [`crate::GBuffer`], standing in for an engine in
+/// tests and examples: albedo, normals, the depth buffer (`Depth32Float`) in the engine's
+/// convention with its clear value (1, or 0 reversed) where nothing is drawn, and triangle
+/// ids when the engine has them. [`EngineGBuffer::compact`] keeps the compact formats
+/// engines use, [`EngineGBuffer::float`] float ones. The textures are readable too, so a
+/// test can check what was packed.
 #[derive(Debug)]
-pub struct CompactGBuffer {
-    /// `Rgba8UnormSrgb` albedo.
+pub struct EngineGBuffer {
+    /// Albedo: `Rgba8UnormSrgb` (compact) or `Rgba32Float`.
     pub albedo: wgpu::Texture,
-    /// `Rg16Float` octahedral normals.
+    /// Normals: `Rg16Float` octahedral (compact) or `Rgba32Float` `xyz`.
     pub normal: wgpu::Texture,
     /// `Depth32Float` depth in the engine's convention.
     pub depth: wgpu::Texture,
+    /// `R32Uint` triangle ids, when kept.
+    pub triangle_id: Option<wgpu::Texture>,
 }
 
-impl CompactGBuffer {
-    /// `g` (seen by a view whose far plane is `far`) in compact formats, its depth written
-    /// in `convention` ([`crate::View::from_host_matrices`]).
-    pub fn from_gbuffer(
+impl EngineGBuffer {
+    /// `g` (seen by a view whose far plane is `far`) as an engine keeps it: 8-bit sRGB
+    /// albedo, octahedral half-float normals, its depth written in `convention`
+    /// ([`crate::View::from_host_matrices`]), no triangle ids.
+    pub fn compact(
         ctx: &GpuContext,
         g: &crate::GBuffer,
         far: f32,
         convention: &DepthConvention,
     ) -> Result<Self, GpuError> {
-        let (w, h) = (g.width, g.height);
-        ctx.check_texture_size(w, h)?;
         let albedo: Vec<[u8; 4]> = g
             .albedo
             .iter()
             .map(|a| [srgb8(a.x), srgb8(a.y), srgb8(a.z), 255])
             .collect();
         let normal: Vec<[u16; 2]> = g.normal.iter().map(|n| octahedral_f16(*n)).collect();
+        Self::with(
+            ctx,
+            g,
+            far,
+            convention,
+            [
+                (
+                    wgpu::TextureFormat::Rgba8UnormSrgb,
+                    bytemuck::cast_slice(&albedo),
+                ),
+                (
+                    wgpu::TextureFormat::Rg16Float,
+                    bytemuck::cast_slice(&normal),
+                ),
+            ],
+            false,
+        )
+    }
+
+    /// `g` in float formats (`Rgba32Float` albedo and `xyz` normals) with its depth in
+    /// `convention`, and its triangle ids when `ids`.
+    pub fn float(
+        ctx: &GpuContext,
+        g: &crate::GBuffer,
+        far: f32,
+        convention: &DepthConvention,
+        ids: bool,
+    ) -> Result<Self, GpuError> {
+        let normal: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
+        Self::with(
+            ctx,
+            g,
+            far,
+            convention,
+            [
+                (
+                    wgpu::TextureFormat::Rgba32Float,
+                    bytemuck::cast_slice(&g.albedo),
+                ),
+                (
+                    wgpu::TextureFormat::Rgba32Float,
+                    bytemuck::cast_slice(&normal),
+                ),
+            ],
+            ids,
+        )
+    }
+
+    /// Uploads albedo and normal texels as given, the depth of `g` in `convention`, and
+    /// with `ids` its triangle ids.
+    fn with(
+        ctx: &GpuContext,
+        g: &crate::GBuffer,
+        far: f32,
+        convention: &DepthConvention,
+        [(albedo_format, albedo), (normal_format, normal)]: [(wgpu::TextureFormat, &[u8]); 2],
+        ids: bool,
+    ) -> Result<Self, GpuError> {
+        let (w, h) = (g.width, g.height);
+        ctx.check_texture_size(w, h)?;
         let clear = if convention.reverse { 0.0 } else { 1.0 };
         let depth: Vec<f32> = (0..g.len())
             .map(|i| {
@@ -518,34 +580,30 @@ impl CompactGBuffer {
                 }
             })
             .collect();
-        // Readable too, so a test can check what was packed.
         let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC;
+        let upload =
+            |label, format, bytes: &[u8]| ctx.texture_with(label, (w, h), format, usage, bytes);
         Ok(Self {
-            albedo: ctx.texture_with(
-                "engine albedo",
-                (w, h),
-                wgpu::TextureFormat::Rgba8UnormSrgb,
-                usage,
-                bytemuck::cast_slice(&albedo),
-            ),
-            normal: ctx.texture_with(
-                "engine normals",
-                (w, h),
-                wgpu::TextureFormat::Rg16Float,
-                usage,
-                bytemuck::cast_slice(&normal),
-            ),
+            albedo: upload("engine albedo", albedo_format, albedo),
+            normal: upload("engine normals", normal_format, normal),
             depth: depth_texture_from(ctx, w, h, &depth)?,
+            triangle_id: ids.then(|| {
+                upload(
+                    "engine triangle ids",
+                    wgpu::TextureFormat::R32Uint,
+                    bytemuck::cast_slice(&g.triangle_id),
+                )
+            }),
         })
     }
 
-    /// The textures as [`HostGBufferPass`] reads them (no ids).
+    /// The textures as [`HostGBufferPass`] reads them.
     pub fn host(&self) -> HostGBuffer<'_> {
         HostGBuffer {
             albedo: &self.albedo,
             normal: &self.normal,
             depth: &self.depth,
-            triangle_id: None,
+            triangle_id: self.triangle_id.as_ref(),
         }
     }
 }
