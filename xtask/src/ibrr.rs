@@ -44,6 +44,16 @@ pub struct Options {
     /// Store each layer's light per source in f16 (half the memory of f32).
     #[arg(long)]
     pub f16: bool,
+    /// Most bounces of a particle: 0 keeps only the lights' own exact sources (direct
+    /// light), 1 adds one bounce, and so on.
+    #[arg(long, default_value_t = 32)]
+    pub bounces: u32,
+    /// Render resolution of the lights' own exact sources (0: the LDC resolution).
+    #[arg(long, default_value_t = 0)]
+    pub direct_render: u32,
+    /// Render resolution of the path IRPLs' hemicubes (0: half the direct one).
+    #[arg(long, default_value_t = 0)]
+    pub indirect_render: u32,
 }
 
 /// Every number against its stated range (no file touched), run by `Command::check_numbers`
@@ -53,6 +63,9 @@ pub fn check_numbers(o: &Options) -> Result<(), String> {
     crate::ranged("--ldc", o.ldc, 8..=2048)?;
     crate::ranged("--irpls", o.irpls, 1..=100_000)?;
     crate::ranged("--clamp", o.clamp, 0.0..=1.0)?;
+    crate::ranged("--bounces", o.bounces, 0..=1024)?;
+    crate::ranged("--direct-render", o.direct_render, 0..=8192)?;
+    crate::ranged("--indirect-render", o.indirect_render, 0..=8192)?;
     Ok(())
 }
 
@@ -76,6 +89,9 @@ pub fn run(o: &Options) -> Result<(), String> {
         clamp: o.clamp,
         compensation,
         seed: o.seed,
+        max_depth: o.bounces,
+        direct_hemicube: o.direct_render,
+        indirect_hemicube: o.indirect_render,
         source_precision: if o.f16 {
             SourcePrecision::F16
         } else {
@@ -140,6 +156,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "splat": o.splat,
         "lookup": o.lookup,
         "seed": o.seed,
+        "bounces": o.bounces,
         "clamp": o.clamp,
         "compensation": o.compensation,
         "compensation_seconds": stats.compensation_time.as_secs_f64(),

@@ -51,6 +51,14 @@ fn ibrr_writes_the_view_and_the_summary() {
     let (w, r) = (white.mean(), red.mean());
     assert!(r.x > 0.0 && r.y == 0.0 && r.z == 0.0, "{r}");
     assert!(w.y > 0.0);
+    // `--bounces 0`: the light's own exact source and no particle path, so a darker image
+    // (cornell-point's walls lit only by the lamp).
+    let (direct_summary, direct) = run(&["--bounces", "0"]);
+    assert_eq!(direct_summary["bounces"], 0);
+    assert_eq!(direct_summary["irpls"], direct_summary["exact_sources"]);
+    assert!(summary["irpls"].as_u64() > direct_summary["irpls"].as_u64());
+    let d = direct.mean();
+    assert!(d.y > 0.0 && d.y < w.y, "direct {d}, all bounces {w}");
     let _ = std::fs::remove_dir_all(&out);
 }
 
@@ -66,6 +74,18 @@ fn ibrr_refuses_bad_options_by_name() {
         (
             vec!["--irpls", "0"],
             "--irpls = 0 is outside its range [1, 100000]",
+        ),
+        (
+            vec!["--bounces", "2000"],
+            "--bounces = 2000 is outside its range [0, 1024]",
+        ),
+        (
+            vec!["--direct-render", "9000"],
+            "--direct-render = 9000 is outside its range [0, 8192]",
+        ),
+        (
+            vec!["--indirect-render", "9000"],
+            "--indirect-render = 9000 is outside its range [0, 8192]",
         ),
         (
             vec!["--exposure", "NaN"],
