@@ -12,7 +12,7 @@ use scene_core::{Error, FrameRequest, Image, SceneError, Technique};
 
 /// Every method at a tiny setting, on the CPU and, with `gpu`, on the GPU too: DL, ISR,
 /// relighting (64 elements; direct light gathered per pixel, and from shadow maps), the
-/// IBRR (LDC 32, 8 IRPLs) and the reference (4 spp).
+/// IBRR (LDC 32, 8 IRPLs; also with camera importance) and the reference (4 spp).
 pub fn techniques(
     gpu: Option<&scene_core::gpu::GpuContext>,
 ) -> Vec<(&'static str, Box<dyn Technique>)> {
@@ -62,6 +62,16 @@ pub fn techniques(
             "ibrr",
             Box::new(ibrr_ldc::IbrrTechnique::new(
                 ibrr,
+                Box::new(CpuRasterizer::new()),
+            )),
+        ),
+        (
+            "ibrr-cam",
+            Box::new(ibrr_ldc::IbrrTechnique::new(
+                ibrr_ldc::IbrrSettings {
+                    camera_importance: true,
+                    ..ibrr
+                },
                 Box::new(CpuRasterizer::new()),
             )),
         ),
@@ -184,6 +194,11 @@ pub fn compared_methods() -> Vec<(&'static str, Box<dyn Technique>)> {
         .filter(|(name, _)| *name != "reference")
         .map(|(name, t)| match (name, &ctx) {
             ("ibrr", _) => (name, Box::new(ibrr()) as Box<dyn Technique>),
+            ("ibrr-cam", _) => {
+                let mut t = ibrr();
+                t.settings.camera_importance = true;
+                (name, Box::new(t) as Box<dyn Technique>)
+            }
             ("ibrr-gpu", Some(ctx)) => (name, Box::new(ibrr().on_gpu(ctx.clone())) as _),
             _ => (name, t),
         })

@@ -288,6 +288,9 @@ pub enum ChoiceKind {
         ldc: u32,
         /// IRPLs.
         irpls: u32,
+        /// The IRPL budget spent where the scene's cameras look
+        /// (`IbrrSettings::camera_importance`).
+        camera_importance: bool,
     },
 }
 
@@ -322,13 +325,25 @@ fn relight_choice(elements: usize) -> TechniqueChoice {
     }
 }
 
-fn ibrr_choice(ldc: u32, irpls: u32) -> TechniqueChoice {
+fn ibrr_choice(ldc: u32, irpls: u32, camera_importance: bool) -> TechniqueChoice {
+    let (suffix, importance) = if camera_importance {
+        (
+            "-cam",
+            ", camera importance (IRPLs the scene's cameras do not see kept 1 in 8)",
+        )
+    } else {
+        ("", "")
+    };
     TechniqueChoice {
-        label: format!("ibrr-{ldc}-{irpls}"),
+        label: format!("ibrr-{ldc}-{irpls}{suffix}"),
         family: "ibrr".into(),
-        kind: ChoiceKind::Ibrr { ldc, irpls },
+        kind: ChoiceKind::Ibrr {
+            ldc,
+            irpls,
+            camera_importance,
+        },
         description: format!(
-            "image-based radiosity, LDC {ldc}, {irpls} IRPLs, exact splats, bilinear lookup (precomputed per scene)"
+            "image-based radiosity, LDC {ldc}, {irpls} IRPLs, exact splats, bilinear lookup{importance} (precomputed per scene)"
         ),
     }
 }
@@ -360,12 +375,13 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
 
 /// Parses a technique list: `dl`, `isr` (both modes at 24, 48 and 80 samples), `isr-default`,
 /// `isr-thesis`, `isr-N`, `isr-thesis-N`, `relight` (256 and 1024 elements), `relight-N`,
-/// `ibrr` (LDC 128 with 64 IRPLs, LDC 256 with 184), `ibrr-RES-N`. `dl` (the baseline) is
+/// `ibrr` (LDC 128 with 64 IRPLs, LDC 256 with 184), `ibrr-RES-N`, `ibrr-RES-N-cam` (with
+/// camera importance). `dl` (the baseline) is
 /// added first when missing.
 pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
     let known = "dl, isr, isr-default, isr-thesis, isr-N, isr-thesis-N (N in 1..=256), \
                  relight, relight-N (N elements, 16..=1000000), ibrr, ibrr-RES-N (LDC RES in \
-                 8..=2048, N IRPLs in 1..=100000)";
+                 8..=2048, N IRPLs in 1..=100000), ibrr-RES-N-cam (camera importance)";
     let mut out: Vec<TechniqueChoice> = Vec::new();
     for token in list.split(',').map(str::trim).filter(|t| !t.is_empty()) {
         let t = token.to_ascii_lowercase();
@@ -384,7 +400,7 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
             "isr-default" => add.extend(SAMPLES.map(|n| isr_choice(false, n))),
             "isr-thesis" => add.extend(SAMPLES.map(|n| isr_choice(true, n))),
             "relight" => add.extend(RELIGHT_ELEMENTS.map(relight_choice)),
-            "ibrr" => add.extend(IBRR_SETTINGS.map(|(r, n)| ibrr_choice(r, n))),
+            "ibrr" => add.extend(IBRR_SETTINGS.map(|(r, n)| ibrr_choice(r, n, false))),
             _ if t.starts_with("relight-") => {
                 let n: usize = t["relight-".len()..]
                     .parse()
@@ -394,14 +410,19 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                 add.push(relight_choice(n));
             }
             _ if t.starts_with("ibrr-") => {
-                let parsed = t["ibrr-".len()..].split_once('-').and_then(|(r, n)| {
+                let rest = &t["ibrr-".len()..];
+                let (rest, cam) = match rest.strip_suffix("-cam") {
+                    Some(r) => (r, true),
+                    None => (rest, false),
+                };
+                let parsed = rest.split_once('-').and_then(|(r, n)| {
                     let r: u32 = r.parse().ok().filter(|r| (8..=2048).contains(r))?;
                     let n: u32 = n.parse().ok().filter(|n| (1..=100_000).contains(n))?;
                     Some((r, n))
                 });
                 let (r, n) = parsed
                     .ok_or_else(|| format!("unknown technique '{token}' (known: {known})"))?;
-                add.push(ibrr_choice(r, n));
+                add.push(ibrr_choice(r, n, cam));
             }
             _ => {
                 let (thesis, n) = if let Some(n) = t.strip_prefix("isr-thesis-") {
@@ -630,10 +651,15 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                     )
                     .named(&c.label),
                 ),
-                ChoiceKind::Ibrr { ldc, irpls } => {
+                ChoiceKind::Ibrr {
+                    ldc,
+                    irpls,
+                    camera_importance,
+                } => {
                     let settings = ibrr_ldc::IbrrSettings {
                         resolution: *ldc,
                         irpls: *irpls,
+                        camera_importance: *camera_importance,
                         ..Default::default()
                     };
                     let t = ibrr_ldc::IbrrTechnique::new(settings, Box::new(CpuRasterizer::new()))
@@ -972,7 +998,8 @@ mod tests {
             "{e}"
         );
         assert!(parse_techniques("isr-0").is_err());
-        let methods = parse_techniques("relight,ibrr,relight-100,ibrr-64-32").unwrap();
+        let methods =
+            parse_techniques("relight,ibrr,relight-100,ibrr-64-32,ibrr-64-32-cam").unwrap();
         let labels: Vec<&str> = methods.iter().map(|c| c.label.as_str()).collect();
         assert_eq!(
             labels,
@@ -983,14 +1010,31 @@ mod tests {
                 "ibrr-128-64",
                 "ibrr-256-184",
                 "relight-100",
-                "ibrr-64-32"
+                "ibrr-64-32",
+                "ibrr-64-32-cam"
             ]
         );
+        assert!(matches!(
+            methods[7].kind,
+            ChoiceKind::Ibrr {
+                camera_importance: true,
+                ..
+            }
+        ));
+        assert!(matches!(
+            methods[6].kind,
+            ChoiceKind::Ibrr {
+                camera_importance: false,
+                ..
+            }
+        ));
         for bad in [
             "relight-3",
             "ibrr-4-10",
             "ibrr-64",
             "ibrr-64-0",
+            "ibrr-64-32-cat",
+            "ibrr-cam",
             "relight-x",
         ] {
             assert!(

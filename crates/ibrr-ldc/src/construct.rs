@@ -137,6 +137,7 @@ impl Construction {
                 seed: settings.seed,
                 max_depth: settings.max_depth,
                 paths: settings.paths,
+                camera_importance: settings.camera_importance,
             },
         );
         let walk_time = t.elapsed();
@@ -260,6 +261,7 @@ impl Construction {
                 seed: s.seed,
                 max_depth: s.max_depth,
                 paths: 0,
+                camera_importance: s.camera_importance,
             },
             &mut self.irpls,
             more_paths,

@@ -17,6 +17,13 @@
 //! once (a full cube around a point light, an orthographic view for a directional one).
 //! Emissive surfaces give every path its own node 0 on the emitter
 //! ([`IrplKind::EmitterSample`]).
+//!
+//! With [`WalkSettings::camera_importance`] (beyond the paper, which is view-independent),
+//! a path IRPL that no surface point seen by the scene's cameras can see is kept with
+//! probability [`CameraImportance::UNSEEN_KEEP`] and its power divided by it: a Russian
+//! roulette on storing, so the expectation is unchanged everywhere while the IRPL budget
+//! buys more paths, whose IRPLs land where the cameras look (a room lit through a window:
+//! most particles would light the walls' outside).
 
 use glam::{Vec2, Vec3};
 use scene_core::Scene;
@@ -225,6 +232,64 @@ pub struct WalkSettings {
     pub max_depth: u32,
     /// Number of paths; 0: from `irpls` and a pilot.
     pub paths: u32,
+    /// Keep the IRPLs that no scene camera's surface point sees with probability
+    /// [`CameraImportance::UNSEEN_KEEP`] (their power divided by it): the budget goes to
+    /// the light the cameras see, the estimate stays unbiased everywhere. No effect on a
+    /// scene without cameras.
+    pub camera_importance: bool,
+}
+
+/// Surface points the scene's cameras see, for [`WalkSettings::camera_importance`]: a
+/// grid of primary rays per camera, each hit lifted off its surface on the camera's side.
+#[derive(Clone, Debug, Default)]
+pub struct CameraImportance {
+    /// Lifted position and unit geometric normal (facing the camera) of every point.
+    pub points: Vec<(Vec3, Vec3)>,
+}
+
+impl CameraImportance {
+    /// Columns of the grid of primary rays per camera (rows follow its aspect).
+    pub const COLUMNS: u32 = 32;
+    /// The probability of keeping an IRPL that sees none of the points.
+    pub const UNSEEN_KEEP: f32 = 0.125;
+
+    /// The points of `scene`'s cameras (empty without cameras).
+    pub fn of(scene: &Scene, rays: &RayScene) -> Self {
+        let offsets = scene.mesh_offsets();
+        let lift = scene.extent() * 1e-4;
+        let mut points = Vec::new();
+        for camera in &scene.cameras {
+            let view = scene_core::View::from_camera(camera);
+            let cols = Self::COLUMNS;
+            let rows = ((cols as f32 / camera.aspect.max(1e-3)).round() as u32).clamp(1, 4 * cols);
+            for y in 0..rows {
+                for x in 0..cols {
+                    let uv = scene_core::view::pixel_uv(x, y, cols, rows);
+                    let (o, d) = view.ray(uv);
+                    let Some(hit) = rays.closest_hit(o, d, 0.0, f32::INFINITY) else {
+                        continue;
+                    };
+                    if let Some(s) = surface_at(scene, &offsets, &hit, o, d) {
+                        points.push((s.p + s.ng * lift, s.ng));
+                    }
+                }
+            }
+        }
+        Self { points }
+    }
+
+    /// Whether an IRPL at `x` with normal `n` sees any of the points (each on its front,
+    /// and the IRPL on the point's front).
+    pub fn sees(&self, rays: &RayScene, x: Vec3, n: Vec3) -> bool {
+        self.points.iter().any(|&(y, ny)| {
+            let d = y - x;
+            let len = d.length();
+            len > 0.0
+                && d.dot(n) > 0.0
+                && d.dot(ny) < 0.0
+                && !rays.occluded(x, d / len, 0.0, len * (1.0 - 1e-4))
+        })
+    }
 }
 
 /// Generates the IRPLs of `scene` under `lights`. Deterministic for a seed.
@@ -385,7 +450,11 @@ fn walks(
         acc += w / total;
         cdf.push(acc);
     }
+    let importance = (settings.camera_importance && !scene.cameras.is_empty())
+        .then(|| CameraImportance::of(scene, rays))
+        .filter(|i| !i.points.is_empty());
     let walker = Walker {
+        importance: importance.as_ref(),
         scene,
         rays,
         lights,
@@ -431,6 +500,7 @@ fn walks(
 
 /// Everything one particle walk needs.
 struct Walker<'a> {
+    importance: Option<&'a CameraImportance>,
     scene: &'a Scene,
     rays: &'a RayScene,
     lights: &'a LightState,
@@ -547,15 +617,25 @@ impl Walker<'_> {
                 break;
             }
             let position = s.p + s.ng * lift;
-            out.push(Irpl {
-                position,
-                normal: s.ns,
-                power: reflected,
-                kind: IrplKind::Bounce,
-                light: id,
-                path: path_id,
-                depth,
-            });
+            // Camera importance: an IRPL no camera point sees is kept with probability
+            // `UNSEEN_KEEP`, its power divided by it (the walk goes on either way).
+            let keep = match self.importance {
+                Some(imp) if !imp.sees(self.rays, position, s.ns) => (rng.next_f32()
+                    < CameraImportance::UNSEEN_KEEP)
+                    .then_some(1.0 / CameraImportance::UNSEEN_KEEP),
+                _ => Some(1.0),
+            };
+            if let Some(weight) = keep {
+                out.push(Irpl {
+                    position,
+                    normal: s.ns,
+                    power: reflected * weight,
+                    kind: IrplKind::Bounce,
+                    light: id,
+                    path: path_id,
+                    depth,
+                });
+            }
             // Survival equals the albedo's largest channel (at most 0.999,
             // `scene_core::scene::ALBEDO_MAX`), so the carried power never grows: a cap below
             // the albedo multiplied it by rho / cap at every bounce.

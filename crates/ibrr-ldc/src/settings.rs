@@ -116,6 +116,9 @@ pub struct IbrrSettings {
     pub seed: u64,
     /// Most bounces of a particle.
     pub max_depth: u32,
+    /// Spend the IRPL budget on the light the scene's cameras see
+    /// ([`crate::irpl::WalkSettings::camera_importance`]); off: every surface alike.
+    pub camera_importance: bool,
     /// Memory budget of the LDC in bytes (construction fails with a typed error before
     /// exceeding it).
     pub max_bytes: u64,
@@ -162,6 +165,7 @@ impl Default for IbrrSettings {
             fallback_radius: 4,
             seed: 1,
             max_depth: 32,
+            camera_importance: false,
             max_bytes: 2 << 30,
             source_precision: crate::ldc::SourcePrecision::F32,
             compensation: Compensation::Local,
