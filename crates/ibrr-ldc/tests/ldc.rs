@@ -128,6 +128,11 @@ fn ldc_of_one(scene: &Arc<Scene>, irpl: Irpl, settings: &IbrrSettings) -> ibrr_l
         path_ends: vec![1],
         exact: 0,
     };
+    ldc_of(scene, set, settings)
+}
+
+/// The LDC built from `set` over `scene`.
+fn ldc_of(scene: &Arc<Scene>, set: IrplSet, settings: &IbrrSettings) -> ibrr_ldc::Ldc {
     let mut c = Construction::with_irpls(scene.clone(), set, settings).unwrap();
     let mut r = RayCastRenderer::new();
     c.prepare_renderer(&mut r).unwrap();
@@ -472,13 +477,7 @@ fn a_sun_through_slats_finer_than_an_ldi_pixel_lights_the_share_they_let_through
         direct_hemicube: 512,
         ..Default::default()
     };
-    let mut c = Construction::with_irpls(scene.clone(), set, &settings).unwrap();
-    let mut r = RayCastRenderer::new();
-    c.prepare_renderer(&mut r).unwrap();
-    while !c.is_done() {
-        c.step(&mut r, 1).unwrap();
-    }
-    let ldc = c.ldc().unwrap();
+    let ldc = ldc_of(&scene, set, &settings);
     let pixel = ldc.frame.pixel_size();
     assert!(
         period < 0.5 * pixel,
