@@ -202,8 +202,8 @@ impl Construction {
         })
     }
 
-    /// Runs the exact mode's gather (every layer an IRPL's samples did not reach, tested
-    /// against its renders) on the GPU of `ctx`; the scatter stays on the CPU. The values
+    /// Runs the exact mode's gather (every layer, tested against the IRPL's renders) on
+    /// the GPU of `ctx`; the scatter stays on the CPU. The values
     /// agree with the CPU gather's but for f32 rounding at a visibility threshold.
     pub fn gather_on_gpu(&mut self, ctx: &scene_core::gpu::GpuContext) -> Result<(), IbrrError> {
         self.gpu = Some(crate::gpu::GpuGather::new(ctx)?);
@@ -600,23 +600,24 @@ impl Construction {
         };
         let value_at = |q: Vec3, n: Vec3| irpl.irradiance_clamped(q, n, g_max) * scale;
         let founding = self.founding;
-        // The renders as shadow maps of planes, for the exact mode's visibility.
-        let (eps_d, eps_n) = (frame.eps_distance, frame.eps_normal);
-        let renders: Vec<Render> = targets
-            .iter()
-            .zip(&recon)
-            .zip(&vps)
-            .zip(buffers)
-            .map(|(((t, r), vp), g)| Render::new(&t.view, *r, *vp, g))
-            .collect();
+        // The exact mode lights every layer by the gather below, at the layer's centre on
+        // its own plane, the geometry term times the share of that centre the renders see:
+        // its samples only found layers (in the founding pass). Lighting a sample's home
+        // layer wholly let occluders finer than an LDI pixel (a window blind's slats, seen
+        // by a render finer than the LDC) stop nothing: the Breakfast Room's sun through its
+        // blind read 2.7 to 4 times too bright.
+        let splats = !exact || founding;
         self.builder.begin();
         for samples in all {
             if !founding {
                 self.stats.samples += samples.len() as u64;
             }
+            if !splats {
+                continue;
+            }
             for mut s in samples {
                 // The paper's kernels copy the sample's own value (clamped and compensated
-                // like every other); the exact mode evaluates at each LDI pixel instead.
+                // like every other); the exact mode only founds layers here.
                 if !exact {
                     s.value = value_at(s.p, s.n);
                 }
@@ -658,9 +659,7 @@ impl Construction {
                             if !is_home && m2 > k2 {
                                 continue;
                             }
-                            // Exact values: a copy only creates layers where none is yet;
-                            // every layer the sample's home pixel did not reach is lit by
-                            // the gather below.
+                            // Exact mode: a copy only founds a layer where none is yet.
                             if exact && !is_home && self.builder.has_layer(axis, i, j, s.p, s.n) {
                                 continue;
                             }
@@ -692,21 +691,12 @@ impl Construction {
                                 continue;
                             }
                             let weight = if gaussian { (-0.5 * m2).exp() } else { 1.0 };
-                            // Exact: the geometry term at the LDI pixel's centre itself (the
-                            // render decides only visibility); else the sample's own value,
-                            // as the paper copies it.
-                            // A sample that reaches an LDI pixel does not make all of it
-                            // visible: occluders finer than an LDI pixel (a blind's slats)
-                            // hide part of it. The exact value is the share the renders see
-                            // at the pixel's centre, as for the layers the gather lights;
-                            // lighting the whole layer read the Breakfast Room's sun through
-                            // its blind 2.7 to 4 times too bright.
-                            let value = if exact {
-                                value_at(q, s.n) * unoccluded(&renders, q, s.n, eps_d, eps_n)
-                            } else {
+                            // The sample's own value, as the paper copies it.
+                            let value = if s.value.is_finite() {
                                 s.value
+                            } else {
+                                Vec3::ZERO
                             };
-                            let value = if value.is_finite() { value } else { Vec3::ZERO };
                             self.builder
                                 .splat(axis, i, j, q, s.n, value, m2, weight, combine)?;
                         }
@@ -718,12 +708,20 @@ impl Construction {
             return Ok(());
         }
         if exact {
-            // Every layer not reached by a sample: lit when no surface of the IRPL's renders
-            // lies between the IRPL and the layer's centre.
+            // Every layer, lit by the share of its centre that no surface of the IRPL's
+            // renders lies in front of (`unoccluded`).
+            let (eps_d, eps_n) = (frame.eps_distance, frame.eps_normal);
             if let Some(g) = self.gpu.as_mut() {
                 let values = g.gather(&self.builder, irpl, g_max, scale, targets, buffers)?;
                 self.builder.apply_gathered(&values);
             } else {
+                let renders: Vec<Render> = targets
+                    .iter()
+                    .zip(&recon)
+                    .zip(&vps)
+                    .zip(buffers)
+                    .map(|(((t, r), vp), g)| Render::new(&t.view, *r, *vp, g))
+                    .collect();
                 self.builder.gather(|q, n| {
                     let e = value_at(q, n);
                     if !(e.max_element() > 0.0 && e.is_finite()) {

@@ -440,9 +440,8 @@ struct GpuRender {
 const GATHER_GROUP: u32 = 64;
 const MAX_GROUPS_X: u32 = 32768;
 
-/// The exact mode's gather on the GPU ([`crate::construct`]: every layer an IRPL's
-/// samples did not reach is lit when nothing of its renders lies between the IRPL and the
-/// layer's centre). Layers are uploaded as they appear; each IRPL uploads its renders'
+/// The exact mode's gather on the GPU ([`crate::construct`]: every layer is lit by the
+/// share of its centre that nothing of the IRPL's renders lies in front of). Layers are uploaded as they appear; each IRPL uploads its renders'
 /// normals and depths and reads back one value per layer.
 pub struct GpuGather {
     ctx: GpuContext,
