@@ -23,11 +23,9 @@ fn room_on_a_ground() -> Scene {
         name: "ground and room".into(),
         ..Default::default()
     };
-    let quad = |m: &mut Mesh, c: [Vec3; 4], mat: u32| m.push_quad(c, mat);
     // The ground 10 cm below the room's floor, so that no plane runs under a wall.
     let g = -0.1;
-    quad(
-        &mut m,
+    m.push_quad(
         [
             p(-6.0, g, -6.0),
             p(-6.0, g, 6.0),
@@ -36,8 +34,7 @@ fn room_on_a_ground() -> Scene {
         ],
         0,
     );
-    quad(
-        &mut m,
+    m.push_quad(
         [
             p(-1.0, 0.0, -1.0),
             p(-1.0, 0.0, 1.0),
@@ -48,8 +45,7 @@ fn room_on_a_ground() -> Scene {
     );
     // Ceiling, the walls at -x, +x and -z, and the +z wall around its window, down to the
     // ground.
-    quad(
-        &mut m,
+    m.push_quad(
         [
             p(-1.0, 2.0, -1.0),
             p(1.0, 2.0, -1.0),
@@ -58,8 +54,7 @@ fn room_on_a_ground() -> Scene {
         ],
         1,
     );
-    quad(
-        &mut m,
+    m.push_quad(
         [
             p(-1.0, g, -1.0),
             p(-1.0, 2.0, -1.0),
@@ -68,8 +63,7 @@ fn room_on_a_ground() -> Scene {
         ],
         1,
     );
-    quad(
-        &mut m,
+    m.push_quad(
         [
             p(1.0, g, -1.0),
             p(1.0, g, 1.0),
@@ -78,8 +72,7 @@ fn room_on_a_ground() -> Scene {
         ],
         1,
     );
-    quad(
-        &mut m,
+    m.push_quad(
         [
             p(-1.0, g, -1.0),
             p(1.0, g, -1.0),
@@ -95,11 +88,7 @@ fn room_on_a_ground() -> Scene {
         (-1.0, x0, y0, y1),
         (x1, 1.0, y0, y1),
     ] {
-        quad(
-            &mut m,
-            [p(a, c, 1.0), p(b, c, 1.0), p(b, d, 1.0), p(a, d, 1.0)],
-            1,
-        );
+        m.push_quad([p(a, c, 1.0), p(b, c, 1.0), p(b, d, 1.0), p(a, d, 1.0)], 1);
     }
     s.meshes.push(m);
     s.directional_lights.push(DirectionalLight {

@@ -282,13 +282,19 @@ pub fn check_target_size(width: u32, height: u32) -> Result<(), Error> {
 mod tests {
     use super::*;
 
-    #[test]
-    fn raycast_gbuffer_of_the_cornell_box() {
+    /// The Cornell box from its camera at 32 x 32 by the ray caster.
+    fn cornell_32() -> (crate::Scene, View, GBuffer) {
         let scene = crate::builtin::scene("cornell").unwrap();
         let view = View::from_camera(&scene.cameras[0]);
         let g = RayCastRenderer::new()
             .render(&scene, &view, 32, 32)
             .unwrap();
+        (scene, view, g)
+    }
+
+    #[test]
+    fn raycast_gbuffer_of_the_cornell_box() {
+        let (scene, view, g) = cornell_32();
         // The published camera sees the box interior everywhere but at the open front edge.
         let bg = g.background_mask().iter().filter(|&&b| b).count();
         assert!(bg < 32 * 4, "{bg} background pixels");
@@ -327,11 +333,7 @@ mod tests {
 
     #[test]
     fn the_emitter_mask_marks_the_ceiling_panel_only() {
-        let scene = crate::builtin::scene("cornell").unwrap();
-        let view = View::from_camera(&scene.cameras[0]);
-        let g = RayCastRenderer::new()
-            .render(&scene, &view, 32, 32)
-            .unwrap();
+        let (scene, view, g) = cornell_32();
         let mask = g.emitter_mask(&scene);
         let panel = mask.iter().filter(|&&e| e).count();
         assert!(panel > 0 && panel < g.len() / 10, "{panel} panel pixels");
