@@ -333,7 +333,7 @@ mod tests {
 
     #[test]
     fn the_emitter_mask_marks_the_ceiling_panel_only() {
-        let (scene, view, g) = cornell_32();
+        let (scene, _, g) = cornell_32();
         let mask = g.emitter_mask(&scene);
         let panel = mask.iter().filter(|&&e| e).count();
         assert!(panel > 0 && panel < g.len() / 10, "{panel} panel pixels");
