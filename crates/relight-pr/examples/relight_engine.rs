@@ -6,15 +6,16 @@
 //! floor, a ceiling, four walls and a block, lit by a point light) and a camera as a
 //! reverse-Z projection with the far plane at infinity (as Bevy builds it). Once, the example
 //! builds a scene-core `Scene` from those arrays, solves it with the light tagged and builds
-//! the light's shadow maps (`scene_core::shadowed_lights`); each frame records eq. 1, the
-//! direct light from the shadow maps at every pixel and the display into the engine's
-//! encoder with the frame's light colour (nothing is kept from one view to the next, so a
+//! the light's shadow maps (`scene_core::shadowed_lights`); each frame records the element
+//! ids, the direct light from the shadow maps at every pixel and the display (eq. 1 per
+//! pixel) into the engine's encoder with the frame's light colour (nothing is kept from one view to the next, so a
 //! moving camera costs the same). The last line counts the GPU objects a steady-state frame
 //! created (wgpu's counters): all zero.
 //!
-//! Until the one frame contract of issue 30 exists, relighting's display reads a G-buffer of
-//! its own element scene (its triangle ids are elements), rendered here by scene-core's ray
-//! caster and uploaded once for the still camera; docs/engine.md says what is missing.
+//! The frame is relighting on the one frame contract (`RelightFrame` as a `GpuFrame`): it
+//! reads the engine's G-buffer in compact formats without triangle ids, converted each frame
+//! by scene-core's `HostGBufferPass`, and renders its own element ids (one raster pass of
+//! the element triangles).
 //!
 //! Run with `cargo run --release -p relight-pr --example relight_engine`.
 
@@ -22,11 +23,14 @@ use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 use relight_pr::display::{Welding, light_slots};
+use relight_pr::frame::RelightFrame;
 use relight_pr::gpu::GpuRelight;
 use relight_pr::packed::Precision;
-use relight_pr::{MeshSettings, Meshing, SolverSettings, relight, solve};
+use relight_pr::{MeshSettings, Meshing, SolverSettings, solve};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{GpuContext, GpuGBuffer, ObjectCounts};
+use scene_core::gpu::{
+    EngineGBuffer, FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
+};
 use scene_core::lights::{LightId, LightState, light_ids};
 use scene_core::ray::RayScene;
 use scene_core::shadowed_lights::{LightSet, ShadowSettings};
@@ -214,17 +218,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         gpu.bytes() / 1024
     );
 
-    // The camera from the engine's matrices; the element G-buffer for this still camera.
+    let mut method = RelightFrame::new(&ctx, gpu, &meshing, solution.sources.clone())?;
+
+    // The camera from the engine's matrices.
     let (view_m, proj_m) = matrices();
     let (view, depth) = View::from_host_matrices(view_m, proj_m)?;
     println!(
         "camera: reverse-Z {}, infinite far {} (the toolkit's far plane {:.0} m)",
         depth.reverse, depth.infinite, view.far
     );
-    let mut renderer = RayCastRenderer::new();
-    renderer.prepare(Arc::new(meshing.element_scene(&scene)))?;
-    let g = GpuGBuffer::upload(&ctx, &renderer.render_view(&view, W, H)?)?;
-    let output = ctx.pixel_buffer("engine frame", W, H);
+    // The engine's G-buffer of its own triangles in its compact formats (8-bit sRGB
+    // albedo, octahedral half-float normals, its reverse-Z depth buffer, no ids), drawn
+    // here by scene-core's ray caster where an engine has its own raster pass, and
+    // converted each frame. The frame renders its element ids itself.
+    let own = RayCastRenderer::new().render(&scene, &view, W, H)?;
+    let engine = EngineGBuffer::compact(&ctx, &own, view.far, &depth)?;
+    let mut convert = HostGBufferPass::new(&ctx)?;
+    let g = GpuGBuffer::new(&ctx, W, H)?;
+    let target = ctx.create_texture_2d(
+        "engine frame",
+        W,
+        H,
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+    );
 
     let mut steady = ObjectCounts::default();
     let mut means = Vec::new();
@@ -239,21 +256,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     {
         let mut state = LightState::new();
         state.set_color(LightId::Point(0), colour);
-        let (factors, base) = relight::weights(&solution, &state, true);
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         let (result, created) = ObjectCounts::during(&ctx.device, || {
-            gpu.encode_relight(&mut encoder, &factors, base, None)?;
-            gpu.encode_display_shadowed(&mut encoder, &g, &view, &factors, base, &output)
+            convert.encode(&mut encoder, &engine.host(), &depth, &g)?;
+            let inputs = FrameInputs {
+                gbuffer: &g,
+                view: &view,
+                lights: &state,
+            };
+            method.encode(&mut encoder, &inputs, &target)
         });
         result?;
         if frame > 0 {
             steady = created;
         }
         ctx.queue.submit([encoder.finish()]);
-        let pixels: Vec<[f32; 4]> = ctx.read_buffer_as(&output)?;
+        let pixels = ctx.read_texture_rgba32f(&target)?;
         let mean = pixels
             .iter()
-            .take((W * H) as usize)
             .fold(Vec3::ZERO, |s, p| s + Vec3::new(p[0], p[1], p[2]))
             / (W * H) as f32;
         println!("light {colour}: mean radiance {mean:.4}");

@@ -407,6 +407,21 @@ impl GpuRelight {
         self.precision
     }
 
+    /// Number of light sources of the solution.
+    pub fn sources(&self) -> usize {
+        self.k
+    }
+
+    /// Number of elements of the solution.
+    pub fn elements(&self) -> usize {
+        self.elements
+    }
+
+    /// True once [`GpuRelight::set_shadowed_direct`] has set the per-frame direct light.
+    pub fn has_shadowed_direct(&self) -> bool {
+        self.shadowed.is_some()
+    }
+
     /// The factor pairs as the shaders read them (two `vec4` per source).
     fn factor_data(factors: &[(Vec3, Vec3)]) -> Vec<[f32; 4]> {
         factors

@@ -39,6 +39,7 @@ pub mod display;
 pub mod dynamic;
 pub mod export;
 pub mod form_factor;
+pub mod frame;
 pub mod gpu;
 pub mod hierarchical;
 pub mod merge;

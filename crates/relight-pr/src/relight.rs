@@ -13,8 +13,13 @@ use crate::solver::Solution;
 /// The direct and indirect factors of each source of `solution` under `state`. A bank
 /// follows the setting of its first light.
 pub fn factors(solution: &Solution, state: &LightState) -> Vec<(Vec3, Vec3)> {
-    solution
-        .sources
+    source_factors(&solution.sources, state)
+}
+
+/// [`factors`] from the sources alone (what a frame keeps of a solution once it is on the
+/// GPU, [`crate::frame::RelightFrame`]).
+pub fn source_factors(sources: &[crate::solver::Source], state: &LightState) -> Vec<(Vec3, Vec3)> {
+    sources
         .iter()
         .map(|s| {
             let setting = s

@@ -29,6 +29,7 @@ use wgpu::util::DeviceExt;
 pub mod compute;
 pub mod frame;
 pub mod host;
+pub mod ids;
 pub mod layout;
 mod scene;
 pub mod shader;
@@ -40,6 +41,7 @@ pub use frame::{
     check_frame_target,
 };
 pub use host::{EngineGBuffer, HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
+pub use ids::{NO_TRIANGLE, TriangleIdPass};
 pub use scene::{GpuMaterial, GpuScene, GpuVertex, flatten_scene, gpu_materials};
 pub use wgpu::naga;
 
@@ -61,6 +63,7 @@ pub const SHADER_PASSES: &[shader::ShaderPass] = &[
     host::HOST_GBUFFER,
     frame::PIXELS_TO_TEXTURE,
     frame::PIXELS_TO_TEXTURE_RGBA16F,
+    ids::TRIANGLE_IDS,
 ];
 
 /// An error of the GPU layer.
@@ -139,6 +142,9 @@ pub enum GpuError {
     /// wgpu reported a validation error (a bug in the calling code or a missing usage flag).
     #[error("GPU validation error: {0}")]
     Validation(String),
+    /// Data to upload exceeds a limit of the adapter (refused before allocating).
+    #[error(transparent)]
+    Budget(crate::BudgetExceeded),
 }
 
 impl GpuError {

@@ -228,8 +228,8 @@ pub struct FrameInputs<'a> {
 ///
 /// The shape is that of wgpu's examples' `render` and of a render-graph node: inputs in, one
 /// target out, nothing submitted, nothing read back. Implemented by ISR and DL
-/// (`isr::IsrFrame`) and the IBRR (`ibrr_ldc::IbrrFrame`); relighting's display still needs
-/// a G-buffer of its own element scene (docs/engine.md).
+/// (`isr::IsrFrame`), relighting (`relight_pr::frame::RelightFrame`, which renders its own
+/// element ids with [`super::TriangleIdPass`]) and the IBRR (`ibrr_ldc::IbrrFrame`).
 pub trait GpuFrame {
     /// The method's short name.
     fn name(&self) -> &str;

@@ -1,0 +1,131 @@
+//! Relighting on the frame contract ([`scene_core::gpu::GpuFrame`], issue 30,
+//! docs/engine.md): [`RelightFrame`] records a frame of the paper's display from any
+//! G-buffer the host has, its own or the engine's converted by
+//! [`scene_core::gpu::HostGBufferPass`], ids or none.
+//!
+//! The display reads which element each pixel sees (eq. 1 per pixel over the element's
+//! welded vertices). The host's G-buffer cannot say it: an engine's G-buffer has no ids, and
+//! its ids are of its own triangles. So the frame renders its elements' ids itself
+//! ([`scene_core::gpu::TriangleIdPass`], one raster pass of the element triangles in the
+//! frame's view) and reads the host's albedo, normal and depth beside them. The direct light
+//! is scene-core's shadow-mapped lights evaluated per pixel in the same encoder when
+//! [`GpuRelight::set_shadowed_direct`] was called (a moving camera's quality equals a still
+//! one's), else the elements' own.
+
+use glam::Vec3;
+use scene_core::gpu::{
+    FrameInputs, GpuContext, KeptBuffer, PixelsToTexture, TriangleIdPass, check_frame_target,
+};
+
+use crate::RelightError;
+use crate::gpu::GpuRelight;
+use crate::mesh::Meshing;
+use crate::solver::Source;
+
+/// Relighting on the frame contract (module docs): the solution on the GPU, the pass that
+/// renders the element ids, and the pass that writes the display into the host's target.
+/// A frame costs the id raster, the direct pass (when shadow-mapped), the display and a
+/// copy into the target; a light change costs k factor pairs.
+pub struct RelightFrame {
+    gpu: GpuRelight,
+    sources: Vec<Source>,
+    ids: TriangleIdPass,
+    pixels: KeptBuffer,
+    to_texture: PixelsToTexture,
+    device: wgpu::Device,
+}
+
+impl std::fmt::Debug for RelightFrame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RelightFrame")
+            .field("gpu", &self.gpu)
+            .field("ids", &self.ids)
+            .finish_non_exhaustive()
+    }
+}
+
+impl RelightFrame {
+    /// Wraps `gpu` (a solution over `meshing` uploaded by [`GpuRelight::new`], with
+    /// [`GpuRelight::set_shadowed_direct`] called for the per-frame direct light) and the
+    /// solution's `sources`; uploads the element triangles for the id raster and compiles
+    /// the passes on `ctx`'s device (the one `gpu` lives on). Fails when the element count
+    /// or the sources do not match `gpu`'s, or the elements exceed the adapter's binding
+    /// limit.
+    pub fn new(
+        ctx: &GpuContext,
+        gpu: GpuRelight,
+        meshing: &Meshing,
+        sources: Vec<Source>,
+    ) -> Result<Self, RelightError> {
+        if meshing.elements.len() != gpu.elements() || sources.len() != gpu.sources() {
+            return Err(RelightError::InvalidSetting(format!(
+                "a solution of {} elements and {} sources on the GPU, a meshing of {} elements \
+                 and {} sources given",
+                gpu.elements(),
+                gpu.sources(),
+                meshing.elements.len(),
+                sources.len()
+            )));
+        }
+        let triangles: Vec<[Vec3; 3]> = meshing.elements.iter().map(|e| e.corners).collect();
+        let gpu_err = |e: scene_core::gpu::GpuError| RelightError::Gpu(Box::new(e));
+        Ok(Self {
+            ids: TriangleIdPass::new(ctx, &triangles).map_err(gpu_err)?,
+            to_texture: PixelsToTexture::new(ctx).map_err(gpu_err)?,
+            pixels: KeptBuffer::new("relight frame pixels", wgpu::BufferUsages::STORAGE),
+            device: ctx.device.clone(),
+            gpu,
+            sources,
+        })
+    }
+
+    /// The solution on the GPU.
+    pub fn gpu(&self) -> &GpuRelight {
+        &self.gpu
+    }
+}
+
+impl scene_core::gpu::GpuFrame for RelightFrame {
+    fn name(&self) -> &str {
+        "relight"
+    }
+
+    fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &FrameInputs<'_>,
+        target: &wgpu::Texture,
+    ) -> Result<(), scene_core::Error> {
+        let g = inputs.gbuffer;
+        check_frame_target(target, g.width, g.height)?;
+        let ids = self.ids.encode(encoder, inputs.view, g.width, g.height)?;
+        let elements = TriangleIdPass::gbuffer(g, ids)?;
+        let factors = crate::relight::source_factors(&self.sources, inputs.lights);
+        let bytes = u64::from(g.width) * u64::from(g.height) * 16;
+        let pixels = self.pixels.ensure(&self.device, bytes).clone();
+        let base = Vec3::ZERO;
+        if self.gpu.has_shadowed_direct() {
+            self.gpu.encode_display_shadowed(
+                encoder,
+                &elements,
+                inputs.view,
+                &factors,
+                base,
+                &pixels,
+            )?;
+        } else {
+            self.gpu.encode_display(
+                encoder,
+                &elements,
+                inputs.view,
+                &factors,
+                base,
+                None,
+                &pixels,
+            )?;
+        }
+        self.to_texture
+            .encode(&self.device, encoder, &pixels, target)?;
+        Ok(())
+    }
+}

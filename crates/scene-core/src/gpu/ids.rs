@@ -1,0 +1,333 @@
+//! Triangle ids a method renders for itself (issue 30, docs/engine.md): an engine's G-buffer
+//! rarely has ids, and those it has are of the engine's triangles, not of a method's own
+//! (relighting's elements). [`TriangleIdPass`] rasterises a fixed list of world-space
+//! triangles for the frame's view into an `R32Uint` texture of global ids
+//! (`shaders/scene-core/triangle_ids.wgsl`), recorded into the frame's encoder, and
+//! [`TriangleIdPass::gbuffer`] puts that texture beside the host's albedo, normal and depth.
+//!
+//! The raster uses the G-buffer pass's conventions (`shaders/gbuffer/mrt.wgsl`): the
+//! clip space of [`crate::View::view_projection`] (depth in [0, 1], tested `Less`), pixel
+//! centres sampled, no culling. A pixel's id is therefore the triangle nearest the eye
+//! through the pixel's centre, what scene-core's ray caster puts there, up to a triangle's
+//! edge passing within rounding of a centre. Masked materials are not consulted: a pass for
+//! a scene of masked leaves would give the leaf quad's id where the host sees through it.
+
+use std::sync::Mutex;
+
+use glam::Vec3;
+
+use super::{FrameWriter, GpuContext, GpuError, GpuGBuffer};
+use crate::View;
+
+/// The pass (its vertex and fragment stages in one file).
+pub const TRIANGLE_IDS: super::shader::ShaderPass = super::shader::ShaderPass::new(
+    "scene-core/triangle_ids",
+    crate::wgsl_file!("scene-core", "triangle_ids.wgsl"),
+    &[],
+);
+
+/// The id a pixel gets where no triangle covers it.
+pub const NO_TRIANGLE: u32 = u32::MAX;
+
+struct Targets {
+    ids: wgpu::Texture,
+    ids_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+}
+
+/// Rasterises a fixed list of triangles' global ids for a view (module docs). The triangles
+/// are uploaded once by [`TriangleIdPass::new`], which also compiles the pipeline; each
+/// [`TriangleIdPass::encode`] records one render pass and writes the view's matrix through
+/// the frame's encoder. The id and depth textures are made on the first frame of a size and
+/// kept: a steady stream of frames creates no GPU object.
+pub struct TriangleIdPass {
+    pipeline: wgpu::RenderPipeline,
+    params: wgpu::Buffer,
+    bind: wgpu::BindGroup,
+    vertices: u32,
+    writer: FrameWriter,
+    targets: Mutex<Option<Targets>>,
+    device: wgpu::Device,
+}
+
+impl std::fmt::Debug for TriangleIdPass {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TriangleIdPass")
+            .field("triangles", &self.triangles())
+            .finish_non_exhaustive()
+    }
+}
+
+impl TriangleIdPass {
+    /// Format of the id texture.
+    pub const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
+
+    /// Uploads `triangles` (world-space corners; a triangle's id is its index) to `ctx`'s
+    /// device and compiles the pipeline. Refused before allocating, with
+    /// [`GpuError::Budget`], when the corners exceed the adapter's storage binding limit;
+    /// a corner that is not finite is refused by name.
+    pub fn new(ctx: &GpuContext, triangles: &[[Vec3; 3]]) -> Result<Self, GpuError> {
+        if let Some(t) = triangles
+            .iter()
+            .position(|t| t.iter().any(|c| !c.is_finite()))
+        {
+            return Err(GpuError::Validation(format!(
+                "triangle {t} of the id pass has a corner that is not finite"
+            )));
+        }
+        let bytes = triangles.len() as u64 * 48;
+        let limit = ctx.storage_binding_limit();
+        if bytes > limit {
+            return Err(GpuError::Budget(crate::BudgetExceeded {
+                what: format!(
+                    "the corners of {} triangles to render ids of",
+                    triangles.len()
+                ),
+                needed: bytes,
+                limit,
+                unit: "bytes",
+                hint: "this adapter's storage binding limit; use fewer triangles".into(),
+            }));
+        }
+        let vertices = u32::try_from(triangles.len() * 3).map_err(|_| {
+            GpuError::Validation(format!(
+                "{} triangles are too many to draw",
+                triangles.len()
+            ))
+        })?;
+        let mut corners: Vec<[f32; 4]> = triangles
+            .iter()
+            .flat_map(|t| t.map(|c| c.extend(0.0).to_array()))
+            .collect();
+        if corners.is_empty() {
+            corners.push([0.0; 4]); // a binding may not be empty
+        }
+        let module = TRIANGLE_IDS.create_module(&ctx.device)?;
+        ctx.validated(|| {
+            let device = &ctx.device;
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("scene-core triangle ids"),
+                entries: &[
+                    wgpu::BindGroupLayoutEntry {
+                        visibility: wgpu::ShaderStages::VERTEX,
+                        ..super::layout::uniform(0)
+                    },
+                    wgpu::BindGroupLayoutEntry {
+                        visibility: wgpu::ShaderStages::VERTEX,
+                        ..super::layout::storage_buffer(1)
+                    },
+                ],
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("scene-core triangle ids"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("scene-core triangle ids"),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: GpuGBuffer::DEPTH_STENCIL_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(Self::FORMAT.into())],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            let params = ctx.frame_buffer("triangle id view", 64, wgpu::BufferUsages::UNIFORM);
+            let corners = ctx.storage_with(
+                "triangle id corners",
+                bytemuck::cast_slice(&corners),
+                wgpu::BufferUsages::empty(),
+            );
+            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("scene-core triangle ids"),
+                layout: &layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: params.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: corners.as_entire_binding(),
+                    },
+                ],
+            });
+            Self {
+                pipeline,
+                params,
+                bind,
+                vertices,
+                writer: FrameWriter::new(device, 256),
+                targets: Mutex::new(None),
+                device: device.clone(),
+            }
+        })
+    }
+
+    /// The triangles of `scene` in global triangle-id order (scene-core's, as
+    /// [`super::flatten_scene`] numbers them).
+    pub fn for_scene(ctx: &GpuContext, scene: &crate::Scene) -> Result<Self, GpuError> {
+        let triangles: Vec<[Vec3; 3]> = scene
+            .meshes
+            .iter()
+            .flat_map(|m| {
+                m.indices
+                    .iter()
+                    .map(|t| t.map(|i| m.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO)))
+            })
+            .collect();
+        Self::new(ctx, &triangles)
+    }
+
+    /// Number of triangles.
+    pub fn triangles(&self) -> u32 {
+        self.vertices / 3
+    }
+
+    /// Records the id raster of `view` at `width x height` into `encoder` and returns the
+    /// id texture it writes ([`TriangleIdPass::FORMAT`], [`NO_TRIANGLE`] where no triangle
+    /// covers a pixel's centre; `TEXTURE_BINDING` usage). The texture is the same object
+    /// from frame to frame while the size stays.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        view: &View,
+        width: u32,
+        height: u32,
+    ) -> Result<wgpu::Texture, GpuError> {
+        if width == 0 || height == 0 {
+            return Err(GpuError::InvalidSize {
+                width,
+                height,
+                reason: "the id raster needs at least one pixel".into(),
+            });
+        }
+        let view_proj = view.view_projection();
+        if !view_proj.is_finite() {
+            return Err(GpuError::Validation(
+                "the view's projection is not finite: no ids can be rasterised for it".into(),
+            ));
+        }
+        let mut targets = self.targets.lock().unwrap_or_else(|e| e.into_inner());
+        if targets
+            .as_ref()
+            .is_none_or(|t| (t.ids.width(), t.ids.height()) != (width, height))
+        {
+            let make = |label, format, usage| {
+                self.device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d {
+                        width,
+                        height,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage,
+                    view_formats: &[],
+                })
+            };
+            let ids = make(
+                "triangle ids",
+                Self::FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+            );
+            let depth = make(
+                "triangle id depth",
+                GpuGBuffer::DEPTH_STENCIL_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT,
+            );
+            *targets = Some(Targets {
+                ids_view: ids.create_view(&Default::default()),
+                depth_view: depth.create_view(&Default::default()),
+                ids,
+            });
+        }
+        let t = targets.as_ref().expect("made above");
+        self.writer.write(
+            encoder,
+            &self.params,
+            0,
+            bytemuck::cast_slice(&view_proj.to_cols_array()),
+        );
+        self.writer.finish(encoder);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("scene-core triangle ids"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &t.ids_view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: f64::from(NO_TRIANGLE),
+                        g: 0.0,
+                        b: 0.0,
+                        a: 0.0,
+                    }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &t.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if self.vertices > 0 {
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.bind, &[]);
+            pass.draw(0..self.vertices, 0..1);
+        }
+        drop(pass);
+        Ok(t.ids.clone())
+    }
+
+    /// `g`'s albedo, normal and depth with `ids` (from [`TriangleIdPass::encode`]) as its
+    /// triangle ids: no copy, no GPU object (the textures are shared).
+    pub fn gbuffer(g: &GpuGBuffer, ids: wgpu::Texture) -> Result<GpuGBuffer, GpuError> {
+        if (ids.width(), ids.height()) != (g.width, g.height) {
+            return Err(GpuError::InvalidSize {
+                width: ids.width(),
+                height: ids.height(),
+                reason: format!(
+                    "the id texture must be the G-buffer's {}x{}",
+                    g.width, g.height
+                ),
+            });
+        }
+        GpuGBuffer::from_textures(g.albedo.clone(), g.normal.clone(), g.depth.clone(), ids)
+    }
+}
