@@ -18,6 +18,7 @@
 //!   for 10^4 elements.
 
 mod bench;
+mod bench_frames;
 mod bench_ibrr;
 mod bench_relight;
 mod bench_scaling;
@@ -368,7 +369,7 @@ enum Command {
     },
     /// Benchmarks (figures printed, nothing asserted).
     Bench {
-        /// What to benchmark: `reference`, `gbuffer`, `isr`, `relight`, `relight-frames`,
+        /// What to benchmark: `frames`, `reference`, `gbuffer`, `isr`, `relight`, `relight-frames`,
         /// `relight-dynamic`, `relight-direct`, `ibrr` or `scaling`.
         what: String,
         /// Worker threads.
@@ -381,6 +382,12 @@ enum Command {
         /// it).
         #[arg(long, default_value_t = 1_000_000)]
         max_triangles: u64,
+        /// `frames` only: the frame sizes, `WIDTHxHEIGHT` separated by commas.
+        #[arg(long, default_value = "256x192,1280x720")]
+        sizes: String,
+        /// `frames` only: the built-in scene.
+        #[arg(long, default_value = "cornell")]
+        scene: String,
     },
 }
 
@@ -654,8 +661,12 @@ impl Command {
                 threads,
                 repeats,
                 max_triangles,
+                sizes,
                 ..
             } => {
+                for s in sizes.split(',') {
+                    bench_frames::parse_size(s)?;
+                }
                 ranged("--threads", *threads, 1..=1024)?;
                 ranged("--max-triangles", *max_triangles, 100_000..=10_000_000)?;
                 ranged("--repeats", *repeats, 1..=1000).map(|_| ())
@@ -779,7 +790,14 @@ fn run(cli: Cli) -> Result<(), String> {
             threads,
             repeats,
             max_triangles,
+            sizes,
+            scene,
         } => match what.as_str() {
+            "frames" => sizes
+                .split(',')
+                .map(bench_frames::parse_size)
+                .collect::<Result<Vec<_>, _>>()
+                .and_then(|sizes| bench_frames::run(&scene, threads, repeats, &sizes)),
             "reference" => bench::reference(threads, repeats),
             "isr" => bench::isr(threads, repeats),
             "gbuffer" => bench::gbuffer(threads, repeats),
@@ -790,7 +808,7 @@ fn run(cli: Cli) -> Result<(), String> {
             "ibrr" => bench_ibrr::run(threads, repeats),
             "scaling" => bench_scaling::run(threads, repeats, max_triangles),
             other => Err(format!(
-                "unknown benchmark '{other}' (known: reference, gbuffer, isr, relight, relight-frames, relight-dynamic, relight-direct, ibrr, scaling)"
+                "unknown benchmark '{other}' (known: frames, reference, gbuffer, isr, relight, relight-frames, relight-dynamic, relight-direct, ibrr, scaling)"
             )),
         },
     }

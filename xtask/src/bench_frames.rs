@@ -1,0 +1,334 @@
+//! `cargo xtask bench frames`: what a frame of each method costs an engine that hosts it
+//! through the frame contract (`scene_core::gpu::GpuFrame`, docs/engine.md): the engine's
+//! G-buffer in compact formats (8-bit sRGB albedo, octahedral half normals, its reverse-Z
+//! infinite-far depth buffer, no ids) converted by `HostGBufferPass`, then the method's
+//! `encode` into an `Rgba16Float` target, submitted and waited for. Each figure is the
+//! wall-clock time from recording to completion, median of `repeats` frames after one
+//! warm-up: a frame under the previous frame's light state, and a frame whose light changes
+//! colour (relighting's factors, ISR's light buffers, the IBRR's per-source recombination on
+//! the CPU). Beside the wall-clock time, where the adapter has timestamp queries and is not
+//! a CPU, the GPU's own time from the frame's first command to its last (two empty compute
+//! passes marking them): on a fast GPU a small frame's wall-clock time is mostly submission
+//! and wake-up latency. Every method's precomputation is done before the clock starts and
+//! reported beside. Figures are printed; nothing is asserted.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::Vec3;
+use scene_core::gbuffer::RayCastRenderer;
+use scene_core::gpu::{
+    EngineGBuffer, FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
+};
+use scene_core::lights::{LightState, light_ids};
+use scene_core::shadowed_lights::{LightSet, ShadowSettings};
+use scene_core::{GBufferRenderer, Scene, Technique, View, builtin};
+
+use crate::bench::median;
+
+/// GPU time between two points of a command encoder: an empty compute pass writing a
+/// timestamp at its beginning, and another writing one at its end (`TIMESTAMP_QUERY`
+/// only). `None` on a CPU adapter, whose timestamps do not time the work (`PassTimer`).
+struct GpuSpan {
+    set: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+    period_ns: f64,
+}
+
+impl GpuSpan {
+    fn new(ctx: &GpuContext) -> Option<Self> {
+        if !ctx
+            .device
+            .features()
+            .contains(wgpu::Features::TIMESTAMP_QUERY)
+            || ctx.adapter_info().device_type == wgpu::DeviceType::Cpu
+        {
+            return None;
+        }
+        Some(Self {
+            set: ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("bench frame span"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            }),
+            resolved: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("bench frame span"),
+                size: 16,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            period_ns: f64::from(ctx.queue.get_timestamp_period()),
+        })
+    }
+
+    /// Records the mark at the beginning (`end` false) or the end of the span.
+    fn mark(&self, encoder: &mut wgpu::CommandEncoder, end: bool) {
+        let index = Some(u32::from(end));
+        encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("bench frame span"),
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: &self.set,
+                beginning_of_pass_write_index: if end { None } else { index },
+                end_of_pass_write_index: if end { index } else { None },
+            }),
+        });
+        if end {
+            encoder.resolve_query_set(&self.set, 0..2, &self.resolved, 0);
+        }
+    }
+
+    /// Milliseconds between the marks (after the submission has run).
+    fn read(&self, ctx: &GpuContext) -> Result<f64, String> {
+        let t: Vec<u64> = ctx
+            .read_buffer_as(&self.resolved)
+            .map_err(|e| e.to_string())?;
+        Ok(t[1].saturating_sub(t[0]) as f64 * self.period_ns * 1e-6)
+    }
+}
+
+/// Relighting's element target (the main job's larger one).
+const RELIGHT_ELEMENTS: usize = 1024;
+
+/// Parses `WxH`.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| format!("--sizes: '{s}' is not WIDTHxHEIGHT"))?;
+    let side = |v: &str, what: &str| -> Result<u32, String> {
+        let n: u32 = v
+            .trim()
+            .parse()
+            .map_err(|_| format!("--sizes: '{s}': the {what} is not a whole number"))?;
+        crate::ranged(what, n, scene_core::range::IMAGE_SIDE)
+    };
+    Ok((side(w, "width")?, side(h, "height")?))
+}
+
+/// The methods, prepared for `scene` on `ctx`'s device, with their precomputation times.
+fn methods(
+    ctx: &GpuContext,
+    scene: &Arc<Scene>,
+    threads: usize,
+) -> Result<Vec<(Box<dyn GpuFrame + Send>, f64)>, String> {
+    let pool = crate::bench::worker_pool(threads)?;
+    pool.install(|| {
+        let mut out: Vec<(Box<dyn GpuFrame + Send>, f64)> = Vec::new();
+        let shadows = ShadowSettings::default();
+        for settings in [isr::IsrSettings::dl(), isr::IsrSettings::default()] {
+            let t0 = Instant::now();
+            let lights = LightSet::new(scene, &shadows).map_err(|e| e.to_string())?;
+            let gpu = isr::GpuIsr::new(ctx, &lights).map_err(|e| e.to_string())?;
+            out.push((
+                Box::new(isr::IsrFrame::new(gpu, settings)),
+                t0.elapsed().as_secs_f64(),
+            ));
+        }
+
+        let t0 = Instant::now();
+        let k = light_ids(scene).len();
+        let meshing = relight_pr::Meshing::new(
+            scene,
+            &relight_pr::MeshSettings::elements(RELIGHT_ELEMENTS),
+            k,
+        )
+        .map_err(|e| e.to_string())?;
+        let rays = scene_core::ray::RayScene::build(scene);
+        let solution = relight_pr::solve(
+            scene,
+            &meshing,
+            &rays,
+            &relight_pr::SolverSettings::default(),
+            &mut |_| {},
+        )
+        .map_err(|e| e.to_string())?;
+        let welding = relight_pr::display::Welding::new(&meshing, scene.extent());
+        let mut gpu = relight_pr::gpu::GpuRelight::new(
+            ctx,
+            &meshing,
+            &welding,
+            &solution,
+            relight_pr::packed::Precision::F16,
+        )
+        .map_err(|e| e.to_string())?;
+        let lights = LightSet::new(scene, &shadows).map_err(|e| e.to_string())?;
+        let slots = relight_pr::display::light_slots(&lights, &solution.sources);
+        gpu.set_shadowed_direct(&lights, &slots, 3)
+            .map_err(|e| e.to_string())?;
+        let frame = relight_pr::frame::RelightFrame::new(ctx, gpu, &meshing, solution.sources)
+            .map_err(|e| e.to_string())?;
+        out.push((Box::new(frame), t0.elapsed().as_secs_f64()));
+
+        let t0 = Instant::now();
+        let mut ibrr = ibrr_ldc::IbrrTechnique::new(
+            ibrr_ldc::IbrrSettings::default(),
+            Box::new(RayCastRenderer::new()),
+        );
+        ibrr.prepare(scene.clone()).map_err(|e| e.to_string())?;
+        let frame =
+            ibrr_ldc::IbrrFrame::new(ctx, ibrr, scene.clone()).map_err(|e| e.to_string())?;
+        out.push((Box::new(frame), t0.elapsed().as_secs_f64()));
+        Ok(out)
+    })
+}
+
+/// `cargo xtask bench frames` (module docs) on the built-in `scene` at each of `sizes`.
+pub fn run(
+    scene_name: &str,
+    threads: usize,
+    repeats: usize,
+    sizes: &[(u32, u32)],
+) -> Result<(), String> {
+    let ctx = GpuContext::new().map_err(|e| e.to_string())?;
+    let scene = Arc::new(builtin::scene(scene_name).map_err(|e| e.to_string())?);
+    let first = *light_ids(&scene)
+        .first()
+        .ok_or_else(|| format!("{scene_name} has no light to recolour"))?;
+    println!(
+        "frames through the frame contract on {scene_name}; GPU: {}; CPU work on {threads} \
+         thread(s); median of {repeats} frames after 1 warm-up, recording to completion (ms)",
+        ctx.adapter_summary()
+    );
+    let span = GpuSpan::new(&ctx);
+    if span.is_none() {
+        println!("  (no GPU time: this adapter has no timestamp queries, or is a CPU)");
+    }
+    let mut prepared = methods(&ctx, &scene, threads)?;
+    for (method, seconds) in &prepared {
+        println!("  {:<8} prepared in {seconds:.2} s", method.name());
+    }
+    let mut renderer = RayCastRenderer::new();
+    for &(w, h) in sizes {
+        let cam = scene.cameras[0].with_aspect(w as f32 / h as f32);
+        let own = View::from_camera(&cam);
+        let projection = glam::camera::rh::proj::directx::perspective_infinite_reverse(
+            cam.fov_y, cam.aspect, cam.near,
+        );
+        let (view, convention) =
+            View::from_host_matrices(own.view_matrix(), projection).map_err(|e| e.to_string())?;
+        let g = renderer
+            .render(&scene, &view, w, h)
+            .map_err(|e| e.to_string())?;
+        let engine =
+            EngineGBuffer::compact(&ctx, &g, view.far, &convention).map_err(|e| e.to_string())?;
+        let host = engine.host();
+        let mut convert = HostGBufferPass::new(&ctx).map_err(|e| e.to_string())?;
+        let converted = GpuGBuffer::new(&ctx, w, h).map_err(|e| e.to_string())?;
+        let target = ctx.create_texture_2d(
+            "bench frame target",
+            w,
+            h,
+            wgpu::TextureFormat::Rgba16Float,
+            wgpu::TextureUsages::STORAGE_BINDING,
+        );
+        let wait = || {
+            ctx.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        };
+        // The conversion alone.
+        let mut convert_ms = Vec::new();
+        for i in 0..=repeats {
+            let t0 = Instant::now();
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            convert
+                .encode(&mut encoder, &host, &convention, &converted)
+                .map_err(|e| e.to_string())?;
+            ctx.queue.submit([encoder.finish()]);
+            wait()?;
+            if i > 0 {
+                convert_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        println!();
+        println!(
+            "{w}x{h}: G-buffer conversion alone {:.2} ms",
+            median(convert_ms)
+        );
+        println!(
+            "  {:<8} {:>12} {:>10} {:>12} {:>10} {:>26}",
+            "method", "steady wall", "GPU", "change wall", "GPU", "created per steady frame"
+        );
+        for (method, _) in prepared.iter_mut() {
+            let mut frame = |lights: &LightState| -> Result<(f64, f64, ObjectCounts), String> {
+                let t0 = Instant::now();
+                let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                if let Some(span) = &span {
+                    span.mark(&mut encoder, false);
+                }
+                let (result, created) = ObjectCounts::during(&ctx.device, || {
+                    convert.encode(&mut encoder, &host, &convention, &converted)?;
+                    method
+                        .encode(
+                            &mut encoder,
+                            &FrameInputs {
+                                gbuffer: &converted,
+                                view: &view,
+                                lights,
+                            },
+                            &target,
+                        )
+                        .map_err(|e| scene_core::gpu::GpuError::Validation(e.to_string()))
+                });
+                result.map_err(|e| format!("{}: {e}", method.name()))?;
+                if let Some(span) = &span {
+                    span.mark(&mut encoder, true);
+                }
+                ctx.queue.submit([encoder.finish()]);
+                wait()?;
+                let wall = t0.elapsed().as_secs_f64() * 1e3;
+                let gpu = match &span {
+                    Some(span) => span.read(&ctx)?,
+                    None => f64::NAN,
+                };
+                Ok((wall, gpu, created))
+            };
+            let colour = |i: usize| {
+                let mut s = LightState::default();
+                s.set_color(first, Vec3::new(1.0, 0.5 + 0.1 * (i % 5) as f32, 0.5));
+                s
+            };
+            let still = colour(0);
+            frame(&still)?;
+            let (mut steady, mut steady_gpu) = (Vec::new(), Vec::new());
+            let mut created = ObjectCounts::default();
+            for _ in 0..repeats {
+                let (ms, gpu, c) = frame(&still)?;
+                steady.push(ms);
+                steady_gpu.push(gpu);
+                created = c;
+            }
+            frame(&colour(1))?;
+            let (mut changing, mut changing_gpu) = (Vec::new(), Vec::new());
+            for i in 0..repeats {
+                let (ms, gpu, _) = frame(&colour(i + 2))?;
+                changing.push(ms);
+                changing_gpu.push(gpu);
+            }
+            let gpu_ms = |v: Vec<f64>| {
+                if span.is_some() {
+                    format!("{:.3}", median(v))
+                } else {
+                    "n/a".into()
+                }
+            };
+            println!(
+                "  {:<8} {:>12.2} {:>10} {:>12.2} {:>10} {:>26}",
+                method.name(),
+                median(steady),
+                gpu_ms(steady_gpu),
+                median(changing),
+                gpu_ms(changing_gpu),
+                if ObjectCounts::available(&ctx.device) {
+                    format!(
+                        "{}b {}t {}g {}p",
+                        created.buffers, created.textures, created.bind_groups, created.pipelines
+                    )
+                } else {
+                    "(no counters)".into()
+                }
+            );
+        }
+    }
+    Ok(())
+}
