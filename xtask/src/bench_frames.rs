@@ -104,15 +104,14 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((side(w, "width")?, side(h, "height")?))
 }
 
+/// A method on the frame contract and its precomputation time in seconds.
+type Prepared = (Box<dyn GpuFrame + Send>, f64);
+
 /// The methods, prepared for `scene` on `ctx`'s device, with their precomputation times.
-fn methods(
-    ctx: &GpuContext,
-    scene: &Arc<Scene>,
-    threads: usize,
-) -> Result<Vec<(Box<dyn GpuFrame + Send>, f64)>, String> {
+fn methods(ctx: &GpuContext, scene: &Arc<Scene>, threads: usize) -> Result<Vec<Prepared>, String> {
     let pool = crate::bench::worker_pool(threads)?;
     pool.install(|| {
-        let mut out: Vec<(Box<dyn GpuFrame + Send>, f64)> = Vec::new();
+        let mut out: Vec<Prepared> = Vec::new();
         let shadows = ShadowSettings::default();
         for settings in [isr::IsrSettings::dl(), isr::IsrSettings::default()] {
             let t0 = Instant::now();
@@ -196,6 +195,7 @@ pub fn run(
     for (method, seconds) in &prepared {
         println!("  {:<8} prepared in {seconds:.2} s", method.name());
     }
+    shadow_maps(&ctx, &scene, threads, repeats, span.as_ref())?;
     let mut renderer = RayCastRenderer::new();
     for &(w, h) in sizes {
         let cam = scene.cameras[0].with_aspect(w as f32 / h as f32);
@@ -330,5 +330,98 @@ pub fn run(
             );
         }
     }
+    Ok(())
+}
+
+/// The scene's shadow maps at the default settings (what ISR, DL and relighting read):
+/// ray cast on the CPU (`LightSet::from_lights`, `threads` workers) against rasterised on
+/// the GPU from a vertex buffer (`ShadowMapPass`), what a light or caster that moves costs.
+fn shadow_maps(
+    ctx: &GpuContext,
+    scene: &Scene,
+    threads: usize,
+    repeats: usize,
+    span: Option<&GpuSpan>,
+) -> Result<(), String> {
+    use scene_core::shadowed_lights::gpu_maps::{CasterLayout, Casters, ShadowMapPass};
+    use wgpu::util::DeviceExt;
+    let shadows = ShadowSettings::default();
+    let lights = LightSet::new(scene, &shadows)
+        .map_err(|e| e.to_string())?
+        .lights;
+    let casters: Vec<[Vec3; 3]> = scene
+        .meshes
+        .iter()
+        .flat_map(|m| m.indices.iter().map(|t| t.map(|i| m.positions[i as usize])))
+        .collect();
+    let pool = crate::bench::worker_pool(threads)?;
+    let cpu_ms = pool.install(|| {
+        crate::bench::time_ms(repeats, || {
+            LightSet::from_lights(lights.clone(), &casters, &shadows)
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        })
+    })?;
+    let mut bounds = scene_core::Bounds::EMPTY;
+    casters.iter().flatten().for_each(|p| bounds.grow(*p));
+    let (set, plan) =
+        LightSet::planned(lights.clone(), bounds, &shadows).map_err(|e| e.to_string())?;
+    let positions: Vec<[f32; 3]> = casters.iter().flatten().map(|p| p.to_array()).collect();
+    let vertices = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bench casters"),
+            contents: bytemuck::cast_slice(&positions),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+    let pass = ShadowMapPass::new(
+        ctx,
+        &set,
+        &plan,
+        CasterLayout {
+            stride: 12,
+            offset: 0,
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let casters_in = Casters {
+        vertices: &vertices,
+        indices: None,
+        count: positions.len() as u32,
+    };
+    let (mut wall, mut gpu) = (Vec::new(), Vec::new());
+    for i in 0..=repeats {
+        let t0 = Instant::now();
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        if let Some(span) = span {
+            span.mark(&mut encoder, false);
+        }
+        pass.encode(&mut encoder, &set, &casters_in)
+            .map_err(|e| e.to_string())?;
+        if let Some(span) = span {
+            span.mark(&mut encoder, true);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| e.to_string())?;
+        if i > 0 {
+            wall.push(t0.elapsed().as_secs_f64() * 1e3);
+            if let Some(span) = span {
+                gpu.push(span.read(ctx)?);
+            }
+        }
+    }
+    println!(
+        "  shadow maps ({} maps, {} texels): CPU ray cast {cpu_ms:.2} ms; GPU raster {:.2} ms wall{}",
+        plan.len(),
+        pass.texel_count(),
+        median(wall),
+        if span.is_some() {
+            format!(", {:.3} ms GPU", median(gpu))
+        } else {
+            String::new()
+        }
+    );
     Ok(())
 }

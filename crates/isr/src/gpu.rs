@@ -339,6 +339,8 @@ pub struct GpuIsr {
     upsample: upsample::GpuPass,
     lights: wgpu::Buffer,
     shadow_texels: wgpu::Buffer,
+    /// Texels of the light set's shadow maps (the light set kept has none).
+    shadow_texel_count: usize,
     emitter_of: wgpu::Buffer,
     emitters: wgpu::Buffer,
     pattern: Option<(u32, wgpu::Buffer)>,
@@ -447,6 +449,7 @@ impl GpuIsr {
                 shadow_texels: Vec::new(),
                 ..scene.clone()
             },
+            shadow_texel_count: scene.shadow_texels.len(),
             light_state: LightState::default().fingerprint(),
             downsample: GpuDownsampler::new(ctx)?,
             lighting: lighting::GpuPass::new(device)?,
@@ -507,6 +510,36 @@ impl GpuIsr {
     /// The context the pipelines live on.
     pub fn context(&self) -> &GpuContext {
         &self.ctx
+    }
+
+    /// Records, into `encoder`, a copy of the shadow maps `maps` rendered on the GPU from
+    /// the engine's meshes (scene-core's `ShadowMapPass`, made for the light set this ISR
+    /// was made with) into ISR's own: how maps re-rendered after a light or a caster moved
+    /// reach ISR, with nothing read back and nothing created. Refused when `maps` holds
+    /// another number of texels than ISR's light set.
+    pub fn copy_shadow_texels(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        maps: &scene_core::shadowed_lights::gpu_maps::ShadowMapPass,
+    ) -> Result<(), IsrError> {
+        let count = self.shadow_texel_count;
+        if maps.texel_count() != count {
+            return Err(IsrError::Gpu(GpuError::BadLength {
+                what: "the GPU shadow maps (texels) for ISR's light set",
+                expected: count,
+                found: maps.texel_count(),
+            }));
+        }
+        if count > 0 {
+            encoder.copy_buffer_to_buffer(
+                maps.texels(),
+                0,
+                &self.shadow_texels,
+                0,
+                count as u64 * 4,
+            );
+        }
+        Ok(())
     }
 
     /// Applies a frame's light settings: each light's direct and indirect factors are

@@ -349,3 +349,89 @@ fn the_frame_contract_gives_isr_and_dl_and_creates_nothing_per_frame() {
         }
     }
 }
+
+/// Shadow maps the GPU renders from the engine's vertex and index buffers
+/// (`ShadowMapPass`), copied into ISR by `copy_shadow_texels`, give the frame of the CPU's
+/// ray-cast maps of the same lights and casters (the maps agree to rounding, scene-core's
+/// `shadow_maps_gpu` test); before the copy the planned maps are empty and the frame is
+/// unshadowed, so the copy is what brings the shadows.
+#[test]
+fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    use scene_core::shadowed_lights::gpu_maps::{CasterLayout, Casters, ShadowMapPass};
+    use wgpu::util::DeviceExt;
+    let scene = builtin::scene("cornell-point").unwrap();
+    let shadows = small_shadows();
+    let casters = triangles(&scene);
+    let cpu = LightSet::from_lights(engine_lights(&scene), &casters, &shadows).unwrap();
+    let mut bounds = scene_core::Bounds::EMPTY;
+    casters.iter().flatten().for_each(|p| bounds.grow(*p));
+    let (planned, plan) = LightSet::planned(engine_lights(&scene), bounds, &shadows).unwrap();
+    let positions: Vec<[f32; 3]> = casters.iter().flatten().map(|p| p.to_array()).collect();
+    let vertices = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("engine vertices"),
+            contents: bytemuck::cast_slice(&positions),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+    let maps = ShadowMapPass::new(
+        &ctx,
+        &planned,
+        &plan,
+        CasterLayout {
+            stride: 12,
+            offset: 0,
+        },
+    )
+    .unwrap();
+
+    let setup = Setup::with_prepared(scene.clone(), cpu.clone(), 0, 48, 36);
+    let g = GpuGBuffer::upload(&ctx, &setup.full).unwrap();
+    let s = IsrSettings::default();
+    let render = |gpu: &mut GpuIsr| {
+        let target = gpu.output_texture(48, 36).unwrap();
+        let inputs = GpuIsrInputs {
+            full: &g,
+            coarse: None,
+            view: &setup.view,
+        };
+        gpu.render(&inputs, &s, &target).unwrap();
+        ctx.read_texture_rgba32f(&target).unwrap()
+    };
+    let expected = render(&mut GpuIsr::new(&ctx, &cpu).unwrap());
+    let mut isr = GpuIsr::new(&ctx, &planned).unwrap();
+    let unshadowed = render(&mut isr);
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    maps.encode(
+        &mut encoder,
+        &planned,
+        &Casters {
+            vertices: &vertices,
+            indices: None,
+            count: positions.len() as u32,
+        },
+    )
+    .unwrap();
+    isr.copy_shadow_texels(&mut encoder, &maps).unwrap();
+    ctx.queue.submit([encoder.finish()]);
+    let got = render(&mut isr);
+    let diff = |a: &[[f32; 4]], b: &[[f32; 4]]| {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (0..3).map(|c| f64::from((p[c] - q[c]).abs())).sum::<f64>())
+            .sum::<f64>()
+    };
+    let total: f64 = expected.iter().map(|p| f64::from(p[0] + p[1] + p[2])).sum();
+    let (d, before) = (diff(&got, &expected), diff(&unshadowed, &expected));
+    eprintln!(
+        "GPU maps: {:.2e} of the image; before the copy (unshadowed): {:.2e}",
+        d / total,
+        before / total
+    );
+    // The blocks' shadows hold a few per cent of the image's light (2.8 % measured).
+    assert!(before > 1e-2 * total, "the shadows show");
+    assert!(d <= 1e-4 * total, "{d} of {total}");
+}

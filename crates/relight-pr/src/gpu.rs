@@ -134,6 +134,7 @@ struct ShadowedDirect {
     params: wgpu::Buffer,
     lights: wgpu::Buffer,
     texels: wgpu::Buffer,
+    texel_count: usize,
     slots: wgpu::Buffer,
     count: u32,
     shadow: ShadowParams,
@@ -638,8 +639,9 @@ impl GpuRelight {
                 texels: ctx.storage_with(
                     "relight direct shadow maps",
                     &nonempty(bytemuck::cast_slice(&set.shadow_texels), 4),
-                    wgpu::BufferUsages::empty(),
+                    wgpu::BufferUsages::COPY_DST,
                 ),
+                texel_count: set.shadow_texels.len(),
                 slots: ctx.storage_with(
                     "relight direct slots",
                     &nonempty(bytemuck::cast_slice(&slot_words), 4),
@@ -653,6 +655,34 @@ impl GpuRelight {
             })
             .map_err(gpu)?;
         self.shadowed = Some(shadowed);
+        Ok(())
+    }
+
+    /// Records, into `encoder`, a copy of the shadow maps `maps` rendered on the GPU from
+    /// the engine's meshes (scene-core's `ShadowMapPass`, made for the light set given to
+    /// [`GpuRelight::set_shadowed_direct`]) into the direct pass' own: maps re-rendered
+    /// after a light or a caster moved, with nothing read back and nothing created. Refused
+    /// before `set_shadowed_direct`, or when `maps` holds another number of texels.
+    pub fn copy_shadow_texels(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        maps: &scene_core::shadowed_lights::gpu_maps::ShadowMapPass,
+    ) -> Result<(), RelightError> {
+        let Some(s) = &self.shadowed else {
+            return Err(RelightError::InvalidSetting(
+                "no shadow-mapped lights on the GPU: call set_shadowed_direct first".into(),
+            ));
+        };
+        if maps.texel_count() != s.texel_count {
+            return Err(RelightError::InvalidSetting(format!(
+                "GPU shadow maps of {} texels for a light set of {}",
+                maps.texel_count(),
+                s.texel_count
+            )));
+        }
+        if s.texel_count > 0 {
+            encoder.copy_buffer_to_buffer(maps.texels(), 0, &s.texels, 0, s.texel_count as u64 * 4);
+        }
         Ok(())
     }
 

@@ -205,3 +205,126 @@ fn the_frame_contract_gives_the_display_from_an_engine_gbuffer_and_creates_nothi
     }
     assert_ne!(images[0], images[4], "the colour change shows");
 }
+
+/// Shadow maps rendered on the GPU from the engine's vertex buffer (`ShadowMapPass`) and
+/// copied into relighting's direct pass (`copy_shadow_texels`) give the frame of the CPU's
+/// ray-cast maps of the same lights and casters.
+#[test]
+fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    use scene_core::Bounds;
+    use scene_core::shadowed_lights::gpu_maps::{CasterLayout, Casters, ShadowMapPass};
+    use wgpu::util::DeviceExt;
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let k = light_ids(&scene).len();
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(200), k).unwrap();
+    let rays = RayScene::build(&scene);
+    let settings = SolverSettings {
+        max_unshot: 0.05,
+        visibility_samples: 2,
+        ..Default::default()
+    };
+    let solution = solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
+    let welding = Welding::new(&meshing, scene.extent());
+    let shadows = ShadowSettings {
+        cube_resolution: 32,
+        emitter_samples: 4,
+        emitter_cube_resolution: 32,
+        ..Default::default()
+    };
+    let casters: Vec<[Vec3; 3]> = scene
+        .meshes
+        .iter()
+        .flat_map(|m| m.indices.iter().map(|t| t.map(|i| m.positions[i as usize])))
+        .collect();
+    let lights = LightSet::new(&scene, &shadows).unwrap().lights;
+    let cpu = LightSet::from_lights(lights.clone(), &casters, &shadows).unwrap();
+    let mut bounds = Bounds::EMPTY;
+    casters.iter().flatten().for_each(|p| bounds.grow(*p));
+    let (planned, plan) = LightSet::planned(lights, bounds, &shadows).unwrap();
+    let positions: Vec<[f32; 3]> = casters.iter().flatten().map(|p| p.to_array()).collect();
+    let vertices = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("engine vertices"),
+            contents: bytemuck::cast_slice(&positions),
+            usage: wgpu::BufferUsages::VERTEX,
+        });
+    let maps = ShadowMapPass::new(
+        &ctx,
+        &planned,
+        &plan,
+        CasterLayout {
+            stride: 12,
+            offset: 0,
+        },
+    )
+    .unwrap();
+    let (w, h) = (48, 36);
+    let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
+    let g = GpuGBuffer::upload(
+        &ctx,
+        &RayCastRenderer::new().render(&scene, &view, w, h).unwrap(),
+    )
+    .unwrap();
+    let target = ctx.create_texture_2d(
+        "frame target",
+        w,
+        h,
+        wgpu::TextureFormat::Rgba32Float,
+        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+    );
+    let lights_state = LightState::default();
+    let frame_of = |set: &LightSet, copy: bool| {
+        let mut gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
+        gpu.set_shadowed_direct(set, &light_slots(set, &solution.sources), 3)
+            .unwrap();
+        let mut method = RelightFrame::new(&ctx, gpu, &meshing, solution.sources.clone()).unwrap();
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        if copy {
+            maps.encode(
+                &mut encoder,
+                set,
+                &Casters {
+                    vertices: &vertices,
+                    indices: None,
+                    count: positions.len() as u32,
+                },
+            )
+            .unwrap();
+            method
+                .gpu()
+                .copy_shadow_texels(&mut encoder, &maps)
+                .unwrap();
+        }
+        let inputs = FrameInputs {
+            gbuffer: &g,
+            view: &view,
+            lights: &lights_state,
+        };
+        method.encode(&mut encoder, &inputs, &target).unwrap();
+        ctx.queue.submit([encoder.finish()]);
+        ctx.read_texture_rgba32f(&target).unwrap()
+    };
+    let expected = frame_of(&cpu, false);
+    let unshadowed = frame_of(&planned, false);
+    let got = frame_of(&planned, true);
+    let diff = |a: &[[f32; 4]], b: &[[f32; 4]]| {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (0..3).map(|c| f64::from((p[c] - q[c]).abs())).sum::<f64>())
+            .sum::<f64>()
+    };
+    let total: f64 = expected.iter().map(|p| f64::from(p[0] + p[1] + p[2])).sum();
+    let (d, before) = (diff(&got, &expected), diff(&unshadowed, &expected));
+    eprintln!(
+        "GPU maps: {:.2e} of the image; before the copy (unshadowed): {:.2e}",
+        d / total,
+        before / total
+    );
+    // The blocks' shadows hold a few per cent of the image's light.
+    assert!(before > 1e-2 * total, "the shadows show");
+    assert!(d <= 1e-4 * total, "{d} of {total}");
+}

@@ -64,6 +64,7 @@ pub const SHADER_PASSES: &[shader::ShaderPass] = &[
     frame::PIXELS_TO_TEXTURE,
     frame::PIXELS_TO_TEXTURE_RGBA16F,
     ids::TRIANGLE_IDS,
+    crate::shadowed_lights::gpu_maps::SHADOW_MAPS,
 ];
 
 /// An error of the GPU layer.

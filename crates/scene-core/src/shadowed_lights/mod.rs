@@ -21,6 +21,8 @@ use glam::{Vec2, Vec3};
 pub mod esm;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+#[cfg(feature = "gpu")]
+pub mod gpu_maps;
 
 use esm::{MapKind, ShadowMap};
 
@@ -335,6 +337,19 @@ impl EmitterTable {
     }
 }
 
+/// One shadow map of a plan ([`LightSet::planned`]): the light it belongs to (index into
+/// [`LightSet::lights`]), its placement, and the depth (in scene extents) it stores where
+/// nothing is hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlannedMap {
+    /// Index of the light.
+    pub light: usize,
+    /// The map's kind, resolution and first texel.
+    pub map: ShadowMap,
+    /// The depth of a texel that sees nothing.
+    pub miss: f32,
+}
+
 /// Lights, their shadow maps and the emissive triangles. View-independent: build it once per
 /// scene (the methods' [`Technique::prepare`](crate::Technique::prepare) does) or once per
 /// engine light rig, and [`LightSet::apply`] each frame's [`LightState`].
@@ -442,8 +457,59 @@ impl LightSet {
         casters: &[[Vec3; 3]],
         shadows: &ShadowSettings,
     ) -> Result<Self, LightSetError> {
+        let mut this = Self::engine(lights, casters, Bounds::EMPTY, shadows)?;
+        if shadows.enabled && !casters.is_empty() && !this.lights.is_empty() {
+            this.build_shadow_maps(|| RayScene::from_triangles(casters))?;
+        } else {
+            this.shadows.enabled = false;
+        }
+        Ok(this)
+    }
+
+    /// A light set from an engine's own lights whose shadow maps the GPU renders from the
+    /// engine's vertex and index buffers ([`gpu_maps::ShadowMapPass`], with the `gpu` feature):
+    /// the maps are placed as [`LightSet::from_lights`] would place them over casters
+    /// within `caster_bounds`, and their texels hold the depth of an empty map (every
+    /// receiver lit) until the pass has run and its texels are read back or copied in.
+    /// Returns the maps in texel order too. With `shadows.enabled` off, or no lights, no map
+    /// is placed and the lights are unshadowed.
+    ///
+    /// Errors as [`LightSet::from_lights`], and on `caster_bounds` that are not finite.
+    pub fn planned(
+        lights: Vec<Light>,
+        caster_bounds: Bounds,
+        shadows: &ShadowSettings,
+    ) -> Result<(Self, Vec<PlannedMap>), LightSetError> {
+        let finite = caster_bounds.min.is_finite() && caster_bounds.max.is_finite();
+        if !caster_bounds.is_empty() && !finite {
+            return Err(LightSetError::BadScene(
+                "the shadow casters' bounds are not finite".into(),
+            ));
+        }
+        let mut this = Self::engine(lights, &[], caster_bounds, shadows)?;
+        if !shadows.enabled || this.lights.is_empty() {
+            this.shadows.enabled = false;
+            return Ok((this, Vec::new()));
+        }
+        let planned = this.plan_shadow_maps()?;
+        let mut texels = Vec::with_capacity(planned.iter().map(|p| p.map.len()).sum());
+        for p in &planned {
+            texels.resize(texels.len() + p.map.len(), p.miss);
+        }
+        this.shadow_texels = texels;
+        Ok((this, planned))
+    }
+
+    /// The lights of an engine checked and the bounds (of `casters`, `extra` and the point
+    /// lights) measured; no shadow map yet.
+    fn engine(
+        lights: Vec<Light>,
+        casters: &[[Vec3; 3]],
+        extra: Bounds,
+        shadows: &ShadowSettings,
+    ) -> Result<Self, LightSetError> {
         shadows.validate()?;
-        let mut bounds = Bounds::EMPTY;
+        let mut bounds = extra;
         for (i, l) in lights.iter().enumerate() {
             let finite = l.position.is_finite()
                 && l.direction.is_finite()
@@ -479,7 +545,7 @@ impl LightSet {
         } else {
             bounds.diagonal().max(f32::MIN_POSITIVE)
         };
-        let mut this = Self {
+        Ok(Self {
             extent,
             lights: lights
                 .into_iter()
@@ -495,13 +561,7 @@ impl LightSet {
             shadows: *shadows,
             cube_resolutions: (shadows.cube_resolution, shadows.emitter_cube_resolution),
             bounds,
-        };
-        if shadows.enabled && !casters.is_empty() && !this.lights.is_empty() {
-            this.build_shadow_maps(|| RayScene::from_triangles(casters))?;
-        } else {
-            this.shadows.enabled = false;
-        }
-        Ok(this)
+        })
     }
 
     /// Sets every light's direct and indirect factors from `state` (lights it does not
@@ -520,7 +580,13 @@ impl LightSet {
             .collect();
     }
 
-    fn build_shadow_maps(&mut self, rays: impl FnOnce() -> RayScene) -> Result<(), LightSetError> {
+    /// Places every light's shadow map (kind, resolution, first texel; the cube resolutions
+    /// fitted to [`ShadowSettings::max_texels`]) without rendering any: what the CPU's ray
+    /// cast ([`LightSet::new`], [`LightSet::from_lights`]) and the GPU's raster
+    /// ([`LightSet::planned`], `gpu_maps`) then fill. Sets each light's
+    /// [`Light::shadow`] and returns the maps in texel order with the depth each stores
+    /// where nothing is hit.
+    fn plan_shadow_maps(&mut self) -> Result<Vec<PlannedMap>, LightSetError> {
         let s = &self.shadows;
         let count = |kind: LightKind| self.lights.iter().filter(|l| l.kind == kind).count() as u64;
         let (n_point, n_dir, n_emit) = (
@@ -553,7 +619,6 @@ impl LightSet {
             }));
         }
         self.cube_resolutions = (cube, emit);
-        let rays = rays();
         let bounds = self.bounds;
         let extent = self.extent;
         let center = if bounds.is_empty() {
@@ -562,10 +627,9 @@ impl LightSet {
             bounds.center()
         };
         let half = 0.5 * extent;
-        let mut texels = Vec::with_capacity(total(cube, emit) as usize);
-        let c = s.esm_exponent;
-        let filter = s.filter_radius;
-        for light in &mut self.lights {
+        let mut offset = 0;
+        let mut planned = Vec::with_capacity(self.lights.len());
+        for (index, light) in self.lights.iter_mut().enumerate() {
             let (kind, res) = match light.kind {
                 LightKind::Directional => {
                     let view = crate::View::orthographic_fit(center, light.direction, half);
@@ -597,7 +661,7 @@ impl LightSet {
                     emit,
                 ),
             };
-            let mut map = match kind {
+            let miss = match kind {
                 MapKind::Cube { center: p } => {
                     // Farther than anything in the scene.
                     let far = if bounds.is_empty() {
@@ -605,17 +669,38 @@ impl LightSet {
                     } else {
                         (p - bounds.min).abs().max((p - bounds.max).abs()).length()
                     };
-                    esm::render_cube(&rays, p, res, extent, far / extent + 1.0)
+                    far / extent + 1.0
                 }
-                MapKind::Ortho { .. } => esm::render_ortho(&rays, &kind, res, extent),
+                MapKind::Ortho { half_extent, .. } => 4.0 * half_extent / extent,
             };
-            let faces = if matches!(kind, MapKind::Cube { .. }) {
-                6
-            } else {
-                1
+            let map = ShadowMap::new(offset, res, kind);
+            offset += map.len();
+            light.shadow = Some(map);
+            planned.push(PlannedMap {
+                light: index,
+                map,
+                miss,
+            });
+        }
+        Ok(planned)
+    }
+
+    fn build_shadow_maps(&mut self, rays: impl FnOnce() -> RayScene) -> Result<(), LightSetError> {
+        let planned = self.plan_shadow_maps()?;
+        let rays = rays();
+        let extent = self.extent;
+        let c = self.shadows.esm_exponent;
+        let filter = self.shadows.filter_radius;
+        let mut texels = Vec::with_capacity(planned.iter().map(|p| p.map.len()).sum());
+        for p in &planned {
+            let res = p.map.resolution;
+            let (mut map, faces) = match p.map.kind {
+                MapKind::Cube { center } => {
+                    (esm::render_cube(&rays, center, res, extent, p.miss), 6)
+                }
+                MapKind::Ortho { .. } => (esm::render_ortho(&rays, &p.map.kind, res, extent), 1),
             };
             esm::log_filter(&mut map, res, faces, filter, c);
-            light.shadow = Some(ShadowMap::new(texels.len(), res, kind));
             texels.extend_from_slice(&map);
         }
         self.shadow_texels = texels;
