@@ -206,6 +206,23 @@ pub struct GpuRasterizer {
     layout: wgpu::BindGroupLayout,
     pipeline: wgpu::RenderPipeline,
     prepared: Option<(Arc<Scene>, GpuPreparedScene)>,
+    /// The view's uniform, written by a copy in each pass' encoder
+    /// ([`scene_core::gpu::FrameWriter`]): several views recorded into one encoder each see
+    /// their own.
+    view_uniform: wgpu::Buffer,
+    writer: scene_core::gpu::FrameWriter,
+    /// The bind group of the last scene drawn (keyed by its materials buffer).
+    bound: std::sync::Mutex<Option<(wgpu::Buffer, wgpu::BindGroup)>>,
+    /// The attachment views of the last target drawn into (keyed by its textures).
+    views: std::sync::Mutex<Option<TargetViews>>,
+}
+
+/// A G-buffer's attachment views and the textures they are of.
+#[derive(Debug)]
+struct TargetViews {
+    key: [wgpu::Texture; 5],
+    colour: [wgpu::TextureView; 4],
+    depth: wgpu::TextureView,
 }
 
 /// Bytes per sample of the four colour targets (16 + 16 + 4 + 4).
@@ -305,6 +322,14 @@ impl GpuRasterizer {
             (layout, pipeline)
         })?;
         Ok(Self {
+            view_uniform: ctx.frame_buffer(
+                "gbuffer view",
+                std::mem::size_of::<ViewUniform>() as u64,
+                wgpu::BufferUsages::UNIFORM,
+            ),
+            writer: scene_core::gpu::FrameWriter::new(device, 256),
+            bound: std::sync::Mutex::new(None),
+            views: std::sync::Mutex::new(None),
             ctx: ctx.clone(),
             layout,
             pipeline,
@@ -325,7 +350,8 @@ impl GpuRasterizer {
 
     /// Records the G-buffer pass for `view` into `encoder`, rendering into `target`
     /// (cleared first). Nothing runs until the encoder is submitted; several views can be
-    /// recorded into one encoder (each gets its own uniform buffer).
+    /// recorded into one encoder (each view's uniform is copied in before its pass). Once a
+    /// scene and a target have been seen, nothing is created.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -337,42 +363,65 @@ impl GpuRasterizer {
         let depth_attachment = target.depth_attachment()?;
         let device = &self.ctx.device;
         self.ctx.validated(|| {
-            let uniform = self
-                .ctx
-                .uniform_buffer("gbuffer view", &ViewUniform::new(view));
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("gbuffer mrt"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: uniform.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: scene.geometry.materials.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: scene.face_normals.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 3,
-                        resource: scene.texture_infos.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 4,
-                        resource: scene.texels.as_entire_binding(),
-                    },
-                ],
-            });
-            let views = [
-                &target.albedo,
-                &target.normal,
-                &target.depth,
-                &target.triangle_id,
-            ]
-            .map(|t| t.create_view(&Default::default()));
+            self.writer.write(
+                encoder,
+                &self.view_uniform,
+                0,
+                bytemuck::bytes_of(&ViewUniform::new(view)),
+            );
+            self.writer.finish(encoder);
+            let mut bound = self.bound.lock().unwrap_or_else(|e| e.into_inner());
+            if bound
+                .as_ref()
+                .is_none_or(|(k, _)| *k != scene.geometry.materials)
+            {
+                let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("gbuffer mrt"),
+                    layout: &self.layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: self.view_uniform.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: scene.geometry.materials.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: scene.face_normals.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: scene.texture_infos.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: scene.texels.as_entire_binding(),
+                        },
+                    ],
+                });
+                *bound = Some((scene.geometry.materials.clone(), bind_group));
+            }
+            let bind_group = bound.as_ref().expect("made above").1.clone();
+            drop(bound);
+            let key = [
+                target.albedo.clone(),
+                target.normal.clone(),
+                target.depth.clone(),
+                target.triangle_id.clone(),
+                depth_attachment.clone(),
+            ];
+            let mut kept = self.views.lock().unwrap_or_else(|e| e.into_inner());
+            if kept.as_ref().is_none_or(|v| v.key != key) {
+                *kept = Some(TargetViews {
+                    colour: [0, 1, 2, 3].map(|i| key[i].create_view(&Default::default())),
+                    depth: key[4].create_view(&Default::default()),
+                    key,
+                });
+            }
+            let target_views = kept.as_ref().expect("made above");
+            let views = &target_views.colour;
             let clears = [
                 wgpu::Color::TRANSPARENT,
                 wgpu::Color::TRANSPARENT,
@@ -404,12 +453,12 @@ impl GpuRasterizer {
                     })
                 })
                 .collect();
-            let depth_view = depth_attachment.create_view(&Default::default());
+            let depth_view = &target_views.depth;
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("gbuffer mrt"),
                 color_attachments: &attachments,
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
+                    view: depth_view,
                     depth_ops: Some(wgpu::Operations {
                         load: wgpu::LoadOp::Clear(1.0),
                         store: wgpu::StoreOp::Store,

@@ -704,6 +704,19 @@ impl IbrrFrame {
     }
 }
 
+impl IbrrFrame {
+    /// The constructed technique.
+    pub fn technique(&self) -> &crate::IbrrTechnique {
+        &self.technique
+    }
+
+    /// True when the frame cannot show `lights`: they light a source the IRPLs were made
+    /// without, so frames keep the last state shown until the LDC is rebuilt.
+    pub fn is_stale(&self, lights: &LightState) -> bool {
+        !self.technique.shows(lights)
+    }
+}
+
 impl scene_core::gpu::GpuFrame for IbrrFrame {
     fn name(&self) -> &str {
         "ibrr"
@@ -717,13 +730,15 @@ impl scene_core::gpu::GpuFrame for IbrrFrame {
     ) -> Result<(), scene_core::Error> {
         let g = inputs.gbuffer;
         scene_core::gpu::check_frame_target(target, g.width, g.height)?;
-        if self.shown.fingerprint() != inputs.lights.fingerprint()
-            && self.technique.relight(inputs.lights)?.is_some()
+        let lights = inputs.lights;
+        if !self.technique.shows(lights)
+            && self.technique.relight(lights)?.is_some()
+            && let Some(ldc) = self.technique.ldc()
         {
-            if let Some(ldc) = self.technique.ldc() {
-                self.ldc.update_values(ldc)?;
-            }
-            self.shown = inputs.lights.clone();
+            self.ldc.update_values(ldc)?;
+        }
+        if self.shown.fingerprint() != lights.fingerprint() && self.technique.shows(lights) {
+            self.shown = lights.clone();
         }
         let bytes = u64::from(g.width) * u64::from(g.height) * 16;
         let pixels = self.pixels.ensure(&self.device, bytes).clone();

@@ -196,6 +196,11 @@ impl IbrrTechnique {
 }
 
 impl IbrrTechnique {
+    /// True when the LDC shows `lights` (the state it was built or last relit for).
+    pub fn shows(&self, lights: &LightState) -> bool {
+        self.ldc.is_some() && self.shown == lights.fingerprint()
+    }
+
     /// Makes the LDC (and the technique's GPU copy) show `lights` by recombining its
     /// per-source light ([`Ldc::relight`]), unless it shows them already. Returns the time
     /// taken, or `None` when `lights` lights a source the IRPLs were made without (only a

@@ -13,6 +13,7 @@
 //! one's), else the elements' own.
 
 use glam::Vec3;
+use scene_core::View;
 use scene_core::gpu::{
     FrameInputs, GpuContext, KeptBuffer, PixelsToTexture, TriangleIdPass, check_frame_target,
 };
@@ -33,6 +34,9 @@ pub struct RelightFrame {
     pixels: KeptBuffer,
     to_texture: PixelsToTexture,
     device: wgpu::Device,
+    /// Per-pixel direct light gathered for one view and size
+    /// ([`RelightFrame::set_pixel_direct`]).
+    pixel_direct: Option<(View, (u32, u32), Vec<Vec3>)>,
 }
 
 impl std::fmt::Debug for RelightFrame {
@@ -57,7 +61,9 @@ impl RelightFrame {
         meshing: &Meshing,
         sources: Vec<Source>,
     ) -> Result<Self, RelightError> {
-        if meshing.elements.len() != gpu.elements() || sources.len() != gpu.sources() {
+        // A solution without sources packs no element (its display is black).
+        let elements_differ = gpu.sources() > 0 && meshing.elements.len() != gpu.elements();
+        if elements_differ || sources.len() != gpu.sources() {
             return Err(RelightError::InvalidSetting(format!(
                 "a solution of {} elements and {} sources on the GPU, a meshing of {} elements \
                  and {} sources given",
@@ -74,6 +80,7 @@ impl RelightFrame {
             to_texture: PixelsToTexture::new(ctx).map_err(gpu_err)?,
             pixels: KeptBuffer::new("relight frame pixels", wgpu::BufferUsages::STORAGE),
             device: ctx.device.clone(),
+            pixel_direct: None,
             gpu,
             sources,
         })
@@ -82,6 +89,23 @@ impl RelightFrame {
     /// The solution on the GPU.
     pub fn gpu(&self) -> &GpuRelight {
         &self.gpu
+    }
+
+    /// Hands the frame the direct light of `view` at `size` gathered per pixel on the CPU
+    /// (`k` values per pixel, pixel-major, [`crate::display::pixel_direct`]): frames of that
+    /// view and size show it, others the elements' direct light, unless the shadow-mapped
+    /// direct light was set ([`GpuRelight::set_shadowed_direct`]), which every frame uses.
+    /// Values of another length are dropped.
+    pub fn set_pixel_direct(&mut self, view: View, size: (u32, u32), values: Vec<Vec3>) {
+        let ok = values.len() == size.0 as usize * size.1 as usize * self.sources.len();
+        self.pixel_direct = ok.then_some((view, size, values));
+    }
+
+    /// True when the per-pixel direct light of `view` at `size` is in hand.
+    pub fn has_pixel_direct(&self, view: &View, size: (u32, u32)) -> bool {
+        self.pixel_direct
+            .as_ref()
+            .is_some_and(|(v, s, _)| v == view && *s == size)
     }
 }
 
@@ -114,13 +138,19 @@ impl scene_core::gpu::GpuFrame for RelightFrame {
                 &pixels,
             )?;
         } else {
+            let size = (g.width, g.height);
+            let direct = self
+                .pixel_direct
+                .as_ref()
+                .filter(|(v, s, _)| v == inputs.view && *s == size)
+                .map(|(_, _, values)| values.as_slice());
             self.gpu.encode_display(
                 encoder,
                 &elements,
                 inputs.view,
                 &factors,
                 base,
-                None,
+                direct,
                 &pixels,
             )?;
         }

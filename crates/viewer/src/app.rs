@@ -478,9 +478,9 @@ impl App {
                 job.try_take()
             };
             match done {
-                Some(Ok((t, lights))) => {
+                Some(Ok((t, _lights))) => {
                     self.ibrr = None;
-                    self.ibrr_status = Some(match gfx.renderer.set_ibrr(t, lights) {
+                    self.ibrr_status = Some(match gfx.renderer.set_ibrr(t) {
                         Ok(()) => JobStatus::Ready,
                         Err(e) => JobStatus::Failed(e),
                     });
@@ -831,6 +831,8 @@ impl App {
             mode: self.state.mode,
             layout: self.state.layout(),
             error_scale,
+            exposure: self.state.exposure,
+            surface: (gfx.config.width, gfx.config.height),
         };
         gfx.renderer
             .encode_frame(&mut encoder, &spec, &mut profiler)?;
@@ -850,7 +852,7 @@ impl App {
             .renderer
             .ibrr
             .as_ref()
-            .is_some_and(|b| b.lights.fingerprint() != self.state.lights.fingerprint())
+            .is_some_and(|b| b.is_stale(&self.state.lights))
             && self.ibrr.is_none();
         self.info.reference =
             (self.reference.spp > 0).then_some((self.reference.spp, self.reference.pass_seconds));
@@ -912,9 +914,7 @@ impl App {
                     multiview_mask: None,
                 })
                 .forget_lifetime();
-            let surface = (gfx.config.width, gfx.config.height);
-            gfx.renderer
-                .draw_present(&mut pass, surface, self.state.exposure);
+            gfx.renderer.draw_present(&mut pass);
             gfx.egui_renderer.render(&mut pass, &jobs, &screen);
         }
         profiler.mark("present and panel", &mut encoder);

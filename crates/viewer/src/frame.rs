@@ -1,22 +1,27 @@
-//! The frame on the GPU: the scene's G-buffer, each mode on screen drawn into a frame-sized
-//! buffer, the composed frame ([`Layout`]) and its presentation. Nothing is read back in a
+//! The frame on the GPU: the scene's G-buffer, each mode on screen drawn through the frame
+//! contract ([`scene_core::gpu::GpuFrame`]) into a frame-sized target and resolved into the
+//! buffer the composed frame ([`Layout`]) reads, and its presentation. Nothing is read back in a
 //! frame; [`Renderer::read_frame`] (screenshots) and [`Renderer::read_slot`] (the error
 //! view's mean, a few times a second) are the only readbacks.
 
+use std::collections::HashMap;
 use std::sync::Arc;
 
 use gbuffer::{GpuPreparedScene, GpuRasterizer};
 use glam::Vec3;
-use ibrr_ldc::{GpuLdc, IbrrTechnique};
-use isr::{GpuIsr, GpuIsrInputs, Intermediate, IsrSettings, LightSet, ShadowSettings};
+use ibrr_ldc::{IbrrFrame, IbrrTechnique};
+use isr::{GpuIsr, Intermediate, IsrFrame, IsrSettings, LightSet, ShadowSettings};
+use relight_pr::RelightTechnique;
+use relight_pr::frame::RelightFrame;
 use relight_pr::gpu::GpuRelight;
 use relight_pr::packed::Precision;
 use relight_pr::technique::Prepared;
-use relight_pr::{RelightTechnique, relight};
 use scene_core::gpu::compute::ComputePass;
-use scene_core::gpu::layout::{float_texture, storage_buffer, storage_buffer_rw, uniform};
+use scene_core::gpu::layout::{
+    float_texture, storage_buffer, storage_buffer_rw, storage_texture, uniform,
+};
 use scene_core::gpu::shader::ShaderPass;
-use scene_core::gpu::{GpuContext, GpuGBuffer};
+use scene_core::gpu::{FrameInputs, FrameWriter, GpuContext, GpuFrame, GpuGBuffer};
 use scene_core::{Image, LightState, Scene, View};
 
 use crate::mode::{Layout, Mode};
@@ -29,12 +34,15 @@ macro_rules! viewer_pass {
 
 /// The resolve pass (`shaders/viewer/resolve.wgsl`).
 pub const RESOLVE: ShaderPass = viewer_pass!("viewer/resolve", "resolve.wgsl");
+/// The resolve pass writing a frame target texture (the ISR buffer views).
+pub const RESOLVE_TO_TEXTURE: ShaderPass =
+    RESOLVE.with_defs("viewer/resolve (to texture)", &["TO_TEXTURE"]);
 /// The compose pass (`shaders/viewer/compose.wgsl`).
 pub const COMPOSE: ShaderPass = viewer_pass!("viewer/compose", "compose.wgsl");
 /// The present pass (`shaders/viewer/present.wgsl`).
 pub const PRESENT: ShaderPass = viewer_pass!("viewer/present", "present.wgsl");
 /// Every shader pass of the viewer, as `cargo xtask shaders` validates them.
-pub const SHADER_PASSES: &[ShaderPass] = &[RESOLVE, COMPOSE, PRESENT];
+pub const SHADER_PASSES: &[ShaderPass] = &[RESOLVE, RESOLVE_TO_TEXTURE, COMPOSE, PRESENT];
 
 /// The ISR settings of an ISR-family mode, and which of its textures the mode shows
 /// (`None`: the output; else an intermediate buffer) with which channel (0 colour, 1 the
@@ -77,49 +85,91 @@ pub fn fit_frame(width: u32, height: u32, scale: f32, max_bytes: u64, max_side: 
     (size(w), size(h))
 }
 
-/// Relighting on the GPU: the solution uploaded once, relit per frame.
+/// Relighting on the frame contract: what the technique prepared (shared with the per-pixel
+/// direct light's worker) and its frame.
 pub struct RelightGpu {
-    /// What the technique prepared (solution, meshing, welding, rays), shared with the
-    /// per-pixel direct light's worker.
+    /// What the technique prepared (solution, meshing, welding, rays).
     pub prepared: Arc<Prepared>,
-    gpu: GpuRelight,
-    elements: GpuPreparedScene,
-    /// The per-pixel direct light of one view and size, when gathered.
-    direct: Option<(View, (u32, u32), Vec<Vec3>)>,
-    /// The direct light comes from scene-core's shadow-mapped lights, evaluated on the GPU
-    /// every frame (`--relight-direct shadow-maps`).
-    shadowed: bool,
+    frame: RelightFrame,
 }
 
 impl RelightGpu {
     /// True when the per-pixel direct light of `view` at `size` is in hand.
     pub fn has_direct(&self, view: &View, size: (u32, u32)) -> bool {
-        self.direct
-            .as_ref()
-            .is_some_and(|(v, s, _)| v == view && *s == size)
+        self.frame.has_pixel_direct(view, size)
     }
 }
 
-/// The IBRR on the GPU: its layered depth cube uploaded once per construction.
-pub struct IbrrGpu {
-    /// The constructed technique.
-    pub technique: IbrrTechnique,
-    /// The light state it was built for.
-    pub lights: LightState,
-    ldc: GpuLdc,
+/// One of ISR's buffers shown as a mode (the ambient accessibility, the blurred coarse
+/// radiosity): ISR's frame, then the buffer resolved into the target (nearest texel,
+/// `channel` 0 colour or 1 the fourth channel as grey). A frame on the contract like any
+/// other, so the frame loop treats it as one.
+struct IsrBufferView {
+    isr: IsrFrame,
+    which: Intermediate,
+    resolve: ComputePass,
+    params: wgpu::Buffer,
+    bound: Option<((wgpu::Texture, wgpu::Texture), wgpu::BindGroup)>,
+    device: wgpu::Device,
 }
 
-/// Buffers and textures of one frame size.
+impl GpuFrame for IsrBufferView {
+    fn name(&self) -> &str {
+        "isr buffer"
+    }
+
+    fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &FrameInputs<'_>,
+        target: &wgpu::Texture,
+    ) -> Result<(), scene_core::Error> {
+        self.isr.encode(encoder, inputs, target)?;
+        let source = self
+            .isr
+            .isr
+            .intermediate(self.which)
+            .ok_or_else(|| {
+                scene_core::gpu::GpuError::Validation("ISR has no intermediate buffers yet".into())
+            })?
+            .clone();
+        let key = (source, target.clone());
+        if self.bound.as_ref().is_none_or(|(k, _)| *k != key) {
+            let source_view = key.0.create_view(&Default::default());
+            let target_view = target.create_view(&Default::default());
+            let bind = self.resolve.bind(
+                &self.device,
+                &[
+                    self.params.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&source_view),
+                    wgpu::BindingResource::TextureView(&target_view),
+                ],
+            );
+            self.bound = Some((key, bind));
+        }
+        if let Some((_, bind)) = &self.bound {
+            self.resolve
+                .dispatch(encoder, bind, target.width(), target.height(), None);
+        }
+        Ok(())
+    }
+}
+
+/// Buffers, textures and bind groups of one frame size, made once per size.
 struct Targets {
     width: u32,
     height: u32,
     gbuffer: GpuGBuffer,
-    element_gbuffer: GpuGBuffer,
-    isr_out: wgpu::Texture,
-    /// The buffers of the left and right modes.
+    /// The targets of the left and right modes (every mode is a `GpuFrame`).
+    slot_textures: [wgpu::Texture; 2],
+    /// The same resolved into buffers the compose pass reads.
     slots: [wgpu::Buffer; 2],
     reference: wgpu::Buffer,
     frame: wgpu::Buffer,
+    resolve_binds: [wgpu::BindGroup; 2],
+    /// Compose bind groups by (left is the reference, right is the reference).
+    compose_binds: [[wgpu::BindGroup; 2]; 2],
+    present_bind: wgpu::BindGroup,
 }
 
 /// What one frame shows.
@@ -135,29 +185,48 @@ pub struct FrameSpec<'a> {
     pub layout: Layout,
     /// The error view's scale: the per-pixel error mapped to the top of the colour map.
     pub error_scale: f32,
+    /// The exposure in stops the frame is presented at.
+    pub exposure: f32,
+    /// The window's surface size in pixels.
+    pub surface: (u32, u32),
 }
 
 /// Per-stage GPU times of a frame (scene-core's one stage profiler).
 pub use scene_core::gpu::timing::StageProfiler as Profiler;
 
-/// The viewer's GPU side.
+/// The viewer's GPU side. Every mode is a method on the frame contract
+/// ([`scene_core::gpu::GpuFrame`]) reading the frame's G-buffer, view and light state and
+/// writing its slot's target texture; the frame loop has one path for all of them. Nothing
+/// is created per frame once a mode and a size have been seen.
 pub struct Renderer {
     /// The context (device, queue).
     pub ctx: GpuContext,
     scene: Arc<Scene>,
     raster: GpuRasterizer,
     scene_gpu: GpuPreparedScene,
-    isr: GpuIsr,
+    /// The scene's lights and shadow maps, for the ISR-family modes' frames.
+    light_set: LightSet,
+    /// The ISR-family modes' frames by mode and slot (a mode on both sides of a split has
+    /// a frame for each, so that neither remakes its bind groups), each made when first
+    /// shown.
+    isr_frames: HashMap<(Mode, usize), Box<dyn GpuFrame>>,
     resolve: ComputePass,
+    resolve_to_texture: ComputePass,
     compose: ComputePass,
     present: wgpu::RenderPipeline,
     present_layout: wgpu::BindGroupLayout,
     surface_is_srgb: bool,
+    /// Uniforms written by the frame's encoder: the resolve's (per size), compose's and
+    /// present's.
+    resolve_params: wgpu::Buffer,
+    compose_params: wgpu::Buffer,
+    present_params: wgpu::Buffer,
+    writer: FrameWriter,
     targets: Option<Targets>,
     /// Relighting, once its solve is done.
     pub relight: Option<RelightGpu>,
     /// The IBRR, once constructed.
-    pub ibrr: Option<IbrrGpu>,
+    pub ibrr: Option<IbrrFrame>,
 }
 
 #[repr(C)]
@@ -197,8 +266,8 @@ fn err(e: impl std::fmt::Display) -> String {
 }
 
 impl Renderer {
-    /// Uploads `scene`, builds ISR's lights and shadow maps and compiles every pass;
-    /// `surface_format` is the window's.
+    /// Uploads `scene`, builds the lights and shadow maps of the ISR-family modes and
+    /// compiles the viewer's passes; `surface_format` is the window's.
     pub fn new(
         ctx: GpuContext,
         scene: Arc<Scene>,
@@ -206,23 +275,40 @@ impl Renderer {
     ) -> Result<Self, String> {
         let raster = GpuRasterizer::new(&ctx).map_err(err)?;
         let scene_gpu = raster.upload(&scene).map_err(err)?;
-        let lights = LightSet::new(&scene, &ShadowSettings::default()).map_err(err)?;
-        let isr = GpuIsr::new(&ctx, &lights).map_err(err)?;
+        let light_set = LightSet::new(&scene, &ShadowSettings::default()).map_err(err)?;
         let device = &ctx.device;
-        let modules = [&RESOLVE, &COMPOSE, &PRESENT].map(|p| p.create_module(device));
-        let [resolve_module, compose_module, present_module] = modules;
-        let (resolve_module, compose_module, module) = (
+        let modules =
+            [&RESOLVE, &RESOLVE_TO_TEXTURE, &COMPOSE, &PRESENT].map(|p| p.create_module(device));
+        let [
+            resolve_module,
+            to_texture_module,
+            compose_module,
+            present_module,
+        ] = modules;
+        let (resolve_module, to_texture_module, compose_module, module) = (
             resolve_module.map_err(err)?,
+            to_texture_module.map_err(err)?,
             compose_module.map_err(err)?,
             present_module.map_err(err)?,
         );
-        let (resolve, compose, present, present_layout) = ctx
+        let (resolve, resolve_to_texture, compose, present, present_layout) = ctx
             .validated(|| {
                 let resolve = ComputePass::from_module(
                     device,
                     "viewer resolve",
                     &resolve_module,
                     &[uniform(0), float_texture(1), storage_buffer_rw(2)],
+                    &[],
+                );
+                let resolve_to_texture = ComputePass::from_module(
+                    device,
+                    "viewer resolve to texture",
+                    &to_texture_module,
+                    &[
+                        uniform(0),
+                        float_texture(1),
+                        storage_texture(2, wgpu::TextureFormat::Rgba32Float),
+                    ],
                     &[],
                 );
                 let compose = ComputePass::from_module(
@@ -282,29 +368,33 @@ impl Renderer {
                     multiview_mask: None,
                     cache: None,
                 });
-                (resolve, compose, present, layout)
+                (resolve, resolve_to_texture, compose, present, layout)
             })
             .map_err(err)?;
+        let params = |label: &str, bytes: usize| {
+            ctx.frame_buffer(label, bytes as u64, wgpu::BufferUsages::UNIFORM)
+        };
         Ok(Self {
-            ctx,
             scene,
             raster,
             scene_gpu,
-            isr,
+            light_set,
+            isr_frames: HashMap::new(),
             resolve,
+            resolve_to_texture,
             compose,
             present,
             present_layout,
             surface_is_srgb: surface_format.is_srgb(),
+            resolve_params: params("viewer resolve", std::mem::size_of::<ResolveParams>()),
+            compose_params: params("viewer compose", std::mem::size_of::<ComposeParams>()),
+            present_params: params("viewer present", std::mem::size_of::<PresentParams>()),
+            writer: FrameWriter::new(&ctx.device, 1024),
             targets: None,
             relight: None,
             ibrr: None,
+            ctx,
         })
-    }
-
-    /// A uniform buffer holding `params`.
-    fn uniform<T: bytemuck::Pod>(&self, label: &str, params: &T) -> wgpu::Buffer {
-        self.ctx.uniform_buffer(label, params)
     }
 
     /// The frame size in pixels (zero before the first [`Renderer::resize`]).
@@ -328,7 +418,7 @@ impl Renderer {
         )
     }
 
-    /// (Re)creates the frame-sized buffers and textures.
+    /// (Re)creates the frame-sized buffers, textures and bind groups.
     pub fn resize(&mut self, width: u32, height: u32) -> Result<(), String> {
         if self.size() == (width, height) {
             return Ok(());
@@ -343,21 +433,96 @@ impl Renderer {
             ));
         }
         let buffer = |label: &str| ctx.pixel_buffer(label, width, height);
+        let texture = |label: &str| {
+            ctx.create_texture_2d(
+                label,
+                width,
+                height,
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureUsages::STORAGE_BINDING
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+            )
+        };
+        let slot_textures = [texture("viewer left"), texture("viewer right")];
+        let slots = [buffer("viewer left"), buffer("viewer right")];
+        let (reference, frame) = (buffer("viewer reference"), buffer("viewer frame"));
+        // The resolve's size and channel are the frame's until the next resize.
+        ctx.queue.write_buffer(
+            &self.resolve_params,
+            0,
+            bytemuck::bytes_of(&ResolveParams {
+                width,
+                height,
+                channel: 0,
+                pad: 0,
+            }),
+        );
+        let resolve_binds = [0, 1].map(|i| {
+            let view = slot_textures[i].create_view(&Default::default());
+            self.resolve.bind(
+                &ctx.device,
+                &[
+                    self.resolve_params.as_entire_binding(),
+                    wgpu::BindingResource::TextureView(&view),
+                    slots[i].as_entire_binding(),
+                ],
+            )
+        });
+        let compose_bind = |a: &wgpu::Buffer, b: &wgpu::Buffer| {
+            self.compose.bind(
+                &ctx.device,
+                &[
+                    self.compose_params.as_entire_binding(),
+                    a.as_entire_binding(),
+                    b.as_entire_binding(),
+                    reference.as_entire_binding(),
+                    frame.as_entire_binding(),
+                ],
+            )
+        };
+        let compose_binds = [
+            [
+                compose_bind(&slots[0], &slots[1]),
+                compose_bind(&slots[0], &reference),
+            ],
+            [
+                compose_bind(&reference, &slots[1]),
+                compose_bind(&reference, &reference),
+            ],
+        ];
+        let present_bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("viewer present"),
+            layout: &self.present_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.present_params.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: frame.as_entire_binding(),
+                },
+            ],
+        });
         self.targets = Some(Targets {
             width,
             height,
             gbuffer: GpuGBuffer::new(ctx, width, height).map_err(err)?,
-            element_gbuffer: GpuGBuffer::new(ctx, width, height).map_err(err)?,
-            isr_out: self.isr.output_texture(width, height).map_err(err)?,
-            slots: [buffer("viewer left"), buffer("viewer right")],
-            reference: buffer("viewer reference"),
-            frame: buffer("viewer frame"),
+            slot_textures,
+            slots,
+            reference,
+            frame,
+            resolve_binds,
+            compose_binds,
+            present_bind,
         });
         Ok(())
     }
 
-    /// Uploads relighting's solution (after its solve), with `shadow_maps` its lights' shadow
-    /// maps for the per-frame direct light too; returns what was prepared, shared.
+    /// Puts relighting's solution on the GPU (after its solve) on the frame contract, with
+    /// `shadow_maps` its lights' shadow maps for the per-frame direct light too; returns what
+    /// was prepared, shared.
     pub fn set_relight(
         &mut self,
         technique: RelightTechnique,
@@ -386,16 +551,11 @@ impl Renderer {
             gpu.set_shadowed_direct(&set, &slots, footprint)
                 .map_err(err)?;
         }
-        let elements = self
-            .raster
-            .upload(&p.meshing.element_scene(&p.scene))
+        let frame = RelightFrame::new(&self.ctx, gpu, &p.meshing, p.solution.sources.clone())
             .map_err(err)?;
         self.relight = Some(RelightGpu {
             prepared: p.clone(),
-            gpu,
-            elements,
-            direct: None,
-            shadowed: shadow_maps,
+            frame,
         });
         Ok(p)
     }
@@ -404,22 +564,15 @@ impl Renderer {
     /// pixel, pixel-major); frames of that view and size use it.
     pub fn set_relight_direct(&mut self, view: View, size: (u32, u32), values: Vec<Vec3>) {
         if let Some(r) = self.relight.as_mut() {
-            let k = r.prepared.solution.k();
-            let ok = values.len() == size.0 as usize * size.1 as usize * k;
-            r.direct = ok.then_some((view, size, values));
+            r.frame.set_pixel_direct(view, size, values);
         }
     }
 
-    /// Uploads the IBRR's layered depth cube (after its construction for `lights`).
-    pub fn set_ibrr(&mut self, technique: IbrrTechnique, lights: LightState) -> Result<(), String> {
-        let ldc = technique.ldc().ok_or("the IBRR was not constructed")?;
-        let s = &technique.settings;
-        let ldc = GpuLdc::new(&self.ctx, ldc, s.lookup, s.fallback_radius).map_err(err)?;
-        self.ibrr = Some(IbrrGpu {
-            technique,
-            lights,
-            ldc,
-        });
+    /// Puts the IBRR's layered depth cube on the GPU (after its construction) on the frame
+    /// contract; frames relight it to their light state.
+    pub fn set_ibrr(&mut self, technique: IbrrTechnique) -> Result<(), String> {
+        let scene = self.scene.clone();
+        self.ibrr = Some(IbrrFrame::new(&self.ctx, technique, scene).map_err(err)?);
         Ok(())
     }
 
@@ -442,230 +595,161 @@ impl Renderer {
         }
     }
 
-    /// Records `mode` into its buffer (`slot` 0 or 1; the reference has its own). A mode
-    /// whose precomputation is not done yet (relighting's solve, the IBRR's construction)
-    /// shows direct light (DL) meanwhile, never a black frame; the panel says so.
-    fn encode_mode(
-        &mut self,
-        encoder: &mut wgpu::CommandEncoder,
-        spec: &FrameSpec<'_>,
-        mode: Mode,
-        slot: usize,
-        gbuffer_done: &mut bool,
-    ) -> Result<(), String> {
-        let Some(t) = &self.targets else {
-            return Err("no frame size yet".into());
-        };
-        let (w, h) = (t.width, t.height);
-        if (mode.is_isr() || mode == Mode::Ibrr) && !*gbuffer_done {
-            self.raster
-                .encode(encoder, &self.scene_gpu, spec.view, &t.gbuffer)
-                .map_err(err)?;
-            *gbuffer_done = true;
-        }
-        if let Some((settings, which, channel)) = isr_view(mode) {
-            self.isr.apply(spec.lights);
-            let inputs = GpuIsrInputs {
-                full: &t.gbuffer,
-                coarse: None,
-                view: spec.view,
-            };
-            self.isr
-                .encode(encoder, &inputs, &settings, &t.isr_out)
-                .map_err(err)?;
-            let source = match which {
-                None => &t.isr_out,
-                Some(i) => self
-                    .isr
-                    .intermediate(i)
-                    .ok_or("ISR has no intermediate buffers yet")?,
-            };
-            let params = ResolveParams {
-                width: w,
-                height: h,
-                channel,
-                pad: 0,
-            };
-            let uniform = self.uniform("viewer resolve", &params);
-            let view = source.create_view(&Default::default());
-            let bind = self.resolve.bind(
-                &self.ctx.device,
-                &[
-                    uniform.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&view),
-                    t.slots[slot].as_entire_binding(),
-                ],
-            );
-            self.resolve.dispatch(encoder, &bind, w, h, None);
-            return Ok(());
-        }
+    /// The frame of `mode`: relighting's and the IBRR's once precomputed, direct light (DL)
+    /// meanwhile, never a black frame (the panel says so); the ISR family's made when first
+    /// shown.
+    fn frame_of(&mut self, mode: Mode, slot: usize) -> Result<&mut dyn GpuFrame, String> {
         match mode {
-            Mode::Relight => match &self.relight {
-                Some(r) => {
-                    let p = &r.prepared;
-                    let direct = r
-                        .direct
-                        .as_ref()
-                        .filter(|(v, s, _)| v == spec.view && *s == (w, h))
-                        .map(|(_, _, values)| values.as_slice());
-                    self.raster
-                        .encode(encoder, &r.elements, spec.view, &t.element_gbuffer)
-                        .map_err(err)?;
-                    let (factors, base) = relight::weights(&p.solution, spec.lights, true);
-                    if r.shadowed {
-                        r.gpu.encode_display_shadowed(
-                            encoder,
-                            &t.element_gbuffer,
-                            spec.view,
-                            &factors,
-                            base,
-                            &t.slots[slot],
-                        )
-                    } else {
-                        r.gpu.encode_display(
-                            encoder,
-                            &t.element_gbuffer,
-                            spec.view,
-                            &factors,
-                            base,
-                            direct,
-                            &t.slots[slot],
-                        )
-                    }
-                    .map_err(err)?;
-                }
-                None => return self.encode_mode(encoder, spec, Mode::Dl, slot, gbuffer_done),
-            },
-            Mode::Ibrr => match self.ibrr.as_mut() {
-                Some(b) => {
-                    // The LDC keeps its light per source: a new light state is a
-                    // recombination and one buffer write, not a rebuild.
-                    if b.lights.fingerprint() != spec.lights.fingerprint()
-                        && b.technique.relight(spec.lights).map_err(err)?.is_some()
-                    {
-                        let ldc = b.technique.ldc().ok_or("the IBRR was not constructed")?;
-                        b.ldc.update_values(ldc).map_err(err)?;
-                        b.lights = spec.lights.clone();
-                    }
-                    b.ldc
-                        .encode(
-                            encoder,
-                            &self.scene,
-                            &t.gbuffer,
-                            spec.view,
-                            &b.lights,
-                            &t.slots[slot],
-                        )
-                        .map_err(err)?;
-                }
-                None => return self.encode_mode(encoder, spec, Mode::Dl, slot, gbuffer_done),
-            },
+            Mode::Relight if self.relight.is_some() => {
+                return Ok(&mut self.relight.as_mut().expect("checked").frame);
+            }
+            Mode::Ibrr if self.ibrr.is_some() => {
+                return Ok(self.ibrr.as_mut().expect("checked"));
+            }
             _ => {}
         }
-        Ok(())
+        let mode = if isr_view(mode).is_some() {
+            mode
+        } else {
+            Mode::Dl
+        };
+        if !self.isr_frames.contains_key(&(mode, slot)) {
+            let (settings, which, channel) = isr_view(mode).expect("an ISR-family mode");
+            let isr = IsrFrame::new(
+                GpuIsr::new(&self.ctx, &self.light_set).map_err(err)?,
+                settings,
+            );
+            let frame: Box<dyn GpuFrame> = match which {
+                None => Box::new(isr),
+                Some(which) => Box::new(IsrBufferView {
+                    isr,
+                    which,
+                    resolve: self.resolve_to_texture.clone(),
+                    params: self.ctx.uniform_buffer(
+                        "viewer isr buffer",
+                        &ResolveParams {
+                            width: 0,
+                            height: 0,
+                            channel,
+                            pad: 0,
+                        },
+                    ),
+                    bound: None,
+                    device: self.ctx.device.clone(),
+                }),
+            };
+            self.isr_frames.insert((mode, slot), frame);
+        }
+        Ok(self
+            .isr_frames
+            .get_mut(&(mode, slot))
+            .expect("inserted above")
+            .as_mut())
     }
 
-    /// Records the frame: each mode on screen, then the composed frame.
+    /// Records the frame: the G-buffer, each mode on screen through the frame contract into
+    /// its slot, then the composed frame.
     pub fn encode_frame(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         spec: &FrameSpec<'_>,
         profiler: &mut Profiler<'_>,
     ) -> Result<(), String> {
-        let mut gbuffer_done = false;
         let mut modes = vec![(spec.mode, 0)];
         if let Layout::Split { right, .. } = spec.layout {
             modes.push((right, 1));
         }
-        for &(mode, slot) in &modes {
-            if mode != Mode::Reference {
-                self.encode_mode(encoder, spec, mode, slot, &mut gbuffer_done)?;
-                profiler.mark(mode.name(), encoder);
-            }
-        }
-        let Some(t) = &self.targets else {
+        let Some(t) = self.targets.take() else {
             return Err("no frame size yet".into());
         };
-        let source = |mode: Mode, slot: usize| {
+        let result = self.encode_with(encoder, spec, profiler, &modes, &t);
+        self.targets = Some(t);
+        result
+    }
+
+    fn encode_with(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        spec: &FrameSpec<'_>,
+        profiler: &mut Profiler<'_>,
+        modes: &[(Mode, usize)],
+        t: &Targets,
+    ) -> Result<(), String> {
+        let (w, h) = (t.width, t.height);
+        if modes.iter().any(|(m, _)| *m != Mode::Reference) {
+            self.raster
+                .encode(encoder, &self.scene_gpu, spec.view, &t.gbuffer)
+                .map_err(err)?;
+        }
+        for &(mode, slot) in modes {
             if mode == Mode::Reference {
-                &t.reference
-            } else {
-                &t.slots[slot]
+                continue;
             }
-        };
+            let inputs = FrameInputs {
+                gbuffer: &t.gbuffer,
+                view: spec.view,
+                lights: spec.lights,
+            };
+            self.frame_of(mode, slot)?
+                .encode(encoder, &inputs, &t.slot_textures[slot])
+                .map_err(err)?;
+            self.resolve
+                .dispatch(encoder, &t.resolve_binds[slot], w, h, None);
+            profiler.mark(mode.name(), encoder);
+        }
         let (layout, divider, right) = match spec.layout {
             Layout::Single => (0, 0, spec.mode),
             Layout::Split { right, divider } => (
                 1,
-                (divider.clamp(0.0, 1.0) * t.width as f32).round() as u32,
+                (divider.clamp(0.0, 1.0) * w as f32).round() as u32,
                 right,
             ),
             Layout::Error => (2, 0, spec.mode),
         };
-        let params = ComposeParams {
-            width: t.width,
-            height: t.height,
+        let compose = ComposeParams {
+            width: w,
+            height: h,
             layout,
             divider,
             error_scale: spec.error_scale,
             pad: [0; 3],
         };
-        let uniform = self.uniform("viewer compose", &params);
-        let bind = self.compose.bind(
-            &self.ctx.device,
-            &[
-                uniform.as_entire_binding(),
-                source(spec.mode, 0).as_entire_binding(),
-                source(right, 1).as_entire_binding(),
-                t.reference.as_entire_binding(),
-                t.frame.as_entire_binding(),
-            ],
+        let present = PresentParams {
+            width: w,
+            height: h,
+            scale: spec.exposure.exp2(),
+            encode: u32::from(!self.surface_is_srgb),
+            surface_width: spec.surface.0.max(1),
+            surface_height: spec.surface.1.max(1),
+            pad: [0; 2],
+        };
+        self.writer.write(
+            encoder,
+            &self.compose_params,
+            0,
+            bytemuck::bytes_of(&compose),
         );
-        self.compose
-            .dispatch(encoder, &bind, t.width, t.height, None);
+        self.writer.write(
+            encoder,
+            &self.present_params,
+            0,
+            bytemuck::bytes_of(&present),
+        );
+        self.writer.finish(encoder);
+        let bind = &t.compose_binds[usize::from(spec.mode == Mode::Reference)]
+            [usize::from(right == Mode::Reference)];
+        self.compose.dispatch(encoder, bind, w, h, None);
         profiler.mark("compose", encoder);
         Ok(())
     }
 
-    /// Draws the composed frame into `pass` (a pass over the window's surface texture of
-    /// `surface` pixels, the frame stretched over it, nearest pixel), scaled by
-    /// `2^exposure`.
-    pub fn draw_present(
-        &self,
-        pass: &mut wgpu::RenderPass<'_>,
-        surface: (u32, u32),
-        exposure: f32,
-    ) {
+    /// Draws the composed frame into `pass` (a pass over the window's surface texture, the
+    /// frame stretched over it, nearest pixel, at the exposure and surface size of the last
+    /// [`Renderer::encode_frame`]).
+    pub fn draw_present(&self, pass: &mut wgpu::RenderPass<'_>) {
         let Some(t) = &self.targets else { return };
-        let params = PresentParams {
-            width: t.width,
-            height: t.height,
-            scale: exposure.exp2(),
-            encode: u32::from(!self.surface_is_srgb),
-            surface_width: surface.0.max(1),
-            surface_height: surface.1.max(1),
-            pad: [0; 2],
-        };
-        let uniform = self.uniform("viewer present", &params);
-        let bind = self
-            .ctx
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("viewer present"),
-                layout: &self.present_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: uniform.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: t.frame.as_entire_binding(),
-                    },
-                ],
-            });
         pass.set_pipeline(&self.present);
-        pass.set_bind_group(0, &bind, &[]);
+        pass.set_bind_group(0, &t.present_bind, &[]);
         pass.draw(0..3, 0..1);
     }
 
@@ -719,6 +803,66 @@ mod tests {
         // The texture side limit holds too, and nothing is ever empty.
         assert_eq!(fit_frame(10000, 5000, 1.0, u64::MAX, 4096), (4096, 2048));
         assert_eq!(fit_frame(0, 0, 0.05, 128 * mib, 8192), (1, 1));
+    }
+}
+
+/// The viewer's frame loop on the frame contract creates no GPU object once each mode and
+/// the size have been seen: every mode in a single layout, split against another, and the
+/// error view (relighting and the IBRR show direct light until precomputed, so their
+/// frames are DL's here; their own frames are checked by their crates' tests).
+#[cfg(test)]
+mod allocation_tests {
+    use super::*;
+    use scene_core::gpu::{ObjectCounts, gpu_test_context};
+
+    #[test]
+    fn steady_frames_of_every_mode_create_no_gpu_objects() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        let scene = Arc::new(scene_core::builtin::scene("cornell").unwrap());
+        let mut r = Renderer::new(
+            ctx.clone(),
+            scene.clone(),
+            wgpu::TextureFormat::Rgba8UnormSrgb,
+        )
+        .unwrap();
+        r.resize(40, 30).unwrap();
+        let view = View::from_camera(&scene.cameras[0].with_aspect(40.0 / 30.0));
+        let lights = LightState::default();
+        let layouts = [
+            Layout::Single,
+            Layout::Split {
+                right: Mode::Isr,
+                divider: 0.5,
+            },
+            Layout::Error,
+        ];
+        for mode in Mode::ALL {
+            for layout in layouts {
+                for frame in 0..3 {
+                    let spec = FrameSpec {
+                        view: &view,
+                        lights: &lights,
+                        mode,
+                        layout,
+                        error_scale: 1.0,
+                        exposure: 0.0,
+                        surface: (80, 60),
+                    };
+                    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                    let mut profiler = Profiler::new(&ctx, false, false);
+                    let (result, created) = ObjectCounts::during(&ctx.device, || {
+                        r.encode_frame(&mut encoder, &spec, &mut profiler)
+                    });
+                    result.unwrap();
+                    ctx.queue.submit([encoder.finish()]);
+                    if frame == 2 {
+                        assert!(created.is_zero(), "{mode:?} {layout:?}: {created}");
+                    }
+                }
+            }
+        }
     }
 }
 

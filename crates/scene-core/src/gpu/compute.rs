@@ -12,7 +12,7 @@ use super::shader::ShaderPass;
 pub const WORKGROUP: u32 = 8;
 
 /// A compute pipeline (entry point `main`) and its bind group layout.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct ComputePass {
     /// The pipeline.
     pub pipeline: wgpu::ComputePipeline,

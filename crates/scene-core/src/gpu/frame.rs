@@ -301,8 +301,13 @@ pub const PIXELS_TO_TEXTURE_RGBA16F: super::shader::ShaderPass = PIXELS_TO_TEXTU
 pub struct PixelsToTexture {
     rgba32f: super::compute::ComputePass,
     rgba16f: super::compute::ComputePass,
-    bound: Mutex<Option<((wgpu::Buffer, wgpu::Texture), wgpu::BindGroup)>>,
+    /// Bind groups of the last few (buffer, target) pairs, newest last: a method drawing
+    /// into two targets in turn (a split view) keeps both.
+    bound: Mutex<Vec<((wgpu::Buffer, wgpu::Texture), wgpu::BindGroup)>>,
 }
+
+/// How many (buffer, target) bind groups [`PixelsToTexture`] keeps.
+const KEPT_TARGETS: usize = 4;
 
 impl std::fmt::Debug for PixelsToTexture {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -326,7 +331,7 @@ impl PixelsToTexture {
         Ok(Self {
             rgba32f: make(&PIXELS_TO_TEXTURE, wgpu::TextureFormat::Rgba32Float)?,
             rgba16f: make(&PIXELS_TO_TEXTURE_RGBA16F, wgpu::TextureFormat::Rgba16Float)?,
-            bound: Mutex::new(None),
+            bound: Mutex::new(Vec::new()),
         })
     }
 
@@ -355,20 +360,27 @@ impl PixelsToTexture {
         };
         let key = (pixels.clone(), target.clone());
         let mut bound = self.bound.lock().unwrap_or_else(|e| e.into_inner());
-        if bound.as_ref().is_none_or(|(k, _)| *k != key) {
-            let view = target.create_view(&Default::default());
-            let bind = pass.bind(
-                device,
-                &[
-                    pixels.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&view),
-                ],
-            );
-            *bound = Some((key, bind));
-        }
-        if let Some((_, bind)) = bound.as_ref() {
-            pass.dispatch(encoder, bind, w, h, None);
-        }
+        // The pipelines differ by format: a key is a buffer, a target and so a pipeline.
+        let bind = match bound.iter().position(|(k, _)| *k == key) {
+            Some(i) => bound[i].1.clone(),
+            None => {
+                let view = target.create_view(&Default::default());
+                let bind = pass.bind(
+                    device,
+                    &[
+                        pixels.as_entire_binding(),
+                        wgpu::BindingResource::TextureView(&view),
+                    ],
+                );
+                if bound.len() == KEPT_TARGETS {
+                    bound.remove(0);
+                }
+                bound.push((key, bind.clone()));
+                bind
+            }
+        };
+        drop(bound);
+        pass.dispatch(encoder, &bind, w, h, None);
         Ok(())
     }
 }
