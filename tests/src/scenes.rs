@@ -102,6 +102,18 @@ pub fn techniques(
             ),
         ));
         out.push((
+            "relight-gpu",
+            Box::new({
+                let mut t = relight_pr::RelightTechnique::new(
+                    relight_pr::MeshSettings::elements(64),
+                    relight_pr::SolverSettings::default(),
+                    Box::new(CpuRasterizer::new()),
+                );
+                t.direct = relight_pr::direct::DirectLight::shadow_maps();
+                t.on_gpu(ctx.clone())
+            }),
+        ));
+        out.push((
             "ibrr-gpu",
             Box::new(
                 ibrr_ldc::IbrrTechnique::new(ibrr, Box::new(CpuRasterizer::new()))

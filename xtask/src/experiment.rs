@@ -643,14 +643,18 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                         .with_backend(backend.clone())
                         .named(&c.label),
                 ),
-                ChoiceKind::Relight { elements } => Box::new(
-                    relight_pr::RelightTechnique::new(
+                ChoiceKind::Relight { elements } => {
+                    let t = relight_pr::RelightTechnique::new(
                         relight_pr::MeshSettings::elements(*elements),
                         relight_pr::SolverSettings::default(),
                         Box::new(CpuRasterizer::new()),
                     )
-                    .named(&c.label),
-                ),
+                    .named(&c.label);
+                    match &backend {
+                        Backend::Gpu(ctx) => Box::new(t.on_gpu(ctx.clone())),
+                        _ => Box::new(t),
+                    }
+                }
                 ChoiceKind::Ibrr {
                     ldc,
                     irpls,

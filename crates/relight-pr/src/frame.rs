@@ -122,7 +122,9 @@ impl scene_core::gpu::GpuFrame for RelightFrame {
     ) -> Result<(), scene_core::Error> {
         let g = inputs.gbuffer;
         check_frame_target(target, g.width, g.height)?;
-        let ids = self.ids.encode(encoder, inputs.view, g.width, g.height)?;
+        let ids = self
+            .ids
+            .encode(encoder, inputs.view, g.width, g.height, Some(&g.depth))?;
         let elements = TriangleIdPass::gbuffer(g, ids)?;
         let factors = crate::relight::source_factors(&self.sources, inputs.lights);
         let bytes = u64::from(g.width) * u64::from(g.height) * 16;

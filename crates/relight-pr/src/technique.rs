@@ -82,6 +82,16 @@ pub struct RelightTechnique {
     shadowed: Option<ShadowedLights>,
     timings: FrameTimings,
     name: String,
+    /// The GPU path ([`RelightTechnique::on_gpu`]): the context, and the frame on the
+    /// contract with what it was made for (the direct light's setting).
+    gpu: Option<(scene_core::gpu::GpuContext, Option<GpuFrameState>)>,
+}
+
+/// Relighting's frame on the GPU and its target, made on the first GPU frame.
+struct GpuFrameState {
+    frame: crate::frame::RelightFrame,
+    direct: DirectLight,
+    target: Option<wgpu::Texture>,
 }
 
 impl std::fmt::Debug for RelightTechnique {
@@ -112,7 +122,20 @@ impl RelightTechnique {
             shadowed: None,
             timings: FrameTimings::default(),
             name: "relight".into(),
+            gpu: None,
         }
+    }
+
+    /// The same with its frames on `ctx`'s GPU: each frame is the display on the frame
+    /// contract ([`crate::frame::RelightFrame`]) over the G-buffer where the renderer keeps
+    /// it ([`GBufferRenderer::render_views_gpu`]; rendered on the CPU and uploaded by
+    /// renderers that cannot, and whenever the per-pixel direct light is gathered, which
+    /// reads it on the CPU), with the direct light of [`RelightTechnique::direct`]: the
+    /// shadow maps evaluated per pixel on the GPU, the gathered values, or the elements'.
+    /// Only the image is read back. Flat shading has no GPU display: it renders on the CPU.
+    pub fn on_gpu(mut self, ctx: scene_core::gpu::GpuContext) -> Self {
+        self.gpu = Some((ctx, None));
+        self
     }
 
     /// The same with another report name.
@@ -237,6 +260,112 @@ impl RelightTechnique {
     pub fn last_timings(&self) -> FrameTimings {
         self.timings
     }
+
+    /// A frame on the GPU ([`RelightTechnique::on_gpu`]).
+    fn render_gpu(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
+        use scene_core::gpu::{FrameInputs, GpuFrame, GpuGBuffer};
+        let gpu_err = |e: scene_core::gpu::GpuError| Error::from(e);
+        let (Some(p), Some((ctx, state))) = (self.prepared.as_ref(), self.gpu.as_mut()) else {
+            return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
+        };
+        let (w, h) = (frame.width, frame.height);
+        if state.as_ref().is_none_or(|s| s.direct != self.direct) {
+            let mut gpu = crate::gpu::GpuRelight::new(
+                ctx,
+                &p.meshing,
+                &p.welding,
+                &p.solution,
+                crate::packed::Precision::F32,
+            )?;
+            if let (DirectLight::ShadowMaps { footprint, .. }, Some(s)) =
+                (self.direct, self.shadowed.as_ref())
+            {
+                gpu.set_shadowed_direct(&s.set, &s.slots, footprint)?;
+            }
+            *state = Some(GpuFrameState {
+                frame: crate::frame::RelightFrame::new(
+                    ctx,
+                    gpu,
+                    &p.meshing,
+                    p.solution.sources.clone(),
+                )?,
+                direct: self.direct,
+                target: None,
+            });
+        }
+        let state = state.as_mut().expect("made above");
+        let t0 = std::time::Instant::now();
+        let mut direct_time = Duration::ZERO;
+        let g = match self.direct {
+            DirectLight::PerPixel {
+                subpixels,
+                emitter_rays,
+            } => {
+                // The gather reads the G-buffer on the CPU: render it there, gather unless
+                // this view and size are those of the last frame, and upload.
+                let cpu = self.renderer.render_view(&frame.view, w, h)?;
+                let t = std::time::Instant::now();
+                if !state.frame.has_pixel_direct(&frame.view, (w, h)) {
+                    let gather =
+                        DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, emitter_rays);
+                    let values = pixel_direct(&gather, &p.rays, &cpu, &frame.view, subpixels);
+                    state.frame.set_pixel_direct(frame.view, (w, h), values);
+                }
+                direct_time = t.elapsed();
+                GpuGBuffer::upload(ctx, &cpu).map_err(gpu_err)?
+            }
+            _ => {
+                let target = scene_core::ViewTarget::new(frame.view, w, h);
+                match self.renderer.render_views_gpu(&[target])? {
+                    Some(mut v) if v.len() == 1 => v.pop().expect("one view"),
+                    _ => {
+                        let cpu = self.renderer.render_view(&frame.view, w, h)?;
+                        GpuGBuffer::upload(ctx, &cpu).map_err(gpu_err)?
+                    }
+                }
+            }
+        };
+        let gbuffer_time = t0.elapsed() - direct_time;
+        let t1 = std::time::Instant::now();
+        if state
+            .target
+            .as_ref()
+            .is_none_or(|t| (t.width(), t.height()) != (w, h))
+        {
+            state.target = Some(ctx.create_texture_2d(
+                "relight frame",
+                w,
+                h,
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+            ));
+        }
+        let target = state.target.as_ref().expect("made above");
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let inputs = FrameInputs {
+            gbuffer: &g,
+            view: &frame.view,
+            lights: frame.lights,
+        };
+        state.frame.encode(&mut encoder, &inputs, target)?;
+        ctx.queue.submit([encoder.finish()]);
+        let pixels = ctx.read_texture_rgba32f(target).map_err(gpu_err)?;
+        let image = Image {
+            width: w,
+            height: h,
+            pixels: pixels
+                .iter()
+                .map(|v| glam::Vec3::new(v[0], v[1], v[2]))
+                .collect(),
+        };
+        self.timings = FrameTimings {
+            relight: Duration::ZERO,
+            gbuffer: gbuffer_time,
+            direct: direct_time,
+            display: t1.elapsed(),
+        };
+        Ok(image)
+    }
 }
 
 impl Technique for RelightTechnique {
@@ -258,6 +387,9 @@ impl Technique for RelightTechnique {
         } = self.direct
         {
             self.shadowed_lights(emitter_samples)?;
+        }
+        if self.gpu.is_some() && self.shading == Shading::Smooth {
+            return self.render_gpu(frame);
         }
         let Some(p) = self.prepared.as_ref() else {
             unreachable!("checked above")

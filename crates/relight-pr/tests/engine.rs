@@ -328,3 +328,95 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     assert!(before > 1e-2 * total, "the shadows show");
     assert!(d <= 1e-4 * total, "{d} of {total}");
 }
+
+/// The relighting `Technique` on the GPU (`on_gpu`: the display on the frame contract, only
+/// the image read back) gives the CPU technique's image, with each source of direct light:
+/// the shadow maps evaluated per pixel, the per-pixel gather, the elements. Bounds as the
+/// GPU display's own tests (rounding of the same sums in another order): the mean
+/// difference within 1e-4 of the mean, no more than 0.5 % of the pixels off by over 1e-3 of
+/// the peak.
+#[test]
+fn the_gpu_technique_gives_the_cpu_techniques_image() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    use relight_pr::RelightTechnique;
+    use relight_pr::direct::DirectLight;
+    use scene_core::{FrameRequest, Technique};
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let (w, h) = (48, 36);
+    let request = FrameRequest::camera(&scene.cameras[0], w, h);
+    let mut state = LightState::default();
+    let emitter = *light_ids(&scene)
+        .iter()
+        .find(|i| matches!(i, LightId::Emissive(_)))
+        .unwrap();
+    state.set_color(emitter, Vec3::new(1.0, 0.5, 0.2));
+    let frame = FrameRequest {
+        lights: &state,
+        ..request
+    };
+    let technique = |direct: DirectLight| {
+        let settings = SolverSettings {
+            max_unshot: 0.02,
+            visibility_samples: 4,
+            ..Default::default()
+        };
+        let mut t = RelightTechnique::new(
+            MeshSettings::elements(300),
+            settings,
+            Box::new(RayCastRenderer::new()),
+        );
+        t.direct = direct;
+        t
+    };
+    for direct in [
+        DirectLight::shadow_maps(),
+        DirectLight::PerPixel {
+            subpixels: 2,
+            emitter_rays: 2,
+        },
+        DirectLight::Elements,
+    ] {
+        let mut cpu = technique(direct);
+        cpu.prepare(scene.clone()).unwrap();
+        let want = cpu.render(&frame).unwrap();
+        let mut gpu = technique(direct).on_gpu(ctx.clone());
+        gpu.prepare(scene.clone()).unwrap();
+        let got = gpu.render(&frame).unwrap();
+        let n = want.pixels.len() as f64;
+        let mean = want
+            .pixels
+            .iter()
+            .map(|p| f64::from(p.element_sum()))
+            .sum::<f64>()
+            / n;
+        let diff = got
+            .pixels
+            .iter()
+            .zip(&want.pixels)
+            .map(|(a, b)| f64::from((*a - *b).abs().element_sum()))
+            .sum::<f64>()
+            / n;
+        let peak = want
+            .pixels
+            .iter()
+            .map(|p| p.max_element())
+            .fold(0.0f32, f32::max);
+        let off = got
+            .pixels
+            .iter()
+            .zip(&want.pixels)
+            .filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3 * peak)
+            .count();
+        eprintln!(
+            "{direct:?}: mean difference {:.2e} of the mean, {off} of {} pixels above 1e-3 of \
+             the peak",
+            diff / mean,
+            got.pixels.len()
+        );
+        assert!(mean > 0.0);
+        assert!(diff <= 1e-4 * mean, "{direct:?}: {diff} against {mean}");
+        assert!(off * 200 <= got.pixels.len(), "{direct:?}: {off} pixels");
+    }
+}

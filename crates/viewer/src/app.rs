@@ -140,6 +140,11 @@ struct App {
     ids: Vec<LightId>,
     steps: Option<Vec<CheckedStep>>,
     step: usize,
+    /// The replay step applied but not yet shown: a method it shows is still
+    /// precomputing, and frames (direct light meanwhile) are drawn until it is ready.
+    pending: Option<CheckedStep>,
+    /// Frames drawn while a replay waited for a precomputation.
+    frames_waiting: usize,
     /// The frame's size in pixels (the window's times the render scale).
     size: (u32, u32),
     /// The render scale.
@@ -224,6 +229,8 @@ impl App {
             ids,
             steps,
             step: 0,
+            pending: None,
+            frames_waiting: 0,
             size,
             scale: 1.0,
             gfx: None,
@@ -294,6 +301,12 @@ impl App {
                     "  relighting's per-pixel direct light (CPU) {:>4} views, median {:8.2} ms",
                     gathers.len(),
                     median(gathers) * 1e3
+                );
+            }
+            if self.frames_waiting > 0 {
+                println!(
+                    "  {} frames drawn while the replay waited for a precomputation",
+                    self.frames_waiting
                 );
             }
             let passes = &self.reference.passes;
@@ -773,14 +786,21 @@ impl App {
         let mut replayed = None;
         let mut wait = replaying;
         if let Some(steps) = &self.steps {
-            let Some(step) = steps.get(self.step).cloned() else {
-                event_loop.exit();
-                return Ok(());
+            let step = match self.pending.clone() {
+                Some(step) => step,
+                None => {
+                    let Some(step) = steps.get(self.step).cloned() else {
+                        event_loop.exit();
+                        return Ok(());
+                    };
+                    self.step += 1;
+                    self.apply_step(&step);
+                    self.pending = Some(step.clone());
+                    step
+                }
             };
-            self.step += 1;
             want_spp = step.reference_spp;
             wait = !step.no_wait;
-            self.apply_step(&step);
             replayed = Some(step);
         } else {
             let key = |k| *self.motion_keys.get(&k).unwrap_or(&false) as i32 as f32;
@@ -793,12 +813,24 @@ impl App {
             self.moved |= self.state.camera.advance(&motion, dt);
         }
         self.ensure_jobs();
-        self.collect_jobs(wait)?;
+        // A replay step whose methods still precompute is not shown yet: the window keeps
+        // drawing (direct light in their place, the panel's progress bars) until they are
+        // ready, instead of blocking on them with a black window.
+        self.collect_jobs(false)?;
+        let waiting = wait && self.jobs_pending();
+        if wait && !waiting {
+            self.collect_jobs(true)?;
+        }
+        if waiting {
+            self.frames_waiting += 1;
+        } else if replaying {
+            self.pending = None;
+        }
         let (w, h) = self.size;
         let camera = self.state.camera.camera_at(w, h);
         let view = View::from_camera(&camera);
-        self.update_reference(&view, want_spp)?;
-        self.update_direct(&view, wait)?;
+        self.update_reference(&view, want_spp.filter(|_| !waiting))?;
+        self.update_direct(&view, wait && !waiting)?;
         let error_scale = self.error_scale();
 
         let Some(gfx) = self.gfx.as_mut() else {
@@ -954,9 +986,12 @@ impl App {
             }
             crate::mode::Layout::Error => format!("error of {}", self.state.mode.name()),
         };
-        let times = self.mode_times.entry(key.clone()).or_default();
-        times.push(frame_seconds);
-        self.info.per_mode.insert(key, median(times));
+        if !waiting {
+            // A frame drawn while the mode precomputes is not the mode's.
+            let times = self.mode_times.entry(key.clone()).or_default();
+            times.push(frame_seconds);
+            self.info.per_mode.insert(key, median(times));
+        }
 
         // The error view's mean: a readback of the mode's buffer, a few times a second.
         if self.state.layout == "error" && self.reference.spp > 0 {
@@ -992,12 +1027,23 @@ impl App {
                 Action::SceneCamera(i) => self.jump(i),
             }
         }
+        if waiting {
+            // The step's screenshot and record wait for its frame.
+            return Ok(());
+        }
         let shot = self.screenshot.take();
         if let Some(name) = &shot {
             self.save_screenshot(name, &camera)?;
         }
         self.record(dt, shot, replayed.as_ref());
         Ok(())
+    }
+
+    /// True while a method on screen still precomputes (relighting's solve, the IBRR's
+    /// construction).
+    fn jobs_pending(&self) -> bool {
+        (self.state.shows(Mode::Relight) && self.relight.is_some())
+            || (self.state.shows(Mode::Ibrr) && self.ibrr.is_some())
     }
 
     fn save_screenshot(&mut self, name: &str, camera: &Camera) -> Result<(), String> {

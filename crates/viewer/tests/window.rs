@@ -362,6 +362,10 @@ fn a_replay_through_every_mode_matches_the_library_frame_by_frame() {
     steps.push(format!(
         r#"{{"layout": "error", "mode": "isr", "reference_spp": {SPP}, "screenshot": "error"}}"#
     ));
+    // In a replay relighting solves and the IBRR builds only once their modes are shown,
+    // so their steps wait for a precomputation that has just started. The window keeps
+    // drawing meanwhile (direct light under the progress bar), never blocking on a black
+    // frame.
     let (lines, _) = replay(&dir, &steps.join(",\n"));
     assert!(
         lines
@@ -369,6 +373,15 @@ fn a_replay_through_every_mode_matches_the_library_frame_by_frame() {
             .any(|l| l.starts_with("mean error (eq. 19) of isr against the reference at 4 spp")),
         "the error view's mean is printed"
     );
+    let waited: usize = lines
+        .iter()
+        .find_map(|l| {
+            l.trim_start()
+                .strip_suffix(" frames drawn while the replay waited for a precomputation")
+        })
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap_or(0);
+    assert!(waited > 0, "no frame was drawn while relighting solved");
     // The frame-time table names every mode.
     for m in Mode::ALL {
         assert!(

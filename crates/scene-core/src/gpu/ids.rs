@@ -9,8 +9,10 @@
 //! clip space of [`crate::View::view_projection`] (depth in [0, 1], tested `Less`), pixel
 //! centres sampled, no culling. A pixel's id is therefore the triangle nearest the eye
 //! through the pixel's centre, what scene-core's ray caster puts there, up to a triangle's
-//! edge passing within rounding of a centre. Masked materials are not consulted: a pass for
-//! a scene of masked leaves would give the leaf quad's id where the host sees through it.
+//! edge passing within rounding of a centre. With the host's depth given, a triangle counts
+//! only where the host sees a surface at its depth (within 1e-3 of it), so a masked surface
+//! the host sees through (alpha-masked leaves: the pass does not read textures) or geometry
+//! the host does not draw cannot claim the pixel.
 
 use std::sync::Mutex;
 
@@ -35,6 +37,17 @@ struct Targets {
     depth_view: wgpu::TextureView,
 }
 
+/// `Params` in `triangle_ids.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    view_proj: [f32; 16],
+    eye: [f32; 3],
+    inv_far: f32,
+    forward: [f32; 3],
+    match_depth: u32,
+}
+
 /// Rasterises a fixed list of triangles' global ids for a view (module docs). The triangles
 /// are uploaded once by [`TriangleIdPass::new`], which also compiles the pipeline; each
 /// [`TriangleIdPass::encode`] records one render pass and writes the view's matrix through
@@ -43,7 +56,12 @@ struct Targets {
 pub struct TriangleIdPass {
     pipeline: wgpu::RenderPipeline,
     params: wgpu::Buffer,
-    bind: wgpu::BindGroup,
+    corners: wgpu::Buffer,
+    layout: wgpu::BindGroupLayout,
+    /// A 1 x 1 depth for frames without the host's.
+    no_depth: wgpu::Texture,
+    /// The bind group and the depth texture it was made over.
+    bind: Mutex<Option<(wgpu::Texture, wgpu::BindGroup)>>,
     vertices: u32,
     writer: FrameWriter,
     targets: Mutex<Option<Targets>>,
@@ -109,12 +127,16 @@ impl TriangleIdPass {
                 label: Some("scene-core triangle ids"),
                 entries: &[
                     wgpu::BindGroupLayoutEntry {
-                        visibility: wgpu::ShaderStages::VERTEX,
+                        visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
                         ..super::layout::uniform(0)
                     },
                     wgpu::BindGroupLayoutEntry {
                         visibility: wgpu::ShaderStages::VERTEX,
                         ..super::layout::storage_buffer(1)
+                    },
+                    wgpu::BindGroupLayoutEntry {
+                        visibility: wgpu::ShaderStages::FRAGMENT,
+                        ..super::layout::float_texture(2)
                     },
                 ],
             });
@@ -155,30 +177,30 @@ impl TriangleIdPass {
                 multiview_mask: None,
                 cache: None,
             });
-            let params = ctx.frame_buffer("triangle id view", 64, wgpu::BufferUsages::UNIFORM);
+            let params = ctx.frame_buffer(
+                "triangle id view",
+                std::mem::size_of::<Params>() as u64,
+                wgpu::BufferUsages::UNIFORM,
+            );
             let corners = ctx.storage_with(
                 "triangle id corners",
                 bytemuck::cast_slice(&corners),
                 wgpu::BufferUsages::empty(),
             );
-            let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("scene-core triangle ids"),
-                layout: &layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: params.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: corners.as_entire_binding(),
-                    },
-                ],
-            });
+            let no_depth = ctx.create_texture_2d(
+                "triangle id no depth",
+                1,
+                1,
+                GpuGBuffer::DEPTH_FORMAT,
+                wgpu::TextureUsages::TEXTURE_BINDING,
+            );
             Self {
                 pipeline,
                 params,
-                bind,
+                corners,
+                layout,
+                no_depth,
+                bind: Mutex::new(None),
                 vertices,
                 writer: FrameWriter::new(device, 256),
                 targets: Mutex::new(None),
@@ -209,15 +231,33 @@ impl TriangleIdPass {
 
     /// Records the id raster of `view` at `width x height` into `encoder` and returns the
     /// id texture it writes ([`TriangleIdPass::FORMAT`], [`NO_TRIANGLE`] where no triangle
-    /// covers a pixel's centre; `TEXTURE_BINDING` usage). The texture is the same object
-    /// from frame to frame while the size stays.
+    /// covers a pixel's centre; `TEXTURE_BINDING` usage). With `host_depth` (the frame's
+    /// G-buffer's linear depth, [`GpuGBuffer::DEPTH_FORMAT`], of the same size), a triangle
+    /// counts only where the host sees a surface at its depth (module docs). The texture is
+    /// the same object from frame to frame while the size stays.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         view: &View,
         width: u32,
         height: u32,
+        host_depth: Option<&wgpu::Texture>,
     ) -> Result<wgpu::Texture, GpuError> {
+        if let Some(d) = host_depth {
+            if d.format() != GpuGBuffer::DEPTH_FORMAT {
+                return Err(GpuError::WrongFormat {
+                    expected: "R32Float (the G-buffer's linear depth)",
+                    found: d.format(),
+                });
+            }
+            if (d.width(), d.height()) != (width, height) {
+                return Err(GpuError::InvalidSize {
+                    width: d.width(),
+                    height: d.height(),
+                    reason: format!("the host's depth must be the id raster's {width}x{height}"),
+                });
+            }
+        }
         if width == 0 || height == 0 {
             return Err(GpuError::InvalidSize {
                 width,
@@ -271,13 +311,42 @@ impl TriangleIdPass {
             });
         }
         let t = targets.as_ref().expect("made above");
-        self.writer.write(
-            encoder,
-            &self.params,
-            0,
-            bytemuck::cast_slice(&view_proj.to_cols_array()),
-        );
+        let params = Params {
+            view_proj: view_proj.to_cols_array(),
+            eye: view.eye.to_array(),
+            inv_far: 1.0 / view.far,
+            forward: view.forward.to_array(),
+            match_depth: u32::from(host_depth.is_some()),
+        };
+        self.writer
+            .write(encoder, &self.params, 0, bytemuck::bytes_of(&params));
         self.writer.finish(encoder);
+        let depth = host_depth.unwrap_or(&self.no_depth);
+        let mut bound = self.bind.lock().unwrap_or_else(|e| e.into_inner());
+        if bound.as_ref().is_none_or(|(k, _)| k != depth) {
+            let depth_view = depth.create_view(&Default::default());
+            let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("scene-core triangle ids"),
+                layout: &self.layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: self.params.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: self.corners.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::TextureView(&depth_view),
+                    },
+                ],
+            });
+            *bound = Some((depth.clone(), bind));
+        }
+        let bind = bound.as_ref().expect("made above").1.clone();
+        drop(bound);
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("scene-core triangle ids"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -308,7 +377,7 @@ impl TriangleIdPass {
         });
         if self.vertices > 0 {
             pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &self.bind, &[]);
+            pass.set_bind_group(0, &bind, &[]);
             pass.draw(0..self.vertices, 0..1);
         }
         drop(pass);
