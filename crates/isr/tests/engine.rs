@@ -305,6 +305,29 @@ fn the_frame_contract_gives_isr_and_dl_and_creates_nothing_per_frame() {
             })
             .collect();
         assert_ne!(expected[0], expected[1], "{name}: the light change shows");
+        // The CPU twin gives the same frames (the viewer draws its ISR modes through this
+        // contract): the GPU-against-CPU bounds of `tests/gpu.rs`, the mean within 1e-3 of
+        // the image's mean and every pixel within 1e-4 of the peak.
+        for (state, frame) in [LightState::default(), dim.clone()].iter().zip(&expected) {
+            let mut lights = setup.prepared.clone();
+            lights.apply(state);
+            let cpu = isr::render_image(&lights, &setup.inputs(), &settings).unwrap();
+            let gpu = Image::from_pixels(
+                w,
+                h,
+                frame.iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect(),
+            )
+            .unwrap();
+            let m = image_mean(&cpu);
+            let peak = cpu
+                .pixels
+                .iter()
+                .map(|p| p.max_element())
+                .fold(0.0f32, f32::max);
+            let (dmax, _) = max_difference(&cpu, &gpu);
+            assert!(mean_error(&cpu, &gpu) < 1e-3 * m, "{name}: mean");
+            assert!(dmax <= 1e-4 * f64::from(peak.max(1.0)), "{name}: {dmax}");
+        }
         let mut method = IsrFrame::new(GpuIsr::new(&ctx, &setup.prepared).unwrap(), settings);
         assert_eq!(method.name(), name);
         let out = target("frame");
