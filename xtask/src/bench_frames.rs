@@ -349,11 +349,7 @@ fn shadow_maps(
     let lights = LightSet::new(scene, &shadows)
         .map_err(|e| e.to_string())?
         .lights;
-    let casters: Vec<[Vec3; 3]> = scene
-        .meshes
-        .iter()
-        .flat_map(|m| m.indices.iter().map(|t| t.map(|i| m.positions[i as usize])))
-        .collect();
+    let casters = scene.triangle_corners();
     let pool = crate::bench::worker_pool(threads)?;
     let cpu_ms = pool.install(|| {
         crate::bench::time_ms(repeats, || {
@@ -362,8 +358,7 @@ fn shadow_maps(
                 .map_err(|e| e.to_string())
         })
     })?;
-    let mut bounds = scene_core::Bounds::EMPTY;
-    casters.iter().flatten().for_each(|p| bounds.grow(*p));
+    let bounds = scene_core::Bounds::around(casters.iter().flatten().copied());
     let (set, plan) =
         LightSet::planned(lights.clone(), bounds, &shadows).map_err(|e| e.to_string())?;
     let positions: Vec<[f32; 3]> = casters.iter().flatten().map(|p| p.to_array()).collect();

@@ -13,11 +13,7 @@ use scene_core::{Image, Scene, builtin};
 
 /// The scene's triangles, as an engine would hand them over.
 fn triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
-    scene
-        .meshes
-        .iter()
-        .flat_map(|m| m.indices.iter().map(|t| t.map(|i| m.positions[i as usize])))
-        .collect()
+    scene.triangle_corners()
 }
 
 /// The scene's point lights, as an engine's light list.
@@ -389,8 +385,7 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     let shadows = small_shadows();
     let casters = triangles(&scene);
     let cpu = LightSet::from_lights(engine_lights(&scene), &casters, &shadows).unwrap();
-    let mut bounds = scene_core::Bounds::EMPTY;
-    casters.iter().flatten().for_each(|p| bounds.grow(*p));
+    let bounds = scene_core::Bounds::around(casters.iter().flatten().copied());
     let (planned, plan) = LightSet::planned(engine_lights(&scene), bounds, &shadows).unwrap();
     let positions: Vec<[f32; 3]> = casters.iter().flatten().map(|p| p.to_array()).collect();
     let vertices = ctx

@@ -22,6 +22,30 @@ use scene_core::ray::RayScene;
 use scene_core::shadowed_lights::{LightSet, ShadowSettings};
 use scene_core::{GBufferRenderer, View, builtin};
 
+/// The Cornell box meshed into about `elements` elements and solved (to 2 % unshot, 4
+/// visibility samples), with its welding.
+fn solved_cornell(
+    elements: usize,
+) -> (
+    Arc<scene_core::Scene>,
+    Meshing,
+    relight_pr::Solution,
+    Welding,
+) {
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let k = light_ids(&scene).len();
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(elements), k).unwrap();
+    let rays = RayScene::build(&scene);
+    let settings = SolverSettings {
+        max_unshot: 0.02,
+        visibility_samples: 4,
+        ..Default::default()
+    };
+    let solution = solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
+    let welding = Welding::new(&meshing, scene.extent());
+    (scene, meshing, solution, welding)
+}
+
 /// Bounds. The frame's ids come from a raster of the element triangles, the library's from
 /// the ray caster: both sample pixel centres, so they differ only where an element's edge
 /// passes within rounding of a centre. Inside a surface a neighbouring element gives almost
@@ -35,17 +59,7 @@ fn the_frame_contract_gives_the_display_from_an_engine_gbuffer_and_creates_nothi
     let Some(ctx) = gpu_test_context() else {
         return;
     };
-    let scene = Arc::new(builtin::scene("cornell").unwrap());
-    let k = light_ids(&scene).len();
-    let meshing = Meshing::new(&scene, &MeshSettings::elements(300), k).unwrap();
-    let rays = RayScene::build(&scene);
-    let settings = SolverSettings {
-        max_unshot: 0.02,
-        visibility_samples: 4,
-        ..Default::default()
-    };
-    let solution = solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
-    let welding = Welding::new(&meshing, scene.extent());
+    let (scene, meshing, solution, welding) = solved_cornell(300);
     let shadows = ShadowSettings {
         cube_resolution: 64,
         emitter_samples: 8,
@@ -217,32 +231,17 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     use scene_core::Bounds;
     use scene_core::shadowed_lights::gpu_maps::{CasterLayout, Casters, ShadowMapPass};
     use wgpu::util::DeviceExt;
-    let scene = Arc::new(builtin::scene("cornell").unwrap());
-    let k = light_ids(&scene).len();
-    let meshing = Meshing::new(&scene, &MeshSettings::elements(200), k).unwrap();
-    let rays = RayScene::build(&scene);
-    let settings = SolverSettings {
-        max_unshot: 0.05,
-        visibility_samples: 2,
-        ..Default::default()
-    };
-    let solution = solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
-    let welding = Welding::new(&meshing, scene.extent());
+    let (scene, meshing, solution, welding) = solved_cornell(200);
     let shadows = ShadowSettings {
         cube_resolution: 32,
         emitter_samples: 4,
         emitter_cube_resolution: 32,
         ..Default::default()
     };
-    let casters: Vec<[Vec3; 3]> = scene
-        .meshes
-        .iter()
-        .flat_map(|m| m.indices.iter().map(|t| t.map(|i| m.positions[i as usize])))
-        .collect();
+    let casters = scene.triangle_corners();
     let lights = LightSet::new(&scene, &shadows).unwrap().lights;
     let cpu = LightSet::from_lights(lights.clone(), &casters, &shadows).unwrap();
-    let mut bounds = Bounds::EMPTY;
-    casters.iter().flatten().for_each(|p| bounds.grow(*p));
+    let bounds = Bounds::around(casters.iter().flatten().copied());
     let (planned, plan) = LightSet::planned(lights, bounds, &shadows).unwrap();
     let positions: Vec<[f32; 3]> = casters.iter().flatten().map(|p| p.to_array()).collect();
     let vertices = ctx

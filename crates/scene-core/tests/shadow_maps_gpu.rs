@@ -14,14 +14,6 @@ use scene_core::shadowed_lights::{Light, LightSet, ShadowSettings};
 use scene_core::{Bounds, GBufferRenderer, Scene, View, builtin};
 use wgpu::util::DeviceExt;
 
-fn triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
-    scene
-        .meshes
-        .iter()
-        .flat_map(|m| m.indices.iter().map(|t| t.map(|i| m.positions[i as usize])))
-        .collect()
-}
-
 /// The Cornell box's point lights and emitter samples, and a sun through it.
 fn lights(scene: &Scene, shadows: &ShadowSettings) -> Vec<Light> {
     let mut lights = LightSet::new(scene, shadows).unwrap().lights;
@@ -46,11 +38,10 @@ fn gpu_shadow_maps_equal_the_ray_cast_maps() {
         directional_resolution: 128,
         ..Default::default()
     };
-    let casters = triangles(&scene);
+    let casters = scene.triangle_corners();
     let lights = lights(&scene, &shadows);
     let cpu = LightSet::from_lights(lights.clone(), &casters, &shadows).unwrap();
-    let mut bounds = Bounds::EMPTY;
-    casters.iter().flatten().for_each(|p| bounds.grow(*p));
+    let bounds = Bounds::around(casters.iter().flatten().copied());
     let (mut gpu_set, plan) = LightSet::planned(lights, bounds, &shadows).unwrap();
     assert_eq!(gpu_set.extent, cpu.extent);
     assert_eq!(gpu_set.shadow_texels.len(), cpu.shadow_texels.len());

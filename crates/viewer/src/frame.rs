@@ -857,6 +857,12 @@ mod allocation_tests {
                     });
                     result.unwrap();
                     ctx.queue.submit([encoder.finish()]);
+                    // Each frame done before the next is recorded, as the other crates'
+                    // tests read theirs back: the staging chunks come back once their
+                    // submission has run (frames still in flight take new ones).
+                    ctx.device
+                        .poll(wgpu::PollType::wait_indefinitely())
+                        .unwrap();
                     if frame == 2 {
                         assert!(created.is_zero(), "{mode:?} {layout:?}: {created}");
                     }

@@ -66,6 +66,7 @@ pub struct TriangleIdPass {
     writer: FrameWriter,
     targets: Mutex<Option<Targets>>,
     device: wgpu::Device,
+    ctx: GpuContext,
 }
 
 impl std::fmt::Debug for TriangleIdPass {
@@ -205,6 +206,7 @@ impl TriangleIdPass {
                 writer: FrameWriter::new(device, 256),
                 targets: Mutex::new(None),
                 device: device.clone(),
+                ctx: ctx.clone(),
             }
         })
     }
@@ -212,16 +214,7 @@ impl TriangleIdPass {
     /// The triangles of `scene` in global triangle-id order (scene-core's, as
     /// [`super::flatten_scene`] numbers them).
     pub fn for_scene(ctx: &GpuContext, scene: &crate::Scene) -> Result<Self, GpuError> {
-        let triangles: Vec<[Vec3; 3]> = scene
-            .meshes
-            .iter()
-            .flat_map(|m| {
-                m.indices
-                    .iter()
-                    .map(|t| t.map(|i| m.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO)))
-            })
-            .collect();
-        Self::new(ctx, &triangles)
+        Self::new(ctx, &scene.triangle_corners())
     }
 
     /// Number of triangles.
@@ -277,20 +270,8 @@ impl TriangleIdPass {
             .is_none_or(|t| (t.ids.width(), t.ids.height()) != (width, height))
         {
             let make = |label, format, usage| {
-                self.device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size: wgpu::Extent3d {
-                        width,
-                        height,
-                        depth_or_array_layers: 1,
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage,
-                    view_formats: &[],
-                })
+                self.ctx
+                    .create_texture_2d(label, width, height, format, usage)
             };
             let ids = make(
                 "triangle ids",
@@ -347,34 +328,13 @@ impl TriangleIdPass {
         }
         let bind = bound.as_ref().expect("made above").1.clone();
         drop(bound);
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("scene-core triangle ids"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view: &t.ids_view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color {
-                        r: f64::from(NO_TRIANGLE),
-                        g: 0.0,
-                        b: 0.0,
-                        a: 0.0,
-                    }),
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &t.depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Discard,
-                }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+        let mut pass = one_target_pass(
+            encoder,
+            "scene-core triangle ids",
+            &t.ids_view,
+            f64::from(NO_TRIANGLE),
+            &t.depth_view,
+        );
         if self.vertices > 0 {
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &bind, &[]);
@@ -399,4 +359,44 @@ impl TriangleIdPass {
         }
         GpuGBuffer::from_textures(g.albedo.clone(), g.normal.clone(), g.depth.clone(), ids)
     }
+}
+
+/// A render pass of one colour target cleared to `(clear, 0, 0, 0)` (a single-channel value:
+/// an id, a depth) and a `Depth32Float` attachment cleared to 1 and discarded after: the
+/// shape of the toolkit's one-value raster passes (the id raster, the shadow-map faces).
+pub(crate) fn one_target_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    colour: &wgpu::TextureView,
+    clear: f64,
+    depth: &wgpu::TextureView,
+) -> wgpu::RenderPass<'e> {
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(label),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: colour,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color {
+                    r: clear,
+                    g: 0.0,
+                    b: 0.0,
+                    a: 0.0,
+                }),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: depth,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(1.0),
+                store: wgpu::StoreOp::Discard,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
 }

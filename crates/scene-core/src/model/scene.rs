@@ -593,6 +593,13 @@ impl Bounds {
         max: Vec3::splat(f32::NEG_INFINITY),
     };
 
+    /// The box around `points` (empty for none).
+    pub fn around(points: impl IntoIterator<Item = Vec3>) -> Self {
+        let mut b = Self::EMPTY;
+        points.into_iter().for_each(|p| b.grow(p));
+        b
+    }
+
     /// Grows the box to contain `p`.
     pub fn grow(&mut self, p: Vec3) {
         self.min = self.min.min(p);
@@ -673,6 +680,20 @@ impl Scene {
         }
         offsets.push(acc);
         offsets
+    }
+
+    /// Every triangle's world-space corners in global triangle-id order (what an engine's
+    /// shadow casters or an id raster of the scene are; a corner past a mesh's positions,
+    /// which validation refuses, reads as the origin).
+    pub fn triangle_corners(&self) -> Vec<[Vec3; 3]> {
+        self.meshes
+            .iter()
+            .flat_map(|m| {
+                m.indices
+                    .iter()
+                    .map(|t| t.map(|i| m.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO)))
+            })
+            .collect()
     }
 
     /// The bounding box of all mesh vertices.

@@ -299,21 +299,7 @@ impl ShadowMapPass {
                 .iter()
                 .map(|&resolution| {
                     let make = |label, format, usage| {
-                        device
-                            .create_texture(&wgpu::TextureDescriptor {
-                                label: Some(label),
-                                size: wgpu::Extent3d {
-                                    width: resolution,
-                                    height: resolution,
-                                    depth_or_array_layers: 1,
-                                },
-                                mip_level_count: 1,
-                                sample_count: 1,
-                                dimension: wgpu::TextureDimension::D2,
-                                format,
-                                usage,
-                                view_formats: &[],
-                            })
+                        ctx.create_texture_2d(label, resolution, resolution, format, usage)
                             .create_view(&Default::default())
                     };
                     let color_view = make(
@@ -537,34 +523,13 @@ impl ShadowMapPass {
             for _ in 0..faces {
                 let offset = [(u64::from(face) * self.face_stride) as u32];
                 {
-                    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                        label: Some("scene-core shadow map face"),
-                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                            view: &target.color_view,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(wgpu::Color {
-                                    r: f64::from(p.miss),
-                                    g: 0.0,
-                                    b: 0.0,
-                                    a: 0.0,
-                                }),
-                                store: wgpu::StoreOp::Store,
-                            },
-                        })],
-                        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                            view: &target.depth_view,
-                            depth_ops: Some(wgpu::Operations {
-                                load: wgpu::LoadOp::Clear(1.0),
-                                store: wgpu::StoreOp::Discard,
-                            }),
-                            stencil_ops: None,
-                        }),
-                        timestamp_writes: None,
-                        occlusion_query_set: None,
-                        multiview_mask: None,
-                    });
+                    let mut pass = crate::gpu::ids::one_target_pass(
+                        encoder,
+                        "scene-core shadow map face",
+                        &target.color_view,
+                        f64::from(p.miss),
+                        &target.depth_view,
+                    );
                     if casters.count > 0 {
                         pass.set_pipeline(&self.raster);
                         pass.set_bind_group(0, &self.raster_bind, &offset);
