@@ -196,6 +196,10 @@ impl RelightTechnique {
         self.prepared = None;
         self.cache = None;
         self.shadowed = None;
+        // The GPU frame holds the last scene's solution: made again for this one.
+        if let Some((_, state)) = self.gpu.as_mut() {
+            *state = None;
+        }
         scene_core::contract::check(&scene)?;
         let k = solver::sources(&scene, &self.solver.banks)?.len();
         let rays = RayScene::build(&scene);

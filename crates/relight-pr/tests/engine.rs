@@ -417,5 +417,25 @@ fn the_gpu_technique_gives_the_cpu_techniques_image() {
         assert!(mean > 0.0);
         assert!(diff <= 1e-4 * mean, "{direct:?}: {diff} against {mean}");
         assert!(off * 200 <= got.pixels.len(), "{direct:?}: {off} pixels");
+        // Prepared again for another scene, as the main job does with one technique per
+        // column: the frame is the new scene's (the GPU frame kept the first scene's
+        // solution, and the corridor came out black on an H100).
+        let corridor = Arc::new(builtin::scene("corridor").unwrap());
+        let other = FrameRequest::camera(&corridor.cameras[0], w, h);
+        cpu.prepare(corridor.clone()).unwrap();
+        gpu.prepare(corridor.clone()).unwrap();
+        let (a, b) = (cpu.render(&other).unwrap(), gpu.render(&other).unwrap());
+        let m = a.mean().element_sum();
+        let d = a
+            .pixels
+            .iter()
+            .zip(&b.pixels)
+            .map(|(p, q)| (*p - *q).abs().element_sum())
+            .sum::<f32>()
+            / a.pixels.len() as f32;
+        assert!(
+            m > 0.0 && d <= 1e-4 * m,
+            "{direct:?} re-prepared: {d} against {m}"
+        );
     }
 }
