@@ -343,8 +343,7 @@ fn shadow_maps(
     repeats: usize,
     span: Option<&GpuSpan>,
 ) -> Result<(), String> {
-    use scene_core::shadowed_lights::gpu_maps::{CasterLayout, Casters, ShadowMapPass};
-    use wgpu::util::DeviceExt;
+    use scene_core::shadowed_lights::gpu_maps::{CasterVertices, ShadowMapPass};
     let shadows = ShadowSettings::default();
     let lights = LightSet::new(scene, &shadows)
         .map_err(|e| e.to_string())?
@@ -358,32 +357,12 @@ fn shadow_maps(
                 .map_err(|e| e.to_string())
         })
     })?;
-    let bounds = scene_core::Bounds::around(casters.iter().flatten().copied());
-    let (set, plan) =
-        LightSet::planned(lights.clone(), bounds, &shadows).map_err(|e| e.to_string())?;
-    let positions: Vec<[f32; 3]> = casters.iter().flatten().map(|p| p.to_array()).collect();
-    let vertices = ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("bench casters"),
-            contents: bytemuck::cast_slice(&positions),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-    let pass = ShadowMapPass::new(
-        ctx,
-        &set,
-        &plan,
-        CasterLayout {
-            stride: 12,
-            offset: 0,
-        },
-    )
-    .map_err(|e| e.to_string())?;
-    let casters_in = Casters {
-        vertices: &vertices,
-        indices: None,
-        count: positions.len() as u32,
-    };
+    let vertices = CasterVertices::new(ctx, &casters).map_err(|e| e.to_string())?;
+    let (set, plan) = LightSet::planned(lights.clone(), vertices.bounds(), &shadows)
+        .map_err(|e| e.to_string())?;
+    let pass =
+        ShadowMapPass::new(ctx, &set, &plan, CasterVertices::LAYOUT).map_err(|e| e.to_string())?;
+    let casters_in = vertices.casters();
     let (mut wall, mut gpu) = (Vec::new(), Vec::new());
     for i in 0..=repeats {
         let t0 = Instant::now();

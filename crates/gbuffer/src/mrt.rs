@@ -275,11 +275,6 @@ impl GpuRasterizer {
                     storage(4, wgpu::ShaderStages::FRAGMENT),
                 ],
             });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("gbuffer mrt"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
             let targets = GpuGBuffer::COLOR_FORMATS.map(|format| {
                 Some(wgpu::ColorTargetState {
                     format,
@@ -287,38 +282,14 @@ impl GpuRasterizer {
                     write_mask: wgpu::ColorWrites::ALL,
                 })
             });
-            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("gbuffer mrt"),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(GpuVertex::buffer_layout())],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: GpuGBuffer::DEPTH_STENCIL_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &targets,
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let pipeline = scene_core::gpu::raster::depth_tested_pipeline(
+                device,
+                "gbuffer mrt",
+                &layout,
+                &module,
+                &[Some(GpuVertex::buffer_layout())],
+                &targets,
+            );
             (layout, pipeline)
         })?;
         Ok(Self {

@@ -379,32 +379,15 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     let Some(ctx) = gpu_test_context() else {
         return;
     };
-    use scene_core::shadowed_lights::gpu_maps::{CasterLayout, Casters, ShadowMapPass};
-    use wgpu::util::DeviceExt;
+    use scene_core::shadowed_lights::gpu_maps::{CasterVertices, ShadowMapPass};
     let scene = builtin::scene("cornell-point").unwrap();
     let shadows = small_shadows();
     let casters = triangles(&scene);
     let cpu = LightSet::from_lights(engine_lights(&scene), &casters, &shadows).unwrap();
-    let bounds = scene_core::Bounds::around(casters.iter().flatten().copied());
-    let (planned, plan) = LightSet::planned(engine_lights(&scene), bounds, &shadows).unwrap();
-    let positions: Vec<[f32; 3]> = casters.iter().flatten().map(|p| p.to_array()).collect();
-    let vertices = ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("engine vertices"),
-            contents: bytemuck::cast_slice(&positions),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-    let maps = ShadowMapPass::new(
-        &ctx,
-        &planned,
-        &plan,
-        CasterLayout {
-            stride: 12,
-            offset: 0,
-        },
-    )
-    .unwrap();
+    let vertices = CasterVertices::new(&ctx, &casters).unwrap();
+    let (planned, plan) =
+        LightSet::planned(engine_lights(&scene), vertices.bounds(), &shadows).unwrap();
+    let maps = ShadowMapPass::new(&ctx, &planned, &plan, CasterVertices::LAYOUT).unwrap();
 
     let setup = Setup::with_prepared(scene.clone(), cpu.clone(), 0, 48, 36);
     let g = GpuGBuffer::upload(&ctx, &setup.full).unwrap();
@@ -423,16 +406,8 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     let mut isr = GpuIsr::new(&ctx, &planned).unwrap();
     let unshadowed = render(&mut isr);
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
-    maps.encode(
-        &mut encoder,
-        &planned,
-        &Casters {
-            vertices: &vertices,
-            indices: None,
-            count: positions.len() as u32,
-        },
-    )
-    .unwrap();
+    maps.encode(&mut encoder, &planned, &vertices.casters())
+        .unwrap();
     isr.copy_shadow_texels(&mut encoder, &maps).unwrap();
     ctx.queue.submit([encoder.finish()]);
     let got = render(&mut isr);

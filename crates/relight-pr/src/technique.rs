@@ -268,7 +268,6 @@ impl RelightTechnique {
     /// A frame on the GPU ([`RelightTechnique::on_gpu`]).
     fn render_gpu(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
         use scene_core::gpu::{FrameInputs, GpuFrame, GpuGBuffer};
-        let gpu_err = |e: scene_core::gpu::GpuError| Error::from(e);
         let (Some(p), Some((ctx, state))) = (self.prepared.as_ref(), self.gpu.as_mut()) else {
             return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
         };
@@ -316,7 +315,7 @@ impl RelightTechnique {
                     state.frame.set_pixel_direct(frame.view, (w, h), values);
                 }
                 direct_time = t.elapsed();
-                GpuGBuffer::upload(ctx, &cpu).map_err(gpu_err)?
+                GpuGBuffer::upload(ctx, &cpu).map_err(Error::from)?
             }
             _ => {
                 let target = scene_core::ViewTarget::new(frame.view, w, h);
@@ -324,7 +323,7 @@ impl RelightTechnique {
                     Some(mut v) if v.len() == 1 => v.pop().expect("one view"),
                     _ => {
                         let cpu = self.renderer.render_view(&frame.view, w, h)?;
-                        GpuGBuffer::upload(ctx, &cpu).map_err(gpu_err)?
+                        GpuGBuffer::upload(ctx, &cpu).map_err(Error::from)?
                     }
                 }
             }
@@ -353,7 +352,7 @@ impl RelightTechnique {
         };
         state.frame.encode(&mut encoder, &inputs, target)?;
         ctx.queue.submit([encoder.finish()]);
-        let pixels = ctx.read_texture_rgba32f(target).map_err(gpu_err)?;
+        let pixels = ctx.read_texture_rgba32f(target).map_err(Error::from)?;
         let image = Image {
             width: w,
             height: h,

@@ -22,6 +22,35 @@ use scene_core::ray::RayScene;
 use scene_core::shadowed_lights::{LightSet, ShadowSettings};
 use scene_core::{GBufferRenderer, View, builtin};
 
+/// How an image agrees with the one it should equal.
+struct Agreement {
+    /// The expected image's mean (the channels' sum per pixel).
+    mean: f64,
+    /// The mean absolute difference, in the same units.
+    diff: f64,
+    /// Pixels off by more than 1e-3 of the expected image's peak channel.
+    off: usize,
+}
+
+fn agreement(got: &[Vec3], want: &[Vec3]) -> Agreement {
+    let n = want.len() as f64;
+    let peak = want.iter().map(|p| p.max_element()).fold(0.0f32, f32::max);
+    Agreement {
+        mean: want.iter().map(|p| f64::from(p.element_sum())).sum::<f64>() / n,
+        diff: got
+            .iter()
+            .zip(want)
+            .map(|(a, b)| f64::from((*a - *b).abs().element_sum()))
+            .sum::<f64>()
+            / n,
+        off: got
+            .iter()
+            .zip(want)
+            .filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3 * peak)
+            .count(),
+    }
+}
+
 /// The Cornell box meshed into about `elements` elements and solved (to 2 % unshot, 4
 /// visibility samples), with its welding.
 fn solved_cornell(
@@ -176,29 +205,7 @@ fn the_frame_contract_gives_the_display_from_an_engine_gbuffer_and_creates_nothi
             .map(|p| Vec3::new(p[0], p[1], p[2]))
             .collect();
         let want = expected(&lights);
-        let n = got.len() as f64;
-        let mean = want
-            .pixels
-            .iter()
-            .map(|p| f64::from(p.element_sum()))
-            .sum::<f64>()
-            / n;
-        let diff = got
-            .iter()
-            .zip(&want.pixels)
-            .map(|(a, b)| f64::from((*a - *b).abs().element_sum()))
-            .sum::<f64>()
-            / n;
-        let peak = want
-            .pixels
-            .iter()
-            .map(|p| p.max_element())
-            .fold(0.0f32, f32::max);
-        let off = got
-            .iter()
-            .zip(&want.pixels)
-            .filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3 * peak)
-            .count();
+        let Agreement { mean, diff, off } = agreement(&got, &want.pixels);
         eprintln!(
             "frame {frame}: mean difference {:.2e} of the mean, {off} of {} pixels above 1e-3 \
              of the peak; created {created}",
@@ -228,9 +235,7 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     let Some(ctx) = gpu_test_context() else {
         return;
     };
-    use scene_core::Bounds;
-    use scene_core::shadowed_lights::gpu_maps::{CasterLayout, Casters, ShadowMapPass};
-    use wgpu::util::DeviceExt;
+    use scene_core::shadowed_lights::gpu_maps::{CasterVertices, ShadowMapPass};
     let (scene, meshing, solution, welding) = solved_cornell(200);
     let shadows = ShadowSettings {
         cube_resolution: 32,
@@ -241,26 +246,9 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     let casters = scene.triangle_corners();
     let lights = LightSet::new(&scene, &shadows).unwrap().lights;
     let cpu = LightSet::from_lights(lights.clone(), &casters, &shadows).unwrap();
-    let bounds = Bounds::around(casters.iter().flatten().copied());
-    let (planned, plan) = LightSet::planned(lights, bounds, &shadows).unwrap();
-    let positions: Vec<[f32; 3]> = casters.iter().flatten().map(|p| p.to_array()).collect();
-    let vertices = ctx
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("engine vertices"),
-            contents: bytemuck::cast_slice(&positions),
-            usage: wgpu::BufferUsages::VERTEX,
-        });
-    let maps = ShadowMapPass::new(
-        &ctx,
-        &planned,
-        &plan,
-        CasterLayout {
-            stride: 12,
-            offset: 0,
-        },
-    )
-    .unwrap();
+    let vertices = CasterVertices::new(&ctx, &casters).unwrap();
+    let (planned, plan) = LightSet::planned(lights, vertices.bounds(), &shadows).unwrap();
+    let maps = ShadowMapPass::new(&ctx, &planned, &plan, CasterVertices::LAYOUT).unwrap();
     let (w, h) = (48, 36);
     let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
     let g = GpuGBuffer::upload(
@@ -283,16 +271,7 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
         let mut method = RelightFrame::new(&ctx, gpu, &meshing, solution.sources.clone()).unwrap();
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         if copy {
-            maps.encode(
-                &mut encoder,
-                set,
-                &Casters {
-                    vertices: &vertices,
-                    indices: None,
-                    count: positions.len() as u32,
-                },
-            )
-            .unwrap();
+            maps.encode(&mut encoder, set, &vertices.casters()).unwrap();
             method
                 .gpu()
                 .copy_shadow_texels(&mut encoder, &maps)
@@ -383,31 +362,7 @@ fn the_gpu_technique_gives_the_cpu_techniques_image() {
         let mut gpu = technique(direct).on_gpu(ctx.clone());
         gpu.prepare(scene.clone()).unwrap();
         let got = gpu.render(&frame).unwrap();
-        let n = want.pixels.len() as f64;
-        let mean = want
-            .pixels
-            .iter()
-            .map(|p| f64::from(p.element_sum()))
-            .sum::<f64>()
-            / n;
-        let diff = got
-            .pixels
-            .iter()
-            .zip(&want.pixels)
-            .map(|(a, b)| f64::from((*a - *b).abs().element_sum()))
-            .sum::<f64>()
-            / n;
-        let peak = want
-            .pixels
-            .iter()
-            .map(|p| p.max_element())
-            .fold(0.0f32, f32::max);
-        let off = got
-            .pixels
-            .iter()
-            .zip(&want.pixels)
-            .filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3 * peak)
-            .count();
+        let Agreement { mean, diff, off } = agreement(&got.pixels, &want.pixels);
         eprintln!(
             "{direct:?}: mean difference {:.2e} of the mean, {off} of {} pixels above 1e-3 of \
              the peak",
@@ -425,14 +380,9 @@ fn the_gpu_technique_gives_the_cpu_techniques_image() {
         cpu.prepare(corridor.clone()).unwrap();
         gpu.prepare(corridor.clone()).unwrap();
         let (a, b) = (cpu.render(&other).unwrap(), gpu.render(&other).unwrap());
-        let m = a.mean().element_sum();
-        let d = a
-            .pixels
-            .iter()
-            .zip(&b.pixels)
-            .map(|(p, q)| (*p - *q).abs().element_sum())
-            .sum::<f32>()
-            / a.pixels.len() as f32;
+        let Agreement {
+            mean: m, diff: d, ..
+        } = agreement(&b.pixels, &a.pixels);
         assert!(
             m > 0.0 && d <= 1e-4 * m,
             "{direct:?} re-prepared: {d} against {m}"

@@ -31,6 +31,7 @@ pub mod frame;
 pub mod host;
 pub mod ids;
 pub mod layout;
+pub mod raster;
 mod scene;
 pub mod shader;
 pub mod timing;
@@ -875,7 +876,7 @@ impl GpuGBuffer {
     /// Format of [`GpuGBuffer::triangle_id`].
     pub const TRIANGLE_ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
     /// Format of [`GpuGBuffer::depth_stencil`].
-    pub const DEPTH_STENCIL_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+    pub const DEPTH_STENCIL_FORMAT: wgpu::TextureFormat = raster::DEPTH_FORMAT;
     /// The colour attachment formats in render-target order: albedo, normal, depth,
     /// triangle id.
     pub const COLOR_FORMATS: [wgpu::TextureFormat; 4] = [

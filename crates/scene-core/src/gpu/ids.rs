@@ -65,7 +65,6 @@ pub struct TriangleIdPass {
     vertices: u32,
     writer: FrameWriter,
     targets: Mutex<Option<Targets>>,
-    device: wgpu::Device,
     ctx: GpuContext,
 }
 
@@ -141,43 +140,14 @@ impl TriangleIdPass {
                     },
                 ],
             });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("scene-core triangle ids"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("scene-core triangle ids"),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: GpuGBuffer::DEPTH_STENCIL_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(Self::FORMAT.into())],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let pipeline = super::raster::depth_tested_pipeline(
+                device,
+                "scene-core triangle ids",
+                &layout,
+                &module,
+                &[],
+                &[Some(Self::FORMAT.into())],
+            );
             let params = ctx.frame_buffer(
                 "triangle id view",
                 std::mem::size_of::<Params>() as u64,
@@ -205,7 +175,6 @@ impl TriangleIdPass {
                 vertices,
                 writer: FrameWriter::new(device, 256),
                 targets: Mutex::new(None),
-                device: device.clone(),
                 ctx: ctx.clone(),
             }
         })
@@ -306,29 +275,32 @@ impl TriangleIdPass {
         let mut bound = self.bind.lock().unwrap_or_else(|e| e.into_inner());
         if bound.as_ref().is_none_or(|(k, _)| k != depth) {
             let depth_view = depth.create_view(&Default::default());
-            let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("scene-core triangle ids"),
-                layout: &self.layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: self.params.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: self.corners.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: wgpu::BindingResource::TextureView(&depth_view),
-                    },
-                ],
-            });
+            let bind = self
+                .ctx
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("scene-core triangle ids"),
+                    layout: &self.layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: self.params.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: self.corners.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: wgpu::BindingResource::TextureView(&depth_view),
+                        },
+                    ],
+                });
             *bound = Some((depth.clone(), bind));
         }
         let bind = bound.as_ref().expect("made above").1.clone();
         drop(bound);
-        let mut pass = one_target_pass(
+        let mut pass = super::raster::one_target_pass(
             encoder,
             "scene-core triangle ids",
             &t.ids_view,
@@ -359,44 +331,4 @@ impl TriangleIdPass {
         }
         GpuGBuffer::from_textures(g.albedo.clone(), g.normal.clone(), g.depth.clone(), ids)
     }
-}
-
-/// A render pass of one colour target cleared to `(clear, 0, 0, 0)` (a single-channel value:
-/// an id, a depth) and a `Depth32Float` attachment cleared to 1 and discarded after: the
-/// shape of the toolkit's one-value raster passes (the id raster, the shadow-map faces).
-pub(crate) fn one_target_pass<'e>(
-    encoder: &'e mut wgpu::CommandEncoder,
-    label: &str,
-    colour: &wgpu::TextureView,
-    clear: f64,
-    depth: &wgpu::TextureView,
-) -> wgpu::RenderPass<'e> {
-    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some(label),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: colour,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(wgpu::Color {
-                    r: clear,
-                    g: 0.0,
-                    b: 0.0,
-                    a: 0.0,
-                }),
-                store: wgpu::StoreOp::Store,
-            },
-        })],
-        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-            view: depth,
-            depth_ops: Some(wgpu::Operations {
-                load: wgpu::LoadOp::Clear(1.0),
-                store: wgpu::StoreOp::Discard,
-            }),
-            stencil_ops: None,
-        }),
-        timestamp_writes: None,
-        occlusion_query_set: None,
-        multiview_mask: None,
-    })
 }

@@ -52,6 +52,63 @@ pub struct Casters<'a> {
     pub count: u32,
 }
 
+/// Shadow casters held as corner lists (an engine's, or a `Scene`'s
+/// [`crate::Scene::triangle_corners`]) uploaded as a vertex buffer of positions in
+/// [`CasterVertices::LAYOUT`]: what [`ShadowMapPass`] draws when the host has no vertex
+/// buffer of its own to hand over, and the casters' bounds for [`LightSet::planned`].
+#[derive(Debug)]
+pub struct CasterVertices {
+    vertices: wgpu::Buffer,
+    count: u32,
+    bounds: crate::Bounds,
+}
+
+impl CasterVertices {
+    /// Three `f32` per vertex, nothing else.
+    pub const LAYOUT: CasterLayout = CasterLayout {
+        stride: 12,
+        offset: 0,
+    };
+
+    /// Uploads `triangles` (three vertices each, in order). Refused by name when they are
+    /// too many to draw.
+    pub fn new(ctx: &GpuContext, triangles: &[[Vec3; 3]]) -> Result<Self, GpuError> {
+        let count = u32::try_from(triangles.len() * 3).map_err(|_| {
+            GpuError::Validation(format!(
+                "{} caster triangles are too many to draw",
+                triangles.len()
+            ))
+        })?;
+        let positions: Vec<[f32; 3]> = triangles.iter().flatten().map(|p| p.to_array()).collect();
+        let vertices = ctx.validated(|| {
+            ctx.buffer_with(
+                "shadow casters",
+                bytemuck::cast_slice(&positions),
+                wgpu::BufferUsages::VERTEX,
+            )
+        })?;
+        Ok(Self {
+            vertices,
+            count,
+            bounds: crate::Bounds::around(triangles.iter().flatten().copied()),
+        })
+    }
+
+    /// The casters to draw.
+    pub fn casters(&self) -> Casters<'_> {
+        Casters {
+            vertices: &self.vertices,
+            indices: None,
+            count: self.count,
+        }
+    }
+
+    /// Their bounds.
+    pub fn bounds(&self) -> crate::Bounds {
+        self.bounds
+    }
+}
+
 /// `Face` in `shadow_maps.wgsl` (176 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
@@ -230,41 +287,18 @@ impl ShadowMapPass {
                 offset: layout.offset,
                 shader_location: 0,
             }];
-            let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("scene-core shadow maps raster"),
-                layout: Some(&pipeline_layout(&raster_layout)),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: layout.stride,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &attributes,
-                    })],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: wgpu::TextureFormat::Depth32Float,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(wgpu::TextureFormat::R32Float.into())],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let raster = crate::gpu::raster::depth_tested_pipeline(
+                device,
+                "scene-core shadow maps raster",
+                &raster_layout,
+                &module,
+                &[Some(wgpu::VertexBufferLayout {
+                    array_stride: layout.stride,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &attributes,
+                })],
+                &[Some(wgpu::TextureFormat::R32Float.into())],
+            );
             let compute = |entry: &str| {
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some("scene-core shadow maps filter"),
@@ -523,7 +557,7 @@ impl ShadowMapPass {
             for _ in 0..faces {
                 let offset = [(u64::from(face) * self.face_stride) as u32];
                 {
-                    let mut pass = crate::gpu::ids::one_target_pass(
+                    let mut pass = crate::gpu::raster::one_target_pass(
                         encoder,
                         "scene-core shadow map face",
                         &target.color_view,
