@@ -152,6 +152,7 @@ pub fn run(o: &Options) -> Result<(), String> {
     let stats = c.stats();
     let ldc = technique.ldc().expect("built above");
     let (exr, png) = crate::write_view(&o.out, &scene, &image, o.view.exposure)?;
+    let served = write_served(&o.out, &scene, ldc, &at(&state), &technique.settings)?;
     let frame_ms = ms(steady);
     let sources = ldc.sources.sources();
     let summary = serde_json::json!({
@@ -203,6 +204,55 @@ pub fn run(o: &Options) -> Result<(), String> {
         after_change.relight.as_secs_f64() * 1e3,
         timings.missing
     );
-    println!("{}\n{}\n{}", exr.display(), png.display(), json.display());
+    println!(
+        "{}\n{}\n{}\n{}",
+        exr.display(),
+        png.display(),
+        served.display(),
+        json.display()
+    );
     Ok(())
+}
+
+/// Writes `DIR/served.exr`: how each pixel of the view found its light (red: the layers
+/// of its plane, green: the fallback, blue: nothing, black: background), from the CPU
+/// lookup of the same G-buffer size.
+fn write_served(
+    out: &std::path::Path,
+    scene: &std::sync::Arc<scene_core::Scene>,
+    ldc: &ibrr_ldc::Ldc,
+    frame: &FrameRequest,
+    settings: &IbrrSettings,
+) -> Result<std::path::PathBuf, String> {
+    use scene_core::GBufferRenderer;
+    let mut raster = gbuffer::CpuRasterizer::new();
+    raster.prepare(scene.clone()).map_err(|e| e.to_string())?;
+    let g = raster
+        .render_view(&frame.view, frame.width, frame.height)
+        .map_err(|e| e.to_string())?;
+    let r = ibrr_ldc::reconstruct(
+        ldc,
+        &g,
+        &frame.view,
+        settings.lookup,
+        settings.fallback_radius,
+    );
+    let pixels = r
+        .served
+        .iter()
+        .map(|s| match s {
+            ibrr_ldc::Served::Background => glam::Vec3::ZERO,
+            ibrr_ldc::Served::Layer => glam::Vec3::X,
+            ibrr_ldc::Served::Fallback => glam::Vec3::Y,
+            ibrr_ldc::Served::Missing => glam::Vec3::Z,
+        })
+        .collect();
+    let image = scene_core::Image {
+        width: frame.width,
+        height: frame.height,
+        pixels,
+    };
+    let path = out.join("served.exr");
+    image.write_exr(&path).map_err(|e| e.to_string())?;
+    Ok(path)
 }

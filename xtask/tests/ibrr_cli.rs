@@ -44,6 +44,19 @@ fn ibrr_writes_the_view_and_the_summary() {
     assert!(summary["irpls"].as_u64().unwrap() >= 1);
     assert!(summary["construction_seconds"].as_f64().unwrap() > 0.0);
     assert!(summary["pixels_without_layer"].is_u64());
+    // `served.exr` marks how each pixel found its light: its counts are the summary's.
+    let served = scene_core::Image::read(&out.join("served.exr")).unwrap();
+    assert_eq!((served.width, served.height), (32, 24));
+    let count = |f: fn(glam::Vec3) -> f32| served.pixels.iter().filter(|p| f(**p) > 0.5).count();
+    assert!(count(|p| p.x) > 0, "no pixel from a layer");
+    assert_eq!(
+        count(|p| p.y) as u64,
+        summary["pixels_from_fallback"].as_u64().unwrap()
+    );
+    assert_eq!(
+        count(|p| p.z) as u64,
+        summary["pixels_without_layer"].as_u64().unwrap()
+    );
     // The light's colour is applied by relighting, not by a rebuild: red only.
     let (red_summary, red) = run(&["--light", "point:0=1,0,0"]);
     assert_eq!(red_summary["rebuild_ms"].as_f64().unwrap(), 0.0);

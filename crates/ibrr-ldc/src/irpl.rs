@@ -150,9 +150,16 @@ enum Start {
     Point {
         light: u32,
     },
-    /// A directional light or one of the sky's directions: its unit travel direction.
+    /// A directional light: its unit travel direction.
     Directional {
         direction: Vec3,
+    },
+    /// One of the sky's median-cut regions ([`scene_core::sky::Sky::lights`]): each
+    /// particle draws its own direction within the region
+    /// ([`scene_core::sky::Sky::sample_light`]), so the paths carry the sky as it is, not
+    /// its fixed directions (which stay the exact sources of its direct light).
+    SkyRegion {
+        region: u32,
     },
     Emitter {
         triangle: usize,
@@ -385,7 +392,18 @@ fn walks(
         ));
     }
     // The scene's directional lights, then the sky as its median-cut directions.
+    let mut sky_region = 0u32;
     for (id, l) in scene_core::lights::directional_sources(scene) {
+        let start = if id == LightId::Sky {
+            sky_region += 1;
+            Start::SkyRegion {
+                region: sky_region - 1,
+            }
+        } else {
+            Start::Directional {
+                direction: l.direction.normalize_or_zero(),
+            }
+        };
         let s = lights.get(id);
         let dir = l.direction.normalize_or_zero();
         if !s.enabled || dir == Vec3::ZERO {
@@ -403,8 +421,11 @@ fn walks(
                 depth: 0,
             });
         }
+        // Its power through the disk the particles start on (for a sky region, the
+        // region's light along its mean direction: the share of the paths it gets; each
+        // particle's own power comes from its direction's draw).
         starts.push((
-            Start::Directional { direction: dir },
+            start,
             l.irradiance * s.color * (std::f32::consts::PI * radius * radius) * s.indirect,
             id,
         ));
@@ -559,6 +580,32 @@ impl Walker<'_> {
                     centre - dir * (2.0 * radius) + t * disk.x + b * disk.y,
                     dir,
                     power,
+                )
+            }
+            Start::SkyRegion { region } => {
+                // The region's light `int L dw` times the disk's area, drawn as a
+                // direction with weight `L dw / p` ([`Sky::sample_light`]): the particle
+                // carries that weight in place of the region's mean, rescaled from the
+                // share the start was picked with.
+                let Some(sky) = scene.sky.as_ref() else {
+                    return;
+                };
+                let Some(light) = sky.lights().get(region as usize) else {
+                    return;
+                };
+                let u = Vec3::new(u3, u4, halton(path, 5, seed));
+                let Some((towards_sky, weight)) = sky.sample_light(region as usize, u) else {
+                    return;
+                };
+                let dir = -towards_sky;
+                let mean = light.irradiance;
+                let scale = Vec3::select(mean.cmpgt(Vec3::ZERO), weight / mean, Vec3::ZERO);
+                let (t, b) = scene_core::view::orthonormal_basis(dir);
+                let disk = scene_core::sampling::concentric_disk(Vec2::new(u1, u2)) * radius;
+                (
+                    centre - dir * (2.0 * radius) + t * disk.x + b * disk.y,
+                    dir,
+                    power * scale,
                 )
             }
             Start::Emitter { triangle } => {
