@@ -96,6 +96,10 @@ pub struct Construction {
     /// First IRPL of the current round (0 for the first; [`Construction::extend`] starts
     /// the next).
     round_start: usize,
+    /// The order the founding pass takes the IRPLs in: each round's, sorted by
+    /// [`founding_key`], so the layers founded (and so every plane) do not depend on the
+    /// order the IRPLs were given in.
+    founding_order: Vec<usize>,
     /// Layers that existed before the current round.
     layers_before: usize,
     /// The exact mode's catch-up pass of a later round: the earlier IRPLs light the layers
@@ -178,6 +182,7 @@ impl Construction {
         let sources = scene_core::lights::light_ids(&scene);
         let builder = LdcBuilder::new(frame, settings.max_bytes, sources.len())?;
         let steps_total = irpls.irpls.len() * if settings.splat == Splat::Exact { 2 } else { 1 };
+        let order = founding_order(&irpls.irpls, 0);
         Ok(Self {
             stats: ConstructionStats {
                 irpls_total: irpls.irpls.len(),
@@ -192,6 +197,7 @@ impl Construction {
             next: 0,
             founding: settings.splat == Splat::Exact,
             round_start: 0,
+            founding_order: order,
             layers_before: 0,
             catch_up: false,
             caught_up: false,
@@ -268,6 +274,8 @@ impl Construction {
         );
         let added = self.irpls.irpls.len() - before;
         let exact = self.settings.splat == Splat::Exact;
+        self.founding_order
+            .extend(founding_order(&self.irpls.irpls, before));
         self.round_start = before;
         self.layers_before = self.builder.layer_count();
         self.founding = exact;
@@ -359,7 +367,12 @@ impl Construction {
             let mut targets = Vec::new();
             let mut counts = Vec::new();
             let mut bytes = 0u64;
-            for irpl in &self.irpls.irpls[self.next..(self.next + BATCH).min(end)] {
+            for k in self.next..(self.next + BATCH).min(end) {
+                let irpl = &self.irpls.irpls[if self.founding {
+                    self.founding_order[k]
+                } else {
+                    k
+                }];
                 let views = self.views_of(irpl);
                 let need: u64 = views.iter().map(|v| render_bytes(v.width, v.height)).sum();
                 if bytes + need > room {
@@ -993,4 +1006,28 @@ fn unoccluded(renders: &[Render], q: Vec3, n: Vec3, eps_distance: f32, eps_norma
         return seen;
     }
     0.0
+}
+
+/// The indices `from..` of `irpls` in the order the founding pass takes them: exact sources
+/// first, then path nodes by path and depth (the order the walks produce them in, so a
+/// round added later keeps the order of asking for all its paths at once), ties broken by
+/// position, normal and power. Which sample founds a layer decides its plane, so a fixed
+/// order makes the layers independent of the order the IRPLs were given in.
+fn founding_order(irpls: &[Irpl], from: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (from..irpls.len()).collect();
+    order.sort_by_key(|&i| founding_key(&irpls[i]));
+    order
+}
+
+/// The sort key of [`founding_order`].
+fn founding_key(i: &Irpl) -> (bool, u32, u32, [u32; 3], [u32; 3], [u32; 3]) {
+    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    (
+        i.is_path_node(),
+        i.path,
+        i.depth,
+        bits(i.position),
+        bits(i.normal),
+        bits(i.power),
+    )
 }

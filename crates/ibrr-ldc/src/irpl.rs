@@ -29,7 +29,9 @@ use glam::{Vec2, Vec3};
 use scene_core::Scene;
 use scene_core::lights::{Emitters, LightId, LightState};
 use scene_core::ray::{Hit, RayScene};
-use scene_core::sampling::{Rng, cosine_hemisphere, halton, uniform_sphere, uniform_triangle};
+use scene_core::sampling::{
+    Rng, cosine_hemisphere, halton, hash_seed, sobol_1d, sobol_2d, uniform_sphere, uniform_triangle,
+};
 
 /// What an IRPL is.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -686,12 +688,17 @@ impl Walker<'_> {
             // Survival equals the albedo's largest channel (at most 0.999,
             // `scene_core::scene::ALBEDO_MAX`), so the carried power never grows: a cap below
             // the albedo multiplied it by rho / cap at every bounce.
+            // Survival and the bounce's direction are stratified over the paths, one
+            // padded scrambled-Sobol sequence per depth (`sobol_1d`, `sobol_2d`): the
+            // paths that reach a depth split between surviving and absorbed, and share
+            // out the hemisphere, in the proportions asked, instead of by chance.
             let q = s.albedo.max_element().min(1.0);
-            if q <= 0.0 || rng.next_f32() >= q {
+            let at_depth = |k: u64| hash_seed(seed_value, k, u64::from(depth));
+            if q <= 0.0 || sobol_1d(path as u32, at_depth(0x5a)) >= q {
                 break;
             }
             carried = reflected / q;
-            let nd = cosine_hemisphere(s.ns, rng.next_vec2());
+            let nd = cosine_hemisphere(s.ns, sobol_2d(path as u32, at_depth(0xd1)));
             if nd.dot(s.ng) <= 0.0 {
                 break;
             }
