@@ -208,9 +208,16 @@ fn a_room_lit_through_a_window_by_the_sky_matches_the_reference_in_every_method(
         eprintln!(
             "{name}: sky {e_sky:.3} off the reference, a sun through the window {e_usual:.3}"
         );
+        // The sky may cost a method half its usual error more, or what its median-cut
+        // directions cost the reference itself (`stand_in`, 0.21 here: the methods shade
+        // those directions, the reference integrates the sky), whichever is larger. With
+        // `e_usual + 0.05` in place of the latter, the IBRR with camera importance (low
+        // noise, so the directions' error is most of its error) read 1.44 x its usual
+        // error on average over 8 seeds (0.427 against 0.297) and passed on seed 1 only
+        // by chance.
         assert!(
-            e_sky <= (1.5 * e_usual).max(e_usual + 0.05),
-            "{name}: sky {e_sky}, usual {e_usual}"
+            e_sky <= (1.5 * e_usual).max(e_usual + stand_in),
+            "{name}: sky {e_sky}, usual {e_usual}, stand-in {stand_in}"
         );
         // The sky switched off through the light state: black.
         let dark = t
