@@ -152,7 +152,7 @@ pub fn run(o: &Options) -> Result<(), String> {
     let stats = c.stats();
     let ldc = technique.ldc().expect("built above");
     let (exr, png) = crate::write_view(&o.out, &scene, &image, o.view.exposure)?;
-    let served = write_served(&o.out, &scene, ldc, &at(&state), &technique.settings)?;
+    let served = write_served(&o.out, technique.last_served(), o.view.width, o.view.height)?;
     let frame_ms = ms(steady);
     let sources = ldc.sources.sources();
     let summary = serde_json::json!({
@@ -214,31 +214,15 @@ pub fn run(o: &Options) -> Result<(), String> {
     Ok(())
 }
 
-/// Writes `DIR/served.exr`: how each pixel of the view found its light (red: the layers
-/// of its plane, green: the fallback, blue: nothing, black: background), from the CPU
-/// lookup of the same G-buffer size.
+/// Writes `DIR/served.exr`: how each pixel of the written view found its light (red: the
+/// layers of its plane, green: the fallback, blue: nothing, black: background).
 fn write_served(
     out: &std::path::Path,
-    scene: &std::sync::Arc<scene_core::Scene>,
-    ldc: &ibrr_ldc::Ldc,
-    frame: &FrameRequest,
-    settings: &IbrrSettings,
+    served: &[ibrr_ldc::Served],
+    width: u32,
+    height: u32,
 ) -> Result<std::path::PathBuf, String> {
-    use scene_core::GBufferRenderer;
-    let mut raster = gbuffer::CpuRasterizer::new();
-    raster.prepare(scene.clone()).map_err(|e| e.to_string())?;
-    let g = raster
-        .render_view(&frame.view, frame.width, frame.height)
-        .map_err(|e| e.to_string())?;
-    let r = ibrr_ldc::reconstruct(
-        ldc,
-        &g,
-        &frame.view,
-        settings.lookup,
-        settings.fallback_radius,
-    );
-    let pixels = r
-        .served
+    let pixels = served
         .iter()
         .map(|s| match s {
             ibrr_ldc::Served::Background => glam::Vec3::ZERO,
@@ -248,8 +232,8 @@ fn write_served(
         })
         .collect();
     let image = scene_core::Image {
-        width: frame.width,
-        height: frame.height,
+        width,
+        height,
         pixels,
     };
     let path = out.join("served.exr");

@@ -409,37 +409,16 @@ impl GpuRasterizer {
                     a: 0.0,
                 },
             ];
-            let attachments: Vec<Option<wgpu::RenderPassColorAttachment<'_>>> = views
-                .iter()
-                .zip(clears)
-                .map(|(view, clear)| {
-                    Some(wgpu::RenderPassColorAttachment {
-                        view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(clear),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })
-                })
-                .collect();
-            let depth_view = &target_views.depth;
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("gbuffer mrt"),
-                color_attachments: &attachments,
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let targets: Vec<(&wgpu::TextureView, wgpu::Color)> =
+                views.iter().zip(clears).collect();
+            // The depth is stored: `reconstruct` reads the hardware depth back.
+            let mut pass = scene_core::gpu::raster::depth_tested_pass(
+                encoder,
+                "gbuffer mrt",
+                &targets,
+                &target_views.depth,
+                wgpu::StoreOp::Store,
+            );
             let count = scene.geometry.vertex_count;
             if count > 0 {
                 pass.set_pipeline(&self.pipeline);

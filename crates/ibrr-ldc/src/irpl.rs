@@ -396,18 +396,16 @@ fn walks(
     // The scene's directional lights, then the sky as its median-cut directions.
     let mut sky_region = 0u32;
     for (id, l) in scene_core::lights::directional_sources(scene) {
+        let dir = l.direction.normalize_or_zero();
         let start = if id == LightId::Sky {
             sky_region += 1;
             Start::SkyRegion {
                 region: sky_region - 1,
             }
         } else {
-            Start::Directional {
-                direction: l.direction.normalize_or_zero(),
-            }
+            Start::Directional { direction: dir }
         };
         let s = lights.get(id);
-        let dir = l.direction.normalize_or_zero();
         if !s.enabled || dir == Vec3::ZERO {
             continue;
         }
@@ -558,6 +556,13 @@ impl Walker<'_> {
         let (u3, u4) = (halton(path, 3, seed), halton(path, 4, seed));
         let mut rng = Rng::new(seed_value, path);
         let path_id = path as u32;
+        // A particle travelling along `dir` from afar starts on the disk across the
+        // scene's bounding sphere, `2 radius` before its centre.
+        let on_disk = |dir: Vec3| {
+            let (t, b) = scene_core::view::orthonormal_basis(dir);
+            let disk = scene_core::sampling::concentric_disk(Vec2::new(u1, u2)) * radius;
+            centre - dir * (2.0 * radius) + t * disk.x + b * disk.y
+        };
         // The particle: origin, direction, carried power (before reflection).
         let (mut o, mut d, mut carried) = match start {
             Start::Point { light } => {
@@ -575,15 +580,7 @@ impl Walker<'_> {
                     }
                 }
             }
-            Start::Directional { direction: dir } => {
-                let (t, b) = scene_core::view::orthonormal_basis(dir);
-                let disk = scene_core::sampling::concentric_disk(Vec2::new(u1, u2)) * radius;
-                (
-                    centre - dir * (2.0 * radius) + t * disk.x + b * disk.y,
-                    dir,
-                    power,
-                )
-            }
+            Start::Directional { direction: dir } => (on_disk(dir), dir, power),
             Start::SkyRegion { region } => {
                 // The region's light `int L dw` times the disk's area, drawn as a
                 // direction with weight `L dw / p` ([`Sky::sample_light`]): the particle
@@ -599,16 +596,9 @@ impl Walker<'_> {
                 let Some((towards_sky, weight)) = sky.sample_light(region as usize, u) else {
                     return;
                 };
-                let dir = -towards_sky;
                 let mean = light.irradiance;
                 let scale = Vec3::select(mean.cmpgt(Vec3::ZERO), weight / mean, Vec3::ZERO);
-                let (t, b) = scene_core::view::orthonormal_basis(dir);
-                let disk = scene_core::sampling::concentric_disk(Vec2::new(u1, u2)) * radius;
-                (
-                    centre - dir * (2.0 * radius) + t * disk.x + b * disk.y,
-                    dir,
-                    power * scale,
-                )
+                (on_disk(-towards_sky), -towards_sky, power * scale)
             }
             Start::Emitter { triangle } => {
                 let t = &emitters.triangles[triangle];

@@ -43,7 +43,7 @@ use crate::construct::Construction;
 use crate::error::IbrrError;
 use crate::gpu::GpuLdc;
 use crate::ldc::Ldc;
-use crate::reconstruct::{Reconstruction, reconstruct, shade};
+use crate::reconstruct::{Reconstruction, Served, reconstruct, shade};
 use crate::settings::IbrrSettings;
 use scene_core::gpu::GpuGBuffer;
 
@@ -92,6 +92,8 @@ pub struct IbrrTechnique {
     /// the LDC changes).
     gpu: Option<(scene_core::gpu::GpuContext, Option<GpuLdc>)>,
     timings: FrameTimings,
+    /// How each pixel of the last CPU frame found its light (empty after a GPU frame).
+    served: Vec<Served>,
     name: String,
 }
 
@@ -119,6 +121,7 @@ impl IbrrTechnique {
             shown: 0,
             gpu: None,
             timings: FrameTimings::default(),
+            served: Vec::new(),
             name: "ibrr".into(),
         }
     }
@@ -158,6 +161,12 @@ impl IbrrTechnique {
     /// The figures of the last frame.
     pub fn last_timings(&self) -> FrameTimings {
         self.timings
+    }
+
+    /// How each pixel of the last frame found its light, row-major ([`Served`]); empty
+    /// when that frame was reconstructed on the GPU, which only counts them.
+    pub fn last_served(&self) -> &[Served] {
+        &self.served
     }
 
     /// [`Technique::prepare`] under a light state, reporting `(steps done, steps total)`
@@ -358,6 +367,7 @@ impl Technique for IbrrTechnique {
             let t = Instant::now();
             let gpu_ldc = uploaded.as_mut().expect("uploaded above");
             let (image, counts) = gpu_ldc.render(&c.scene, &g, &frame.view, frame.lights)?;
+            self.served.clear();
             self.timings = FrameTimings {
                 rebuild,
                 relight,
@@ -389,6 +399,7 @@ impl Technique for IbrrTechnique {
             missing: r.missing,
             fallback: r.fallback,
         };
+        self.served = r.served;
         Ok(image)
     }
 }

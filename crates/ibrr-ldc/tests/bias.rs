@@ -12,8 +12,8 @@ mod common;
 use std::sync::Arc;
 
 use ibrr_ldc::IbrrSettings;
-use scene_core::reference::{Bounces, PathTracer, PixelClass};
-use scene_core::{FrameRequest, builtin, luminance};
+use scene_core::builtin;
+use scene_core::reference::Bounces;
 
 const SIZE: u32 = 32;
 const SEEDS: u64 = 24;
@@ -21,17 +21,7 @@ const SEEDS: u64 = 24;
 fn bias_over_seeds(name: &str) -> ([f64; 3], [f64; 3]) {
     let scene = Arc::new(builtin::scene(name).unwrap());
     let reference = common::reference(&scene, SIZE, 4096, Bounces::Unlimited);
-    let frame = FrameRequest::camera(&scene.cameras[0], SIZE, SIZE);
-    let classes = PathTracer::new(&scene).pixel_classes(&frame.view, SIZE, SIZE);
-    let mut lum: Vec<f32> = (0..classes.len())
-        .filter(|&i| classes[i] == PixelClass::Surface)
-        .map(|i| luminance(reference.pixels[i]))
-        .collect();
-    lum.sort_by(f32::total_cmp);
-    let cut = lum[((lum.len() as f64) * 0.99).ceil() as usize - 1];
-    let mask: Vec<bool> = (0..classes.len())
-        .map(|i| classes[i] == PixelClass::Surface && luminance(reference.pixels[i]) <= cut)
-        .collect();
+    let pixels = common::lit_surface_pixels(&scene, &reference, SIZE);
     let per_seed: Vec<[f64; 3]> = (1..=SEEDS)
         .map(|seed| {
             let settings = IbrrSettings {
@@ -41,7 +31,7 @@ fn bias_over_seeds(name: &str) -> ([f64; 3], [f64; 3]) {
             };
             let (img, _) = common::ibrr_image(&scene, settings, SIZE);
             let (mut t, mut r) = ([0.0f64; 3], [0.0f64; 3]);
-            for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+            for &i in &pixels {
                 for c in 0..3 {
                     t[c] += f64::from(img.pixels[i][c]);
                     r[c] += f64::from(reference.pixels[i][c]);

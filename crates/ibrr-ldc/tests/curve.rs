@@ -11,8 +11,8 @@ mod common;
 use std::sync::Arc;
 
 use ibrr_ldc::IbrrSettings;
-use scene_core::reference::{Bounces, PathTracer, PixelClass};
-use scene_core::{FrameRequest, builtin, luminance};
+use scene_core::reference::Bounces;
+use scene_core::{builtin, luminance};
 
 const SIZE: u32 = 32;
 const SEEDS: u64 = 8;
@@ -23,17 +23,7 @@ fn the_error_falls_as_irpls_are_added() {
     for name in ["cornell", "cornell-point"] {
         let scene = Arc::new(builtin::scene(name).unwrap());
         let reference = common::reference(&scene, SIZE, 4096, Bounces::Unlimited);
-        let frame = FrameRequest::camera(&scene.cameras[0], SIZE, SIZE);
-        let classes = PathTracer::new(&scene).pixel_classes(&frame.view, SIZE, SIZE);
-        let mut lum: Vec<f32> = (0..classes.len())
-            .filter(|&i| classes[i] == PixelClass::Surface)
-            .map(|i| luminance(reference.pixels[i]))
-            .collect();
-        lum.sort_by(f32::total_cmp);
-        let cut = lum[((lum.len() as f64) * 0.99).ceil() as usize - 1];
-        let pixels: Vec<usize> = (0..classes.len())
-            .filter(|&i| classes[i] == PixelClass::Surface && luminance(reference.pixels[i]) <= cut)
-            .collect();
+        let pixels = common::lit_surface_pixels(&scene, &reference, SIZE);
         let ref_sum: f64 = pixels
             .iter()
             .map(|&i| f64::from(luminance(reference.pixels[i])))

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use ibrr_ldc::{IbrrSettings, IbrrTechnique};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::reference::{Bounces, ReferenceSettings, render};
+use scene_core::reference::{Bounces, PathTracer, PixelClass, ReferenceSettings, render};
 use scene_core::{FrameRequest, Image, Scene, Technique, View, luminance};
 
 /// Relative mean absolute error and relative bias of `a` against `b` (luminance, over all
@@ -84,4 +84,21 @@ pub fn reference(scene: &Scene, size: u32, spp: u32, bounces: Bounces) -> Image 
         None,
     )
     .image
+}
+
+/// The lit-surface pixels of camera 0's view of `scene` at `size x size`, as the main job
+/// counts them: pixels whose centre sees a reflecting surface (emitters and background
+/// left out) and whose `reference` luminance is at most its 99th percentile over them.
+pub fn lit_surface_pixels(scene: &Scene, reference: &Image, size: u32) -> Vec<usize> {
+    let frame = FrameRequest::camera(&scene.cameras[0], size, size);
+    let classes = PathTracer::new(scene).pixel_classes(&frame.view, size, size);
+    let mut lum: Vec<f32> = (0..classes.len())
+        .filter(|&i| classes[i] == PixelClass::Surface)
+        .map(|i| luminance(reference.pixels[i]))
+        .collect();
+    lum.sort_by(f32::total_cmp);
+    let cut = lum[((lum.len() as f64) * 0.99).ceil() as usize - 1];
+    (0..classes.len())
+        .filter(|&i| classes[i] == PixelClass::Surface && luminance(reference.pixels[i]) <= cut)
+        .collect()
 }

@@ -56,37 +56,38 @@ pub fn depth_tested_pipeline(
     })
 }
 
-/// A render pass of one colour target cleared to `(clear, 0, 0, 0)` (a single-channel value:
-/// an id, a depth) and a [`DEPTH_FORMAT`] attachment cleared to 1 and discarded after: the
-/// one-value raster passes (the id raster, the shadow-map faces).
-pub fn one_target_pass<'e>(
+/// A render pass over colour `targets`, each cleared to its colour and stored, and a
+/// [`DEPTH_FORMAT`] attachment cleared to 1 and then stored or discarded (`depth_store`):
+/// the pass every raster pipeline of the shape above draws in.
+pub fn depth_tested_pass<'e>(
     encoder: &'e mut wgpu::CommandEncoder,
     label: &str,
-    colour: &wgpu::TextureView,
-    clear: f64,
+    targets: &[(&wgpu::TextureView, wgpu::Color)],
     depth: &wgpu::TextureView,
+    depth_store: wgpu::StoreOp,
 ) -> wgpu::RenderPass<'e> {
+    let attachments: Vec<Option<wgpu::RenderPassColorAttachment<'_>>> = targets
+        .iter()
+        .map(|&(view, clear)| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(clear),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        })
+        .collect();
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some(label),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: colour,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(wgpu::Color {
-                    r: clear,
-                    g: 0.0,
-                    b: 0.0,
-                    a: 0.0,
-                }),
-                store: wgpu::StoreOp::Store,
-            },
-        })],
+        color_attachments: &attachments,
         depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
             view: depth,
             depth_ops: Some(wgpu::Operations {
                 load: wgpu::LoadOp::Clear(1.0),
-                store: wgpu::StoreOp::Discard,
+                store: depth_store,
             }),
             stencil_ops: None,
         }),
@@ -94,4 +95,29 @@ pub fn one_target_pass<'e>(
         occlusion_query_set: None,
         multiview_mask: None,
     })
+}
+
+/// A [`depth_tested_pass`] of one colour target cleared to `(clear, 0, 0, 0)` (a
+/// single-channel value: an id, a depth) whose depth is discarded after: the one-value
+/// raster passes (the id raster, the shadow-map faces).
+pub fn one_target_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    colour: &wgpu::TextureView,
+    clear: f64,
+    depth: &wgpu::TextureView,
+) -> wgpu::RenderPass<'e> {
+    let clear = wgpu::Color {
+        r: clear,
+        g: 0.0,
+        b: 0.0,
+        a: 0.0,
+    };
+    depth_tested_pass(
+        encoder,
+        label,
+        &[(colour, clear)],
+        depth,
+        wgpu::StoreOp::Discard,
+    )
 }
