@@ -2,7 +2,7 @@
 //!
 //! The vocabulary every crate of the diffuse-GI toolkit speaks: the [`Scene`] model, [`View`]s
 //! (cameras, hemicube faces, shadow maps), the [`GBuffer`], the [`Technique`] and [`Metric`]
-//! traits, ray queries over a CWBVH, sampling, linear-RGB images, a headless GPU context and
+//! traits, ray queries over a four-wide BVH, sampling, linear-RGB images, a headless GPU context and
 //! the ground-truth [`reference`](mod@reference) path tracer.
 //!
 //! ```

@@ -1,7 +1,9 @@
-//! Rays: closest-hit and occlusion queries over a CWBVH ([`ray`]), the ground-truth path
+//! Rays: closest-hit and occlusion queries over a four-wide BVH ([`ray`]), the ground-truth path
 //! tracer built on them ([`reference`](mod@reference)), the sampling it uses ([`sampling`]), and the
 //! default view of a scene without a camera ([`framing`]).
 
+#[cfg(feature = "rays")]
+mod bvh4;
 #[cfg(feature = "rays")]
 pub mod framing;
 #[cfg(feature = "rays")]

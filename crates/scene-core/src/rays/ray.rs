@@ -1,15 +1,12 @@
-//! Ray queries over obvhs' compressed wide BVH (CWBVH): closest hit and occlusion, single
-//! and batched with rayon.
+//! Ray queries over a four-wide BVH (obvhs builds the binary tree, [`super::bvh4`] folds it
+//! for vector traversal): closest hit and occlusion, single and batched with rayon.
 
 use std::time::Duration;
 
 use glam::{Vec2, Vec3, Vec3A};
-use obvhs::{
-    BvhBuildParams,
-    cwbvh::{CwBvh, builder::build_cwbvh_from_tris},
-    ray::{Ray as BvhRay, RayHit},
-    triangle::Triangle as BvhTriangle,
-};
+use obvhs::{BvhBuildParams, triangle::Triangle as BvhTriangle};
+
+use super::bvh4::{Bvh4, PreparedRay, intersect_one};
 use rayon::prelude::*;
 
 use crate::cutout::Cutouts;
@@ -48,7 +45,7 @@ struct PreparedTriangle {
 }
 
 impl PreparedTriangle {
-    /// Moeller-Trumbore; returns `(t, u, v)` or `None`. Two-sided.
+    /// Moeller-Trumbore ([`intersect_one`]); returns `(t, u, v)` or `None`. Two-sided.
     #[inline(always)]
     fn intersect(
         &self,
@@ -57,35 +54,13 @@ impl PreparedTriangle {
         t_min: f32,
         t_max: f32,
     ) -> Option<(f32, f32, f32)> {
-        let p = dir.cross(self.e2);
-        let det = self.e1.dot(p);
-        if det == 0.0 || !det.is_finite() {
-            return None;
-        }
-        let inv = 1.0 / det;
-        let s = origin - self.v0;
-        let u = s.dot(p) * inv;
-        if !(0.0..=1.0).contains(&u) {
-            return None;
-        }
-        let q = s.cross(self.e1);
-        let v = dir.dot(q) * inv;
-        if v < 0.0 || u + v > 1.0 {
-            return None;
-        }
-        let t = self.e2.dot(q) * inv;
-        (t >= t_min && t <= t_max).then_some((t, u, v))
+        intersect_one(self.v0, self.e1, self.e2, origin, dir, t_min, t_max)
     }
 }
 
-/// A scene's triangles in a CWBVH, ready for ray queries.
+/// A scene's triangles in a four-wide BVH, ready for ray queries.
 pub struct RayScene {
-    bvh: Option<CwBvh>,
-    /// Triangles in BVH primitive order.
-    triangles: Vec<PreparedTriangle>,
-    /// Global triangle id of each BVH primitive (a triangle split by the builder's spatial
-    /// pre-splits appears more than once).
-    global_ids: Vec<u32>,
+    bvh: Option<Bvh4>,
     /// Number of distinct triangles.
     count: usize,
     /// The power of two the geometry is stored scaled by (see [`RayScene::from_triangles`]).
@@ -109,13 +84,13 @@ impl std::fmt::Debug for RayScene {
 
 /// The power of two that brings a scene of diagonal `diagonal` to about 10^4 units.
 ///
-/// obvhs' wide-BVH traversal clamps every node's entry distance to at least 1e-4 (an
-/// absolute constant), so in a scene measured in millimetres it skipped every hit closer
-/// than 0.1 mm: visibility between neighbouring surfaces, and results that changed with
-/// the scene's unit. Storing the geometry scaled to about 10^4 units puts that clamp at
-/// 1e-8 of the scene, whatever its unit, and a power of two scales every coordinate and
-/// every distance exactly, so hits, barycentrics and distances are the same bits in any
-/// unit (rays are scaled on the way in, distances on the way out).
+/// obvhs' wide-BVH (CWBVH) traversal, used until 2026-11-27, clamped every node's entry
+/// distance to at least 1e-4 (an absolute constant), so in a scene measured in millimetres
+/// it skipped every hit closer than 0.1 mm. The four-wide traversal has no such constant;
+/// the scale stays because a power of two scales every coordinate and every distance
+/// exactly: the binary build sees the same numbers in every unit, so the tree, and every
+/// hit, barycentric and distance, are the same bits in any unit that differs by a power of
+/// two (rays are scaled on the way in, distances on the way out).
 fn scale_for(diagonal: f32) -> f32 {
     if !(diagonal.is_finite() && diagonal > 0.0) {
         return 1.0;
@@ -229,32 +204,16 @@ impl RayScene {
         if tris.is_empty() {
             return Self {
                 bvh: None,
-                triangles: Vec::new(),
-                global_ids: Vec::new(),
                 count: 0,
                 scale,
                 cutouts: Cutouts::default(),
                 build_time: start.elapsed(),
             };
         }
-        let mut core = Duration::ZERO;
-        let bvh = build_cwbvh_from_tris(&tris, quality.params(), &mut core);
-        let global_ids = bvh.primitive_indices.clone();
-        let triangles = global_ids
-            .iter()
-            .map(|&g| {
-                let t = &tris[g as usize];
-                PreparedTriangle {
-                    v0: t.v0,
-                    e1: t.v1 - t.v0,
-                    e2: t.v2 - t.v0,
-                }
-            })
-            .collect();
+        let ids: Vec<u32> = (0..tris.len() as u32).collect();
+        let bvh = Bvh4::build(&tris, &ids, quality.params());
         Self {
             bvh: Some(bvh),
-            triangles,
-            global_ids,
             count: tris.len(),
             scale,
             cutouts: Cutouts::default(),
@@ -267,7 +226,8 @@ impl RayScene {
         self.count
     }
 
-    /// The closest hit along `origin + t * direction` for `t` in `[t_min, t_max]`.
+    /// The closest hit along `origin + t * direction` for `t` in `[t_min, t_max)`; among
+    /// equally near hits the lowest triangle id.
     pub fn closest_hit(
         &self,
         origin: Vec3,
@@ -280,37 +240,17 @@ impl RayScene {
             return None;
         }
         let s = self.scale;
-        let (o, d) = (Vec3A::from(origin * s), Vec3A::from(direction));
-        let (t_min, t_max) = (t_min * s, t_max * s);
-        let ray = BvhRay::new(o, d, t_min, t_max);
-        let mut hit = RayHit::none();
-        let mut best = (0.0f32, 0.0f32);
-        let found = bvh.ray_traverse(ray, &mut hit, |r, id| {
-            match self.triangles[id].intersect(r.origin, r.direction, r.tmin, r.tmax) {
-                Some((t, u, v)) if t < r.tmax && self.exists(id, u, v) => {
-                    best = (u, v);
-                    t
-                }
-                _ => f32::INFINITY,
-            }
-        });
-        // `best` is overwritten by every closer candidate; recompute for the winner to be
-        // independent of traversal order details.
-        if !found {
-            return None;
-        }
-        let id = hit.primitive_id as usize;
-        let (t, u, v) = self.triangles[id]
-            .intersect(o, d, t_min, t_max)
-            .unwrap_or((hit.t, best.0, best.1));
+        let ray = PreparedRay::new((origin * s).into(), direction.into(), t_min * s, t_max * s);
+        let found = bvh.closest(&ray, |id, u, v| self.exists(id, u, v))?;
         Some(Hit {
-            triangle: self.global_ids[id],
-            t: t / s,
-            barycentric: Vec2::new(u, v),
+            triangle: found.id,
+            t: found.t / s,
+            barycentric: Vec2::new(found.u, found.v),
         })
     }
 
-    /// True when something lies along the ray for `t` in `[t_min, t_max]`.
+    /// True when something lies along the ray for `t` in `[t_min, t_max)` (a segment that
+    /// ends on a surface is not blocked by it).
     pub fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool {
         let Some(bvh) = self.bvh.as_ref() else {
             return false;
@@ -319,19 +259,19 @@ impl RayScene {
             return false;
         }
         let s = self.scale;
-        let ray = BvhRay::new((origin * s).into(), direction.into(), t_min * s, t_max * s);
-        !bvh.ray_traverse_miss(ray, |r, id| {
-            match self.triangles[id].intersect(r.origin, r.direction, r.tmin, r.tmax) {
-                Some((t, u, v)) if self.exists(id, u, v) => t,
-                _ => f32::INFINITY,
-            }
-        })
+        let ray = PreparedRay::new((origin * s).into(), direction.into(), t_min * s, t_max * s);
+        bvh.any(&ray, |id, u, v| self.exists(id, u, v))
     }
 
-    /// True unless BVH primitive `id` is masked and its mask cuts a hole at `(u, v)`.
+    /// Heap bytes of the tree (nodes and triangle packets).
+    pub fn bvh_bytes(&self) -> usize {
+        self.bvh.as_ref().map_or(0, Bvh4::bytes)
+    }
+
+    /// True unless triangle `id` is masked and its mask cuts a hole at `(u, v)`.
     #[inline(always)]
-    fn exists(&self, id: usize, u: f32, v: f32) -> bool {
-        self.cutouts.is_empty() || self.cutouts.opaque(self.global_ids[id], Vec2::new(u, v))
+    fn exists(&self, id: u32, u: f32, v: f32) -> bool {
+        self.cutouts.is_empty() || self.cutouts.opaque(id, Vec2::new(u, v))
     }
 
     /// Closest hits for many rays, in parallel (results in input order).

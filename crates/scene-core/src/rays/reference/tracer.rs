@@ -45,6 +45,10 @@ pub struct PathTracer<'a> {
     mesh_factors: Vec<[Vec3; 2]>,
     /// The sky's (direct, indirect) factors, zero without a sky.
     sky_factors: [Vec3; 2],
+    /// Some triangle's material emits: a path's last ray must find what it hits. Without
+    /// one, that ray only asks whether it leaves the scene (the sky), an occlusion query
+    /// that gives the same answer for less work.
+    sees_emission: bool,
     /// Offset of secondary ray origins, relative to the scene's extent.
     eps: f32,
     /// A distance longer than any ray inside the scene.
@@ -88,8 +92,12 @@ impl<'a> PathTracer<'a> {
             [s.direct_factor(), s.indirect_factor()]
         };
         let extent = scene.extent();
+        let sees_emission = tris
+            .iter()
+            .any(|t| scene.materials[t.material as usize].is_emissive());
         Self {
             scene,
+            sees_emission,
             rays,
             tris,
             uvs,
@@ -172,6 +180,21 @@ impl<'a> PathTracer<'a> {
         let mut prev_pdf: Option<f32> = None;
         let mut t_min = 0.0;
         for k in 0..=max_vertex.saturating_add(1) {
+            if k > max_vertex && !self.sees_emission {
+                // The last ray: without emitting surfaces only the sky can add light, and
+                // only whether the ray leaves the scene matters (no sky: nothing is cast).
+                let factor = self.sky_factors[usize::from(k > 1)];
+                if let (Some(pb), Some(sky)) = (prev_pdf, &self.scene.sky)
+                    && factor != Vec3::ZERO
+                {
+                    stats.bounce += 1;
+                    if !self.rays.occluded(o, d, t_min, f32::INFINITY) {
+                        let w = power_heuristic(pb, sky.pdf(d));
+                        l += beta * sky.radiance(d) * factor * w;
+                    }
+                }
+                break;
+            }
             if k == 0 {
                 stats.primary += 1;
             } else {
