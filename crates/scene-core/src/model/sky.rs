@@ -59,6 +59,13 @@ pub struct Sky {
     regions: Vec<[u32; 4]>,
     /// Derived: cumulative sampling weight (power) per pixel, row-major, ending at 1.
     cdf: Vec<f64>,
+    /// Derived: a guide to `cdf` (Chen and Asau's index table): entry `k` of `g` is the first
+    /// pixel whose cumulative weight exceeds `k / g` of the total, so a draw searches only
+    /// between two neighbouring entries instead of the whole map.
+    guide: Vec<u32>,
+    /// Derived: `cos(pi y / height)` for `y` in `0..=height`, the polar bounds of the rows
+    /// (two cosines per sample before).
+    row_cos: Vec<f64>,
 }
 
 impl Sky {
@@ -128,6 +135,10 @@ impl Sky {
             lights: Vec::new(),
             regions: Vec::new(),
             cdf: Vec::new(),
+            guide: Vec::new(),
+            row_cos: (0..=height)
+                .map(|y| (std::f64::consts::PI * y as f64 / height as f64).cos())
+                .collect(),
         };
         sky.derive();
         Ok(sky)
@@ -192,10 +203,7 @@ impl Sky {
     pub fn sample(&self, u: Vec3) -> Option<(Vec3, f32, Vec3)> {
         let last = *self.cdf.last()?;
         let pick = (f64::from(u.x) * last).min(last);
-        let i = self
-            .cdf
-            .partition_point(|c| *c <= pick)
-            .min(self.cdf.len() - 1);
+        let i = self.pixel_at(pick, last);
         let before = if i == 0 { 0.0 } else { self.cdf[i - 1] };
         let p_pixel = (self.cdf[i] - before) / last;
         if p_pixel <= 0.0 {
@@ -204,6 +212,33 @@ impl Sky {
         let (d, omega) = self.point_in_pixel(i, u);
         let pdf = (p_pixel / omega) as f32;
         (pdf.is_finite() && pdf > 0.0).then_some((d, pdf, self.radiance[i]))
+    }
+
+    /// The first pixel whose cumulative weight exceeds `pick` (the last pixel when none
+    /// does), searched between two entries of the guide table. The whole table is searched
+    /// only if rounding put `pick` in the wrong interval, so the answer is always that of a
+    /// search over all of `cdf`.
+    fn pixel_at(&self, pick: f64, last: f64) -> usize {
+        let n = self.cdf.len();
+        let g = self.guide.len();
+        let k = ((pick / last * g as f64) as usize).min(g - 1);
+        let lo = self.guide[k] as usize;
+        let hi = self
+            .guide
+            .get(k + 1)
+            .map_or(n - 1, |&h| (h as usize).min(n - 1));
+        let i = if lo <= hi {
+            (lo + self.cdf[lo..=hi].partition_point(|c| *c <= pick)).min(n - 1)
+        } else {
+            n
+        };
+        let right =
+            i < n && (i == 0 || self.cdf[i - 1] <= pick) && (i == n - 1 || self.cdf[i] > pick);
+        if right {
+            i
+        } else {
+            self.cdf.partition_point(|c| *c <= pick).min(n - 1)
+        }
     }
 
     /// The solid-angle density [`Sky::sample`] draws unit direction `towards_sky` with.
@@ -284,14 +319,13 @@ impl Sky {
 
     /// Pixel `(x, y)`'s azimuth range and the cosines of its polar range (top, bottom).
     fn bounds(&self, x: u32, y: u32) -> (f64, f64, f64, f64) {
-        let (w, h) = (self.width as f64, self.height as f64);
+        let w = self.width as f64;
         let tau = std::f64::consts::TAU;
-        let pi = std::f64::consts::PI;
         (
             tau * x as f64 / w,
             tau * (x + 1) as f64 / w,
-            (pi * y as f64 / h).cos(),
-            (pi * (y + 1) as f64 / h).cos(),
+            self.row_cos[y as usize],
+            self.row_cos[y as usize + 1],
         )
     }
 
@@ -327,6 +361,13 @@ impl Sky {
         } else {
             Vec::new()
         };
+        let g = self.cdf.len();
+        self.guide = (0..g)
+            .map(|k| {
+                let at = k as f64 / g as f64 * acc;
+                self.cdf.partition_point(|c| *c <= at) as u32
+            })
+            .collect();
         let cut = if self.cdf.is_empty() {
             Vec::new()
         } else {
@@ -505,6 +546,37 @@ fn median_cut(sky: &Sky, weight: &[f64], vector: &[DVec3]) -> Vec<(DirectionalLi
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The guide table's search picks the pixel a search of the whole table picks, on a map
+    /// with a bright spot, dark runs and a black lower half, at random picks and at every
+    /// cumulative value exactly (the boundaries, where rounding could mislead the guide).
+    #[test]
+    fn the_guided_search_equals_the_full_search() {
+        let (w, h) = (40u32, 20u32);
+        let mut rng = crate::sampling::Rng::new(3, 0);
+        let map: Vec<Vec3> = (0..w * h)
+            .map(|i| match (i / w, i % w) {
+                (y, _) if y >= h / 2 => Vec3::ZERO,
+                (_, x) if x % 7 < 3 => Vec3::ZERO,
+                (3, 5) => Vec3::splat(5e4),
+                _ => Vec3::splat(rng.next_f32()),
+            })
+            .collect();
+        let sky = Sky::from_map("test", w, h, map, 16).unwrap();
+        let last = *sky.cdf.last().unwrap();
+        let full = |pick: f64| {
+            sky.cdf
+                .partition_point(|c| *c <= pick)
+                .min(sky.cdf.len() - 1)
+        };
+        let picks = (0..20_000)
+            .map(|_| f64::from(rng.next_f32()) * last)
+            .chain(sky.cdf.iter().copied())
+            .chain([0.0, last]);
+        for pick in picks {
+            assert_eq!(sky.pixel_at(pick, last), full(pick), "pick {pick}");
+        }
+    }
 
     #[test]
     fn a_uniform_sky_gives_pi_radiance_to_a_floor_and_nothing_below() {

@@ -469,9 +469,8 @@ impl Bvh4 {
                     let (t, u, v) = (t.to_array(), u.to_array(), v.to_array());
                     while m != 0 {
                         // The nearest remaining lane (the lowest id on ties).
-                        let before = |t0: f32, i0: u32, t1: f32, i1: u32| {
-                            t0 < t1 || (t0 == t1 && i0 < i1)
-                        };
+                        let before =
+                            |t0: f32, i0: u32, t1: f32, i1: u32| t0 < t1 || (t0 == t1 && i0 < i1);
                         let mut lane = m.trailing_zeros() as usize;
                         let mut rest = m & (m - 1);
                         while rest != 0 {
@@ -482,8 +481,7 @@ impl Bvh4 {
                             }
                         }
                         m &= !(1 << lane);
-                        let nearer =
-                            best.is_none_or(|b| before(t[lane], p.id[lane], b.t, b.id));
+                        let nearer = best.is_none_or(|b| before(t[lane], p.id[lane], b.t, b.id));
                         if nearer && keep(p.id[lane], u[lane], v[lane]) {
                             best = Some(Found {
                                 id: p.id[lane],
