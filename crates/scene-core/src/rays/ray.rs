@@ -119,11 +119,14 @@ impl BvhQuality {
     /// [`BvhQuality::VERY_SLOW_UP_TO`] triangles, where it costs seconds and pays for itself
     /// in any reference render; beyond, `Medium`, the one preset whose build grows about as
     /// `n log n`. Measured on box fields on 2 cores (`cargo run --release -p scene-core
-    /// --example bvh_presets -- 1000000 10000000`; incoherent closest-hit rays):
+    /// --example bvh_presets -- 1000000 10000000`; incoherent closest-hit rays). The 10^7
+    /// row is of 2026-11-26, with obvhs' CWBVH traversal; the 10^6 row of 2026-11-27, with
+    /// the four-wide one (median of three runs; the CWBVH read 0.6 s, 2.90 / 1.1 s, 3.74 /
+    /// 2.8 s, 5.78 in the same session: on this field both traverse at the same rate):
     ///
     /// | triangles | Medium | Slow | VerySlow |
     /// |---|---|---|---|
-    /// | 10^6 | 1.0 s, 1.40 Mrays/s | 1.8 s, 1.76 | 5.6 s, 2.76 |
+    /// | 10^6 | 0.53 s, 3.02 Mrays/s | 0.90 s, 3.69 | 2.45 s, 5.95 |
     /// | 10^7 | 13.7 s, 0.41 | 41.3 s, 0.68 | 168 s (`cargo xtask bench scaling`) |
     ///
     /// At 10^7 `Slow` pays back its 28 s only after about 28 million rays (a reference
@@ -148,9 +151,8 @@ impl BvhQuality {
 impl RayScene {
     /// Builds the BVH over all triangles of `scene` (which should be validated), with the
     /// preset [`BvhQuality::for_triangles`] picks: obvhs' highest-quality one up to 2^21
-    /// triangles, the medium one beyond (on the 10^6-triangle `many-boxes` scene it builds in about 4 s on 2 cores
-    /// and the reference tracer reaches 5.1 Mrays/s there against 3.1 with the medium
-    /// preset's 1.0 s build, the right trade for a ground-truth renderer). Alpha-masked
+    /// triangles, the medium one beyond (the highest-quality tree doubles the ray rate on a
+    /// 10^6-triangle box field for seconds of build: [`BvhQuality::for_triangles`]). Alpha-masked
     /// materials ([`crate::Material::alpha_cutoff`]) cut holes that rays pass through.
     pub fn build(scene: &Scene) -> Self {
         Self::build_with(scene, BvhQuality::for_triangles(scene.triangle_count()))
