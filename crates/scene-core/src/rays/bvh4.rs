@@ -86,7 +86,7 @@ pub(crate) struct PreparedRay {
 
 impl PreparedRay {
     pub(crate) fn new(origin: Vec3A, direction: Vec3A, t_min: f32, t_max: f32) -> Self {
-        let parallel = [0, 1, 2].map(|a| !(direction[a].abs() > 1e-30));
+        let parallel = [0, 1, 2].map(|a| direction[a].abs() <= 1e-30);
         let inv = [0, 1, 2].map(|a| if parallel[a] { 0.0 } else { 1.0 / direction[a] });
         Self {
             parallel,
@@ -178,7 +178,7 @@ pub(crate) fn intersect_one(
     let py = d.z * e2.x - d.x * e2.z;
     let pz = d.x * e2.y - d.y * e2.x;
     let det = e1.x * px + e1.y * py + e1.z * pz;
-    if det == 0.0 || !(det.abs() < f32::INFINITY) {
+    if det == 0.0 || !det.is_finite() {
         return None;
     }
     let inv = 1.0 / det;
@@ -189,7 +189,7 @@ pub(crate) fn intersect_one(
     let qz = s.x * e1.y - s.y * e1.x;
     let v = (d.x * qx + d.y * qy + d.z * qz) * inv;
     let t = (e2.x * qx + e2.y * qy + e2.z * qz) * inv;
-    let hit = u >= 0.0 && u <= 1.0 && v >= 0.0 && u + v <= 1.0 && t >= t_min && t < t_max;
+    let hit = (0.0..=1.0).contains(&u) && v >= 0.0 && u + v <= 1.0 && t >= t_min && t < t_max;
     hit.then_some((t, u, v))
 }
 
