@@ -60,8 +60,8 @@ pub struct Sky {
     /// Derived: cumulative sampling weight (power) per pixel, row-major, ending at 1.
     cdf: Vec<f64>,
     /// Derived: a guide to `cdf` (Chen and Asau's index table): entry `k` of `g` is the first
-    /// pixel whose cumulative weight exceeds `k / g` of the total, so a draw searches only
-    /// between two neighbouring entries instead of the whole map.
+    /// pixel whose cumulative weight exceeds `k / g` of the total, so a draw starts its
+    /// search there instead of bisecting the whole map.
     guide: Vec<u32>,
     /// Derived: `cos(pi y / height)` for `y` in `0..=height`, the polar bounds of the rows
     /// (two cosines per sample before).
@@ -215,30 +215,21 @@ impl Sky {
     }
 
     /// The first pixel whose cumulative weight exceeds `pick` (the last pixel when none
-    /// does), searched between two entries of the guide table. The whole table is searched
-    /// only if rounding put `pick` in the wrong interval, so the answer is always that of a
-    /// search over all of `cdf`.
+    /// does): a walk from the guide table's entry for `pick`, back while the pixel before
+    /// already exceeds it (rounding can put the entry one past), then on while this one does
+    /// not. The same pixel as a search of the whole table, in about one step on average.
     fn pixel_at(&self, pick: f64, last: f64) -> usize {
         let n = self.cdf.len();
         let g = self.guide.len();
-        let k = ((pick / last * g as f64) as usize).min(g - 1);
-        let lo = self.guide[k] as usize;
-        let hi = self
-            .guide
-            .get(k + 1)
-            .map_or(n - 1, |&h| (h as usize).min(n - 1));
-        let i = if lo <= hi {
-            (lo + self.cdf[lo..=hi].partition_point(|c| *c <= pick)).min(n - 1)
-        } else {
-            n
-        };
-        let right =
-            i < n && (i == 0 || self.cdf[i - 1] <= pick) && (i == n - 1 || self.cdf[i] > pick);
-        if right {
-            i
-        } else {
-            self.cdf.partition_point(|c| *c <= pick).min(n - 1)
+        let mut i =
+            (self.guide[((pick / last * g as f64) as usize).min(g - 1)] as usize).min(n - 1);
+        while i > 0 && self.cdf[i - 1] > pick {
+            i -= 1;
         }
+        while i < n - 1 && self.cdf[i] <= pick {
+            i += 1;
+        }
+        i
     }
 
     /// The solid-angle density [`Sky::sample`] draws unit direction `towards_sky` with.

@@ -257,8 +257,8 @@ pub(crate) struct Bvh4 {
 
 impl Bvh4 {
     /// Builds obvhs' binary tree with `params` (one triangle per leaf: the packets do the
-    /// leaf sizing) over `tris`, and folds it; `ids[i]` is what a hit on `tris[i]` reports.
-    pub(crate) fn build(tris: &[Triangle], ids: &[u32], params: BvhBuildParams) -> Self {
+    /// leaf sizing) over `tris`, and folds it; a hit on `tris[i]` reports id `i`.
+    pub(crate) fn build(tris: &[Triangle], params: BvhBuildParams) -> Self {
         let params = BvhBuildParams {
             max_prims_per_leaf: 1,
             post_collapse_reinsertion_batch_ratio_multiplier: 0.0,
@@ -288,6 +288,8 @@ impl Bvh4 {
                 count[c].saturating_add(count[c + 1])
             };
         }
+        // A binary node whose triangles become one leaf.
+        let packs = |k: usize| b2.nodes[k].is_leaf() || count[k] <= LEAF_MAX;
         let mut this = Self {
             nodes: vec![Node::empty()],
             packets: Vec::new(),
@@ -296,8 +298,8 @@ impl Bvh4 {
         // (binary node, four-wide node it fills)
         let mut work: Vec<(usize, usize)> = Vec::new();
         let root = &b2.nodes[0];
-        if root.is_leaf() || count[0] <= LEAF_MAX {
-            let leaf = this.leaf(&b2, 0, tris, ids);
+        if packs(0) {
+            let leaf = this.leaf(&b2, 0, tris);
             this.nodes[0].set(0, root.aabb().min, root.aabb().max, leaf);
         } else {
             work.push((0, 0));
@@ -310,7 +312,7 @@ impl Bvh4 {
                 let open = kids
                     .iter()
                     .enumerate()
-                    .filter(|&(_, &k)| !b2.nodes[k].is_leaf() && count[k] > LEAF_MAX)
+                    .filter(|&(_, &k)| !packs(k))
                     .max_by(|a, b| {
                         let area = |k: usize| b2.nodes[k].aabb().half_area();
                         area(*a.1).total_cmp(&area(*b.1))
@@ -323,8 +325,8 @@ impl Bvh4 {
             }
             for (slot, &k) in kids.iter().enumerate() {
                 let node = &b2.nodes[k];
-                let child = if node.is_leaf() || count[k] <= LEAF_MAX {
-                    this.leaf(&b2, k, tris, ids)
+                let child = if packs(k) {
+                    this.leaf(&b2, k, tris)
                 } else {
                     this.nodes.push(Node::empty());
                     work.push((k, this.nodes.len() - 1));
@@ -341,7 +343,7 @@ impl Bvh4 {
     /// Packs the triangles under binary node `b` into packets: one when they fit, else a
     /// node of up to four leaves (a binary leaf holds one triangle with the build's
     /// settings, so this is a safeguard), each with `b`'s box.
-    fn leaf(&mut self, b2: &obvhs::bvh2::Bvh2, b: usize, tris: &[Triangle], ids: &[u32]) -> u32 {
+    fn leaf(&mut self, b2: &obvhs::bvh2::Bvh2, b: usize, tris: &[Triangle]) -> u32 {
         let mut prims = Vec::new();
         let mut todo = vec![b];
         while let Some(i) = todo.pop() {
@@ -353,16 +355,10 @@ impl Bvh4 {
                 todo.extend([node.first_index as usize + 1, node.first_index as usize]);
             }
         }
-        self.pack(
-            &prims,
-            b2.nodes[b].aabb().min,
-            b2.nodes[b].aabb().max,
-            tris,
-            ids,
-        )
+        self.pack(&prims, b2.nodes[b].aabb().min, b2.nodes[b].aabb().max, tris)
     }
 
-    fn pack(&mut self, prims: &[u32], lo: Vec3A, hi: Vec3A, tris: &[Triangle], ids: &[u32]) -> u32 {
+    fn pack(&mut self, prims: &[u32], lo: Vec3A, hi: Vec3A, tris: &[Triangle]) -> u32 {
         if prims.len() <= LEAF_MAX as usize {
             let mut p = Packet {
                 v0: [Vec4::ZERO; 3],
@@ -378,7 +374,7 @@ impl Bvh4 {
                     p.e1[a][lane] = e1[a];
                     p.e2[a][lane] = e2[a];
                 }
-                p.id[lane] = ids[prim as usize];
+                p.id[lane] = prim;
             }
             self.packets.push(p);
             return LEAF_BIT | (self.packets.len() - 1) as u32;
@@ -387,7 +383,7 @@ impl Bvh4 {
         self.nodes.push(Node::empty());
         let chunk = prims.len().div_ceil(4);
         for (slot, part) in prims.chunks(chunk).enumerate() {
-            let child = self.pack(part, lo, hi, tris, ids);
+            let child = self.pack(part, lo, hi, tris);
             self.nodes[at].set(slot, lo, hi, child);
         }
         at as u32
@@ -642,8 +638,7 @@ mod tests {
                 tris.push(tri([x, 0.0, z], [x, y + 1.0, z], [x, y + 1.0, z + 1.0]));
             }
         }
-        let ids: Vec<u32> = (0..tris.len() as u32).collect();
-        let bvh = Bvh4::build(&tris, &ids, BvhBuildParams::very_slow_build());
+        let bvh = Bvh4::build(&tris, BvhBuildParams::very_slow_build());
         let mut rays = Vec::new();
         let dirs = [
             Vec3A::X,
@@ -689,8 +684,7 @@ mod tests {
                     }
                 })
                 .collect();
-            let ids: Vec<u32> = (0..tris.len() as u32).collect();
-            let mut bvh = Bvh4::build(&tris, &ids, BvhBuildParams::medium_build());
+            let mut bvh = Bvh4::build(&tris, BvhBuildParams::medium_build());
             let rays: Vec<_> = (0..1500)
                 .map(|_| {
                     let o = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 12.0;
@@ -716,13 +710,12 @@ mod tests {
                 tri([-1.0, -1.0, z], [1.0, -1.0, z], [0.0, 1.0, z])
             })
             .collect();
-        let ids: Vec<u32> = (10..16).collect();
-        let bvh = Bvh4::build(&tris, &ids, BvhBuildParams::very_slow_build());
+        let bvh = Bvh4::build(&tris, BvhBuildParams::very_slow_build());
         let ray = PreparedRay::new(Vec3A::new(0.0, 0.0, -1.0), Vec3A::Z, 0.0, f32::INFINITY);
-        let found = bvh.closest(&ray, |id, _, _| id != 10 && id != 11).unwrap();
-        assert_eq!((found.id, found.t), (12, 3.0));
+        let found = bvh.closest(&ray, |id, _, _| id != 0 && id != 1).unwrap();
+        assert_eq!((found.id, found.t), (2, 3.0));
         assert!(!bvh.any(&ray, |_, _, _| false));
-        assert!(bvh.any(&ray, |id, _, _| id == 15));
+        assert!(bvh.any(&ray, |id, _, _| id == 5));
     }
 
     /// The range is half-open, `[t_min, t_max)`, as obvhs' traversal had it: a segment that
@@ -731,7 +724,7 @@ mod tests {
     #[test]
     fn a_hit_exactly_at_t_max_does_not_count() {
         let tris = vec![tri([-1.0, -1.0, 2.0], [1.0, -1.0, 2.0], [0.0, 1.0, 2.0])];
-        let bvh = Bvh4::build(&tris, &[0], BvhBuildParams::very_slow_build());
+        let bvh = Bvh4::build(&tris, BvhBuildParams::very_slow_build());
         let at = |t0: f32, t1: f32| PreparedRay::new(Vec3A::ZERO, Vec3A::Z, t0, t1);
         assert!(!bvh.any(&at(0.0, 2.0), |_, _, _| true));
         assert!(bvh.closest(&at(0.0, 2.0), |_, _, _| true).is_none());

@@ -36,28 +36,6 @@ pub struct RayQuery {
     pub t_max: f32,
 }
 
-/// A triangle prepared for intersection: a vertex and two edges.
-#[derive(Clone, Copy, Debug)]
-struct PreparedTriangle {
-    v0: Vec3A,
-    e1: Vec3A,
-    e2: Vec3A,
-}
-
-impl PreparedTriangle {
-    /// Moeller-Trumbore ([`intersect_one`]); returns `(t, u, v)` or `None`. Two-sided.
-    #[inline(always)]
-    fn intersect(
-        &self,
-        origin: Vec3A,
-        dir: Vec3A,
-        t_min: f32,
-        t_max: f32,
-    ) -> Option<(f32, f32, f32)> {
-        intersect_one(self.v0, self.e1, self.e2, origin, dir, t_min, t_max)
-    }
-}
-
 /// A scene's triangles in a four-wide BVH, ready for ray queries.
 pub struct RayScene {
     bvh: Option<Bvh4>,
@@ -203,19 +181,8 @@ impl RayScene {
                 }
             })
             .collect();
-        if tris.is_empty() {
-            return Self {
-                bvh: None,
-                count: 0,
-                scale,
-                cutouts: Cutouts::default(),
-                build_time: start.elapsed(),
-            };
-        }
-        let ids: Vec<u32> = (0..tris.len() as u32).collect();
-        let bvh = Bvh4::build(&tris, &ids, quality.params());
         Self {
-            bvh: Some(bvh),
+            bvh: (!tris.is_empty()).then(|| Bvh4::build(&tris, quality.params())),
             count: tris.len(),
             scale,
             cutouts: Cutouts::default(),
@@ -308,13 +275,8 @@ pub fn brute_force_closest(
     for mesh in &scene.meshes {
         for t in &mesh.indices {
             let [a, b, c] = t.map(|i| Vec3A::from(mesh.positions[i as usize]));
-            let tri = PreparedTriangle {
-                v0: a,
-                e1: b - a,
-                e2: c - a,
-            };
             let limit = best.map_or(t_max, |h| h.t);
-            if let Some((t, u, v)) = tri.intersect(o, d, t_min, limit)
+            if let Some((t, u, v)) = intersect_one(a, b - a, c - a, o, d, t_min, limit)
                 && best.is_none_or(|h| t < h.t)
                 && cutouts.opaque(global, Vec2::new(u, v))
             {

@@ -160,6 +160,17 @@ impl<'a> PathTracer<'a> {
         &self.rays
     }
 
+    /// The sky a bounce ray drawn with density `prev_pdf` after `k` surface vertices sees if
+    /// it leaves the scene; `None` where it adds nothing (no sky, a zero factor in the light
+    /// state, or the camera's own ray: the sky lights surfaces, it is not a background).
+    fn sky_for_bounce(&self, prev_pdf: Option<f32>, k: u32) -> Option<BounceSky<'_>> {
+        let factor = self.sky_factors[usize::from(k > 1)];
+        match (prev_pdf, &self.scene.sky) {
+            (Some(pdf), Some(sky)) if factor != Vec3::ZERO => Some(BounceSky { sky, pdf, factor }),
+            _ => None,
+        }
+    }
+
     /// One radiance sample along a ray from `origin` in unit direction `dir`.
     pub fn radiance(
         &self,
@@ -183,14 +194,10 @@ impl<'a> PathTracer<'a> {
             if k > max_vertex && !self.sees_emission {
                 // The last ray: without emitting surfaces only the sky can add light, and
                 // only whether the ray leaves the scene matters (no sky: nothing is cast).
-                let factor = self.sky_factors[usize::from(k > 1)];
-                if let (Some(pb), Some(sky)) = (prev_pdf, &self.scene.sky)
-                    && factor != Vec3::ZERO
-                {
+                if let Some(sky) = self.sky_for_bounce(prev_pdf, k) {
                     stats.bounce += 1;
                     if !self.rays.occluded(o, d, t_min, f32::INFINITY) {
-                        let w = power_heuristic(pb, sky.pdf(d));
-                        l += beta * sky.radiance(d) * factor * w;
+                        l += sky.light(beta, d);
                     }
                 }
                 break;
@@ -204,12 +211,8 @@ impl<'a> PathTracer<'a> {
                 // A bounce that leaves the scene sees the sky (the camera's rays do not: the
                 // sky lights surfaces, it is not a background), MIS-weighted against the
                 // sky's next-event estimate.
-                let factor = self.sky_factors[usize::from(k > 1)];
-                if let (Some(pb), Some(sky)) = (prev_pdf, &self.scene.sky)
-                    && factor != Vec3::ZERO
-                {
-                    let w = power_heuristic(pb, sky.pdf(d));
-                    l += beta * sky.radiance(d) * factor * w;
+                if let Some(sky) = self.sky_for_bounce(prev_pdf, k) {
+                    l += sky.light(beta, d);
                 }
                 break;
             };
@@ -392,6 +395,24 @@ impl<'a> PathTracer<'a> {
             }
         }
         e
+    }
+}
+
+/// The sky as a bounce ray may see it ([`PathTracer::sky_for_bounce`]).
+struct BounceSky<'s> {
+    sky: &'s crate::sky::Sky,
+    /// Solid-angle density the bounce direction was drawn with.
+    pdf: f32,
+    /// The light state's factor for the sky at this depth.
+    factor: Vec3,
+}
+
+impl BounceSky<'_> {
+    /// The light of throughput `beta` along `d`, which leaves the scene: the sky's radiance,
+    /// MIS-weighted against its next-event estimate.
+    fn light(&self, beta: Vec3, d: Vec3) -> Vec3 {
+        let w = power_heuristic(self.pdf, self.sky.pdf(d));
+        beta * self.sky.radiance(d) * self.factor * w
     }
 }
 
