@@ -2,7 +2,7 @@
 """Render and time a scene written by `cargo xtask reference --mitsuba DIR` with Mitsuba 3.
 
 Usage: python3 xtask/scripts/mitsuba_render.py DIR [--variant scalar_rgb] [--threads N]
-       [--repeats R]
+       [--repeats R] [--save-each]
 
 Writes DIR/mitsuba.exr (the last repeat) and prints the load time and the median render
 time of R repeats after one warm-up render (Mitsuba compiles nothing in its scalar
@@ -22,6 +22,8 @@ def main() -> int:
     ap.add_argument("--variant", default="scalar_rgb")
     ap.add_argument("--threads", type=int, default=0, help="0: every core")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--save-each", action="store_true",
+                    help="also write each repeat as DIR/mitsuba.seed<K>.exr (for noise.py)")
     a = ap.parse_args()
     try:
         import mitsuba as mi
@@ -42,6 +44,8 @@ def main() -> int:
         t0 = time.perf_counter()
         image = mi.render(scene, seed=r + 1)
         times.append(time.perf_counter() - t0)
+        if a.save_each:
+            mi.Bitmap(image).write(str(a.dir / f"mitsuba.seed{r + 1}.exr"))
     mi.Bitmap(image).write(str(a.dir / "mitsuba.exr"))
     print(f"mitsuba {a.variant}: load {load:.2f} s, render median {statistics.median(times):.2f} s "
           f"of {a.repeats} ({', '.join(f'{t:.2f}' for t in times)})")

@@ -183,6 +183,10 @@ pub enum Wrap {
 impl Wrap {
     /// The texel index `i` of a row of `n` under this wrap, in `0..n` (`n` at least 1).
     pub fn texel(self, i: i64, n: i64) -> i64 {
+        if (0..n).contains(&i) {
+            // Inside the row every mode is the identity (and no division is needed).
+            return i;
+        }
         match self {
             Wrap::Repeat => i.rem_euclid(n),
             Wrap::ClampToEdge => i.clamp(0, n - 1),
@@ -273,20 +277,21 @@ impl Texture {
         // Reduce first so that huge coordinates cannot overflow the integer texel index.
         let x = wrap_u.reduce(uv.x) * self.width as f32;
         let y = wrap_v.reduce(uv.y) * self.height as f32;
-        let at = |xi: i64, yi: i64| -> T {
-            let xi = wrap_u.texel(xi, w) as usize;
-            let yi = wrap_v.texel(yi, h) as usize;
-            at(yi * self.width as usize + xi)
-        };
+        let row = self.width as usize;
         if nearest {
-            return at(x.floor() as i64, y.floor() as i64);
+            let xi = wrap_u.texel(x.floor() as i64, w) as usize;
+            let yi = wrap_v.texel(y.floor() as i64, h) as usize;
+            return at(yi * row + xi);
         }
         let (x, y) = (x - 0.5, y - 0.5);
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let top = lerp(at(x0, y0), at(x0 + 1, y0), fx);
-        let bottom = lerp(at(x0, y0 + 1), at(x0 + 1, y0 + 1), fx);
+        // The two columns and the two rows, each wrapped once (not once per texel).
+        let [c0, c1] = [x0, x0 + 1].map(|i| wrap_u.texel(i, w) as usize);
+        let [r0, r1] = [y0, y0 + 1].map(|i| wrap_v.texel(i, h) as usize * row);
+        let top = lerp(at(r0 + c0), at(r0 + c1), fx);
+        let bottom = lerp(at(r1 + c0), at(r1 + c1), fx);
         lerp(top, bottom, fy)
     }
 }

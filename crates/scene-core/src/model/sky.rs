@@ -18,7 +18,8 @@
 //! How methods carry it:
 //! - The reference path tracer integrates it exactly: next-event estimation that draws
 //!   directions from the map (by each pixel's power, [`Sky::sample`]), weighted by multiple
-//!   importance sampling against the cosine-weighted bounce that escapes the scene.
+//!   importance sampling against the cosine-weighted bounce that escapes the scene; a
+//!   [`Sky::is_uniform`] sky is found by that bounce alone, which samples it as well.
 //! - Every other method sees it as a set of directional lights ([`Sky::lights`]) found by
 //!   the median cut of Debevec ("A median cut algorithm for light probe sampling", 2005):
 //!   the map is split into regions of equal power, each becoming one directional light
@@ -190,6 +191,27 @@ impl Sky {
     /// True when no direction carries light.
     pub fn is_black(&self) -> bool {
         self.cdf.is_empty()
+    }
+
+    /// True when the sky is one radiance over the whole upper hemisphere: every pixel
+    /// wholly above the horizon carries the same non-zero radiance, and every other pixel
+    /// that one or none ([`Sky::uniform`], or a constant over the whole sphere). Seen from
+    /// any surface, such a sky's light varies only by the cosine and by what blocks it, so
+    /// a cosine-weighted direction already samples it as well as drawing from the map
+    /// would: the reference path tracer then gives it no next-event estimate of its own
+    /// (docs/reference.md, "Speed").
+    pub fn is_uniform(&self) -> bool {
+        let w = self.width as usize;
+        let Some(&l) = self.radiance.first() else {
+            return false;
+        };
+        l != Vec3::ZERO
+            && self.radiance.iter().enumerate().all(|(i, c)| {
+                // Row y ends at polar angle (y + 1) pi / height: wholly above the horizon
+                // while that is at most pi / 2.
+                let above = 2 * (i / w + 1) <= self.height as usize;
+                *c == l || (!above && *c == Vec3::ZERO)
+            })
     }
 
     /// Radiance arriving from unit direction `towards_sky` (pointing away from the scene).
@@ -567,6 +589,47 @@ mod tests {
         for pick in picks {
             assert_eq!(sky.pixel_at(pick, last), full(pick), "pick {pick}");
         }
+    }
+
+    #[test]
+    fn only_a_constant_over_the_upper_hemisphere_is_uniform() {
+        let l = Vec3::new(0.5, 0.6, 0.8);
+        assert!(Sky::uniform(l).unwrap().is_uniform());
+        assert!(
+            Sky::uniform(l)
+                .unwrap()
+                .scaled(Vec3::splat(2.0))
+                .unwrap()
+                .is_uniform()
+        );
+        // The whole sphere at one radiance.
+        assert!(
+            Sky::from_map("sphere", 8, 4, vec![l; 32], 4)
+                .unwrap()
+                .is_uniform()
+        );
+        // One pixel above the horizon differs, or one is dark.
+        for (i, c) in [(0, l * 1.0001), (9, Vec3::ZERO)] {
+            let mut map = Sky::uniform(l).unwrap().map().to_vec();
+            map[i] = c;
+            let (w, h) = Sky::uniform(l).unwrap().size();
+            assert!(!Sky::from_map("uneven", w, h, map, 8).unwrap().is_uniform());
+        }
+        // A lit band below the horizon of another radiance.
+        let mut map = vec![l; 32];
+        map[31] = l * 0.5;
+        assert!(!Sky::from_map("band", 8, 4, map, 4).unwrap().is_uniform());
+        // An odd height: the middle row straddles the horizon and may be either.
+        let mut map = vec![l; 8 * 3];
+        map[8..].fill(Vec3::ZERO);
+        assert!(
+            Sky::from_map("odd", 8, 3, map.clone(), 4)
+                .unwrap()
+                .is_uniform()
+        );
+        map[0..8].fill(Vec3::ZERO);
+        map[8..16].fill(l);
+        assert!(!Sky::from_map("odd", 8, 3, map, 4).unwrap().is_uniform());
     }
 
     #[test]

@@ -49,6 +49,12 @@ pub struct PathTracer<'a> {
     /// one, that ray only asks whether it leaves the scene (the sky), an occlusion query
     /// that gives the same answer for less work.
     sees_emission: bool,
+    /// The sky gets a next-event estimate (MIS-weighted against the bounce that escapes).
+    /// Not for a [`crate::sky::Sky::is_uniform`] sky: the cosine-weighted bounce is then as
+    /// good a strategy alone, and a shadow ray and a draw from the map per surface vertex
+    /// are saved (on the Breakfast Room with all bounces 22 % of the time at the same noise;
+    /// docs/reference.md, "Speed").
+    sky_nee: bool,
     /// Offset of secondary ray origins, relative to the scene's extent.
     eps: f32,
     /// A distance longer than any ray inside the scene.
@@ -98,6 +104,7 @@ impl<'a> PathTracer<'a> {
         Self {
             scene,
             sees_emission,
+            sky_nee: scene.sky.as_ref().is_some_and(|s| !s.is_uniform()),
             rays,
             tris,
             uvs,
@@ -166,7 +173,12 @@ impl<'a> PathTracer<'a> {
     fn sky_for_bounce(&self, prev_pdf: Option<f32>, k: u32) -> Option<BounceSky<'_>> {
         let factor = self.sky_factors[usize::from(k > 1)];
         match (prev_pdf, &self.scene.sky) {
-            (Some(pdf), Some(sky)) if factor != Vec3::ZERO => Some(BounceSky { sky, pdf, factor }),
+            (Some(pdf), Some(sky)) if factor != Vec3::ZERO => Some(BounceSky {
+                sky,
+                pdf,
+                factor,
+                nee: self.sky_nee,
+            }),
             _ => None,
         }
     }
@@ -336,6 +348,7 @@ impl<'a> PathTracer<'a> {
             }
         }
         if let Some(sky) = &self.scene.sky
+            && self.sky_nee
             && self.sky_factors[which] != Vec3::ZERO
             && let Some((w, pdf, le)) = sky.sample(glam::Vec3::new(
                 rng.next_f32(),
@@ -405,13 +418,19 @@ struct BounceSky<'s> {
     pdf: f32,
     /// The light state's factor for the sky at this depth.
     factor: Vec3,
+    /// The sky is also sampled by next-event estimation (else the bounce is its only strategy).
+    nee: bool,
 }
 
 impl BounceSky<'_> {
     /// The light of throughput `beta` along `d`, which leaves the scene: the sky's radiance,
     /// MIS-weighted against its next-event estimate.
     fn light(&self, beta: Vec3, d: Vec3) -> Vec3 {
-        let w = power_heuristic(self.pdf, self.sky.pdf(d));
+        let w = if self.nee {
+            power_heuristic(self.pdf, self.sky.pdf(d))
+        } else {
+            1.0
+        };
         beta * self.sky.radiance(d) * self.factor * w
     }
 }
