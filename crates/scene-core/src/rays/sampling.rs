@@ -129,25 +129,73 @@ pub fn owen_scramble(x: u32, seed: u32) -> u32 {
 /// can draw each bounce's 2D sample from its own seed ("padding", Kollig and Keller 2002)
 /// and keep every bounce stratified over its paths; prefixes of `2^k` indices keep the
 /// stratification whatever the seed. For a uniform seed each point is uniform in the
-/// square, so an estimate from it is unbiased.
+/// square, so an estimate from it is unbiased. [`Sobol2d`] is the same sequence with its
+/// scrambles hashed once, for many points of one seed.
 pub fn sobol_2d(index: u32, seed: u64) -> Vec2 {
-    let i = owen_scramble(index, hash_seed(seed, 0x50b0, 0) as u32);
-    // Dimension 0 is the radical inverse in base 2; dimension 1's direction numbers are
-    // those of the polynomial x + 1: v_0 = 2^31, v_k = v_(k-1) ^ (v_(k-1) >> 1).
-    let x = i.reverse_bits();
-    let mut y = 0u32;
-    let mut v = 1u32 << 31;
-    let mut bits = i;
-    while bits != 0 {
-        if bits & 1 == 1 {
-            y ^= v;
-        }
-        bits >>= 1;
-        v ^= v >> 1;
+    Sobol2d::new(seed).point(index)
+}
+
+/// Dimension 1 of Sobol's sequence, whose direction numbers are those of the polynomial
+/// `x + 1` (`v_0 = 2^31`, `v_k = v_(k-1) ^ (v_(k-1) >> 1)`), as four tables of 256 entries:
+/// entry `b` of table `j` is the XOR of the direction numbers of the bits set in byte `b`
+/// of the index shifted by `8 j`.
+const SOBOL_Y: [[u32; 256]; 4] = {
+    let mut v = [0u32; 32];
+    v[0] = 1 << 31;
+    let mut k = 1;
+    while k < 32 {
+        v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+        k += 1;
     }
-    let x = owen_scramble(x, hash_seed(seed, 0x50b0, 1) as u32);
-    let y = owen_scramble(y, hash_seed(seed, 0x50b0, 2) as u32);
-    Vec2::new(unit_from_bits(x), unit_from_bits(y))
+    let mut t = [[0u32; 256]; 4];
+    let mut j = 0;
+    while j < 4 {
+        let mut b = 0;
+        while b < 256 {
+            let mut y = 0u32;
+            let mut bit = 0;
+            while bit < 8 {
+                if b & (1 << bit) != 0 {
+                    y ^= v[8 * j + bit];
+                }
+                bit += 1;
+            }
+            t[j][b] = y;
+            b += 1;
+        }
+        j += 1;
+    }
+    t
+};
+
+/// One seed's scrambled and shuffled two-dimensional Sobol sequence ([`sobol_2d`]), its
+/// three scrambles hashed once: a path tracer keeps one per pixel and bounce and draws a
+/// point per sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Sobol2d {
+    /// Scrambles of the index, of dimension 0 and of dimension 1.
+    scramble: [u32; 3],
+}
+
+impl Sobol2d {
+    /// The sequence of `seed`.
+    pub fn new(seed: u64) -> Self {
+        Self {
+            scramble: [0, 1, 2].map(|k| hash_seed(seed, 0x50b0, k) as u32),
+        }
+    }
+
+    /// Point `index` of the sequence, in [0, 1)^2.
+    #[inline]
+    pub fn point(&self, index: u32) -> Vec2 {
+        let i = owen_scramble(index, self.scramble[0]);
+        // Dimension 0 is the radical inverse in base 2, dimension 1 the tables' XOR.
+        let x = i.reverse_bits();
+        let y = (0..4).fold(0u32, |y, j| y ^ SOBOL_Y[j][(i >> (8 * j)) as usize & 0xff]);
+        let x = owen_scramble(x, self.scramble[1]);
+        let y = owen_scramble(y, self.scramble[2]);
+        Vec2::new(unit_from_bits(x), unit_from_bits(y))
+    }
 }
 
 /// The scrambled radical inverse in base 2 of a shuffled `index` (the 1D counterpart of
@@ -281,6 +329,36 @@ mod tests {
             );
             assert!((sum1 / SEEDS as f64 - 0.5).abs() < 4.0 * se);
         }
+    }
+
+    /// The tables give dimension 1 as the bit-by-bit XOR of its direction numbers.
+    #[test]
+    fn the_sobol_tables_equal_the_direction_number_recurrence() {
+        let slow = |i: u32| {
+            let (mut y, mut v, mut bits) = (0u32, 1u32 << 31, i);
+            while bits != 0 {
+                if bits & 1 == 1 {
+                    y ^= v;
+                }
+                bits >>= 1;
+                v ^= v >> 1;
+            }
+            y
+        };
+        let mut rng = Rng::new(8, 0);
+        let indices = (0..4096)
+            .chain((0..4096).map(|_| rng.next_u32()))
+            .chain([u32::MAX]);
+        for i in indices {
+            let fast = (0..4).fold(0u32, |y, j| y ^ SOBOL_Y[j][(i >> (8 * j)) as usize & 0xff]);
+            assert_eq!(fast, slow(i), "index {i}");
+        }
+        // The first points of dimension 1 unscrambled, in index order (Sobol's second
+        // coordinate: 0, 1/2, 3/4, 1/4, 5/8, 1/8).
+        let firsts: Vec<f64> = (0..6)
+            .map(|i| f64::from(slow(i)) / 4_294_967_296.0)
+            .collect();
+        assert_eq!(firsts, [0.0, 0.5, 0.75, 0.25, 0.625, 0.125]);
     }
 
     #[test]
