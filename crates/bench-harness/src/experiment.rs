@@ -386,7 +386,10 @@ impl Experiment {
     fn config_key(&self, scene_hash: u64) -> String {
         let s = &self.settings;
         let mut h = Fnv::default();
+        // The tracer's version too: a view saved against another path tracer's references
+        // (whose noise, ladder and equal-error figures differ) is measured again.
         h.u64(RESULTS_VERSION)
+            .u64(u64::from(crate::cache::TRACER_VERSION))
             .u64(scene_hash)
             .u64(s.width as u64)
             .u64(s.height as u64)
