@@ -251,9 +251,13 @@ fn rmse(a: &Image, b: &Image) -> f64 {
 }
 
 /// The reference converges: its error against a 4096-spp render falls at least as fast as
-/// `1 / sqrt(spp)` (what independent samples give; a bias would flatten it), and, since a
-/// pixel's first decisions are stratified, faster than its own per-sample variance over
-/// spp predicts for independent samples.
+/// `1 / sqrt(spp)` (what independent samples give; samples that do not average out, such as
+/// numbers shared between a pixel's samples, would flatten it; a bias the 4096-spp render
+/// shares is not seen here, the analytic tests above check that), and, since a pixel's
+/// first decisions are stratified, its error is below what its own per-sample variance
+/// over spp predicts for independent samples: that prediction is the error in expectation
+/// for independent samples, and the stratified one read 0.48 of it (2026-11-27); the bound
+/// 0.7 leaves the four seeds' estimate its noise.
 #[test]
 fn error_falls_at_least_as_one_over_sqrt_spp() {
     // The sunlit primitives: direct light is exact and every radiance is bounded (no point
@@ -291,19 +295,19 @@ fn error_falls_at_least_as_one_over_sqrt_spp() {
         }
         (mse.sqrt(), independent.sqrt())
     };
-    let ((e4, i4), (e64, i64)) = (errors(4), errors(64));
+    let ((e4, p4), (e64, p64)) = (errors(4), errors(64));
     let ratio = e4 / e64;
     eprintln!(
-        "rmse at 4 spp {e4:.5} (independent samples: {i4:.5}), at 64 spp {e64:.5} \
-         ({i64:.5}), ratio {ratio:.3} (4 for independent samples)"
+        "rmse at 4 spp {e4:.5} (independent samples: {p4:.5}), at 64 spp {e64:.5} \
+         ({p64:.5}), ratio {ratio:.3} (4 for independent samples)"
     );
     // 16x the samples: 4x less error for independent samples; allow the estimate's own
     // noise (the bound independent samples were held to: 2.8 to 5.5).
     assert!(ratio >= 2.8, "rmse ratio {ratio} (e4 {e4}, e64 {e64})");
     // Stratified: below what independent samples would give.
     assert!(
-        e64 < 0.7 * i64,
-        "64 spp: error {e64}, independent samples {i64}"
+        e64 < 0.7 * p64,
+        "64 spp: error {e64}, independent samples {p64}"
     );
 }
 

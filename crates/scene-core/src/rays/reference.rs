@@ -144,7 +144,7 @@ pub struct ReferenceOutput {
     pub image: Image,
     /// Per-pixel, per-channel sample variance (of one sample, unbiased). Divided by `spp` it
     /// is the variance of the mean for independent samples; the reference's stratified
-    /// samples make the mean's true variance lower (8-23x on the Cornell box at 256 spp), so
+    /// samples make the mean's true variance lower (9-23x on the Cornell box at 256 spp), so
     /// tests built on it are conservative.
     pub variance: Image,
     /// Samples per pixel accumulated.

@@ -168,6 +168,12 @@ const SOBOL_Y: [[u32; 256]; 4] = {
     t
 };
 
+/// Dimension 1 of Sobol's sequence at `i`, unscrambled, from [`SOBOL_Y`].
+#[inline]
+fn sobol_y(i: u32) -> u32 {
+    (0..4).fold(0u32, |y, j| y ^ SOBOL_Y[j][(i >> (8 * j)) as usize & 0xff])
+}
+
 /// One seed's scrambled and shuffled two-dimensional Sobol sequence ([`sobol_2d`]), its
 /// three scrambles hashed once: a path tracer keeps one per pixel and bounce and draws a
 /// point per sample.
@@ -191,7 +197,7 @@ impl Sobol2d {
         let i = owen_scramble(index, self.scramble[0]);
         // Dimension 0 is the radical inverse in base 2, dimension 1 the tables' XOR.
         let x = i.reverse_bits();
-        let y = (0..4).fold(0u32, |y, j| y ^ SOBOL_Y[j][(i >> (8 * j)) as usize & 0xff]);
+        let y = sobol_y(i);
         let x = owen_scramble(x, self.scramble[1]);
         let y = owen_scramble(y, self.scramble[2]);
         Vec2::new(unit_from_bits(x), unit_from_bits(y))
@@ -350,8 +356,7 @@ mod tests {
             .chain((0..4096).map(|_| rng.next_u32()))
             .chain([u32::MAX]);
         for i in indices {
-            let fast = (0..4).fold(0u32, |y, j| y ^ SOBOL_Y[j][(i >> (8 * j)) as usize & 0xff]);
-            assert_eq!(fast, slow(i), "index {i}");
+            assert_eq!(sobol_y(i), slow(i), "index {i}");
         }
         // The first points of dimension 1 unscrambled, in index order (Sobol's second
         // coordinate: 0, 1/2, 3/4, 1/4, 5/8, 1/8).

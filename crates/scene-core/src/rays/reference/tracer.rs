@@ -53,7 +53,7 @@ pub struct PathTracer<'a> {
     /// Not for a [`crate::sky::Sky::is_uniform`] sky: the cosine-weighted bounce is then as
     /// good a strategy alone, and a shadow ray and a draw from the map per surface vertex
     /// are saved (on the Breakfast Room with all bounces 22 % of the time at the same noise;
-    /// docs/reference.md, "Speed").
+    /// docs/reference.md, "What it computes").
     sky_nee: bool,
     /// Offset of secondary ray origins, relative to the scene's extent.
     eps: f32,
@@ -206,7 +206,7 @@ impl<'a> PathTracer<'a> {
         origin: Vec3,
         dir: Vec3,
         bounces: Bounces,
-        rng: &mut Draws<'_>,
+        draws: &mut Draws<'_>,
         stats: &mut RayStats,
     ) -> Vec3 {
         let max_vertex = match bounces {
@@ -293,9 +293,9 @@ impl<'a> PathTracer<'a> {
             l += beta
                 * albedo
                 * std::f32::consts::FRAC_1_PI
-                * self.direct(p, ns, usize::from(k > 0), k, rng, stats);
+                * self.direct(p, ns, usize::from(k > 0), k, draws, stats);
             // Bounce.
-            let nd = cosine_hemisphere(ns, rng.pair(Pair::Bounce(k)));
+            let nd = cosine_hemisphere(ns, draws.pair(Pair::Bounce(k)));
             let cos = nd.dot(ns);
             if nd.dot(ng) <= 0.0 || cos <= 0.0 {
                 break;
@@ -308,7 +308,7 @@ impl<'a> PathTracer<'a> {
                 // before) makes the weight grow by rho/cap per bounce and the variance
                 // unbounded once rho^2 > cap (a furnace of albedo 0.999 averaged 187 for 1000).
                 let q = beta.max_element().min(1.0);
-                if q <= 0.0 || rng.rng.next_f32() >= q {
+                if q <= 0.0 || draws.rng.next_f32() >= q {
                     break;
                 }
                 beta /= q;
@@ -331,7 +331,7 @@ impl<'a> PathTracer<'a> {
         n: Vec3,
         which: usize,
         vertex: u32,
-        rng: &mut Draws<'_>,
+        draws: &mut Draws<'_>,
         stats: &mut RayStats,
     ) -> Vec3 {
         let mut e = Vec3::ZERO;
@@ -376,9 +376,9 @@ impl<'a> PathTracer<'a> {
             && self.sky_nee
             && self.sky_factors[which] != Vec3::ZERO
             && let Some((w, pdf, le)) = sky.sample(glam::Vec3::new(
-                rng.rng.next_f32(),
-                rng.rng.next_f32(),
-                rng.rng.next_f32(),
+                draws.rng.next_f32(),
+                draws.rng.next_f32(),
+                draws.rng.next_f32(),
             ))
         {
             let cos = n.dot(w);
@@ -393,16 +393,18 @@ impl<'a> PathTracer<'a> {
         let picked = if self.emitters.is_empty() {
             None
         } else {
-            self.emitters.pick_with_rest(rng.rng.next_f64())
+            self.emitters.pick_with_rest(draws.rng.next_f64())
         };
         if let Some((k, rest)) = picked {
             let tri = &self.emitters.triangles[k];
             let data = &self.tris[tri.triangle as usize];
             let factor = self.mesh_factors[tri.mesh as usize][which];
             // Uniform by area, or by an emission texture's power (its pattern).
-            let (b, density) =
-                self.emitters
-                    .point_on(k, rest, uniform_triangle(rng.pair(Pair::Emitter(vertex))));
+            let (b, density) = self.emitters.point_on(
+                k,
+                rest,
+                uniform_triangle(draws.pair(Pair::Emitter(vertex))),
+            );
             let q = data.p[0] * (1.0 - b.x - b.y) + data.p[1] * b.x + data.p[2] * b.y;
             let to = q - p;
             let d2 = to.length_squared();
@@ -468,8 +470,8 @@ enum Pair {
 /// deeper vertices) comes from the sample's own generator. Each point is uniform for a
 /// random scramble, so every estimate stays unbiased; the image depends only on the seed,
 /// the pixel and the sample index, whatever the threads and passes. On the Cornell box
-/// with all bounces (256 spp) the image's variance is 8-19x lower than with independent
-/// numbers, at 1.1x the time (docs/reference.md, "Speed").
+/// with all bounces (256 spp) the image's variance is 9-23x lower per channel than with
+/// independent numbers, at 1.07x the time (docs/reference.md, "What it computes").
 struct Draws<'r> {
     rng: &'r mut Rng,
     /// The pixel's sequences and the sample's index (`None`: every number random).
