@@ -228,14 +228,11 @@ impl Sky {
         let last = *self.cdf.last()?;
         let pick = (f64::from(u.x) * last).min(last);
         let i = self.pixel_at(pick, last);
-        let before = if i == 0 { 0.0 } else { self.cdf[i - 1] };
-        let p_pixel = (self.cdf[i] - before) / last;
-        if p_pixel <= 0.0 {
+        let pdf = self.pixel_pdf(i);
+        if !(pdf.is_finite() && pdf > 0.0) {
             return None;
         }
-        let (d, omega) = self.point_in_pixel(i, u);
-        let pdf = (p_pixel / omega) as f32;
-        (pdf.is_finite() && pdf > 0.0).then_some((d, pdf, self.radiance[i]))
+        Some((self.point_in_pixel(i, u).0, pdf, self.radiance[i]))
     }
 
     /// The first pixel whose cumulative weight exceeds `pick` (the last pixel when none
@@ -258,10 +255,21 @@ impl Sky {
 
     /// The solid-angle density [`Sky::sample`] draws unit direction `towards_sky` with.
     pub fn pdf(&self, towards_sky: Vec3) -> f32 {
+        self.pixel_pdf(self.pixel_of(towards_sky))
+    }
+
+    /// [`Sky::radiance`] and [`Sky::pdf`] of one direction, its pixel found once (what a
+    /// bounce that leaves the scene needs for its MIS weight).
+    pub fn radiance_and_pdf(&self, towards_sky: Vec3) -> (Vec3, f32) {
+        let i = self.pixel_of(towards_sky);
+        (self.radiance[i], self.pixel_pdf(i))
+    }
+
+    /// The solid-angle density of directions in pixel `i` (0 for a black sky).
+    fn pixel_pdf(&self, i: usize) -> f32 {
         let Some(&last) = self.cdf.last() else {
             return 0.0;
         };
-        let i = self.pixel_of(towards_sky);
         let before = if i == 0 { 0.0 } else { self.cdf[i - 1] };
         let (phi0, phi1, c0, c1) = self.bounds(i as u32 % self.width, i as u32 / self.width);
         (((self.cdf[i] - before) / last) / ((phi1 - phi0) * (c0 - c1))) as f32

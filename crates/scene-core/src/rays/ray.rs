@@ -204,16 +204,11 @@ impl RayScene {
         t_min: f32,
         t_max: f32,
     ) -> Option<Hit> {
-        let bvh = self.bvh.as_ref()?;
-        if !origin.is_finite() || !direction.is_finite() || direction == Vec3::ZERO {
-            return None;
-        }
-        let s = self.scale;
-        let ray = PreparedRay::new((origin * s).into(), direction.into(), t_min * s, t_max * s);
+        let (bvh, ray) = self.prepare(origin, direction, t_min, t_max)?;
         let found = bvh.closest(&ray, |id, u, v| self.exists(id, u, v))?;
         Some(Hit {
             triangle: found.id,
-            t: found.t / s,
+            t: found.t / self.scale,
             barycentric: Vec2::new(found.u, found.v),
         })
     }
@@ -221,15 +216,27 @@ impl RayScene {
     /// True when something lies along the ray for `t` in `[t_min, t_max)` (a segment that
     /// ends on a surface is not blocked by it).
     pub fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else {
-            return false;
-        };
+        self.prepare(origin, direction, t_min, t_max)
+            .is_some_and(|(bvh, ray)| bvh.any(&ray, |id, u, v| self.exists(id, u, v)))
+    }
+
+    /// The tree and the ray in its scaled units; `None` for an empty scene, a non-finite
+    /// ray or a zero direction (which meet nothing).
+    #[inline(always)]
+    fn prepare(
+        &self,
+        origin: Vec3,
+        direction: Vec3,
+        t_min: f32,
+        t_max: f32,
+    ) -> Option<(&Bvh4, PreparedRay)> {
+        let bvh = self.bvh.as_ref()?;
         if !origin.is_finite() || !direction.is_finite() || direction == Vec3::ZERO {
-            return false;
+            return None;
         }
         let s = self.scale;
         let ray = PreparedRay::new((origin * s).into(), direction.into(), t_min * s, t_max * s);
-        bvh.any(&ray, |id, u, v| self.exists(id, u, v))
+        Some((bvh, ray))
     }
 
     /// Heap bytes of the tree (nodes and triangle packets).

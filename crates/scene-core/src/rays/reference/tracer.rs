@@ -508,12 +508,11 @@ impl BounceSky<'_> {
     /// The light of throughput `beta` along `d`, which leaves the scene: the sky's radiance,
     /// MIS-weighted against its next-event estimate.
     fn light(&self, beta: Vec3, d: Vec3) -> Vec3 {
-        let w = if self.nee {
-            power_heuristic(self.pdf, self.sky.pdf(d))
-        } else {
-            1.0
-        };
-        beta * self.sky.radiance(d) * self.factor * w
+        if !self.nee {
+            return beta * self.sky.radiance(d) * self.factor;
+        }
+        let (le, pdf) = self.sky.radiance_and_pdf(d);
+        beta * le * self.factor * power_heuristic(self.pdf, pdf)
     }
 }
 
