@@ -280,6 +280,121 @@ fn masked_surfaces_match_the_reference_in_every_method() {
     assert!(checked >= 4, "{checked} methods");
 }
 
+/// The grille room lit by nothing but the grille itself: an emissive material under the
+/// checkerboard mask (`alpha` the same for every texel when `Some`: 0 masks it all away).
+fn lamp_room(grille: Grille, alpha: Option<f32>) -> Scene {
+    let mut s = room(grille);
+    s.point_lights.clear();
+    let m = s.materials.last_mut().unwrap();
+    m.emission = Vec3::new(3.0, 2.5, 2.0);
+    if let (Some(a), Some(t)) = (alpha, m.albedo_texture) {
+        s.textures[t as usize].alpha = Some(vec![a; (CELLS * CELLS) as usize]);
+    }
+    s.validate().expect("the lamp room is valid");
+    s
+}
+
+#[test]
+fn masked_emitters_emit_from_their_solid_part_in_every_method() {
+    // What the reference masks every method masks, emitters included: an emissive grille
+    // under the checkerboard lights the room as its twin (the solid squares as geometry)
+    // does, not as the whole quad does (about twice the light), and a lamp masked away
+    // entirely leaves the room black.
+    let (masked, twin, unmasked) = (
+        lamp_room(Grille::Masked, None),
+        lamp_room(Grille::Twin, None),
+        lamp_room(Grille::Unmasked, None),
+    );
+    let gone = lamp_room(Grille::Masked, Some(0.0));
+    let ref_masked = reference(&masked, 5);
+    let ref_twin = reference(&twin, 5);
+    let noise = rel(&reference(&twin, 6), &ref_twin);
+    let e_ref = rel(&ref_masked, &ref_twin);
+    eprintln!("reference: masked lamp vs twin {e_ref:.5} (two seeds differ by {noise:.5})");
+    assert!(e_ref < 1.5 * noise, "{e_ref} vs noise {noise}");
+    assert_eq!(reference(&gone, 5).mean(), Vec3::ZERO, "a lamp masked away");
+    let contract = scene_core::contract::check(&gone).unwrap();
+    assert!(
+        !contract.lit && contract.notes.iter().any(|n| n.contains("no light")),
+        "the contract says a lamp masked away gives no light: {contract:?}"
+    );
+    assert!(scene_core::contract::check(&masked).unwrap().lit);
+    let ctx = scene_core::gpu::gpu_test_context();
+    let methods = || -> Vec<(&str, Box<dyn Technique>)> {
+        techniques(ctx.as_ref())
+            .into_iter()
+            .filter(|(name, _)| *name != "reference")
+            .collect()
+    };
+    let mut checked = 0;
+    for ((((name, mut t_masked), (_, mut t_twin)), (_, mut t_unmasked)), (_, mut t_gone)) in
+        methods()
+            .into_iter()
+            .zip(methods())
+            .zip(methods())
+            .zip(methods())
+    {
+        let on_masked = render(t_masked.as_mut(), &masked);
+        let on_twin = render(t_twin.as_mut(), &twin);
+        let on_unmasked = render(t_unmasked.as_mut(), &unmasked);
+        let (e_mask, e_twin) = (rel(&on_masked, &ref_masked), rel(&on_twin, &ref_twin));
+        let (d_twin, d_naive) = (rel(&on_masked, &on_twin), rel(&on_unmasked, &on_twin));
+        let ratio = on_masked.mean().element_sum() / ref_masked.mean().element_sum();
+        eprintln!(
+            "{name}: masked lamp {e_mask:.3} off the reference (mean {ratio:.3} of it), twin \
+             {e_twin:.3} off its reference; the masked picture is {d_twin:.4} off the \
+             twin's, with the mask ignored {d_naive:.3}"
+        );
+        assert!(
+            e_mask <= (1.5 * e_twin).max(e_twin + 0.05),
+            "{name}: masked lamp {e_mask}, twin {e_twin}"
+        );
+        assert!(
+            d_twin * 4.0 < d_naive,
+            "{name}: to the twin {d_twin}, naive {d_naive}"
+        );
+        let dark = render(t_gone.as_mut(), &gone);
+        assert!(
+            dark.pixels.iter().all(|p| p.max_element() == 0.0),
+            "{name}: a lamp masked away still gives light (mean {})",
+            dark.mean()
+        );
+        checked += 1;
+    }
+    assert!(checked >= 4, "{checked} methods");
+}
+
+#[test]
+fn a_scene_masked_away_entirely_is_said_to_be_black() {
+    // Every triangle under a mask that nothing reaches: legal, black, and said so.
+    let mut s = room(Grille::Masked);
+    for m in &mut s.materials {
+        m.alpha_cutoff = Some(0.5);
+    }
+    let contract = scene_core::contract::check(&s).unwrap();
+    assert!(
+        !contract.notes.iter().any(|n| n.contains("cut away")),
+        "the walls have no texture: alpha 1 reaches the cutoff ({contract:?})"
+    );
+    for m in &mut s.materials {
+        m.alpha_cutoff = Some(1.0);
+        m.albedo_texture = Some(0);
+    }
+    s.textures[0].alpha = Some(vec![0.5; (CELLS * CELLS) as usize]);
+    for mesh in &mut s.meshes {
+        mesh.uvs = Some(vec![Vec2::splat(0.5); mesh.positions.len()]);
+    }
+    s.validate().unwrap();
+    let contract = scene_core::contract::check(&s).unwrap();
+    assert!(
+        contract
+            .notes
+            .iter()
+            .any(|n| n.contains("every triangle is cut away")),
+        "{contract:?}"
+    );
+}
+
 /// A masked material survives a glTF round trip: `alphaMode: MASK` with its cutoff, the
 /// texture's alpha in an RGBA PNG; the re-imported grille casts the same holes.
 #[test]

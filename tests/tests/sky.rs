@@ -1,7 +1,8 @@
 //! The sky (`scene_core::sky`) in every method against the reference path tracer, which
 //! integrates it exactly while the other methods see its median-cut directions:
-//! - an open floor under a uniform sky and under an uneven map reflects `albedo / pi` times
-//!   the sky's irradiance (the analytic value) in the reference and in every method;
+//! - an open floor under a uniform sky, an uneven map, a one-pixel map and a one-row map
+//!   reflects `albedo / pi` times the sky's irradiance (the analytic value) in the
+//!   reference and in every method;
 //! - a closed room lit only through one window by a sky: each method within its usual
 //!   error of the reference (its error on the same room lit by a point light), and black
 //!   with the sky switched off.
@@ -92,9 +93,17 @@ fn uneven_sky() -> Sky {
 #[test]
 fn an_open_floor_reflects_the_sky_irradiance_in_every_method() {
     let albedo = 0.5;
+    // Degenerate maps too: one pixel over the whole sphere, and one row of uneven azimuths
+    // centred on the horizon (held refined for the median cut; DL and ISR received nothing
+    // from them, the IBRR 0-22 % of the reference's light).
+    let row: Vec<Vec3> = (0..7)
+        .map(|i| Vec3::new(0.2 + 0.3 * i as f32, 0.5, 1.0 - 0.1 * i as f32))
+        .collect();
     for sky in [
         Sky::uniform(Vec3::new(1.0, 0.8, 0.6)).unwrap(),
         uneven_sky(),
+        Sky::from_map("one pixel", 1, 1, vec![Vec3::new(0.9, 0.7, 0.4)], 64).unwrap(),
+        Sky::from_map("one row", 7, 1, row, 64).unwrap(),
     ] {
         let expected = sky.irradiance(Vec3::Y) * albedo / std::f32::consts::PI;
         let scene = open_floor(sky.clone(), albedo);

@@ -168,3 +168,36 @@ fn vertex_colours_round_trip_through_gltf() {
     // The walls mesh only: the other meshes of the file have none.
     assert_eq!(colors.len(), back.scene.meshes[0].positions.len());
 }
+
+#[test]
+fn relighting_exports_a_coloured_scene_with_its_colours_beside_the_preview() {
+    // `xtask relight` exited 1 on any glTF with COLOR_0: the export's preview is COLOR_0
+    // too. The scene's colours now travel as `_SOURCE_COLOR_0` and the file re-imports.
+    let coloured = Arc::new(room(true));
+    let mut t = relight_pr::RelightTechnique::new(
+        relight_pr::MeshSettings::elements(64),
+        relight_pr::SolverSettings::default(),
+        Box::new(gbuffer::CpuRasterizer::new()),
+    );
+    t.prepare(coloured.clone()).unwrap();
+    let p = t.prepared().unwrap();
+    let dir = std::env::temp_dir().join(format!("colour-export-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("relit.gltf");
+    relight_pr::export::gltf(
+        &coloured,
+        &p.meshing,
+        &p.welding,
+        &p.solution,
+        &Default::default(),
+        0.0,
+        &path,
+    )
+    .expect("a scene with vertex colours exports");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let back = scene_core::gltf_io::import(&path).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(text.contains("_SOURCE_COLOR_0") && text.contains("\"COLOR_0\""));
+    let preview = back.scene.meshes[0].colors.as_ref().expect("the preview");
+    assert!(preview.iter().any(|c| c.max_element() > 0.0));
+}

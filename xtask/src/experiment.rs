@@ -563,6 +563,15 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
     let bounces = parse_bounces(&o.bounces)?;
     let choices = parse_techniques(&o.techniques)?;
     check_numbers(o)?;
+    if let (Some(k), Some(doc)) = (o.shard, &o.write_docs) {
+        return Err(format!(
+            "--write-docs {} with --shard {k}: a shard holds a share of the views, not the \
+             run a results document describes; run `cargo xtask experiment merge DIR... --out \
+             DIR --write-docs {}` once every shard is done",
+            doc.display(),
+            doc.display()
+        ));
+    }
     crate::check_out_dir(&o.out)?;
     let backend = if o.gpu {
         let ctx = scene_core::gpu::GpuContext::new()
@@ -977,6 +986,19 @@ mod tests {
             Ok(_) => panic!("expected an error"),
             Err(e) => e,
         }
+    }
+
+    #[test]
+    fn a_shard_does_not_write_the_results_document() {
+        let mut o = options();
+        o.shard = Some(bench_harness::Shard::parse("1/2").unwrap());
+        o.write_docs = Some(o.out.join("results.md"));
+        let e = err(&o);
+        assert!(
+            e.contains("--write-docs") && e.contains("experiment merge"),
+            "{e}"
+        );
+        assert!(!o.out.exists(), "nothing is written for a refused run");
     }
 
     #[test]

@@ -738,6 +738,7 @@ fn run(cli: Cli) -> Result<(), String> {
             ..
         } => {
             let r = bench_harness::merge::read_results_file(&from).map_err(|e| e.to_string())?;
+            results_doc::check_input(&r, &from)?;
             results_doc::write(&r, &doc)?;
             println!("{}", doc.display());
             Ok(())

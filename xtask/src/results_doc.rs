@@ -18,6 +18,24 @@ pub fn results_path(doc: &Path) -> PathBuf {
     doc.with_extension("json")
 }
 
+/// Checks results a document is to be generated from, as any input is checked
+/// ([`Results::check`], with the error metrics imalyzer knows), and refuses a shard's: a
+/// document describes a whole run (merge the shards first).
+pub fn check_input(r: &Results, from: &Path) -> Result<(), String> {
+    if let Some(k) = r.run.shard {
+        return Err(format!(
+            "{}: the results of shard {k}, a share of the views; a results document describes \
+             a whole run: merge the shards first (`cargo xtask experiment merge DIR... --out \
+             DIR`)",
+            from.display()
+        ));
+    }
+    let lower_is_better =
+        |name: &str| imalyzer::Measure::parse(name).is_some_and(|m| m.lower_is_better());
+    r.check(&lower_is_better)
+        .map_err(|e| format!("{}: {e}", from.display()))
+}
+
 /// Writes the document generated from `r` at `doc` and the results beside it.
 pub fn write(r: &Results, doc: &Path) -> Result<(), String> {
     let json = results_path(doc);
@@ -252,6 +270,7 @@ pub fn regenerate(doc: &Path) -> Result<(String, String), String> {
         .to_string();
     let json = doc.with_file_name(&name);
     let results = bench_harness::merge::read_results_file(&json).map_err(|e| e.to_string())?;
+    check_input(&results, &json)?;
     let now = render(&results, &name);
     Ok((text, now))
 }
@@ -285,5 +304,33 @@ mod tests {
         checked.sort();
         // docs/results.md is the default run's; it must be there and generated.
         assert!(checked.contains(&"results.md".to_string()), "{checked:?}");
+    }
+
+    #[test]
+    fn results_a_document_cannot_describe_are_refused_by_field() {
+        let json = crate::shaders::workspace_root().join("docs/results.json");
+        let good = bench_harness::merge::read_results_file(&json).unwrap();
+        check_input(&good, &json).expect("the default run's results pass");
+        let refused = |edit: &dyn Fn(&mut Results)| {
+            let mut r = good.clone();
+            edit(&mut r);
+            check_input(&r, Path::new("x.json")).unwrap_err()
+        };
+        let e = refused(&|r| r.settings.width = 0);
+        assert!(e.contains("settings.width = 0"), "{e}");
+        let e = refused(&|r| {
+            let m = &mut r.views[0].techniques[0].errors[0].metrics;
+            let mean = m.iter_mut().find(|(n, _)| n == "mean-error").unwrap();
+            mean.1 = -1e308;
+        });
+        assert!(e.contains("mean-error") && e.contains("-1e308"), "{e}");
+        let e = refused(&|r| r.run.command = "a\n# injected heading".into());
+        assert!(e.contains("results.run.command"), "{e}");
+        let e = refused(&|r| r.views[0].scene = "x | y".into());
+        assert!(e.contains("scene the run does not list"), "{e}");
+        let e = refused(&|r| r.run.scenes.push("<script>".into()));
+        assert!(e.contains("results.run.scenes["), "{e}");
+        let e = refused(&|r| r.run.shard = bench_harness::Shard::parse("1/2").ok());
+        assert!(e.contains("merge the shards first"), "{e}");
     }
 }

@@ -593,6 +593,12 @@ impl Experiment {
             sequence,
             run: RunInfo {
                 scenes: self.scenes.iter().map(|s| s.id.clone()).collect(),
+                scene_hashes: self
+                    .scenes
+                    .iter()
+                    .map(|s| format!("{:016x}", scene_hash(&s.scene)))
+                    .collect(),
+                tool_version: crate::results::tool_version(),
                 shard,
                 sequence_expected: self.settings.sequence.is_some(),
                 seconds: start.elapsed().as_secs_f64(),

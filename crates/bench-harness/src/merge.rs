@@ -38,15 +38,36 @@ pub fn read_results_file(path: &Path) -> Result<Results, HarnessError> {
 }
 
 /// Merges the shard folders `dirs` into `out`: checks that they are the shares `1/N` to
-/// `N/N` of one run (same settings, techniques, metrics and scenes; every share exactly
-/// once), puts their views back in run order, recomputes the summary, copies every image
-/// (`images/`, `sequence/`) and writes `results.json`, `report.md` and `report.html`.
-/// `headline` is the technique shown against the baseline in the gallery.
+/// `N/N` of one run (same settings, techniques, metrics, scenes, scene contents and tool
+/// version; every share exactly once; every image the report links present), puts their
+/// views back in run order, recomputes the summary, copies every image (`images/`,
+/// `sequence/`) and writes `results.json`, `report.md` and `report.html`. `headline` is the
+/// technique shown against the baseline in the gallery.
+///
+/// Nothing is written before every check has passed, and `out` may be neither one of the
+/// shard folders nor inside one (merging would overwrite that shard's `results.json`).
 pub fn merge(dirs: &[PathBuf], out: &Path, headline: Option<&str>) -> Result<Merged, HarnessError> {
     let invalid = |m: String| HarnessError::Invalid(format!("merge: {m}"));
     let mut shards: Vec<(PathBuf, Results)> = Vec::new();
     for d in dirs {
         shards.push((d.clone(), read_results(d)?));
+    }
+    let out_abs = absolute(out);
+    for d in dirs {
+        let d_abs = absolute(d);
+        if out_abs.starts_with(&d_abs) {
+            return Err(invalid(format!(
+                "the output folder {} is {} shard folder {}: merging would overwrite that \
+                 shard; give another --out",
+                out.display(),
+                if out_abs == d_abs {
+                    "the"
+                } else {
+                    "inside the"
+                },
+                d.display()
+            )));
+        }
     }
     let Some((first_dir, first)) = shards.first() else {
         return Err(invalid("no shard folder given".into()));
@@ -80,6 +101,35 @@ pub fn merge(dirs: &[PathBuf], out: &Path, headline: Option<&str>) -> Result<Mer
                 "{} was run with other settings, techniques, metrics or scenes than {}",
                 d.display(),
                 first_dir.display()
+            )));
+        }
+        if r.run.tool_version.is_empty() || r.run.scene_hashes.len() != r.run.scenes.len() {
+            return Err(invalid(format!(
+                "{} records no tool version or scene hashes (made by an older version): run \
+                 its share again",
+                d.display()
+            )));
+        }
+        if r.run.tool_version != first.run.tool_version {
+            return Err(invalid(format!(
+                "{} was made by {} but {} by {}",
+                d.display(),
+                r.run.tool_version,
+                first_dir.display(),
+                first.run.tool_version
+            )));
+        }
+        if let Some(i) =
+            (0..r.run.scenes.len()).find(|&i| r.run.scene_hashes[i] != first.run.scene_hashes[i])
+        {
+            return Err(invalid(format!(
+                "scene '{}' differs between {} (content hash {}) and {} ({}): the scene file \
+                 changed between the shares",
+                r.run.scenes[i],
+                d.display(),
+                r.run.scene_hashes[i],
+                first_dir.display(),
+                first.run.scene_hashes[i]
             )));
         }
     }
@@ -116,6 +166,24 @@ pub fn merge(dirs: &[PathBuf], out: &Path, headline: Option<&str>) -> Result<Mer
     }
     if first.run.sequence_expected && sequences.is_empty() {
         return Err(invalid("the relighting sequence is in no shard".into()));
+    }
+    // Every image the report will link, in the shard that made the view.
+    for (d, r) in &shards {
+        for v in &r.views {
+            if let Some(missing) = crate::report::gallery_images(r, v)
+                .all()
+                .find(|p| !d.join(p).is_file())
+            {
+                return Err(invalid(format!(
+                    "{} is missing {} (view {} / {}): the report would link a missing image; \
+                     run that share again",
+                    d.display(),
+                    missing.display(),
+                    v.scene,
+                    v.camera_index
+                )));
+            }
+        }
     }
     std::fs::create_dir_all(out).map_err(|e| HarnessError::io(out, e))?;
     for (d, _) in &shards {
@@ -187,4 +255,28 @@ fn copy_tree(from: &Path, to: &Path) -> Result<(), HarnessError> {
         }
     }
     Ok(())
+}
+
+/// `p` made absolute and free of `.` and `..` (through the existing part of the path, so
+/// links resolve), for comparing folders that may not exist yet.
+fn absolute(p: &Path) -> PathBuf {
+    let abs = std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    // The longest existing ancestor, canonicalised, and the rest appended.
+    let mut rest = Vec::new();
+    let mut cur = abs.as_path();
+    loop {
+        if let Ok(c) = cur.canonicalize() {
+            return rest
+                .iter()
+                .rev()
+                .fold(c, |acc: PathBuf, part| acc.join(part));
+        }
+        match (cur.parent(), cur.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_os_string());
+                cur = parent;
+            }
+            _ => return abs,
+        }
+    }
 }

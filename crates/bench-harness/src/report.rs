@@ -513,6 +513,53 @@ fn plot_html(p: Result<String, String>) -> String {
     }
 }
 
+/// The images the HTML gallery links for one view, relative to the run's folder.
+#[derive(Clone, Debug)]
+pub struct GalleryImages {
+    /// The reference at the run's last bounce limit.
+    pub reference: std::path::PathBuf,
+    /// Each technique's image, in the view's order.
+    pub techniques: Vec<std::path::PathBuf>,
+    /// Each technique's error map at the same bounce limit.
+    pub error_maps: Vec<std::path::PathBuf>,
+}
+
+impl GalleryImages {
+    /// Every image, the reference first.
+    pub fn all(&self) -> impl Iterator<Item = &std::path::PathBuf> {
+        std::iter::once(&self.reference)
+            .chain(&self.techniques)
+            .chain(&self.error_maps)
+    }
+}
+
+/// The images the HTML gallery links for view `v` of `r` ([`crate::merge`] checks that
+/// they exist before a merged report links them).
+pub fn gallery_images(r: &Results, v: &crate::results::ViewResult) -> GalleryImages {
+    let gb = gallery_bounces(r);
+    let dir = view_dir(&v.scene, v.camera_index, &v.camera_name());
+    let each = |name: &dyn Fn(&str) -> String| {
+        v.techniques
+            .iter()
+            .map(|t| dir.join(name(&slug(&t.label))))
+            .collect()
+    };
+    GalleryImages {
+        reference: dir.join(format!("reference-b{gb}.png")),
+        techniques: each(&|l| format!("{l}.png")),
+        error_maps: each(&|l| format!("errmap-{l}-b{gb}.png")),
+    }
+}
+
+/// The bounce limit the gallery shows: the run's last.
+fn gallery_bounces(r: &Results) -> String {
+    r.settings
+        .bounces
+        .last()
+        .cloned()
+        .unwrap_or_else(|| "1".into())
+}
+
 fn img(src: &Path, alt: &str) -> String {
     let src = src.display().to_string().replace('\\', "/");
     format!(
@@ -622,7 +669,7 @@ pub fn html(r: &Results, headline: Option<&str>, out: &Path) -> String {
         o.push_str(&markdown_to_html(&sequence_section(r)));
     }
     // Gallery.
-    let gb = s.bounces.last().cloned().unwrap_or_else(|| "1".into());
+    let gb = gallery_bounces(r);
     let _ = write!(
         o,
         "<h2>Gallery</h2><p>Every view at bounce limit {gb}: the reference and every \
@@ -635,7 +682,8 @@ pub fn html(r: &Results, headline: Option<&str>, out: &Path) -> String {
     );
     let cols = r.techniques.len() + 1;
     for v in &r.views {
-        let dir = view_dir(&v.scene, v.camera_index, &v.camera_name());
+        let g = gallery_images(r, v);
+        let (reference, shots, maps) = (&g.reference, &g.techniques, &g.error_maps);
         let _ = write!(
             o,
             "<h3>{} / {}</h3><div class=\"gallery\" style=\"grid-template-columns:repeat({cols},1fr)\">",
@@ -645,29 +693,26 @@ pub fn html(r: &Results, headline: Option<&str>, out: &Path) -> String {
         let _ = write!(
             o,
             "<figure>{}<figcaption>reference ({} spp)</figcaption></figure>",
-            img(&dir.join(format!("reference-b{gb}.png")), "reference"),
+            img(reference, "reference"),
             s.spp
         );
-        for t in &v.techniques {
+        for (t, shot) in v.techniques.iter().zip(shots) {
             let e = v.error(&t.label, &gb, &s.error_metric);
             let _ = write!(
                 o,
                 "<figure>{}<figcaption>{} ({} ms, error {})</figcaption></figure>",
-                img(&dir.join(format!("{}.png", slug(&t.label))), &t.label),
+                img(shot, &t.label),
                 esc(&t.label),
                 fmt_ms(t.frame.median_s * 1e3),
                 e.map(fmt_err).unwrap_or_else(|| "-".into())
             );
         }
         o.push_str("<figure></figure>");
-        for t in &v.techniques {
+        for (t, map) in v.techniques.iter().zip(maps) {
             let _ = write!(
                 o,
                 "<figure>{}<figcaption>error map: {}</figcaption></figure>",
-                img(
-                    &dir.join(format!("errmap-{}-b{gb}.png", slug(&t.label))),
-                    &format!("error map of {}", t.label)
-                ),
+                img(map, &format!("error map of {}", t.label)),
                 esc(&t.label)
             );
         }

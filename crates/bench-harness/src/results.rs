@@ -670,6 +670,78 @@ pub struct Results {
     pub run: RunInfo,
 }
 
+impl Results {
+    /// Checks a `results.json` read back as input (a results document is generated from it,
+    /// shards are merged from it): image size and samples within their stated ranges, at
+    /// least one repeat, every view as [`ViewResult::check`] checks it and of a scene of the
+    /// run, and every text plain ([`check_plain_text`]). `lower_is_better(metric)` names the
+    /// metrics that are errors (never below 0).
+    pub fn check(&self, lower_is_better: &dyn Fn(&str) -> bool) -> Result<(), String> {
+        use scene_core::range::{IMAGE_SIDE, SPP, check};
+        let s = &self.settings;
+        let e = |e: scene_core::range::OutOfRange| e.to_string();
+        check("settings.width", s.width, IMAGE_SIDE).map_err(e)?;
+        check("settings.height", s.height, IMAGE_SIDE).map_err(e)?;
+        check("settings.spp", s.spp, SPP).map_err(e)?;
+        check("settings.repeats", s.repeats, 1..=1000).map_err(e)?;
+        for v in &self.views {
+            if !self.run.scenes.is_empty() && !self.run.scenes.contains(&v.scene) {
+                return Err(format!(
+                    "view {} / {} is of a scene the run does not list ({})",
+                    v.scene,
+                    v.camera_index,
+                    self.run.scenes.join(", ")
+                ));
+            }
+            v.check(lower_is_better)
+                .map_err(|e| format!("view {} / {}: {e}", v.scene, v.camera_index))?;
+        }
+        non_negative(|| "run.seconds".into(), self.run.seconds)?;
+        let value = serde_json::to_value(self).map_err(|e| e.to_string())?;
+        check_plain_text(&value, "results")
+    }
+}
+
+/// The longest text a results file may hold in one field.
+const TEXT_MAX: usize = 4096;
+
+/// Refuses any string in `v` (a results file as JSON) that is longer than 4 096 bytes, holds
+/// a control character (a line break) or one of `| < >`, or an odd number of backticks (a
+/// code span left open): documents and reports copy names, labels and the command into
+/// Markdown tables, code spans and HTML, where these would change the document's structure.
+/// The error names the field by its JSON path.
+pub fn check_plain_text(v: &serde_json::Value, path: &str) -> Result<(), String> {
+    use serde_json::Value;
+    match v {
+        Value::String(t) => {
+            if t.len() > TEXT_MAX {
+                return Err(format!("{path} is {} bytes long, over {TEXT_MAX}", t.len()));
+            }
+            let open_span = t.matches('`').count() % 2 == 1;
+            if let Some(c) = t
+                .chars()
+                .find(|c| c.is_control() || "|<>".contains(*c) || (open_span && *c == '`'))
+            {
+                return Err(format!(
+                    "{path} holds {c:?}, which a generated document would not show as written: \
+                     {:?}",
+                    t.chars().take(80).collect::<String>()
+                ));
+            }
+            Ok(())
+        }
+        Value::Array(a) => a
+            .iter()
+            .enumerate()
+            .try_for_each(|(i, x)| check_plain_text(x, &format!("{path}[{i}]"))),
+        Value::Object(o) => o.iter().try_for_each(|(k, x)| {
+            check_plain_text(&Value::String(k.clone()), &format!("{path} key"))?;
+            check_plain_text(x, &format!("{path}.{k}"))
+        }),
+        _ => Ok(()),
+    }
+}
+
 /// The current UTC date and minute, `2026-11-25 09:41 UTC` (from the system clock).
 pub fn utc_now() -> String {
     let secs = std::time::SystemTime::now()
@@ -728,6 +800,25 @@ pub struct RunInfo {
     /// Where the defaults of the methods measured were tuned (held out from these views).
     #[serde(default)]
     pub tuning: Vec<String>,
+    /// The content hash of each scene (geometry, materials, lights, cameras), in the order of
+    /// `scenes`, as 16 hex digits: [`crate::merge`] refuses shards made from different
+    /// versions of a scene file.
+    #[serde(default)]
+    pub scene_hashes: Vec<String>,
+    /// The version of the tool that made the run ([`tool_version`]): shards of different
+    /// versions are not merged.
+    #[serde(default)]
+    pub tool_version: String,
+}
+
+/// This build's version as results record it: the crate's version and the reference
+/// tracer's.
+pub fn tool_version() -> String {
+    format!(
+        "bench-harness {} (tracer version {})",
+        env!("CARGO_PKG_VERSION"),
+        crate::cache::TRACER_VERSION
+    )
 }
 
 fn mean(v: impl IntoIterator<Item = f64>) -> Option<f64> {

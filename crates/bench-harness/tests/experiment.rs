@@ -874,6 +874,43 @@ fn a_run_split_in_shards_and_merged_equals_the_unsplit_run() {
     // A missing share is refused, naming it.
     let e = bench_harness::merge(&dirs[..1], &base.join("bad"), None).unwrap_err();
     assert!(e.to_string().contains("2/2 is missing"), "{e}");
+    // An output folder that is a shard (or inside one) is refused, and the shard is kept.
+    let shard1 = std::fs::read(dirs[0].join("results.json")).unwrap();
+    for out in [dirs[0].clone(), dirs[0].join("."), dirs[0].join("images")] {
+        let e = bench_harness::merge(&dirs, &out, None).unwrap_err();
+        assert!(e.to_string().contains("would overwrite that shard"), "{e}");
+    }
+    assert_eq!(std::fs::read(dirs[0].join("results.json")).unwrap(), shard1);
+    assert!(!dirs[0].join("report.md").exists());
+    // Shards of different versions of a scene file, or of the tool, are refused.
+    let tampered = base.join("tampered");
+    let tamper = |edit: &dyn Fn(&mut Results)| {
+        std::fs::create_dir_all(&tampered).unwrap();
+        let mut r: Results = serde_json::from_slice(&shard1).unwrap();
+        edit(&mut r);
+        std::fs::write(
+            tampered.join("results.json"),
+            serde_json::to_vec(&r).unwrap(),
+        )
+        .unwrap();
+        let both = [tampered.clone(), dirs[1].clone()];
+        bench_harness::merge(&both, &base.join("bad"), None)
+            .unwrap_err()
+            .to_string()
+    };
+    let e = tamper(&|r| r.run.scene_hashes[1] = "0123456789abcdef".into());
+    assert!(e.contains("scene 'cornell-point' differs"), "{e}");
+    let e = tamper(&|r| r.run.tool_version = "bench-harness 0.0.1".into());
+    assert!(e.contains("was made by bench-harness 0.0.1"), "{e}");
+    let e = tamper(&|r| r.run.scene_hashes.clear());
+    assert!(e.contains("older version"), "{e}");
+    // A shard whose images are gone is refused before anything is written.
+    let e = tamper(&|_| {});
+    assert!(e.contains("is missing images/"), "{e}");
+    assert!(
+        !base.join("bad").exists(),
+        "nothing is written for a refused merge"
+    );
     let merged = bench_harness::merge(&dirs, &base.join("merged"), None)
         .unwrap()
         .results;

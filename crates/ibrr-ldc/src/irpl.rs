@@ -604,6 +604,12 @@ impl Walker<'_> {
                 let t = &emitters.triangles[triangle];
                 let s = lights.get(id);
                 let bary = uniform_triangle(Vec2::new(u1, u2));
+                // A point an alpha mask cuts away emits nothing (as in the reference): the
+                // path carries no light, so the emitter's light is its power times the share
+                // of its area that exists.
+                if !self.rays.cutouts().opaque(t.triangle, bary) {
+                    return;
+                }
                 let p = t.corners[0] * (1.0 - bary.x - bary.y)
                     + t.corners[1] * bary.x
                     + t.corners[2] * bary.y;

@@ -41,8 +41,10 @@ pub enum SourcePrecision {
     /// 2 x 3 x f32: 24 bytes a layer and source.
     #[default]
     F32,
-    /// 2 x 3 x f16: 12 bytes a layer and source (relative rounding about 5e-4; values above
-    /// 65504 saturate, so very bright scenes keep f32).
+    /// 2 x 3 x f16: 12 bytes a layer and source (relative rounding about 5e-4), each
+    /// source's values stored over a power-of-two scale of its own (4 bytes a source), so
+    /// that a light of any brightness keeps f16's precision instead of saturating at 65504;
+    /// values below 2^-26 of the source's brightest round to zero.
     F16,
 }
 
@@ -651,24 +653,70 @@ pub struct SourceValues {
 #[derive(Clone, Debug, PartialEq)]
 enum SourceStore {
     F32(Vec<[Vec3; 2]>),
-    F16(Vec<[half::f16; 6]>),
+    /// The values over each source's scale (`value = f16 * scale[source]`).
+    F16 {
+        values: Vec<[half::f16; 6]>,
+        scale: Vec<f32>,
+        /// Values clamped at f16's largest since construction ([`SourceValues::add`]).
+        saturated: u64,
+    },
+}
+
+/// The largest stored f16 a source's brightest value maps to: 2^12, so that the light
+/// compensation may add up to 16 times as much again before anything saturates.
+const F16_TOP: f32 = 4096.0;
+
+/// The power of two that maps `max` to at most [`F16_TOP`] (1 for a source without light).
+fn f16_scale(max: f32) -> f32 {
+    if !(max.is_finite() && max > 0.0) {
+        return 1.0;
+    }
+    let e = (max / F16_TOP).log2().ceil().clamp(-126.0, 127.0);
+    2f32.powi(e as i32)
+}
+
+/// `x / scale` as f16, clamped into [0, f16::MAX]; true when it was above the top.
+fn to_f16(x: f32, scale: f32) -> (half::f16, bool) {
+    let top = f32::from(half::f16::MAX);
+    let v = x / scale;
+    (half::f16::from_f32(v.clamp(0.0, top)), v > top)
 }
 
 impl SourceValues {
     fn new(sources: usize, values: &[[Vec3; 2]], precision: SourcePrecision) -> Self {
         let store = match precision {
             SourcePrecision::F32 => SourceStore::F32(values.to_vec()),
-            SourcePrecision::F16 => SourceStore::F16(
-                values
+            SourcePrecision::F16 => {
+                let mut max = vec![0.0f32; sources];
+                for (k, [d, i]) in values.iter().enumerate() {
+                    let m = &mut max[k % sources.max(1)];
+                    *m = m.max(d.max_element()).max(i.max_element());
+                }
+                let scale: Vec<f32> = max.into_iter().map(f16_scale).collect();
+                let values = values
                     .iter()
-                    .map(|[d, i]| {
-                        [d.x, d.y, d.z, i.x, i.y, i.z]
-                            .map(|x| half::f16::from_f32(x.clamp(0.0, f32::from(half::f16::MAX))))
+                    .enumerate()
+                    .map(|(k, [d, i])| {
+                        let s = scale[k % sources.max(1)];
+                        [d.x, d.y, d.z, i.x, i.y, i.z].map(|x| to_f16(x, s).0)
                     })
-                    .collect(),
-            ),
+                    .collect();
+                SourceStore::F16 {
+                    values,
+                    scale,
+                    saturated: 0,
+                }
+            }
         };
         Self { sources, store }
+    }
+
+    /// Values that [`SourceValues::add`] clamped at f16's largest (always 0 for f32).
+    pub fn saturated(&self) -> u64 {
+        match &self.store {
+            SourceStore::F32(_) => 0,
+            SourceStore::F16 { saturated, .. } => *saturated,
+        }
     }
 
     /// Number of sources.
@@ -680,17 +728,18 @@ impl SourceValues {
     pub fn precision(&self) -> SourcePrecision {
         match self.store {
             SourceStore::F32(_) => SourcePrecision::F32,
-            SourceStore::F16(_) => SourcePrecision::F16,
+            SourceStore::F16 { .. } => SourcePrecision::F16,
         }
     }
 
-    /// Bytes held.
+    /// Bytes held (with f16, the sources' scales too).
     pub fn bytes(&self) -> u64 {
-        let n = match &self.store {
-            SourceStore::F32(v) => v.len(),
-            SourceStore::F16(v) => v.len(),
-        };
-        n as u64 * self.precision().bytes()
+        match &self.store {
+            SourceStore::F32(v) => v.len() as u64 * SourcePrecision::F32.bytes(),
+            SourceStore::F16 { values, scale, .. } => {
+                values.len() as u64 * SourcePrecision::F16.bytes() + 4 * scale.len() as u64
+            }
+        }
     }
 
     /// Adds `[direct, indirect]` to layer `layer`'s values from source `source`.
@@ -701,12 +750,18 @@ impl SourceValues {
                 v[k][0] += value[0];
                 v[k][1] += value[1];
             }
-            SourceStore::F16(v) => {
+            SourceStore::F16 {
+                values,
+                scale,
+                saturated,
+            } => {
                 let [d, i] = value;
                 let add = [d.x, d.y, d.z, i.x, i.y, i.z];
-                for (h, a) in v[k].iter_mut().zip(add) {
-                    let x = (f32::from(*h) + a).clamp(0.0, f32::from(half::f16::MAX));
-                    *h = half::f16::from_f32(x);
+                let s = scale[source];
+                for (h, a) in values[k].iter_mut().zip(add) {
+                    let (v, over) = to_f16(f32::from(*h) * s + a, s);
+                    *h = v;
+                    *saturated += u64::from(over);
                 }
             }
         }
@@ -718,8 +773,9 @@ impl SourceValues {
         let k = layer * self.sources + source;
         match &self.store {
             SourceStore::F32(v) => v[k],
-            SourceStore::F16(v) => {
-                let h = v[k].map(f32::from);
+            SourceStore::F16 { values, scale, .. } => {
+                let s = scale[source];
+                let h = values[k].map(|x| f32::from(x) * s);
                 [Vec3::new(h[0], h[1], h[2]), Vec3::new(h[3], h[4], h[5])]
             }
         }

@@ -238,7 +238,26 @@ fn a_build_with_a_light_off_rebuilds_once_that_light_is_on() {
 
 #[test]
 fn f16_storage_relights_like_f32() {
-    let scene = Arc::new(builtin::scene("corridor").unwrap());
+    // At the corridor's own brightness, and 1e7 times brighter: each source keeps its
+    // values over a scale of its own, so a bright light does not saturate f16 at 65504
+    // (it did: such a scene rendered about 1e5 times too dark).
+    for bright in [1.0f32, 1e7] {
+        f16_relights_like_f32_at(bright);
+    }
+}
+
+fn f16_relights_like_f32_at(bright: f32) {
+    let mut scene = builtin::scene("corridor").unwrap();
+    for m in &mut scene.materials {
+        m.emission *= bright;
+    }
+    for l in &mut scene.point_lights {
+        l.intensity *= bright;
+    }
+    for l in &mut scene.directional_lights {
+        l.irradiance *= bright;
+    }
+    let scene = Arc::new(scene);
     let state = new_state(&scene);
     let frame = FrameRequest::from_camera(&scene.cameras[0], W, H, &state);
     let a = built(&scene, settings()).render(&frame).unwrap();
@@ -262,11 +281,18 @@ fn f16_storage_relights_like_f32() {
             }
         }
     }
-    println!("f16 against f32: worst pixel off by {worst_rel:.2e} of itself");
+    let top = a.pixels.iter().map(|p| p.max_element()).fold(0.0, f32::max);
+    println!(
+        "lights x {bright:e}: f16 against f32: worst pixel off by {worst_rel:.2e} of itself \
+         (brightest pixel {top:e})"
+    );
     assert!(worst_rel > 0.0, "f16 rounds");
+    assert_eq!(ldc.sources.saturated(), 0);
+    let sources = ldc.sources.sources() as u64;
     assert_eq!(
         ldc.sources.bytes(),
-        ldc.layer_count() as u64 * ldc.sources.sources() as u64 * 12
+        ldc.layer_count() as u64 * sources * 12 + 4 * sources,
+        "12 bytes a layer and source, and a scale per source"
     );
 }
 

@@ -149,6 +149,25 @@ fn run(
         images.push(("reference variance", r.variance));
     }
     let checked = Checked::new(&images, o.non_finite)?;
+    // A variance is never negative: one that is would be floored silently below and the
+    // test would run on an image that is not a variance.
+    for &(label, im) in &images[2..] {
+        if let Some((i, p)) = im
+            .pixels
+            .iter()
+            .enumerate()
+            .find(|(_, p)| p.to_array().iter().any(|&v| v < 0.0))
+        {
+            let w = im.width.max(1) as usize;
+            return Err(CompareError::InvalidArgument(format!(
+                "{label} is negative at pixel ({}, {}): {:?}; a variance image holds values \
+                 >= 0",
+                i % w,
+                i / w,
+                p.to_array()
+            )));
+        }
+    }
     for (label, spp) in
         std::iter::once(("test", test.spp)).chain(reference_noise.map(|r| ("reference", r.spp)))
     {
@@ -301,6 +320,37 @@ mod tests {
             );
         }
         assert!((erfc(-1.0) - (2.0 - 0.157_299_207_050_285_1)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_negative_variance_is_refused_naming_the_pixel() {
+        use scene_core::glam::Vec3;
+        let reference = Image::filled(4, 3, Vec3::splat(1.0));
+        let variance = Image::filled(4, 3, Vec3::splat(0.5));
+        let ok = Estimate {
+            image: &reference,
+            variance: &variance,
+            spp: 16,
+        };
+        assert!(z_test(&reference, &ok, &ZTestOptions::default()).is_ok());
+        let mut negative = variance.clone();
+        negative.pixels[6] = Vec3::new(0.5, -0.25, 0.5);
+        let bad = Estimate {
+            image: &reference,
+            variance: &negative,
+            spp: 16,
+        };
+        let e = z_test(&reference, &bad, &ZTestOptions::default()).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("test variance is negative at pixel (2, 1)"),
+            "{e}"
+        );
+        let e = z_test_noisy_reference(&bad, &ok, &ZTestOptions::default()).unwrap_err();
+        assert!(
+            e.to_string().contains("reference variance is negative"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -11,7 +11,10 @@
 //!   engine's radiance is `sum_m c_m _RADIOSITY_m / pi` (plus emission) for colours `c_m`;
 //! - `COLOR_0`: the radiance under the light state given, times `2^exposure`, clamped to
 //!   [0, 1] as glTF requires of colours: a preview, not data (the HDR values are in the
-//!   attributes above).
+//!   attributes above);
+//! - `_SOURCE_COLOR_0` (float VEC3), when the scene has vertex colours (glTF's `COLOR_0`):
+//!   the scene's own colours at the vertices, which multiply the albedo (they are already
+//!   in the radiosities above).
 
 use std::path::Path;
 
@@ -95,6 +98,17 @@ pub fn gltf(
         values: preview,
     });
     let mut elements = meshing.element_scene(scene);
+    // The file's own vertex colours (already in each element's albedo, so in the
+    // radiosities above) move to `_SOURCE_COLOR_0`: `COLOR_0` holds the preview.
+    for (mi, mesh) in elements.meshes.iter_mut().enumerate() {
+        if let Some(colors) = mesh.colors.take() {
+            attributes.push(VertexAttribute {
+                name: "_SOURCE_COLOR_0".into(),
+                mesh: mi,
+                values: colors,
+            });
+        }
+    }
     elements.name = scene.name.clone();
     elements.point_lights = scene.point_lights.clone();
     elements.directional_lights = scene.directional_lights.clone();

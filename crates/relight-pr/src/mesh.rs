@@ -489,18 +489,27 @@ impl Meshing {
                 |b: Vec2| source.albedo_at(material, uv_of(b)) * color_of(b).unwrap_or(Vec3::ONE);
             // The patch's emission: the factor, or with an emission texture its mean over the
             // patch (64 samples), shared by the patch's elements (the solver shoots a patch's
-            // emission as one).
-            let emission = if source.materials[material as usize]
+            // emission as one). An alpha mask's holes emit nothing (as in the reference): a
+            // masked emitter's mean counts them as black, so the patch, which keeps its whole
+            // area, emits the power of its solid part (its albedo is scaled alike).
+            let textured = source.materials[material as usize]
                 .emission_texture
                 .is_some()
-                && uvs.is_some()
-            {
+                && uvs.is_some();
+            let masked = source.materials[material as usize].is_masked();
+            let emission = if textured || (masked && light.is_some()) {
                 scene_core::cutout::triangle_samples(8)
                     .map(|b| {
                         let b = piece.bary[0] * (1.0 - b.x - b.y)
                             + piece.bary[1] * b.x
                             + piece.bary[2] * b.y;
-                        source.emission_at(material, uv_of(b))
+                        if masked && !source.opaque_at(material, uv_of(b)) {
+                            Vec3::ZERO
+                        } else if textured {
+                            source.emission_at(material, uv_of(b))
+                        } else {
+                            factor
+                        }
                     })
                     .sum::<Vec3>()
                     / 64.0
@@ -523,7 +532,6 @@ impl Meshing {
             let patch = patches.len() as u32 - 1;
             let pieces: &[Piece] = if one { &[piece] } else { &piece.children() };
             let element_area = patch_area / pieces.len() as f32;
-            let masked = source.materials[material as usize].is_masked();
             for e in pieces {
                 let c = (e.bary[0] + e.bary[1] + e.bary[2]) / 3.0;
                 let coverage = if masked {

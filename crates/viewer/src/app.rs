@@ -50,6 +50,7 @@ pub fn run(args: Args) -> Result<(), String> {
     let scale = args.render_scale()?;
     let first_mode = Mode::parse(&args.mode)?;
     args.check_numbers()?;
+    args.check_files()?;
     if let Some(path) = &args.record {
         // Fail now, not when the window closes: write an empty recording where the
         // session's will go.

@@ -1,6 +1,6 @@
 //! The command line.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Parser;
 use scene_core::reference::Bounces;
@@ -92,6 +92,35 @@ pub struct Args {
 }
 
 impl Args {
+    /// Refuses a `--record` file that is one of the files the session reads (the `--replay`
+    /// file, the scene file, a `--sky` map): recording starts by writing an empty walkthrough
+    /// there, which would destroy it before it is read.
+    pub fn check_files(&self) -> Result<(), String> {
+        let Some(record) = &self.record else {
+            return Ok(());
+        };
+        let same = |other: &Path| match (record.canonicalize(), other.canonicalize()) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => false,
+        };
+        let read = self
+            .replay
+            .iter()
+            .map(|p| ("--replay", p.clone()))
+            .chain(std::iter::once(("--scene", PathBuf::from(&self.scene))))
+            .chain(self.sky.iter().map(|s| ("--sky", PathBuf::from(s))));
+        for (flag, path) in read {
+            if same(&path) {
+                return Err(format!(
+                    "--record {} is the {flag} file: recording would overwrite it before it \
+                     is read; record to another file",
+                    record.display()
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The lights `--sun`, `--point` and `--sky` add to the scene.
     pub fn added_lights(&self) -> Result<scene_core::AddedLights, String> {
         let mut added = scene_core::AddedLights::default();
@@ -149,5 +178,40 @@ impl Args {
             ));
         }
         Ok((w, h))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recording_onto_a_file_the_session_reads_is_refused_before_writing() {
+        let dir = std::env::temp_dir().join(format!("viewer-args-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let replay = dir.join("walk.json");
+        std::fs::write(&replay, "{\"version\":1,\"steps\":[]}").unwrap();
+        let r = replay.to_str().unwrap();
+        // The same file, also through another spelling of its path.
+        let other = dir.join(".").join("walk.json");
+        for record in [r, other.to_str().unwrap()] {
+            let args = Args::try_parse_from(["viewer", "--replay", r, "--record", record]).unwrap();
+            let e = args.check_files().unwrap_err();
+            assert!(e.contains("is the --replay file"), "{e}");
+        }
+        let args = Args::try_parse_from(["viewer", "--scene", r, "--record", r]).unwrap();
+        assert!(args.check_files().unwrap_err().contains("--scene"));
+        assert_eq!(
+            std::fs::read_to_string(&replay).unwrap(),
+            "{\"version\":1,\"steps\":[]}",
+            "the file is untouched"
+        );
+        // Another file is fine.
+        let fine = dir.join("new.json");
+        let args =
+            Args::try_parse_from(["viewer", "--replay", r, "--record", fine.to_str().unwrap()])
+                .unwrap();
+        assert_eq!(args.check_files(), Ok(()));
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

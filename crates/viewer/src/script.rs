@@ -199,10 +199,23 @@ impl Script {
                 self.version
             ));
         }
+        // Each step's light changes build on the state before it: the running state is
+        // checked too, so that multipliers set in separate steps cannot multiply past what
+        // a method can sum.
+        let mut lights = LightState::default();
         self.steps
             .iter()
             .enumerate()
-            .map(|(i, s)| s.check(scene).map_err(|e| format!("replay step {i}: {e}")))
+            .map(|(i, s)| {
+                let checked = s
+                    .check(scene)
+                    .map_err(|e| format!("replay step {i}: {e}"))?;
+                apply_lights(&mut lights, &checked.lights);
+                lights
+                    .check(scene)
+                    .map_err(|e| format!("replay step {i}: with the steps before it, {e}"))?;
+                Ok(checked)
+            })
             .collect()
     }
 }
@@ -215,6 +228,10 @@ fn finite3(what: &str, v: [f32; 3]) -> Result<Vec3, String> {
         Err(format!("{what} {v} is not finite"))
     }
 }
+
+/// The coarsest f32 spacing at a replay camera's position or target, as a fraction of the
+/// scene's extent (a 10 m room allows a camera up to about 800 km away).
+const CAMERA_PRECISION: f32 = 1e-2;
 
 impl Step {
     /// This step checked against `scene`.
@@ -234,6 +251,21 @@ impl Step {
                 let target = finite3("camera target", p.target)?;
                 if (target - position).length() <= 0.0 {
                     return Err("camera target equals its position".into());
+                }
+                // f32 must place the camera to a hundredth of the scene's extent, or every
+                // method's view of the scene breaks down (found here, before the window
+                // opens, naming the step).
+                let extent = scene.extent();
+                let limit = CAMERA_PRECISION * extent;
+                for (what, v) in [("camera position", position), ("camera target", target)] {
+                    let spacing = v.abs().max_element() * f32::EPSILON;
+                    if !(spacing <= limit) {
+                        return Err(format!(
+                            "{what} {v} lies so far from the origin that f32 places it only \
+                             to {spacing:e}, coarser than {CAMERA_PRECISION} of the scene's \
+                             extent {extent:e}"
+                        ));
+                    }
                 }
                 Some((position, target))
             }
@@ -376,6 +408,11 @@ mod tests {
             e.contains("step 0") && e.contains("no light 'point:7'"),
             "{e}"
         );
+        let e = check(
+            r#"{"version":1,"steps":[{},{"camera":{"position":[1e20,0,0],"target":[0,0,0]}}]}"#,
+        )
+        .unwrap_err();
+        assert!(e.contains("step 1") && e.contains("camera position"), "{e}");
         let e = check(r#"{"version":1,"steps":[{"layout":"grid"}]}"#).unwrap_err();
         assert!(e.contains("unknown layout 'grid'"), "{e}");
         let e = check(r#"{"version":1,"steps":[{"screenshot":"../x"}]}"#).unwrap_err();
@@ -392,6 +429,23 @@ mod tests {
         ))
         .unwrap_err();
         assert!(e.contains("negative"), "{e}");
+        // Multipliers each finite, whose product with the light overflows: in one step,
+        // and spread over two steps (the running state is checked).
+        let e = check(&format!(
+            r#"{{"version":1,"steps":[{{"lights":[{{"light":"{key}","color":[1e30,1e30,1e30]}}]}}]}}"#
+        ))
+        .unwrap_err();
+        assert!(e.contains("step 0") && e.contains("overflow"), "{e}");
+        let e = check(&format!(
+            r#"{{"version":1,"steps":[{{"lights":[{{"light":"{key}","color":[1e5,1e5,1e5]}}]}},{{"lights":[{{"light":"{key}","direct":1e9}}]}}]}}"#
+        ))
+        .unwrap_err();
+        assert!(
+            e.contains("step 1")
+                && e.contains("with the steps before it")
+                && e.contains("overflow"),
+            "{e}"
+        );
     }
 
     #[test]

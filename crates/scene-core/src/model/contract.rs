@@ -7,7 +7,8 @@
 //! | case | outcome |
 //! |---|---|
 //! | no triangle (none given, or every one dropped as degenerate) | refused: [`SceneError::NoGeometry`] |
-//! | no light (no point or directional light with power, no sky, no emissive triangle) | legal: a black image; [`Contract::notes`] says why |
+//! | no light (no point or directional light with power, no sky, no emissive triangle that its alpha mask leaves) | legal: a black image; [`Contract::notes`] says why |
+//! | every triangle cut away by its alpha mask | legal: a black image; [`Contract::notes`] says why |
 //! | coordinates so far from the origin that f32 spaces them more than [`PRECISION_LIMIT`] of the extent apart | refused: [`SceneError::PrecisionLost`] (the file's own f32 positions have already lost it) |
 //! | geometry off the origin by more than its extent, within the limit | [`Scene::recentred`] moves it (every position, light and camera) to the origin; [`crate::open_scene`] does this with a note |
 //!
@@ -78,6 +79,13 @@ pub fn check(scene: &Scene) -> Result<Contract, SceneError> {
             offset / extent
         ));
     }
+    if masked_away(scene) {
+        contract.notes.push(format!(
+            "{}: every triangle is cut away by its alpha mask (no sample of any triangle \
+             reaches its material's alphaCutoff): every method renders nothing but black",
+            scene.name
+        ));
+    }
     contract.lit = is_lit(scene);
     if !contract.lit {
         contract.notes.push(format!(
@@ -89,14 +97,54 @@ pub fn check(scene: &Scene) -> Result<Contract, SceneError> {
     Ok(contract)
 }
 
-/// True when some light of the scene gives power.
+/// Samples per side of a triangle's subdivision when the contract asks whether an alpha
+/// mask leaves anything of it ([`crate::cutout::coverage`]: 64 samples).
+const MASK_SAMPLES: u32 = 8;
+
+/// True when something of global triangle `local` of mesh `mesh` exists under its
+/// material's alpha mask (always for an unmasked material).
+fn exists(scene: &Scene, mesh: usize, local: usize) -> bool {
+    let m = &scene.meshes[mesh];
+    let material = m.material_ids[local];
+    if !scene
+        .materials
+        .get(material as usize)
+        .is_some_and(|mat| mat.is_masked())
+    {
+        return true;
+    }
+    let uvs = m
+        .uvs
+        .as_ref()
+        .map(|uv| m.indices[local].map(|i| uv.get(i as usize).copied().unwrap_or_default()));
+    crate::cutout::coverage(MASK_SAMPLES, |b| {
+        let uv = uvs.map(|t| t[0] * (1.0 - b.x - b.y) + t[1] * b.x + t[2] * b.y);
+        scene.opaque_at(material, uv)
+    }) > 0.0
+}
+
+/// True when the scene has triangles and every one is cut away by its alpha mask.
+fn masked_away(scene: &Scene) -> bool {
+    let any_masked = scene.materials.iter().any(|m| m.is_masked());
+    any_masked
+        && scene.triangle_count() > 0
+        && !scene
+            .meshes
+            .iter()
+            .enumerate()
+            .any(|(mi, m)| (0..m.indices.len()).any(|t| exists(scene, mi, t)))
+}
+
+/// True when some light of the scene gives power (an emissive triangle counts when its
+/// alpha mask leaves some of it).
 pub fn is_lit(scene: &Scene) -> bool {
-    let emissive_triangle = scene.meshes.iter().any(|m| {
-        m.material_ids.iter().any(|&id| {
+    let emissive_triangle = scene.meshes.iter().enumerate().any(|(mi, m)| {
+        m.material_ids.iter().enumerate().any(|(t, &id)| {
             scene
                 .materials
                 .get(id as usize)
                 .is_some_and(|mat| mat.emission.max_element() > 0.0)
+                && exists(scene, mi, t)
         })
     });
     emissive_triangle

@@ -147,14 +147,16 @@ pub struct InvalidLightSetting {
     pub label: String,
     /// The offending setting.
     pub setting: LightSetting,
+    /// What is wrong with it.
+    pub reason: String,
 }
 
 impl std::fmt::Display for InvalidLightSetting {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{}: light setting {:?} has a negative or non-finite multiplier",
-            self.label, self.setting
+            "{}: light setting {:?} {}",
+            self.label, self.setting, self.reason
         )
     }
 }
@@ -302,15 +304,35 @@ impl LightState {
         self.settings.iter().map(|(k, v)| (*k, *v))
     }
 
-    /// Checks every multiplier is finite and non-negative; the error names the light.
+    /// Checks every multiplier is finite and non-negative, and that the light's power times
+    /// the product of its multipliers (colour, direct or indirect) stays within
+    /// [`RADIOMETRIC_MAX`](crate::scene::RADIOMETRIC_MAX), the bound a scene's own lights
+    /// keep: past it, sums of the light overflow f32 and a method renders infinity or NaN.
+    /// The error names the light and what is wrong.
     pub fn check(&self, scene: &Scene) -> Result<(), InvalidLightSetting> {
         for (id, s) in &self.settings {
+            let fail = |reason: String| InvalidLightSetting {
+                light: *id,
+                label: id.label(scene),
+                setting: *s,
+                reason,
+            };
             if !s.is_finite() || s.color.min_element() < 0.0 || s.direct < 0.0 || s.indirect < 0.0 {
-                return Err(InvalidLightSetting {
-                    light: *id,
-                    label: id.label(scene),
-                    setting: *s,
-                });
+                return Err(fail("has a negative or non-finite multiplier".into()));
+            }
+            // A scene's lights are within the bound: only multipliers above 1 can leave it.
+            let gain = f64::from(s.color.max_element()) * f64::from(s.direct.max(s.indirect));
+            if gain <= 1.0 {
+                continue;
+            }
+            let power = light_power_bound(scene, *id);
+            let product = gain * f64::from(power);
+            let max = f64::from(crate::scene::RADIOMETRIC_MAX);
+            if product > max {
+                return Err(fail(format!(
+                    "times the light's {power:e} gives {product:e}, above {max:e}: f32 sums of \
+                     its light would overflow"
+                )));
             }
         }
         Ok(())
@@ -332,6 +354,35 @@ impl LightState {
                 .f32s([s.color.x, s.color.y, s.color.z, s.direct, s.indirect]);
         }
         h.finish()
+    }
+}
+
+/// The largest radiometric value light `id` has in `scene` (intensity, irradiance, an
+/// emissive mesh's largest emission factor, the sky's brightest radiance); 0 for a light
+/// the scene does not have.
+fn light_power_bound(scene: &Scene, id: LightId) -> f32 {
+    match id {
+        LightId::Point(i) => scene
+            .point_lights
+            .get(i as usize)
+            .map_or(0.0, |l| l.intensity.max_element()),
+        LightId::Directional(i) => scene
+            .directional_lights
+            .get(i as usize)
+            .map_or(0.0, |l| l.irradiance.max_element()),
+        LightId::Emissive(i) => scene.meshes.get(i as usize).map_or(0.0, |m| {
+            m.material_ids
+                .iter()
+                .filter_map(|&id| scene.materials.get(id as usize))
+                .map(|mat| mat.emission.max_element())
+                .fold(0.0, f32::max)
+        }),
+        LightId::Sky => scene.sky.as_ref().map_or(0.0, |sky| {
+            sky.map()
+                .iter()
+                .map(|c| c.max_element())
+                .fold(0.0, f32::max)
+        }),
     }
 }
 
@@ -824,6 +875,37 @@ fn emission_pattern(
 mod tests {
     use super::*;
     use crate::builtin;
+
+    #[test]
+    fn multipliers_whose_product_with_the_light_overflows_are_refused() {
+        let scene = builtin::scene("cornell-point").unwrap();
+        let id = LightId::Point(0);
+        let power = scene.point_lights[0].intensity.max_element();
+        let mut state = LightState::default();
+        // Large multipliers within the bound pass.
+        let fine = (crate::scene::RADIOMETRIC_MAX / power).sqrt() * 0.5;
+        state.set(
+            id,
+            LightSetting {
+                color: Vec3::splat(fine),
+                direct: fine,
+                ..Default::default()
+            },
+        );
+        assert_eq!(state.check(&scene), Ok(()));
+        // Each finite, their product with the light's intensity past f32's range.
+        state.set(
+            id,
+            LightSetting {
+                color: Vec3::splat(1e30),
+                indirect: 1e30,
+                ..Default::default()
+            },
+        );
+        let e = state.check(&scene).unwrap_err();
+        assert_eq!(e.light, id);
+        assert!(e.to_string().contains("overflow"), "{e}");
+    }
 
     /// The sub-triangles tile the triangle in `triangle_samples`' order, each point maps back
     /// to the sub-triangle it was drawn in with the density it was drawn with, and the

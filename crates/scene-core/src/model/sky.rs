@@ -127,6 +127,7 @@ impl Sky {
                 "{directions} directions: give 1 to {MAX_DIRECTIONS}"
             )));
         }
+        let (width, height, radiance) = refined(width, height, radiance);
         let mut sky = Sky {
             name: name.to_string(),
             width,
@@ -167,7 +168,9 @@ impl Sky {
         )
     }
 
-    /// Width and height of the map.
+    /// Width and height of the map as held: a map narrower than 16 or lower than 8 pixels,
+    /// or of odd height, is held refined by whole factors (the same radiance in every
+    /// direction; at most 2^24 pixels) so that the median cut can split it.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
     }
@@ -454,6 +457,46 @@ impl Sky {
     }
 }
 
+/// The finest map the median cut needs at least: this many columns and rows.
+const CUT_GRID: (u32, u32) = (16, 8);
+
+/// The most pixels a map is refined to (a larger map is held as given).
+const REFINED_MAX: u64 = 1 << 24;
+
+/// The map held refined by whole factors where it is too coarse for the median cut (the
+/// same piecewise-constant function, so radiance, sampling density and irradiance are
+/// unchanged): at least [`CUT_GRID`] columns and rows, and an even number of rows so that a
+/// row boundary lies on the horizon. A 1x1 map is one pixel over the whole sphere, whose
+/// vector irradiance cancels, and a one-row map is one row centred on the horizon: cut as
+/// they are, they would give lights of no irradiance, or horizontal ones.
+fn refined(width: u32, height: u32, radiance: Vec<Vec3>) -> (u32, u32, Vec<Vec3>) {
+    let (wd, hd) = (u64::from(width), u64::from(height));
+    let kx = u64::from(CUT_GRID.0).div_ceil(wd).max(1);
+    let mut ky = u64::from(CUT_GRID.1).div_ceil(hd).max(1);
+    if (hd * ky) % 2 == 1 {
+        ky += 1;
+    }
+    let (kx, ky) = if wd * kx * hd * ky <= REFINED_MAX {
+        (kx, ky)
+    } else if hd % 2 == 1 && wd * hd * 2 <= REFINED_MAX {
+        // Only the horizon's row boundary.
+        (1, 2)
+    } else {
+        (1, 1)
+    };
+    if kx == 1 && ky == 1 {
+        return (width, height, radiance);
+    }
+    // Both sides are at most REFINED_MAX here.
+    let (w, h) = ((wd * kx) as u32, (hd * ky) as u32);
+    let (kx, ky) = (kx as u32, ky as u32);
+    let map = (0..h)
+        .flat_map(|y| (0..w).map(move |x| ((y / ky) * width + x / kx) as usize))
+        .map(|i| radiance[i])
+        .collect();
+    (w, h, map)
+}
+
 /// The integral of the unit direction over the patch `phi0..phi1`, `cos theta` from `c0`
 /// down to `c1` (a vector whose length is at most the patch's solid angle).
 fn mean_direction(phi0: f64, phi1: f64, c0: f64, c1: f64) -> DVec3 {
@@ -491,7 +534,16 @@ fn median_cut(sky: &Sky, weight: &[f64], vector: &[DVec3]) -> Vec<(DirectionalLi
         sat[y1 * (w + 1) + x1] - sat[y0 * (w + 1) + x1] - sat[y1 * (w + 1) + x0]
             + sat[y0 * (w + 1) + x0]
     };
-    let mut regions: Vec<[usize; 4]> = vec![[0, 0, w, h]];
+    // The two hemispheres apart from the start when both carry light (the map has an even
+    // number of rows): a region across the horizon would give a surface facing up or down
+    // the light of both halves along one mean direction, whose vertical parts cancel.
+    let halves = [[0, 0, w, h / 2], [0, h / 2, w, h]];
+    let mut regions: Vec<[usize; 4]> =
+        if sky.directions >= 2 && h % 2 == 0 && halves.iter().all(|r| sum(*r) > 0.0) {
+            halves.to_vec()
+        } else {
+            vec![[0, 0, w, h]]
+        };
     let mut done: Vec<[usize; 4]> = Vec::new();
     while regions.len() + done.len() < sky.directions as usize {
         // The most powerful region still open (ties to the first: deterministic).
@@ -629,28 +681,36 @@ mod tests {
         let mut map = vec![l; 32];
         map[31] = l * 0.5;
         assert!(!Sky::from_map("band", 8, 4, map, 4).unwrap().is_uniform());
-        // An odd height: the middle row straddles the horizon and may be lit or black...
+        // An odd height is held with a row boundary on the horizon: the middle row's upper
+        // half is sky above the horizon, so it must be lit like the rows above it...
         let mut map = vec![l; 8 * 3];
-        map[8..].fill(Vec3::ZERO);
+        map[16..].fill(Vec3::ZERO);
         assert!(
             Sky::from_map("odd", 8, 3, map.clone(), 4)
                 .unwrap()
                 .is_uniform()
         );
-        // ... but not partly lit.
-        map[8..12].fill(l);
+        // ... and wholly: partly lit, or dark (the sky then ends 60 degrees from the zenith).
+        map[8..12].fill(Vec3::ZERO);
         assert!(
             !Sky::from_map("odd", 8, 3, map.clone(), 4)
                 .unwrap()
                 .is_uniform()
         );
-        map[0..8].fill(Vec3::ZERO);
-        map[8..16].fill(l);
+        map[8..16].fill(Vec3::ZERO);
         assert!(!Sky::from_map("odd", 8, 3, map, 4).unwrap().is_uniform());
-        // One row: none lies wholly above the horizon, so not even half a sky is uniform.
-        for row in [vec![l, Vec3::ZERO], vec![l; 2]] {
-            assert!(!Sky::from_map("one row", 2, 1, row, 1).unwrap().is_uniform());
-        }
+        // One row: half of the azimuths lit is not uniform; one radiance over the whole
+        // sphere is.
+        assert!(
+            !Sky::from_map("one row", 2, 1, vec![l, Vec3::ZERO], 1)
+                .unwrap()
+                .is_uniform()
+        );
+        assert!(
+            Sky::from_map("one row", 2, 1, vec![l; 2], 1)
+                .unwrap()
+                .is_uniform()
+        );
     }
 
     #[test]
@@ -707,6 +767,71 @@ mod tests {
             .map(|l| l.irradiance.x)
             .fold(0.0, f32::max);
         assert!(hi < 1.5 * share, "{hi} against a share of {share}");
+    }
+
+    #[test]
+    fn degenerate_maps_give_their_lights_the_irradiance_of_the_map() {
+        // One pixel, one row (short, odd, very wide), one column (odd), each constant or
+        // uneven: the lights give an open floor and ceiling what the map gives them, and
+        // walls what it gives within the median cut's error (5 % at 64 lights over both
+        // hemispheres). Cut as given, a 1x1 map gave a floor about 1e-16 of its light and a
+        // one-row map gave it nothing.
+        let l = Vec3::new(1.0, 0.5, 0.25);
+        let ramp = |n: u32| -> Vec<Vec3> {
+            (0..n)
+                .map(|i| l * (0.2 + 1.8 * i as f32 / n.max(2) as f32))
+                .collect()
+        };
+        let maps: [(u32, u32, Vec<Vec3>); 8] = [
+            (1, 1, vec![l]),
+            (5, 1, vec![l; 5]),
+            (5, 1, ramp(5)),
+            (4096, 1, ramp(4096)),
+            (1, 3, vec![l; 3]),
+            (1, 3, ramp(3)),
+            (1, 6, ramp(6)),
+            (3, 5, ramp(15)),
+        ];
+        let mut worst = 0.0f32;
+        for (w, h, map) in maps {
+            for directions in [2, 16, 64] {
+                let sky = Sky::from_map("degenerate", w, h, map.clone(), directions).unwrap();
+                let by_lights = |n: Vec3| -> Vec3 {
+                    sky.lights()
+                        .iter()
+                        .map(|x| x.irradiance * n.dot(-x.direction).max(0.0))
+                        .sum()
+                };
+                for n in [Vec3::Y, -Vec3::Y] {
+                    let (a, b) = (by_lights(n), sky.irradiance(n));
+                    assert!(
+                        b.max_element() > 0.1
+                            && (a - b).abs().max_element() < 1e-4 * b.max_element(),
+                        "{w}x{h}, {directions} lights, normal {n}: {a} against {b}"
+                    );
+                }
+                // Walls and a tilted roof at the default count: regions cut by their
+                // horizon. The uniform sky's 64 lights over one hemisphere give walls 3 %
+                // (the_median_cut_lights_give_a_floor_and_a_tilted_roof_...); these maps
+                // light both hemispheres, 32 lights each.
+                if directions < DEFAULT_DIRECTIONS {
+                    continue;
+                }
+                for n in [Vec3::X, -Vec3::Z, Vec3::new(0.3, 1.0, 0.5).normalize()] {
+                    let (a, b) = (by_lights(n), sky.irradiance(n));
+                    let e = (a - b).abs().max_element() / b.max_element();
+                    worst = worst.max(e);
+                    assert!(
+                        e < 0.05,
+                        "{w}x{h}, {directions} lights, normal {n}: {a} against {b}"
+                    );
+                }
+            }
+        }
+        eprintln!(
+            "walls and a tilted roof at 64 lights: worst {:.2} %",
+            worst * 100.0
+        );
     }
 
     /// A 16x8 map of `sky` with a `sun` pixel high in it and a blue one below the horizon,

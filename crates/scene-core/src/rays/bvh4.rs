@@ -40,6 +40,10 @@ struct Node {
     hi: [Vec4; 3],
     /// An inner node's index, `LEAF_BIT | packet`, or `EMPTY`.
     child: [u32; 4],
+    /// The lanes that hold a child, as a mask: the traversal never enters an `EMPTY` slot,
+    /// whatever its box test gives (an infinite or overflowing coordinate makes the slab
+    /// distances of an empty box NaN, which the lane minimum and maximum can drop).
+    used: u32,
 }
 
 impl Node {
@@ -49,6 +53,7 @@ impl Node {
             lo: [Vec4::INFINITY; 3],
             hi: [Vec4::NEG_INFINITY; 3],
             child: [EMPTY; 4],
+            used: 0,
         }
     }
 
@@ -58,6 +63,11 @@ impl Node {
             self.hi[a][slot] = hi[a];
         }
         self.child[slot] = child;
+        if child == EMPTY {
+            self.used &= !(1 << slot);
+        } else {
+            self.used |= 1 << slot;
+        }
     }
 }
 
@@ -123,7 +133,7 @@ impl PreparedRay {
             far = far.min((f - self.origin[a]) * self.inv[a]);
         }
         let far = (far * FAR_WIDEN).min(Vec4::splat(t_max));
-        ((near.cmple(far) & inside).bitmask(), near)
+        ((near.cmple(far) & inside).bitmask() & node.used, near)
     }
 
     /// Moeller-Trumbore on four triangles: which lanes hit with `t` in the ray's
@@ -547,6 +557,26 @@ impl Bvh4 {
                 None => return false,
             }
         }
+    }
+
+    /// The box of every triangle (the root's children's boxes together); an empty box
+    /// (lower corner above the upper) for a tree without triangles.
+    pub(crate) fn bounds(&self) -> (Vec3A, Vec3A) {
+        let root = &self.nodes[0];
+        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+        for slot in (0..4).filter(|s| root.used & (1 << s) != 0) {
+            lo = lo.min(Vec3A::new(
+                root.lo[0][slot],
+                root.lo[1][slot],
+                root.lo[2][slot],
+            ));
+            hi = hi.max(Vec3A::new(
+                root.hi[0][slot],
+                root.hi[1][slot],
+                root.hi[2][slot],
+            ));
+        }
+        (lo, hi)
     }
 
     /// Inner nodes on the longest path from the root.

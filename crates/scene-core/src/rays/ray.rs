@@ -60,6 +60,12 @@ impl std::fmt::Debug for RayScene {
     }
 }
 
+/// The farthest a ray's origin may lie from the origin, in the tree's scaled units (about
+/// 10^4 a scene), for the traversal to take it as it is: past it, the ray starts where it
+/// enters the tree's box ([`RayScene::closest_hit`]). 10^14 scene extents away, no scene
+/// a user builds comes near it.
+const FAR_ORIGIN: f32 = 1e18;
+
 /// The power of two that brings a scene of diagonal `diagonal` to about 10^4 units.
 ///
 /// obvhs' wide-BVH (CWBVH) traversal, used until 2026-11-27, clamped every node's entry
@@ -204,11 +210,16 @@ impl RayScene {
         t_min: f32,
         t_max: f32,
     ) -> Option<Hit> {
-        let (bvh, ray) = self.prepare(origin, direction, t_min, t_max)?;
+        let (bvh, ray, shift) = self.prepare(origin, direction, t_min, t_max)?;
         let found = bvh.closest(&ray, |id, u, v| self.exists(id, u, v))?;
+        let t = if shift == 0.0 {
+            found.t / self.scale
+        } else {
+            ((f64::from(found.t) + shift) / f64::from(self.scale)) as f32
+        };
         Some(Hit {
             triangle: found.id,
-            t: found.t / self.scale,
+            t,
             barycentric: Vec2::new(found.u, found.v),
         })
     }
@@ -217,11 +228,17 @@ impl RayScene {
     /// ends on a surface is not blocked by it).
     pub fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool {
         self.prepare(origin, direction, t_min, t_max)
-            .is_some_and(|(bvh, ray)| bvh.any(&ray, |id, u, v| self.exists(id, u, v)))
+            .is_some_and(|(bvh, ray, _)| bvh.any(&ray, |id, u, v| self.exists(id, u, v)))
     }
 
-    /// The tree and the ray in its scaled units; `None` for an empty scene, a non-finite
-    /// ray or a zero direction (which meet nothing).
+    /// The tree and the ray in its scaled units, and the distance (scaled) the ray's start
+    /// was moved along it (0 but for the far origins below); `None` for an empty scene, a
+    /// non-finite ray or a zero direction (which meet nothing).
+    ///
+    /// An origin beyond [`FAR_ORIGIN`] once scaled (a light placed near f32's limit, 1e38,
+    /// in a scene of a few metres: the triangle test's products overflow there) starts the
+    /// ray where it enters the tree's box, found in f64 (or not at all when it misses the
+    /// box); the hit's distance adds that start back.
     #[inline(always)]
     fn prepare(
         &self,
@@ -229,14 +246,61 @@ impl RayScene {
         direction: Vec3,
         t_min: f32,
         t_max: f32,
-    ) -> Option<(&Bvh4, PreparedRay)> {
+    ) -> Option<(&Bvh4, PreparedRay, f64)> {
         let bvh = self.bvh.as_ref()?;
         if !origin.is_finite() || !direction.is_finite() || direction == Vec3::ZERO {
             return None;
         }
         let s = self.scale;
-        let ray = PreparedRay::new((origin * s).into(), direction.into(), t_min * s, t_max * s);
-        Some((bvh, ray))
+        let scaled = origin * s;
+        if scaled.abs().max_element() <= FAR_ORIGIN {
+            let ray = PreparedRay::new(scaled.into(), direction.into(), t_min * s, t_max * s);
+            return Some((bvh, ray, 0.0));
+        }
+        let (lo, hi) = bvh.bounds();
+        let sd = f64::from(s);
+        let (o, d) = (origin.as_dvec3() * sd, direction.as_dvec3());
+        let (mut t0, mut t1) = (f64::from(t_min) * sd, f64::from(t_max) * sd);
+        // The axis whose face the ray enters through, and that face.
+        let mut entry: Option<(usize, f64)> = None;
+        for a in 0..3 {
+            let (l, h) = (f64::from(lo[a]), f64::from(hi[a]));
+            if d[a] == 0.0 {
+                if o[a] < l || o[a] > h {
+                    return None;
+                }
+                continue;
+            }
+            let (n, f) = ((l - o[a]) / d[a], (h - o[a]) / d[a]);
+            if n.min(f) > t0 {
+                t0 = n.min(f);
+                entry = Some((a, if d[a] > 0.0 { l } else { h }));
+            }
+            t1 = t1.min(n.max(f));
+        }
+        if !(t0 <= t1) {
+            return None;
+        }
+        // Start a little before the box (a thousandth of its diagonal), so that rounding
+        // the start to f32 cannot step past a surface on the box's face. The start is
+        // placed on its entry face exactly (`o + d t0` would cancel: f64 spaces 1e23 by
+        // 1e7); along the other axes it is as exact as the ray itself.
+        let margin = 1e-3 * f64::from((hi - lo).length()).max(f64::MIN_POSITIVE);
+        let shift = t0 - margin;
+        let mut start = o + d * shift;
+        if let Some((a, face)) = entry {
+            start[a] = face - d[a] * margin;
+        }
+        let start = start.as_vec3();
+        // Nothing lies between the start and the box: the range starts at the start unless
+        // the caller's own `t_min` lies beyond it.
+        let ray = PreparedRay::new(
+            start.into(),
+            direction.into(),
+            (f64::from(t_min) * sd - shift).max(0.0) as f32,
+            (f64::from(t_max) * sd - shift) as f32,
+        );
+        Some((bvh, ray, shift))
     }
 
     /// Heap bytes of the tree (nodes and triangle packets).
@@ -389,6 +453,80 @@ mod tests {
         let rs = RayScene::build(&random_scene(1, 10));
         assert_eq!(rs.closest_hit(Vec3::NAN, Vec3::X, 0.0, 1e9), None);
         assert_eq!(rs.closest_hit(Vec3::ZERO, Vec3::ZERO, 0.0, 1e9), None);
+    }
+
+    /// Rays from and towards f32's limits never panic (a point light at 1e38 in a scene of
+    /// a few metres indexed an empty slot of the tree: its slab distances were NaN once the
+    /// scaled origin overflowed), and a ray from far away still finds what it points at.
+    #[test]
+    fn rays_near_f32_limits_never_panic_and_far_origins_still_hit() {
+        let scene = crate::builtin::scene("cornell").unwrap();
+        let rs = RayScene::build(&scene);
+        // Off the middle, away from the diagonals of the box's quads.
+        let centre = scene.bounds().min.midpoint(scene.bounds().max) + Vec3::new(0.061, 0.0, 0.037);
+        // From far along +Y, straight down onto the middle of the box: the first hit is the
+        // top of the box, as from nearby (the same triangle and barycentrics, the distance
+        // within f32's spacing at that distance).
+        let near = rs
+            .closest_hit(centre + Vec3::Y * 10.0, -Vec3::Y, 0.0, f32::INFINITY)
+            .expect("the box from above");
+        for far in [1e20f32, 1e30, 1e37, 1e38, 3e38] {
+            let hit = rs
+                .closest_hit(centre + Vec3::Y * far, -Vec3::Y, 0.0, f32::INFINITY)
+                .unwrap_or_else(|| panic!("the box from {far:e} above"));
+            assert_eq!(hit.triangle, near.triangle, "from {far:e}");
+            assert!(
+                (hit.barycentric - near.barycentric).abs().max_element() < 1e-3,
+                "from {far:e}: {:?} against {:?}",
+                hit.barycentric,
+                near.barycentric
+            );
+            assert!(
+                (hit.t - far).abs() <= 20.0 + far * 1e-6,
+                "from {far:e}: t {}",
+                hit.t
+            );
+            assert!(rs.occluded(centre + Vec3::Y * far, -Vec3::Y, 0.0, f32::INFINITY));
+            // Pointing away from the box, or passing beside it: nothing.
+            assert!(
+                rs.closest_hit(centre + Vec3::Y * far, Vec3::Y, 0.0, f32::INFINITY)
+                    .is_none()
+            );
+            assert!(
+                rs.closest_hit(
+                    centre + Vec3::new(far, far, 0.0),
+                    -Vec3::Y,
+                    0.0,
+                    f32::INFINITY
+                )
+                .is_none()
+            );
+        }
+        // Every mix of extreme origins, directions and ranges returns without panicking.
+        let big = [
+            0.0,
+            1e-30,
+            -1e-30,
+            1.0,
+            -1.0,
+            1e30,
+            -1e30,
+            1e38,
+            -1e38,
+            f32::MAX,
+            -f32::MAX,
+        ];
+        let mut rng = Rng::new(3, 0);
+        for _ in 0..20_000 {
+            let mut pick = || big[(rng.next_f32() * big.len() as f32) as usize % big.len()];
+            let o = Vec3::new(pick(), pick(), pick());
+            let d = Vec3::new(pick(), pick(), pick());
+            let (t0, t1) = (pick().abs(), pick().abs());
+            let _ = rs.closest_hit(o, d, t0.min(t1), t0.max(t1));
+            let _ = rs.occluded(o, d, 0.0, f32::INFINITY);
+            let n = d.normalize_or_zero();
+            let _ = rs.closest_hit(o, n, 0.0, f32::INFINITY);
+        }
     }
 
     /// obvhs skips box entries closer than an absolute 1e-4: a millimetre-scale scene lost

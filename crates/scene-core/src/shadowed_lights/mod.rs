@@ -767,6 +767,7 @@ fn emitters(scene: &Scene, count: u32, extent: f32) -> (EmitterTable, Vec<Light>
     if count == 0 || power.is_empty() {
         return (table, samples);
     }
+    let cutouts = crate::cutout::Cutouts::of(scene);
     for k in 0..count {
         let u = (k as f64 + 0.5) / count as f64;
         let Some(i) = power.pick(u) else {
@@ -775,6 +776,12 @@ fn emitters(scene: &Scene, count: u32, extent: f32) -> (EmitterTable, Vec<Light>
         let t = &power.triangles[i];
         let p = t.corners;
         let b = uniform_triangle(r2(k as u64, Vec2::ZERO));
+        // A sample where an alpha mask cuts the emitter away stands for no light (the
+        // reference's next-event estimate does the same): the samples' sum stays an
+        // unbiased estimate of the light of what exists.
+        if !cutouts.opaque(t.triangle, b) {
+            continue;
+        }
         let q = p[0] * (1.0 - b.x - b.y) + p[1] * b.x + p[2] * b.y;
         // The sample stands for area * (total / w) / count of emitter, so that the sum over
         // samples is an unbiased estimate of the emitters' light.

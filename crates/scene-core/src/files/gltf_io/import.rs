@@ -750,8 +750,18 @@ impl<'a> Importer<'a> {
                     Some(0.5)
                 }
             };
+            // glTF 5.19.3: alphaCutoff is at least 0. A negative (or non-finite) one is an
+            // invalid material, not an opaque one.
+            if let Some(c) = cutoff.filter(|c| !(c.is_finite() && *c >= 0.0)) {
+                return Err(content_error(
+                    self.path,
+                    format!(
+                        "{label}: alphaCutoff {c} is negative or not finite (glTF requires a \
+                         value of at least 0): an invalid material"
+                    ),
+                ));
+            }
             let alpha_cutoff = cutoff.map(|c| {
-                let c = if c.is_finite() { c.max(0.0) } else { 0.5 };
                 // A factor of 0 (or a cutoff above it) leaves no surface: any value above 1.
                 if c <= 0.0 {
                     0.0
@@ -1224,16 +1234,33 @@ impl<'a> Importer<'a> {
                     dims,
                 )?;
                 same_count(&acc, "COLOR_0")?;
-                let colors: Vec<Vec3> = reader
+                let mut colors: Vec<Vec3> = reader
                     .read_colors(0)
-                    .map(|it| {
-                        it.into_rgb_f32()
-                            .map(|c| Vec3::from(c).clamp(Vec3::ZERO, Vec3::ONE))
-                            .collect()
-                    })
+                    .map(|it| it.into_rgb_f32().map(Vec3::from).collect())
                     .unwrap_or_default();
                 if colors.len() != n {
                     return Err(count_mismatch("COLOR_0", colors.len(), n));
+                }
+                // A colour multiplies the albedo: NaN or infinity is bad data (refused), a
+                // float outside [0, 1] (glTF's range) is clamped into it, and said.
+                if let Some((v, c)) = colors.iter().enumerate().find(|(_, c)| !c.is_finite()) {
+                    return Err(content_error(
+                        path,
+                        format!("{at}: COLOR_0 of vertex {v} is {c}, not finite"),
+                    ));
+                }
+                let outside = colors
+                    .iter()
+                    .filter(|c| c.min_element() < 0.0 || c.max_element() > 1.0)
+                    .count();
+                if outside > 0 {
+                    self.warnings.push(format!(
+                        "{at}: COLOR_0 of {outside} of {n} vertices lies outside [0, 1]; \
+                         clamped into it"
+                    ));
+                    for c in &mut colors {
+                        *c = c.clamp(Vec3::ZERO, Vec3::ONE);
+                    }
                 }
                 // glTF multiplies COLOR_0's alpha into a masked material's alpha; here only
                 // the texture's alpha cuts holes, so a vertex alpha below 1 is reported.

@@ -1094,3 +1094,76 @@ fn vertex_alpha_on_a_masked_material_is_reported() {
         );
     }
 }
+
+/// A triangle whose COLOR_0 (float RGB) is `rgb` at every vertex, under an opaque material.
+fn tinted(rgb: [f32; 3]) -> Vec<u8> {
+    doc(&TRI, Some(&TRI_N), None, 4, |root| {
+        let data: Vec<u8> = (0..3)
+            .flat_map(|_| rgb)
+            .flat_map(f32::to_le_bytes)
+            .collect();
+        let uri = format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&data)
+        );
+        let buffer = root["buffers"].as_array().unwrap().len();
+        root["buffers"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!({ "byteLength": 36, "uri": uri }));
+        let view = root["bufferViews"].as_array().unwrap().len();
+        root["bufferViews"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!({ "buffer": buffer, "byteLength": 36 }));
+        let accessor = root["accessors"].as_array().unwrap().len();
+        root["accessors"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!({ "bufferView": view, "componentType": 5126, "count": 3, "type": "VEC3" }));
+        root["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(accessor);
+    })
+}
+
+#[test]
+fn vertex_colours_that_are_not_finite_are_refused_and_outside_0_1_clamped_with_a_warning() {
+    let r = import_slice(&tinted([0.2, 0.5, 0.9]), Path::new("tinted.gltf")).unwrap();
+    assert!(
+        r.warnings.iter().all(|w| !w.contains("COLOR_0")),
+        "{:?}",
+        r.warnings
+    );
+    let e = import_slice(&tinted([f32::NAN, 0.5, 0.5]), Path::new("nan.gltf")).unwrap_err();
+    assert!(
+        e.to_string().contains("COLOR_0 of vertex 0") && e.to_string().contains("not finite"),
+        "{e}"
+    );
+    let r = import_slice(&tinted([2.0, -0.5, 0.5]), Path::new("bright.gltf")).unwrap();
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.contains("COLOR_0 of 3 of 3 vertices lies outside [0, 1]")),
+        "{:?}",
+        r.warnings
+    );
+    assert_eq!(
+        r.scene.meshes[0].colors.as_ref().unwrap()[0],
+        Vec3::new(1.0, 0.0, 0.5)
+    );
+}
+
+#[test]
+fn a_negative_alpha_cutoff_is_an_invalid_material() {
+    for cutoff in [json!(-0.25), json!(-1e30)] {
+        let e = import_edited(|r| {
+            let m = &mut r["materials"];
+            m[1]["alphaMode"] = json!("MASK");
+            m[1]["alphaCutoff"] = cutoff.clone();
+        })
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("alphaCutoff") && e.to_string().contains("invalid material"),
+            "{e}"
+        );
+    }
+}
