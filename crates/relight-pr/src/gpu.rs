@@ -220,7 +220,7 @@ impl GpuRelight {
                     a: e.corners[0].extend(source).to_array(),
                     b: e.corners[1].extend(0.0).to_array(),
                     c: e.corners[2].extend(0.0).to_array(),
-                    emission: e.emission.extend(0.0).to_array(),
+                    emission: meshing.seen_emission(j).extend(0.0).to_array(),
                     vertex: [v(0), v(1), v(2), 0],
                 }
             })

@@ -95,7 +95,10 @@ pub struct Element {
     /// through its holes; the element keeps its whole area, reflecting `coverage` of what
     /// it receives, which is the power its solid part reflects.
     pub coverage: f32,
-    /// Emitted radiance (zero for non-emitters).
+    /// Emitted radiance (zero for non-emitters): its patch's mean over the patch's whole
+    /// area, where the holes of an alpha mask count as black, so that the patch's area times
+    /// it is the power its solid part emits. What a viewer sees on the solid part is
+    /// [`Meshing::seen_emission`].
     pub emission: Vec3,
     /// The patch it belongs to.
     pub patch: u32,
@@ -294,6 +297,26 @@ fn straddles(rays: &RayScene, face_normals: &[Vec3], c: [Vec3; 3], n: Vec3, lift
 }
 
 impl Meshing {
+    /// The radiance element `j`'s emitter shows where it exists: its
+    /// [`Element::emission`] over its patch's mean [`Element::coverage`] (the same value
+    /// but for an alpha-masked emitter, whose holes the emission counts as black and which
+    /// is not drawn where they are).
+    pub fn seen_emission(&self, j: usize) -> Vec3 {
+        let e = &self.elements[j];
+        if e.coverage >= 1.0 {
+            return e.emission;
+        }
+        let p = &self.patches[e.patch as usize];
+        let first = p.first_element as usize;
+        let els = &self.elements[first..first + p.element_count as usize];
+        let mean = els.iter().map(|x| x.coverage).sum::<f32>() / els.len().max(1) as f32;
+        if mean > 0.0 {
+            e.emission / mean
+        } else {
+            Vec3::ZERO
+        }
+    }
+
     /// Meshes `scene` (which should be validated). Errors with [`RelightError::Budget`]
     /// before allocating when the element count or a `lights`-light solution would exceed
     /// `settings.budget`. Builds the scene's rays (for the splits at walls and the hidden
@@ -487,29 +510,65 @@ impl Meshing {
                 |b: Vec2| colors.map(|c| c[0] * (1.0 - b.x - b.y) + c[1] * b.x + c[2] * b.y);
             let albedo_at =
                 |b: Vec2| source.albedo_at(material, uv_of(b)) * color_of(b).unwrap_or(Vec3::ONE);
-            // The patch's emission: the factor, or with an emission texture its mean over the
-            // patch (64 samples), shared by the patch's elements (the solver shoots a patch's
-            // emission as one). An alpha mask's holes emit nothing (as in the reference): a
-            // masked emitter's mean counts them as black, so the patch, which keeps its whole
-            // area, emits the power of its solid part (its albedo is scaled alike).
             let textured = source.materials[material as usize]
                 .emission_texture
                 .is_some()
                 && uvs.is_some();
             let masked = source.materials[material as usize].is_masked();
-            let emission = if textured || (masked && light.is_some()) {
+            let patch_area = area / 4f32.powi(l as i32);
+            let one = elements_per(patch_area, l) == 1;
+            let pieces: &[Piece] = if one { &[piece] } else { &piece.children() };
+            // Each element's share that exists under an alpha mask (64 samples).
+            let coverages: Vec<f32> = pieces
+                .iter()
+                .map(|e| {
+                    if masked {
+                        scene_core::cutout::coverage(8, |b| {
+                            let b =
+                                e.bary[0] * (1.0 - b.x - b.y) + e.bary[1] * b.x + e.bary[2] * b.y;
+                            source.opaque_at(material, uv_of(b))
+                        })
+                    } else {
+                        1.0
+                    }
+                })
+                .collect();
+            // The patch's emission: the factor, or with an emission texture its mean over the
+            // patch (64 samples), shared by the patch's elements (the solver shoots a patch's
+            // emission as one). An alpha mask's holes emit nothing (as in the reference): a
+            // masked emitter's mean counts them as black (over its elements' own samples, so
+            // that it is the radiance seen times their mean coverage exactly,
+            // [`Meshing::seen_emission`]), and the patch, which keeps its whole area, emits
+            // the power of its solid part (its albedo is scaled alike).
+            let emission = if masked && light.is_some() {
+                pieces
+                    .iter()
+                    .map(|e| {
+                        scene_core::cutout::triangle_samples(8)
+                            .map(|b| {
+                                let b = e.bary[0] * (1.0 - b.x - b.y)
+                                    + e.bary[1] * b.x
+                                    + e.bary[2] * b.y;
+                                if !source.opaque_at(material, uv_of(b)) {
+                                    Vec3::ZERO
+                                } else if textured {
+                                    source.emission_at(material, uv_of(b))
+                                } else {
+                                    factor
+                                }
+                            })
+                            .sum::<Vec3>()
+                            / 64.0
+                    })
+                    .sum::<Vec3>()
+                    / pieces.len() as f32
+            } else if textured {
                 scene_core::cutout::triangle_samples(8)
                     .map(|b| {
                         let b = piece.bary[0] * (1.0 - b.x - b.y)
                             + piece.bary[1] * b.x
                             + piece.bary[2] * b.y;
-                        if masked && !source.opaque_at(material, uv_of(b)) {
-                            Vec3::ZERO
-                        } else if textured {
-                            source.emission_at(material, uv_of(b))
-                        } else {
-                            factor
-                        }
+                        source.emission_at(material, uv_of(b))
                     })
                     .sum::<Vec3>()
                     / 64.0
@@ -517,9 +576,7 @@ impl Meshing {
                 factor
             };
             let source_triangle = merged.as_ref().map_or(id, |m| m.origin[id as usize]);
-            let patch_area = area / 4f32.powi(l as i32);
             let centre = (piece.bary[0] + piece.bary[1] + piece.bary[2]) / 3.0;
-            let one = elements_per(patch_area, l) == 1;
             patches.push(Patch {
                 corners: piece.bary.map(at),
                 normal: normal_at(centre),
@@ -530,18 +587,9 @@ impl Meshing {
                 light,
             });
             let patch = patches.len() as u32 - 1;
-            let pieces: &[Piece] = if one { &[piece] } else { &piece.children() };
             let element_area = patch_area / pieces.len() as f32;
-            for e in pieces {
+            for (e, &coverage) in pieces.iter().zip(&coverages) {
                 let c = (e.bary[0] + e.bary[1] + e.bary[2]) / 3.0;
-                let coverage = if masked {
-                    scene_core::cutout::coverage(8, |b| {
-                        let b = e.bary[0] * (1.0 - b.x - b.y) + e.bary[1] * b.x + e.bary[2] * b.y;
-                        source.opaque_at(material, uv_of(b))
-                    })
-                } else {
-                    1.0
-                };
                 // Four albedo samples: the centroid and the midpoints towards each corner.
                 let albedo = (albedo_at(c)
                     + e.bary

@@ -88,11 +88,12 @@ pub fn glow(meshing: &Meshing, solution: &Solution, state: &LightState) -> Vec<V
     meshing
         .elements
         .par_iter()
-        .map(|el| {
+        .enumerate()
+        .map(|(j, el)| {
             meshing.patches[el.patch as usize]
                 .light
                 .and_then(|id| solution.source_of(id))
-                .map_or(Vec3::ZERO, |m| el.emission * f[m].0)
+                .map_or(Vec3::ZERO, |m| meshing.seen_emission(j) * f[m].0)
         })
         .collect()
 }
