@@ -991,6 +991,7 @@ mod tests {
     #[test]
     fn a_shard_does_not_write_the_results_document() {
         let mut o = options();
+        o.out = std::env::temp_dir().join(format!("xtask-shard-docs-{}", std::process::id()));
         o.shard = Some(bench_harness::Shard::parse("1/2").unwrap());
         o.write_docs = Some(o.out.join("results.md"));
         let e = err(&o);
