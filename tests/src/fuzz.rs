@@ -179,6 +179,14 @@ fn scene_spec_seeds() -> Vec<Vec<u8>> {
             r#"{"seed": 5, "mask": 1.5, "lights": false}"#,
             r#"{"seed": 6, "sky": [0.5, 0.6, 0.8], "lights": false}"#,
             r#"{"seed": 2, "sky": [1, 1, 1], "sky_directions": 3, "offset": [1e3, 0, 0]}"#,
+            r#"{"seed": 1, "sky_map": [1, 1], "lights": false}"#,
+            r#"{"seed": 2, "sky_map": [4096, 1], "sky_directions": 16}"#,
+            r#"{"seed": 3, "sky_map": [1, 7], "lights": false}"#,
+            r#"{"seed": 4, "sky_map": [3, 5], "sky_directions": 1}"#,
+            r#"{"seed": 5, "far_point": [1e38, 1e38, 1e38]}"#,
+            r#"{"seed": 6, "far_point": [-3e38, 0, 1e-30], "lights": false}"#,
+            r#"{"seed": 7, "emitter_mask": 0.5, "emission": 5}"#,
+            r#"{"seed": 1, "emitter_mask": 1.5, "lights": false, "emission": 5}"#,
         ]
         .map(String::from),
     );
@@ -236,9 +244,13 @@ pub fn run_scene_spec(bytes: &[u8], _ctx: &Context) -> Result<(), String> {
     if let Some(a) = vec3(v.get("albedo")) {
         s.materials[0].albedo = a;
     }
-    // An alpha mask on material 0: a 4 x 4 checkerboard of alpha 0 and 1 (nearest) over
-    // texture coordinates from x and z, cut at `mask`.
-    if let Some(c) = num("mask") {
+    // An alpha mask on material 0 (`mask`) or on the emissive material 2 (`emitter_mask`):
+    // a 4 x 4 checkerboard of alpha 0 and 1 (nearest) over texture coordinates from x and
+    // z, cut at the value given.
+    for (key, material) in [("mask", 0usize), ("emitter_mask", 2)] {
+        let Some(c) = num(key) else {
+            continue;
+        };
         s.textures.push(scene_core::Texture {
             name: "fuzz mask".into(),
             width: 4,
@@ -250,8 +262,8 @@ pub fn run_scene_spec(bytes: &[u8], _ctx: &Context) -> Result<(), String> {
                 ..Default::default()
             },
         });
-        s.materials[0].albedo_texture = Some(s.textures.len() as u32 - 1);
-        s.materials[0].alpha_cutoff = Some(c);
+        s.materials[material].albedo_texture = Some(s.textures.len() as u32 - 1);
+        s.materials[material].alpha_cutoff = Some(c);
         for m in &mut s.meshes {
             let uvs = m
                 .positions
@@ -273,13 +285,36 @@ pub fn run_scene_spec(bytes: &[u8], _ctx: &Context) -> Result<(), String> {
         s.point_lights.clear();
         s.directional_lights.clear();
     }
+    // A point light of intensity 1 at `far_point` (near f32's limits: rays from it).
+    if let Some(p) = vec3(v.get("far_point")) {
+        s.point_lights
+            .push(scene_core::PointLight::new("far", p, Vec3::ONE));
+    }
     // A uniform sky of radiance `sky`, as `sky_directions` directional lights for the
     // methods that do not integrate it; a sky the model refuses is a typed outcome.
+    let directions = num("sky_directions").map_or(scene_core::sky::DEFAULT_DIRECTIONS, |n| {
+        n.clamp(0.0, u32::MAX as f32) as u32
+    });
     if let Some(l) = vec3(v.get("sky")) {
-        let n = num("sky_directions").map_or(scene_core::sky::DEFAULT_DIRECTIONS, |n| {
-            n.clamp(0.0, u32::MAX as f32) as u32
-        });
-        match scene_core::sky::Sky::uniform(l).and_then(|sky| sky.with_directions(n)) {
+        match scene_core::sky::Sky::uniform(l).and_then(|sky| sky.with_directions(directions)) {
+            Ok(sky) => s.sky = Some(sky),
+            Err(_) => return Ok(()),
+        }
+    }
+    // A `[w, h]` sky map (at most 2^16 pixels; a larger ask is a typed outcome) whose
+    // radiance varies over it: 1x1, one row, one column, odd heights.
+    if let Some(a) = v.get("sky_map").and_then(|x| x.as_array())
+        && a.len() == 2
+    {
+        let side = |i: usize| a[i].as_u64().unwrap_or(0).min(1 << 16) as u32;
+        let (w, h) = (side(0), side(1));
+        if u64::from(w) * u64::from(h) > 1 << 16 {
+            return Ok(());
+        }
+        let map = (0..w * h)
+            .map(|i| Vec3::new(0.2 + (i % 7) as f32 * 0.1, 0.5, 0.9 - (i % 5) as f32 * 0.1))
+            .collect();
+        match scene_core::sky::Sky::from_map("fuzz map", w, h, map, directions) {
             Ok(sky) => s.sky = Some(sky),
             Err(_) => return Ok(()),
         }
