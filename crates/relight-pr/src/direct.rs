@@ -190,11 +190,20 @@ fn cone_weighted_solid_angle(
 /// The solid angle of triangle `t` seen from `p` (Van Oosterom and Strackee's formula),
 /// in steradians; zero for a degenerate triangle or `p` in its plane.
 pub fn solid_angle(p: Vec3, t: &[Vec3; 3]) -> f32 {
-    let (a, b, c) = (t[0] - p, t[1] - p, t[2] - p);
+    // In f64, with the triple product `a . (b x c)` taken as `a . ((b - a) x (c - a))` (the
+    // same determinant): from a point far from the triangle the corners' vectors are nearly
+    // parallel and `b x c` cancels, and their lengths' product overflows f32 (a light at
+    // 1e38 saw every element under pi / 2).
+    let p = p.as_dvec3();
+    let (a, b, c) = (
+        t[0].as_dvec3() - p,
+        t[1].as_dvec3() - p,
+        t[2].as_dvec3() - p,
+    );
     let (la, lb, lc) = (a.length(), b.length(), c.length());
-    let num = a.dot(b.cross(c)).abs();
+    let num = a.dot((b - a).cross(c - a)).abs();
     let den = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
-    let omega = 2.0 * num.atan2(den);
+    let omega = (2.0 * num.atan2(den)) as f32;
     if omega.is_finite() {
         omega.max(0.0)
     } else {
@@ -508,5 +517,44 @@ impl DirectGather {
             }
             out[m] = if e.is_finite() { e } else { Vec3::ZERO };
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The solid angle of a triangle seen along its normal from distance `d` tends to
+    /// `A / d^2`; from a light near f32's limit it is (nearly) zero, never the pi / 2 that
+    /// overflowing f32 products gave.
+    #[test]
+    fn solid_angles_from_far_away_fall_as_the_inverse_square() {
+        let t = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+        ];
+        let centroid = (t[0] + t[1] + t[2]) / 3.0;
+        for d in [100.0f32, 1e3, 1e6, 1e12, 1e18] {
+            let omega = solid_angle(centroid + Vec3::Z * d, &t);
+            let expected = 0.5 / (d * d);
+            assert!(
+                ((omega - expected) / expected).abs() < 1e-3,
+                "from {d:e}: {omega:e} against {expected:e}"
+            );
+        }
+        for far in [1e30f32, 1e38, f32::MAX] {
+            for p in [
+                Vec3::splat(far),
+                Vec3::new(far, 0.0, 1.0),
+                -Vec3::splat(far),
+            ] {
+                let omega = solid_angle(p, &t);
+                assert!((0.0..1e-30).contains(&omega), "from {p}: {omega:e}");
+            }
+        }
+        // Close above the centroid: nearly the whole hemisphere.
+        let near = solid_angle(centroid + Vec3::Z * 1e-6, &t);
+        assert!((near - std::f32::consts::TAU).abs() < 1e-3, "{near}");
     }
 }
