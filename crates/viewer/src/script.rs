@@ -259,7 +259,7 @@ impl Step {
                 let limit = CAMERA_PRECISION * extent;
                 for (what, v) in [("camera position", position), ("camera target", target)] {
                     let spacing = v.abs().max_element() * f32::EPSILON;
-                    if !(spacing <= limit) {
+                    if spacing.is_nan() || spacing > limit {
                         return Err(format!(
                             "{what} {v} lies so far from the origin that f32 places it only \
                              to {spacing:e}, coarser than {CAMERA_PRECISION} of the scene's \

@@ -278,7 +278,8 @@ impl RayScene {
             }
             t1 = t1.min(n.max(f));
         }
-        if !(t0 <= t1) {
+        // A miss, or NaN from an infinite range.
+        if t0.is_nan() || t1.is_nan() || t0 > t1 {
             return None;
         }
         // Start a little before the box (a thousandth of its diagonal), so that rounding
