@@ -70,7 +70,33 @@ pub fn targets() -> Vec<Target> {
         seeds: cli_seeds,
         run: |bytes, _| crate::fuzz_command_line(bytes),
     });
+    all.push(Target {
+        name: "commands",
+        ext: "json",
+        json: true,
+        seeds: command_seeds,
+        run: |bytes, ctx| crate::fuzz_run_command(bytes, &ctx.scratch),
+    });
     all
+}
+
+/// Command lines the `commands` target runs ([`crate::fuzz_run_command`]): each command at
+/// a tiny size, with far lights, degenerate skies and the options of the last round.
+fn command_seeds() -> Vec<Vec<u8>> {
+    [
+        r#"["reference", "--scene", "cornell", "--width", "8", "--height", "6", "--spp", "2", "--bounces", "inf"]"#,
+        r#"["reference", "--scene", "cornell-point", "--width", "8", "--height", "6", "--spp", "1", "--point", "1e38,1e38,1e38=1"]"#,
+        r#"["relight", "--scene", "cornell", "--elements", "64", "--width", "8", "--height", "6", "--light", "emissive:3=1,0.5,0.2"]"#,
+        r#"["relight", "--scene", "corridor", "--elements", "128", "--width", "8", "--height", "6", "--solver", "hierarchical", "--point", "1e38,0,0=1"]"#,
+        r#"["relight", "--scene", "primitives", "--elements", "64", "--width", "8", "--height", "6", "--sky", "1,1,1", "--sky-directions", "2"]"#,
+        r#"["ibrr", "--scene", "cornell", "--ldc", "16", "--irpls", "8", "--width", "8", "--height", "6", "--f16"]"#,
+        r#"["ibrr", "--scene", "cornell-point", "--ldc", "16", "--irpls", "8", "--width", "8", "--height", "6", "--point", "1e38,1e38,1e38=1"]"#,
+        r#"["ibrr", "--scene", "primitives", "--ldc", "16", "--irpls", "4", "--width", "8", "--height", "6", "--sun", "0,-1,0=1e11", "--f16"]"#,
+        r#"["export-gltf", "--scene", "cornell", "--out", "x.glb"]"#,
+        r#"["export-gltf", "--scene", "primitives", "--out", "x.gltf", "--sky", "0.5"]"#,
+    ]
+    .map(|s| s.as_bytes().to_vec())
+    .to_vec()
 }
 
 /// Command lines of every command with its numbers, as JSON arrays of arguments.
@@ -623,5 +649,34 @@ mod tests {
         for i in [2, 4, 5, 7, 8, 9, 10, 12] {
             assert_eq!(outcomes[i], Outcome::Ok, "seed {i}");
         }
+    }
+
+    /// The `commands` target's seeds run their commands to completion (far lights, f16
+    /// layers, skies of two directions, every command it runs), each writing finite images,
+    /// and an ask beyond its tiny sizes is refused naming it.
+    #[test]
+    fn the_commands_target_runs_its_seeds_and_refuses_large_asks() {
+        let all = targets();
+        let commands = all.iter().find(|t| t.name == "commands").unwrap();
+        let dir = std::env::temp_dir().join(format!("xtask-commands-fuzz-{}", std::process::id()));
+        let ctx = Context::new(fuzz::fuzz_budget(), &dir);
+        for input in (commands.seeds)() {
+            let o = fuzz::run(commands, &input, &ctx);
+            assert_eq!(o, Outcome::Ok, "{}", String::from_utf8_lossy(&input));
+        }
+        let large = br#"["reference", "--scene", "cornell", "--width", "64", "--height", "48", "--spp", "1"]"#;
+        let o = fuzz::run(commands, large, &ctx);
+        assert!(
+            matches!(&o, Outcome::Refused(e) if e.contains("pixels 3072")),
+            "{o:?}"
+        );
+        let file =
+            br#"["relight", "--scene", "/etc/passwd.gltf", "--width", "8", "--height", "6"]"#;
+        let o = fuzz::run(commands, file, &ctx);
+        assert!(
+            matches!(&o, Outcome::Refused(e) if e.contains("built-in")),
+            "{o:?}"
+        );
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -68,9 +68,29 @@ struct Cli {
     sky_directions: Option<u32>,
 }
 
-/// The lights `--sun` and `--point` add to every scene a command opens (set once, before
-/// the command runs).
-static ADDED_LIGHTS: std::sync::OnceLock<scene_core::AddedLights> = std::sync::OnceLock::new();
+/// The lights `--sun`, `--point` and `--sky` add to every scene a command opens (set before
+/// the command runs: once by `main`, per input by the `commands` fuzz target).
+static ADDED_LIGHTS: std::sync::RwLock<Option<scene_core::AddedLights>> =
+    std::sync::RwLock::new(None);
+
+/// Sets [`ADDED_LIGHTS`].
+fn set_added_lights(added: Option<scene_core::AddedLights>) {
+    *ADDED_LIGHTS
+        .write()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = added;
+}
+
+/// The lights the global flags of `cli` add, parsed (errors name the flag's fault).
+fn added_lights(cli: &Cli) -> Result<scene_core::AddedLights, String> {
+    let mut added = scene_core::AddedLights::default();
+    cli.suns.iter().try_for_each(|s| added.parse_sun(s))?;
+    cli.points.iter().try_for_each(|p| added.parse_point(p))?;
+    cli.sky.iter().try_for_each(|s| added.parse_sky(s))?;
+    cli.sky_directions
+        .iter()
+        .try_for_each(|&n| added.set_sky_directions(n))?;
+    Ok(added)
+}
 
 /// The options of `cargo xtask experiment`.
 #[derive(clap::Args, Debug)]
@@ -400,7 +420,11 @@ pub fn load_scene(spec: &str) -> Result<Scene, String> {
 /// [`scene_core::open_scene`], printing its notes; the translation it applied (a scene far
 /// from the origin is moved to it) comes with the scene.
 pub fn open_scene_noted(spec: &str) -> Result<scene_core::OpenedScene, String> {
-    let added = ADDED_LIGHTS.get().cloned().unwrap_or_default();
+    let added = ADDED_LIGHTS
+        .read()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .clone()
+        .unwrap_or_default();
     let opened = scene_core::open_scene_with(spec, &added).map_err(|e| e.to_string())?;
     for note in &opened.notes {
         eprintln!("{note}");
@@ -686,6 +710,104 @@ pub fn fuzz_command_line(bytes: &[u8]) -> Result<(), String> {
     cli.command.check_numbers()
 }
 
+/// The `commands` fuzz target: a command line parsed and checked as [`fuzz_command_line`]
+/// does, then **run** at a tiny size with its outputs in `scratch`: `reference`, `relight`,
+/// `ibrr` and `export-gltf` on the built-in scenes (the `building` is too slow for the
+/// fuzzer's time limit), with the global light flags (`--point` at 1e38, `--sky`...). A
+/// command line asking for more (a larger image, more samples, elements or IRPLs, a file
+/// scene, another command) is refused as an outcome. The command's own error is an
+/// outcome too; a panic, or an image it wrote holding a NaN, an infinity or a negative
+/// value, is a finding.
+pub fn fuzz_run_command(bytes: &[u8], scratch: &Path) -> Result<(), String> {
+    let args: Vec<String> = serde_json::from_slice(bytes).map_err(|e| e.to_string())?;
+    let mut cli = Cli::try_parse_from(std::iter::once("xtask".to_string()).chain(args))
+        .map_err(|e| e.to_string().lines().next().unwrap_or_default().to_string())?;
+    cli.command.check_numbers()?;
+    let added = added_lights(&cli)?;
+    let out = scratch.join("command-out");
+    std::fs::remove_dir_all(&out).ok();
+    let tiny = |what: &str, v: u64, max: u64| {
+        if v <= max {
+            Ok(())
+        } else {
+            Err(format!("{what} {v}: above the commands target's {max}"))
+        }
+    };
+    let builtin = |scene: &str| {
+        if scene_core::builtin::NAMES.contains(&scene) && scene != "building" {
+            Ok(())
+        } else {
+            Err(format!(
+                "scene '{scene}': the commands target runs the small built-in scenes"
+            ))
+        }
+    };
+    let view = |v: &ViewArgs| {
+        builtin(&v.scene)?;
+        tiny("pixels", u64::from(v.width) * u64::from(v.height), 16 * 12)
+    };
+    match &mut cli.command {
+        Command::Reference {
+            scene,
+            width,
+            height,
+            spp,
+            out: dir,
+            mitsuba,
+            ..
+        } => {
+            builtin(scene)?;
+            tiny("pixels", u64::from(*width) * u64::from(*height), 16 * 12)?;
+            tiny("spp", u64::from(*spp), 4)?;
+            *dir = out.clone();
+            *mitsuba = None;
+        }
+        Command::Relight(o) => {
+            view(&o.view)?;
+            tiny("elements", o.elements as u64, 256)?;
+            if o.form_factors == "hemicube" {
+                tiny("hemicube resolution", u64::from(o.hemicube_resolution), 32)?;
+            }
+            tiny("subpixels", u64::from(o.subpixels), 8)?;
+            o.out = out.clone();
+        }
+        Command::Ibrr(o) => {
+            view(&o.view)?;
+            tiny("LDC resolution", u64::from(o.ldc), 32)?;
+            tiny("IRPLs", u64::from(o.irpls), 16)?;
+            tiny("direct render", u64::from(o.direct_render), 32)?;
+            tiny("indirect render", u64::from(o.indirect_render), 32)?;
+            o.out = out.clone();
+        }
+        Command::ExportGltf { scene, out: file } => {
+            builtin(scene)?;
+            let glb = file.extension().is_some_and(|e| e == "glb");
+            *file = out.join(if glb { "export.glb" } else { "export.gltf" });
+            std::fs::create_dir_all(&out).map_err(|e| e.to_string())?;
+        }
+        _ => return Err("not a command the commands target runs".into()),
+    }
+    set_added_lights(Some(added));
+    let result = run(cli);
+    set_added_lights(None);
+    result?;
+    // What the command wrote: every EXR finite and non-negative.
+    for e in std::fs::read_dir(&out).into_iter().flatten().flatten() {
+        let path = e.path();
+        if path.extension().is_some_and(|x| x == "exr") {
+            let image = scene_core::Image::read_exr(&path).map_err(|e| e.to_string())?;
+            if let Some(p) = image
+                .pixels
+                .iter()
+                .find(|p| !p.is_finite() || p.min_element() < 0.0)
+            {
+                panic!("{} holds the pixel {p}", path.display());
+            }
+        }
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> Result<(), String> {
     cli.command.check_numbers()?;
     match cli.command {
@@ -817,23 +939,13 @@ fn run(cli: Cli) -> Result<(), String> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let mut added = scene_core::AddedLights::default();
-    let parsed = cli
-        .suns
-        .iter()
-        .try_for_each(|s| added.parse_sun(s))
-        .and_then(|()| cli.points.iter().try_for_each(|p| added.parse_point(p)))
-        .and_then(|()| cli.sky.iter().try_for_each(|s| added.parse_sky(s)))
-        .and_then(|()| {
-            cli.sky_directions
-                .iter()
-                .try_for_each(|&n| added.set_sky_directions(n))
-        });
-    if let Err(e) = parsed {
-        eprintln!("error: {e}");
-        return ExitCode::FAILURE;
+    match added_lights(&cli) {
+        Ok(added) => set_added_lights(Some(added)),
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
     }
-    ADDED_LIGHTS.set(added).ok();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
