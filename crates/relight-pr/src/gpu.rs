@@ -183,7 +183,8 @@ impl std::fmt::Debug for GpuRelight {
 impl GpuRelight {
     /// Uploads `solution` (over `meshing`, welded by `welding`) at `precision`. Fails with
     /// [`RelightError::Budget`] before allocating when a buffer would exceed the adapter's
-    /// storage-binding or buffer size.
+    /// storage-binding or buffer size, and with [`RelightError::InvalidSetting`] when f16
+    /// storage would saturate a value ([`Packed::saturated`]).
     pub fn new(
         ctx: &GpuContext,
         meshing: &Meshing,
@@ -206,6 +207,14 @@ impl GpuRelight {
         let packed = Packed::new(&solution.direct, &solution.indirect, k, precision);
         let (vd, vi) = welding.vertex_solution(meshing, solution);
         let vertex = Packed::new(&vd, &vi, k, precision);
+        let saturated = packed.saturated + vertex.saturated;
+        if saturated > 0 {
+            return Err(RelightError::InvalidSetting(format!(
+                "f16 storage would saturate {saturated} value(s) of the solution at 65504 (the \
+                 scene's lights are that bright): use Precision::F32, or scale the scene's \
+                 units"
+            )));
+        }
         let table: Vec<GpuElement> = meshing
             .elements
             .iter()

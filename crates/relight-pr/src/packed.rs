@@ -18,7 +18,9 @@ pub enum Precision {
     #[default]
     F32,
     /// 16-bit floats: half the memory and the bandwidth of a relight frame. Values beyond
-    /// 65504 saturate to the largest half; scale the scene's units if they come near it.
+    /// 65504 saturate to the largest half ([`Packed::saturated`] counts them, and
+    /// [`crate::gpu::GpuRelight::new`] refuses such a solution); scale the scene's units if
+    /// they come near it.
     F16,
 }
 
@@ -43,6 +45,8 @@ pub struct Packed {
     pub precision: Precision,
     /// `n * k * precision.words()` words.
     pub words: Vec<u32>,
+    /// Values that f16 storage saturated at 65504 (0 at f32).
+    pub saturated: usize,
 }
 
 fn half_bits(x: f32) -> u32 {
@@ -84,11 +88,26 @@ impl Packed {
                     }
                 }
             });
+        let saturated = if precision == Precision::F16 {
+            direct
+                .par_iter()
+                .chain(indirect.par_iter())
+                .map(|v| {
+                    v.to_array()
+                        .iter()
+                        .filter(|x| x.is_finite() && x.abs() > 65504.0)
+                        .count()
+                })
+                .sum()
+        } else {
+            0
+        };
         Self {
             n,
             k,
             precision,
             words,
+            saturated,
         }
     }
 

@@ -155,6 +155,31 @@ fn packed_relight_equals_the_solution_relight_and_f16_stays_within_rounding() {
     let huge = Packed::new(&[Vec3::splat(1e9)], &[Vec3::splat(-1e9)], 1, Precision::F16);
     let (d, i) = huge.get(0, 0);
     assert_eq!((d, i), (Vec3::splat(65504.0), Vec3::splat(-65504.0)));
+    // Counted, not silent.
+    assert_eq!(huge.saturated, 6);
+    assert_eq!(f16s.saturated, 0);
+}
+
+#[test]
+fn gpu_f16_storage_that_would_saturate_is_refused() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let (scene, meshing, mut solution, _) = solved();
+    let welding = Welding::new(&meshing, scene.extent());
+    // A light a million times brighter: its solution passes f16's range.
+    for v in solution
+        .direct
+        .iter_mut()
+        .chain(solution.indirect.iter_mut())
+    {
+        *v *= 1e6;
+    }
+    let e = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F16)
+        .err()
+        .expect("refused");
+    assert!(e.to_string().contains("saturate"), "{e}");
+    assert!(GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).is_ok());
 }
 
 #[test]

@@ -1055,29 +1055,8 @@ fn vertex_alpha_on_a_masked_material_is_reported() {
         ("OPAQUE", 0.5, false),
     ] {
         let bytes = doc(&TRI, Some(&TRI_N), None, 4, |root| {
-            let rgba: Vec<u8> = (0..3)
-                .flat_map(|_| [1.0f32, 1.0, 1.0, alpha])
-                .flat_map(f32::to_le_bytes)
-                .collect();
-            let uri = format!(
-                "data:application/octet-stream;base64,{}",
-                base64::engine::general_purpose::STANDARD.encode(&rgba)
-            );
-            let buffer = root["buffers"].as_array().unwrap().len();
-            root["buffers"]
-                .as_array_mut()
-                .unwrap()
-                .push(json!({ "byteLength": 48, "uri": uri }));
-            let view = root["bufferViews"].as_array().unwrap().len();
-            root["bufferViews"]
-                .as_array_mut()
-                .unwrap()
-                .push(json!({ "buffer": buffer, "byteLength": 48 }));
-            let accessor = root["accessors"].as_array().unwrap().len();
-            root["accessors"].as_array_mut().unwrap().push(
-                json!({ "bufferView": view, "componentType": 5126, "count": 3, "type": "VEC4" }),
-            );
-            root["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(accessor);
+            let rgba: Vec<f32> = (0..3).flat_map(|_| [1.0f32, 1.0, 1.0, alpha]).collect();
+            push_colors(root, &rgba, "VEC4");
             root["meshes"][0]["primitives"][0]["material"] = json!(0);
             root["materials"] = json!([{ "alphaMode": mode }]);
         });
@@ -1095,33 +1074,38 @@ fn vertex_alpha_on_a_masked_material_is_reported() {
     }
 }
 
+/// Adds float `values` as the first primitive's COLOR_0 (`kind` "VEC3" or "VEC4", three
+/// vertices) in a buffer of their own.
+fn push_colors(root: &mut Value, values: &[f32], kind: &str) {
+    let data: Vec<u8> = values.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&data)
+    );
+    let bytes = data.len();
+    let buffer = root["buffers"].as_array().unwrap().len();
+    root["buffers"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "byteLength": bytes, "uri": uri }));
+    let view = root["bufferViews"].as_array().unwrap().len();
+    root["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "buffer": buffer, "byteLength": bytes }));
+    let accessor = root["accessors"].as_array().unwrap().len();
+    root["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({ "bufferView": view, "componentType": 5126, "count": 3, "type": kind }));
+    root["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(accessor);
+}
+
 /// A triangle whose COLOR_0 (float RGB) is `rgb` at every vertex, under an opaque material.
 fn tinted(rgb: [f32; 3]) -> Vec<u8> {
     doc(&TRI, Some(&TRI_N), None, 4, |root| {
-        let data: Vec<u8> = (0..3)
-            .flat_map(|_| rgb)
-            .flat_map(f32::to_le_bytes)
-            .collect();
-        let uri = format!(
-            "data:application/octet-stream;base64,{}",
-            base64::engine::general_purpose::STANDARD.encode(&data)
-        );
-        let buffer = root["buffers"].as_array().unwrap().len();
-        root["buffers"]
-            .as_array_mut()
-            .unwrap()
-            .push(json!({ "byteLength": 36, "uri": uri }));
-        let view = root["bufferViews"].as_array().unwrap().len();
-        root["bufferViews"]
-            .as_array_mut()
-            .unwrap()
-            .push(json!({ "buffer": buffer, "byteLength": 36 }));
-        let accessor = root["accessors"].as_array().unwrap().len();
-        root["accessors"]
-            .as_array_mut()
-            .unwrap()
-            .push(json!({ "bufferView": view, "componentType": 5126, "count": 3, "type": "VEC3" }));
-        root["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(accessor);
+        let data: Vec<f32> = (0..3).flat_map(|_| rgb).collect();
+        push_colors(root, &data, "VEC3");
     })
 }
 
