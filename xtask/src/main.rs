@@ -359,7 +359,7 @@ enum Command {
     /// under an address-space cap and a per-input time limit; failing inputs are saved under
     /// tests/fuzz-regressions/<target>/ (replayed by `cargo test`).
     Fuzz {
-        /// A target to run: gltf, glb, exr, png, cameras, scenes, cli (repeatable; default all).
+        /// A target to run: gltf, glb, exr, png, cameras, scenes, cli, commands (repeatable; default all).
         #[arg(long = "target")]
         targets: Vec<String>,
         /// Seconds per target.
