@@ -197,6 +197,9 @@ fn findings(r: &Results) -> String {
 
 /// The document generated from `r`, naming `results_name` as its source.
 pub fn render(r: &Results, results_name: &str) -> String {
+    // Names, labels and the command are copied into Markdown: escaped, so that no text of
+    // the results file changes the document's structure.
+    let r = &r.escaped_for_markdown();
     let mut o = String::new();
     let run = &r.run;
     let _ = writeln!(o, "{MARK}{results_name}; do not edit, run again -->");
@@ -324,13 +327,25 @@ mod tests {
             mean.1 = -1e308;
         });
         assert!(e.contains("mean-error") && e.contains("-1e308"), "{e}");
-        let e = refused(&|r| r.run.command = "a\n# injected heading".into());
-        assert!(e.contains("results.run.command"), "{e}");
         let e = refused(&|r| r.views[0].scene = "x | y".into());
         assert!(e.contains("scene the run does not list"), "{e}");
-        let e = refused(&|r| r.run.scenes.push("<script>".into()));
-        assert!(e.contains("results.run.scenes["), "{e}");
+        let e = refused(&|r| r.run.command = "x".repeat(5000));
+        assert!(e.contains("results.run.command is 5000 bytes"), "{e}");
         let e = refused(&|r| r.run.shard = bench_harness::Shard::parse("1/2").ok());
         assert!(e.contains("merge the shards first"), "{e}");
+        // Text is escaped where the document copies it: a line break cannot start a
+        // heading, a tag is shown as written, a bar cannot split a table cell.
+        let mut hostile = good.clone();
+        hostile.run.command = "a\n# injected heading".into();
+        hostile.run.date = "<script>alert(1)</script>".into();
+        hostile.run.preset = "default | x".into();
+        check_input(&hostile, Path::new("x.json")).expect("text is escaped, not refused");
+        let doc = render(&hostile, "x.json");
+        assert!(!doc.lines().any(|l| l.starts_with("# injected")), "{doc}");
+        assert!(doc.contains("a # injected heading"));
+        assert!(!doc.contains("<script>") && doc.contains("&lt;script&gt;"));
+        assert!(!doc.contains("default | x") && doc.contains("default \\| x"));
+        // The escaping leaves what this project writes as it is.
+        assert_eq!(good.escaped_for_markdown(), good);
     }
 }

@@ -674,7 +674,7 @@ impl Results {
     /// Checks a `results.json` read back as input (a results document is generated from it,
     /// shards are merged from it): image size and samples within their stated ranges, at
     /// least one repeat, every view as [`ViewResult::check`] checks it and of a scene of the
-    /// run, and every text plain ([`check_plain_text`]). `lower_is_better(metric)` names the
+    /// run, and no text longer than 4 096 bytes ([`check_text_lengths`]). `lower_is_better(metric)` names the
     /// metrics that are errors (never below 0).
     pub fn check(&self, lower_is_better: &dyn Fn(&str) -> bool) -> Result<(), String> {
         use scene_core::range::{IMAGE_SIDE, SPP, check};
@@ -698,47 +698,72 @@ impl Results {
         }
         non_negative(|| "run.seconds".into(), self.run.seconds)?;
         let value = serde_json::to_value(self).map_err(|e| e.to_string())?;
-        check_plain_text(&value, "results")
+        check_text_lengths(&value, "results")
     }
 }
 
 /// The longest text a results file may hold in one field.
 const TEXT_MAX: usize = 4096;
 
-/// Refuses any string in `v` (a results file as JSON) that is longer than 4 096 bytes, holds
-/// a control character (a line break) or one of `| < >`, or an odd number of backticks (a
-/// code span left open): documents and reports copy names, labels and the command into
-/// Markdown tables, code spans and HTML, where these would change the document's structure.
-/// The error names the field by its JSON path.
-pub fn check_plain_text(v: &serde_json::Value, path: &str) -> Result<(), String> {
+/// Refuses any string in `v` (a results file as JSON) longer than 4 096 bytes (names,
+/// labels and the command are short; a document copies them). The error names the field by
+/// its JSON path.
+pub fn check_text_lengths(v: &serde_json::Value, path: &str) -> Result<(), String> {
     use serde_json::Value;
     match v {
-        Value::String(t) => {
-            if t.len() > TEXT_MAX {
-                return Err(format!("{path} is {} bytes long, over {TEXT_MAX}", t.len()));
-            }
-            let open_span = t.matches('`').count() % 2 == 1;
-            if let Some(c) = t
-                .chars()
-                .find(|c| c.is_control() || "|<>".contains(*c) || (open_span && *c == '`'))
-            {
-                return Err(format!(
-                    "{path} holds {c:?}, which a generated document would not show as written: \
-                     {:?}",
-                    t.chars().take(80).collect::<String>()
-                ));
-            }
-            Ok(())
+        Value::String(t) if t.len() > TEXT_MAX => {
+            Err(format!("{path} is {} bytes long, over {TEXT_MAX}", t.len()))
         }
         Value::Array(a) => a
             .iter()
             .enumerate()
-            .try_for_each(|(i, x)| check_plain_text(x, &format!("{path}[{i}]"))),
-        Value::Object(o) => o.iter().try_for_each(|(k, x)| {
-            check_plain_text(&Value::String(k.clone()), &format!("{path} key"))?;
-            check_plain_text(x, &format!("{path}.{k}"))
-        }),
+            .try_for_each(|(i, x)| check_text_lengths(x, &format!("{path}[{i}]"))),
+        Value::Object(o) => o
+            .iter()
+            .try_for_each(|(k, x)| check_text_lengths(x, &format!("{path}.{k}"))),
         _ => Ok(()),
+    }
+}
+
+/// `t` as Markdown shows it as written inside a table or a paragraph: control characters
+/// (a line break would end a table row or start a heading) become spaces, `&`, `<` and `>`
+/// entities, `|` (a cell border) `\|`, and a backtick that would leave a code span open
+/// `` \` `` (a balanced pair is kept: the texts this project writes quote commands so).
+pub fn markdown_text(t: &str) -> String {
+    let open_span = t.matches('`').count() % 2 == 1;
+    let mut o = String::with_capacity(t.len());
+    for c in t.chars() {
+        match c {
+            c if c.is_control() => o.push(' '),
+            '&' => o.push_str("&amp;"),
+            '<' => o.push_str("&lt;"),
+            '>' => o.push_str("&gt;"),
+            '|' => o.push_str("\\|"),
+            '`' if open_span => o.push_str("\\`"),
+            c => o.push(c),
+        }
+    }
+    o
+}
+
+impl Results {
+    /// The same results with every text (names, labels, the command, notes) passed through
+    /// [`markdown_text`], for a document that copies them into Markdown: every copy of a
+    /// label changes alike, so lookups by label still match.
+    pub fn escaped_for_markdown(&self) -> Results {
+        fn walk(v: &mut serde_json::Value) {
+            match v {
+                serde_json::Value::String(t) => *t = markdown_text(t),
+                serde_json::Value::Array(a) => a.iter_mut().for_each(walk),
+                serde_json::Value::Object(o) => o.values_mut().for_each(walk),
+                _ => {}
+            }
+        }
+        let Ok(mut value) = serde_json::to_value(self) else {
+            return self.clone();
+        };
+        walk(&mut value);
+        serde_json::from_value(value).unwrap_or_else(|_| self.clone())
     }
 }
 
