@@ -518,19 +518,32 @@ impl Meshing {
             let patch_area = area / 4f32.powi(l as i32);
             let one = elements_per(patch_area, l) == 1;
             let pieces: &[Piece] = if one { &[piece] } else { &piece.children() };
-            // Each element's share that exists under an alpha mask (64 samples).
-            let coverages: Vec<f32> = pieces
+            // Each element's share that exists under an alpha mask and, for a masked
+            // emitter, its mean emission with the holes black: one pass over the same 64
+            // samples (the centroids `cutout::coverage` counts).
+            let masked_emitter = masked && light.is_some();
+            let per_element: Vec<(f32, Vec3)> = pieces
                 .iter()
                 .map(|e| {
-                    if masked {
-                        scene_core::cutout::coverage(8, |b| {
-                            let b =
-                                e.bary[0] * (1.0 - b.x - b.y) + e.bary[1] * b.x + e.bary[2] * b.y;
-                            source.opaque_at(material, uv_of(b))
-                        })
-                    } else {
-                        1.0
+                    if !masked {
+                        return (1.0, Vec3::ZERO);
                     }
+                    let (mut solid, mut glow) = (0u32, Vec3::ZERO);
+                    for b in scene_core::cutout::triangle_samples(8) {
+                        let b = e.bary[0] * (1.0 - b.x - b.y) + e.bary[1] * b.x + e.bary[2] * b.y;
+                        if !source.opaque_at(material, uv_of(b)) {
+                            continue;
+                        }
+                        solid += 1;
+                        if masked_emitter {
+                            glow += if textured {
+                                source.emission_at(material, uv_of(b))
+                            } else {
+                                factor
+                            };
+                        }
+                    }
+                    (solid as f32 / 64.0, glow / 64.0)
                 })
                 .collect();
             // The patch's emission: the factor, or with an emission texture its mean over the
@@ -540,28 +553,8 @@ impl Meshing {
             // that it is the radiance seen times their mean coverage exactly,
             // [`Meshing::seen_emission`]), and the patch, which keeps its whole area, emits
             // the power of its solid part (its albedo is scaled alike).
-            let emission = if masked && light.is_some() {
-                pieces
-                    .iter()
-                    .map(|e| {
-                        scene_core::cutout::triangle_samples(8)
-                            .map(|b| {
-                                let b = e.bary[0] * (1.0 - b.x - b.y)
-                                    + e.bary[1] * b.x
-                                    + e.bary[2] * b.y;
-                                if !source.opaque_at(material, uv_of(b)) {
-                                    Vec3::ZERO
-                                } else if textured {
-                                    source.emission_at(material, uv_of(b))
-                                } else {
-                                    factor
-                                }
-                            })
-                            .sum::<Vec3>()
-                            / 64.0
-                    })
-                    .sum::<Vec3>()
-                    / pieces.len() as f32
+            let emission = if masked_emitter {
+                per_element.iter().map(|(_, g)| *g).sum::<Vec3>() / pieces.len() as f32
             } else if textured {
                 scene_core::cutout::triangle_samples(8)
                     .map(|b| {
@@ -588,7 +581,7 @@ impl Meshing {
             });
             let patch = patches.len() as u32 - 1;
             let element_area = patch_area / pieces.len() as f32;
-            for (e, &coverage) in pieces.iter().zip(&coverages) {
+            for (e, &(coverage, _)) in pieces.iter().zip(&per_element) {
                 let c = (e.bary[0] + e.bary[1] + e.bary[2]) / 3.0;
                 // Four albedo samples: the centroid and the midpoints towards each corner.
                 let albedo = (albedo_at(c)

@@ -101,50 +101,32 @@ pub fn check(scene: &Scene) -> Result<Contract, SceneError> {
 /// mask leaves anything of it ([`crate::cutout::coverage`]: 64 samples).
 const MASK_SAMPLES: u32 = 8;
 
-/// True when something of global triangle `local` of mesh `mesh` exists under its
-/// material's alpha mask (always for an unmasked material).
-fn exists(scene: &Scene, mesh: usize, local: usize) -> bool {
-    let m = &scene.meshes[mesh];
-    let material = m.material_ids[local];
-    if !scene
-        .materials
-        .get(material as usize)
-        .is_some_and(|mat| mat.is_masked())
-    {
-        return true;
-    }
-    let uvs = m
-        .uvs
-        .as_ref()
-        .map(|uv| m.indices[local].map(|i| uv.get(i as usize).copied().unwrap_or_default()));
-    crate::cutout::coverage(MASK_SAMPLES, |b| {
-        let uv = uvs.map(|t| t[0] * (1.0 - b.x - b.y) + t[1] * b.x + t[2] * b.y);
-        scene.opaque_at(material, uv)
-    }) > 0.0
+/// True when something of global triangle `t` exists under its alpha mask (always for an
+/// unmasked triangle).
+fn exists(cutouts: &crate::cutout::Cutouts, t: u32) -> bool {
+    !cutouts.is_masked(t) || crate::cutout::coverage(MASK_SAMPLES, |b| cutouts.opaque(t, b)) > 0.0
 }
 
 /// True when the scene has triangles and every one is cut away by its alpha mask.
 fn masked_away(scene: &Scene) -> bool {
-    let any_masked = scene.materials.iter().any(|m| m.is_masked());
-    any_masked
-        && scene.triangle_count() > 0
-        && !scene
-            .meshes
-            .iter()
-            .enumerate()
-            .any(|(mi, m)| (0..m.indices.len()).any(|t| exists(scene, mi, t)))
+    let cutouts = crate::cutout::Cutouts::of(scene);
+    let n = scene.triangle_count() as u32;
+    cutouts.masked_triangles() as u32 == n && n > 0 && !(0..n).any(|t| exists(&cutouts, t))
 }
 
 /// True when some light of the scene gives power (an emissive triangle counts when its
 /// alpha mask leaves some of it).
 pub fn is_lit(scene: &Scene) -> bool {
-    let emissive_triangle = scene.meshes.iter().enumerate().any(|(mi, m)| {
-        m.material_ids.iter().enumerate().any(|(t, &id)| {
+    let cutouts = crate::cutout::Cutouts::of(scene);
+    let mut global = 0u32;
+    let emissive_triangle = scene.meshes.iter().any(|m| {
+        m.material_ids.iter().any(|&id| {
+            global += 1;
             scene
                 .materials
                 .get(id as usize)
                 .is_some_and(|mat| mat.emission.max_element() > 0.0)
-                && exists(scene, mi, t)
+                && exists(&cutouts, global - 1)
         })
     });
     emissive_triangle
