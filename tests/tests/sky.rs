@@ -92,11 +92,31 @@ fn uneven_sky() -> Sky {
     Sky::from_map("uneven", w, h, map, 64).unwrap()
 }
 
+/// A large map (2048x1024, two million pixels): a gradient from a pale horizon to a deeper
+/// zenith, a small bright sun, and a dim ground below the horizon.
+fn huge_sky() -> Sky {
+    let (w, h) = (2048u32, 1024u32);
+    let map = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            if y >= h / 2 {
+                Vec3::new(0.05, 0.04, 0.03)
+            } else if (300..310).contains(&y) && (700..712).contains(&x) {
+                Vec3::new(2e3, 1.8e3, 1.5e3)
+            } else {
+                let t = y as f32 / (h / 2) as f32;
+                Vec3::new(0.3, 0.45, 0.9) * (1.0 - t) + Vec3::new(0.9, 0.9, 0.85) * t
+            }
+        })
+        .collect();
+    Sky::from_map("huge", w, h, map, 64).unwrap()
+}
+
 #[test]
 fn an_open_floor_reflects_the_sky_irradiance_in_every_method() {
     let albedo = 0.5;
-    // Degenerate maps too: one pixel over the whole sphere, and one row of uneven azimuths
-    // centred on the horizon (held refined for the median cut; DL and ISR received nothing
+    // Degenerate maps too: one pixel over the whole sphere, one row of uneven azimuths
+    // centred on the horizon, and a map of two million pixels (held refined for the median cut; DL and ISR received nothing
     // from them, the IBRR 0-22 % of the reference's light).
     let row: Vec<Vec3> = (0..7)
         .map(|i| Vec3::new(0.2 + 0.3 * i as f32, 0.5, 1.0 - 0.1 * i as f32))
@@ -106,6 +126,7 @@ fn an_open_floor_reflects_the_sky_irradiance_in_every_method() {
         uneven_sky(),
         Sky::from_map("one pixel", 1, 1, vec![Vec3::new(0.9, 0.7, 0.4)], 64).unwrap(),
         Sky::from_map("one row", 7, 1, row, 64).unwrap(),
+        huge_sky(),
     ] {
         let expected = sky.irradiance(Vec3::Y) * albedo / std::f32::consts::PI;
         let scene = open_floor(sky.clone(), albedo);
