@@ -210,6 +210,35 @@ fn cargo(args: &[&str]) -> Result<(), String> {
     }
 }
 
+/// Builds the API documentation as docs.rs would (`cargo doc --no-deps`, every warning an
+/// error), with the default features and with all features: an unresolved intra-doc link,
+/// a link to a private item or an unclosed HTML tag fails. `manifest` is the workspace's
+/// by default (a test points it at a crate of its own).
+pub fn api_docs(manifest: Option<&std::path::Path>) -> Result<(), String> {
+    for features in [None, Some("--all-features")] {
+        let mut args = vec!["doc", "--no-deps", "--workspace"];
+        args.extend(features);
+        let manifest = manifest.map(|m| m.to_string_lossy().into_owned());
+        if let Some(m) = &manifest {
+            args.extend(["--manifest-path", m.as_str()]);
+        }
+        eprintln!("$ RUSTDOCFLAGS='-D warnings' cargo {}", args.join(" "));
+        let status = Command::new(env!("CARGO"))
+            .args(&args)
+            .env("RUSTDOCFLAGS", "-D warnings")
+            .status()
+            .map_err(|e| format!("cannot run cargo: {e}"))?;
+        if !status.success() {
+            return Err(format!(
+                "the API documentation warns (`cargo {}` with RUSTDOCFLAGS='-D warnings' \
+                 failed, {status})",
+                args.join(" ")
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Fails when a spoke names a sibling among its normal or build dependencies, or does not
 /// depend on scene-core, or when a spoke or scene-core depends on a composition point.
 pub fn dependency_rule() -> Result<(), String> {
@@ -298,6 +327,7 @@ pub fn ci(with_tests: bool) -> Result<(), String> {
     hub_costs()?;
     let n = crate::shaders::validate_all(None)?;
     eprintln!("{n} shader(s) valid");
+    api_docs(None)?;
     if with_tests {
         cargo(&["test", "--workspace"])?;
     }
@@ -307,6 +337,28 @@ pub fn ci(with_tests: bool) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The documentation check fails on a crate whose docs link to nothing, and passes once
+    /// the link is plain text.
+    #[test]
+    fn api_docs_fail_on_a_broken_intra_doc_link() {
+        let dir = std::env::temp_dir().join(format!("api-docs-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("src")).unwrap();
+        std::fs::write(
+            dir.join("Cargo.toml"),
+            "[package]\nname = \"docs-probe\"\nversion = \"0.1.0\"\nedition = \"2021\"\n\
+             [workspace]\n",
+        )
+        .unwrap();
+        let lib = dir.join("src/lib.rs");
+        std::fs::write(&lib, "//! See [`Nowhere`].\npub fn f() {}\n").unwrap();
+        let manifest = dir.join("Cargo.toml");
+        let e = api_docs(Some(&manifest)).unwrap_err();
+        assert!(e.contains("API documentation warns"), "{e}");
+        std::fs::write(&lib, "//! See `Nowhere`.\npub fn f() {}\n").unwrap();
+        api_docs(Some(&manifest)).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+    }
 
     fn meta(deps: &[(&str, &str)]) -> serde_json::Value {
         let deps: Vec<_> = deps

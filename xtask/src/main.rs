@@ -264,8 +264,8 @@ enum Command {
     },
     /// Check only the dependency rule (spokes depend on scene-core, never on a sibling).
     DepRule,
-    /// Render a scene with the reference path tracer: writes DIR/<scene>.exr, a PNG preview
-    /// and DIR/<scene>.variance.exr.
+    /// Render a scene with the reference path tracer: writes DIR/SCENE.exr, a PNG preview
+    /// and DIR/SCENE.variance.exr.
     Reference {
         /// Built-in scene name (cornell, cornell-point, primitives, corridor, "many-boxes N")
         /// or a .gltf/.glb path.
@@ -357,7 +357,7 @@ enum Command {
     Experiment(Box<ExperimentArgs>),
     /// Fuzz the loaders with mutated seed files: each input under catch_unwind, the worker
     /// under an address-space cap and a per-input time limit; failing inputs are saved under
-    /// tests/fuzz-regressions/<target>/ (replayed by `cargo test`).
+    /// tests/fuzz-regressions/TARGET/ (replayed by `cargo test`).
     Fuzz {
         /// A target to run: gltf, glb, exr, png, cameras, scenes, cli, commands (repeatable; default all).
         #[arg(long = "target")]

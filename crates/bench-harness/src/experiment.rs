@@ -77,7 +77,7 @@ pub struct ExperimentSettings {
     /// fills in the scenes, the shard and the seconds.
     pub run_info: crate::results::RunInfo,
     /// Run only the `k`-th of `n` shares of the work (views and the sequence, dealt round
-    /// the shards in run order); [`crate::merge`] combines the shards' output folders.
+    /// the shards in run order); [`crate::merge()`] combines the shards' output folders.
     pub shard: Option<Shard>,
     /// Output folder.
     pub out_dir: PathBuf,

@@ -533,7 +533,7 @@ impl GalleryImages {
     }
 }
 
-/// The images the HTML gallery links for view `v` of `r` ([`crate::merge`] checks that
+/// The images the HTML gallery links for view `v` of `r` ([`crate::merge()`] checks that
 /// they exist before a merged report links them).
 pub fn gallery_images(r: &Results, v: &crate::results::ViewResult) -> GalleryImages {
     let gb = gallery_bounces(r);

@@ -826,7 +826,7 @@ pub struct RunInfo {
     #[serde(default)]
     pub tuning: Vec<String>,
     /// The content hash of each scene (geometry, materials, lights, cameras), in the order of
-    /// `scenes`, as 16 hex digits: [`crate::merge`] refuses shards made from different
+    /// `scenes`, as 16 hex digits: [`crate::merge()`] refuses shards made from different
     /// versions of a scene file.
     #[serde(default)]
     pub scene_hashes: Vec<String>,

@@ -196,7 +196,7 @@ pub(super) const NEARLY_FLAT: f32 = 0.05;
 /// Clusters of at most this many leaves are tested by [`Tree::coherence`] leaf by leaf.
 pub(super) const STAR_LEAVES: u32 = 32;
 
-/// Segments tested per larger cluster by [`Tree::coherence`].
+/// Segments tested per larger cluster by `Tree::coherence`.
 pub const COHERENCE_RAYS: u32 = 8;
 
 impl Tree {

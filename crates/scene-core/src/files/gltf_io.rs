@@ -10,17 +10,17 @@
 //!   Node transforms are flattened (`world = parent * local`): positions become world-space,
 //!   normals are transformed by the inverse-transpose and renormalised, and a transform with
 //!   a negative determinant flips the triangle winding. Every (node, mesh) pair becomes one
-//!   [`Mesh`] named after the node (else the glTF mesh); its primitives are concatenated in
+//!   [`Mesh`](crate::Mesh) named after the node (else the glTF mesh); its primitives are concatenated in
 //!   order, so triangle order is the file's order.
 //! * `TRIANGLES`, `TRIANGLE_STRIP` and `TRIANGLE_FAN` primitives are imported (strips and
 //!   fans are converted to triangle lists). **Point and line primitives are skipped** and
 //!   listed in `ignored` (they are not an error). Primitives without indices get sequential
-//!   ones. An index past the primitive's vertex count is a [`GltfError::Content`] naming the
+//!   ones. An index past the primitive's vertex count is a [`GltfError::Content`](crate::GltfError::Content) naming the
 //!   mesh and primitive.
 //! * A primitive without `NORMAL` gets flat normals, as glTF 2.0 requires of a client: each
 //!   triangle gets three vertices of its own carrying its face normal (the vertex budget is
 //!   charged for them before reading). Zero or non-finite normals in a file are left for
-//!   [`Scene::validate`] to recompute. Texture coordinates are read only
+//!   [`Scene::validate`](crate::Scene::validate) to recompute. Texture coordinates are read only
 //!   for primitives whose material has a `baseColorTexture` (from the set that texture
 //!   names, normally `TEXCOORD_0`).
 //! * Materials are imported in file order (scene material `i` is glTF material `i`);
@@ -54,34 +54,34 @@
 //!   becomes `max(1000 znear, 2 (distance to the scene's centre + scene extent))`. The
 //!   target lies `extras.target_distance` (written by [`export`]) or 1 along the view
 //!   direction. Orthographic cameras are ignored; a camera without the projection object its
-//!   type names is a [`GltfError::Read`].
+//!   type names is a [`GltfError::Read`](crate::GltfError::Read).
 //! * Animations, skins (meshes are taken in their node's rest transform), morph targets,
 //!   vertex colour sets past `COLOR_0`, metallic/roughness, normal/occlusion textures, blending (see
 //!   above),
 //!   other scenes and any extension but the three above are ignored and listed.
 //!   Minification filters are not used (textures have no mipmaps).
-//! * The scene is then checked with [`Scene::validate`] ([`GltfError::Invalid`] on failure;
+//! * The scene is then checked with [`Scene::validate`](crate::Scene::validate) ([`GltfError::Invalid`](crate::GltfError::Invalid) on failure;
 //!   dropped degenerate triangles become warnings). Unreadable, truncated or corrupted files
-//!   and out-of-range buffer data give [`GltfError::Read`]; nothing panics (accessors are
+//!   and out-of-range buffer data give [`GltfError::Read`](crate::GltfError::Read); nothing panics (accessors are
 //!   checked against their buffers before the `gltf` readers touch them, and a few inputs
 //!   on which `gltf` 1.4 itself would panic are rejected first).
 //! * Nothing is allocated from the file's word before it is charged to the
 //!   [`ImportOptions::budget`]: buffers (by their size or their data URI's), textures (by
 //!   their header's size, before decoding), vertices and indices after instancing (by the
-//!   accessors' counts, before reading). Exceeding it is a [`GltfError::Budget`].
+//!   accessors' counts, before reading). Exceeding it is a [`GltfError::Budget`](crate::GltfError::Budget).
 //! * Buffers and images named by URI are read by [`ExternalFiles`] policy: by default only
 //!   regular files inside the glTF's folder (symbolic links followed); absolute paths,
-//!   `..` out of the folder, devices and other schemes are a [`GltfError::RefusedUri`].
+//!   `..` out of the folder, devices and other schemes are a [`GltfError::RefusedUri`](crate::GltfError::RefusedUri).
 //!
 //! # Export
 //!
 //! [`export`] writes `.gltf` (JSON, buffer embedded as a base64 data URI) or `.glb` (binary
 //! chunk) by the file extension, through a temporary file renamed into place. Each non-empty
-//! [`Mesh`] becomes one node and one glTF mesh with **one primitive per contiguous run of
+//! [`Mesh`](crate::Mesh) becomes one node and one glTF mesh with **one primitive per contiguous run of
 //! triangles with the same material**, so triangle order (and thus triangle ids) survives a
 //! round trip; each primitive carries only the vertices its triangles use (shared vertices
 //! at a material boundary are duplicated). Attributes are `POSITION` (with min/max),
-//! `NORMAL` (as repaired by [`Scene::validate`]), `TEXCOORD_0` when the mesh has UVs and
+//! `NORMAL` (as repaired by [`Scene::validate`](crate::Scene::validate)), `TEXCOORD_0` when the mesh has UVs and
 //! `COLOR_0` when it has vertex colours;
 //! indices are `u32`. Materials carry `baseColorFactor` (alpha 1), `metallicFactor` 0,
 //! `roughnessFactor` 1, the albedo and emission textures as embedded sRGB PNGs (RGBA with linear

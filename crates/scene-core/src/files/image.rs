@@ -280,7 +280,7 @@ impl Image {
     }
 
     /// Reads an 8- or 16-bit PNG and converts it from sRGB to linear RGB (alpha ignored),
-    /// under the default [`Budget`]. See [`Image::decode_srgb`].
+    /// under the default [`Budget`].
     pub fn read_png(path: &Path) -> Result<Image, ImageError> {
         Self::read_png_with(path, &Budget::default())
     }
@@ -324,7 +324,7 @@ impl Image {
 
     /// The width and height an encoded image's header declares (nothing is decoded), for
     /// charging a budget before decoding. What the header parser itself may allocate
-    /// (colour profiles, text chunks) is held to [`header_limits`].
+    /// (colour profiles, text chunks) is held to fixed limits (`header_limits`).
     pub fn probe_dimensions(
         bytes: &[u8],
         path: &Path,

@@ -1,4 +1,4 @@
-//! Ray queries over a four-wide BVH (obvhs builds the binary tree, [`super::bvh4`] folds it
+//! Ray queries over a four-wide BVH (obvhs builds the binary tree, a private module folds it
 //! for vector traversal): closest hit and occlusion, single and batched with rayon.
 
 use std::time::Duration;

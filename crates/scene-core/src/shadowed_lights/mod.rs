@@ -56,7 +56,7 @@ pub struct ShadowSettings {
     /// Texels per side of a directional light's orthographic map.
     pub directional_resolution: u32,
     /// Texels per side of the orthographic map of each of the sky's directions
-    /// ([`scene_core::sky::Sky::lights`]): many, each carrying a small share of soft light,
+    /// ([`crate::sky::Sky::lights`]): many, each carrying a small share of soft light,
     /// so coarser than a sun's.
     pub sky_resolution: u32,
     /// Texels per side of each cube-map face of a point light.

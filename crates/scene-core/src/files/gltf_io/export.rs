@@ -29,7 +29,7 @@ const GL_MIRRORED_REPEAT: u32 = 33648;
 ///
 /// The scene must pass [`Scene::validate`] (checked on a copy; the file is written from the
 /// original, so triangle order and ids are kept) or [`GltfError::Invalid`] is returned. See
-/// the [module documentation](self) for the layout. I/O failures and an unknown extension
+/// the [module documentation](crate::gltf_io) for the layout. I/O failures and an unknown extension
 /// give [`GltfError::Write`]; a failed write leaves no partial file at `path`.
 pub fn export(scene: &Scene, path: &Path) -> Result<(), GltfError> {
     export_with(scene, path, &[])

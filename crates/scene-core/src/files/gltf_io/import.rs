@@ -147,7 +147,7 @@ impl Ignored {
 
 /// Imports a `.gltf` (with embedded or external buffers and images) or `.glb` file.
 ///
-/// See the [module documentation](self) for what is imported and what is ignored.
+/// See the [module documentation](crate::gltf_io) for what is imported and what is ignored.
 /// Errors: [`GltfError::Read`] when the file cannot be read or parsed or its buffers are
 /// missing, truncated or inconsistent; [`GltfError::Content`] for unusable content (wrong
 /// accessor types, indices past the vertex count, a cyclic node hierarchy);
