@@ -37,6 +37,135 @@ pub const MUST_NOT_PULL: [(&str, &[&str]); 2] = [
     ("isr", &["gltf", "exr"]),
 ];
 
+/// What a library's test build must not pull in (`cargo tree -e normal,dev`): imalyzer's
+/// tests take the reference path tracer's variance, and need no GPU or glTF; ISR's read
+/// EXR golden images, and need no glTF.
+pub const TESTS_MUST_NOT_PULL: [(&str, &[&str]); 2] = [
+    ("imalyzer", &["wgpu", "naga_oil", "gltf"]),
+    ("isr", &["gltf"]),
+];
+
+/// The scene-core features that `member` names, with what they imply: the `features` of
+/// its dependencies on scene-core (normal and dev), scene-core's defaults where such a
+/// dependency keeps them, and what its own default features forward (`scene-core/x`).
+/// `meta` is `cargo metadata --no-deps`.
+pub fn named_core_features(
+    meta: &serde_json::Value,
+    member: &str,
+) -> std::collections::BTreeSet<String> {
+    use std::collections::BTreeSet;
+    let package = |name: &str| {
+        meta["packages"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .find(|p| p["name"].as_str() == Some(name))
+    };
+    let strings = |v: &serde_json::Value| -> Vec<String> {
+        v.as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|f| f.as_str().map(String::from))
+            .collect()
+    };
+    // A package's features reachable from `start` (its own feature table, transitively).
+    let closure = |table: &serde_json::Value, start: Vec<String>| -> Vec<String> {
+        let mut seen: BTreeSet<String> = BTreeSet::new();
+        let mut open = start;
+        while let Some(f) = open.pop() {
+            if seen.insert(f.clone()) {
+                open.extend(strings(&table[&f]));
+            }
+        }
+        seen.into_iter().collect()
+    };
+    let mut named = Vec::new();
+    if let Some(p) = package(member) {
+        for d in p["dependencies"].as_array().into_iter().flatten() {
+            if d["name"].as_str() == Some("scene-core") {
+                named.extend(strings(&d["features"]));
+                if d["uses_default_features"].as_bool().unwrap_or(true) {
+                    named.push("default".to_string());
+                }
+            }
+        }
+        let own = closure(&p["features"], vec!["default".to_string()]);
+        named.extend(
+            own.iter()
+                .filter_map(|f| f.strip_prefix("scene-core/").map(String::from)),
+        );
+    }
+    let core = package("scene-core").map(|p| &p["features"]);
+    closure(core.unwrap_or(&serde_json::Value::Null), named)
+        .into_iter()
+        .filter(|f| f != "default" && !f.starts_with("dep:") && !f.contains('/'))
+        .collect()
+}
+
+/// The features scene-core is built with in a `cargo tree -f '{p} [{f}]' --prefix none`
+/// listing (the first scene-core line).
+pub fn core_features_in_tree(tree: &str) -> std::collections::BTreeSet<String> {
+    tree.lines()
+        .find(|l| l.starts_with("scene-core "))
+        .and_then(|l| l.rsplit_once('[')?.1.split_once(']').map(|(f, _)| f))
+        .into_iter()
+        .flat_map(|f| f.split(','))
+        .filter(|f| !f.is_empty())
+        .map(String::from)
+        .collect()
+}
+
+/// Fails when a spoke's test build (`-e normal,dev`, its default features) turns on a
+/// scene-core feature its manifest does not name, or pulls in what
+/// [`TESTS_MUST_NOT_PULL`] bans.
+pub fn test_build_features() -> Result<(), String> {
+    let meta: serde_json::Value = serde_json::from_str(&cargo_output(&[
+        "metadata",
+        "--format-version",
+        "1",
+        "--no-deps",
+    ])?)
+    .map_err(|e| format!("cargo metadata: {e}"))?;
+    for spoke in SPOKES {
+        let tree = cargo_output(&[
+            "tree",
+            "-p",
+            spoke,
+            "-e",
+            "normal,dev",
+            "-f",
+            "{p} [{f}]",
+            "--prefix",
+            "none",
+        ])?;
+        let named = named_core_features(&meta, spoke);
+        let pulled = core_features_in_tree(&tree);
+        let unnamed: Vec<&String> = pulled.difference(&named).collect();
+        if !unnamed.is_empty() {
+            return Err(format!(
+                "{spoke}'s test build turns on scene-core feature(s) {unnamed:?} that its \
+                 Cargo.toml does not name (it names {named:?})"
+            ));
+        }
+        eprintln!("{spoke}'s test build: scene-core {pulled:?}, as named");
+    }
+    for (krate, banned) in TESTS_MUST_NOT_PULL {
+        let tree = cargo_output(&["tree", "-p", krate, "-e", "normal,dev", "--prefix", "none"])?;
+        let found = pulled_in(&tree, banned);
+        if !found.is_empty() {
+            return Err(format!(
+                "{krate}'s test build pulls in {}",
+                found.join(", ")
+            ));
+        }
+        eprintln!(
+            "{krate}'s test build pulls in none of {}",
+            banned.join(", ")
+        );
+    }
+    Ok(())
+}
+
 fn cargo_output(args: &[&str]) -> Result<String, String> {
     let out = Command::new(env!("CARGO"))
         .args(args)
@@ -64,8 +193,8 @@ pub fn pulled_in<'a>(tree: &str, banned: &[&'a str]) -> Vec<&'a str> {
         .collect()
 }
 
-/// Builds each library crate alone (default features, and none where it has features) and
-/// checks [`MUST_NOT_PULL`].
+/// Builds each library crate alone (every target with its default features, the library
+/// with none where it has features) and checks [`MUST_NOT_PULL`].
 pub fn hub_costs() -> Result<(), String> {
     for (krate, banned) in MUST_NOT_PULL {
         let tree = cargo_output(&["tree", "-p", krate, "-e", "normal", "--prefix", "none"])?;
@@ -79,7 +208,9 @@ pub fn hub_costs() -> Result<(), String> {
         eprintln!("{krate} pulls in none of {}", banned.join(", "));
     }
     for (krate, has_features) in LIBRARIES {
-        cargo(&["check", "-p", krate, "--lib"])?;
+        // Every target, tests and examples too: the features a crate names suffice for
+        // its own tests (the workspace's test run unifies features and would not tell).
+        cargo(&["check", "-p", krate, "--all-targets"])?;
         if has_features {
             cargo(&["check", "-p", krate, "--lib", "--no-default-features"])?;
         }
@@ -325,6 +456,7 @@ pub fn ci(with_tests: bool) -> Result<(), String> {
     dependency_rule()?;
     msrv()?;
     hub_costs()?;
+    test_build_features()?;
     let n = crate::shaders::validate_all(None)?;
     eprintln!("{n} shader(s) valid");
     api_docs(None)?;
@@ -337,6 +469,39 @@ pub fn ci(with_tests: bool) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A spoke names `reference` (which implies `rays`) for its tests and forwards `exr`
+    /// from its default `cli` feature: those three are named; `gpu`, which a dependency
+    /// keeping scene-core's defaults would turn on, is not.
+    #[test]
+    fn named_features_follow_implications_defaults_and_forwarding() {
+        let meta = |uses_default: bool| {
+            serde_json::json!({"packages": [
+                {"name": "scene-core", "dependencies": [], "features": {
+                    "default": ["gpu", "reference"], "gpu": ["dep:wgpu"], "rays": ["dep:obvhs"],
+                    "reference": ["rays"], "exr": ["dep:exr"]}},
+                {"name": "imalyzer", "features": {"default": ["cli"], "cli": ["dep:clap", "scene-core/exr"]},
+                 "dependencies": [
+                    {"name": "scene-core", "kind": null, "features": [], "uses_default_features": false},
+                    {"name": "scene-core", "kind": "dev", "features": ["reference"], "uses_default_features": uses_default}]}
+            ]})
+        };
+        let names = |m: &serde_json::Value| -> Vec<String> {
+            named_core_features(m, "imalyzer").into_iter().collect()
+        };
+        assert_eq!(names(&meta(false)), ["exr", "rays", "reference"]);
+        assert_eq!(names(&meta(true)), ["exr", "gpu", "rays", "reference"]);
+        // A tree whose scene-core carries gpu: unnamed without the defaults.
+        let tree = "imalyzer v0.1.0 (/w/crates/imalyzer) [cli,default]\n\
+                    scene-core v0.1.0 (/w/crates/scene-core) [exr,gpu,rays,reference]\n";
+        let pulled = core_features_in_tree(tree);
+        let named = named_core_features(&meta(false), "imalyzer");
+        assert_eq!(
+            pulled.difference(&named).collect::<Vec<_>>(),
+            [&"gpu".to_string()]
+        );
+        assert!(core_features_in_tree("scene-core v0.1.0 (/w) []\n").is_empty());
+    }
 
     /// The documentation check fails on a crate whose docs link to nothing, and passes once
     /// the link is plain text.

@@ -22,9 +22,9 @@
 
 use crate::image::Image;
 
-#[cfg(feature = "rays")]
+#[cfg(feature = "reference")]
 mod tracer;
-#[cfg(feature = "rays")]
+#[cfg(feature = "reference")]
 pub use tracer::{Accumulator, PathTracer, ReferenceTechnique, render, render_lit};
 
 /// Surface vertices before Russian roulette may end a path.
@@ -117,7 +117,7 @@ impl RayStats {
         }
     }
 
-    #[cfg(feature = "rays")]
+    #[cfg(feature = "reference")]
     fn add(&mut self, o: &RayStats) {
         self.primary += o.primary;
         self.shadow += o.shadow;
