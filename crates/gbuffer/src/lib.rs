@@ -64,6 +64,7 @@ pub mod mrt;
 pub mod packing;
 pub mod raster;
 pub mod reconstruct;
+pub mod scene_upload;
 
 /// Every shader pass of the crate, as `cargo xtask shaders` validates them.
 pub const SHADER_PASSES: &[scene_core::gpu::shader::ShaderPass] =

@@ -8,7 +8,7 @@
 //! does both, for callers that want a CPU [`GBuffer`].
 //!
 //! Scenes are uploaded once into a [`GpuPreparedScene`] (the flattened vertex buffer of
-//! [`scene_core::gpu::GpuScene`], per-triangle geometric normals for the two-sided flip, and
+//! [`GpuScene`], per-triangle geometric normals for the two-sided flip, and
 //! the albedo textures as one texel buffer sampled bilinearly in the shader exactly like
 //! [`scene_core::Texture::sample`]). The trait implementation keeps the last
 //! prepared scene ([`GBufferRenderer::prepare`]) and renders every view of it with no
@@ -19,7 +19,8 @@ use std::sync::Arc;
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 use scene_core::gpu::shader::ShaderPass;
-use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, GpuScene, GpuVertex};
+use crate::scene_upload::{GpuScene, GpuVertex, upload_scene};
+use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
 use scene_core::view::Projection;
 use scene_core::{Error, GBuffer, GBufferRenderer, Scene, View, ViewTarget};
 
@@ -69,7 +70,7 @@ struct TextureInfo {
 /// A scene uploaded for [`GpuRasterizer`].
 #[derive(Debug)]
 pub struct GpuPreparedScene {
-    /// The flattened vertices and materials ([`GpuContext::upload_scene`]).
+    /// The flattened vertices and materials ([`upload_scene`]).
     pub geometry: GpuScene,
     /// One unit geometric normal per triangle (`vec4`, `w` = 0), by global triangle id.
     pub face_normals: wgpu::Buffer,
@@ -162,7 +163,7 @@ impl GpuPreparedScene {
                     .map(|(i, c)| [c.x, c.y, c.z, alpha(i)]),
             );
         }
-        let geometry = ctx.validated(|| ctx.upload_scene(scene))?;
+        let geometry = ctx.validated(|| upload_scene(ctx, scene))?;
         let storage = |label: &str, bytes: &[u8], dummy: &[u8]| {
             // Empty storage bindings are invalid: upload a placeholder.
             let bytes = if bytes.is_empty() { dummy } else { bytes };
@@ -598,7 +599,7 @@ impl GBufferRenderer for GpuRasterizer {
 mod layout_tests {
     use super::*;
     use scene_core::check_layout;
-    use scene_core::gpu::GpuMaterial;
+    use crate::scene_upload::GpuMaterial;
 
     #[test]
     fn uniforms_and_tables_match_their_wgsl_structs() {

@@ -22,7 +22,7 @@
 
 use std::sync::mpsc;
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Pod;
 use glam::{Vec3, Vec4};
 use wgpu::util::DeviceExt;
 
@@ -32,7 +32,6 @@ pub mod host;
 pub mod ids;
 pub mod layout;
 pub mod raster;
-mod scene;
 pub mod shader;
 pub mod timing;
 pub mod wgsl_layout;
@@ -43,23 +42,13 @@ pub use frame::{
 };
 pub use host::{EngineGBuffer, HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
 pub use ids::{NO_TRIANGLE, TriangleIdPass};
-pub use scene::{GpuMaterial, GpuScene, GpuVertex, flatten_scene, gpu_materials};
 pub use wgpu::naga;
 
 use crate::gbuffer::GBuffer;
 use crate::image::Image;
-use crate::scene::Scene;
-
-/// The luminance compute shader (thesis eq. 17), see [`luminance_gpu`].
-pub const LUMINANCE: shader::ShaderPass = shader::ShaderPass::new(
-    "scene-core/luminance",
-    crate::wgsl_file!("scene-core", "luminance.wgsl"),
-    &[],
-);
 
 /// Every shader pass of scene-core, as `cargo xtask shaders` validates them.
 pub const SHADER_PASSES: &[shader::ShaderPass] = &[
-    LUMINANCE,
     crate::gbuffer::downsample::DOWNSAMPLE,
     host::HOST_GBUFFER,
     frame::PIXELS_TO_TEXTURE,
@@ -312,47 +301,6 @@ impl GpuContext {
             height,
             reason,
         })
-    }
-
-    /// Uploads the scene's geometry and materials (see [`GpuScene`] for the layouts).
-    /// Textures are not uploaded; materials keep their texture index for the caller to bind.
-    pub fn upload_scene(&self, scene: &Scene) -> GpuScene {
-        let vertices = flatten_scene(scene);
-        let materials = gpu_materials(scene);
-        // Never create empty buffers: empty storage bindings are invalid. The counts say
-        // how many elements are real.
-        let vertex_bytes: &[u8] = if vertices.is_empty() {
-            bytemuck::bytes_of(&GpuVertex::DUMMY)
-        } else {
-            bytemuck::cast_slice(&vertices)
-        };
-        let material_bytes: &[u8] = if materials.is_empty() {
-            bytemuck::bytes_of(&GpuMaterial::DUMMY)
-        } else {
-            bytemuck::cast_slice(&materials)
-        };
-        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-        let vertex_buffer = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("scene vertices"),
-                contents: vertex_bytes,
-                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | copy,
-            });
-        let material_buffer = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("scene materials"),
-                contents: material_bytes,
-                usage: wgpu::BufferUsages::STORAGE | copy,
-            });
-        GpuScene {
-            vertices: vertex_buffer,
-            materials: material_buffer,
-            vertex_count: vertices.len() as u32,
-            triangle_count: (vertices.len() / 3) as u32,
-            material_count: materials.len() as u32,
-        }
     }
 
     /// Uploads a linear RGB image as an `Rgba32Float` texture (alpha 1) with usages
@@ -1066,50 +1014,9 @@ impl GpuGBuffer {
     }
 }
 
-/// Per-pixel luminance of `img` computed on the GPU with the thesis' eq. 17 weights,
-/// `0.27 R + 0.67 G + 0.06 B` (the compute shader [`LUMINANCE`],
-/// `shaders/scene-core/luminance.wgsl`, 8 x 8 workgroups). Row-major like
-/// [`Image::luminance`], which it matches to a few ulps.
-///
-/// Errors (never panics) on a zero-size image, a size beyond the device's limits or a
-/// pixel count that does not match the size.
-pub fn luminance_gpu(ctx: &GpuContext, img: &Image) -> Result<Vec<f32>, GpuError> {
-    let src = ctx.upload_image(img)?;
-    let dst = ctx.create_texture_2d(
-        "luminance",
-        img.width,
-        img.height,
-        wgpu::TextureFormat::R32Float,
-        wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-    );
-    let device = &ctx.device;
-    ctx.validated(|| {
-        let pass = ComputePass::new(
-            device,
-            "luminance",
-            &LUMINANCE,
-            &[
-                layout::float_texture(0),
-                layout::storage_texture(1, wgpu::TextureFormat::R32Float),
-            ],
-            &[],
-        )?;
-        let bind_group = pass.bind_buffers_then_textures(device, &[], &[&src, &dst]);
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("luminance"),
-        });
-        pass.dispatch(&mut encoder, &bind_group, img.width, img.height, None);
-        ctx.queue.submit([encoder.finish()]);
-        Ok::<(), GpuError>(())
-    })??;
-    ctx.read_texture_r32f(&dst)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{Material, Mesh};
-    use glam::Vec2;
 
     /// A small deterministic generator (xorshift), so the tests need no extra crate.
     struct Rng(u64);
@@ -1143,49 +1050,13 @@ mod tests {
     }
 
     #[test]
-    fn gpu_luminance_matches_cpu_on_odd_size() {
+    fn uploading_an_image_of_zero_size_or_a_wrong_length_is_an_error() {
         let Some(ctx) = gpu_test_context() else {
             return;
         };
         eprintln!("GPU tests on {}", ctx.adapter_summary());
-        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
-        let (w, h) = (37, 23);
-        let pixels = (0..w * h)
-            .map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 10.0)
-            .collect();
-        let img = Image::from_pixels(w, h, pixels).unwrap();
-        let gpu = luminance_gpu(&ctx, &img).unwrap();
-        let cpu = img.luminance();
-        assert_eq!(gpu.len(), cpu.len());
-        for (i, (&g, &c)) in gpu.iter().zip(&cpu).enumerate() {
-            assert!(
-                (g - c).abs() <= 1e-6 * c.abs(),
-                "pixel {i} ({}, {}): gpu {g} cpu {c}",
-                i as u32 % w,
-                i as u32 / w
-            );
-        }
-    }
-
-    #[test]
-    fn gpu_luminance_one_pixel() {
-        let Some(ctx) = gpu_test_context() else {
-            return;
-        };
-        let img = Image::filled(1, 1, Vec3::new(1.0, 2.0, 3.0));
-        let gpu = luminance_gpu(&ctx, &img).unwrap();
-        assert_eq!(gpu.len(), 1);
-        let c = crate::image::luminance(img.pixels[0]);
-        assert!((gpu[0] - c).abs() <= 1e-6 * c, "gpu {} cpu {c}", gpu[0]);
-    }
-
-    #[test]
-    fn gpu_luminance_zero_size_is_an_error() {
-        let Some(ctx) = gpu_test_context() else {
-            return;
-        };
         for (w, h) in [(0, 0), (0, 5), (5, 0)] {
-            let err = luminance_gpu(&ctx, &Image::new(w, h)).unwrap_err();
+            let err = ctx.upload_image(&Image::new(w, h)).unwrap_err();
             assert!(matches!(err, GpuError::InvalidSize { .. }), "{err}");
         }
         let bad = Image {
@@ -1194,7 +1065,7 @@ mod tests {
             pixels: vec![Vec3::ONE; 3],
         };
         assert!(matches!(
-            luminance_gpu(&ctx, &bad),
+            ctx.upload_image(&bad),
             Err(GpuError::BadLength { .. })
         ));
     }
@@ -1279,91 +1150,6 @@ mod tests {
             .read_texture_rgba32f(&ctx.upload_image(&img).unwrap())
             .unwrap();
         assert!(back.iter().all(|&p| p == [0.25, 0.5, 4.0, 1.0]));
-    }
-
-    fn two_mesh_scene() -> Scene {
-        let mut scene = Scene::new("gpu-test");
-        scene
-            .materials
-            .push(Material::diffuse("grey", Vec3::splat(0.5)));
-        let mut lamp = Material::emissive("lamp", Vec3::splat(0.1), Vec3::new(4.0, 3.0, 2.0));
-        lamp.albedo_texture = Some(0);
-        scene.materials.push(lamp);
-        let mut floor = Mesh {
-            name: "floor".into(),
-            uvs: Some(Vec::new()),
-            ..Default::default()
-        };
-        floor.push_quad(
-            [
-                Vec3::new(0.0, 0.0, 0.0),
-                Vec3::new(1.0, 0.0, 0.0),
-                Vec3::new(1.0, 0.0, -1.0),
-                Vec3::new(0.0, 0.0, -1.0),
-            ],
-            0,
-        );
-        let mut light = Mesh {
-            name: "light".into(),
-            ..Default::default()
-        };
-        light.push_triangle(
-            [Vec3::Y, Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, -1.0)],
-            1,
-        );
-        scene.meshes = vec![floor, light];
-        scene
-    }
-
-    #[test]
-    fn flatten_scene_orders_by_global_triangle_id() {
-        let scene = two_mesh_scene();
-        let v = flatten_scene(&scene);
-        assert_eq!(v.len(), 9);
-        let ids: Vec<u32> = v.iter().map(|v| v.triangle_id).collect();
-        assert_eq!(ids, [0, 0, 0, 1, 1, 1, 2, 2, 2]);
-        for (k, vert) in v.iter().enumerate() {
-            assert_eq!(vert.triangle_id, k as u32 / 3);
-        }
-        assert_eq!(v[6].material_id, 1);
-        assert_eq!(v[6].position, [0.0, 1.0, 0.0]);
-        assert_eq!(v[0].has_uv, 1);
-        assert_eq!(v[4].uv, Vec2::new(1.0, 1.0).to_array()); // second quad triangle: a, c, d
-        assert_eq!(v[7].has_uv, 0);
-        let m = gpu_materials(&scene);
-        assert_eq!(m[0].texture, -1);
-        assert_eq!(m[1].texture, 0);
-        assert_eq!(m[1].emission, [4.0, 3.0, 2.0]);
-        assert_eq!(std::mem::size_of::<GpuVertex>(), 56);
-        assert_eq!(std::mem::size_of::<GpuMaterial>(), 32);
-    }
-
-    #[test]
-    fn gpu_scene_upload_round_trips() {
-        let Some(ctx) = gpu_test_context() else {
-            return;
-        };
-        let scene = two_mesh_scene();
-        let gpu = ctx.upload_scene(&scene);
-        assert_eq!(
-            (gpu.vertex_count, gpu.triangle_count, gpu.material_count),
-            (9, 3, 2)
-        );
-        let v: Vec<GpuVertex> = ctx.read_buffer_as(&gpu.vertices).unwrap();
-        assert_eq!(v, flatten_scene(&scene));
-        let m: Vec<GpuMaterial> = ctx.read_buffer_as(&gpu.materials).unwrap();
-        assert_eq!(m, gpu_materials(&scene));
-        // An empty scene still gets (dummy) buffers.
-        let empty = ctx.upload_scene(&Scene::new("empty"));
-        assert_eq!(
-            (
-                empty.vertex_count,
-                empty.triangle_count,
-                empty.material_count
-            ),
-            (0, 0, 0)
-        );
-        assert!(empty.vertices.size() > 0 && empty.materials.size() > 0);
     }
 
     #[test]

@@ -181,7 +181,7 @@ impl TriangleIdPass {
     }
 
     /// The triangles of `scene` in global triangle-id order (scene-core's, as
-    /// [`super::flatten_scene`] numbers them).
+    /// the G-buffer renderer's flattened scene numbers them).
     pub fn for_scene(ctx: &GpuContext, scene: &crate::Scene) -> Result<Self, GpuError> {
         Self::new(ctx, &scene.triangle_corners())
     }

@@ -1,7 +1,12 @@
-//! The scene on the GPU: flattened vertices ([`GpuVertex`]), materials ([`GpuMaterial`])
-//! and the uploaded buffers ([`GpuScene`]).
+//! The scene on the GPU for the rasterising G-buffer renderer: flattened vertices
+//! ([`GpuVertex`]), materials ([`GpuMaterial`]) and the uploaded buffers ([`GpuScene`],
+//! [`upload_scene`]). (In scene-core until 2026-11-27; this crate is its one user.)
 
-use super::*;
+use bytemuck::{Pod, Zeroable};
+use scene_core::glam::Vec3;
+use scene_core::gpu::GpuContext;
+use scene_core::scene::Scene;
+use wgpu::util::DeviceExt;
 
 /// One vertex of the flattened, non-indexed scene (48 bytes).
 ///
@@ -198,4 +203,135 @@ pub fn gpu_materials(scene: &Scene) -> Vec<GpuMaterial> {
             alpha_cutoff: m.alpha_cutoff.unwrap_or(0.0),
         })
         .collect()
+}
+
+/// Uploads the scene's geometry and materials (see [`GpuScene`] for the layouts).
+/// Textures are not uploaded; materials keep their texture index for the caller to bind.
+pub fn upload_scene(ctx: &GpuContext, scene: &Scene) -> GpuScene {
+    let vertices = flatten_scene(scene);
+    let materials = gpu_materials(scene);
+    // Never create empty buffers: empty storage bindings are invalid. The counts say
+    // how many elements are real.
+    let vertex_bytes: &[u8] = if vertices.is_empty() {
+        bytemuck::bytes_of(&GpuVertex::DUMMY)
+    } else {
+        bytemuck::cast_slice(&vertices)
+    };
+    let material_bytes: &[u8] = if materials.is_empty() {
+        bytemuck::bytes_of(&GpuMaterial::DUMMY)
+    } else {
+        bytemuck::cast_slice(&materials)
+    };
+    let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+    let vertex_buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("scene vertices"),
+            contents: vertex_bytes,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | copy,
+        });
+    let material_buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("scene materials"),
+            contents: material_bytes,
+            usage: wgpu::BufferUsages::STORAGE | copy,
+        });
+    GpuScene {
+        vertices: vertex_buffer,
+        materials: material_buffer,
+        vertex_count: vertices.len() as u32,
+        triangle_count: (vertices.len() / 3) as u32,
+        material_count: materials.len() as u32,
+    }
+}
+
+
+#[cfg(test)]
+mod upload_tests {
+    use super::*;
+    use scene_core::glam::Vec2;
+    use scene_core::gpu::gpu_test_context;
+    use scene_core::scene::{Material, Mesh};
+
+    fn two_mesh_scene() -> Scene {
+        let mut scene = Scene::new("gpu-test");
+        scene
+            .materials
+            .push(Material::diffuse("grey", Vec3::splat(0.5)));
+        let mut lamp = Material::emissive("lamp", Vec3::splat(0.1), Vec3::new(4.0, 3.0, 2.0));
+        lamp.albedo_texture = Some(0);
+        scene.materials.push(lamp);
+        let mut floor = Mesh {
+            name: "floor".into(),
+            uvs: Some(Vec::new()),
+            ..Default::default()
+        };
+        floor.push_quad(
+            [
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, -1.0),
+                Vec3::new(0.0, 0.0, -1.0),
+            ],
+            0,
+        );
+        let mut light = Mesh {
+            name: "light".into(),
+            ..Default::default()
+        };
+        light.push_triangle(
+            [Vec3::Y, Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.0, 1.0, -1.0)],
+            1,
+        );
+        scene.meshes = vec![floor, light];
+        scene
+    }
+
+    #[test]
+    fn flatten_scene_orders_by_global_triangle_id() {
+        let scene = two_mesh_scene();
+        let v = flatten_scene(&scene);
+        assert_eq!(v.len(), 9);
+        let ids: Vec<u32> = v.iter().map(|v| v.triangle_id).collect();
+        assert_eq!(ids, [0, 0, 0, 1, 1, 1, 2, 2, 2]);
+        for (k, vert) in v.iter().enumerate() {
+            assert_eq!(vert.triangle_id, k as u32 / 3);
+        }
+        assert_eq!(v[6].material_id, 1);
+        assert_eq!(v[6].position, [0.0, 1.0, 0.0]);
+        assert_eq!(v[0].has_uv, 1);
+        assert_eq!(v[4].uv, Vec2::new(1.0, 1.0).to_array()); // second quad triangle: a, c, d
+        assert_eq!(v[7].has_uv, 0);
+        let m = gpu_materials(&scene);
+        assert_eq!(m[0].texture, -1);
+        assert_eq!(m[1].texture, 0);
+        assert_eq!(m[1].emission, [4.0, 3.0, 2.0]);
+        assert_eq!(std::mem::size_of::<GpuVertex>(), 56);
+        assert_eq!(std::mem::size_of::<GpuMaterial>(), 32);
+    }
+
+    #[test]
+    fn gpu_scene_upload_round_trips() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        let scene = two_mesh_scene();
+        let gpu = upload_scene(&ctx, &scene);
+        assert_eq!(
+            (gpu.vertex_count, gpu.triangle_count, gpu.material_count),
+            (9, 3, 2)
+        );
+        let v: Vec<GpuVertex> = ctx.read_buffer_as(&gpu.vertices).unwrap();
+        assert_eq!(v, flatten_scene(&scene));
+        let m: Vec<GpuMaterial> = ctx.read_buffer_as(&gpu.materials).unwrap();
+        assert_eq!(m, gpu_materials(&scene));
+        // An empty scene still gets (dummy) buffers.
+        let empty = upload_scene(&ctx, &Scene::new("empty"));
+        assert_eq!(
+            (
+                empty.vertex_count,
+                empty.triangle_count,
+                empty.material_count
+            ),
+            (0, 0, 0)
+        );
+        assert!(empty.vertices.size() > 0 && empty.materials.size() > 0);
+    }
 }
