@@ -16,10 +16,10 @@
 
 use std::sync::Arc;
 
+use crate::scene_upload::{GpuScene, GpuVertex, upload_scene};
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 use scene_core::gpu::shader::ShaderPass;
-use crate::scene_upload::{GpuScene, GpuVertex, upload_scene};
 use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
 use scene_core::view::Projection;
 use scene_core::{Error, GBuffer, GBufferRenderer, Scene, View, ViewTarget};
@@ -598,8 +598,8 @@ impl GBufferRenderer for GpuRasterizer {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use scene_core::check_layout;
     use crate::scene_upload::GpuMaterial;
+    use scene_core::check_layout;
 
     #[test]
     fn uniforms_and_tables_match_their_wgsl_structs() {

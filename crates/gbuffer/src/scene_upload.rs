@@ -8,21 +8,12 @@ use scene_core::gpu::GpuContext;
 use scene_core::scene::Scene;
 use wgpu::util::DeviceExt;
 
-/// One vertex of the flattened, non-indexed scene (48 bytes).
+/// One vertex of the flattened, non-indexed scene (56 bytes).
 ///
 /// Triangle `t` (global id, meshes numbered in order as in [`Scene::mesh_offsets`]) is
 /// vertices `3t, 3t + 1, 3t + 2`, so a shader can also recover it as `vertex_index / 3`.
-/// The same layout reads as a WGSL storage-buffer struct:
-///
-/// ```wgsl
-/// struct Vertex {
-///     position: vec3<f32>, triangle_id: u32,
-///     normal: vec3<f32>,   material_id: u32,
-///     uv: vec2<f32>,       has_uv: u32, pad: u32,
-/// }
-/// ```
-///
-/// As vertex attributes see [`GpuVertex::ATTRIBUTES`].
+/// Read as vertex attributes ([`GpuVertex::ATTRIBUTES`]): 14 tightly packed 4-byte fields
+/// (a WGSL storage struct would align the trailing `vec3` colour differently).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuVertex {
@@ -38,7 +29,7 @@ pub struct GpuVertex {
     pub uv: [f32; 2],
     /// 1 when the mesh has texture coordinates, 0 otherwise.
     pub has_uv: u32,
-    /// Vertex colour multiplying the albedo ([`crate::Mesh::colors`]; white without).
+    /// Vertex colour multiplying the albedo ([`scene_core::scene::Mesh::colors`]; white without).
     pub color: [f32; 3],
 }
 
@@ -118,7 +109,7 @@ pub struct GpuMaterial {
     pub texture: i32,
     /// Emitted radiance, linear RGB.
     pub emission: [f32; 3],
-    /// [`crate::Material::alpha_cutoff`], 0 for an opaque material: a fragment whose
+    /// [`scene_core::scene::Material::alpha_cutoff`], 0 for an opaque material: a fragment whose
     /// texture alpha (texel `w`) falls below it is discarded.
     pub alpha_cutoff: f32,
 }
@@ -153,7 +144,7 @@ pub struct GpuScene {
     pub material_count: u32,
 }
 
-/// The CPU side of [`GpuContext::upload_scene`]: three [`GpuVertex`] per triangle, in global
+/// The CPU side of [`upload_scene`]: three [`GpuVertex`] per triangle, in global
 /// triangle id order ([`Scene::mesh_offsets`]). Missing normals or UVs become zero, missing
 /// colours white.
 pub fn flatten_scene(scene: &Scene) -> Vec<GpuVertex> {
@@ -191,7 +182,7 @@ pub fn flatten_scene(scene: &Scene) -> Vec<GpuVertex> {
     out
 }
 
-/// The CPU side of the material buffer of [`GpuContext::upload_scene`].
+/// The CPU side of the material buffer of [`upload_scene`].
 pub fn gpu_materials(scene: &Scene) -> Vec<GpuMaterial> {
     scene
         .materials
@@ -223,12 +214,16 @@ pub fn upload_scene(ctx: &GpuContext, scene: &Scene) -> GpuScene {
         bytemuck::cast_slice(&materials)
     };
     let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-    let vertex_buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    let vertex_buffer = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("scene vertices"),
             contents: vertex_bytes,
             usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | copy,
         });
-    let material_buffer = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    let material_buffer = ctx
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("scene materials"),
             contents: material_bytes,
             usage: wgpu::BufferUsages::STORAGE | copy,
@@ -241,7 +236,6 @@ pub fn upload_scene(ctx: &GpuContext, scene: &Scene) -> GpuScene {
         material_count: materials.len() as u32,
     }
 }
-
 
 #[cfg(test)]
 mod upload_tests {
