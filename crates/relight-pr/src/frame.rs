@@ -6,17 +6,16 @@
 //! The display reads which element each pixel sees (eq. 1 per pixel over the element's
 //! welded vertices). The host's G-buffer cannot say it: an engine's G-buffer has no ids, and
 //! its ids are of its own triangles. So the frame renders its elements' ids itself
-//! ([`scene_core::gpu::TriangleIdPass`], one raster pass of the element triangles in the
+//! ([`crate::element_ids::TriangleIdPass`], one raster pass of the element triangles in the
 //! frame's view) and reads the host's albedo, normal and depth beside them. The direct light
 //! is scene-core's shadow-mapped lights evaluated per pixel in the same encoder when
 //! [`GpuRelight::set_shadowed_direct`] was called (a moving camera's quality equals a still
 //! one's), else the elements' own.
 
+use crate::element_ids::TriangleIdPass;
 use glam::Vec3;
 use scene_core::View;
-use scene_core::gpu::{
-    FrameInputs, GpuContext, KeptBuffer, PixelsToTexture, TriangleIdPass, check_frame_target,
-};
+use scene_core::gpu::{FrameInputs, GpuContext, KeptBuffer, PixelsToTexture, check_frame_target};
 
 use crate::RelightError;
 use crate::gpu::GpuRelight;

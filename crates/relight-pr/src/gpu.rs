@@ -50,7 +50,8 @@ pub const DIRECT: ShaderPass = ShaderPass::new(
 );
 
 /// Every shader pass of relighting, as `cargo xtask shaders` validates them.
-pub const SHADER_PASSES: &[ShaderPass] = &[RELIGHT, DISPLAY, DIRECT];
+pub const SHADER_PASSES: &[ShaderPass] =
+    &[RELIGHT, DISPLAY, DIRECT, crate::element_ids::TRIANGLE_IDS];
 
 const GROUP: u32 = 64;
 const MAX_GROUPS_X: u32 = 32768;

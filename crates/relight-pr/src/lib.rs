@@ -37,6 +37,7 @@
 pub mod direct;
 pub mod display;
 pub mod dynamic;
+pub mod element_ids;
 pub mod export;
 pub mod form_factor;
 pub mod frame;

@@ -29,7 +29,6 @@ use wgpu::util::DeviceExt;
 pub mod compute;
 pub mod frame;
 pub mod host;
-pub mod ids;
 pub mod layout;
 pub mod raster;
 pub mod shader;
@@ -41,7 +40,6 @@ pub use frame::{
     check_frame_target,
 };
 pub use host::{EngineGBuffer, HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
-pub use ids::{NO_TRIANGLE, TriangleIdPass};
 pub use wgpu::naga;
 
 use crate::gbuffer::GBuffer;
@@ -53,7 +51,6 @@ pub const SHADER_PASSES: &[shader::ShaderPass] = &[
     host::HOST_GBUFFER,
     frame::PIXELS_TO_TEXTURE,
     frame::PIXELS_TO_TEXTURE_RGBA16F,
-    ids::TRIANGLE_IDS,
     crate::shadowed_lights::gpu_maps::SHADOW_MAPS,
 ];
 

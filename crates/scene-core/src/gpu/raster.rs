@@ -1,7 +1,7 @@
 //! The toolkit's raster passes in one shape: a triangle list drawn two-sided (no culling)
 //! with a `Depth32Float` depth test (`Less`, written), the vertex stage `vs_main` and the
 //! fragment stage `fs_main` of one module, one bind group. The G-buffer pass
-//! (`gbuffer::GpuRasterizer`), the id raster ([`super::TriangleIdPass`]) and the shadow-map
+//! (`gbuffer::GpuRasterizer`), the id raster (`relight_pr::element_ids::TriangleIdPass`) and the shadow-map
 //! faces (`crate::shadowed_lights::gpu_maps::ShadowMapPass`) differ only in their vertex
 //! buffers and colour targets.
 

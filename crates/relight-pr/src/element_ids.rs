@@ -1,12 +1,13 @@
-//! Triangle ids a method renders for itself (issue 30, docs/engine.md): an engine's G-buffer
+//! Triangle ids a method renders for itself (issue 30, docs/engine.md; in scene-core until
+//! 2026-11-27, relighting is its one user): an engine's G-buffer
 //! rarely has ids, and those it has are of the engine's triangles, not of a method's own
 //! (relighting's elements). [`TriangleIdPass`] rasterises a fixed list of world-space
 //! triangles for the frame's view into an `R32Uint` texture of global ids
-//! (`shaders/scene-core/triangle_ids.wgsl`), recorded into the frame's encoder, and
+//! (`shaders/relight-pr/triangle_ids.wgsl`), recorded into the frame's encoder, and
 //! [`TriangleIdPass::gbuffer`] puts that texture beside the host's albedo, normal and depth.
 //!
 //! The raster uses the G-buffer pass's conventions (`shaders/gbuffer/mrt.wgsl`): the
-//! clip space of [`crate::View::view_projection`] (depth in [0, 1], tested `Less`), pixel
+//! clip space of [`View::view_projection`] (depth in [0, 1], tested `Less`), pixel
 //! centres sampled, no culling. A pixel's id is therefore the triangle nearest the eye
 //! through the pixel's centre, what scene-core's ray caster puts there, up to a triangle's
 //! edge passing within rounding of a centre. With the host's depth given, a triangle counts
@@ -18,13 +19,13 @@ use std::sync::Mutex;
 
 use glam::Vec3;
 
-use super::{FrameWriter, GpuContext, GpuError, GpuGBuffer};
-use crate::View;
+use scene_core::View;
+use scene_core::gpu::{FrameWriter, GpuContext, GpuError, GpuGBuffer, layout, raster, shader};
 
 /// The pass (its vertex and fragment stages in one file).
-pub const TRIANGLE_IDS: super::shader::ShaderPass = super::shader::ShaderPass::new(
-    "scene-core/triangle_ids",
-    crate::wgsl_file!("scene-core", "triangle_ids.wgsl"),
+pub const TRIANGLE_IDS: shader::ShaderPass = shader::ShaderPass::new(
+    "relight-pr/triangle_ids",
+    scene_core::wgsl_file!("relight-pr", "triangle_ids.wgsl"),
     &[],
 );
 
@@ -96,7 +97,7 @@ impl TriangleIdPass {
         let bytes = triangles.len() as u64 * 48;
         let limit = ctx.storage_binding_limit();
         if bytes > limit {
-            return Err(GpuError::Budget(crate::BudgetExceeded {
+            return Err(GpuError::Budget(scene_core::BudgetExceeded {
                 what: format!(
                     "the corners of {} triangles to render ids of",
                     triangles.len()
@@ -128,19 +129,19 @@ impl TriangleIdPass {
                 entries: &[
                     wgpu::BindGroupLayoutEntry {
                         visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-                        ..super::layout::uniform(0)
+                        ..layout::uniform(0)
                     },
                     wgpu::BindGroupLayoutEntry {
                         visibility: wgpu::ShaderStages::VERTEX,
-                        ..super::layout::storage_buffer(1)
+                        ..layout::storage_buffer(1)
                     },
                     wgpu::BindGroupLayoutEntry {
                         visibility: wgpu::ShaderStages::FRAGMENT,
-                        ..super::layout::float_texture(2)
+                        ..layout::float_texture(2)
                     },
                 ],
             });
-            let pipeline = super::raster::depth_tested_pipeline(
+            let pipeline = raster::depth_tested_pipeline(
                 device,
                 "scene-core triangle ids",
                 &layout,
@@ -181,8 +182,8 @@ impl TriangleIdPass {
     }
 
     /// The triangles of `scene` in global triangle-id order (scene-core's, as
-    /// the G-buffer renderer's flattened scene numbers them).
-    pub fn for_scene(ctx: &GpuContext, scene: &crate::Scene) -> Result<Self, GpuError> {
+    /// `Scene::mesh_offsets` numbers them).
+    pub fn for_scene(ctx: &GpuContext, scene: &scene_core::Scene) -> Result<Self, GpuError> {
         Self::new(ctx, &scene.triangle_corners())
     }
 
@@ -300,7 +301,7 @@ impl TriangleIdPass {
         }
         let bind = bound.as_ref().expect("made above").1.clone();
         drop(bound);
-        let mut pass = super::raster::one_target_pass(
+        let mut pass = raster::one_target_pass(
             encoder,
             "scene-core triangle ids",
             &t.ids_view,
