@@ -196,7 +196,7 @@ pub fn compared_methods() -> Vec<(&'static str, Box<dyn Technique>)> {
 /// [`compared_methods`] with the IBRR's builds (`ibrr`, `ibrr-cam`, `ibrr-gpu`) drawn from
 /// `seed`; the other methods are deterministic and the same whatever the seed.
 pub fn compared_methods_seeded(seed: u64) -> Vec<(&'static str, Box<dyn Technique>)> {
-    let ctx = scene_core::gpu::gpu_test_context();
+    let ctx = scene_core::testing::gpu_test_context();
     let ibrr = || {
         ibrr_ldc::IbrrTechnique::new(
             ibrr_ldc::IbrrSettings {

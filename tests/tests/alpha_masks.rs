@@ -178,7 +178,7 @@ fn gbuffers_show_the_twin_where_the_mask_cuts_holes() {
             Box::new(scene_core::gbuffer::RayCastRenderer::new()),
         ),
     ];
-    if let Some(ctx) = scene_core::gpu::gpu_test_context() {
+    if let Some(ctx) = scene_core::testing::gpu_test_context() {
         renderers.push(("gpu", Box::new(gbuffer::GpuRasterizer::new(&ctx).unwrap())));
     }
     for (name, mut r) in renderers {
@@ -231,7 +231,7 @@ fn masked_surfaces_match_the_reference_in_every_method() {
     let e_ref = rel(&ref_masked, &ref_twin);
     eprintln!("reference: masked vs twin {e_ref:.5} (two seeds differ by {noise:.5})");
     assert!(e_ref < 1.5 * noise, "{e_ref} vs noise {noise}");
-    let ctx = scene_core::gpu::gpu_test_context();
+    let ctx = scene_core::testing::gpu_test_context();
     // The scene contract's methods, and relighting with the paper's hemicube form factors
     // (its masked receivers see the hemicube through their solid part only).
     let methods = || {
@@ -319,7 +319,7 @@ fn masked_emitters_emit_from_their_solid_part_in_every_method() {
         "the contract says a lamp masked away gives no light: {contract:?}"
     );
     assert!(scene_core::contract::check(&masked).unwrap().lit);
-    let ctx = scene_core::gpu::gpu_test_context();
+    let ctx = scene_core::testing::gpu_test_context();
     let methods = || -> Vec<(&str, Box<dyn Technique>)> {
         techniques(ctx.as_ref())
             .into_iter()

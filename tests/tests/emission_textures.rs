@@ -129,7 +129,7 @@ fn emission_textures_match_the_reference_in_every_method() {
     let e_ref = rel(&ref_tex, &ref_twin);
     eprintln!("reference: textured vs twin {e_ref:.4} (two seeds differ by {noise:.4})");
     assert!(e_ref < 1.5 * noise, "{e_ref} vs noise {noise}");
-    let ctx = scene_core::gpu::gpu_test_context();
+    let ctx = scene_core::testing::gpu_test_context();
     let methods = || {
         techniques(ctx.as_ref())
             .into_iter()

@@ -5,8 +5,8 @@
 use gbuffer::{CpuRasterizer, DownsampleMode, GpuRasterizer};
 use isr::{GpuIsr, GpuIsrInputs, IsrInputs, IsrSettings, LightSet, ShadowSettings, render_image};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::gpu_test_context;
 use scene_core::reference::{Bounces, ReferenceSettings, render};
+use scene_core::testing::gpu_test_context;
 use scene_core::{GBufferRenderer, Image, View, builtin};
 
 fn shadows() -> ShadowSettings {

@@ -14,7 +14,7 @@ const W: u32 = 24;
 const H: u32 = 18;
 
 fn gpu() -> Option<scene_core::gpu::GpuContext> {
-    scene_core::gpu::gpu_test_context()
+    scene_core::testing::gpu_test_context()
 }
 
 /// Every technique's outcome for `scene`, each checked against the contract.

@@ -39,7 +39,7 @@ fn render(t: &mut dyn Technique, scene: &Scene) -> Image {
 fn vertex_colours_multiply_the_albedo_in_every_method() {
     let (coloured, twin) = (room(true), room(false));
     let plain = scenes::lit_room(true, false);
-    let ctx = scene_core::gpu::gpu_test_context();
+    let ctx = scene_core::testing::gpu_test_context();
     let mut checked = 0;
     let methods = || techniques(ctx.as_ref());
     for (((name, mut a), (_, mut b)), (_, mut c)) in
@@ -99,7 +99,7 @@ fn gbuffers_interpolate_vertex_colours() {
             Box::new(scene_core::gbuffer::RayCastRenderer::new()),
         ),
     ];
-    if let Some(ctx) = scene_core::gpu::gpu_test_context() {
+    if let Some(ctx) = scene_core::testing::gpu_test_context() {
         renderers.push(("gpu", Box::new(gbuffer::GpuRasterizer::new(&ctx).unwrap())));
     }
     // The expected albedo where the ray through a pixel centre meets the quad.

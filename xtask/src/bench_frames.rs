@@ -18,10 +18,11 @@ use std::time::Instant;
 use glam::Vec3;
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{
-    EngineGBuffer, FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
+    FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
 };
 use scene_core::lights::{LightState, light_ids};
 use scene_core::shadowed_lights::{LightSet, ShadowSettings};
+use scene_core::testing::EngineGBuffer;
 use scene_core::{GBufferRenderer, Scene, Technique, View, builtin};
 
 use crate::bench::median;
@@ -153,7 +154,7 @@ fn methods(ctx: &GpuContext, scene: &Arc<Scene>, threads: usize) -> Result<Vec<P
         let slots = relight_pr::display::light_slots(&lights, &solution.sources);
         gpu.set_shadowed_direct(&lights, &slots, 3)
             .map_err(|e| e.to_string())?;
-        let frame = relight_pr::frame::RelightFrame::new(ctx, gpu, &meshing, solution.sources)
+        let frame = relight_pr::gpu_frame::RelightFrame::new(ctx, gpu, &meshing, solution.sources)
             .map_err(|e| e.to_string())?;
         out.push((Box::new(frame), t0.elapsed().as_secs_f64()));
 

@@ -241,8 +241,8 @@ pub fn upload_scene(ctx: &GpuContext, scene: &Scene) -> GpuScene {
 mod upload_tests {
     use super::*;
     use scene_core::glam::Vec2;
-    use scene_core::gpu::gpu_test_context;
     use scene_core::scene::{Material, Mesh};
+    use scene_core::testing::gpu_test_context;
 
     fn two_mesh_scene() -> Scene {
         let mut scene = Scene::new("gpu-test");

@@ -10,7 +10,8 @@ use gbuffer::{
     ReconstructionMethod, downsample, reconstruct_buffer,
 };
 use scene_core::glam::Vec3;
-use scene_core::gpu::{GpuContext, GpuGBuffer, gpu_test_context};
+use scene_core::gpu::{GpuContext, GpuGBuffer};
+use scene_core::testing::gpu_test_context;
 use scene_core::{
     BACKGROUND_ID, Error, GBuffer, GBufferRenderer, HemicubeFace, Mesh, Scene, View, builtin,
 };

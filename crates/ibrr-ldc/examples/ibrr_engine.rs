@@ -24,9 +24,10 @@ use glam::Vec3;
 use ibrr_ldc::{IbrrFrame, IbrrSettings, IbrrTechnique};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{
-    EngineGBuffer, FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
+    FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
 };
 use scene_core::lights::{LightId, LightState, light_ids};
+use scene_core::testing::EngineGBuffer;
 use scene_core::{GBufferRenderer, Technique, View, builtin};
 
 const W: u32 = 160;

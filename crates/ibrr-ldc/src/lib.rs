@@ -27,6 +27,7 @@ pub mod compensate;
 pub mod construct;
 pub mod error;
 pub mod gpu;
+pub mod gpu_frame;
 pub mod irpl;
 pub mod ldc;
 pub mod reconstruct;
@@ -35,7 +36,8 @@ pub mod technique;
 
 pub use construct::{Construction, ConstructionStats};
 pub use error::IbrrError;
-pub use gpu::{GpuLdc, IbrrFrame};
+pub use gpu::GpuLdc;
+pub use gpu_frame::IbrrFrame;
 pub use irpl::{Irpl, IrplKind, IrplSet};
 pub use ldc::{Ldc, LdcFrame};
 pub use reconstruct::{Reconstruction, Served, lookup, reconstruct, shade};

@@ -8,8 +8,9 @@ use std::sync::Arc;
 use glam::Vec3;
 use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{EngineGBuffer, GpuGBuffer, HostGBuffer, HostGBufferPass, gpu_test_context};
+use scene_core::gpu::{GpuGBuffer, HostGBuffer, HostGBufferPass};
 use scene_core::lights::LightState;
+use scene_core::testing::{EngineGBuffer, gpu_test_context};
 use scene_core::{FrameRequest, GBufferRenderer, Image, Technique, View, builtin};
 
 /// The conversion rounds each distance by a few f32 units in the last place (scene-core's

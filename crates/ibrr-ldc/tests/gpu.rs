@@ -6,8 +6,9 @@ use std::sync::Arc;
 
 use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup, reconstruct, shade};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{GpuGBuffer, gpu_test_context};
+use scene_core::gpu::GpuGBuffer;
 use scene_core::lights::{LightId, LightState, light_ids};
+use scene_core::testing::gpu_test_context;
 use scene_core::{FrameRequest, GBufferRenderer, Technique, builtin};
 
 #[test]

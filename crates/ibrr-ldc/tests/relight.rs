@@ -298,7 +298,7 @@ fn f16_relights_like_f32_at(bright: f32) {
 
 #[test]
 fn relighting_on_the_gpu_equals_relighting_on_the_cpu() {
-    let Some(ctx) = scene_core::gpu::gpu_test_context() else {
+    let Some(ctx) = scene_core::testing::gpu_test_context() else {
         return;
     };
     let scene = Arc::new(builtin::scene("corridor").unwrap());

@@ -15,9 +15,9 @@
 
 use glam::{Mat4, Vec3};
 use isr::{GpuIsr, GpuIsrInputs, IsrSettings, Light, LightSet, ShadowSettings};
-use scene_core::gpu::host::{octahedral_f16, srgb8};
-use scene_core::gpu::{GpuContext, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts, host};
+use scene_core::gpu::{GpuContext, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts};
 use scene_core::lights::{LightId, LightState};
+use scene_core::testing::{octahedral_f16, srgb8};
 use scene_core::{DepthConvention, View};
 
 const W: u32 = 320;
@@ -138,7 +138,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     use wgpu::TextureFormat as F;
     let albedo = texture(&ctx, F::Rgba8UnormSrgb, bytemuck::cast_slice(&e.albedo));
     let normal = texture(&ctx, F::Rg16Float, bytemuck::cast_slice(&e.normal));
-    let depth = host::depth_texture_from(&ctx, W, H, &e.depth)?;
+    let depth = scene_core::testing::depth_texture_from(&ctx, W, H, &e.depth)?;
     let host = HostGBuffer {
         albedo: &albedo,
         normal: &normal,

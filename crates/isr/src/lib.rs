@@ -50,6 +50,7 @@ pub mod blur;
 pub mod frame;
 pub mod geometry;
 pub mod gpu;
+pub mod gpu_frame;
 pub mod lighting;
 pub mod radiosity;
 pub mod settings;
@@ -61,7 +62,8 @@ pub use scene_core::shadowed_lights as light_set;
 pub use scene_core::shadowed_lights::esm as shadow;
 
 pub use frame::{Frame, IsrInputs, PassTimings, render_cpu, render_image};
-pub use gpu::{GpuIsr, GpuIsrInputs, Intermediate, IsrFrame};
+pub use gpu::{GpuIsr, GpuIsrInputs, Intermediate};
+pub use gpu_frame::IsrFrame;
 pub use light_set::{Light, LightKind, LightSet, Part};
 pub use scene_core::gbuffer::downsample::{DownsampleMode, coarse_size, downsample};
 pub use settings::{Blur, Estimator, IsrSettings, Radius, Sender, ShadowSettings};

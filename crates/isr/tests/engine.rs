@@ -7,8 +7,9 @@ mod common;
 use common::{Setup, image_mean, max_difference, mean_error, small_shadows};
 use glam::Vec3;
 use isr::{GpuIsr, GpuIsrInputs, IsrSettings, Light, LightSet, ShadowSettings};
-use scene_core::gpu::{GpuError, GpuGBuffer, gpu_test_context};
+use scene_core::gpu::{GpuError, GpuGBuffer};
 use scene_core::lights::LightId;
+use scene_core::testing::gpu_test_context;
 use scene_core::{Image, Scene, builtin};
 
 /// The scene's triangles, as an engine would hand them over.
@@ -188,7 +189,8 @@ fn reverse_z_and_infinite_inputs_give_the_standard_image() {
     let Some(ctx) = gpu_test_context() else {
         return;
     };
-    use scene_core::gpu::{EngineGBuffer, HostGBufferPass};
+    use scene_core::gpu::HostGBufferPass;
+    use scene_core::testing::EngineGBuffer;
     let setup = Setup::builtin("cornell", 0, 64, 48);
     let (w, h) = (64, 48);
     let s = IsrSettings::default();

@@ -10,7 +10,8 @@ use std::sync::Arc;
 
 use scene_core::FrameRequest;
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{GpuContext, GpuGBuffer, ObjectCounts, gpu_test_context};
+use scene_core::gpu::{GpuContext, GpuGBuffer, ObjectCounts};
+use scene_core::testing::gpu_test_context;
 use scene_core::{Technique, builtin};
 
 fn all_settings() -> Vec<(&'static str, IsrSettings)> {

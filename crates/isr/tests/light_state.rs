@@ -12,8 +12,8 @@ use common::{image_mean, max_difference, small_shadows};
 use glam::Vec3;
 use isr::{Backend, IsrSettings, IsrTechnique};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::gpu_test_context;
 use scene_core::lights::{LightId, LightSetting, LightState, light_ids};
+use scene_core::testing::gpu_test_context;
 use scene_core::{FrameRequest, Image, Scene, Technique, builtin};
 
 const W: u32 = 48;

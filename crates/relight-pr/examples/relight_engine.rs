@@ -23,17 +23,18 @@ use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 use relight_pr::display::{Welding, light_slots};
-use relight_pr::frame::RelightFrame;
 use relight_pr::gpu::GpuRelight;
+use relight_pr::gpu_frame::RelightFrame;
 use relight_pr::packed::Precision;
 use relight_pr::{MeshSettings, Meshing, SolverSettings, solve};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{
-    EngineGBuffer, FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
+    FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
 };
 use scene_core::lights::{LightId, LightState, light_ids};
 use scene_core::ray::RayScene;
 use scene_core::shadowed_lights::{LightSet, ShadowSettings};
+use scene_core::testing::EngineGBuffer;
 use scene_core::{GBufferRenderer, Material, Mesh, PointLight, Scene, View};
 
 const W: u32 = 160;

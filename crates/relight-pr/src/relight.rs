@@ -17,7 +17,7 @@ pub fn factors(solution: &Solution, state: &LightState) -> Vec<(Vec3, Vec3)> {
 }
 
 /// [`factors`] from the sources alone (what a frame keeps of a solution once it is on the
-/// GPU, [`crate::frame::RelightFrame`]).
+/// GPU, [`crate::gpu_frame::RelightFrame`]).
 pub fn source_factors(sources: &[crate::solver::Source], state: &LightState) -> Vec<(Vec3, Vec3)> {
     sources
         .iter()

@@ -89,7 +89,7 @@ pub struct RelightTechnique {
 
 /// Relighting's frame on the GPU and its target, made on the first GPU frame.
 struct GpuFrameState {
-    frame: crate::frame::RelightFrame,
+    frame: crate::gpu_frame::RelightFrame,
     direct: DirectLight,
     target: Option<wgpu::Texture>,
 }
@@ -127,7 +127,7 @@ impl RelightTechnique {
     }
 
     /// The same with its frames on `ctx`'s GPU: each frame is the display on the frame
-    /// contract ([`crate::frame::RelightFrame`]) over the G-buffer where the renderer keeps
+    /// contract ([`crate::gpu_frame::RelightFrame`]) over the G-buffer where the renderer keeps
     /// it ([`GBufferRenderer::render_views_gpu`]; rendered on the CPU and uploaded by
     /// renderers that cannot, and whenever the per-pixel direct light is gathered, which
     /// reads it on the CPU), with the direct light of [`RelightTechnique::direct`]: the
@@ -286,7 +286,7 @@ impl RelightTechnique {
                 gpu.set_shadowed_direct(&s.set, &s.slots, footprint)?;
             }
             *state = Some(GpuFrameState {
-                frame: crate::frame::RelightFrame::new(
+                frame: crate::gpu_frame::RelightFrame::new(
                     ctx,
                     gpu,
                     &p.meshing,

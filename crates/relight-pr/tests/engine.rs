@@ -8,18 +8,18 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use relight_pr::display::{Welding, light_slots};
-use relight_pr::frame::RelightFrame;
 use relight_pr::gpu::GpuRelight;
+use relight_pr::gpu_frame::RelightFrame;
 use relight_pr::packed::Precision;
 use relight_pr::{MeshSettings, Meshing, SolverSettings, relight, solve};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{
-    EngineGBuffer, FrameInputs, GpuFrame, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts,
-    gpu_test_context,
+    FrameInputs, GpuFrame, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts,
 };
 use scene_core::lights::{LightId, LightState, light_ids};
 use scene_core::ray::RayScene;
 use scene_core::shadowed_lights::{LightSet, ShadowSettings};
+use scene_core::testing::{EngineGBuffer, gpu_test_context};
 use scene_core::{GBufferRenderer, View, builtin};
 
 /// How an image agrees with the one it should equal.

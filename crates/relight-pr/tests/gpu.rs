@@ -15,10 +15,11 @@ use relight_pr::gpu::GpuRelight;
 use relight_pr::packed::{Packed, Precision};
 use relight_pr::{MeshSettings, Meshing, Solution, SolverSettings, relight, solve};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{GpuGBuffer, gpu_test_context};
+use scene_core::gpu::GpuGBuffer;
 use scene_core::lights::{LightId, LightState};
 use scene_core::ray::RayScene;
 use scene_core::shadowed_lights::{LightSet, ShadowSettings};
+use scene_core::testing::gpu_test_context;
 use scene_core::{GBufferRenderer, Scene, View, builtin};
 
 fn solved() -> (Arc<Scene>, Meshing, Solution, RayScene) {

@@ -8,7 +8,8 @@ use std::sync::Arc;
 use glam::Vec3;
 use relight_pr::element_ids::{NO_TRIANGLE, TriangleIdPass};
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{ObjectCounts, gpu_test_context};
+use scene_core::gpu::ObjectCounts;
+use scene_core::testing::gpu_test_context;
 use scene_core::{GBufferRenderer, View, builtin};
 
 #[test]

@@ -17,7 +17,8 @@
 //! On a machine without a GPU, Mesa's software Vulkan driver works:
 //! `apt-get install mesa-vulkan-drivers libvulkan1` (Debian/Ubuntu).
 //!
-//! Tests of every crate get their context from [`gpu_test_context`], which skips (or, with
+//! Tests of every crate get their context from `scene_core::testing::gpu_test_context`
+//! (feature `testing`), which skips (or, with
 //! `REQUIRE_GPU=1`, fails) when no adapter exists.
 
 use std::sync::mpsc;
@@ -39,7 +40,7 @@ pub use frame::{
     FrameInputs, FrameWriter, GpuFrame, KeptBuffer, ObjectCounts, PixelsToTexture,
     check_frame_target,
 };
-pub use host::{EngineGBuffer, HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
+pub use host::{HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
 pub use wgpu::naga;
 
 use crate::gbuffer::GBuffer;
@@ -47,6 +48,8 @@ use crate::image::Image;
 
 /// Every shader pass of scene-core, as `cargo xtask shaders` validates them.
 pub const SHADER_PASSES: &[shader::ShaderPass] = &[
+    #[cfg(feature = "testing")]
+    crate::testing::DEPTH_FROM_VALUES,
     crate::gbuffer::downsample::DOWNSAMPLE,
     host::HOST_GBUFFER,
     frame::PIXELS_TO_TEXTURE,
@@ -753,38 +756,6 @@ fn pod_vec<T: Pod>(bytes: &[u8]) -> Vec<T> {
         .collect()
 }
 
-/// A context for GPU tests of any crate of the workspace.
-///
-/// Returns `Some` when an adapter exists. When none does: if the environment variable
-/// `REQUIRE_GPU` is set to a non-empty value other than `0` (as CI does) it panics with the
-/// [`GpuError`] message, so a missing driver fails loudly; otherwise it prints
-/// `skipping GPU test: <reason>` to stderr and returns `None`, and the test should return
-/// early. An adapter that exists but fails to create a device always panics.
-///
-/// Nothing is cached: each call creates a fresh device, which takes about 15-25 ms on Mesa's
-/// lavapipe (the first one in a process about 55 ms), so tests simply call it each time.
-///
-/// ```no_run
-/// let Some(ctx) = scene_core::gpu::gpu_test_context() else { return };
-/// println!("testing on {}", ctx.adapter_summary());
-/// ```
-pub fn gpu_test_context() -> Option<GpuContext> {
-    match GpuContext::new() {
-        Ok(ctx) => Some(ctx),
-        Err(e) => {
-            let required = std::env::var("REQUIRE_GPU").is_ok_and(|v| !v.is_empty() && v != "0");
-            if required {
-                panic!("REQUIRE_GPU is set but no GPU context could be created: {e}");
-            }
-            if !e.is_missing_adapter() {
-                panic!("a GPU adapter exists but the context failed: {e}");
-            }
-            eprintln!("skipping GPU test: {e}");
-            None
-        }
-    }
-}
-
 /// A G-buffer on the GPU: one texture per [`GBuffer`] channel plus a depth-stencil
 /// attachment for rasterisation. All textures are `width x height`, single mip, single
 /// sample, row 0 at the top.
@@ -1014,6 +985,7 @@ impl GpuGBuffer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::gpu_test_context;
 
     /// A small deterministic generator (xorshift), so the tests need no extra crate.
     struct Rng(u64);

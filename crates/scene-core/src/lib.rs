@@ -43,6 +43,8 @@ pub mod rays;
 #[cfg(feature = "rays")]
 pub mod shadowed_lights;
 pub mod technique;
+#[cfg(feature = "testing")]
+pub mod testing;
 
 pub use cutout::Cutouts;
 #[cfg(feature = "gltf")]

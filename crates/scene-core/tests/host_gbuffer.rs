@@ -9,8 +9,9 @@ use glam::Vec3;
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{
     GpuContext, GpuError, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts,
-    SURFACE_WITHOUT_ID, gpu_test_context,
+    SURFACE_WITHOUT_ID,
 };
+use scene_core::testing::gpu_test_context;
 use scene_core::{BACKGROUND_ID, DepthConvention, GBuffer, GBufferRenderer, View, builtin};
 
 const W: u32 = 64;
@@ -62,7 +63,7 @@ fn texture(
 }
 
 fn depth_buffer(ctx: &GpuContext, values: &[f32]) -> wgpu::Texture {
-    scene_core::gpu::host::depth_texture_from(ctx, W, H, values).unwrap()
+    scene_core::testing::depth_texture_from(ctx, W, H, values).unwrap()
 }
 
 /// The engine's depth buffer of `g` (the toolkit's G-buffer from `view`) under `depth`.
@@ -324,7 +325,7 @@ fn compact_gbuffer_packs_as_the_independent_encoders() {
     let Some(ctx) = gpu_test_context() else {
         return;
     };
-    use scene_core::gpu::EngineGBuffer;
+    use scene_core::testing::EngineGBuffer;
     let scene = builtin::scene("cornell").unwrap();
     let view = View::from_camera(&scene.cameras[0].with_aspect(W as f32 / H as f32));
     let g = RayCastRenderer::new().render(&scene, &view, W, H).unwrap();

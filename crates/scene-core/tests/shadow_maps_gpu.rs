@@ -7,10 +7,10 @@
 
 use glam::Vec3;
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::gpu_test_context;
 use scene_core::lights::LightId;
 use scene_core::shadowed_lights::gpu_maps::{CasterLayout, Casters, ShadowMapPass};
 use scene_core::shadowed_lights::{Light, LightSet, ShadowSettings};
+use scene_core::testing::gpu_test_context;
 use scene_core::{Bounds, GBufferRenderer, Scene, View, builtin};
 use wgpu::util::DeviceExt;
 

@@ -12,8 +12,8 @@ use glam::Vec3;
 use ibrr_ldc::{IbrrFrame, IbrrTechnique};
 use isr::{GpuIsr, Intermediate, IsrFrame, IsrSettings, LightSet, ShadowSettings};
 use relight_pr::RelightTechnique;
-use relight_pr::frame::RelightFrame;
 use relight_pr::gpu::GpuRelight;
+use relight_pr::gpu_frame::RelightFrame;
 use relight_pr::packed::Precision;
 use relight_pr::technique::Prepared;
 use scene_core::gpu::compute::ComputePass;
@@ -813,7 +813,8 @@ mod tests {
 #[cfg(test)]
 mod allocation_tests {
     use super::*;
-    use scene_core::gpu::{ObjectCounts, gpu_test_context};
+    use scene_core::gpu::ObjectCounts;
+    use scene_core::testing::gpu_test_context;
 
     #[test]
     fn steady_frames_of_every_mode_create_no_gpu_objects() {

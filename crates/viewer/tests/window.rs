@@ -15,8 +15,9 @@ use ibrr_ldc::{IbrrSettings, IbrrTechnique};
 use isr::{Backend, GpuIsr, GpuIsrInputs, IsrTechnique, LightSet, ShadowSettings};
 use relight_pr::direct::DirectLight;
 use relight_pr::{MeshSettings, RelightTechnique, SolverSettings};
-use scene_core::gpu::{GpuContext, gpu_test_context};
+use scene_core::gpu::GpuContext;
 use scene_core::reference::{Bounces, ReferenceSettings, render_lit};
+use scene_core::testing::gpu_test_context;
 use scene_core::{
     Camera, FrameRequest, Image, LightId, LightSetting, LightState, Scene, Technique, View,
 };

@@ -228,7 +228,7 @@ pub struct FrameInputs<'a> {
 ///
 /// The shape is that of wgpu's examples' `render` and of a render-graph node: inputs in, one
 /// target out, nothing submitted, nothing read back. Implemented by ISR and DL
-/// (`isr::IsrFrame`), relighting (`relight_pr::frame::RelightFrame`, which renders its own
+/// (`isr::IsrFrame`), relighting (`relight_pr::gpu_frame::RelightFrame`, which renders its own
 /// element ids with `relight_pr::element_ids::TriangleIdPass`) and the IBRR (`ibrr_ldc::IbrrFrame`).
 pub trait GpuFrame {
     /// The method's short name.

@@ -155,7 +155,7 @@ mod tests {
     /// order, no time negative), and wall-clock stages, which wait for each.
     #[test]
     fn stages_are_timed_in_order_either_way() {
-        let Some(ctx) = crate::gpu::gpu_test_context() else {
+        let Some(ctx) = crate::testing::gpu_test_context() else {
             return;
         };
         let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {

@@ -1,0 +1,64 @@
+//! ISR's frame on the frame contract ([`scene_core::gpu::GpuFrame`], docs/engine.md): the
+//! GPU passes of [`crate::gpu`] recorded into the host's encoder and target, the light
+//! state applied each frame. Every method keeps its `GpuFrame` in a module of this name.
+
+use crate::gpu::{GpuIsr, GpuIsrInputs};
+use crate::settings::IsrSettings;
+
+/// ISR, or DL with [`IsrSettings::dl`], on the frame contract
+/// ([`scene_core::gpu::GpuFrame`]): each frame applies the frame's light state
+/// ([`GpuIsr::apply`], factors only) and records ISR's passes into the host's target
+/// ([`GpuIsr::encode`]). Prepared by [`GpuIsr::new`] on the host's device.
+pub struct IsrFrame {
+    /// The prepared method.
+    pub isr: GpuIsr,
+    /// The settings every frame uses.
+    pub settings: IsrSettings,
+    name: &'static str,
+}
+
+impl std::fmt::Debug for IsrFrame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("IsrFrame")
+            .field("name", &self.name)
+            .field("settings", &self.settings)
+            .finish_non_exhaustive()
+    }
+}
+
+impl IsrFrame {
+    /// `isr` rendering with `settings` (named `dl` when they are direct light only).
+    pub fn new(isr: GpuIsr, settings: IsrSettings) -> Self {
+        let name = if settings.is_direct_only() {
+            "dl"
+        } else {
+            "isr"
+        };
+        Self {
+            isr,
+            settings,
+            name,
+        }
+    }
+}
+
+impl scene_core::gpu::GpuFrame for IsrFrame {
+    fn name(&self) -> &str {
+        self.name
+    }
+
+    fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &scene_core::gpu::FrameInputs<'_>,
+        target: &wgpu::Texture,
+    ) -> Result<(), scene_core::Error> {
+        self.isr.apply(inputs.lights);
+        let frame = GpuIsrInputs {
+            full: inputs.gbuffer,
+            coarse: None,
+            view: inputs.view,
+        };
+        Ok(self.isr.encode(encoder, &frame, &self.settings, target)?)
+    }
+}
