@@ -1,3 +1,4 @@
+#import scene_core::limits::MAX_FINITE
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 // The exact mode's gather on the GPU, one invocation per LDC layer; mirrors
 // crates/ibrr-ldc/src/construct.rs (`unoccluded`) and irpl.rs (`irradiance_clamped`): the
@@ -77,7 +78,7 @@ fn irradiance(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
         } else {
             let d2 = r * r;
             if d2 > 0.0 {
-                falloff = min(1.0 / d2, 3.4028235e38);
+                falloff = min(1.0 / d2, MAX_FINITE);
             }
         }
         let a = clamp(
@@ -210,7 +211,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let e = irradiance(q, n) * params.scale;
     let m = max(e.x, max(e.y, e.z));
     // NaN and infinity fail `m < 3.4e38`.
-    if !(m > 0.0 && m < 3.4028235e38) {
+    if !(m > 0.0 && m < MAX_FINITE) {
         return;
     }
     let seen = unoccluded(q, n);

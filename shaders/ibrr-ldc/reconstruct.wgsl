@@ -1,3 +1,4 @@
+#import scene_core::limits::BACKGROUND
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 // IBRR reconstruction (paper section 5) over the flattened LDC, one invocation per camera
 // pixel; mirrors crates/ibrr-ldc/src/reconstruct.rs (`reconstruct` then `shade`) step for
@@ -49,7 +50,6 @@ struct Triangle {
 @group(0) @binding(9) var g_id: texture_2d<u32>;
 
 const NO_LAYER: u32 = 0xffffffffu;
-const BACKGROUND: u32 = 0xffffffffu;
 
 fn image_axes(axis: u32) -> vec2<u32> {
     return vec2<u32>((axis + 1u) % 3u, (axis + 2u) % 3u);

@@ -1,4 +1,5 @@
-#import isr::common::{FLAG_EDGE_AWARE, BACKGROUND, MIN_POSITIVE, has_flag, pixel_uv, world, view_scale, normal_or_viewer, g}
+#import isr::common::{FLAG_EDGE_AWARE, MIN_POSITIVE, has_flag, pixel_uv, world, view_scale, normal_or_viewer, g}
+#import scene_core::limits::BACKGROUND
 // One direction of the separable blur of the coarse ISR/SSAO buffer (thesis section 4.2,
 // listing 3: BlurHorizontal, BlurVertical; mirrors crates/isr/src/blur.rs).
 //

@@ -1,4 +1,5 @@
 #define_import_path isr::common
+#import scene_core::limits::MAX_FINITE
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 // Declarations shared by every ISR shader in this directory (blur, radiosity, upsample,
 // lighting), the module `isr::common`: each pass imports what it uses
@@ -37,12 +38,10 @@ const FLAG_EDGE_AWARE: u32 = 8u;
 const FLAG_THESIS: u32 = 16u;
 const FLAG_LIT: u32 = 32u;
 
-const BACKGROUND: u32 = 0xffffffffu;
 const PI: f32 = 3.14159265358979;
 const MIN_NORMAL_LEN_SQ: f32 = 1e-12;
 const MIN_FOOTPRINT_COS: f32 = 0.1;
 const MIN_POSITIVE: f32 = 1.17549435e-38;
-const MAX_FINITE: f32 = 3.40282347e38;
 
 fn has_flag(f: u32) -> bool {
     return (g.config.y & f) != 0u;

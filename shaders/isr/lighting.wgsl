@@ -1,4 +1,5 @@
-#import isr::common::{FLAG_INDIRECT, FLAG_SSAO, FLAG_AO_INDIRECT_ONLY, BACKGROUND, PI, MAX_FINITE, has_flag, pixel_uv, world, to_viewer, usable_normal, g}
+#import isr::common::{FLAG_INDIRECT, FLAG_SSAO, FLAG_AO_INDIRECT_ONLY, PI, has_flag, pixel_uv, world, to_viewer, usable_normal, g}
+#import scene_core::limits::{BACKGROUND, MAX_FINITE}
 #import scene_core::light_set::{lights, irradiance, emission}
 #import scene_core::shadow::{ShadowParams, visibility}
 // The lighting phase (thesis section 4.5, eq. 29, listing 7; mirrors

@@ -1,4 +1,5 @@
-#import isr::common::{FLAG_INDIRECT, FLAG_SSAO, FLAG_THESIS, FLAG_LIT, BACKGROUND, PI, MIN_FOOTPRINT_COS, MIN_POSITIVE, MAX_FINITE, has_flag, pixel_uv, world, ray_q, view_scale, normal_or_viewer, g}
+#import isr::common::{FLAG_INDIRECT, FLAG_SSAO, FLAG_THESIS, FLAG_LIT, PI, MIN_FOOTPRINT_COS, MIN_POSITIVE, has_flag, pixel_uv, world, ray_q, view_scale, normal_or_viewer, g}
+#import scene_core::limits::{BACKGROUND, MAX_FINITE}
 // The ISR + SSAO pass on the coarse buffers (thesis section 4.4, listing 6; mirrors
 // crates/isr/src/radiosity.rs, which documents the readings of the equations).
 //

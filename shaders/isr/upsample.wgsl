@@ -1,4 +1,5 @@
-#import isr::common::{BACKGROUND, MAX_FINITE, usable_normal, g}
+#import isr::common::{usable_normal, g}
+#import scene_core::limits::{BACKGROUND, MAX_FINITE}
 // Bilateral upsampling of the blurred coarse buffer to full resolution (thesis section 4.5,
 // eqs. 27-28; mirrors crates/isr/src/upsample.rs).
 //

@@ -1,3 +1,4 @@
+#import scene_core::limits::MAX_FINITE
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 #import scene_core::light_set::{KIND_POINT, lights, irradiance}
 #import scene_core::shadow::{ShadowParams, visibility}
@@ -12,7 +13,6 @@
 // item: the composer renames such names everywhere, field accesses included.)
 
 const MAX_FOOTPRINT: u32 = 4u;
-const MAX_FINITE: f32 = 3.40282347e38;
 
 struct DirectParams {
     frustum: FrustumReconstruction,

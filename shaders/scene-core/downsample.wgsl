@@ -1,3 +1,4 @@
+#import scene_core::limits::BACKGROUND
 // Coarse G-buffer: 2x downsampling in each direction ("4 times smaller", thesis section
 // 4.2), mirroring crates/scene-core/src/gbuffer/downsample.rs sample for sample: the one
 // downsampling of the toolkit (the gbuffer crate and ISR both use it).
@@ -39,7 +40,6 @@ override SURFACE_NORMAL_COS: f32 = 0.9;
 // Relative depth tolerance of NEAREST_SURFACE.
 override NEAREST_DEPTH_TOLERANCE: f32 = 0.05;
 
-const BACKGROUND: u32 = 0xffffffffu;
 const CANCEL: f32 = 1e-6;
 
 struct Sample {

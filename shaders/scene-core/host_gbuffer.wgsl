@@ -1,3 +1,4 @@
+#import scene_core::limits::BACKGROUND
 // An engine's G-buffer in its own formats turned into the toolkit's (GpuGBuffer), one
 // invocation per pixel (8x8 workgroups); mirrors crates/scene-core/src/gpu/host.rs.
 //
@@ -39,7 +40,6 @@ struct Params {
 override OCTAHEDRAL: u32 = 0u;
 override HAS_IDS: u32 = 0u;
 
-const BACKGROUND: u32 = 0xffffffffu;
 const SURFACE_WITHOUT_ID: u32 = 0xfffffffeu;
 
 // The unit vector of octahedral coordinates e in [-1, 1]^2.

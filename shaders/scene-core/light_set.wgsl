@@ -1,4 +1,5 @@
 #define_import_path scene_core::light_set
+#import scene_core::limits::MAX_FINITE
 // The set of lights a pass shades with (mirrors crates/scene-core/src/shadowed_lights/mod.rs):
 // point lights (1/d^2 or eq. 16's window, and a spot's cone), directional lights and point samples of emissive
 // triangles (cosine profile, disk form factor), each with the frame's direct and indirect
@@ -9,7 +10,6 @@
 // (crates/scene-core/src/shadowed_lights/gpu.rs).
 
 const PI: f32 = 3.14159265358979;
-const MAX_FINITE: f32 = 3.40282347e38;
 
 const KIND_POINT: u32 = 0u;
 const KIND_DIRECTIONAL: u32 = 1u;

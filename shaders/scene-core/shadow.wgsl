@@ -1,11 +1,11 @@
 #define_import_path scene_core::shadow
+#import scene_core::limits::MAX_FINITE
 #import scene_core::light_set::{NO_MAP, MAP_CUBE, Light}
 // Exponential shadow maps with PCF (ISR thesis section 4.6, eq. 30, listing 8; mirrors
 // crates/scene-core/src/shadowed_lights/esm.rs): V = bilinear PCF of exp(-c max(r - o, 0))
 // over the four nearest texels of a light's log-space-filtered map (cube or orthographic).
 
 const MIN_POSITIVE: f32 = 1.17549435e-38;
-const MAX_FINITE: f32 = 3.40282347e38;
 
 // The lookup's parameters; crates/scene-core/src/shadowed_lights/gpu.rs `ShadowParams`.
 struct ShadowParams {

@@ -116,6 +116,9 @@ pub fn validate_passes(
                 Err(e) => errors.push(format!("{}: {}: {e}", pass.name, file.path)),
             }
         }
+        for file in std::iter::once(&pass.main).chain(pass.library) {
+            errors.extend(shared_constants_written_out(file));
+        }
         let start = std::time::Instant::now();
         let composed = pass.compose_uncached().map_err(|e| e.to_string());
         let compose_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -159,10 +162,87 @@ pub fn validate_passes(
     }
 }
 
-/// [`validate_passes`] over every crate's passes and the workspace's `shaders/`.
+/// The constants `scene_core::limits` holds (`shaders/scene-core/limits.wgsl`): a shader
+/// imports them rather than writing them out.
+const SHARED_CONSTANTS: [&str; 2] = ["BACKGROUND", "MAX_FINITE"];
+
+/// One error per shared constant `file` defines for itself (any file but the module that
+/// holds them). Deduplicated by the caller's use: a file in several passes is named for each.
+fn shared_constants_written_out(file: &Wgsl) -> Vec<String> {
+    if file.path == "scene-core/limits.wgsl" {
+        return Vec::new();
+    }
+    SHARED_CONSTANTS
+        .iter()
+        .filter(|name| {
+            file.source.lines().any(|l| {
+                l.trim_start()
+                    .strip_prefix("const ")
+                    .and_then(|r| r.strip_prefix(**name))
+                    .is_some_and(|r| {
+                        r.trim_start().starts_with(':') || r.trim_start().starts_with('=')
+                    })
+            })
+        })
+        .map(|name| {
+            format!(
+                "{}: defines {name} itself: import it (#import scene_core::limits::{name})",
+                file.path
+            )
+        })
+        .collect()
+}
+
+/// Rust files under `dirs` that hand wgpu WGSL text of their own (`ShaderSource::Wgsl`)
+/// instead of a module from the composer (`scene_core::gpu::shader`, the one file allowed).
+pub fn wgsl_outside_the_composer(dirs: &[PathBuf]) -> Result<Vec<String>, String> {
+    fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), String> {
+        let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        for entry in entries {
+            let path = entry.map_err(|e| e.to_string())?.path();
+            if path.is_dir() {
+                rust_files(&path, out)?;
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                out.push(path);
+            }
+        }
+        Ok(())
+    }
+    let mut files = Vec::new();
+    for dir in dirs.iter().filter(|d| d.is_dir()) {
+        rust_files(dir, &mut files)?;
+    }
+    files.sort();
+    let needle = ["ShaderSource", "::Wgsl("].concat();
+    Ok(files
+        .into_iter()
+        .filter(|f| !f.ends_with("scene-core/src/gpu/shader.rs"))
+        .filter(|f| std::fs::read_to_string(f).is_ok_and(|t| t.contains(&needle)))
+        .map(|f| {
+            format!(
+                "{}: WGSL handed to wgpu outside the composer (use a ShaderPass)",
+                f.display()
+            )
+        })
+        .collect())
+}
+
+/// [`validate_passes`] over every crate's passes and the workspace's `shaders/`, and
+/// [`wgsl_outside_the_composer`] over every crate's sources, examples and tests.
 pub fn validate_all(out: Option<&Path>) -> Result<usize, String> {
-    let root = workspace_root().join("shaders");
-    validate_passes(&root, &all_passes(&root)?, out)
+    let workspace = workspace_root();
+    let root = workspace.join("shaders");
+    let n = validate_passes(&root, &all_passes(&root)?, out)?;
+    let mut dirs = vec![workspace.join("xtask"), workspace.join("tests")];
+    for entry in std::fs::read_dir(workspace.join("crates")).map_err(|e| e.to_string())? {
+        dirs.push(entry.map_err(|e| e.to_string())?.path());
+    }
+    let outside = wgsl_outside_the_composer(&dirs)?;
+    if outside.is_empty() {
+        Ok(n)
+    } else {
+        Err(outside.join("\n"))
+    }
 }
 
 #[cfg(test)]
@@ -211,6 +291,61 @@ mod tests {
         std::fs::write(root.join(BAD.path), BAD.source).unwrap();
         std::fs::write(root.join(PART.path), PART.source).unwrap();
         assert!(validate_passes(&root, &[ShaderPass::new("bad", BAD, &[PART])], None).is_err());
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    /// A shader writing out a shared constant is named; importing it, or a longer name that
+    /// starts the same, is not.
+    #[test]
+    fn shared_constants_written_out_are_named() {
+        let file = |source: &'static str| Wgsl {
+            path: "t/main.wgsl",
+            source,
+        };
+        let e = shared_constants_written_out(&file(
+            "const BACKGROUND: u32 = 0xffffffffu;\n  const MAX_FINITE = 3.4e38;\n",
+        ));
+        assert_eq!(e.len(), 2, "{e:?}");
+        assert!(
+            e[0].contains("t/main.wgsl") && e[0].contains("BACKGROUND"),
+            "{e:?}"
+        );
+        assert!(
+            shared_constants_written_out(&file(
+                "#import scene_core::limits::{BACKGROUND, MAX_FINITE}\nconst BACKGROUND_TINT: f32 = 1.0;\n"
+            ))
+            .is_empty()
+        );
+        let limits = Wgsl {
+            path: "scene-core/limits.wgsl",
+            source: "const BACKGROUND: u32 = 0xffffffffu;\n",
+        };
+        assert!(shared_constants_written_out(&limits).is_empty());
+    }
+
+    /// Rust that hands wgpu WGSL of its own is named; the composer's file is allowed.
+    #[test]
+    fn wgsl_built_outside_the_composer_is_named() {
+        let root = std::env::temp_dir().join(format!("xtask-composer-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let own = root.join("crates/a/src");
+        let composer = root.join("crates/scene-core/src/gpu");
+        std::fs::create_dir_all(&own).unwrap();
+        std::fs::create_dir_all(&composer).unwrap();
+        let call = ["wgpu::ShaderSource", "::Wgsl(src.into())"].concat();
+        std::fs::write(own.join("lib.rs"), format!("fn f() {{ {call}; }}")).unwrap();
+        std::fs::write(composer.join("shader.rs"), format!("fn g() {{ {call}; }}")).unwrap();
+        std::fs::write(own.join("ok.rs"), "fn h() {}").unwrap();
+        let found = wgsl_outside_the_composer(&[root.join("crates")]).unwrap();
+        assert_eq!(found.len(), 1, "{found:?}");
+        assert!(found[0].contains("crates/a/src/lib.rs"), "{found:?}");
+        // The project's own sources hand wgpu nothing of their own.
+        let workspace = workspace_root();
+        assert!(
+            wgsl_outside_the_composer(&[workspace.join("crates"), workspace.join("xtask")])
+                .unwrap()
+                .is_empty()
+        );
         std::fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -21,14 +21,20 @@ use crate::settings::Lookup;
 pub const RECONSTRUCT: ShaderPass = ShaderPass::new(
     "ibrr-ldc/reconstruct",
     scene_core::wgsl_file!("ibrr-ldc", "reconstruct.wgsl"),
-    &[scene_core::gpu::shader::RECONSTRUCT],
+    &[
+        scene_core::gpu::shader::RECONSTRUCT,
+        scene_core::gpu::shader::LIMITS,
+    ],
 );
 
 /// The gather pass (`shaders/ibrr-ldc/gather.wgsl`, importing `scene_core::reconstruct`).
 pub const GATHER: ShaderPass = ShaderPass::new(
     "ibrr-ldc/gather",
     scene_core::wgsl_file!("ibrr-ldc", "gather.wgsl"),
-    &[scene_core::gpu::shader::RECONSTRUCT],
+    &[
+        scene_core::gpu::shader::RECONSTRUCT,
+        scene_core::gpu::shader::LIMITS,
+    ],
 );
 
 /// Every shader pass of the IBRR, as `cargo xtask shaders` validates them.

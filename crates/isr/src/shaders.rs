@@ -4,7 +4,7 @@
 //! (`scene_core::light_set`) and shadow maps (`scene_core::shadow`), the WGSL twins of
 //! [`crate::light_set`] and [`crate::shadow`].
 
-use scene_core::gpu::shader::{RECONSTRUCT, ShaderPass, Wgsl};
+use scene_core::gpu::shader::{LIMITS, RECONSTRUCT, ShaderPass, Wgsl};
 use scene_core::wgsl_file;
 
 /// Globals, flags and view helpers of every ISR pass (`isr::common`).
@@ -12,7 +12,7 @@ pub const COMMON: Wgsl = wgsl_file!("isr", "common.wgsl");
 pub use scene_core::shadowed_lights::gpu::{LIGHT_SET, SHADOW};
 
 /// What every ISR pass may import.
-const LIBRARY: &[Wgsl] = &[RECONSTRUCT, COMMON, LIGHT_SET, SHADOW];
+const LIBRARY: &[Wgsl] = &[RECONSTRUCT, LIMITS, COMMON, LIGHT_SET, SHADOW];
 
 /// The lighting pass writing `Rgba32Float` (eq. 29).
 pub const LIGHTING: ShaderPass =

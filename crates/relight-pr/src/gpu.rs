@@ -46,7 +46,12 @@ pub const DISPLAY: ShaderPass = ShaderPass::new(
 pub const DIRECT: ShaderPass = ShaderPass::new(
     "relight-pr/direct",
     scene_core::wgsl_file!("relight-pr", "direct.wgsl"),
-    &[scene_core::gpu::shader::RECONSTRUCT, LIGHT_SET, SHADOW],
+    &[
+        scene_core::gpu::shader::RECONSTRUCT,
+        scene_core::gpu::shader::LIMITS,
+        LIGHT_SET,
+        SHADOW,
+    ],
 );
 
 /// Every shader pass of relighting, as `cargo xtask shaders` validates them.

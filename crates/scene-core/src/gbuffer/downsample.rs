@@ -43,7 +43,7 @@ use crate::gbuffer::{BACKGROUND_ID, GBuffer};
 pub const DOWNSAMPLE: crate::gpu::shader::ShaderPass = crate::gpu::shader::ShaderPass::new(
     "scene-core/downsample",
     crate::wgsl_file!("scene-core", "downsample.wgsl"),
-    &[],
+    &[crate::gpu::shader::LIMITS],
 );
 
 /// Relative depth tolerance of [`DownsampleMode::NearestSurface`]: samples whose linear

@@ -19,7 +19,7 @@ use crate::view::DepthConvention;
 pub const HOST_GBUFFER: ShaderPass = ShaderPass::new(
     "scene-core/host_gbuffer",
     crate::wgsl_file!("scene-core", "host_gbuffer.wgsl"),
-    &[],
+    &[super::shader::LIMITS],
 );
 
 /// The triangle id of a surface pixel whose engine gave no ids: the methods treat it as a

@@ -72,6 +72,11 @@ macro_rules! wgsl_file {
 /// `fn reconstruct(f, uv, d) -> vec3<f32>`.
 pub const RECONSTRUCT: Wgsl = crate::wgsl_file!("scene-core", "reconstruct.wgsl");
 
+/// `scene_core::limits` (`shaders/scene-core/limits.wgsl`): `BACKGROUND` (the id of a pixel
+/// without a surface, [`crate::BACKGROUND_ID`]) and `MAX_FINITE` (`f32::MAX`), which every
+/// pass imports instead of writing them out.
+pub const LIMITS: Wgsl = crate::wgsl_file!("scene-core", "limits.wgsl");
+
 /// One compiled shader: a main file, the library files it may import (directly or through
 /// each other, in any order) and the boolean shader defs (`#ifdef NAME`) of this variant.
 #[derive(Clone, Copy, Debug)]
