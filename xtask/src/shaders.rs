@@ -40,11 +40,11 @@ pub fn workspace_root() -> PathBuf {
 /// tests compose its `SHADER_PASSES` through the same entry point).
 pub fn all_passes(root: &Path) -> Result<Vec<ShaderPass>, String> {
     let mut passes = [
-        scene_core::gpu::SHADER_PASSES,
+        scene_core::SHADER_PASSES,
         gbuffer::SHADER_PASSES,
-        isr::shaders::SHADER_PASSES,
-        ibrr_ldc::gpu::SHADER_PASSES,
-        relight_pr::gpu::SHADER_PASSES,
+        isr::SHADER_PASSES,
+        ibrr_ldc::SHADER_PASSES,
+        relight_pr::SHADER_PASSES,
     ]
     .concat();
     let mut viewer = Vec::new();

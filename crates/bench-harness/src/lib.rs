@@ -67,12 +67,14 @@
 pub mod cache;
 pub mod cameras;
 pub mod experiment;
+pub mod format;
 pub mod merge;
 pub mod mitsuba;
 pub mod plots;
 pub mod povray;
 pub mod report;
 pub mod results;
+pub mod run;
 pub mod sequence;
 
 use std::path::{Path, PathBuf};

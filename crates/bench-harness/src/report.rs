@@ -4,38 +4,9 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use crate::experiment::{slug, view_dir};
+pub use crate::format::{fmt_2, fmt_bias, fmt_err, fmt_ms, fmt_pct, fmt_s};
 use crate::results::{Results, gain};
-
-/// A time in seconds, 3 decimals.
-pub fn fmt_s(x: f64) -> String {
-    format!("{x:.3}")
-}
-
-/// A time in milliseconds, 3 decimals.
-pub fn fmt_ms(x: f64) -> String {
-    format!("{x:.3}")
-}
-
-/// A rate or plain number, 2 decimals.
-pub fn fmt_2(x: f64) -> String {
-    format!("{x:.2}")
-}
-
-/// A share as a percentage with 2 decimals (`0.9905` -> `99.05%`).
-pub fn fmt_pct(x: f64) -> String {
-    format!("{:.2}%", x * 100.0)
-}
-
-/// An error or correlation value, 6 significant decimals.
-pub fn fmt_err(x: f64) -> String {
-    format!("{x:.6}")
-}
-
-/// A per-channel bias as signed percentages, `-7.10% / -8.02% / -9.20%`.
-pub fn fmt_bias(b: [f64; 3]) -> String {
-    b.map(|c| format!("{:+.2}%", c * 100.0)).join(" / ")
-}
+use crate::run::{slug, view_dir};
 
 fn opt_ms(x: Option<f64>) -> String {
     x.map(fmt_ms).unwrap_or_else(|| "-".into())

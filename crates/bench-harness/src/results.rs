@@ -191,7 +191,7 @@ pub struct EqualError {
 impl EqualError {
     /// The speedup as shown: `123.4`, `> 123.4` or `< 0.5`.
     pub fn shown(&self) -> String {
-        let v = crate::report::fmt_2(self.speedup);
+        let v = crate::format::fmt_2(self.speedup);
         match self.bound {
             LadderBound::Within => v,
             LadderBound::AboveFinest => format!("> {v}"),
@@ -542,8 +542,8 @@ impl EqualErrorRow {
     /// The speedup as shown: a median of measured points, `> N` for a bound, `-` for none.
     pub fn shown(&self) -> String {
         match (self.speedup, self.speedup_at_least) {
-            (Some(v), _) => crate::report::fmt_2(v),
-            (None, Some(b)) => format!("> {}", crate::report::fmt_2(b)),
+            (Some(v), _) => crate::format::fmt_2(v),
+            (None, Some(b)) => format!("> {}", crate::format::fmt_2(b)),
             _ => "-".into(),
         }
     }
@@ -815,7 +815,7 @@ pub struct RunInfo {
     pub scenes: Vec<String>,
     /// The share of the work this run did (`None`: all of it, or a merge of every share).
     #[serde(default)]
-    pub shard: Option<crate::experiment::Shard>,
+    pub shard: Option<crate::run::Shard>,
     /// Shards merged into this result (0: a single run).
     #[serde(default)]
     pub merged_shards: usize,

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::HarnessError;
 use crate::cache::ReferenceCache;
-use crate::experiment::TechniqueSetup;
+use crate::run::TechniqueSetup;
 
 /// One frame of a sequence: a light state with a caption.
 #[derive(Clone, Debug, PartialEq)]
@@ -287,7 +287,7 @@ pub fn run_sequence(
                 })?
                 .value;
             if let Some(dir) = images {
-                let file = dir.join(format!("{fi:02}-{}.png", crate::experiment::slug(&t.label)));
+                let file = dir.join(format!("{fi:02}-{}.png", crate::run::slug(&t.label)));
                 img.write_png(&file, 0.0)
                     .map_err(|e| HarnessError::from(scene_core::Error::from(e)))?;
             }

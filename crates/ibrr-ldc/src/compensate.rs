@@ -162,7 +162,7 @@ fn residuals(
                     if !reflected {
                         weights.clear();
                     } else {
-                        crate::reconstruct::layer_weights(ldc_ref, s.p, s.ns, &mut weights);
+                        ldc_ref.layer_weights(s.p, s.ns, &mut weights);
                     }
                     for &(layer, wl) in &weights {
                         for (src, v) in res.iter_mut().enumerate() {

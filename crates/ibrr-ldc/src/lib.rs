@@ -44,4 +44,6 @@ pub use reconstruct::{Reconstruction, Served, lookup, reconstruct, shade};
 pub use settings::{Compensation, IbrrSettings, Lookup, Splat};
 pub use technique::{FrameTimings, IbrrTechnique};
 
+/// Every shader pass of the IBRR, as `cargo xtask shaders` validates them.
+pub use gpu::SHADER_PASSES;
 pub use scene_core;

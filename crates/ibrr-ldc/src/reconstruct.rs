@@ -179,44 +179,6 @@ fn lookup_inner(
     }
 }
 
-/// The layers of `ldc` that a point `p` with normal `n` reads with the bilinear kernel in
-/// every LDI its normal belongs to, with weights summing to 1 (empty when none matches; no
-/// visibility test and no fallback): for sums over layers kept apart per source.
-pub(crate) fn layer_weights(ldc: &Ldc, p: Vec3, n: Vec3, out: &mut Vec<(usize, f32)>) {
-    out.clear();
-    let frame = &ldc.frame;
-    let mut total = 0.0f32;
-    for (axis, w_axis) in axes_of(n, frame.band) {
-        if w_axis <= 0.0 {
-            continue;
-        }
-        let f = frame.pixel_coords(axis, p) - Vec2::splat(0.5);
-        let (i0, j0) = (f.x.floor() as i64, f.y.floor() as i64);
-        let t = f - Vec2::new(i0 as f32, j0 as f32);
-        for (i, j, w) in [
-            (i0, j0, (1.0 - t.x) * (1.0 - t.y)),
-            (i0 + 1, j0, t.x * (1.0 - t.y)),
-            (i0, j0 + 1, (1.0 - t.x) * t.y),
-            (i0 + 1, j0 + 1, t.x * t.y),
-        ] {
-            if w <= 0.0 {
-                continue;
-            }
-            if let Some(index) = frame.pixel_index(axis, i, j)
-                && let Some(l) = ldc.find(index, p, n)
-            {
-                out.push((l, w * w_axis));
-                total += w * w_axis;
-            }
-        }
-    }
-    if total > 0.0 {
-        for (_, w) in out.iter_mut() {
-            *w /= total;
-        }
-    }
-}
-
 /// Kernel-weighted values in one LDI: `((direct, indirect) already divided by the weight
 /// of matches, fraction of the kernel's weight that matched > 0)`.
 fn in_ldi(

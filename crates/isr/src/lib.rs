@@ -70,6 +70,8 @@ pub use settings::{Blur, Estimator, IsrSettings, Radius, Sender, ShadowSettings}
 pub use technique::{Backend, DlTechnique, IsrTechnique};
 
 pub use scene_core;
+/// Every shader pass of ISR, as `cargo xtask shaders` validates them (see [`shaders`]).
+pub use shaders::SHADER_PASSES;
 /// The wgpu this crate's GPU path is built on (use it for the textures you hand in).
 pub use wgpu;
 

@@ -65,7 +65,7 @@ impl Welding {
             .flat_map_iter(|e| {
                 let from = e.centroid + e.normal * lift;
                 e.corners
-                    .map(|c| crate::direct::segment_blocked(rays, from, c + e.normal * lift))
+                    .map(|c| crate::visibility::segment_blocked(rays, from, c + e.normal * lift))
             })
             .collect();
         for (corner, b) in welding.corner_vertex.iter_mut().zip(blocked) {
@@ -165,7 +165,7 @@ pub struct PixelDirect<'a> {
 /// (the pixel's sub-rays met with the plane of its surface point and normal; a sub-ray
 /// nearly parallel to the plane keeps the centre point), pixel-major (`i * k + m`); zero on
 /// background. Deterministic: a pixel's sample pattern is seeded by its index.
-pub fn pixel_direct<O: crate::direct::Occlusion + ?Sized>(
+pub fn pixel_direct<O: crate::visibility::Occlusion + ?Sized>(
     gather: &DirectGather,
     rays: &O,
     g: &GBuffer,

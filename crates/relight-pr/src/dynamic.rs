@@ -38,10 +38,11 @@ use scene_core::sampling::{hash_seed, r2, uniform_triangle};
 use scene_core::{GBufferRenderer, LightState, PointLight, Scene};
 
 use crate::RelightError;
-use crate::direct::{self, Occlusion, WithDynamic};
+use crate::direct;
 use crate::mesh::Meshing;
 use crate::relight;
 use crate::solver::{self, Shooting, Solution, SolveStats, SolverSettings};
+use crate::visibility::{self, Occlusion, WithDynamic};
 
 /// Peak bytes of a patch transfer solution over `n` elements and `p` patches while it is
 /// solved: direct and indirect irradiance per element and patch, two unshot values per
@@ -247,7 +248,7 @@ pub fn emitter_visibility(
             }
             let kernel = ci * co / dist2;
             all += kernel;
-            if direct::sees_surface_point(objects, x, e.normal, q, dist) {
+            if visibility::sees_surface_point(objects, x, e.normal, q, dist) {
                 seen += kernel;
             }
         }

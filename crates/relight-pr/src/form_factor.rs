@@ -56,7 +56,7 @@ pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &[Vec3]) -> f32 {
 /// triangle visible from `x` through `rays` (no rays when `rays` is `None`). `seed` fixes
 /// the sample pattern of this receiver-patch pair, so the value does not depend on the
 /// order in which patches shoot.
-pub fn point_to_triangle<O: crate::direct::Occlusion + ?Sized>(
+pub fn point_to_triangle<O: crate::visibility::Occlusion + ?Sized>(
     x: Vec3,
     n: Vec3,
     tri: &[Vec3; 3],
@@ -75,7 +75,7 @@ pub fn point_to_triangle<O: crate::direct::Occlusion + ?Sized>(
 /// patch, its contact shadows), not to the far receivers that each get a sliver of its
 /// light (in a building, the thousands of elements of other rooms that face the shooter
 /// behind walls).
-pub fn point_to_triangle_adaptive<O: crate::direct::Occlusion + ?Sized>(
+pub fn point_to_triangle_adaptive<O: crate::visibility::Occlusion + ?Sized>(
     x: Vec3,
     n: Vec3,
     tri: &[Vec3; 3],
@@ -98,7 +98,7 @@ pub fn adaptive_samples(f: f32, max_samples: u32, full_at: f32) -> u32 {
     }
 }
 
-fn point_to_triangle_with<O: crate::direct::Occlusion + ?Sized>(
+fn point_to_triangle_with<O: crate::visibility::Occlusion + ?Sized>(
     x: Vec3,
     n: Vec3,
     tri: &[Vec3; 3],
@@ -143,7 +143,7 @@ fn point_to_triangle_with<O: crate::direct::Occlusion + ?Sized>(
             continue;
         }
         tried += 1;
-        if crate::direct::sees_surface_point(rays, x, n, q, dist) {
+        if crate::visibility::sees_surface_point(rays, x, n, q, dist) {
             visible += 1;
         }
     }

@@ -49,12 +49,15 @@ pub mod packed;
 pub mod relight;
 pub mod solver;
 pub mod technique;
+pub mod visibility;
 
 pub use hierarchical::{HierarchySettings, HierarchyStats};
 pub use mesh::{MeshBudget, MeshSettings, Meshing};
 pub use solver::{FormFactorMethod, Solution, SolverSettings, Strategy, solve, solve_with};
 pub use technique::RelightTechnique;
 
+/// Every shader pass of relighting, as `cargo xtask shaders` validates them.
+pub use gpu::SHADER_PASSES;
 pub use scene_core;
 
 /// An error of the relighting crate.

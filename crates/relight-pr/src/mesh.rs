@@ -292,7 +292,7 @@ fn straddles(rays: &RayScene, face_normals: &[Vec3], c: [Vec3; 3], n: Vec3, lift
     points.iter().enumerate().any(|(i, &a)| {
         points[i + 1..]
             .iter()
-            .any(|&b| crate::direct::segment_blocked(rays, a, b))
+            .any(|&b| crate::visibility::segment_blocked(rays, a, b))
     })
 }
 

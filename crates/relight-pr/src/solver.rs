@@ -21,6 +21,7 @@ use crate::RelightError;
 use crate::direct;
 use crate::form_factor::point_to_triangle_adaptive;
 use crate::mesh::Meshing;
+use crate::visibility;
 
 /// Bytes of a `k`-source solution over `n` elements and `p` patches (direct and indirect
 /// per element, two unshot values per patch, RGB f32).
@@ -1056,7 +1057,7 @@ fn shoot_cluster(
                 let Some(i) = pick else { break };
                 let m = &members[i];
                 let dist = m.centre.distance(x);
-                if dist > 0.0 && direct::sees_surface_point(rays, x, n, m.centre, dist) {
+                if dist > 0.0 && visibility::sees_surface_point(rays, x, n, m.centre, dist) {
                     // The member's share, f_i u_i / p_i with p_i = f_i w_i / total.
                     let scale = total / (m.weight * budget as f32);
                     for &(src, em, rf) in &m.energy {

@@ -289,22 +289,8 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     let expected = frame_of(&cpu, false);
     let unshadowed = frame_of(&planned, false);
     let got = frame_of(&planned, true);
-    let diff = |a: &[[f32; 4]], b: &[[f32; 4]]| {
-        a.iter()
-            .zip(b)
-            .map(|(p, q)| (0..3).map(|c| f64::from((p[c] - q[c]).abs())).sum::<f64>())
-            .sum::<f64>()
-    };
-    let total: f64 = expected.iter().map(|p| f64::from(p[0] + p[1] + p[2])).sum();
-    let (d, before) = (diff(&got, &expected), diff(&unshadowed, &expected));
-    eprintln!(
-        "GPU maps: {:.2e} of the image; before the copy (unshadowed): {:.2e}",
-        d / total,
-        before / total
-    );
-    // The blocks' shadows hold a few per cent of the image's light.
-    assert!(before > 1e-2 * total, "the shadows show");
-    assert!(d <= 1e-4 * total, "{d} of {total}");
+    // The blocks' shadows hold a few per cent of the image's light (2.8 % measured in ISR).
+    scene_core::testing::assert_gpu_shadow_maps_match(&expected, &unshadowed, &got);
 }
 
 /// The relighting `Technique` on the GPU (`on_gpu`: the display on the frame contract, only

@@ -46,17 +46,6 @@ pub use wgpu::naga;
 use crate::gbuffer::GBuffer;
 use crate::image::Image;
 
-/// Every shader pass of scene-core, as `cargo xtask shaders` validates them.
-pub const SHADER_PASSES: &[shader::ShaderPass] = &[
-    #[cfg(feature = "testing")]
-    crate::testing::DEPTH_FROM_VALUES,
-    crate::gbuffer::downsample::DOWNSAMPLE,
-    host::HOST_GBUFFER,
-    frame::PIXELS_TO_TEXTURE,
-    frame::PIXELS_TO_TEXTURE_RGBA16F,
-    crate::shadowed_lights::gpu_maps::SHADOW_MAPS,
-];
-
 /// An error of the GPU layer.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {

@@ -71,6 +71,20 @@ pub use view::{DepthConvention, FrustumCorners, HemicubeFace, Projection, View};
 
 pub use glam;
 
+/// Every shader pass of scene-core, as `cargo xtask shaders` validates them. Each crate keeps
+/// its registry at its root, `<crate>::SHADER_PASSES` (here since 2026-11-27; it was in
+/// `gpu.rs`, below the modules it lists).
+#[cfg(feature = "gpu")]
+pub const SHADER_PASSES: &[gpu::shader::ShaderPass] = &[
+    #[cfg(feature = "testing")]
+    crate::testing::DEPTH_FROM_VALUES,
+    crate::gbuffer::downsample::DOWNSAMPLE,
+    gpu::host::HOST_GBUFFER,
+    gpu::frame::PIXELS_TO_TEXTURE,
+    gpu::frame::PIXELS_TO_TEXTURE_RGBA16F,
+    crate::shadowed_lights::gpu_maps::SHADOW_MAPS,
+];
+
 /// Any error of the toolkit's shared layer.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {

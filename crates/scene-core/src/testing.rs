@@ -308,3 +308,40 @@ impl EngineGBuffer {
         }
     }
 }
+
+/// The oracle of the GPU shadow maps, shared by the methods that shade with them (ISR and
+/// relighting): a method's frame with maps rendered on the GPU (`got`) equals its frame with
+/// the CPU's maps (`expected`) within 1e-4 of the image's light, while the same frame
+/// without the GPU maps copied in (`unshadowed`) differs by more than 1 % (so the shadows
+/// show and the check can fail). Images are RGBA texels as read back; alpha is ignored.
+/// Prints both differences as shares of the image and panics naming the one that fails.
+pub fn assert_gpu_shadow_maps_match(
+    expected: &[[f32; 4]],
+    unshadowed: &[[f32; 4]],
+    got: &[[f32; 4]],
+) {
+    let diff = |a: &[[f32; 4]], b: &[[f32; 4]]| {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (0..3).map(|c| f64::from((p[c] - q[c]).abs())).sum::<f64>())
+            .sum::<f64>()
+    };
+    assert_eq!(expected.len(), got.len(), "images of different sizes");
+    assert_eq!(
+        expected.len(),
+        unshadowed.len(),
+        "images of different sizes"
+    );
+    let total: f64 = expected.iter().map(|p| f64::from(p[0] + p[1] + p[2])).sum();
+    let (d, before) = (diff(got, expected), diff(unshadowed, expected));
+    eprintln!(
+        "GPU maps: {:.2e} of the image; before the copy (unshadowed): {:.2e}",
+        d / total,
+        before / total
+    );
+    assert!(
+        before > 1e-2 * total,
+        "the shadows do not show: {before} of {total}"
+    );
+    assert!(d <= 1e-4 * total, "GPU maps off by {d} of {total}");
+}

@@ -60,10 +60,10 @@ use scene_core::sampling::{Rng, hash_seed};
 use scene_core::{Scene, luminance};
 
 use crate::RelightError;
-use crate::direct;
 use crate::form_factor::point_to_triangle_adaptive;
 use crate::mesh::Meshing;
 use crate::solver::{Solution, SolveStats, SolverSettings, Source};
+use crate::visibility;
 
 mod gather;
 mod tree;
@@ -573,7 +573,7 @@ impl Refiner<'_> {
                 let d = q - x;
                 let dist = d.length();
                 if dist > 0.0 && n.dot(d) > 0.0 {
-                    return direct::sees_surface_point(self.rays, x, n, q, dist);
+                    return visibility::sees_surface_point(self.rays, x, n, q, dist);
                 }
             }
             false
@@ -669,7 +669,7 @@ impl Refiner<'_> {
                 b.uniform_point(rng.next_vec2()),
             );
             let dist = x.distance(q);
-            if dist > 0.0 && direct::sees_surface_point(self.rays, x, a.normal, q, dist) {
+            if dist > 0.0 && visibility::sees_surface_point(self.rays, x, a.normal, q, dist) {
                 seen += 1;
             }
         }

@@ -6,8 +6,8 @@ use rayon::prelude::*;
 use scene_core::ray::RayScene;
 use scene_core::sampling::{Rng, hash_seed};
 
-use crate::direct;
 use crate::mesh::Meshing;
+use crate::visibility;
 
 pub(super) const NONE: u32 = u32::MAX;
 
@@ -171,14 +171,14 @@ impl Tree {
                     return leaves.iter().all(|&j| {
                         let e = &els[j as usize];
                         std::ptr::eq(e, hub)
-                            || !direct::segment_blocked(rays, centre, lifted(e, e.centroid))
+                            || !visibility::segment_blocked(rays, centre, lifted(e, e.centroid))
                     });
                 }
                 (0..COHERENCE_RAYS).all(|p| {
                     let u = (p as f32 + rng.next_f32()) / (2 * COHERENCE_RAYS) as f32;
                     let a = point(u, &mut rng);
                     let b = point(u + 0.5, &mut rng);
-                    !direct::segment_blocked(rays, a, b)
+                    !visibility::segment_blocked(rays, a, b)
                 })
             })
             .collect()
