@@ -13,17 +13,22 @@ use naga::back::{hlsl, msl, spv};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use scene_core::gpu::shader::{ShaderPass, Wgsl};
 
-fn wgsl_files(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), String> {
+/// Every file under `dir` (recursively) whose extension is `ext`, appended to `out`.
+fn files_with_extension(dir: &Path, ext: &str, out: &mut Vec<PathBuf>) -> Result<(), String> {
     let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     for entry in entries {
         let path = entry.map_err(|e| e.to_string())?.path();
         if path.is_dir() {
-            wgsl_files(&path, out)?;
-        } else if path.extension().is_some_and(|e| e == "wgsl") {
+            files_with_extension(&path, ext, out)?;
+        } else if path.extension().is_some_and(|e| e == ext) {
             out.push(path);
         }
     }
     Ok(())
+}
+
+fn wgsl_files(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), String> {
+    files_with_extension(dir, "wgsl", out)
 }
 
 /// The workspace root (xtask lives one level below it).
@@ -196,21 +201,9 @@ fn shared_constants_written_out(file: &Wgsl) -> Vec<String> {
 /// Rust files under `dirs` that hand wgpu WGSL text of their own (`ShaderSource::Wgsl`)
 /// instead of a module from the composer (`scene_core::gpu::shader`, the one file allowed).
 pub fn wgsl_outside_the_composer(dirs: &[PathBuf]) -> Result<Vec<String>, String> {
-    fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), String> {
-        let entries = std::fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        for entry in entries {
-            let path = entry.map_err(|e| e.to_string())?.path();
-            if path.is_dir() {
-                rust_files(&path, out)?;
-            } else if path.extension().is_some_and(|e| e == "rs") {
-                out.push(path);
-            }
-        }
-        Ok(())
-    }
     let mut files = Vec::new();
     for dir in dirs.iter().filter(|d| d.is_dir()) {
-        rust_files(dir, &mut files)?;
+        files_with_extension(dir, "rs", &mut files)?;
     }
     files.sort();
     let needle = ["ShaderSource", "::Wgsl("].concat();
