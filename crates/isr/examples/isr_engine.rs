@@ -7,15 +7,18 @@
 //! analytically into a G-buffer in its own compact formats (8-bit sRGB albedo, octahedral
 //! half-float normals, its `Depth32Float` depth buffer, no triangle ids), which
 //! `HostGBufferPass` turns into the toolkit's each frame, and hands ISR a point light and
-//! the triangles that cast shadows. ISR records its passes into the engine's command
+//! the triangles that cast shadows. ISR, on the frame contract (`IsrFrame` as a `GpuFrame`,
+//! like the other methods' examples), records its passes into the engine's command
 //! encoder; a light change between frames only rewrites a buffer, and a steady-state frame
 //! creates no GPU object (the last line counts them from wgpu's counters).
 //!
 //! Run with `cargo run --release -p isr --example isr_engine`.
 
 use glam::{Mat4, Vec3};
-use isr::{GpuIsr, GpuIsrInputs, IsrSettings, Light, LightSet, ShadowSettings};
-use scene_core::gpu::{GpuContext, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts};
+use isr::{GpuIsr, GpuIsrInputs, IsrFrame, IsrSettings, Light, LightSet, ShadowSettings};
+use scene_core::gpu::{
+    FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts,
+};
 use scene_core::lights::{LightId, LightState};
 use scene_core::testing::{octahedral_f16, srgb8};
 use scene_core::{DepthConvention, View};
@@ -128,7 +131,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Vec3::splat(6.0),
     );
     let lights = LightSet::from_lights(vec![light], &casters(), &ShadowSettings::default())?;
-    let mut isr = GpuIsr::new(&ctx, &lights)?;
+    // The method on the frame contract: prepared once on the engine's device.
+    let mut isr = IsrFrame::new(GpuIsr::new(&ctx, &lights)?, IsrSettings::default());
 
     // The engine's matrices and G-buffer textures in its own formats; each frame turns
     // them into the toolkit's (one compute pass in the engine's encoder).
@@ -148,12 +152,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut convert = HostGBufferPass::new(&ctx)?;
     let g = GpuGBuffer::new(&ctx, W, H)?;
     // The engine's HDR target (Rgba16Float works too; Rgba32Float here to read it back).
-    let target = isr.output_texture(W, H)?;
-    let inputs = GpuIsrInputs {
-        full: &g,
-        coarse: None,
-        view: &view,
-    };
+    let target = isr.isr.output_texture(W, H)?;
     let mut means = Vec::new();
     let mut steady = ObjectCounts::default();
     for (frame, (label, colour)) in [
@@ -170,8 +169,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         let (result, created) = ObjectCounts::during(&ctx.device, || {
             convert.encode(&mut encoder, &host, &depth_of, &g)?;
-            isr.apply(&state); // rewrites the light buffer; nothing is recompiled
-            isr.encode(&mut encoder, &inputs, &IsrSettings::default(), &target)
+            // The frame applies the light state (the light buffer is rewritten; nothing
+            // is recompiled) and records ISR's passes into the engine's encoder.
+            let inputs = FrameInputs {
+                gbuffer: &g,
+                view: &view,
+                lights: &state,
+            };
+            isr.encode(&mut encoder, &inputs, &target)
                 .map_err(Box::<dyn std::error::Error>::from)
         });
         result?;
@@ -187,7 +192,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("{label}: mean radiance {mean:.4}");
         means.push(mean);
     }
-    let t = isr.render_timed(&inputs, &IsrSettings::default(), &target)?;
+    let inputs = GpuIsrInputs {
+        full: &g,
+        coarse: None,
+        view: &view,
+    };
+    let t = isr.isr.render_timed(&inputs, &isr.settings, &target)?;
     println!(
         "pass times ({}): radiosity {:.2} ms, blur {:.2} ms, upsample {:.2} ms, lighting {:.2} ms",
         if t.gpu_timestamps {
