@@ -119,13 +119,7 @@ pub fn core_features_in_tree(tree: &str) -> std::collections::BTreeSet<String> {
 /// scene-core feature its manifest does not name, or pulls in what
 /// [`TESTS_MUST_NOT_PULL`] bans.
 pub fn test_build_features() -> Result<(), String> {
-    let meta: serde_json::Value = serde_json::from_str(&cargo_output(&[
-        "metadata",
-        "--format-version",
-        "1",
-        "--no-deps",
-    ])?)
-    .map_err(|e| format!("cargo metadata: {e}"))?;
+    let meta = workspace_metadata()?;
     for spoke in SPOKES {
         let tree = cargo_output(&[
             "tree",
@@ -328,6 +322,13 @@ pub fn msrv() -> Result<(), String> {
     }
 }
 
+/// The workspace's members as `cargo metadata --no-deps` describes them (their manifests:
+/// dependencies with kinds and features, feature tables).
+fn workspace_metadata() -> Result<serde_json::Value, String> {
+    let out = cargo_output(&["metadata", "--format-version", "1", "--no-deps"])?;
+    serde_json::from_str(&out).map_err(|e| format!("cargo metadata: {e}"))
+}
+
 fn cargo(args: &[&str]) -> Result<(), String> {
     eprintln!("$ cargo {}", args.join(" "));
     let status = Command::new(env!("CARGO"))
@@ -373,19 +374,7 @@ pub fn api_docs(manifest: Option<&std::path::Path>) -> Result<(), String> {
 /// Fails when a spoke names a sibling among its normal or build dependencies, or does not
 /// depend on scene-core, or when a spoke or scene-core depends on a composition point.
 pub fn dependency_rule() -> Result<(), String> {
-    let out = Command::new(env!("CARGO"))
-        .args(["metadata", "--format-version", "1", "--no-deps"])
-        .output()
-        .map_err(|e| format!("cannot run cargo metadata: {e}"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "cargo metadata failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        ));
-    }
-    let meta: serde_json::Value =
-        serde_json::from_slice(&out.stdout).map_err(|e| format!("cargo metadata: {e}"))?;
-    let violations = rule_violations(&meta);
+    let violations = rule_violations(&workspace_metadata()?);
     if violations.is_empty() {
         eprintln!(
             "dependency rule holds: every spoke depends on scene-core and no sibling, and nothing \

@@ -121,9 +121,6 @@ pub fn validate_passes(
                 Err(e) => errors.push(format!("{}: {}: {e}", pass.name, file.path)),
             }
         }
-        for file in std::iter::once(&pass.main).chain(pass.library) {
-            errors.extend(shared_constants_written_out(file));
-        }
         let start = std::time::Instant::now();
         let composed = pass.compose_uncached().map_err(|e| e.to_string());
         let compose_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -159,6 +156,13 @@ pub fn validate_passes(
                 f.display()
             ));
         }
+        let rel = f
+            .strip_prefix(root)
+            .unwrap_or(&f)
+            .to_string_lossy()
+            .replace('\\', "/");
+        let text = std::fs::read_to_string(&f).map_err(|e| format!("{}: {e}", f.display()))?;
+        errors.extend(shared_constants_written_out(&rel, &text));
     }
     if errors.is_empty() {
         Ok(passes.len())
@@ -171,16 +175,16 @@ pub fn validate_passes(
 /// imports them rather than writing them out.
 const SHARED_CONSTANTS: [&str; 2] = ["BACKGROUND", "MAX_FINITE"];
 
-/// One error per shared constant `file` defines for itself (any file but the module that
-/// holds them). Deduplicated by the caller's use: a file in several passes is named for each.
-fn shared_constants_written_out(file: &Wgsl) -> Vec<String> {
-    if file.path == "scene-core/limits.wgsl" {
+/// One error per shared constant the shader at `path` (relative to `shaders/`) defines for
+/// itself, given its text (any file but the module that holds them).
+fn shared_constants_written_out(path: &str, source: &str) -> Vec<String> {
+    if path == "scene-core/limits.wgsl" {
         return Vec::new();
     }
     SHARED_CONSTANTS
         .iter()
         .filter(|name| {
-            file.source.lines().any(|l| {
+            source.lines().any(|l| {
                 l.trim_start()
                     .strip_prefix("const ")
                     .and_then(|r| r.strip_prefix(**name))
@@ -190,10 +194,7 @@ fn shared_constants_written_out(file: &Wgsl) -> Vec<String> {
             })
         })
         .map(|name| {
-            format!(
-                "{}: defines {name} itself: import it (#import scene_core::limits::{name})",
-                file.path
-            )
+            format!("{path}: defines {name} itself: import it (#import scene_core::limits::{name})")
         })
         .collect()
 }
@@ -291,29 +292,41 @@ mod tests {
     /// starts the same, is not.
     #[test]
     fn shared_constants_written_out_are_named() {
-        let file = |source: &'static str| Wgsl {
-            path: "t/main.wgsl",
-            source,
-        };
-        let e = shared_constants_written_out(&file(
+        let e = shared_constants_written_out(
+            "t/main.wgsl",
             "const BACKGROUND: u32 = 0xffffffffu;\n  const MAX_FINITE = 3.4e38;\n",
-        ));
+        );
         assert_eq!(e.len(), 2, "{e:?}");
         assert!(
             e[0].contains("t/main.wgsl") && e[0].contains("BACKGROUND"),
             "{e:?}"
         );
         assert!(
-            shared_constants_written_out(&file(
+            shared_constants_written_out(
+                "t/main.wgsl",
                 "#import scene_core::limits::{BACKGROUND, MAX_FINITE}\nconst BACKGROUND_TINT: f32 = 1.0;\n"
-            ))
+            )
             .is_empty()
         );
-        let limits = Wgsl {
-            path: "scene-core/limits.wgsl",
-            source: "const BACKGROUND: u32 = 0xffffffffu;\n",
+        assert!(
+            shared_constants_written_out(
+                "scene-core/limits.wgsl",
+                "const BACKGROUND: u32 = 0xffffffffu;\n"
+            )
+            .is_empty()
+        );
+        // Through the whole check: a file under the root that writes one out fails it.
+        let root = std::env::temp_dir().join(format!("xtask-limits-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        std::fs::create_dir_all(root.join("t")).unwrap();
+        const OWN: Wgsl = Wgsl {
+            path: "t/main.wgsl",
+            source: "const MAX_FINITE: f32 = 3.40282347e38;\n@compute @workgroup_size(1) fn main() { let x: f32 = MAX_FINITE; }\n",
         };
-        assert!(shared_constants_written_out(&limits).is_empty());
+        std::fs::write(root.join(OWN.path), OWN.source).unwrap();
+        let e = validate_passes(&root, &[ShaderPass::new("t", OWN, &[])], None).unwrap_err();
+        assert!(e.contains("t/main.wgsl: defines MAX_FINITE itself"), "{e}");
+        std::fs::remove_dir_all(&root).unwrap();
     }
 
     /// Rust that hands wgpu WGSL of its own is named; the composer's file is allowed.
