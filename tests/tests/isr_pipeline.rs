@@ -133,7 +133,7 @@ fn gpu_rasteriser_to_lit_image_without_readback() {
         coarse: None,
         view: &view,
     };
-    isr.render(&inputs, &IsrSettings::default(), &target)
+    ctx.submit_encoded(|e| isr.encode(e, &inputs, &IsrSettings::default(), &target))
         .unwrap();
     // Read back only to check it against the CPU path on the CPU rasteriser's buffer.
     let texels = ctx.read_texture_rgba32f(&target).unwrap();

@@ -151,7 +151,8 @@ pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
             for i in 0..=repeats {
                 let t = g.render_timed(&inputs, s, &out).map_err(err)?;
                 let start = Instant::now();
-                g.render(&inputs, s, &out).map_err(err)?;
+                ctx.submit_encoded(|e| g.encode(e, &inputs, s, &out))
+                    .map_err(err)?;
                 g.wait().map_err(err)?;
                 if i > 0 {
                     frames.push(t);

@@ -117,44 +117,25 @@ fn methods(ctx: &GpuContext, scene: &Arc<Scene>, threads: usize) -> Result<Vec<P
         for settings in [isr::IsrSettings::dl(), isr::IsrSettings::default()] {
             let t0 = Instant::now();
             let lights = LightSet::new(scene, &shadows).map_err(|e| e.to_string())?;
-            let gpu = isr::GpuIsr::new(ctx, &lights).map_err(|e| e.to_string())?;
-            out.push((
-                Box::new(isr::IsrFrame::new(gpu, settings)),
-                t0.elapsed().as_secs_f64(),
-            ));
+            let frame =
+                isr::IsrFrame::prepare(ctx, &lights, settings).map_err(|e| e.to_string())?;
+            out.push((Box::new(frame), t0.elapsed().as_secs_f64()));
         }
 
         let t0 = Instant::now();
-        let k = light_ids(scene).len();
-        let meshing = relight_pr::Meshing::new(
-            scene,
+        let prepared = relight_pr::Prepared::solve(
+            scene.clone(),
             &relight_pr::MeshSettings::elements(RELIGHT_ELEMENTS),
-            k,
-        )
-        .map_err(|e| e.to_string())?;
-        let rays = scene_core::ray::RayScene::build(scene);
-        let solution = relight_pr::solve(
-            scene,
-            &meshing,
-            &rays,
             &relight_pr::SolverSettings::default(),
             &mut |_| {},
         )
         .map_err(|e| e.to_string())?;
-        let welding = relight_pr::display::Welding::new(&meshing, scene.extent());
-        let mut gpu = relight_pr::gpu::GpuRelight::new(
-            ctx,
-            &meshing,
-            &welding,
-            &solution,
-            relight_pr::packed::Precision::F16,
-        )
-        .map_err(|e| e.to_string())?;
         let lights = LightSet::new(scene, &shadows).map_err(|e| e.to_string())?;
-        let slots = relight_pr::display::light_slots(&lights, &solution.sources);
-        gpu.set_shadowed_direct(&lights, &slots, 3)
-            .map_err(|e| e.to_string())?;
-        let frame = relight_pr::gpu_frame::RelightFrame::new(ctx, gpu, &meshing, solution.sources)
+        let settings = relight_pr::RelightFrameSettings {
+            precision: relight_pr::packed::Precision::F16,
+            shadowed_direct: Some((&lights, 3)),
+        };
+        let frame = relight_pr::RelightFrame::prepare(ctx, &prepared, &settings)
             .map_err(|e| e.to_string())?;
         out.push((Box::new(frame), t0.elapsed().as_secs_f64()));
 
@@ -164,8 +145,7 @@ fn methods(ctx: &GpuContext, scene: &Arc<Scene>, threads: usize) -> Result<Vec<P
             Box::new(RayCastRenderer::new()),
         );
         ibrr.prepare(scene.clone()).map_err(|e| e.to_string())?;
-        let frame =
-            ibrr_ldc::IbrrFrame::new(ctx, ibrr, scene.clone()).map_err(|e| e.to_string())?;
+        let frame = ibrr_ldc::IbrrFrame::prepare(ctx, ibrr).map_err(|e| e.to_string())?;
         out.push((Box::new(frame), t0.elapsed().as_secs_f64()));
         Ok(out)
     })

@@ -20,7 +20,7 @@ use crate::scene_upload::{GpuScene, GpuVertex, upload_scene};
 use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 use scene_core::gpu::shader::ShaderPass;
-use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer};
+use scene_core::gpu::{GpuContext, GpuError, GpuGBuffer, Keyed};
 use scene_core::view::Projection;
 use scene_core::{Error, GBuffer, GBufferRenderer, Scene, View, ViewTarget};
 
@@ -213,15 +213,14 @@ pub struct GpuRasterizer {
     view_uniform: wgpu::Buffer,
     writer: scene_core::gpu::FrameWriter,
     /// The bind group of the last scene drawn (keyed by its materials buffer).
-    bound: std::sync::Mutex<Option<(wgpu::Buffer, wgpu::BindGroup)>>,
+    bound: std::sync::Mutex<Keyed<wgpu::Buffer, wgpu::BindGroup>>,
     /// The attachment views of the last target drawn into (keyed by its textures).
-    views: std::sync::Mutex<Option<TargetViews>>,
+    views: std::sync::Mutex<Keyed<[wgpu::Texture; 5], TargetViews>>,
 }
 
-/// A G-buffer's attachment views and the textures they are of.
+/// A G-buffer target's attachment views.
 #[derive(Debug)]
 struct TargetViews {
-    key: [wgpu::Texture; 5],
     colour: [wgpu::TextureView; 4],
     depth: wgpu::TextureView,
 }
@@ -300,8 +299,8 @@ impl GpuRasterizer {
                 wgpu::BufferUsages::UNIFORM,
             ),
             writer: scene_core::gpu::FrameWriter::new(device, 256),
-            bound: std::sync::Mutex::new(None),
-            views: std::sync::Mutex::new(None),
+            bound: std::sync::Mutex::new(Keyed::new()),
+            views: std::sync::Mutex::new(Keyed::new()),
             ctx: ctx.clone(),
             layout,
             pipeline,
@@ -343,39 +342,36 @@ impl GpuRasterizer {
             );
             self.writer.finish(encoder);
             let mut bound = self.bound.lock().unwrap_or_else(|e| e.into_inner());
-            if bound
-                .as_ref()
-                .is_none_or(|(k, _)| *k != scene.geometry.materials)
-            {
-                let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("gbuffer mrt"),
-                    layout: &self.layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: self.view_uniform.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: scene.geometry.materials.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: scene.face_normals.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 3,
-                            resource: scene.texture_infos.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 4,
-                            resource: scene.texels.as_entire_binding(),
-                        },
-                    ],
-                });
-                *bound = Some((scene.geometry.materials.clone(), bind_group));
-            }
-            let bind_group = bound.as_ref().expect("made above").1.clone();
+            let bind_group = bound
+                .get_or_make(scene.geometry.materials.clone(), |_| {
+                    device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("gbuffer mrt"),
+                        layout: &self.layout,
+                        entries: &[
+                            wgpu::BindGroupEntry {
+                                binding: 0,
+                                resource: self.view_uniform.as_entire_binding(),
+                            },
+                            wgpu::BindGroupEntry {
+                                binding: 1,
+                                resource: scene.geometry.materials.as_entire_binding(),
+                            },
+                            wgpu::BindGroupEntry {
+                                binding: 2,
+                                resource: scene.face_normals.as_entire_binding(),
+                            },
+                            wgpu::BindGroupEntry {
+                                binding: 3,
+                                resource: scene.texture_infos.as_entire_binding(),
+                            },
+                            wgpu::BindGroupEntry {
+                                binding: 4,
+                                resource: scene.texels.as_entire_binding(),
+                            },
+                        ],
+                    })
+                })
+                .clone();
             drop(bound);
             let key = [
                 target.albedo.clone(),
@@ -385,14 +381,10 @@ impl GpuRasterizer {
                 depth_attachment.clone(),
             ];
             let mut kept = self.views.lock().unwrap_or_else(|e| e.into_inner());
-            if kept.as_ref().is_none_or(|v| v.key != key) {
-                *kept = Some(TargetViews {
-                    colour: [0, 1, 2, 3].map(|i| key[i].create_view(&Default::default())),
-                    depth: key[4].create_view(&Default::default()),
-                    key,
-                });
-            }
-            let target_views = kept.as_ref().expect("made above");
+            let target_views = kept.get_or_make(key, |key| TargetViews {
+                colour: [0, 1, 2, 3].map(|i| key[i].create_view(&Default::default())),
+                depth: key[4].create_view(&Default::default()),
+            });
             let views = &target_views.colour;
             let clears = [
                 wgpu::Color::TRANSPARENT,

@@ -87,13 +87,13 @@ pub struct GpuLdc {
     /// What the glow table was last built for (scene address, triangle count, light
     /// fingerprint) and its length: rebuilt and written (into `glow_buffer`, by a copy in the
     /// frame's encoder) only when the lights change.
-    glow: Option<((usize, usize, u64), u32)>,
+    glow: scene_core::gpu::Keyed<(usize, usize, u64), u32>,
     glow_buffer: KeptBuffer,
     /// A frame's parameters go into `params` by a copy in the frame's own encoder.
     writer: FrameWriter,
     params: wgpu::Buffer,
     /// The bind group and what it was made for.
-    bound: Option<(BindKey, wgpu::BindGroup)>,
+    bound: scene_core::gpu::Keyed<BindKey, wgpu::BindGroup>,
     /// Relit layer values from [`GpuLdc::update_values`], written in the next frame.
     pending_values: Option<Vec<[f32; 4]>>,
 }
@@ -193,7 +193,7 @@ impl GpuLdc {
             lookup,
             fallback_radius,
             bytes: ldc.offsets.len() as u64 * 4 + layers * 48,
-            glow: None,
+            glow: scene_core::gpu::Keyed::new(),
             glow_buffer: KeptBuffer::new("ibrr triangles", wgpu::BufferUsages::STORAGE),
             writer: FrameWriter::new(&ctx.device, 4096),
             params: ctx.frame_buffer(
@@ -201,7 +201,7 @@ impl GpuLdc {
                 std::mem::size_of::<Params>() as u64,
                 wgpu::BufferUsages::UNIFORM,
             ),
-            bound: None,
+            bound: scene_core::gpu::Keyed::new(),
             pending_values: None,
         })
         .map_err(gpu)
@@ -333,14 +333,14 @@ impl GpuLdc {
             scene.triangle_count(),
             lights.fingerprint(),
         );
-        let glow_table = if self.glow.as_ref().is_none_or(|(k, _)| *k != key) {
-            let table = Self::triangles(scene, lights);
-            self.glow = Some((key, table.len() as u32));
-            Some(table)
-        } else {
+        let glow_table = if self.glow.is_for(&key) {
             None
+        } else {
+            let table = Self::triangles(scene, lights);
+            self.glow.set(key, table.len() as u32);
+            Some(table)
         };
-        let triangles = self.glow.as_ref().map_or(0, |(_, n)| *n);
+        let triangles = self.glow.value().copied().unwrap_or(0);
         let glow_bytes = u64::from(triangles) * std::mem::size_of::<GpuTriangle>() as u64;
         let tri = self
             .glow_buffer
@@ -371,10 +371,10 @@ impl GpuLdc {
             output: output.clone(),
             glow: self.glow_buffer.generation(),
         };
-        if self.bound.as_ref().is_none_or(|(k, _)| *k != bind_key) {
+        self.bound.get_or_make(bind_key, |_| {
             let views = [&g.albedo, &g.normal, &g.depth, &g.triangle_id]
                 .map(|t| t.create_view(&Default::default()));
-            let bind = self.pass.bind(
+            self.pass.bind(
                 &ctx.device,
                 &[
                     self.params.as_entire_binding(),
@@ -388,9 +388,8 @@ impl GpuLdc {
                     wgpu::BindingResource::TextureView(&views[2]),
                     wgpu::BindingResource::TextureView(&views[3]),
                 ],
-            );
-            self.bound = Some((bind_key, bind));
-        }
+            )
+        });
         self.writer
             .write(encoder, &self.params, 0, bytemuck::bytes_of(&params));
         if let Some(values) = self.pending_values.take() {
@@ -402,7 +401,7 @@ impl GpuLdc {
                 .write(encoder, &tri, 0, bytemuck::cast_slice(&table));
         }
         self.writer.finish(encoder);
-        let Some((_, bind)) = self.bound.as_ref() else {
+        let Some(bind) = self.bound.value() else {
             unreachable!("made above")
         };
         self.pass.dispatch(encoder, bind, w, h, None);

@@ -33,16 +33,15 @@ impl std::fmt::Debug for IbrrFrame {
 }
 
 impl IbrrFrame {
-    /// Uploads the LDC of `technique` (constructed for `scene`) to `ctx`'s device and
-    /// compiles the passes. Fails when the technique holds no LDC.
-    pub fn new(
-        ctx: &GpuContext,
-        technique: crate::IbrrTechnique,
-        scene: std::sync::Arc<Scene>,
-    ) -> Result<Self, IbrrError> {
-        let ldc = technique
-            .ldc()
-            .ok_or_else(|| IbrrError::Settings("the IBRR has no LDC: prepare it first".into()))?;
+    /// Prepares the IBRR on the host's device `ctx` from its precomputed state, `technique`
+    /// with its LDC constructed ([`crate::IbrrTechnique`]'s `prepare`; its settings choose
+    /// the lookup and the fallback): uploads the LDC and compiles the passes. Every method's
+    /// frame is made this way: `prepare(ctx, precomputed state[, settings])`. Fails when the
+    /// technique holds no LDC.
+    pub fn prepare(ctx: &GpuContext, technique: crate::IbrrTechnique) -> Result<Self, IbrrError> {
+        let not_built = || IbrrError::Settings("the IBRR has no LDC: prepare it first".into());
+        let ldc = technique.ldc().ok_or_else(not_built)?;
+        let scene = technique.scene().ok_or_else(not_built)?.clone();
         let s = &technique.settings;
         let on_gpu = GpuLdc::new(ctx, ldc, s.lookup, s.fallback_radius)?;
         Ok(Self {

@@ -152,6 +152,11 @@ impl IbrrTechnique {
         self.ldc.as_ref()
     }
 
+    /// The scene the LDC is being (or was) constructed for; `None` before `prepare`.
+    pub fn scene(&self) -> Option<&Arc<Scene>> {
+        self.construction.as_ref().map(|c| &c.scene)
+    }
+
     /// How much the last round of progressive refinement changed the LDC
     /// ([`Ldc::change_from`]); `None` before a second round is complete.
     pub fn last_change(&self) -> Option<f64> {

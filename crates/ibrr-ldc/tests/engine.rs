@@ -171,7 +171,7 @@ fn the_frame_contract_gives_the_reconstruction_and_creates_nothing_per_frame() {
         })
         .collect();
 
-    let mut method = ibrr_ldc::IbrrFrame::new(&ctx, technique(), scene.clone()).unwrap();
+    let mut method = ibrr_ldc::IbrrFrame::prepare(&ctx, technique()).unwrap();
     assert_eq!(method.name(), "ibrr");
     let target = ctx.create_texture_2d(
         "frame target",

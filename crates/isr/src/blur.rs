@@ -104,68 +104,6 @@ pub fn blur_pass(
         .collect()
 }
 
-/// The GPU pass: one pipeline per direction (the shader's `HORIZONTAL` constant) over one
-/// compiled module.
-pub(crate) struct GpuPass {
-    /// Horizontal, vertical.
-    pub pipelines: [scene_core::gpu::ComputePass; 2],
-}
-
-impl GpuPass {
-    pub(crate) fn new(device: &wgpu::Device) -> Result<Self, scene_core::gpu::GpuError> {
-        use crate::gpu::{storage_texture_entry, texture_entry, uniform_entry};
-        let module = crate::shaders::BLUR.create_module(device)?;
-        let entries = [
-            uniform_entry(0),
-            texture_entry(1, false),
-            texture_entry(2, false),
-            texture_entry(3, true),
-            texture_entry(4, false),
-            storage_texture_entry(5, wgpu::TextureFormat::Rgba32Float),
-        ];
-        let make = |horizontal: bool| {
-            scene_core::gpu::ComputePass::from_module(
-                device,
-                "isr blur",
-                &module,
-                &entries,
-                &[("HORIZONTAL", if horizontal { 1.0 } else { 0.0 })],
-            )
-        };
-        Ok(Self {
-            pipelines: [make(true), make(false)],
-        })
-    }
-
-    /// A bind group of the `horizontal` (else vertical) pipeline.
-    pub(crate) fn bind(
-        &self,
-        device: &wgpu::Device,
-        horizontal: bool,
-        globals: &wgpu::Buffer,
-        coarse: &scene_core::gpu::GpuGBuffer,
-        input: &wgpu::Texture,
-        out: &wgpu::Texture,
-    ) -> wgpu::BindGroup {
-        self.pipeline(horizontal).bind_buffers_then_textures(
-            device,
-            &[globals],
-            &[
-                &coarse.normal,
-                &coarse.depth,
-                &coarse.triangle_id,
-                input,
-                out,
-            ],
-        )
-    }
-
-    /// The pipeline of one direction.
-    pub(crate) fn pipeline(&self, horizontal: bool) -> &scene_core::gpu::ComputePass {
-        &self.pipelines[usize::from(!horizontal)]
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

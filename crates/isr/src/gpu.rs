@@ -1,6 +1,5 @@
 //! The GPU path: the same frame as [`crate::render_cpu`] in wgpu compute passes, one shader
-//! per pass in `shaders/isr/` (each pass module owns its pipeline, bind group layout and
-//! dispatch), from a [`GpuGBuffer`] made by anyone into a caller-provided texture, with no
+//! per pass in `shaders/isr/` (each with its pipeline and bind groups in [`crate::passes`]), from a [`GpuGBuffer`] made by anyone into a caller-provided texture, with no
 //! readback in the frame.
 //!
 //! Engine integration, a frame per submit:
@@ -39,16 +38,18 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use scene_core::gbuffer::downsample::{GpuDownsampler, coarse_size};
-use scene_core::gpu::{FrameWriter, GpuContext, GpuError, GpuGBuffer, PassTimer};
+use scene_core::gpu::{FrameWriter, GpuContext, GpuError, GpuGBuffer, Keyed, PassTimer};
 use scene_core::lights::LightState;
 use scene_core::{GBuffer, Image, View};
 
 use crate::geometry::Screen;
 use crate::light_set::LightSet;
-use crate::lighting::Variant;
+use crate::passes::{
+    BlurPass, LightBuffers, LightingPass, RadiosityPass, UpsamplePass, Variant, bind_lighting,
+};
 use crate::radiosity::SamplePattern;
 use crate::settings::{Blur, Estimator, IsrSettings, Sender};
-use crate::{IsrError, PassTimings, blur, lighting, radiosity, upsample};
+use crate::{IsrError, PassTimings};
 
 /// Workgroup edge of every ISR shader (8 x 8 invocations).
 pub const WORKGROUP: u32 = scene_core::gpu::WORKGROUP;
@@ -146,23 +147,6 @@ impl Globals {
 }
 
 pub use scene_core::shadowed_lights::gpu::{GpuLight, gpu_emitters, gpu_lights};
-
-// ---- pipeline helpers used by the pass modules ----
-
-/// A sampled (read with `textureLoad`) 2D texture binding: `u32` or non-filterable float.
-pub(crate) fn texture_entry(binding: u32, uint: bool) -> wgpu::BindGroupLayoutEntry {
-    if uint {
-        layout::texture(binding, wgpu::TextureSampleType::Uint)
-    } else {
-        layout::float_texture(binding)
-    }
-}
-
-pub(crate) use scene_core::gpu::layout;
-pub(crate) use scene_core::gpu::layout::{
-    storage_buffer as storage_buffer_entry, storage_texture as storage_texture_entry,
-    uniform as uniform_entry,
-};
 
 fn view_of(t: &wgpu::Texture) -> wgpu::TextureView {
     t.create_view(&Default::default())
@@ -333,10 +317,10 @@ pub struct GpuIsr {
     light_set: LightSet,
     light_state: u64,
     downsample: GpuDownsampler,
-    lighting: lighting::GpuPass,
-    radiosity: radiosity::GpuPass,
-    blur: blur::GpuPass,
-    upsample: upsample::GpuPass,
+    lighting: LightingPass,
+    radiosity: RadiosityPass,
+    blur: BlurPass,
+    upsample: UpsamplePass,
     lights: wgpu::Buffer,
     shadow_texels: wgpu::Buffer,
     /// Texels of the light set's shadow maps (the light set kept has none).
@@ -356,7 +340,7 @@ pub struct GpuIsr {
     /// steady stream of frames allocates nothing.
     writer: FrameWriter,
     /// The bind groups of the last frame's inputs, reused while they stay the same.
-    bound: Option<Bound>,
+    bound: Keyed<BindKey, Bound>,
     /// Set by [`GpuIsr::apply`]: the next frame rewrites the light and emitter buffers.
     lights_changed: bool,
 }
@@ -378,7 +362,6 @@ struct BindKey {
 
 /// A frame's bind groups (`None` for passes that do not run).
 struct Bound {
-    key: BindKey,
     downsample: Option<wgpu::BindGroup>,
     senders: Option<wgpu::BindGroup>,
     radiosity: Option<wgpu::BindGroup>,
@@ -452,10 +435,10 @@ impl GpuIsr {
             shadow_texel_count: scene.shadow_texels.len(),
             light_state: LightState::default().fingerprint(),
             downsample: GpuDownsampler::new(ctx)?,
-            lighting: lighting::GpuPass::new(device)?,
-            radiosity: radiosity::GpuPass::new(device)?,
-            blur: blur::GpuPass::new(device)?,
-            upsample: upsample::GpuPass::new(device)?,
+            lighting: LightingPass::new(device)?,
+            radiosity: RadiosityPass::new(device)?,
+            blur: BlurPass::new(device)?,
+            upsample: UpsamplePass::new(device)?,
             lights: ctx.buffer_with("isr lights", bytemuck::cast_slice(&lights), storage),
             shadow_texels: ctx.buffer_with(
                 "isr shadow maps",
@@ -478,7 +461,7 @@ impl GpuIsr {
                 wgpu::BufferUsages::UNIFORM,
             ),
             writer: FrameWriter::new(device, 4096),
-            bound: None,
+            bound: Keyed::new(),
             lights_changed: false,
         };
         // Every pipeline now, none in a frame: a first frame must not hitch.
@@ -556,7 +539,7 @@ impl GpuIsr {
         self.lights_changed = true;
     }
 
-    /// A `width x height` `Rgba32Float` texture usable as [`GpuIsr::render`]'s output (with
+    /// A `width x height` `Rgba32Float` texture usable as [`GpuIsr::encode`]'s output (with
     /// `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC` usage).
     pub fn output_texture(&self, width: u32, height: u32) -> Result<wgpu::Texture, IsrError> {
         self.ctx.check_texture_size(width, height)?;
@@ -603,22 +586,9 @@ impl GpuIsr {
         self.record(&mut Recorder::Into(encoder), inputs, settings, output)
     }
 
-    /// Records and submits one frame (no readback, no waiting).
-    pub fn render(
-        &mut self,
-        inputs: &GpuIsrInputs<'_>,
-        settings: &IsrSettings,
-        output: &wgpu::Texture,
-    ) -> Result<(), IsrError> {
-        let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
-        self.encode(&mut encoder, inputs, settings, output)?;
-        self.ctx.queue.submit([encoder.finish()]);
-        Ok(())
-    }
-
     /// Runs one frame and returns the time of each pass (for benchmarks): from timestamp
     /// queries in one submission where the adapter has them, else submitting and waiting
-    /// for each pass (slower than [`GpuIsr::render`]).
+    /// for each pass (slower than [`GpuIsr::encode`]).
     pub fn render_timed(
         &mut self,
         inputs: &GpuIsrInputs<'_>,
@@ -653,10 +623,10 @@ impl GpuIsr {
         }
     }
 
-    /// Convenience for tests and the `Technique`: uploads CPU G-buffers (`coarse: None`
-    /// downsamples on the GPU), runs a timed frame into an `Rgba32Float` texture and reads
-    /// the image back.
-    pub fn render_gbuffers(
+    /// The CPU twin's way in (tests, the CPU-rendered G-buffer of the `Technique`):
+    /// uploads CPU G-buffers (`coarse: None` downsamples `full` on the GPU), runs a timed
+    /// frame into an `Rgba32Float` texture and reads the image back.
+    pub fn render_gbuffer(
         &mut self,
         full: &GBuffer,
         coarse: Option<&GBuffer>,
@@ -721,16 +691,6 @@ impl GpuIsr {
     ) -> Result<(Image, PassTimings), IsrError> {
         let ctx = self.ctx.clone();
         ctx.validated_with(|| self.run_read_back(full, None, view, settings))
-    }
-
-    /// [`GpuIsr::render_gbuffers`] with the coarse buffer made on the GPU.
-    pub fn render_gbuffer(
-        &mut self,
-        full: &GBuffer,
-        view: &View,
-        settings: &IsrSettings,
-    ) -> Result<(Image, PassTimings), IsrError> {
-        self.render_gbuffers(full, None, view, settings)
     }
 
     fn check_output(&self, output: &wgpu::Texture, full: &GpuGBuffer) -> Result<(), IsrError> {
@@ -853,11 +813,12 @@ impl GpuIsr {
             blur: settings.blur_radius > 0,
             half: key_half(output),
         };
-        if self.bound.as_ref().is_none_or(|b| b.key != key) {
-            self.bound = None;
-            self.bound = Some(self.bind(inputs, settings, output, key)?);
+        if !self.bound.is_for(&key) {
+            self.bound.clear();
+            let bound = self.bind(inputs, settings, output, &key)?;
+            self.bound.set(key, bound);
         }
-        let (Some(t), Some(b)) = (self.targets.as_ref(), self.bound.as_ref()) else {
+        let (Some(t), Some(b)) = (self.targets.as_ref(), self.bound.value()) else {
             return Err(IsrError::SizeMismatch("no intermediate textures".into()));
         };
         let coarse: &GpuGBuffer = match (inputs.coarse, t.coarse_gbuffer.as_ref()) {
@@ -931,7 +892,7 @@ impl GpuIsr {
         inputs: &GpuIsrInputs<'_>,
         settings: &IsrSettings,
         output: &wgpu::Texture,
-        key: BindKey,
+        key: &BindKey,
     ) -> Result<Bound, IsrError> {
         let device = &self.ctx.device;
         let Some(t) = self.targets.as_ref() else {
@@ -949,7 +910,7 @@ impl GpuIsr {
             ),
             (None, None) => return Err(IsrError::SizeMismatch("no coarse buffer".into())),
         };
-        let light_buffers = lighting::LightBuffers {
+        let light_buffers = LightBuffers {
             lights: &self.lights,
             shadow_texels: &self.shadow_texels,
             emitter_of: &self.emitter_of,
@@ -960,7 +921,7 @@ impl GpuIsr {
         if key.run_isr {
             if key.lit {
                 let lp = self.lighting.pipeline(device, Variant::Senders);
-                senders = Some(lighting::bind(
+                senders = Some(bind_lighting(
                     lp,
                     device,
                     globals,
@@ -1008,7 +969,7 @@ impl GpuIsr {
                 half: key.half,
             },
         );
-        let compose = lighting::bind(
+        let compose = bind_lighting(
             compose_pass,
             device,
             globals,
@@ -1018,7 +979,6 @@ impl GpuIsr {
             &view_of(output),
         );
         Ok(Bound {
-            key,
             downsample,
             senders,
             radiosity,

@@ -4,11 +4,13 @@
 
 use crate::gpu::{GpuIsr, GpuIsrInputs};
 use crate::settings::IsrSettings;
+use crate::{IsrError, LightSet};
+use scene_core::gpu::GpuContext;
 
 /// ISR, or DL with [`IsrSettings::dl`], on the frame contract
 /// ([`scene_core::gpu::GpuFrame`]): each frame applies the frame's light state
 /// ([`GpuIsr::apply`], factors only) and records ISR's passes into the host's target
-/// ([`GpuIsr::encode`]). Prepared by [`GpuIsr::new`] on the host's device.
+/// ([`GpuIsr::encode`]). Made by [`IsrFrame::prepare`] on the host's device.
 pub struct IsrFrame {
     /// The prepared method.
     pub isr: GpuIsr,
@@ -27,18 +29,25 @@ impl std::fmt::Debug for IsrFrame {
 }
 
 impl IsrFrame {
-    /// `isr` rendering with `settings` (named `dl` when they are direct light only).
-    pub fn new(isr: GpuIsr, settings: IsrSettings) -> Self {
+    /// Prepares ISR (or DL) on the host's device `ctx` from its precomputed state, the
+    /// light set `lights` (lights, shadow maps, emitter samples: [`LightSet::new`]), to
+    /// render every frame with `settings` (named `dl` when they are direct light only).
+    /// Every method's frame is made this way: `prepare(ctx, precomputed state, settings)`.
+    pub fn prepare(
+        ctx: &GpuContext,
+        lights: &LightSet,
+        settings: IsrSettings,
+    ) -> Result<Self, IsrError> {
         let name = if settings.is_direct_only() {
             "dl"
         } else {
             "isr"
         };
-        Self {
-            isr,
+        Ok(Self {
+            isr: GpuIsr::new(ctx, lights)?,
             settings,
             name,
-        }
+        })
     }
 }
 

@@ -35,9 +35,12 @@
 //! - [`IsrTechnique`] and [`DlTechnique`]: [`scene_core::Technique`]s holding any
 //!   [`scene_core::GBufferRenderer`].
 //!
-//! The passes, each a module here and a shader in `shaders/isr/`: [`lighting`] (also the
-//! `Lit` senders on the coarse buffer; its shader is `lighting.wgsl` importing scene-core's
+//! The passes, each a CPU module here with the paper's equations, a shader in
+//! `shaders/isr/` and a GPU pipeline in [`passes`]: [`lighting`] (also the `Lit` senders on
+//! the coarse buffer; its shader is `lighting.wgsl` importing scene-core's
 //! `light_set.wgsl` and `shadow.wgsl`), [`radiosity`] (ISR + SSAO), [`blur`], [`upsample`].
+//! A GPU frame reads, in order: [`gpu_frame`] (the frame contract), [`gpu`] (`GpuIsr`: the
+//! passes recorded in order, their bind groups kept), [`passes`].
 //! The coarse buffers come from scene-core's downsampling ([`downsample()`],
 //! `shaders/scene-core/downsample.wgsl`). The lights and their exponential shadow maps are
 //! scene-core's [`shadowed_lights`](scene_core::shadowed_lights), shared with relighting's
@@ -52,9 +55,9 @@ pub mod geometry;
 pub mod gpu;
 pub mod gpu_frame;
 pub mod lighting;
+pub mod passes;
 pub mod radiosity;
 pub mod settings;
-pub mod shaders;
 pub mod technique;
 pub mod upsample;
 
@@ -69,9 +72,9 @@ pub use scene_core::gbuffer::downsample::{DownsampleMode, coarse_size, downsampl
 pub use settings::{Blur, Estimator, IsrSettings, Radius, Sender, ShadowSettings};
 pub use technique::{Backend, DlTechnique, IsrTechnique};
 
+/// Every shader pass of ISR, as `cargo xtask shaders` validates them (see [`passes`]).
+pub use passes::SHADER_PASSES;
 pub use scene_core;
-/// Every shader pass of ISR, as `cargo xtask shaders` validates them (see [`shaders`]).
-pub use shaders::SHADER_PASSES;
 /// The wgpu this crate's GPU path is built on (use it for the textures you hand in).
 pub use wgpu;
 

@@ -221,60 +221,6 @@ fn gather(
     gi.extend(access)
 }
 
-/// The GPU pass.
-pub(crate) struct GpuPass {
-    pub pipeline: scene_core::gpu::ComputePass,
-}
-
-impl GpuPass {
-    pub(crate) fn new(device: &wgpu::Device) -> Result<Self, scene_core::gpu::GpuError> {
-        use crate::gpu::{
-            storage_buffer_entry, storage_texture_entry, texture_entry, uniform_entry,
-        };
-        Ok(Self {
-            pipeline: scene_core::gpu::ComputePass::new(
-                device,
-                "isr radiosity",
-                &crate::shaders::RADIOSITY,
-                &[
-                    uniform_entry(0),
-                    storage_buffer_entry(1),
-                    texture_entry(2, false),
-                    texture_entry(3, false),
-                    texture_entry(4, false),
-                    texture_entry(5, true),
-                    texture_entry(6, false),
-                    storage_texture_entry(7, wgpu::TextureFormat::Rgba32Float),
-                ],
-                &[],
-            )?,
-        })
-    }
-
-    pub(crate) fn bind(
-        &self,
-        device: &wgpu::Device,
-        globals: &wgpu::Buffer,
-        pattern: &wgpu::Buffer,
-        coarse: &scene_core::gpu::GpuGBuffer,
-        senders: &wgpu::Texture,
-        out: &wgpu::Texture,
-    ) -> wgpu::BindGroup {
-        self.pipeline.bind_buffers_then_textures(
-            device,
-            &[globals, pattern],
-            &[
-                &coarse.albedo,
-                &coarse.normal,
-                &coarse.depth,
-                &coarse.triangle_id,
-                senders,
-                out,
-            ],
-        )
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -169,7 +169,7 @@ impl Technique for IsrTechnique {
                     Some(g) => gpu.render_gpu_gbuffer(&g, &frame.view, &self.settings)?,
                     None => {
                         let full = self.renderer.render_view(&frame.view, width, height)?;
-                        gpu.render_gbuffer(&full, &frame.view, &self.settings)?
+                        gpu.render_gbuffer(&full, None, &frame.view, &self.settings)?
                     }
                 };
                 self.timings = timings;

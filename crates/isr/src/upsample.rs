@@ -120,61 +120,6 @@ fn upsample_pixel(
     best.map_or(NOTHING, |(_, j)| values[j])
 }
 
-/// The GPU pass.
-pub(crate) struct GpuPass {
-    pub pipeline: scene_core::gpu::ComputePass,
-}
-
-impl GpuPass {
-    pub(crate) fn new(device: &wgpu::Device) -> Result<Self, scene_core::gpu::GpuError> {
-        use crate::gpu::{storage_texture_entry, texture_entry, uniform_entry};
-        Ok(Self {
-            pipeline: scene_core::gpu::ComputePass::new(
-                device,
-                "isr upsample",
-                &crate::shaders::UPSAMPLE,
-                &[
-                    uniform_entry(0),
-                    texture_entry(1, false),
-                    texture_entry(2, false),
-                    texture_entry(3, true),
-                    texture_entry(4, false),
-                    texture_entry(5, false),
-                    texture_entry(6, true),
-                    texture_entry(7, false),
-                    storage_texture_entry(8, wgpu::TextureFormat::Rgba32Float),
-                ],
-                &[],
-            )?,
-        })
-    }
-
-    pub(crate) fn bind(
-        &self,
-        device: &wgpu::Device,
-        globals: &wgpu::Buffer,
-        full: &scene_core::gpu::GpuGBuffer,
-        coarse: &scene_core::gpu::GpuGBuffer,
-        values: &wgpu::Texture,
-        out: &wgpu::Texture,
-    ) -> wgpu::BindGroup {
-        self.pipeline.bind_buffers_then_textures(
-            device,
-            &[globals],
-            &[
-                &full.normal,
-                &full.depth,
-                &full.triangle_id,
-                &coarse.normal,
-                &coarse.depth,
-                &coarse.triangle_id,
-                values,
-                out,
-            ],
-        )
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -141,7 +141,7 @@ fn engine_textures_are_checked_and_two_views_share_one_submission() {
     let alone: Vec<Image> = setups
         .iter()
         .map(|s| {
-            isr.render_gbuffer(&s.full, &s.view, &IsrSettings::default())
+            isr.render_gbuffer(&s.full, None, &s.view, &IsrSettings::default())
                 .unwrap()
                 .0
         })
@@ -202,7 +202,8 @@ fn reverse_z_and_infinite_inputs_give_the_standard_image() {
             coarse: None,
             view,
         };
-        gpu.render(&inputs, &s, &target).unwrap();
+        ctx.submit_encoded(|e| gpu.encode(e, &inputs, &s, &target))
+            .unwrap();
         let px = ctx.read_texture_rgba32f(&target).unwrap();
         Image::from_pixels(
             w,
@@ -298,7 +299,8 @@ fn the_frame_contract_gives_isr_and_dl_and_creates_nothing_per_frame() {
                     coarse: None,
                     view: &setup.view,
                 };
-                gpu.render(&inputs, &settings, &out).unwrap();
+                ctx.submit_encoded(|e| gpu.encode(e, &inputs, &settings, &out))
+                    .unwrap();
                 ctx.read_texture_rgba32f(&out).unwrap()
             })
             .collect();
@@ -326,7 +328,7 @@ fn the_frame_contract_gives_isr_and_dl_and_creates_nothing_per_frame() {
             assert!(mean_error(&cpu, &gpu) < 1e-3 * m, "{name}: mean");
             assert!(dmax <= 1e-4 * f64::from(peak.max(1.0)), "{name}: {dmax}");
         }
-        let mut method = IsrFrame::new(GpuIsr::new(&ctx, &setup.prepared).unwrap(), settings);
+        let mut method = IsrFrame::prepare(&ctx, &setup.prepared, settings).unwrap();
         assert_eq!(method.name(), name);
         let out = target("frame");
         let default = LightState::default();
@@ -401,7 +403,8 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
             coarse: None,
             view: &setup.view,
         };
-        gpu.render(&inputs, &s, &target).unwrap();
+        ctx.submit_encoded(|e| gpu.encode(e, &inputs, &s, &target))
+            .unwrap();
         ctx.read_texture_rgba32f(&target).unwrap()
     };
     let expected = render(&mut GpuIsr::new(&ctx, &cpu).unwrap());

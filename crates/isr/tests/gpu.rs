@@ -48,7 +48,7 @@ fn gpu_matches_cpu_on_the_builtin_scenes() {
             let cpu = render_cpu(&setup.prepared, &setup.inputs(), &s).unwrap();
             // The same coarse buffer...
             let (img, _) = gpu
-                .render_gbuffers(&setup.full, Some(&setup.coarse), &setup.view, &s)
+                .render_gbuffer(&setup.full, Some(&setup.coarse), &setup.view, &s)
                 .unwrap();
             let m = image_mean(&cpu.image);
             let e = mean_error(&cpu.image, &img);
@@ -78,7 +78,9 @@ fn gpu_matches_cpu_on_the_builtin_scenes() {
                 "{name} {mode}: max |cpu - gpu| = {dmax:.3e} at pixel {at}, over {bound:.3e}"
             );
             // ... and the coarse buffer downsampled on the GPU.
-            let (img, _) = gpu.render_gbuffer(&setup.full, &setup.view, &s).unwrap();
+            let (img, _) = gpu
+                .render_gbuffer(&setup.full, None, &setup.view, &s)
+                .unwrap();
             let e = mean_error(&cpu.image, &img);
             assert!(
                 e < 1e-3 * m,
@@ -186,12 +188,14 @@ fn bad_outputs_and_inputs_are_typed_errors() {
     let s = IsrSettings::default();
     let wrong_size = output(&ctx, 16, 24, wgpu::TextureFormat::Rgba32Float);
     assert!(matches!(
-        gpu.render(&inputs, &s, &wrong_size).unwrap_err(),
+        ctx.submit_encoded(|e| gpu.encode(e, &inputs, &s, &wrong_size))
+            .unwrap_err(),
         IsrError::SizeMismatch(_)
     ));
     let wrong_format = output(&ctx, 32, 24, wgpu::TextureFormat::Rgba8Unorm);
     assert!(matches!(
-        gpu.render(&inputs, &s, &wrong_format).unwrap_err(),
+        ctx.submit_encoded(|e| gpu.encode(e, &inputs, &s, &wrong_format))
+            .unwrap_err(),
         IsrError::Gpu(_)
     ));
     let no_storage = ctx.device.create_texture(&wgpu::TextureDescriptor {
@@ -208,11 +212,15 @@ fn bad_outputs_and_inputs_are_typed_errors() {
         usage: wgpu::TextureUsages::TEXTURE_BINDING,
         view_formats: &[],
     });
-    assert!(gpu.render(&inputs, &s, &no_storage).is_err());
+    assert!(
+        ctx.submit_encoded(|e| gpu.encode(e, &inputs, &s, &no_storage))
+            .is_err()
+    );
     let bad = IsrSettings { samples: 0, ..s };
     let ok = output(&ctx, 32, 24, wgpu::TextureFormat::Rgba32Float);
     assert!(matches!(
-        gpu.render(&inputs, &bad, &ok).unwrap_err(),
+        ctx.submit_encoded(|e| gpu.encode(e, &inputs, &bad, &ok))
+            .unwrap_err(),
         IsrError::InvalidSetting { .. }
     ));
     // NaN in a CPU G-buffer is caught before upload.
@@ -220,13 +228,13 @@ fn bad_outputs_and_inputs_are_typed_errors() {
     let i = nan.triangle_id.iter().position(|&t| t != u32::MAX).unwrap();
     nan.normal[i].x = f32::NAN;
     assert!(matches!(
-        gpu.render_gbuffer(&nan, &setup.view, &s).unwrap_err(),
+        gpu.render_gbuffer(&nan, None, &setup.view, &s).unwrap_err(),
         IsrError::NonFinite { .. }
     ));
     // A 1x1 frame.
     let one = Setup::builtin("cornell", 0, 1, 1);
     let mut gpu = GpuIsr::new(&ctx, &one.prepared).unwrap();
-    let (img, _) = gpu.render_gbuffer(&one.full, &one.view, &s).unwrap();
+    let (img, _) = gpu.render_gbuffer(&one.full, None, &one.view, &s).unwrap();
     assert!(img.pixels[0].is_finite());
 }
 
@@ -313,7 +321,8 @@ fn steady_state_frames_create_no_gpu_objects() {
             coarse: None,
             view,
         };
-        gpu.render(&inputs, &s, &t).unwrap();
+        ctx.submit_encoded(|e| gpu.encode(e, &inputs, &s, &t))
+            .unwrap();
         ctx.read_texture_bytes(&t).unwrap()
     };
     let (a_alone, b_alone) = (alone(&setup.view, &mut gpu), alone(&other, &mut gpu));

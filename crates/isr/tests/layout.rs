@@ -4,7 +4,7 @@
 //! the `#[repr(C)]` Rust struct's (`scene_core::check_layout!`).
 
 use isr::gpu::{Globals, GpuLight};
-use isr::shaders::{LIGHTING, SHADER_PASSES};
+use isr::passes::{LIGHTING, SHADER_PASSES};
 use scene_core::check_layout;
 
 #[test]

@@ -62,7 +62,7 @@ pub struct TriangleIdPass {
     /// A 1 x 1 depth for frames without the host's.
     no_depth: wgpu::Texture,
     /// The bind group and the depth texture it was made over.
-    bind: Mutex<Option<(wgpu::Texture, wgpu::BindGroup)>>,
+    bind: Mutex<scene_core::gpu::Keyed<wgpu::Texture, wgpu::BindGroup>>,
     vertices: u32,
     writer: FrameWriter,
     targets: Mutex<Option<Targets>>,
@@ -172,7 +172,7 @@ impl TriangleIdPass {
                 corners,
                 layout,
                 no_depth,
-                bind: Mutex::new(None),
+                bind: Mutex::new(scene_core::gpu::Keyed::new()),
                 vertices,
                 writer: FrameWriter::new(device, 256),
                 targets: Mutex::new(None),
@@ -274,32 +274,31 @@ impl TriangleIdPass {
         self.writer.finish(encoder);
         let depth = host_depth.unwrap_or(&self.no_depth);
         let mut bound = self.bind.lock().unwrap_or_else(|e| e.into_inner());
-        if bound.as_ref().is_none_or(|(k, _)| k != depth) {
-            let depth_view = depth.create_view(&Default::default());
-            let bind = self
-                .ctx
-                .device
-                .create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("scene-core triangle ids"),
-                    layout: &self.layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: self.params.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: self.corners.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: wgpu::BindingResource::TextureView(&depth_view),
-                        },
-                    ],
-                });
-            *bound = Some((depth.clone(), bind));
-        }
-        let bind = bound.as_ref().expect("made above").1.clone();
+        let bind = bound
+            .get_or_make(depth.clone(), |depth| {
+                let depth_view = depth.create_view(&Default::default());
+                self.ctx
+                    .device
+                    .create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("scene-core triangle ids"),
+                        layout: &self.layout,
+                        entries: &[
+                            wgpu::BindGroupEntry {
+                                binding: 0,
+                                resource: self.params.as_entire_binding(),
+                            },
+                            wgpu::BindGroupEntry {
+                                binding: 1,
+                                resource: self.corners.as_entire_binding(),
+                            },
+                            wgpu::BindGroupEntry {
+                                binding: 2,
+                                resource: wgpu::BindingResource::TextureView(&depth_view),
+                            },
+                        ],
+                    })
+            })
+            .clone();
         drop(bound);
         let mut pass = raster::one_target_pass(
             encoder,

@@ -11,7 +11,7 @@ use glam::Vec3;
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{storage_buffer, storage_buffer_rw, uniform};
 use scene_core::gpu::shader::{ShaderPass, Wgsl};
-use scene_core::gpu::{FrameWriter, GpuContext, GpuError, GpuGBuffer, KeptBuffer};
+use scene_core::gpu::{FrameWriter, GpuContext, GpuError, GpuGBuffer, KeptBuffer, Keyed};
 use scene_core::shadowed_lights::LightSet;
 use scene_core::shadowed_lights::gpu::{LIGHT_SET, SHADOW, ShadowParams, gpu_lights};
 use scene_core::view::FrustumReconstruction;
@@ -128,7 +128,7 @@ pub struct GpuRelight {
     /// The per-pixel direct light (grown when a frame needs more).
     direct: std::sync::Mutex<KeptBuffer>,
     /// The display's bind group and what it was made for.
-    display_bind: std::sync::Mutex<Option<(DisplayKey, wgpu::BindGroup)>>,
+    display_bind: std::sync::Mutex<Keyed<DisplayKey, wgpu::BindGroup>>,
     /// The shadow-mapped lights of the per-frame direct pass, once set.
     shadowed: Option<ShadowedDirect>,
 }
@@ -147,7 +147,7 @@ struct ShadowedDirect {
     footprint: u32,
     /// The pass' bind group and what it was made for: the G-buffer's normal, depth and id
     /// textures and the direct buffer's generation.
-    bind: std::sync::Mutex<Option<(DirectKey, wgpu::BindGroup)>>,
+    bind: std::sync::Mutex<Keyed<DirectKey, wgpu::BindGroup>>,
 }
 
 /// What the direct pass' bind group depends on: the G-buffer's normal, depth and id
@@ -343,7 +343,7 @@ impl GpuRelight {
                 "pixel direct",
                 wgpu::BufferUsages::STORAGE,
             )),
-            display_bind: std::sync::Mutex::new(None),
+            display_bind: std::sync::Mutex::new(Keyed::new()),
             shadowed: None,
             ctx: ctx.clone(),
             k: packed.k,
@@ -666,7 +666,7 @@ impl GpuRelight {
                 shadow: ShadowParams::of(set),
                 footprint,
                 pass,
-                bind: std::sync::Mutex::new(None),
+                bind: std::sync::Mutex::new(Keyed::new()),
             })
             .map_err(gpu)?;
         self.shadowed = Some(shadowed);
@@ -800,10 +800,10 @@ impl GpuRelight {
         };
         drop(kept);
         let mut cached = self.display_bind.lock().unwrap_or_else(|e| e.into_inner());
-        if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+        let bind = cached.get_or_make(key, |_| {
             let views =
                 [&g.albedo, &g.depth, &g.triangle_id].map(|t| t.create_view(&Default::default()));
-            let bind = pass.bind(
+            pass.bind(
                 &ctx.device,
                 &[
                     self.display_params.as_entire_binding(),
@@ -816,12 +816,8 @@ impl GpuRelight {
                     wgpu::BindingResource::TextureView(&views[1]),
                     wgpu::BindingResource::TextureView(&views[2]),
                 ],
-            );
-            *cached = Some((key, bind));
-        }
-        let Some((_, bind)) = cached.as_ref() else {
-            unreachable!("made above")
-        };
+            )
+        });
         // The direct pass' bind group (shadow-mapped lights only).
         let shadowed = match (direct_in, &self.shadowed) {
             (Direct::Shadowed, Some(s)) if self.k > 0 => {
@@ -830,10 +826,10 @@ impl GpuRelight {
                     generation,
                 );
                 let mut cached = s.bind.lock().unwrap_or_else(|e| e.into_inner());
-                if cached.as_ref().is_none_or(|(k, _)| *k != key) {
+                cached.get_or_make(key, |_| {
                     let views = [&g.normal, &g.depth, &g.triangle_id]
                         .map(|t| t.create_view(&Default::default()));
-                    let bind = s.pass.bind(
+                    s.pass.bind(
                         &ctx.device,
                         &[
                             s.params.as_entire_binding(),
@@ -845,9 +841,8 @@ impl GpuRelight {
                             s.lights.as_entire_binding(),
                             s.texels.as_entire_binding(),
                         ],
-                    );
-                    *cached = Some((key, bind));
-                }
+                    )
+                });
                 let params = DirectParams {
                     frustum,
                     width: w,
@@ -881,7 +876,7 @@ impl GpuRelight {
             .write(encoder, &direct_buf, 0, bytemuck::cast_slice(&direct));
         self.writer.finish(encoder);
         if let Some((s, cached)) = &shadowed
-            && let Some((_, bind)) = cached.as_ref()
+            && let Some(bind) = cached.value()
         {
             s.pass.dispatch(encoder, bind, w, h, None);
         }

@@ -18,9 +18,13 @@ use scene_core::View;
 use scene_core::gpu::{FrameInputs, GpuContext, KeptBuffer, PixelsToTexture, check_frame_target};
 
 use crate::RelightError;
+use crate::display::light_slots;
 use crate::gpu::GpuRelight;
 use crate::mesh::Meshing;
+use crate::packed::Precision;
 use crate::solver::Source;
+use crate::technique::Prepared;
+use scene_core::shadowed_lights::LightSet;
 
 /// Relighting on the frame contract (module docs): the solution on the GPU, the pass that
 /// renders the element ids, and the pass that writes the display into the host's target.
@@ -47,14 +51,60 @@ impl std::fmt::Debug for RelightFrame {
     }
 }
 
+/// How [`RelightFrame::prepare`] puts a solution on the GPU.
+#[derive(Clone, Copy, Debug)]
+pub struct RelightFrameSettings<'a> {
+    /// The precision of the form-factor data on the GPU.
+    pub precision: Precision,
+    /// The direct light every frame evaluates per pixel from shadow maps: the scene's
+    /// shadowed lights and the footprint grid (`n` x `n` samples over each pixel,
+    /// [`GpuRelight::set_shadowed_direct`]). `None`: the elements' own direct light (or the
+    /// values [`RelightFrame::set_pixel_direct`] hands in).
+    pub shadowed_direct: Option<(&'a LightSet, u32)>,
+}
+
+impl Default for RelightFrameSettings<'_> {
+    /// Full precision, the elements' direct light.
+    fn default() -> Self {
+        Self {
+            precision: Precision::F32,
+            shadowed_direct: None,
+        }
+    }
+}
+
 impl RelightFrame {
-    /// Wraps `gpu` (a solution over `meshing` uploaded by [`GpuRelight::new`], with
-    /// [`GpuRelight::set_shadowed_direct`] called for the per-frame direct light) and the
-    /// solution's `sources`; uploads the element triangles for the id raster and compiles
-    /// the passes on `ctx`'s device (the one `gpu` lives on). Fails when the element count
-    /// or the sources do not match `gpu`'s, or the elements exceed the adapter's binding
-    /// limit.
-    pub fn new(
+    /// Prepares relighting on the host's device `ctx` from its precomputed state (the
+    /// meshing, the k single-source solutions and the welding of
+    /// [`crate::RelightTechnique`]'s `prepare`, [`Prepared`]): uploads the solution
+    /// ([`GpuRelight::new`]), the shadowed lights when `settings` name them, and the element
+    /// triangles for the id raster, and compiles the passes. Every method's frame is made
+    /// this way: `prepare(ctx, precomputed state, settings)`. Fails when the elements exceed
+    /// the adapter's binding limit.
+    pub fn prepare(
+        ctx: &GpuContext,
+        prepared: &Prepared,
+        settings: &RelightFrameSettings<'_>,
+    ) -> Result<Self, RelightError> {
+        let (meshing, solution) = (&prepared.meshing, &prepared.solution);
+        let mut gpu = GpuRelight::new(
+            ctx,
+            meshing,
+            &prepared.welding,
+            solution,
+            settings.precision,
+        )?;
+        if let Some((lights, footprint)) = settings.shadowed_direct {
+            gpu.set_shadowed_direct(lights, &light_slots(lights, &solution.sources), footprint)?;
+        }
+        Self::with_gpu(ctx, gpu, meshing, solution.sources.clone())
+    }
+
+    /// Wraps `gpu` (a solution over `meshing`) and the solution's `sources`: uploads the
+    /// element triangles for the id raster and compiles the passes on `ctx`'s device (the
+    /// one `gpu` lives on). Fails when the element count or the sources do not match `gpu`'s,
+    /// or the elements exceed the adapter's binding limit.
+    fn with_gpu(
         ctx: &GpuContext,
         gpu: GpuRelight,
         meshing: &Meshing,

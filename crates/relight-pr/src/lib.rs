@@ -51,10 +51,11 @@ pub mod solver;
 pub mod technique;
 pub mod visibility;
 
+pub use gpu_frame::{RelightFrame, RelightFrameSettings};
 pub use hierarchical::{HierarchySettings, HierarchyStats};
 pub use mesh::{MeshBudget, MeshSettings, Meshing};
 pub use solver::{FormFactorMethod, Solution, SolverSettings, Strategy, solve, solve_with};
-pub use technique::RelightTechnique;
+pub use technique::{Prepared, RelightTechnique};
 
 /// Every shader pass of relighting, as `cargo xtask shaders` validates them.
 pub use gpu::SHADER_PASSES;

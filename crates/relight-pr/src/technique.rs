@@ -32,6 +32,47 @@ pub struct Prepared {
     pub rays: RayScene,
 }
 
+impl Prepared {
+    /// Relighting's precomputed state for `scene`, as [`RelightTechnique`]'s `prepare`
+    /// builds it, without a renderer (ray-cast form factors, [`solver::solve`]): the scene's
+    /// rays, its meshing by `mesh`, the k single-source solutions by `solver` (`progress`
+    /// as [`solver::solve`] calls it) and the welding with visibility. What
+    /// [`crate::RelightFrame::prepare`] puts on a GPU.
+    pub fn solve(
+        scene: Arc<Scene>,
+        mesh: &MeshSettings,
+        solver: &SolverSettings,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<Self, crate::RelightError> {
+        Self::solve_mapped(scene, mesh, solver, None, &mut |f, _| progress(f))
+    }
+
+    /// [`Prepared::solve`] with a renderer for hemicube form factors, telling `progress`
+    /// whether the solve is hierarchical too.
+    fn solve_mapped(
+        scene: Arc<Scene>,
+        mesh: &MeshSettings,
+        settings: &SolverSettings,
+        renderer: Option<&mut (dyn GBufferRenderer + Send)>,
+        progress: &mut dyn FnMut(f64, bool),
+    ) -> Result<Self, crate::RelightError> {
+        let k = solver::sources(&scene, &settings.banks)?.len();
+        let rays = RayScene::build(&scene);
+        let meshing = Meshing::with_rays(&scene, mesh, k, &rays)?;
+        let hierarchical = settings.hierarchy_for(meshing.elements.len()).is_some();
+        let progress = &mut |f: f64| progress(f, hierarchical);
+        let solution = solver::solve_with(&scene, &meshing, &rays, renderer, settings, progress)?;
+        let welding = Welding::with_visibility(&meshing, scene.extent(), &rays);
+        Ok(Self {
+            scene,
+            meshing,
+            solution,
+            welding,
+            rays,
+        })
+    }
+}
+
 /// Times of the last frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FrameTimings {
@@ -201,29 +242,16 @@ impl RelightTechnique {
             *state = None;
         }
         scene_core::contract::check(&scene)?;
-        let k = solver::sources(&scene, &self.solver.banks)?.len();
-        let rays = RayScene::build(&scene);
-        let meshing = Meshing::with_rays(&scene, &self.mesh, k, &rays)?;
-        let hierarchical = self.solver.hierarchy_for(meshing.elements.len()).is_some();
-        let progress = &mut |f: f64| progress(f, hierarchical);
-        let solution = solver::solve_with(
-            &scene,
-            &meshing,
-            &rays,
-            Some(self.renderer.as_mut()),
+        let prepared = Prepared::solve_mapped(
+            scene,
+            &self.mesh,
             &self.solver,
+            Some(self.renderer.as_mut()),
             progress,
         )?;
         self.renderer
-            .prepare(Arc::new(meshing.element_scene(&scene)))?;
-        let welding = Welding::with_visibility(&meshing, scene.extent(), &rays);
-        self.prepared = Some(Prepared {
-            scene,
-            meshing,
-            solution,
-            welding,
-            rays,
-        });
+            .prepare(Arc::new(prepared.meshing.element_scene(&prepared.scene)))?;
+        self.prepared = Some(prepared);
         if let DirectLight::ShadowMaps {
             emitter_samples, ..
         } = self.direct
@@ -273,25 +301,16 @@ impl RelightTechnique {
         };
         let (w, h) = (frame.width, frame.height);
         if state.as_ref().is_none_or(|s| s.direct != self.direct) {
-            let mut gpu = crate::gpu::GpuRelight::new(
-                ctx,
-                &p.meshing,
-                &p.welding,
-                &p.solution,
-                crate::packed::Precision::F32,
-            )?;
-            if let (DirectLight::ShadowMaps { footprint, .. }, Some(s)) =
-                (self.direct, self.shadowed.as_ref())
-            {
-                gpu.set_shadowed_direct(&s.set, &s.slots, footprint)?;
-            }
+            let shadowed_direct = match (self.direct, self.shadowed.as_ref()) {
+                (DirectLight::ShadowMaps { footprint, .. }, Some(s)) => Some((&s.set, footprint)),
+                _ => None,
+            };
+            let settings = crate::gpu_frame::RelightFrameSettings {
+                precision: crate::packed::Precision::F32,
+                shadowed_direct,
+            };
             *state = Some(GpuFrameState {
-                frame: crate::gpu_frame::RelightFrame::new(
-                    ctx,
-                    gpu,
-                    &p.meshing,
-                    p.solution.sources.clone(),
-                )?,
+                frame: crate::gpu_frame::RelightFrame::prepare(ctx, p, &settings)?,
                 direct: self.direct,
                 target: None,
             });

@@ -9,9 +9,11 @@ use std::sync::Arc;
 use glam::Vec3;
 use relight_pr::display::{Welding, light_slots};
 use relight_pr::gpu::GpuRelight;
-use relight_pr::gpu_frame::RelightFrame;
 use relight_pr::packed::Precision;
-use relight_pr::{MeshSettings, Meshing, SolverSettings, relight, solve};
+use relight_pr::{
+    MeshSettings, Meshing, Prepared, RelightFrame, RelightFrameSettings, SolverSettings, relight,
+    solve,
+};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{
     FrameInputs, GpuFrame, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts,
@@ -53,14 +55,7 @@ fn agreement(got: &[Vec3], want: &[Vec3]) -> Agreement {
 
 /// The Cornell box meshed into about `elements` elements and solved (to 2 % unshot, 4
 /// visibility samples), with its welding.
-fn solved_cornell(
-    elements: usize,
-) -> (
-    Arc<scene_core::Scene>,
-    Meshing,
-    relight_pr::Solution,
-    Welding,
-) {
+fn solved_cornell(elements: usize) -> Prepared {
     let scene = Arc::new(builtin::scene("cornell").unwrap());
     let k = light_ids(&scene).len();
     let meshing = Meshing::new(&scene, &MeshSettings::elements(elements), k).unwrap();
@@ -72,7 +67,13 @@ fn solved_cornell(
     };
     let solution = solve(&scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
     let welding = Welding::new(&meshing, scene.extent());
-    (scene, meshing, solution, welding)
+    Prepared {
+        scene,
+        meshing,
+        solution,
+        welding,
+        rays,
+    }
 }
 
 /// Bounds. The frame's ids come from a raster of the element triangles, the library's from
@@ -88,7 +89,13 @@ fn the_frame_contract_gives_the_display_from_an_engine_gbuffer_and_creates_nothi
     let Some(ctx) = gpu_test_context() else {
         return;
     };
-    let (scene, meshing, solution, welding) = solved_cornell(300);
+    let prepared = solved_cornell(300);
+    let (scene, meshing, solution, welding) = (
+        &prepared.scene,
+        &prepared.meshing,
+        &prepared.solution,
+        &prepared.welding,
+    );
     let shadows = ShadowSettings {
         cube_resolution: 64,
         emitter_samples: 8,
@@ -96,10 +103,10 @@ fn the_frame_contract_gives_the_display_from_an_engine_gbuffer_and_creates_nothi
         directional_resolution: 256,
         ..Default::default()
     };
-    let lights = LightSet::new(&scene, &shadows).unwrap();
+    let lights = LightSet::new(scene, &shadows).unwrap();
     let slots = light_slots(&lights, &solution.sources);
     let upload = || {
-        let mut gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
+        let mut gpu = GpuRelight::new(&ctx, meshing, welding, solution, Precision::F32).unwrap();
         gpu.set_shadowed_direct(&lights, &slots, 3).unwrap();
         gpu
     };
@@ -110,12 +117,12 @@ fn the_frame_contract_gives_the_display_from_an_engine_gbuffer_and_creates_nothi
     // The library's image: the element scene's G-buffer, ids from the ray caster.
     let mut renderer = RayCastRenderer::new();
     renderer
-        .prepare(Arc::new(meshing.element_scene(&scene)))
+        .prepare(Arc::new(meshing.element_scene(scene)))
         .unwrap();
     let elements_g =
         GpuGBuffer::upload(&ctx, &renderer.render_view(&own_view, w, h).unwrap()).unwrap();
     let library = upload();
-    let emitter = *light_ids(&scene)
+    let emitter = *light_ids(scene)
         .iter()
         .find(|i| matches!(i, LightId::Emissive(_)))
         .unwrap();
@@ -125,7 +132,7 @@ fn the_frame_contract_gives_the_display_from_an_engine_gbuffer_and_creates_nothi
         s
     };
     let expected = |s: &LightState| {
-        let (f, base) = relight::weights(&solution, s, true);
+        let (f, base) = relight::weights(solution, s, true);
         library
             .display_shadowed(&elements_g, &own_view, &f, base)
             .unwrap()
@@ -134,7 +141,7 @@ fn the_frame_contract_gives_the_display_from_an_engine_gbuffer_and_creates_nothi
     // The engine's G-buffer: the scene's own triangles, float textures, no ids, its depth
     // buffer reversed with the far plane at infinity.
     let g = RayCastRenderer::new()
-        .render(&scene, &own_view, w, h)
+        .render(scene, &own_view, w, h)
         .unwrap();
     let projection = glam::camera::rh::proj::directx::perspective_infinite_reverse(
         cam.fov_y, cam.aspect, cam.near,
@@ -156,7 +163,11 @@ fn the_frame_contract_gives_the_display_from_an_engine_gbuffer_and_creates_nothi
         wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
     );
 
-    let mut method = RelightFrame::new(&ctx, upload(), &meshing, solution.sources.clone()).unwrap();
+    let settings = RelightFrameSettings {
+        precision: Precision::F32,
+        shadowed_direct: Some((&lights, 3)),
+    };
+    let mut method = RelightFrame::prepare(&ctx, &prepared, &settings).unwrap();
     assert_eq!(method.name(), "relight");
     let wrong = ctx.create_texture_2d(
         "wrong target",
@@ -236,7 +247,8 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
         return;
     };
     use scene_core::shadowed_lights::gpu_maps::{CasterVertices, ShadowMapPass};
-    let (scene, meshing, solution, welding) = solved_cornell(200);
+    let prepared = solved_cornell(200);
+    let scene = &prepared.scene;
     let shadows = ShadowSettings {
         cube_resolution: 32,
         emitter_samples: 4,
@@ -244,7 +256,7 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
         ..Default::default()
     };
     let casters = scene.triangle_corners();
-    let lights = LightSet::new(&scene, &shadows).unwrap().lights;
+    let lights = LightSet::new(scene, &shadows).unwrap().lights;
     let cpu = LightSet::from_lights(lights.clone(), &casters, &shadows).unwrap();
     let vertices = CasterVertices::new(&ctx, &casters).unwrap();
     let (planned, plan) = LightSet::planned(lights, vertices.bounds(), &shadows).unwrap();
@@ -253,7 +265,7 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
     let g = GpuGBuffer::upload(
         &ctx,
-        &RayCastRenderer::new().render(&scene, &view, w, h).unwrap(),
+        &RayCastRenderer::new().render(scene, &view, w, h).unwrap(),
     )
     .unwrap();
     let target = ctx.create_texture_2d(
@@ -265,10 +277,11 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
     );
     let lights_state = LightState::default();
     let frame_of = |set: &LightSet, copy: bool| {
-        let mut gpu = GpuRelight::new(&ctx, &meshing, &welding, &solution, Precision::F32).unwrap();
-        gpu.set_shadowed_direct(set, &light_slots(set, &solution.sources), 3)
-            .unwrap();
-        let mut method = RelightFrame::new(&ctx, gpu, &meshing, solution.sources.clone()).unwrap();
+        let settings = RelightFrameSettings {
+            precision: Precision::F32,
+            shadowed_direct: Some((set, 3)),
+        };
+        let mut method = RelightFrame::prepare(&ctx, &prepared, &settings).unwrap();
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         if copy {
             maps.encode(&mut encoder, set, &vertices.casters()).unwrap();

@@ -37,7 +37,7 @@ pub mod timing;
 pub mod wgsl_layout;
 pub use compute::{ComputePass, PassTimer, WORKGROUP};
 pub use frame::{
-    FrameInputs, FrameWriter, GpuFrame, KeptBuffer, ObjectCounts, PixelsToTexture,
+    FrameInputs, FrameWriter, GpuFrame, KeptBuffer, Keyed, ObjectCounts, PixelsToTexture,
     check_frame_target,
 };
 pub use host::{HostGBuffer, HostGBufferPass, NormalEncoding, SURFACE_WITHOUT_ID};
@@ -686,6 +686,19 @@ impl GpuContext {
         f: impl FnOnce() -> Result<T, E>,
     ) -> Result<T, E> {
         self.validated(f)?
+    }
+
+    /// Records `f` into a new command encoder and submits it when `f` succeeds (nothing is
+    /// submitted when it fails): how a caller runs one frame of a method that records into
+    /// an encoder (`GpuFrame::encode`) outside an engine's own frame. Does not wait.
+    pub fn submit_encoded<T, E>(
+        &self,
+        f: impl FnOnce(&mut wgpu::CommandEncoder) -> Result<T, E>,
+    ) -> Result<T, E> {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let value = f(&mut encoder)?;
+        self.queue.submit([encoder.finish()]);
+        Ok(value)
     }
 }
 

@@ -2,7 +2,8 @@
 //! tests that skips or fails by `REQUIRE_GPU` ([`gpu_test_context`]), and an engine's
 //! G-buffer made from a toolkit one ([`EngineGBuffer`], with [`depth_texture_from`],
 //! [`srgb8`] and [`octahedral_f16`]), which the engine examples and the frame-contract
-//! tests of every method stand on. (In `scene_core::gpu` until 2026-11-27.)
+//! tests of every method stand on, and the host those examples share ([`ExampleHost`]: the
+//! engine's device, camera, G-buffer and frame loop). (In `scene_core::gpu` until 2026-11-27.)
 //!
 //! A crate's tests turn it on through their dev-dependency:
 //! `scene-core = { version = "0.1", features = ["testing"] }`.
@@ -10,6 +11,9 @@
 use crate::DepthConvention;
 use crate::gpu::shader::ShaderPass;
 use crate::gpu::{GpuContext, GpuError, HostGBuffer};
+
+mod example_host;
+pub use example_host::{ExampleError, ExampleHost, LIGHT_CYCLE};
 
 /// The pass of [`depth_texture_from`] (`shaders/scene-core/depth_from_values.wgsl`).
 pub const DEPTH_FROM_VALUES: ShaderPass = ShaderPass::new(
@@ -259,6 +263,42 @@ impl EngineGBuffer {
         )
     }
 
+    /// An engine's G-buffer from its own `width x height` texels (row-major): albedo as
+    /// 8-bit sRGB, normals octahedral in half floats ([`octahedral_f16`]), depth in its
+    /// convention with its clear value where nothing is drawn; no ids. Fails, naming the
+    /// buffer, when a length is not the pixel count.
+    pub fn from_texels(
+        ctx: &GpuContext,
+        (width, height): (u32, u32),
+        albedo: &[[u8; 4]],
+        normal: &[[u16; 2]],
+        depth: &[f32],
+    ) -> Result<Self, GpuError> {
+        let pixels = width as usize * height as usize;
+        for (what, len) in [("albedo", albedo.len()), ("normal", normal.len())] {
+            if len != pixels {
+                return Err(GpuError::InvalidSize {
+                    width,
+                    height,
+                    reason: format!("{len} {what} texels for {width}x{height} pixels"),
+                });
+            }
+        }
+        Self::upload(
+            ctx,
+            (width, height),
+            [
+                (
+                    wgpu::TextureFormat::Rgba8UnormSrgb,
+                    bytemuck::cast_slice(albedo),
+                ),
+                (wgpu::TextureFormat::Rg16Float, bytemuck::cast_slice(normal)),
+            ],
+            depth,
+            None,
+        )
+    }
+
     /// Uploads albedo and normal texels as given, the depth of `g` in `convention`, and
     /// with `ids` its triangle ids.
     fn with(
@@ -266,11 +306,9 @@ impl EngineGBuffer {
         g: &crate::GBuffer,
         far: f32,
         convention: &DepthConvention,
-        [(albedo_format, albedo), (normal_format, normal)]: [(wgpu::TextureFormat, &[u8]); 2],
+        colours: [(wgpu::TextureFormat, &[u8]); 2],
         ids: bool,
     ) -> Result<Self, GpuError> {
-        let (w, h) = (g.width, g.height);
-        ctx.check_texture_size(w, h)?;
         let clear = if convention.reverse { 0.0 } else { 1.0 };
         let depth: Vec<f32> = (0..g.len())
             .map(|i| {
@@ -281,18 +319,31 @@ impl EngineGBuffer {
                 }
             })
             .collect();
+        let ids = ids.then_some(g.triangle_id.as_slice());
+        Self::upload(ctx, (g.width, g.height), colours, &depth, ids)
+    }
+
+    /// Uploads the colour texels as given, `depth` as a depth texture and the ids.
+    fn upload(
+        ctx: &GpuContext,
+        (w, h): (u32, u32),
+        [(albedo_format, albedo), (normal_format, normal)]: [(wgpu::TextureFormat, &[u8]); 2],
+        depth: &[f32],
+        ids: Option<&[u32]>,
+    ) -> Result<Self, GpuError> {
+        ctx.check_texture_size(w, h)?;
         let usage = wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC;
         let upload =
             |label, format, bytes: &[u8]| ctx.texture_with(label, (w, h), format, usage, bytes);
         Ok(Self {
+            depth: depth_texture_from(ctx, w, h, depth)?,
             albedo: upload("engine albedo", albedo_format, albedo),
             normal: upload("engine normals", normal_format, normal),
-            depth: depth_texture_from(ctx, w, h, &depth)?,
-            triangle_id: ids.then(|| {
+            triangle_id: ids.map(|ids| {
                 upload(
                     "engine triangle ids",
                     wgpu::TextureFormat::R32Uint,
-                    bytemuck::cast_slice(&g.triangle_id),
+                    bytemuck::cast_slice(ids),
                 )
             }),
         })

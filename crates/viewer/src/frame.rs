@@ -10,12 +10,9 @@ use std::sync::Arc;
 use gbuffer::{GpuPreparedScene, GpuRasterizer};
 use glam::Vec3;
 use ibrr_ldc::{IbrrFrame, IbrrTechnique};
-use isr::{GpuIsr, Intermediate, IsrFrame, IsrSettings, LightSet, ShadowSettings};
-use relight_pr::RelightTechnique;
-use relight_pr::gpu::GpuRelight;
-use relight_pr::gpu_frame::RelightFrame;
+use isr::{Intermediate, IsrFrame, IsrSettings, LightSet, ShadowSettings};
 use relight_pr::packed::Precision;
-use relight_pr::technique::Prepared;
+use relight_pr::{Prepared, RelightFrame, RelightFrameSettings, RelightTechnique};
 use scene_core::gpu::compute::ComputePass;
 use scene_core::gpu::layout::{
     float_texture, storage_buffer, storage_buffer_rw, storage_texture, uniform,
@@ -109,7 +106,7 @@ struct IsrBufferView {
     which: Intermediate,
     resolve: ComputePass,
     params: wgpu::Buffer,
-    bound: Option<((wgpu::Texture, wgpu::Texture), wgpu::BindGroup)>,
+    bound: scene_core::gpu::Keyed<(wgpu::Texture, wgpu::Texture), wgpu::BindGroup>,
     device: wgpu::Device,
 }
 
@@ -134,23 +131,20 @@ impl GpuFrame for IsrBufferView {
             })?
             .clone();
         let key = (source, target.clone());
-        if self.bound.as_ref().is_none_or(|(k, _)| *k != key) {
-            let source_view = key.0.create_view(&Default::default());
+        let bind = self.bound.get_or_make(key, |(source, target)| {
+            let source_view = source.create_view(&Default::default());
             let target_view = target.create_view(&Default::default());
-            let bind = self.resolve.bind(
+            self.resolve.bind(
                 &self.device,
                 &[
                     self.params.as_entire_binding(),
                     wgpu::BindingResource::TextureView(&source_view),
                     wgpu::BindingResource::TextureView(&target_view),
                 ],
-            );
-            self.bound = Some((key, bind));
-        }
-        if let Some((_, bind)) = &self.bound {
-            self.resolve
-                .dispatch(encoder, bind, target.width(), target.height(), None);
-        }
+            )
+        });
+        self.resolve
+            .dispatch(encoder, bind, target.width(), target.height(), None);
         Ok(())
     }
 }
@@ -201,7 +195,6 @@ pub use scene_core::gpu::timing::StageProfiler as Profiler;
 pub struct Renderer {
     /// The context (device, queue).
     pub ctx: GpuContext,
-    scene: Arc<Scene>,
     raster: GpuRasterizer,
     scene_gpu: GpuPreparedScene,
     /// The scene's lights and shadow maps, for the ISR-family modes' frames.
@@ -375,7 +368,6 @@ impl Renderer {
             ctx.frame_buffer(label, bytes as u64, wgpu::BufferUsages::UNIFORM)
         };
         Ok(Self {
-            scene,
             raster,
             scene_gpu,
             light_set,
@@ -533,26 +525,20 @@ impl Renderer {
                 .into_prepared()
                 .ok_or("relighting was not prepared")?,
         );
-        let mut gpu = GpuRelight::new(
-            &self.ctx,
-            &p.meshing,
-            &p.welding,
-            &p.solution,
-            Precision::F32,
-        )
-        .map_err(err)?;
-        if shadow_maps {
-            let set = LightSet::new(&p.scene, &ShadowSettings::default()).map_err(err)?;
-            let slots = relight_pr::display::light_slots(&set, &p.solution.sources);
-            let footprint = match relight_pr::direct::DirectLight::shadow_maps() {
-                relight_pr::direct::DirectLight::ShadowMaps { footprint, .. } => footprint,
-                _ => 1,
-            };
-            gpu.set_shadowed_direct(&set, &slots, footprint)
-                .map_err(err)?;
-        }
-        let frame = RelightFrame::new(&self.ctx, gpu, &p.meshing, p.solution.sources.clone())
-            .map_err(err)?;
+        let lights = if shadow_maps {
+            Some(LightSet::new(&p.scene, &ShadowSettings::default()).map_err(err)?)
+        } else {
+            None
+        };
+        let footprint = match relight_pr::direct::DirectLight::shadow_maps() {
+            relight_pr::direct::DirectLight::ShadowMaps { footprint, .. } => footprint,
+            _ => 1,
+        };
+        let settings = RelightFrameSettings {
+            precision: Precision::F32,
+            shadowed_direct: lights.as_ref().map(|l| (l, footprint)),
+        };
+        let frame = RelightFrame::prepare(&self.ctx, &p, &settings).map_err(err)?;
         self.relight = Some(RelightGpu {
             prepared: p.clone(),
             frame,
@@ -571,8 +557,7 @@ impl Renderer {
     /// Puts the IBRR's layered depth cube on the GPU (after its construction) on the frame
     /// contract; frames relight it to their light state.
     pub fn set_ibrr(&mut self, technique: IbrrTechnique) -> Result<(), String> {
-        let scene = self.scene.clone();
-        self.ibrr = Some(IbrrFrame::new(&self.ctx, technique, scene).map_err(err)?);
+        self.ibrr = Some(IbrrFrame::prepare(&self.ctx, technique).map_err(err)?);
         Ok(())
     }
 
@@ -615,10 +600,7 @@ impl Renderer {
         };
         if !self.isr_frames.contains_key(&(mode, slot)) {
             let (settings, which, channel) = isr_view(mode).expect("an ISR-family mode");
-            let isr = IsrFrame::new(
-                GpuIsr::new(&self.ctx, &self.light_set).map_err(err)?,
-                settings,
-            );
+            let isr = IsrFrame::prepare(&self.ctx, &self.light_set, settings).map_err(err)?;
             let frame: Box<dyn GpuFrame> = match which {
                 None => Box::new(isr),
                 Some(which) => Box::new(IsrBufferView {
@@ -634,7 +616,7 @@ impl Renderer {
                             pad: 0,
                         },
                     ),
-                    bound: None,
+                    bound: scene_core::gpu::Keyed::new(),
                     device: self.ctx.device.clone(),
                 }),
             };

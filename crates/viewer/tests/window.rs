@@ -268,7 +268,8 @@ fn isr_frame(ctx: &GpuContext, scene: &Arc<Scene>, mode: Mode, s: &Shot) -> Imag
         coarse: None,
         view: &view,
     };
-    isr.render(&inputs, &settings, &out).unwrap();
+    ctx.submit_encoded(|e| isr.encode(e, &inputs, &settings, &out))
+        .unwrap();
     let tex = isr.intermediate(which).unwrap();
     let (tw, th) = (tex.width(), tex.height());
     let texels = ctx.read_texture_rgba32f(tex).unwrap();

@@ -3,7 +3,9 @@
 //! [`FrameInputs`] (the G-buffer, the view, the frame's light state) into the host's target
 //! texture; and what a method's frame uses so that a steady stream of frames creates no GPU
 //! object: per-frame data written by commands of the frame's own encoder
-//! ([`FrameWriter`]), buffers kept while their data fits ([`KeptBuffer`]), a pass that
+//! ([`FrameWriter`]), buffers kept while their data fits ([`KeptBuffer`]), bind groups (and
+//! other things made from a frame's inputs) kept while those inputs stay the same
+//! ([`Keyed`]), a pass that
 //! turns a method's pixel buffer into the target ([`PixelsToTexture`]), and wgpu's
 //! live-object counters to check it ([`ObjectCounts`]).
 //!
@@ -63,6 +65,72 @@ impl FrameWriter {
     pub fn finish(&self, encoder: &wgpu::CommandEncoder) {
         let mut belt = self.belt.lock().unwrap_or_else(|e| e.into_inner());
         belt.finish_and_recall_on_submit(encoder);
+    }
+}
+
+/// A value made from a frame's inputs, a bind group most often, kept with the key it was
+/// made for (the textures and buffers it binds, by identity, and the generations of those
+/// the method replaces) and made again only when a frame's key differs: how a steady stream
+/// of frames on the same inputs creates no GPU object. The old value is dropped before the
+/// new one is made.
+#[derive(Debug)]
+pub struct Keyed<K, V> {
+    kept: Option<(K, V)>,
+}
+
+impl<K, V> Default for Keyed<K, V> {
+    fn default() -> Self {
+        Self { kept: None }
+    }
+}
+
+impl<K: PartialEq, V> Keyed<K, V> {
+    /// Nothing kept.
+    pub const fn new() -> Self {
+        Self { kept: None }
+    }
+
+    /// True when the value kept was made for `key`.
+    pub fn is_for(&self, key: &K) -> bool {
+        self.kept.as_ref().is_some_and(|(k, _)| k == key)
+    }
+
+    /// The value kept, whatever its key.
+    pub fn value(&self) -> Option<&V> {
+        self.kept.as_ref().map(|(_, v)| v)
+    }
+
+    /// The value for `key`: the one kept when it was made for `key`, else `make(&key)`,
+    /// kept in its place.
+    pub fn get_or_make(&mut self, key: K, make: impl FnOnce(&K) -> V) -> &V {
+        match self.get_or_try_make(key, |k| Ok::<V, std::convert::Infallible>(make(k))) {
+            Ok(v) => v,
+            Err(never) => match never {},
+        }
+    }
+
+    /// [`Keyed::get_or_make`] for a `make` that can fail; on failure nothing is kept.
+    pub fn get_or_try_make<E>(
+        &mut self,
+        key: K,
+        make: impl FnOnce(&K) -> Result<V, E>,
+    ) -> Result<&V, E> {
+        if !self.is_for(&key) {
+            self.kept = None;
+            let value = make(&key)?;
+            self.kept = Some((key, value));
+        }
+        Ok(&self.kept.as_ref().expect("kept above").1)
+    }
+
+    /// Keeps `value` for `key` (for a value made where `make` could not borrow its maker).
+    pub fn set(&mut self, key: K, value: V) {
+        self.kept = Some((key, value));
+    }
+
+    /// Drops what is kept.
+    pub fn clear(&mut self) {
+        self.kept = None;
     }
 }
 
@@ -382,5 +450,30 @@ impl PixelsToTexture {
         drop(bound);
         pass.dispatch(encoder, &bind, w, h, None);
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Keyed;
+
+    /// A value is made once per key and again only when the key changes; a failed make
+    /// keeps nothing, so the next call makes it again.
+    #[test]
+    fn keyed_makes_again_only_when_the_key_changes() {
+        let mut made = 0;
+        let mut kept: Keyed<(u32, u64), String> = Keyed::new();
+        for key in [(1, 0), (1, 0), (2, 0), (2, 0), (2, 1), (1, 0)] {
+            let v = kept.get_or_make(key, |k| {
+                made += 1;
+                format!("{k:?}")
+            });
+            assert_eq!(*v, format!("{key:?}"));
+        }
+        assert_eq!(made, 4, "made for (1, 0), (2, 0), (2, 1) and (1, 0) again");
+        let failed = kept.get_or_try_make((3, 0), |_| Err::<String, _>("no"));
+        assert_eq!(failed, Err("no"));
+        assert!(kept.value().is_none() && !kept.is_for(&(1, 0)));
+        assert_eq!(kept.get_or_make((1, 0), |_| "again".into()), "again");
     }
 }

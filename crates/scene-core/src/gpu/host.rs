@@ -178,7 +178,7 @@ pub struct HostGBufferPass {
     params: wgpu::Buffer,
     writer: FrameWriter,
     no_ids: wgpu::Texture,
-    bound: Option<(Key, wgpu::BindGroup)>,
+    bound: super::Keyed<Key, wgpu::BindGroup>,
 }
 
 impl std::fmt::Debug for HostGBufferPass {
@@ -235,7 +235,7 @@ impl HostGBufferPass {
                 wgpu::TextureFormat::R32Uint,
                 wgpu::TextureUsages::TEXTURE_BINDING,
             ),
-            bound: None,
+            bound: super::Keyed::new(),
         })
     }
 
@@ -272,7 +272,7 @@ impl HostGBufferPass {
             ],
             variant,
         };
-        if self.bound.as_ref().is_none_or(|(k, _)| *k != key) {
+        self.bound.get_or_try_make(key, |_| {
             let view = |t: &wgpu::Texture| t.create_view(&Default::default());
             let views = [
                 view(host.albedo),
@@ -289,11 +289,9 @@ impl HostGBufferPass {
             ];
             let mut res = vec![self.params.as_entire_binding()];
             res.extend(views.iter().map(wgpu::BindingResource::TextureView));
-            let bind = self
-                .ctx
-                .validated(|| self.passes[variant].bind(&self.ctx.device, &res))?;
-            self.bound = Some((key, bind));
-        }
+            self.ctx
+                .validated(|| self.passes[variant].bind(&self.ctx.device, &res))
+        })?;
         let (m22, m32, far) = depth.parts();
         let params = Params {
             m22,
@@ -307,7 +305,7 @@ impl HostGBufferPass {
         self.writer
             .write(encoder, &self.params, 0, bytemuck::bytes_of(&params));
         self.writer.finish(encoder);
-        let Some((_, bind)) = self.bound.as_ref() else {
+        let Some(bind) = self.bound.value() else {
             unreachable!("made above")
         };
         self.passes[variant].dispatch(encoder, bind, w, h, None);
