@@ -136,16 +136,7 @@ fn gpu_rasteriser_to_lit_image_without_readback() {
     ctx.submit_encoded(|e| isr.encode(e, &inputs, &IsrSettings::default(), &target))
         .unwrap();
     // Read back only to check it against the CPU path on the CPU rasteriser's buffer.
-    let texels = ctx.read_texture_rgba32f(&target).unwrap();
-    let gpu = Image::from_pixels(
-        w,
-        h,
-        texels
-            .iter()
-            .map(|t| scene_core::glam::Vec3::new(t[0], t[1], t[2]))
-            .collect(),
-    )
-    .unwrap();
+    let gpu = ctx.read_texture_image(&target).unwrap();
     let full = CpuRasterizer::new().render(&scene, &view, w, h).unwrap();
     let coarse = isr::downsample(&full, isr::DownsampleMode::NearestSurface);
     let cpu = render_image(

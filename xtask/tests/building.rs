@@ -19,7 +19,7 @@ fn the_generated_building_exports_imports_validates_and_runs_the_experiment() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    scene_core::gltf_io::validator::assert_valid(&[&file]);
+    scene_core::testing::gltf_validator::assert_valid(&[&file]);
 
     // The file holds what the generator built: a large textured interior with a lamp per
     // room and a sun.

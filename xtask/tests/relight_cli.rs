@@ -41,7 +41,7 @@ fn relight_writes_the_view_and_the_summary_with_the_given_lights() {
         summary["elements"].as_u64().unwrap()
     );
     assert_eq!(back.point_lights.len(), 1);
-    scene_core::gltf_io::validator::assert_valid(&[gltf.as_path()]);
+    scene_core::testing::gltf_validator::assert_valid(&[gltf.as_path()]);
     let mean = |img: &scene_core::Image| img.mean();
     // Red above green above blue, as the light.
     let m = mean(&lit);

@@ -36,8 +36,9 @@
 //!   views, and the five faces of a hemicube ([`hemicube`]).
 //! * Coarse buffers ([`downsample`](mod@downsample)): 2x downsampling on the CPU and the
 //!   GPU, with the thesis' averaging and three depth-aware modes (one of them ISR's), and
-//!   [`compare_with_direct`] to measure them. They live in scene-core beside the G-buffer
-//!   (`scene_core::gbuffer::downsample`), re-exported here.
+//!   [`compare_with_direct`] to measure them. The modes live in scene-core beside the
+//!   G-buffer (`scene_core::gbuffer::downsample`, shared with ISR), re-exported here; the
+//!   measurement is this crate's.
 //! * Position reconstruction ([`reconstruct`]): eqs. 23-24 (frustum corners) and inverse
 //!   matrices, on the CPU and in WGSL, for the micro-benchmark of `cargo xtask bench
 //!   gbuffer`.
@@ -54,11 +55,7 @@
 //!
 //! [`GBuffer`]: scene_core::GBuffer
 
-/// Coarse G-buffers: scene-core's downsampling, the one home of the G-buffer's operations
-/// (re-exported here for existing users).
-pub mod downsample {
-    pub use scene_core::gbuffer::downsample::*;
-}
+pub mod downsample;
 pub mod hemicube;
 pub mod mrt;
 pub mod packing;

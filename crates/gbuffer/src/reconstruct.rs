@@ -426,12 +426,7 @@ impl GpuReconstructor {
         self.encode(&mut encoder, view, gbuffer, method, taps, &out)?;
         self.ctx
             .validated(|| self.ctx.queue.submit([encoder.finish()]))?;
-        Ok(self
-            .ctx
-            .read_texture_rgba32f(&out)?
-            .into_iter()
-            .map(|[x, y, z, _]| Vec3::new(x, y, z))
-            .collect())
+        Ok(self.ctx.read_texture_image(&out)?.pixels)
     }
 }
 

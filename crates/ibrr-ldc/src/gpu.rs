@@ -372,23 +372,17 @@ impl GpuLdc {
             glow: self.glow_buffer.generation(),
         };
         self.bound.get_or_make(bind_key, |_| {
-            let views = [&g.albedo, &g.normal, &g.depth, &g.triangle_id]
-                .map(|t| t.create_view(&Default::default()));
-            self.pass.bind(
-                &ctx.device,
-                &[
-                    self.params.as_entire_binding(),
-                    self.offsets.as_entire_binding(),
-                    self.planes.as_entire_binding(),
-                    self.values.as_entire_binding(),
-                    tri.as_entire_binding(),
-                    output.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&views[0]),
-                    wgpu::BindingResource::TextureView(&views[1]),
-                    wgpu::BindingResource::TextureView(&views[2]),
-                    wgpu::BindingResource::TextureView(&views[3]),
-                ],
-            )
+            let buffers = [
+                &self.params,
+                &self.offsets,
+                &self.planes,
+                &self.values,
+                &tri,
+                output,
+            ];
+            let textures = [&g.albedo, &g.normal, &g.depth, &g.triangle_id];
+            self.pass
+                .bind_buffers_then_textures(&ctx.device, &buffers, &textures)
         });
         self.writer
             .write(encoder, &self.params, 0, bytemuck::bytes_of(&params));

@@ -667,15 +667,7 @@ impl GpuIsr {
         let output = rgba_texture(&ctx, "isr output", full.width, full.height);
         let inputs = GpuIsrInputs { full, coarse, view };
         let timings = self.render_timed(&inputs, settings, &output)?;
-        let texels = ctx.read_texture_rgba32f(&output)?;
-        let image = Image {
-            width: full.width,
-            height: full.height,
-            pixels: texels
-                .into_iter()
-                .map(|[r, g, b, _]| glam::Vec3::new(r, g, b))
-                .collect(),
-        };
+        let image = ctx.read_texture_image(&output)?;
         Ok((image, timings))
     }
 

@@ -801,22 +801,16 @@ impl GpuRelight {
         drop(kept);
         let mut cached = self.display_bind.lock().unwrap_or_else(|e| e.into_inner());
         let bind = cached.get_or_make(key, |_| {
-            let views =
-                [&g.albedo, &g.depth, &g.triangle_id].map(|t| t.create_view(&Default::default()));
-            pass.bind(
-                &ctx.device,
-                &[
-                    self.display_params.as_entire_binding(),
-                    self.vertex_words.as_entire_binding(),
-                    self.display_factors.as_entire_binding(),
-                    self.element_table.as_entire_binding(),
-                    direct_buf.as_entire_binding(),
-                    output.as_entire_binding(),
-                    wgpu::BindingResource::TextureView(&views[0]),
-                    wgpu::BindingResource::TextureView(&views[1]),
-                    wgpu::BindingResource::TextureView(&views[2]),
-                ],
-            )
+            let buffers = [
+                &self.display_params,
+                &self.vertex_words,
+                &self.display_factors,
+                &self.element_table,
+                &direct_buf,
+                output,
+            ];
+            let textures = [&g.albedo, &g.depth, &g.triangle_id];
+            pass.bind_buffers_then_textures(&ctx.device, &buffers, &textures)
         });
         // The direct pass' bind group (shadow-mapped lights only).
         let shadowed = match (direct_in, &self.shadowed) {

@@ -371,15 +371,7 @@ impl RelightTechnique {
         };
         state.frame.encode(&mut encoder, &inputs, target)?;
         ctx.queue.submit([encoder.finish()]);
-        let pixels = ctx.read_texture_rgba32f(target).map_err(Error::from)?;
-        let image = Image {
-            width: w,
-            height: h,
-            pixels: pixels
-                .iter()
-                .map(|v| glam::Vec3::new(v[0], v[1], v[2]))
-                .collect(),
-        };
+        let image = ctx.read_texture_image(target).map_err(Error::from)?;
         self.timings = FrameTimings {
             relight: Duration::ZERO,
             gbuffer: gbuffer_time,

@@ -33,7 +33,6 @@ pub mod host;
 pub mod layout;
 pub mod raster;
 pub mod shader;
-pub mod timing;
 pub mod wgsl_layout;
 pub use compute::{ComputePass, PassTimer, WORKGROUP};
 pub use frame::{
@@ -471,6 +470,20 @@ impl GpuContext {
             f == wgpu::TextureFormat::Rgba32Float
         })?;
         Ok(pod_vec(&self.read_texture_bytes(texture)?))
+    }
+
+    /// Reads an `Rgba32Float` texture back as an [`Image`] of its size (alpha dropped): how a
+    /// frame target is read for a comparison or a report.
+    pub fn read_texture_image(&self, texture: &wgpu::Texture) -> Result<Image, GpuError> {
+        let texels = self.read_texture_rgba32f(texture)?;
+        Ok(Image {
+            width: texture.width(),
+            height: texture.height(),
+            pixels: texels
+                .into_iter()
+                .map(|[r, g, b, _]| glam::Vec3::new(r, g, b))
+                .collect(),
+        })
     }
 
     /// Reads an `R32Float` (or the depth of a `Depth32Float`) texture back, row-major.

@@ -127,7 +127,7 @@ pub trait Metric {
 
 /// The time of each stage of a frame, in the order the stages run: the one shape every
 /// method's frame timings take (ISR's `PassTimings`, relighting's and the IBRR's
-/// `FrameTimings`, the GPU [`crate::gpu::timing::StageProfiler`]), so a harness or a viewer
+/// `FrameTimings`, the viewer's GPU stage profiler), so a harness or a viewer
 /// can list and sum any method's stages without knowing its fields.
 pub trait StageTimings {
     /// Each stage's name and time, in order.

@@ -3,7 +3,8 @@
 //! G-buffer made from a toolkit one ([`EngineGBuffer`], with [`depth_texture_from`],
 //! [`srgb8`] and [`octahedral_f16`]), which the engine examples and the frame-contract
 //! tests of every method stand on, and the host those examples share ([`ExampleHost`]: the
-//! engine's device, camera, G-buffer and frame loop). (In `scene_core::gpu` until 2026-11-27.)
+//! engine's device, camera, G-buffer and frame loop), and Khronos' glTF validator run on
+//! what the toolkit exports ([`gltf_validator`], with the `gltf` feature). (In `scene_core::gpu` until 2026-11-27.)
 //!
 //! A crate's tests turn it on through their dev-dependency:
 //! `scene-core = { version = "0.1", features = ["testing"] }`.
@@ -14,6 +15,8 @@ use crate::gpu::{GpuContext, GpuError, HostGBuffer};
 
 mod example_host;
 pub use example_host::{ExampleError, ExampleHost, LIGHT_CYCLE};
+#[cfg(feature = "gltf")]
+pub mod gltf_validator;
 
 /// The pass of [`depth_texture_from`] (`shaders/scene-core/depth_from_values.wgsl`).
 pub const DEPTH_FROM_VALUES: ShaderPass = ShaderPass::new(

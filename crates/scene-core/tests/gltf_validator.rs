@@ -2,10 +2,11 @@
 //! no error and no warning: every built-in scene, as `.gltf` and `.glb`, and a scene with
 //! extra vertex attributes (`export_with`); bad attributes are refused.
 //!
-//! The validator runs under Node ([`scene_core::gltf_io::validator`]). Without Node or the
+//! The validator runs under Node ([`scene_core::testing::gltf_validator`]). Without Node or the
 //! package the test says so and passes, unless `REQUIRE_GLTF_VALIDATOR` is set (CI sets it).
 
-use scene_core::gltf_io::{self, validator};
+use scene_core::gltf_io;
+use scene_core::testing::gltf_validator as validator;
 use scene_core::{Scene, builtin};
 
 #[test]

@@ -67,7 +67,14 @@ pub fn run(args: Args) -> Result<(), String> {
     }
     let mut scene = opened.scene;
     if scene.cameras.is_empty() {
-        scene.cameras.push(default_camera(&scene));
+        // The toolkit's default view (the one `cargo xtask` commands use too): of a few
+        // views around and inside the bounds, the one that sees the most lit surface.
+        let camera = scene_core::rays::framing::framing_camera(&scene);
+        eprintln!(
+            "note: the scene has no camera; showing the default view '{}'",
+            camera.name
+        );
+        scene.cameras.push(camera);
     }
     let steps = match &args.replay {
         Some(path) => Some(Script::read(path)?.check(&scene)?),
@@ -81,23 +88,6 @@ pub fn run(args: Args) -> Result<(), String> {
         .run_app(&mut app)
         .map_err(|e| format!("the event loop failed: {e}"))?;
     app.finish()
-}
-
-/// A camera outside the scene's bounds looking at its centre (for scenes without one).
-fn default_camera(scene: &Scene) -> Camera {
-    let b = scene.bounds();
-    let centre = (b.min + b.max) * 0.5;
-    let extent = scene.extent().max(1e-3);
-    Camera {
-        name: "default".into(),
-        position: centre + Vec3::new(0.0, 0.3, 1.5) * extent,
-        target: centre,
-        up: Vec3::Y,
-        fov_y: 0.8,
-        aspect: 1.0,
-        near: extent * 1e-3,
-        far: extent * 10.0,
-    }
 }
 
 /// The window, its surface and egui.

@@ -186,7 +186,7 @@ pub struct FrameSpec<'a> {
 }
 
 /// Per-stage GPU times of a frame (scene-core's one stage profiler).
-pub use scene_core::gpu::timing::StageProfiler as Profiler;
+pub use crate::profiler::StageProfiler as Profiler;
 
 /// The viewer's GPU side. Every mode is a method on the frame contract
 /// ([`scene_core::gpu::GpuFrame`]) reading the frame's G-buffer, view and light state and

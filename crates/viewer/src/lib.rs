@@ -16,6 +16,7 @@ pub mod direct;
 pub mod frame;
 pub mod mode;
 pub mod precompute;
+pub mod profiler;
 pub mod reference;
 pub mod screenshot;
 pub mod script;

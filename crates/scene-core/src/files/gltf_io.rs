@@ -99,7 +99,6 @@ mod tests;
 mod uri;
 
 pub use export::{VertexAttribute, export, export_with};
-pub mod validator;
 pub use import::{
     ImportOptions, ImportResult, import, import_slice, import_slice_with, import_with,
 };

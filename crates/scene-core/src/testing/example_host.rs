@@ -171,11 +171,7 @@ impl ExampleHost {
                 steady = created;
             }
             self.ctx.queue.submit([encoder.finish()]);
-            let pixels = self.ctx.read_texture_rgba32f(&self.target)?;
-            let sum = pixels
-                .iter()
-                .fold(Vec3::ZERO, |s, p| s + Vec3::new(p[0], p[1], p[2]));
-            let mean = sum / pixels.len().max(1) as f32;
+            let mean = self.ctx.read_texture_image(&self.target)?.mean();
             println!("{} ({label} light): mean radiance {mean:.4}", method.name());
             means.push(mean);
         }

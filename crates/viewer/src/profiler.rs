@@ -1,13 +1,12 @@
-//! Timing the stages of a GPU frame: [`PassTimer`] (timestamps around compute passes, the
-//! methods' per-pass figures) and [`StageProfiler`] (timestamps between the stages of one
-//! command encoder, or each stage submitted and waited for where the adapter cannot time
-//! inside an encoder, the viewer's per-stage figures). Both report `(label, Duration)`
-//! lists, the shape of [`crate::technique::StageTimings`].
+//! Timing the stages of the viewer's GPU frame: [`StageProfiler`] (timestamps between the
+//! stages of one command encoder, or each stage submitted and waited for where the adapter
+//! cannot time inside an encoder), reporting `(label, Duration)` lists, the shape of
+//! [`scene_core::StageTimings`]. (In `scene_core::gpu::timing` until 2026-11-27; the
+//! methods' per-pass timer, `scene_core::gpu::PassTimer`, stays in scene-core.)
 
 use std::time::{Duration, Instant};
 
-pub use super::compute::PassTimer;
-use super::{GpuContext, GpuError};
+use scene_core::gpu::{GpuContext, GpuError};
 
 /// GPU timestamps written between the stages of a frame (inside one command encoder).
 struct Timestamps {
@@ -140,7 +139,7 @@ impl<'a> StageProfiler<'a> {
     }
 }
 
-impl crate::technique::StageTimings for StageProfiler<'_> {
+impl scene_core::StageTimings for StageProfiler<'_> {
     fn stages(&self) -> Vec<(&'static str, Duration)> {
         self.times.clone()
     }
@@ -155,7 +154,7 @@ mod tests {
     /// order, no time negative), and wall-clock stages, which wait for each.
     #[test]
     fn stages_are_timed_in_order_either_way() {
-        let Some(ctx) = crate::testing::gpu_test_context() else {
+        let Some(ctx) = scene_core::testing::gpu_test_context() else {
             return;
         };
         let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
