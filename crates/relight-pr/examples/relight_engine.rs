@@ -32,13 +32,7 @@ fn engine_room() -> Result<Scene, ExampleError> {
         name: "room".into(),
         ..Default::default()
     };
-    let (x, z) = ([-2.0, 2.0], [-2.0, 2.0]);
-    let floor = [
-        c(x[0], 0., z[0]),
-        c(x[1], 0., z[0]),
-        c(x[1], 0., z[1]),
-        c(x[0], 0., z[1]),
-    ];
+    let floor = [(-2., -2.), (2., -2.), (2., 2.), (-2., 2.)].map(|(x, z)| c(x, 0., z));
     let ceiling = floor.map(|p| p + Vec3::Y * 3.0);
     let wall = |a: Vec3, b: Vec3| [a, b, b + Vec3::Y * 3.0, a + Vec3::Y * 3.0];
     for (quad, material) in [
@@ -71,13 +65,8 @@ fn main() -> Result<(), ExampleError> {
     // Once: the room meshed and solved with the lamp tagged, the lamp's shadow map, and the
     // solution prepared on the engine's device.
     let scene = Arc::new(engine_room()?);
-    let mesh = MeshSettings::elements(600);
-    let prepared = Prepared::solve(
-        scene.clone(),
-        &mesh,
-        &SolverSettings::default(),
-        &mut |_| {},
-    )?;
+    let (mesh, solver) = (MeshSettings::elements(600), SolverSettings::default());
+    let prepared = Prepared::solve(scene.clone(), &mesh, &solver, &mut |_| {})?;
     let lights = LightSet::new(&scene, &ShadowSettings::default())?;
     let settings = RelightFrameSettings {
         precision: Precision::F16,
