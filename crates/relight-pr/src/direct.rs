@@ -336,6 +336,10 @@ pub struct DirectGather {
     /// drawn within each of its median-cut regions ([`scene_core::sky::Sky::sample_light`]),
     /// so its shadows are soft as the sky's are, not 64 sharp copies.
     sky: Option<(usize, scene_core::sky::Sky)>,
+    /// Each element's geometric normal (the plane its corners span, turned to the side of
+    /// its shading normal): the plane a pixel's footprint lies on
+    /// ([`DirectGather::plane_normal`]).
+    planes: Vec<Vec3>,
     extent: f32,
     samples: u32,
 }
@@ -380,12 +384,35 @@ impl DirectGather {
                 (points, suns, emitters)
             })
             .collect();
+        let planes = meshing
+            .elements
+            .iter()
+            .map(|e| {
+                let [a, b, c] = e.corners;
+                let g = (b - a).cross(c - a).normalize_or_zero();
+                match g.dot(e.normal) {
+                    d if d > 0.0 => g,
+                    d if d < 0.0 => -g,
+                    _ => e.normal,
+                }
+            })
+            .collect();
         Self {
             sources,
             sky,
+            planes,
             extent: scene.extent(),
             samples: samples.max(1),
         }
+    }
+
+    /// The plane normal of element `element` of the meshing (a triangle id of its element
+    /// scene, [`crate::Meshing::element_scene`]): its corners' plane, which the shading
+    /// normal the element scene's G-buffer holds tilts away from where the scene's normals
+    /// are not the faces' (a non-planar quad such as the Cornell box's red wall, a smooth
+    /// mesh). `None` for an id that names no element (the background).
+    pub fn plane_normal(&self, element: u32) -> Option<Vec3> {
+        self.planes.get(element as usize).copied()
     }
 
     /// Number of sources.

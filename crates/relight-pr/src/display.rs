@@ -160,11 +160,20 @@ pub struct PixelDirect<'a> {
     pub factors: &'a [Vec3],
 }
 
-/// The direct irradiance from every source of `gather` at every pixel of `g` (a G-buffer
-/// seen from `view`), averaged over `subpixels` stratified points of the pixel's footprint
-/// (the pixel's sub-rays met with the plane of its surface point and normal; a sub-ray
-/// nearly parallel to the plane keeps the centre point), pixel-major (`i * k + m`); zero on
-/// background. Deterministic: a pixel's sample pattern is seeded by its index.
+/// The direct irradiance from every source of `gather` at every pixel of `g` (a G-buffer of
+/// the meshing's element scene seen from `view`), averaged over `subpixels` stratified
+/// points of the pixel's footprint (the pixel's sub-rays met with the plane of its surface:
+/// through its surface point, normal to its element's corners,
+/// [`DirectGather::plane_normal`]; a sub-ray nearly parallel to the plane keeps the centre
+/// point), pixel-major (`i * k + m`); zero on background. The irradiance's cosine is the
+/// G-buffer's (shading) normal. Deterministic: a pixel's sample pattern is seeded by its
+/// index.
+///
+/// The footprint lies on the element's own plane, not on the plane of the shading normal:
+/// where the two differ (the Cornell box's red wall is a non-planar quad whose second
+/// triangle carries the first one's normal, 0.47 degrees off), points on the shading plane
+/// sit behind the surface a few footprint widths out, their visibility rays meet their
+/// own wall, and the wall came out 14-24 % dark in a band at 64 x 64 (issue 49).
 pub fn pixel_direct<O: crate::visibility::Occlusion + ?Sized>(
     gather: &DirectGather,
     rays: &O,
@@ -189,6 +198,7 @@ pub fn pixel_direct<O: crate::visibility::Occlusion + ?Sized>(
             let centre_uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
             let centre = view.reconstruct_world(centre_uv, g.depth[i]);
             let n = g.normal[i];
+            let plane = gather.plane_normal(g.triangle_id[i]).unwrap_or(n);
             let offset = r2(hash_seed(i as u64, 0xd1ec7, 0), glam::Vec2::ZERO);
             points.clear();
             points.push(centre);
@@ -196,11 +206,11 @@ pub fn pixel_direct<O: crate::visibility::Occlusion + ?Sized>(
                 points.clear();
                 for s in 0..subpixels {
                     let uv = centre_uv + (r2(s as u64, offset) - 0.5) * pixel;
-                    points.push(on_pixel_plane(view, uv, centre, n).unwrap_or(centre));
+                    points.push(on_pixel_plane(view, uv, centre, plane).unwrap_or(centre));
                 }
             }
             let quad = (subpixels > 1)
-                .then(|| footprint_quad(view, centre_uv, pixel, centre, n))
+                .then(|| footprint_quad(view, centre_uv, pixel, centre, plane))
                 .flatten();
             gather.mean_over(rays, points, quad.as_ref().map(|q| &q[..]), n, i as u64, o);
         },

@@ -286,3 +286,75 @@ fn shadow_mapped_direct_on_a_moving_camera_is_within_1_2x_of_the_gather() {
         }
     }
 }
+
+/// The per-pixel gather averages each pixel's footprint on its surface's own plane. The
+/// Cornell box's red wall is a non-planar quad (the original data) whose second triangle
+/// carries the first one's normal, 0.47 degrees off its plane: a footprint on the shading
+/// normal's plane sat behind the wall a few footprint widths out, its visibility rays met
+/// the wall, and the wall's upper half came out 14-24 % dark at 64 x 64 (issue 49's red
+/// deficit). Direct light only, against the reference's direct light (no bounce), over the
+/// pixels inside the red wall: each channel's mean within 2 %.
+#[test]
+fn the_gathered_direct_light_on_a_non_planar_wall_is_the_references() {
+    use relight_pr::direct::DirectGather;
+    use relight_pr::display::pixel_direct;
+    use scene_core::GBufferRenderer;
+    let scene = Arc::new(builtin::scene("cornell").unwrap());
+    let view = View::from_camera(&scene.cameras[0].with_aspect(W as f32 / H as f32));
+    let settings = ReferenceSettings {
+        width: W,
+        height: H,
+        spp: 1024,
+        bounces: Bounces::Limited(0),
+        seed: 5,
+    };
+    let truth = render_lit(&scene, &view, &settings, &LightState::default(), None).image;
+
+    let t = solved(&scene, 1024);
+    let p = t.prepared().unwrap();
+    let gather = DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, 4);
+    let mut renderer = RayCastRenderer::new();
+    renderer
+        .prepare(Arc::new(p.meshing.element_scene(&p.scene)))
+        .unwrap();
+    let g = renderer.render_view(&view, W, H).unwrap();
+    let direct = pixel_direct(&gather, &p.rays, &g, &view, 8);
+    assert_eq!(p.solution.sources.len(), 1, "one emissive source");
+
+    let red = scene
+        .materials
+        .iter()
+        .position(|m| m.name == "red")
+        .unwrap() as u32;
+    let is_red = |x: i64, y: i64| {
+        let i = (y * W as i64 + x) as usize;
+        (0..W as i64).contains(&x)
+            && (0..H as i64).contains(&y)
+            && !g.is_background(i)
+            && p.meshing.elements[g.triangle_id[i] as usize].material == red
+    };
+    // Inside the wall: a pixel and its eight neighbours on it (the reference's pixel
+    // averages its whole area, and a white neighbour's share would swamp the wall's green
+    // and blue, 1/10 of white's).
+    let on_red: Vec<usize> = (0..g.len())
+        .filter(|&i| {
+            let (x, y) = ((i % W as usize) as i64, (i / W as usize) as i64);
+            (-1..=1).all(|dy| (-1..=1).all(|dx| is_red(x + dx, y + dy)))
+        })
+        .collect();
+    assert!(on_red.len() > 50, "{} red-wall pixels", on_red.len());
+    let mean = |f: &dyn Fn(usize) -> glam::Vec3| {
+        on_red.iter().map(|&i| f(i).as_dvec3()).sum::<glam::DVec3>() / on_red.len() as f64
+    };
+    let gathered = mean(&|i| g.albedo[i].truncate() * std::f32::consts::FRAC_1_PI * direct[i]);
+    let reference = mean(&|i| truth.pixels[i]);
+    let bias = gathered / reference - glam::DVec3::ONE;
+    eprintln!(
+        "red wall, direct light only, {} pixels: bias {:+.2} / {:+.2} / {:+.2} %",
+        on_red.len(),
+        100.0 * bias.x,
+        100.0 * bias.y,
+        100.0 * bias.z
+    );
+    assert!(bias.abs().max_element() < 0.02, "bias {bias}");
+}
