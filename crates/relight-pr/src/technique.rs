@@ -6,6 +6,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
+use scene_core::gpu::Keyed;
 use scene_core::ray::RayScene;
 use scene_core::{Error, FrameRequest, GBufferRenderer, Image, Scene, Technique};
 
@@ -120,6 +121,9 @@ pub struct RelightTechnique {
     renderer: Box<dyn GBufferRenderer + Send>,
     prepared: Option<Prepared>,
     cache: Option<DirectCache>,
+    /// The per-pixel gather, kept for its emitter rays: its emitters and the elements'
+    /// planes do not depend on the view, so a new view reuses it.
+    gather: Keyed<u32, DirectGather>,
     shadowed: Option<ShadowedLights>,
     timings: FrameTimings,
     name: String,
@@ -160,6 +164,7 @@ impl RelightTechnique {
             renderer,
             prepared: None,
             cache: None,
+            gather: Keyed::new(),
             shadowed: None,
             timings: FrameTimings::default(),
             name: "relight".into(),
@@ -236,6 +241,7 @@ impl RelightTechnique {
     ) -> Result<(), Error> {
         self.prepared = None;
         self.cache = None;
+        self.gather.clear();
         self.shadowed = None;
         // The GPU frame holds the last scene's solution: made again for this one.
         if let Some((_, state)) = self.gpu.as_mut() {
@@ -328,9 +334,10 @@ impl RelightTechnique {
                 let cpu = self.renderer.render_view(&frame.view, w, h)?;
                 let t = std::time::Instant::now();
                 if !state.frame.has_pixel_direct(&frame.view, (w, h)) {
-                    let gather =
-                        DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, emitter_rays);
-                    let values = pixel_direct(&gather, &p.rays, &cpu, &frame.view, subpixels);
+                    let gather = self.gather.get_or_make(emitter_rays, |&n| {
+                        DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, n)
+                    });
+                    let values = pixel_direct(gather, &p.rays, &cpu, &frame.view, subpixels);
                     state.frame.set_pixel_direct(frame.view, (w, h), values);
                 }
                 direct_time = t.elapsed();
@@ -436,13 +443,14 @@ impl Technique for RelightTechnique {
                     c.view == frame.view && c.size == size && c.settings == self.direct
                 });
                 if !fresh {
-                    let gather =
-                        DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, emitter_rays);
+                    let gather = self.gather.get_or_make(emitter_rays, |&n| {
+                        DirectGather::new(&p.scene, &p.meshing, &p.solution.sources, n)
+                    });
                     self.cache = Some(DirectCache {
                         view: frame.view,
                         size,
                         settings: self.direct,
-                        values: pixel_direct(&gather, &p.rays, &g, &frame.view, subpixels),
+                        values: pixel_direct(gather, &p.rays, &g, &frame.view, subpixels),
                     });
                 }
             }
