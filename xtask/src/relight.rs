@@ -19,9 +19,15 @@ pub struct Options {
     /// Output directory.
     #[arg(long, default_value = "out/relight")]
     pub out: std::path::PathBuf,
-    /// Target element count (patches are a quarter of it).
+    /// Target element count (patches are a quarter of it): the solution holds at most
+    /// 1.25 x this many elements, each a group of mesh elements where the meshing made
+    /// more (a file's small triangles, pieces split at walls).
     #[arg(long, default_value_t = 4096)]
     pub elements: usize,
+    /// Keep one value per mesh element, however many the meshing made (the element
+    /// budget not held).
+    #[arg(long)]
+    pub per_mesh_element: bool,
     /// Extra subdivision levels for patches that straddle other geometry (a floor under a
     /// wall); 0 meshes uniformly.
     #[arg(long, default_value_t = 6)]
@@ -234,6 +240,7 @@ pub fn run(o: &Options) -> Result<(), String> {
     let mut technique = RelightTechnique::new(
         MeshSettings {
             split_depth: o.split_depth,
+            hold_budget: !o.per_mesh_element,
             ..MeshSettings::elements(o.elements)
         },
         settings,
@@ -265,12 +272,14 @@ pub fn run(o: &Options) -> Result<(), String> {
         .filter(|p| p.element_count == 1)
         .count();
     eprintln!(
-        "{}: {} lights, {} patches ({small} of one element), {} elements; {} shots ({} of \
-         clusters of small patches)",
+        "{}: {} lights, {} patches ({small} of one element), {} mesh elements in {} solution \
+         elements ({} asked); {} shots ({} of clusters of small patches)",
         scene.name,
         ids.len(),
         meshing.patches.len(),
         meshing.elements.len(),
+        solution.elements,
+        o.elements,
         solution.stats.shots,
         solution.stats.cluster_shots,
     );
@@ -320,7 +329,9 @@ pub fn run(o: &Options) -> Result<(), String> {
         "scene": scene.name,
         "lights": lights,
         "sources": solution.k(),
-        "elements": meshing.elements.len(),
+        "elements": solution.elements,
+        "elements_asked": o.elements,
+        "mesh_elements": meshing.elements.len(),
         "patches": meshing.patches.len(),
         "split_patches": meshing.split_patches,
         "one_element_patches": small,
@@ -363,6 +374,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "display_ms": timings.display.as_secs_f64() * 1e3,
         "gltf": gltf.file_name().map(|f| f.to_string_lossy().into_owned()),
         "solution_bytes": relight_pr::solver::solution_bytes(meshing.elements.len(), meshing.patches.len(), solution.k()),
+        "memory": memory_summary(solution),
         "camera": camera.name,
         "width": o.view.width,
         "height": o.view.height,
@@ -380,4 +392,29 @@ pub fn run(o: &Options) -> Result<(), String> {
         json.display()
     );
     Ok(())
+}
+
+/// What the kept solution and the hierarchical solve's links cost, per element and per
+/// link.
+fn memory_summary(solution: &relight_pr::Solution) -> serde_json::Value {
+    let kept = (solution.direct.len() + solution.indirect.len()) as u64 * 12;
+    let links = solution.stats.hierarchy.map(|h| {
+        let count = h.direct_far_links
+            + h.direct_near_links
+            + h.far_links
+            + h.near_links
+            + h.direct_cluster_links
+            + h.cluster_links;
+        serde_json::json!({
+            "links": count,
+            "link_bytes": h.link_bytes,
+            "bytes_per_link": h.link_bytes as f64 / count.max(1) as f64,
+            "node_bytes": h.node_bytes,
+        })
+    });
+    serde_json::json!({
+        "kept_solution_bytes": kept,
+        "bytes_per_element": kept as f64 / solution.elements.max(1) as f64,
+        "links": links,
+    })
 }

@@ -77,15 +77,17 @@ impl Welding {
         welding
     }
 
-    /// Per-vertex area-weighted mean of per-element values.
+    /// Per-vertex area-weighted mean of per-element values: one per mesh element, or one
+    /// per solution element ([`Meshing::slot`]).
     pub fn vertex_values(&self, meshing: &Meshing, values: &[Vec3]) -> Vec<Vec3> {
         let mut sum = vec![Vec3::ZERO; self.vertices];
         let mut weight = vec![0.0f32; self.vertices];
         for (j, e) in meshing.elements.iter().enumerate() {
             let w = vertex_weight(e);
+            let value = values[meshing.slot(j, values.len())];
             for c in 0..3 {
                 let v = self.corner_vertex[3 * j + c] as usize;
-                sum[v] += values[j] * w;
+                sum[v] += value * w;
                 weight[v] += w;
             }
         }
@@ -112,11 +114,12 @@ impl Welding {
         let mut weight = vec![0.0f32; self.vertices];
         for (j, e) in meshing.elements.iter().enumerate() {
             let w = vertex_weight(e);
+            let s = solution.slot(meshing, j);
             for c in 0..3 {
                 let v = self.corner_vertex[3 * j + c] as usize;
                 for m in 0..k {
-                    direct[v * k + m] += solution.direct[j * k + m] * w;
-                    indirect[v * k + m] += solution.indirect[j * k + m] * w;
+                    direct[v * k + m] += solution.direct[s * k + m] * w;
+                    indirect[v * k + m] += solution.indirect[s * k + m] * w;
                 }
                 weight[v] += w;
             }
@@ -365,7 +368,8 @@ pub fn pixel_direct_shadowed(
 }
 
 /// The image of `g` (a G-buffer of the element scene seen from `view`): see the module
-/// documentation. `irradiance` and `glow` are per element; `vertex_irradiance` per welded
+/// documentation. `irradiance` is per solution element or per mesh element
+/// ([`Meshing::slot`]), `glow` per mesh element; `vertex_irradiance` per welded
 /// vertex (used with [`Shading::Smooth`]). With `direct`, the element values must hold
 /// the indirect light only, and each pixel adds its own direct light.
 #[allow(clippy::too_many_arguments)]
@@ -389,7 +393,7 @@ pub fn compose(
                 return Vec3::ZERO;
             }
             let mut e = match shading {
-                Shading::Flat => irradiance[id],
+                Shading::Flat => irradiance[meshing.slot(id, irradiance.len())],
                 Shading::Smooth => {
                     let uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
                     let p = view.reconstruct_world(uv, g.depth[i]);

@@ -312,7 +312,8 @@ pub fn shadowed_direct(
                     .iter()
                     .map(|&id| direct::element_from_analytic(scene, id, rays, e, extent))
                     .sum();
-                let solved = (solution.direct[j * k + m] - analytic).max(Vec3::ZERO);
+                let s = solution.slot(meshing, j);
+                let solved = (solution.direct[s * k + m] - analytic).max(Vec3::ZERO);
                 if solved != Vec3::ZERO {
                     let v = emitter_visibility(
                         e,
@@ -428,10 +429,13 @@ impl DynamicScene {
     ) -> Result<DynamicFrame, RelightError> {
         let k = solution.k();
         let n = meshing.elements.len();
-        if solution.direct.len() != n * k || solution.indirect.len() != n * k {
+        let of_meshing = solution.elements == n || solution.elements == meshing.groups.count;
+        let len = solution.elements * k;
+        if !of_meshing || solution.direct.len() != len || solution.indirect.len() != len {
             return Err(RelightError::InvalidSetting(format!(
-                "the solution holds {} values, not {k} sources x {n} elements of this meshing",
-                solution.direct.len()
+                "the solution holds {} values, not {k} sources x {} elements of this meshing",
+                solution.direct.len(),
+                meshing.groups.count
             )));
         }
         match &self.transfer {
@@ -488,9 +492,12 @@ impl DynamicScene {
             .into_par_iter()
             .map(|j| {
                 let (mut d, mut i) = (moving[j], blend[j]);
+                // The shadowed direct light is per mesh element, the solution per group.
+                let sd = meshing.slot(j, static_direct.len() / k.max(1));
+                let s = solution.slot(meshing, j);
                 for m in 0..k {
-                    d += static_direct[j * k + m] * f[m].0;
-                    i += solution.indirect[j * k + m] * f[m].1;
+                    d += static_direct[sd * k + m] * f[m].0;
+                    i += solution.indirect[s * k + m] * f[m].1;
                 }
                 (d, i)
             })

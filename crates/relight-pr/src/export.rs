@@ -69,7 +69,8 @@ pub fn gltf(
     for (m, source) in solution.sources.iter().enumerate() {
         let radiosity: Vec<Vec3> = (0..n)
             .map(|j| {
-                let e = solution.direct[j * k + m] + solution.indirect[j * k + m];
+                let s = solution.slot(meshing, j);
+                let e = solution.direct[s * k + m] + solution.indirect[s * k + m];
                 meshing.elements[j].albedo * e
             })
             .collect();

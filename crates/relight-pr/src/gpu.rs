@@ -108,7 +108,10 @@ struct GpuElement {
 pub struct GpuRelight {
     ctx: GpuContext,
     k: usize,
+    /// Solution elements (groups of mesh elements, [`Meshing::groups`]).
     elements: usize,
+    /// Mesh elements in the element table (what the display's triangle ids index).
+    mesh_elements: usize,
     precision: Precision,
     vertex_words: wgpu::Buffer,
     element_table: wgpu::Buffer,
@@ -200,8 +203,14 @@ impl GpuRelight {
     ) -> Result<Self, RelightError> {
         let k = solution.k();
         let n = meshing.elements.len();
+        if solution.k() > 0 && solution.elements != meshing.groups.count && solution.elements != n {
+            return Err(RelightError::InvalidSetting(format!(
+                "a solution of {} elements for a meshing of {n} mesh elements in {} groups",
+                solution.elements, meshing.groups.count
+            )));
+        }
         let limit = ctx.storage_binding_limit();
-        let words = (n * k * precision.words()) as u64 * 4;
+        let words = (solution.elements * k * precision.words()) as u64 * 4;
         let vertex_bytes = (welding.vertices * k * precision.words()) as u64 * 4;
         for (what, bytes) in [
             ("packed element solution", words),
@@ -348,6 +357,7 @@ impl GpuRelight {
             ctx: ctx.clone(),
             k: packed.k,
             elements: n,
+            mesh_elements: table.len(),
             precision: packed.precision,
             vertex_words: ctx.storage_with(
                 "packed vertex solution",
@@ -428,9 +438,15 @@ impl GpuRelight {
         self.k
     }
 
-    /// Number of elements of the solution.
+    /// Number of elements of the solution (groups of mesh elements,
+    /// [`Meshing::groups`]).
     pub fn elements(&self) -> usize {
         self.elements
+    }
+
+    /// Number of mesh elements the display draws (0 for [`GpuRelight::relight_only`]).
+    pub fn mesh_elements(&self) -> usize {
+        self.mesh_elements
     }
 
     /// True once [`GpuRelight::set_shadowed_direct`] has set the per-frame direct light.
@@ -758,7 +774,7 @@ impl GpuRelight {
             width: w,
             height: h,
             k: self.k as u32,
-            elements: self.elements as u32,
+            elements: self.mesh_elements as u32,
             base: base.extend(0.0).to_array(),
         };
         let ctx = &self.ctx;

@@ -111,12 +111,12 @@ impl RelightFrame {
         sources: Vec<Source>,
     ) -> Result<Self, RelightError> {
         // A solution without sources packs no element (its display is black).
-        let elements_differ = gpu.sources() > 0 && meshing.elements.len() != gpu.elements();
+        let elements_differ = gpu.sources() > 0 && meshing.elements.len() != gpu.mesh_elements();
         if elements_differ || sources.len() != gpu.sources() {
             return Err(RelightError::InvalidSetting(format!(
-                "a solution of {} elements and {} sources on the GPU, a meshing of {} elements \
-                 and {} sources given",
-                gpu.elements(),
+                "a solution of {} mesh elements and {} sources on the GPU, a meshing of {} \
+                 mesh elements and {} sources given",
+                gpu.mesh_elements(),
                 gpu.sources(),
                 meshing.elements.len(),
                 sources.len()

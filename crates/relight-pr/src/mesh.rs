@@ -33,6 +33,15 @@ pub struct MeshSettings {
     /// Merge coplanar triangles first ([`crate::merge::merge_coplanar`]), so that a flat
     /// wall cut into a fine grid by its modeller meshes like one polygon. Default true.
     pub merge_coplanar: bool,
+    /// Hold the element budget: where the meshing made more than 1.25 x
+    /// `target_elements` mesh elements (a file's small triangles, one element each at the
+    /// least; the pieces split at walls; the factor of up to 4 of the uniform
+    /// subdivision), they are clustered into at most `target_elements` groups
+    /// ([`ElementGroups`]), and the solution, the relight and the export hold one value
+    /// per group. The mesh elements stay as the geometry that the display draws and the
+    /// per-pixel direct light gathers on. Default true; false keeps one value per mesh
+    /// element, whatever their number.
+    pub hold_budget: bool,
 }
 
 impl MeshSettings {
@@ -52,6 +61,7 @@ impl Default for MeshSettings {
             budget: MeshBudget::default(),
             split_depth: 6,
             merge_coplanar: true,
+            hold_budget: true,
         }
     }
 }
@@ -198,6 +208,131 @@ pub struct Meshing {
     pub split_patches: usize,
     /// What merging coplanar triangles did ([`MeshSettings::merge_coplanar`]), when on.
     pub merge: Option<crate::merge::MergeStats>,
+    /// The solution's elements: which group each mesh element's value is held in
+    /// ([`MeshSettings::hold_budget`]); one group per mesh element when the budget did
+    /// not need them.
+    pub groups: ElementGroups,
+}
+
+/// The most solution elements per element asked for ([`MeshSettings::hold_budget`]): a
+/// meshing within it is kept one value per mesh element; a grouping aims at the target and
+/// may reach this only to split groups that would reach through a wall.
+pub const BUDGET_SLACK: f64 = 1.25;
+
+/// The elements a solution holds values for, as groups of mesh elements
+/// ([`MeshSettings::hold_budget`]). The groups are a cut through the hierarchical
+/// solve's cluster tree (grouped by orientation, then in space; a floor running under a
+/// wall is split at the wall): each is a patch of surface about one target element in
+/// area, facing one way. A group's value is the area-weighted mean of its open mesh
+/// elements' values ([`ElementGroups::reduce`]); hidden mesh elements and those of no
+/// area share one group of their own, whose value is the mean of theirs (zero: they
+/// receive nothing).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ElementGroups {
+    /// The group of each mesh element.
+    pub of_element: Vec<u32>,
+    /// Number of groups: the solution's element count.
+    pub count: usize,
+}
+
+impl ElementGroups {
+    /// One group per mesh element.
+    pub fn identity(elements: usize) -> Self {
+        Self {
+            of_element: (0..elements as u32).collect(),
+            count: elements,
+        }
+    }
+
+    /// Whether every mesh element is a group of its own, in order.
+    pub fn is_identity(&self) -> bool {
+        self.count == self.of_element.len()
+            && self
+                .of_element
+                .iter()
+                .enumerate()
+                .all(|(j, &g)| g == j as u32)
+    }
+
+    /// The group of mesh element `j`.
+    pub fn of(&self, j: usize) -> usize {
+        self.of_element[j] as usize
+    }
+
+    /// Per group and source, the area-weighted mean of `values` (per mesh element and
+    /// source, element-major `j * k + m`) over the group's open mesh elements (over all of
+    /// them where none is open; zero where they have no area).
+    pub fn reduce(&self, elements: &[Element], values: &[Vec3], k: usize) -> Vec<Vec3> {
+        let mut sum = vec![Vec3::ZERO; self.count * k];
+        let mut weight = vec![[0.0f64; 2]; self.count];
+        for (j, e) in elements.iter().enumerate() {
+            let g = self.of(j);
+            let area = if e.area.is_finite() {
+                e.area.max(0.0)
+            } else {
+                0.0
+            };
+            weight[g][usize::from(e.hidden)] += area as f64;
+        }
+        for (j, e) in elements.iter().enumerate() {
+            let g = self.of(j);
+            let area = if e.area.is_finite() {
+                e.area.max(0.0)
+            } else {
+                0.0
+            };
+            let [open, hidden] = weight[g];
+            let w = match (e.hidden, open > 0.0) {
+                (false, _) => area as f64 / open,
+                (true, false) if hidden > 0.0 => area as f64 / hidden,
+                _ => 0.0,
+            };
+            if w > 0.0 {
+                for m in 0..k {
+                    sum[g * k + m] += values[j * k + m] * w as f32;
+                }
+            }
+        }
+        sum
+    }
+
+    /// Each group's area (of its open mesh elements, or of all where none is open).
+    pub fn areas(&self, elements: &[Element]) -> Vec<f32> {
+        let mut area = vec![[0.0f64; 2]; self.count];
+        for (j, e) in elements.iter().enumerate() {
+            if e.area.is_finite() && e.area > 0.0 {
+                area[self.of(j)][usize::from(e.hidden)] += e.area as f64;
+            }
+        }
+        area.iter()
+            .map(|[open, hidden]| if *open > 0.0 { *open } else { *hidden } as f32)
+            .collect()
+    }
+
+    /// Groups `meshing`'s elements to at most `target` when there are more than 1.25 x
+    /// `target` ([`MeshSettings::hold_budget`]); one per element otherwise.
+    fn for_meshing(meshing: &Meshing, rays: Option<&RayScene>, target: usize) -> Self {
+        let n = meshing.elements.len();
+        if (n as f64) <= BUDGET_SLACK * target as f64 {
+            return Self::identity(n);
+        }
+        // The hidden elements' group counts against the target too.
+        let outside = meshing
+            .elements
+            .iter()
+            .any(|e| e.hidden || !(e.area.is_finite() && e.area > 0.0));
+        let cut = target.saturating_sub(usize::from(outside)).max(1);
+        let cap = (target as f64 * BUDGET_SLACK) as usize - usize::from(outside);
+        let (mut of_element, mut count) =
+            crate::hierarchical::budget_cut(meshing, rays, cut, cap.max(cut));
+        if of_element.contains(&u32::MAX) {
+            for g in of_element.iter_mut().filter(|g| **g == u32::MAX) {
+                *g = count as u32;
+            }
+            count += 1;
+        }
+        Self { of_element, count }
+    }
 }
 
 /// A triangle of the subdivision, with the barycentric coordinates of its corners in its
@@ -641,14 +776,20 @@ impl Meshing {
                 .map(|e| e.area)
                 .sum();
         }
-        Ok(Self {
+        let count = elements.len();
+        let mut meshing = Self {
             elements,
             patches,
             patch_area,
             skipped_triangles: skipped,
             split_patches,
             merge: merged.map(|m| m.stats),
-        })
+            groups: ElementGroups::identity(count),
+        };
+        if settings.hold_budget {
+            meshing.groups = ElementGroups::for_meshing(&meshing, rays, settings.target_elements);
+        }
+        Ok(meshing)
     }
 
     /// The elements as a scene of their own (one mesh, element `j` is triangle `j`, the
@@ -688,6 +829,17 @@ impl Meshing {
         out.cameras = scene.cameras.clone();
         out.meshes.push(mesh);
         out
+    }
+
+    /// Where mesh element `j`'s value lies in per-element values of length `len`: at `j`
+    /// when they hold one per mesh element, at its group ([`Meshing::groups`]) when they
+    /// hold one per solution element.
+    pub fn slot(&self, j: usize, len: usize) -> usize {
+        if len == self.elements.len() {
+            j
+        } else {
+            self.groups.of(j)
+        }
     }
 
     /// The elements of patch `p`.

@@ -31,7 +31,8 @@ pub fn source_factors(sources: &[crate::solver::Source], state: &LightState) -> 
         .collect()
 }
 
-/// Each element's irradiance under `state`:
+/// Each solution element's irradiance under `state` (one per group of mesh elements,
+/// [`Meshing::groups`]):
 /// `E_j = sum_m d_m E_direct,jm + i_m E_indirect,jm` (the indirect part holds the ambient
 /// term, [`Solution::ambient`]).
 pub fn irradiance(solution: &Solution, state: &LightState) -> Vec<Vec3> {
@@ -81,7 +82,7 @@ fn weighted(solution: &Solution, state: &LightState, with_direct: bool) -> Vec<V
         .collect()
 }
 
-/// Each element's emitted radiance under `state`: its emission times its light's direct
+/// Each mesh element's emitted radiance under `state`: its emission times its light's direct
 /// factor (zero for non-emitters).
 pub fn glow(meshing: &Meshing, solution: &Solution, state: &LightState) -> Vec<Vec3> {
     let f = factors(solution, state);
@@ -98,15 +99,19 @@ pub fn glow(meshing: &Meshing, solution: &Solution, state: &LightState) -> Vec<V
         .collect()
 }
 
-/// Each element's outgoing radiance under `state`: `albedo E / pi`, plus its emission
-/// times its light's direct factor ([`glow`]).
+/// Each mesh element's outgoing radiance under `state`: `albedo E / pi` (`E` its
+/// solution element's, [`Meshing::groups`]), plus its emission times its light's direct
+/// factor ([`glow`]).
 pub fn radiance(meshing: &Meshing, solution: &Solution, state: &LightState) -> Vec<Vec3> {
     let e = irradiance(solution, state);
     let glow = glow(meshing, solution, state);
     meshing
         .elements
         .par_iter()
-        .zip(e.par_iter().zip(glow.par_iter()))
-        .map(|(el, (e, g))| el.albedo * *e * std::f32::consts::FRAC_1_PI + *g)
+        .enumerate()
+        .zip(glow.par_iter())
+        .map(|((j, el), g)| {
+            el.albedo * e[solution.slot(meshing, j)] * std::f32::consts::FRAC_1_PI + *g
+        })
         .collect()
 }

@@ -216,6 +216,26 @@ impl Solution {
     pub fn source_of(&self, id: LightId) -> Option<usize> {
         self.sources.iter().position(|s| s.lights.contains(&id))
     }
+
+    /// This solution, solved over `meshing`'s mesh elements, reduced to one value per
+    /// group of [`Meshing::groups`] (unchanged when each element is a group of its own).
+    pub fn into_groups(mut self, meshing: &Meshing) -> Self {
+        let groups = &meshing.groups;
+        if self.elements != meshing.elements.len() || groups.is_identity() {
+            return self;
+        }
+        let k = self.k();
+        self.direct = groups.reduce(&meshing.elements, &self.direct, k);
+        self.indirect = groups.reduce(&meshing.elements, &self.indirect, k);
+        self.elements = groups.count;
+        self
+    }
+
+    /// The index of mesh element `j`'s values in this solution's element-major arrays
+    /// (times the source count): its group's ([`Meshing::groups`]).
+    pub fn slot(&self, meshing: &Meshing, j: usize) -> usize {
+        meshing.slot(j, self.elements)
+    }
 }
 
 /// The sources of `scene` under `banks`: each bank, then every light in no bank.
@@ -292,7 +312,8 @@ pub fn solve_with(
                 ));
             }
         };
-        return crate::hierarchical::solve(scene, meshing, rays, sources, settings, h, progress);
+        return crate::hierarchical::solve(scene, meshing, rays, sources, settings, h, progress)
+            .map(|s| s.into_groups(meshing));
     }
     let mut solution = match settings.strategy {
         Strategy::Tagged => solve_tagged(
@@ -357,7 +378,7 @@ pub fn solve_with(
         }
     };
     solution.stats.time = start.elapsed();
-    Ok(solution)
+    Ok(solution.into_groups(meshing))
 }
 
 /// Checks `settings` (visibility samples, unshot limit, hemicube resolution and renderer)

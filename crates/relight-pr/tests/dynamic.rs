@@ -9,6 +9,15 @@ use common::max_relative;
 use glam::Vec3;
 use relight_pr::dynamic::{DynamicScene, Transfer, transfer_bytes};
 use relight_pr::{MeshSettings, Meshing, RelightError, SolverSettings, Strategy, solve};
+
+/// One value per mesh element: these tests compare the section 2.4 machinery (which works
+/// on the mesh elements) with a re-solve element by element.
+fn per_element(target: usize) -> MeshSettings {
+    MeshSettings {
+        hold_budget: false,
+        ..MeshSettings::elements(target)
+    }
+}
 use scene_core::lights::LightState;
 use scene_core::ray::RayScene;
 use scene_core::{Scene, builtin};
@@ -16,7 +25,7 @@ use scene_core::{Scene, builtin};
 /// A built-in scene meshed at 256 elements and solved tight, for the object tests.
 fn solved(name: &str) -> (Scene, Meshing, RayScene, relight_pr::Solution) {
     let scene = builtin::scene(name).unwrap();
-    let meshing = Meshing::new(&scene, &MeshSettings::elements(256), 1).unwrap();
+    let meshing = Meshing::new(&scene, &per_element(256), 1).unwrap();
     let rays = RayScene::build(&scene);
     let solution = solve(&scene, &meshing, &rays, &tight(), &mut |_| {}).unwrap();
     (scene, meshing, rays, solution)
@@ -50,7 +59,7 @@ fn a_moving_light_blended_from_the_transfer_equals_a_re_solve() {
     let lit = builtin::scene("cornell-point").unwrap();
     let mut dark = lit.clone();
     let light = dark.point_lights.remove(0);
-    let meshing = Meshing::new(&dark, &MeshSettings::elements(256), 1).unwrap();
+    let meshing = Meshing::new(&dark, &per_element(256), 1).unwrap();
     let rays = RayScene::build(&dark);
     let transfer =
         Transfer::solve(&dark, &meshing, &rays, &tight(), u64::MAX, &mut |_| {}).expect("transfer");

@@ -272,10 +272,7 @@ fn a_scene_without_lights_displays_black_on_the_gpu() {
         &mut |_| {},
     )
     .unwrap();
-    assert_eq!(
-        (solution.k(), solution.elements),
-        (0, meshing.elements.len())
-    );
+    assert_eq!((solution.k(), solution.elements), (0, meshing.groups.count));
     let welding = Welding::new(&meshing, scene.extent());
     let (w, h) = (16, 12);
     let (view, _, gg) = element_gbuffer(&ctx, &scene, &meshing, w, h);
@@ -287,7 +284,7 @@ fn a_scene_without_lights_displays_black_on_the_gpu() {
     assert!(got.pixels.iter().all(|p| *p == Vec3::ZERO));
     assert_eq!(
         relight::irradiance(&solution, &state).len(),
-        meshing.elements.len()
+        meshing.groups.count
     );
 }
 

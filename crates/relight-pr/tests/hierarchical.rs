@@ -93,7 +93,10 @@ fn the_hierarchical_solve_matches_the_progressive_one_on_the_built_in_scenes() {
         // first shot (the same analytic light, or the emitters' light).
         let direct = |s: &Solution| -> Vec<Vec3> {
             (0..meshing.elements.len())
-                .map(|j| (0..s.k()).map(|m| s.direct[j * s.k() + m]).sum())
+                .map(|j| {
+                    let g = s.slot(&meshing, j);
+                    (0..s.k()).map(|m| s.direct[g * s.k() + m]).sum()
+                })
                 .collect()
         };
         let (da, db) = (direct(&h), direct(&progressive));

@@ -242,10 +242,20 @@ fn a_floor_running_under_the_wall_does_not_carry_light_through_it() {
         tolerance: 1e-2,
         ..Default::default()
     });
-    for (split_depth, hierarchy) in [(0, None), (6, None), (6, hierarchical)] {
+    // The first three hold one value per mesh element (the splits are what they test);
+    // the last two hold the element budget, whose groups must not reach across the wall.
+    let cases = [
+        (0, None, false),
+        (6, None, false),
+        (6, hierarchical, false),
+        (6, None, true),
+        (6, hierarchical, true),
+    ];
+    for (split_depth, hierarchy, hold_budget) in cases {
         let mut t = RelightTechnique::new(
             MeshSettings {
                 split_depth,
+                hold_budget,
                 ..MeshSettings::elements(768)
             },
             SolverSettings {
@@ -271,7 +281,11 @@ fn a_floor_running_under_the_wall_does_not_carry_light_through_it() {
             }
         }
         let (lit, dark) = (lit.0 / lit.1, dark.0 / dark.1);
-        let (elements, splits) = (p.meshing.elements.len(), p.meshing.split_patches);
+        let (elements, splits, groups) = (
+            p.meshing.elements.len(),
+            p.meshing.split_patches,
+            p.meshing.groups.count,
+        );
         let state = LightState::default();
         let mut images = Vec::new();
         for direct in [
@@ -288,9 +302,11 @@ fn a_floor_running_under_the_wall_does_not_carry_light_through_it() {
             images.push((image_mean(&lit_img), image_mean(&dark_img)));
         }
         eprintln!(
-            "split depth {split_depth}, hierarchical {}: {elements} elements ({splits} patches split); elements: \
-             lit {lit:.4e}, dark {dark:.3e}; images (elements, per-pixel direct): {images:?}",
-            hierarchy.is_some()
+            "split depth {split_depth}, hierarchical {}: {elements} elements in {} groups \
+             ({splits} patches split); elements: lit {lit:.4e}, dark {dark:.3e}; images \
+             (elements, per-pixel direct): {images:?}",
+            hierarchy.is_some(),
+            groups
         );
         leaks.push((dark / lit, images));
     }
@@ -307,6 +323,13 @@ fn a_floor_running_under_the_wall_does_not_carry_light_through_it() {
             assert!(*lit > 0.0);
             assert!(*dark < 1e-4 * lit, "display: dark {dark} against lit {lit}");
         }
+    }
+    // Grouped, the dark room's elements hold what the same solve gave them one by one (a
+    // group reaching under the wall would average the lit floor into them: 5x more, with
+    // groups cut by size alone and no parting by sight).
+    for (grouped, single) in [(3, 1), (4, 2)] {
+        let (g, s) = (leaks[grouped].0, leaks[single].0);
+        assert!(g <= s * 1.01 + 1e-9, "grouped {g} against one by one {s}");
     }
 }
 

@@ -490,8 +490,24 @@ fn hemicube_solutions_keep_the_furnace_s_energy() {
     assert!(e.to_string().contains("renderer"), "{e}");
 }
 
+/// Each mesh element's radiance, with one value per mesh element: the solver's own
+/// scale invariance (the grouping's is [`grouped_radiance_of`]'s).
 fn radiance_of(scene: &Scene, elements: usize) -> Vec<Vec3> {
-    let meshing = Meshing::new(scene, &MeshSettings::elements(elements), 64).unwrap();
+    radiance_and_groups(scene, elements, false).0
+}
+
+/// Each mesh element's radiance from the default meshing, which holds the element budget
+/// ([`MeshSettings::hold_budget`]), and its groups.
+fn grouped_radiance_of(scene: &Scene, elements: usize) -> (Vec<Vec3>, Vec<u32>) {
+    radiance_and_groups(scene, elements, true)
+}
+
+fn radiance_and_groups(scene: &Scene, elements: usize, hold_budget: bool) -> (Vec<Vec3>, Vec<u32>) {
+    let mesh = MeshSettings {
+        hold_budget,
+        ..MeshSettings::elements(elements)
+    };
+    let meshing = Meshing::new(scene, &mesh, 64).unwrap();
     let rays = RayScene::build(scene);
     let settings = SolverSettings {
         max_unshot: 1e-4,
@@ -499,7 +515,10 @@ fn radiance_of(scene: &Scene, elements: usize) -> Vec<Vec3> {
         ..Default::default()
     };
     let s = solver::solve(scene, &meshing, &rays, &settings, &mut |_| {}).unwrap();
-    relight::radiance(&meshing, &s, &LightState::default())
+    (
+        relight::radiance(&meshing, &s, &LightState::default()),
+        meshing.groups.of_element,
+    )
 }
 
 #[test]
@@ -526,6 +545,23 @@ fn scaled_scenes_and_sixty_four_lights_give_the_same_radiosity() {
         // the millimetre scene: 3.9e-3 of the mean.)
         assert!(mean_diff < 5e-4, "x{k}: mean {mean_diff}");
         assert!(e < 2e-3, "x{k}: {e}");
+    }
+    // The element budget's groups (912 mesh elements in at most 1.25 x 256) are the same
+    // in every unit, and so is their picture to the same mean bound.
+    let (grouped, groups) = grouped_radiance_of(&base, 256);
+    let count = *groups.iter().max().unwrap() as usize + 1;
+    assert!(groups.len() == 912 && count <= 320, "{count} groups");
+    for k in [1e-3f32, 1e4] {
+        let (out, scaled_groups) = grouped_radiance_of(&base.clone().scaled(k), 256);
+        assert_eq!(scaled_groups, groups, "x{k}: other groups");
+        let mean_diff: f32 = out
+            .iter()
+            .zip(&grouped)
+            .map(|(a, b)| (*a - *b).abs().element_sum())
+            .sum::<f32>()
+            / grouped.iter().map(|b| b.element_sum()).sum::<f32>();
+        eprintln!("grouped, scaled x{k}: mean {mean_diff:.2e} of the mean");
+        assert!(mean_diff < 5e-4, "grouped x{k}: mean {mean_diff}");
     }
     // 64 coincident lights of 1/64 the intensity: 64 sources, the same picture.
     let mut many = base.clone();

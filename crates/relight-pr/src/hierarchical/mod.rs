@@ -70,6 +70,7 @@ mod tree;
 
 use gather::{ClusterLink, FarLink, Gather, LinkSet, NearLink};
 pub use tree::COHERENCE_RAYS;
+pub(crate) use tree::budget_cut;
 use tree::{Facing, Node, Tree, facing};
 
 /// Parameters of the hierarchical solve ([`SolverSettings::hierarchy`]).

@@ -88,6 +88,16 @@ impl Tree {
     /// The tree over `meshing`'s elements, with its clusters' coherence found through
     /// `rays`.
     pub(super) fn build(meshing: &Meshing, rays: &RayScene) -> Self {
+        let mut tree = Self::nodes_only(meshing, false);
+        tree.coherent = tree.coherence(meshing, rays);
+        tree
+    }
+
+    /// The tree without its coherence (left empty). `on_grid`: the spatial splits compare
+    /// the centroids on a grid of 2^-20 of their bounds, so that the same scene in other
+    /// units (coordinates rounded otherwise) builds the same tree, as the element budget's
+    /// groups must be; otherwise as floats (the solve's tree).
+    pub(super) fn nodes_only(meshing: &Meshing, on_grid: bool) -> Self {
         let els = &meshing.elements;
         let mut keyed: Vec<(u32, u32)> = (0..els.len() as u32)
             .filter(|&j| {
@@ -102,7 +112,26 @@ impl Tree {
         let mut nodes = Vec::with_capacity(2 * order.len());
         if !order.is_empty() {
             let count = order.len();
-            build_node(els, &class, &mut order, 0, count, &mut nodes);
+            let (lo, hi) = order.iter().fold(
+                (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+                |(a, b), &j| {
+                    let c = els[j as usize].centroid;
+                    (a.min(c), b.max(c))
+                },
+            );
+            let step = ((hi - lo).max_element() / (1 << 20) as f32).max(f32::MIN_POSITIVE);
+            let keys: Vec<[i32; 3]> = if on_grid {
+                els.iter()
+                    .map(|e| {
+                        let q = ((e.centroid - lo) / step).round();
+                        [q.x as i32, q.y as i32, q.z as i32]
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            let keys = on_grid.then_some(keys.as_slice());
+            build_node(els, keys, &class, &mut order, 0, count, &mut nodes);
         }
         let mut area_prefix = Vec::with_capacity(order.len() + 1);
         let mut sum = 0.0f64;
@@ -117,15 +146,13 @@ impl Tree {
                 leaf_of[order[node.first as usize] as usize] = i as u32;
             }
         }
-        let mut tree = Self {
+        Self {
             nodes,
             order,
             area_prefix,
             leaf_of,
             coherent: Vec::new(),
-        };
-        tree.coherent = tree.coherence(meshing, rays);
-        tree
+        }
     }
 
     /// Which nodes are coherent: leaves are; a cluster is when
@@ -135,12 +162,26 @@ impl Tree {
     /// next room is not: a far link would carry light through the wall to the elements on
     /// its far side (as receiver), or from them (as sender).
     pub(super) fn coherence(&self, meshing: &Meshing, rays: &RayScene) -> Vec<bool> {
+        (0..self.nodes.len())
+            .into_par_iter()
+            .map(|i| self.node_coherent(i, meshing, rays, STAR_LEAVES))
+            .collect()
+    }
+
+    /// Whether node `i` is coherent ([`Tree::coherence`]), with nearly flat clusters of up
+    /// to `star_leaves` leaves tested leaf by leaf.
+    pub(super) fn node_coherent(
+        &self,
+        i: usize,
+        meshing: &Meshing,
+        rays: &RayScene,
+        star_leaves: u32,
+    ) -> bool {
         let els = &meshing.elements;
         let tree = self;
-        tree.nodes
-            .par_iter()
-            .enumerate()
-            .map(|(i, node)| {
+        let node = &tree.nodes[i];
+        {
+            {
                 if node.leaf() {
                     return true;
                 }
@@ -158,7 +199,7 @@ impl Tree {
                     let e = &els[tree.leaf_at(node, u) as usize];
                     lifted(e, e.uniform_point(rng.next_vec2()))
                 };
-                if node.count <= STAR_LEAVES && node.nearly_flat() {
+                if node.count <= star_leaves && node.nearly_flat() {
                     // Small flat clusters (pieces of a floor, which the element budget
                     // keeps whole): every leaf against the middle one by area. Random
                     // pairs would miss a small piece on the far side of a wall (a floor
@@ -180,8 +221,8 @@ impl Tree {
                     let b = point(u + 0.5, &mut rng);
                     !visibility::segment_blocked(rays, a, b)
                 })
-            })
-            .collect()
+            }
+        }
     }
 }
 
@@ -195,6 +236,9 @@ pub(super) const NEARLY_FLAT: f32 = 0.05;
 
 /// Clusters of at most this many leaves are tested by [`Tree::coherence`] leaf by leaf.
 pub(super) const STAR_LEAVES: u32 = 32;
+
+/// Parts found by sight in one node of the element budget's cut ([`Tree::sight_parts`]).
+pub(super) const SIGHT_HUBS: usize = 8;
 
 /// Segments tested per larger cluster by `Tree::coherence`.
 pub const COHERENCE_RAYS: u32 = 8;
@@ -214,6 +258,7 @@ impl Tree {
 /// its subtree in pre-order; returns its index.
 pub(super) fn build_node(
     els: &[crate::mesh::Element],
+    keys: Option<&[[i32; 3]]>,
     class: &[u32],
     order: &mut [u32],
     first: usize,
@@ -278,25 +323,41 @@ pub(super) fn build_node(
         }
         best.1 - first
     } else {
-        // Then space: the median along the longest axis of the centroids' bounds.
+        // Then space: the median along the longest axis of the centroids' bounds (on
+        // their grid, the first axis of equal extents).
         let slice = &mut order[range.clone()];
-        let (lo, hi) = slice.iter().fold(
-            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
-            |(a, b), &j| {
-                let c = els[j as usize].centroid;
-                (a.min(c), b.max(c))
-            },
-        );
-        let axis = (hi - lo).max_position();
         let half = count / 2;
-        slice.select_nth_unstable_by(half, |&a, &b| {
-            let (ca, cb) = (els[a as usize].centroid, els[b as usize].centroid);
-            ca[axis].total_cmp(&cb[axis]).then(a.cmp(&b))
-        });
+        if let Some(keys) = keys {
+            let (lo, hi) = slice
+                .iter()
+                .fold(([i32::MAX; 3], [i32::MIN; 3]), |(a, b), &j| {
+                    let k = keys[j as usize];
+                    (
+                        [a[0].min(k[0]), a[1].min(k[1]), a[2].min(k[2])],
+                        [b[0].max(k[0]), b[1].max(k[1]), b[2].max(k[2])],
+                    )
+                });
+            let extent = [0, 1, 2].map(|i| hi[i] as i64 - lo[i] as i64);
+            let axis = (0..3).fold(0, |best, i| if extent[i] > extent[best] { i } else { best });
+            slice.select_nth_unstable_by_key(half, |&j| (keys[j as usize][axis], j));
+        } else {
+            let (lo, hi) = slice.iter().fold(
+                (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+                |(a, b), &j| {
+                    let c = els[j as usize].centroid;
+                    (a.min(c), b.max(c))
+                },
+            );
+            let axis = (hi - lo).max_position();
+            slice.select_nth_unstable_by(half, |&a, &b| {
+                let (ca, cb) = (els[a as usize].centroid, els[b as usize].centroid);
+                ca[axis].total_cmp(&cb[axis]).then(a.cmp(&b))
+            });
+        }
         half
     };
-    let left = build_node(els, class, order, first, split, nodes);
-    let right = build_node(els, class, order, first + split, count - split, nodes);
+    let left = build_node(els, keys, class, order, first, split, nodes);
+    let right = build_node(els, keys, class, order, first + split, count - split, nodes);
     let (l, r) = (nodes[left as usize], nodes[right as usize]);
     let area = l.area + r.area;
     let centre = (l.centre * l.area + r.centre * r.area) / area.max(f32::MIN_POSITIVE);
@@ -396,6 +457,178 @@ pub(super) fn facing(a: &Node, b: &Node, b_corners: Option<&[Vec3; 3]>, tol: f32
             Facing::Behind
         } else {
             Facing::Mixed
+        }
+    }
+}
+
+/// The element budget's groups ([`crate::mesh::ElementGroups`]): at most `cap` sets of
+/// leaves covering every leaf, each a group of mesh elements that the solution holds one
+/// value for. First a cut through the tree: top down, the largest node (by its area,
+/// doubled where its leaves face different ways, [`Node::nearly_flat`], or by twice its
+/// radius squared where it is spread thin: the door frames along a corridor, all facing
+/// one way) is split while the cut holds at most `target` nodes. Then each nearly flat
+/// node of the cut is parted by sight ([`Tree::sight_parts`]): a floor piece whose leaves
+/// lie on both sides of a wall becomes two groups, so that no group spreads light through
+/// a wall, as long as the groups stay within `cap` (the largest parts first).
+/// Returns each element's group, [`NONE`] for those outside the tree (hidden, or of no
+/// area), and the number of groups.
+pub(crate) fn budget_cut(
+    meshing: &Meshing,
+    rays: Option<&RayScene>,
+    target: usize,
+    cap: usize,
+) -> (Vec<u32>, usize) {
+    let tree = Tree::nodes_only(meshing, true);
+    let mut of_element = vec![NONE; meshing.elements.len()];
+    if tree.nodes.is_empty() {
+        return (of_element, 0);
+    }
+    let cut = tree.size_cut(target.max(1));
+    let node_parts: Vec<Vec<Vec<u32>>> = cut
+        .par_iter()
+        .map(|&i| match rays {
+            Some(r) => tree.sight_parts(i as usize, meshing, r),
+            None => {
+                let n = &tree.nodes[i as usize];
+                vec![tree.order[n.first as usize..(n.first + n.count) as usize].to_vec()]
+            }
+        })
+        .collect();
+    // Every node keeps its first part; of the others, the largest by area are groups of
+    // their own while the groups stay within `cap`, and the rest go back to their node's
+    // first part (what then still reaches through a wall is the smallest).
+    let area = |part: &[u32]| -> f64 {
+        part.iter()
+            .map(|&j| meshing.elements[j as usize].area as f64)
+            .sum()
+    };
+    let mut extra: Vec<(f64, usize, usize)> = node_parts
+        .iter()
+        .enumerate()
+        .flat_map(|(n, parts)| (1..parts.len()).map(move |p| (n, p)))
+        .map(|(n, p)| (area(&node_parts[n][p]), n, p))
+        .collect();
+    extra.sort_by(|a, b| b.0.total_cmp(&a.0).then((a.1, a.2).cmp(&(b.1, b.2))));
+    let room = cap.saturating_sub(cut.len());
+    let mut own = vec![Vec::<bool>::new(); node_parts.len()];
+    for (n, parts) in node_parts.iter().enumerate() {
+        own[n] = vec![false; parts.len()];
+        own[n][0] = true;
+    }
+    for &(_, n, p) in extra.iter().take(room) {
+        own[n][p] = true;
+    }
+    let mut parts: Vec<Vec<u32>> = Vec::new();
+    for (n, node) in node_parts.into_iter().enumerate() {
+        let first = parts.len();
+        for (p, part) in node.into_iter().enumerate() {
+            if own[n][p] {
+                parts.push(part);
+            } else {
+                parts[first].extend(part);
+            }
+        }
+    }
+    for (g, part) in parts.iter().enumerate() {
+        for &j in part {
+            of_element[j as usize] = g as u32;
+        }
+    }
+    (of_element, parts.len())
+}
+
+impl Tree {
+    /// At most `target` nodes covering every leaf, in leaf order ([`budget_cut`]).
+    fn size_cut(&self, target: usize) -> Vec<u32> {
+        use std::cmp::Reverse;
+        use std::collections::BinaryHeap;
+        let size = |node: &Node| {
+            let weight = if node.nearly_flat() { 1.0 } else { 2.0 };
+            (node.area as f64 * weight).max(2.0 * node.radius as f64 * node.radius as f64)
+        };
+        // (priority, node): a max-heap, ties broken towards the lower node. The priority is
+        // the size over the root's in steps of 2^-16, so that the same scene in other
+        // units (sizes rounded otherwise) is cut alike.
+        let total = size(&self.nodes[0]).max(f64::MIN_POSITIVE);
+        let entry = |i: u32| {
+            let share = size(&self.nodes[i as usize]) / total;
+            let priority = if share.is_finite() {
+                (share.clamp(0.0, 1.0) * 2f64.powi(16)).round() as u64
+            } else {
+                u64::MAX
+            };
+            (priority, Reverse(i))
+        };
+        let mut heap = BinaryHeap::new();
+        heap.push(entry(0));
+        let mut kept: Vec<u32> = Vec::new();
+        while let Some((_, Reverse(i))) = heap.pop() {
+            let node = &self.nodes[i as usize];
+            if node.leaf() || heap.len() + kept.len() + 2 > target {
+                kept.push(i);
+                continue;
+            }
+            let [a, b] = node.children;
+            heap.push(entry(a));
+            heap.push(entry(b));
+        }
+        kept.sort_unstable_by_key(|&i| self.nodes[i as usize].first);
+        kept
+    }
+
+    /// The leaves of node `i` in parts that see each other: for a nearly flat node, the
+    /// leaves whose centroids (lifted as [`Tree::coherence`] lifts them) the middle leaf
+    /// by area sees, then of the rest those the largest of them sees, and so on for
+    /// [`SIGHT_HUBS`] parts, the rest one more; any other node whole (a chair's parts hide
+    /// each other and stay one group).
+    pub(super) fn sight_parts(
+        &self,
+        i: usize,
+        meshing: &Meshing,
+        rays: &RayScene,
+    ) -> Vec<Vec<u32>> {
+        let els = &meshing.elements;
+        let node = &self.nodes[i];
+        let leaves = &self.order[node.first as usize..(node.first + node.count) as usize];
+        if node.leaf() || !node.nearly_flat() {
+            return vec![leaves.to_vec()];
+        }
+        let lift = COHERENCE_LIFT * node.radius;
+        let points: Vec<Vec3> = leaves
+            .iter()
+            .map(|&j| {
+                let e = &els[j as usize];
+                let room = rays
+                    .closest_hit(e.centroid, e.normal, 1e-4 * lift, 2.0 * lift)
+                    .map_or(lift, |h| 0.5 * h.t);
+                e.centroid + e.normal * lift.min(room)
+            })
+            .collect();
+        let middle = self.leaf_at(node, 0.5);
+        let mut hub = leaves.iter().position(|&j| j == middle).unwrap_or(0);
+        let mut rest: Vec<usize> = (0..leaves.len()).collect();
+        let mut parts: Vec<Vec<u32>> = Vec::new();
+        loop {
+            if parts.len() == SIGHT_HUBS {
+                // What no hub saw: one part (a floor among hundreds of books).
+                parts.push(rest.iter().map(|&x| leaves[x]).collect());
+                return parts;
+            }
+            let (seen, unseen): (Vec<usize>, Vec<usize>) = rest.iter().partition(|&&x| {
+                x == hub || !visibility::segment_blocked(rays, points[hub], points[x])
+            });
+            parts.push(seen.iter().map(|&x| leaves[x]).collect());
+            if unseen.is_empty() {
+                return parts;
+            }
+            rest = unseen;
+            hub = *rest
+                .iter()
+                .max_by(|&&a, &&b| {
+                    let (ea, eb) = (&els[leaves[a] as usize], &els[leaves[b] as usize]);
+                    ea.area.total_cmp(&eb.area).then(b.cmp(&a))
+                })
+                .unwrap_or(&rest[0]);
         }
     }
 }
