@@ -179,7 +179,15 @@ impl RelightTechnique {
     /// reads it on the CPU), with the direct light of [`RelightTechnique::direct`]: the
     /// shadow maps evaluated per pixel on the GPU, the gathered values, or the elements'.
     /// Only the image is read back. Flat shading has no GPU display: it renders on the CPU.
+    ///
+    /// On the GPU the default direct light is the GPU's own: where
+    /// [`RelightTechnique::direct`] is still [`DirectLight::default`] (the CPU gather,
+    /// which would read the G-buffer back and gather on the CPU every new view), it
+    /// becomes [`DirectLight::shadow_maps`]. A direct light set before stays.
     pub fn on_gpu(mut self, ctx: scene_core::gpu::GpuContext) -> Self {
+        if self.direct == DirectLight::default() {
+            self.direct = DirectLight::shadow_maps();
+        }
         self.gpu = Some((ctx, None));
         self
     }
