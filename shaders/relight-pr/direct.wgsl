@@ -37,6 +37,39 @@ struct DirectParams {
 @group(0) @binding(4) var g_depth: texture_2d<f32>;
 @group(0) @binding(5) var g_id: texture_2d<u32>;
 
+// The display's element table (relight_pr::gpu's GpuElement): the corners give each
+// element's own plane, where a pixel's footprint lies (Element::plane_normal).
+struct Element {
+    a: vec4<f32>,
+    b: vec4<f32>,
+    c: vec4<f32>,
+    emission: vec4<f32>,
+    vertex: vec4<u32>,
+}
+@group(0) @binding(8) var<storage, read> elements: array<Element>;
+
+// The unit normal of element id's plane turned to n's side, or n (Element::plane_normal,
+// and n where the id names no element or the plane faces away from it).
+fn plane_normal(id: u32, n: vec3<f32>) -> vec3<f32> {
+    if id >= arrayLength(&elements) {
+        return n;
+    }
+    let e = elements[id];
+    let g = cross(e.b.xyz - e.a.xyz, e.c.xyz - e.a.xyz);
+    let len = length(g);
+    if !(len > 0.0) {
+        return n;
+    }
+    let d = dot(g / len, n);
+    if d > 0.0 {
+        return g / len;
+    }
+    if d < 0.0 {
+        return -g / len;
+    }
+    return n;
+}
+
 // Where the ray through uv meets the plane through c with unit normal n (w = 1), or c
 // (w = 0) when the ray grazes the plane or meets it behind its origin (on_pixel_plane).
 fn on_plane(uv: vec2<f32>, c: vec3<f32>, n: vec3<f32>) -> vec4<f32> {
@@ -84,7 +117,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         direct[i * k + m] = vec4<f32>(0.0);
     }
     let xy = vec2<i32>(gid.xy);
-    if textureLoad(g_id, xy, 0).x == 0xffffffffu {
+    let id = textureLoad(g_id, xy, 0).x;
+    if id == 0xffffffffu {
         return;
     }
     let size = vec2<f32>(f32(params.width), f32(params.height));
@@ -92,6 +126,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let uv = (vec2<f32>(gid.xy) + 0.5) / size;
     let c = reconstruct(params.frustum, uv, textureLoad(g_depth, xy, 0).x);
     let n = textureLoad(g_normal, xy, 0).xyz;
+    // The footprint on the element's plane; the cosines at n.
+    let plane = plane_normal(id, n);
     let m = clamp(params.footprint, 1u, MAX_FOOTPRINT);
     var points: array<vec3<f32>, 16>;
     var count = 0u;
@@ -101,15 +137,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             if m == 1u {
                 points[count] = c;
             } else {
-                points[count] = on_plane(uv + at * pixel, c, n).xyz;
+                points[count] = on_plane(uv + at * pixel, c, plane).xyz;
             }
             count++;
         }
     }
-    let q0 = on_plane(uv + vec2<f32>(-0.5, -0.5) * pixel, c, n);
-    let q1 = on_plane(uv + vec2<f32>(0.5, -0.5) * pixel, c, n);
-    let q2 = on_plane(uv + vec2<f32>(0.5, 0.5) * pixel, c, n);
-    let q3 = on_plane(uv + vec2<f32>(-0.5, 0.5) * pixel, c, n);
+    let q0 = on_plane(uv + vec2<f32>(-0.5, -0.5) * pixel, c, plane);
+    let q1 = on_plane(uv + vec2<f32>(0.5, -0.5) * pixel, c, plane);
+    let q2 = on_plane(uv + vec2<f32>(0.5, 0.5) * pixel, c, plane);
+    let q3 = on_plane(uv + vec2<f32>(-0.5, 0.5) * pixel, c, plane);
     let quad = m > 1u && q0.w > 0.0 && q1.w > 0.0 && q2.w > 0.0 && q3.w > 0.0;
     let area = 0.5 * length(cross(q1.xyz - q0.xyz, q2.xyz - q0.xyz))
         + 0.5 * length(cross(q2.xyz - q0.xyz, q3.xyz - q0.xyz));

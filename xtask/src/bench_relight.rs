@@ -387,13 +387,16 @@ pub fn direct(threads: usize, repeats: usize) -> Result<(), String> {
         let build = t0.elapsed().as_secs_f64() * 1e3;
         let slots = light_slots(&set, &solution.sources);
         let gather = DirectGather::new(&scene, &meshing, &solution.sources, 4);
+        let planes: Vec<glam::Vec3> = meshing.elements.iter().map(|e| e.plane_normal()).collect();
         let mut values = Vec::new();
         let cpu_gather = time_ms(repeats, || {
             values = pool.install(|| pixel_direct(&gather, &rays, &g, &view, 8));
             Ok(())
         })?;
         let cpu_maps = time_ms(repeats, || {
-            pool.install(|| pixel_direct_shadowed(&set, &slots, solution.k(), &g, &view, 3));
+            pool.install(|| {
+                pixel_direct_shadowed(&set, &slots, solution.k(), &g, &view, 3, Some(&planes))
+            });
             Ok(())
         })?;
         let (gpu_gathered, gpu_maps) = match &gpu {

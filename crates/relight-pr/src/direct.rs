@@ -384,19 +384,7 @@ impl DirectGather {
                 (points, suns, emitters)
             })
             .collect();
-        let planes = meshing
-            .elements
-            .iter()
-            .map(|e| {
-                let [a, b, c] = e.corners;
-                let g = (b - a).cross(c - a).normalize_or_zero();
-                match g.dot(e.normal) {
-                    d if d > 0.0 => g,
-                    d if d < 0.0 => -g,
-                    _ => e.normal,
-                }
-            })
-            .collect();
+        let planes = meshing.elements.iter().map(|e| e.plane_normal()).collect();
         Self {
             sources,
             sky,

@@ -270,9 +270,12 @@ pub const MAX_FOOTPRINT: u32 = 4;
 /// The direct irradiance from every source at every pixel of `g` (a G-buffer seen from
 /// `view`) from the shadow-mapped lights of `set` ([`DirectLight::ShadowMaps`]), averaged
 /// over the pixel's footprint as a pixel of the reference is: `footprint` x `footprint`
-/// points on a regular grid over the pixel, met with the plane of its surface point and
-/// normal ([`on_pixel_plane`]; a point whose ray grazes the plane keeps the centre), each
-/// light's irradiance times its shadow factor (eq. 30 of the ISR thesis,
+/// points on a regular grid over the pixel, met with the plane through its surface point
+/// ([`on_pixel_plane`]; a point whose ray grazes the plane keeps the centre): with
+/// `planes` (per element of the G-buffer's triangle ids, [`crate::mesh::Element::plane_normal`])
+/// the element's own plane, as the per-pixel gather's footprint, else the G-buffer
+/// normal's. Each light's irradiance (its cosine at the G-buffer normal) times its shadow
+/// factor (eq. 30 of the ISR thesis,
 /// [`LightSet::light_irradiance`]) averaged over them. A point light with the
 /// inverse-square falloff (and a footprint over 1 whose four corners meet the plane) is
 /// integrated in closed form instead, as the per-pixel gather does: `I Omega / A` over the
@@ -290,6 +293,7 @@ pub fn pixel_direct_shadowed(
     g: &GBuffer,
     view: &View,
     footprint: u32,
+    planes: Option<&[Vec3]>,
 ) -> Vec<Vec3> {
     let (w, h) = (g.width, g.height);
     let mut out = vec![Vec3::ZERO; g.len() * k];
@@ -307,6 +311,12 @@ pub fn pixel_direct_shadowed(
             let uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
             let c = view.reconstruct_world(uv, g.depth[i]);
             let n = g.normal[i];
+            // The footprint on the element's own plane, the cosines at its shading normal.
+            let plane = planes
+                .and_then(|p| p.get(g.triangle_id[i] as usize))
+                .copied()
+                .filter(|p| p.dot(n) > 0.0)
+                .unwrap_or(n);
             points.clear();
             for sy in 0..m {
                 for sx in 0..m {
@@ -315,14 +325,14 @@ pub fn pixel_direct_shadowed(
                     points.push(if m == 1 {
                         c
                     } else {
-                        on_pixel_plane(view, q, c, n).unwrap_or(c)
+                        on_pixel_plane(view, q, c, plane).unwrap_or(c)
                     });
                 }
             }
             // The footprint quad and its area, once a pixel (the closed form of every
             // inverse-square point light uses them).
             let quad = (m > 1)
-                .then(|| footprint_quad(view, uv, pixel, c, n))
+                .then(|| footprint_quad(view, uv, pixel, c, plane))
                 .flatten()
                 .map(|tris| {
                     let area: f32 = tris

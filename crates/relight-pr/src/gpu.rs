@@ -641,6 +641,7 @@ impl GpuRelight {
                 scene_core::gpu::layout::texture(5, wgpu::TextureSampleType::Uint),
                 storage_buffer(6),
                 storage_buffer(7),
+                storage_buffer(8),
             ],
             &[],
         )
@@ -850,6 +851,7 @@ impl GpuRelight {
                             wgpu::BindingResource::TextureView(&views[2]),
                             s.lights.as_entire_binding(),
                             s.texels.as_entire_binding(),
+                            self.element_table.as_entire_binding(),
                         ],
                     )
                 });

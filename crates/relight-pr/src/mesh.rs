@@ -141,6 +141,21 @@ impl Element {
         self.corners[0] * (1.0 - t.x - t.y) + self.corners[1] * t.x + self.corners[2] * t.y
     }
 
+    /// The unit normal of the element's own plane (its corners' winding), turned to the
+    /// side of its shading normal ([`Element::normal`], which tilts away from the plane
+    /// where the scene's normals are not the faces': a non-planar quad such as the Cornell
+    /// box's red wall, a smooth mesh); the shading normal where the corners span no plane
+    /// or the two are perpendicular. A pixel's footprint lies on this plane.
+    pub fn plane_normal(&self) -> Vec3 {
+        let [a, b, c] = self.corners;
+        let g = (b - a).cross(c - a).normalize_or_zero();
+        match g.dot(self.normal) {
+            d if d > 0.0 => g,
+            d if d < 0.0 => -g,
+            _ => self.normal,
+        }
+    }
+
     /// Where the element receives: the centroids of its four midpoint-subdivision
     /// children, equal weights (exact for irradiance that varies linearly over it). Four
     /// points instead of the centroid alone make an element's value its average, which

@@ -105,6 +105,8 @@ struct ShadowedLights {
     emitter_samples: u32,
     set: scene_core::shadowed_lights::LightSet,
     slots: Vec<Option<usize>>,
+    /// Each element's own plane, where the pixels' footprints lie.
+    planes: Vec<glam::Vec3>,
 }
 
 /// Radiosity relighting as a [`Technique`].
@@ -297,6 +299,12 @@ impl RelightTechnique {
                 emitter_samples,
                 set,
                 slots,
+                planes: p
+                    .meshing
+                    .elements
+                    .iter()
+                    .map(|e| e.plane_normal())
+                    .collect(),
             });
         }
         Ok(self.shadowed.as_ref().expect("built above"))
@@ -477,6 +485,7 @@ impl Technique for RelightTechnique {
                         &g,
                         &frame.view,
                         footprint,
+                        Some(&s.planes),
                     ),
                 });
             }
