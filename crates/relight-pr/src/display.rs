@@ -315,7 +315,6 @@ pub fn pixel_direct_shadowed(
             let plane = planes
                 .and_then(|p| p.get(g.triangle_id[i] as usize))
                 .copied()
-                .filter(|p| p.dot(n) > 0.0)
                 .unwrap_or(n);
             points.clear();
             for sy in 0..m {

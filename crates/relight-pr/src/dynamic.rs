@@ -493,7 +493,10 @@ impl DynamicScene {
             .map(|j| {
                 let (mut d, mut i) = (moving[j], blend[j]);
                 // The shadowed direct light is per mesh element, the solution per group.
-                let sd = meshing.slot(j, static_direct.len() / k.max(1));
+                let sd = static_direct
+                    .len()
+                    .checked_div(k)
+                    .map_or(j, |len| meshing.slot(j, len));
                 let s = solution.slot(meshing, j);
                 for m in 0..k {
                     d += static_direct[sd * k + m] * f[m].0;

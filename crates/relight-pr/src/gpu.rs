@@ -104,6 +104,15 @@ struct GpuElement {
     vertex: [u32; 4],
 }
 
+/// The element table of a relight-only copy: one zero element.
+const EMPTY_TABLE: GpuElement = GpuElement {
+    a: [0.0; 4],
+    b: [0.0; 4],
+    c: [0.0; 4],
+    emission: [0.0; 4],
+    vertex: [0; 4],
+};
+
 /// A solution resident on the GPU, ready to relight and display.
 pub struct GpuRelight {
     ctx: GpuContext,
@@ -364,9 +373,16 @@ impl GpuRelight {
                 bytemuck::cast_slice(vertex_words),
                 wgpu::BufferUsages::empty(),
             ),
+            // At least one (zero) element: the shaders' element arrays have an 80-byte
+            // stride, and a relight-only copy has no table (`mesh_elements` stays 0, so
+            // no id reaches it).
             element_table: ctx.storage_with(
                 "element table",
-                bytemuck::cast_slice(table),
+                if table.is_empty() {
+                    bytemuck::bytes_of(&EMPTY_TABLE)
+                } else {
+                    bytemuck::cast_slice(table)
+                },
                 wgpu::BufferUsages::empty(),
             ),
             irradiance,

@@ -36,9 +36,9 @@ pub struct MeshSettings {
     /// Hold the element budget: where the meshing made more than 1.25 x
     /// `target_elements` mesh elements (a file's small triangles, one element each at the
     /// least; the pieces split at walls; the factor of up to 4 of the uniform
-    /// subdivision), they are clustered into at most `target_elements` groups
-    /// ([`ElementGroups`]), and the solution, the relight and the export hold one value
-    /// per group. The mesh elements stay as the geometry that the display draws and the
+    /// subdivision), they are clustered into at most [`BUDGET_SLACK`] x `target_elements`
+    /// groups ([`ElementGroups`]), and the solution, the relight and the export hold one
+    /// value per group. The mesh elements stay as the geometry that the display draws and the
     /// per-pixel direct light gathers on. Default true; false keeps one value per mesh
     /// element, whatever their number.
     pub hold_budget: bool,
@@ -337,7 +337,7 @@ impl ElementGroups {
             .iter()
             .any(|e| e.hidden || !(e.area.is_finite() && e.area > 0.0));
         let cut = target.saturating_sub(usize::from(outside)).max(1);
-        let cap = (target as f64 * BUDGET_SLACK) as usize - usize::from(outside);
+        let cap = ((target as f64 * BUDGET_SLACK) as usize).saturating_sub(usize::from(outside));
         let (mut of_element, mut count) =
             crate::hierarchical::budget_cut(meshing, rays, cut, cap.max(cut));
         if of_element.contains(&u32::MAX) {
@@ -853,6 +853,7 @@ impl Meshing {
         if len == self.elements.len() {
             j
         } else {
+            debug_assert_eq!(len, self.groups.count, "values of neither kind");
             self.groups.of(j)
         }
     }
