@@ -2,6 +2,7 @@
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 #import scene_core::light_set::{KIND_POINT, lights, irradiance}
 #import scene_core::shadow::{ShadowParams, visibility}
+#import relight_pr::element::Element
 // Relighting's per-frame direct light from scene-core's shadow-mapped lights (mirrors
 // crates/relight-pr/src/display.rs `pixel_direct_shadowed` step for step): at each pixel of
 // the element scene's G-buffer, every light's irradiance times its exponential-shadow-map
@@ -37,15 +38,8 @@ struct DirectParams {
 @group(0) @binding(4) var g_depth: texture_2d<f32>;
 @group(0) @binding(5) var g_id: texture_2d<u32>;
 
-// The display's element table (relight_pr::gpu's GpuElement): the corners give each
-// element's own plane, where a pixel's footprint lies (Element::plane_normal).
-struct Element {
-    a: vec4<f32>,
-    b: vec4<f32>,
-    c: vec4<f32>,
-    emission: vec4<f32>,
-    vertex: vec4<u32>,
-}
+// The display's element table: the corners give each element's own plane, where a
+// pixel's footprint lies (Element::plane_normal).
 @group(0) @binding(8) var<storage, read> elements: array<Element>;
 
 // The unit normal of element id's plane turned to n's side, or n (Element::plane_normal,

@@ -1,5 +1,6 @@
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 #import relight_pr::common::{factors, relit}
+#import relight_pr::element::Element
 // The paper's "hardware" display: per-light radiosity at the welded vertices combined with
 // the light factors per pixel in one pass (mirrors crates/relight-pr/src/display.rs'
 // compose with smooth shading). A pixel finds its element by the G-buffer's triangle id,
@@ -18,17 +19,6 @@ struct DisplayParams {
     k: u32,
     elements: u32,
     base: vec4<f32>,
-}
-
-struct Element {
-    // Corners in xyz; a.w the element's source index + 1 (0: not an emitter).
-    a: vec4<f32>,
-    b: vec4<f32>,
-    c: vec4<f32>,
-    // Emitted radiance in rgb.
-    emission: vec4<f32>,
-    // Welded vertex of each corner.
-    vertex: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> params: DisplayParams;

@@ -33,12 +33,16 @@ pub const RELIGHT: ShaderPass = ShaderPass::new(
     &[COMMON],
 );
 
+/// One row of the display's element table (`relight_pr::element`, the layout of the
+/// element table this module uploads), which the display and direct passes import.
+pub const ELEMENT: Wgsl = scene_core::wgsl_file!("relight-pr", "element.wgsl");
+
 /// The display pass (eq. 1 per pixel over the welded vertices; imports
 /// `scene_core::reconstruct` too).
 pub const DISPLAY: ShaderPass = ShaderPass::new(
     "relight-pr/display",
     scene_core::wgsl_file!("relight-pr", "display.wgsl"),
-    &[COMMON, scene_core::gpu::shader::RECONSTRUCT],
+    &[COMMON, ELEMENT, scene_core::gpu::shader::RECONSTRUCT],
 );
 
 /// The per-frame direct pass: scene-core's shadow-mapped lights at every pixel, summed per
@@ -51,6 +55,7 @@ pub const DIRECT: ShaderPass = ShaderPass::new(
         scene_core::gpu::shader::LIMITS,
         LIGHT_SET,
         SHADOW,
+        ELEMENT,
     ],
 );
 

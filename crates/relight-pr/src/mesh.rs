@@ -280,22 +280,20 @@ impl ElementGroups {
     pub fn reduce(&self, elements: &[Element], values: &[Vec3], k: usize) -> Vec<Vec3> {
         let mut sum = vec![Vec3::ZERO; self.count * k];
         let mut weight = vec![[0.0f64; 2]; self.count];
-        for (j, e) in elements.iter().enumerate() {
-            let g = self.of(j);
-            let area = if e.area.is_finite() {
+        // An element's area where finite and positive, else 0.
+        let area = |e: &Element| {
+            if e.area.is_finite() {
                 e.area.max(0.0)
             } else {
                 0.0
-            };
-            weight[g][usize::from(e.hidden)] += area as f64;
+            }
+        };
+        for (j, e) in elements.iter().enumerate() {
+            weight[self.of(j)][usize::from(e.hidden)] += area(e) as f64;
         }
         for (j, e) in elements.iter().enumerate() {
             let g = self.of(j);
-            let area = if e.area.is_finite() {
-                e.area.max(0.0)
-            } else {
-                0.0
-            };
+            let area = area(e);
             let [open, hidden] = weight[g];
             let w = match (e.hidden, open > 0.0) {
                 (false, _) => area as f64 / open,
