@@ -490,6 +490,15 @@ fn hemicube_solutions_keep_the_furnace_s_energy() {
     assert!(e.to_string().contains("renderer"), "{e}");
 }
 
+/// The mean |a - b| over the mean of `reference` (channel sums).
+fn mean_difference(a: &[Vec3], reference: &[Vec3]) -> f32 {
+    a.iter()
+        .zip(reference)
+        .map(|(a, b)| (*a - *b).abs().element_sum())
+        .sum::<f32>()
+        / reference.iter().map(|b| b.element_sum()).sum::<f32>()
+}
+
 /// Each mesh element's radiance, with one value per mesh element: the solver's own
 /// scale invariance (the grouping's is [`grouped_radiance_of`]'s).
 fn radiance_of(scene: &Scene, elements: usize) -> Vec<Vec3> {
@@ -530,12 +539,7 @@ fn scaled_scenes_and_sixty_four_lights_give_the_same_radiosity() {
         let scaled = base.clone().scaled(k);
         let out = radiance_of(&scaled, 256);
         let e = max_relative(&out, &reference);
-        let mean_diff: f32 = out
-            .iter()
-            .zip(&reference)
-            .map(|(a, b)| (*a - *b).abs().element_sum())
-            .sum::<f32>()
-            / reference.iter().map(|b| b.element_sum()).sum::<f32>();
+        let mean_diff = mean_difference(&out, &reference);
         eprintln!(
             "scaled x{k}: largest difference {e:.2e} of the peak, mean {mean_diff:.2e} of the mean"
         );
@@ -554,12 +558,7 @@ fn scaled_scenes_and_sixty_four_lights_give_the_same_radiosity() {
     for k in [1e-3f32, 1e4] {
         let (out, scaled_groups) = grouped_radiance_of(&base.clone().scaled(k), 256);
         assert_eq!(scaled_groups, groups, "x{k}: other groups");
-        let mean_diff: f32 = out
-            .iter()
-            .zip(&grouped)
-            .map(|(a, b)| (*a - *b).abs().element_sum())
-            .sum::<f32>()
-            / grouped.iter().map(|b| b.element_sum()).sum::<f32>();
+        let mean_diff = mean_difference(&out, &grouped);
         eprintln!("grouped, scaled x{k}: mean {mean_diff:.2e} of the mean");
         assert!(mean_diff < 5e-4, "grouped x{k}: mean {mean_diff}");
     }
