@@ -387,7 +387,7 @@ pub fn direct(threads: usize, repeats: usize) -> Result<(), String> {
         let build = t0.elapsed().as_secs_f64() * 1e3;
         let slots = light_slots(&set, &solution.sources);
         let gather = DirectGather::new(&scene, &meshing, &solution.sources, 4);
-        let planes: Vec<glam::Vec3> = meshing.elements.iter().map(|e| e.plane_normal()).collect();
+        let planes = meshing.plane_normals();
         let mut values = Vec::new();
         let cpu_gather = time_ms(repeats, || {
             values = pool.install(|| pixel_direct(&gather, &rays, &g, &view, 8));

@@ -384,7 +384,7 @@ impl DirectGather {
                 (points, suns, emitters)
             })
             .collect();
-        let planes = meshing.elements.iter().map(|e| e.plane_normal()).collect();
+        let planes = meshing.plane_normals();
         Self {
             sources,
             sky,

@@ -309,19 +309,6 @@ impl ElementGroups {
         sum
     }
 
-    /// Each group's area (of its open mesh elements, or of all where none is open).
-    pub fn areas(&self, elements: &[Element]) -> Vec<f32> {
-        let mut area = vec![[0.0f64; 2]; self.count];
-        for (j, e) in elements.iter().enumerate() {
-            if e.area.is_finite() && e.area > 0.0 {
-                area[self.of(j)][usize::from(e.hidden)] += e.area as f64;
-            }
-        }
-        area.iter()
-            .map(|[open, hidden]| if *open > 0.0 { *open } else { *hidden } as f32)
-            .collect()
-    }
-
     /// Groups `meshing`'s elements to at most `target` when there are more than 1.25 x
     /// `target` ([`MeshSettings::hold_budget`]); one per element otherwise.
     fn for_meshing(meshing: &Meshing, rays: Option<&RayScene>, target: usize) -> Self {
@@ -854,6 +841,12 @@ impl Meshing {
             debug_assert_eq!(len, self.groups.count, "values of neither kind");
             self.groups.of(j)
         }
+    }
+
+    /// Every element's own plane ([`Element::plane_normal`]), where a pixel's footprint
+    /// lies for the per-pixel and the shadow-mapped direct light.
+    pub fn plane_normals(&self) -> Vec<Vec3> {
+        self.elements.iter().map(Element::plane_normal).collect()
     }
 
     /// The elements of patch `p`.

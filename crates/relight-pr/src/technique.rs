@@ -299,12 +299,7 @@ impl RelightTechnique {
                 emitter_samples,
                 set,
                 slots,
-                planes: p
-                    .meshing
-                    .elements
-                    .iter()
-                    .map(|e| e.plane_normal())
-                    .collect(),
+                planes: p.meshing.plane_normals(),
             });
         }
         Ok(self.shadowed.as_ref().expect("built above"))

@@ -394,7 +394,7 @@ fn shadowed_direct_display_equals_the_cpu_twin() {
     assert!(gpu.set_shadowed_direct(&set, &slots, 5).is_err());
     gpu.set_shadowed_direct(&set, &slots, 3).unwrap();
 
-    let planes: Vec<Vec3> = meshing.elements.iter().map(|e| e.plane_normal()).collect();
+    let planes = meshing.plane_normals();
     let values = pixel_direct_shadowed(&set, &slots, solution.k(), &g, &view, 3, Some(&planes));
     let cpu = cpu_display(
         &meshing,
