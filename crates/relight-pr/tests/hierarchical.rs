@@ -129,12 +129,19 @@ fn the_hierarchical_furnace_holds() {
 
 #[test]
 fn recolouring_a_hierarchical_solution_equals_solving_again() {
+    // Over clusters of mesh elements (512 asked: one value per mesh element) and between
+    // the element budget's groups (256 asked: groups of about 15 mesh elements).
+    recolouring_equals_solving_again(512, &hierarchical());
+    recolouring_equals_solving_again(256, &by_groups());
+}
+
+fn recolouring_equals_solving_again(target: usize, settings: &SolverSettings) {
     // The corridor's four lights: light 0 recoloured, light 1 off, through the state; and
     // the same scene with those emissions, solved again.
     let scene = scene_core::builtin::scene("corridor").unwrap();
     let ids = scene_core::lights::light_ids(&scene);
-    let meshing = Meshing::new(&scene, &MeshSettings::elements(512), ids.len()).unwrap();
-    let solution = solve(&scene, &meshing, &hierarchical());
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(target), ids.len()).unwrap();
+    let solution = solve(&scene, &meshing, settings);
     let mut state = LightState::default();
     let colour = Vec3::new(0.3, 1.0, 2.0);
     state.set_color(ids[0], colour);
@@ -148,10 +155,13 @@ fn recolouring_a_hierarchical_solution_equals_solving_again() {
     };
     scale(&mut changed, ids[0], colour);
     scale(&mut changed, ids[1], Vec3::ZERO);
-    let again = solve(&changed, &meshing, &hierarchical());
+    let again = solve(&changed, &meshing, settings);
     let resolved = relight::radiance(&meshing, &again, &LightState::default());
     let (mean, bias) = difference(&meshing, &relit, &resolved);
-    eprintln!("recoloured against re-solved: |difference| {mean:.5}, bias {bias:+.5}");
+    eprintln!(
+        "{target} elements asked: recoloured against re-solved: |difference| {mean:.5}, bias \
+         {bias:+.5}"
+    );
     // The links of the re-solve are refined against other powers, so they differ a little.
     assert!(mean <= 0.01 && bias.abs() <= 0.005);
 }
@@ -289,10 +299,13 @@ fn links(s: &Solution) -> usize {
         + h.direct_cluster_links
 }
 
+/// The element budget's clusters at `r` target radii, over the mesh elements (never
+/// between the groups: [`HierarchySettings::solve_groups_above`]).
 fn with_cluster_radius(r: f32) -> SolverSettings {
     SolverSettings {
         hierarchy: Some(HierarchySettings {
             cluster_radius: r,
+            solve_groups_above: f32::INFINITY,
             ..Default::default()
         }),
         hierarchy_above: 0,
@@ -420,4 +433,156 @@ fn the_element_budget_on_a_cluttered_room_matches_the_progressive_solve() {
         assert!(bias.abs() <= BIAS_BOUND, "cluster_radius {r}: bias {bias}");
     }
     assert!(counts[0].0 < counts[1].0, "{counts:?}");
+}
+
+/// Solved between the element budget's groups wherever the meshing has groups
+/// ([`HierarchySettings::solve_groups_above`] 0).
+fn by_groups() -> SolverSettings {
+    SolverSettings {
+        hierarchy: Some(HierarchySettings {
+            solve_groups_above: 0.0,
+            ..Default::default()
+        }),
+        hierarchy_above: 0,
+        ..Default::default()
+    }
+}
+
+/// The unit box cut into `g` x `g` quads a face (not merged), reflecting 0.6, lit by a point
+/// light off its centre.
+fn gridded_box_with_a_lamp(g: usize) -> Scene {
+    let mut mesh = scene_core::scene::Mesh::default();
+    for q in common::unit_box_faces() {
+        let at = |i: usize, j: usize| {
+            let (u, v) = (i as f32 / g as f32, j as f32 / g as f32);
+            q[0] + (q[1] - q[0]) * u + (q[3] - q[0]) * v
+        };
+        for a in 0..g {
+            for b in 0..g {
+                mesh.push_quad([at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)], 0);
+            }
+        }
+    }
+    let mut scene = Scene::new("gridded box");
+    scene.materials.push(scene_core::scene::Material::diffuse(
+        "walls",
+        Vec3::splat(0.6),
+    ));
+    scene.meshes.push(mesh);
+    scene.point_lights.push(scene_core::scene::PointLight {
+        name: "lamp".into(),
+        position: Vec3::new(0.2, 0.8, 0.3),
+        intensity: Vec3::ONE,
+        radius: None,
+        cone: None,
+    });
+    scene
+}
+
+/// Solving between the element budget's groups (the solve as large as the solution asked
+/// for, not as the file): the furnace holds on a box of 6 912 small triangles in 60 groups,
+/// and on a lamp-lit box of small triangles and on the corridor the solution stays within
+/// the bounds the hierarchical solve is held to against the progressive solve.
+#[test]
+fn the_solve_between_groups_holds_the_furnace_and_matches_the_progressive_solve() {
+    let g = 24;
+    let mut mesh = scene_core::scene::Mesh::default();
+    for q in common::unit_box_faces() {
+        let at = |i: usize, j: usize| {
+            let (u, v) = (i as f32 / g as f32, j as f32 / g as f32);
+            q[0] + (q[1] - q[0]) * u + (q[3] - q[0]) * v
+        };
+        for a in 0..g {
+            for b in 0..g {
+                mesh.push_quad([at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)], 0);
+            }
+        }
+    }
+    let rho = 0.5f32;
+    let scene = furnace_scene(rho, mesh);
+    let unmerged = |target: usize| MeshSettings {
+        merge_coplanar: false,
+        ..MeshSettings::elements(target)
+    };
+    let meshing = Meshing::new(&scene, &unmerged(48), 1).unwrap();
+    assert!(
+        meshing.groups.count <= 60,
+        "{} groups",
+        meshing.groups.count
+    );
+    let s = solve(&scene, &meshing, &by_groups());
+    assert!(s.stats.hierarchy.unwrap().by_group);
+    let expect = 1.0 / (1.0 - rho);
+    let out = radiance(&meshing, &s);
+    let mean_error =
+        out.iter().map(|c| (c.x - expect).abs()).sum::<f32>() / (out.len() as f32 * expect);
+    let worst = out
+        .iter()
+        .map(|c| (c.x - expect).abs() / expect)
+        .fold(0.0f32, f32::max);
+    eprintln!("furnace between groups: mean error {mean_error:.4}, worst {worst:.4}");
+    // The bounds of the clusters of mesh elements above (Monte Carlo cluster links).
+    assert!(mean_error <= 0.01 && worst <= 0.04, "{mean_error} {worst}");
+
+    for (name, scene, mesh) in [
+        ("gridded box", gridded_box_with_a_lamp(16), unmerged(64)),
+        (
+            "corridor",
+            scene_core::builtin::scene("corridor").unwrap(),
+            MeshSettings::elements(1024),
+        ),
+    ] {
+        let k = scene_core::lights::light_ids(&scene).len();
+        let meshing = Meshing::new(&scene, &mesh, k).unwrap();
+        let progressive = solve(
+            &scene,
+            &meshing,
+            &SolverSettings {
+                max_unshot: 1e-4,
+                hierarchy: None,
+                ..Default::default()
+            },
+        );
+        let s = solve(&scene, &meshing, &by_groups());
+        let h = s.stats.hierarchy.unwrap();
+        assert!(h.by_group && h.budget_nodes <= meshing.groups.count);
+        let (mean, bias) = difference(
+            &meshing,
+            &radiance(&meshing, &s),
+            &radiance(&meshing, &progressive),
+        );
+        eprintln!(
+            "{name}: {} mesh elements in {} groups, {} links, {:.2?} (progressive {:.2?}); \
+             |difference| {mean:.4}, bias {bias:+.4}",
+            meshing.elements.len(),
+            meshing.groups.count,
+            links(&s),
+            s.stats.time,
+            progressive.stats.time
+        );
+        assert!(mean <= MEAN_BOUND, "{name}: |difference| {mean}");
+        assert!(bias.abs() <= BIAS_BOUND, "{name}: bias {bias}");
+    }
+}
+
+#[test]
+fn the_solve_between_groups_is_the_same_on_one_thread_and_on_several() {
+    let scene = scene_core::builtin::scene("corridor").unwrap();
+    let meshing = Meshing::new(&scene, &MeshSettings::elements(256), 4).unwrap();
+    assert!(!meshing.groups.is_identity());
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| solve(&scene, &meshing, &by_groups()))
+    };
+    let (one, three) = (run(1), run(3));
+    assert!(one.stats.hierarchy.unwrap().by_group);
+    assert_eq!(one.direct, three.direct);
+    assert_eq!(one.indirect, three.indirect);
+    assert_eq!(
+        one.stats.hierarchy.map(|h| h.cluster_links),
+        three.stats.hierarchy.map(|h| h.cluster_links)
+    );
 }

@@ -242,14 +242,21 @@ fn a_floor_running_under_the_wall_does_not_carry_light_through_it() {
         tolerance: 1e-2,
         ..Default::default()
     });
+    let between_groups = Some(relight_pr::HierarchySettings {
+        tolerance: 1e-2,
+        solve_groups_above: 0.0,
+        ..Default::default()
+    });
     // The first three hold one value per mesh element (the splits are what they test);
-    // the last two hold the element budget, whose groups must not reach across the wall.
+    // the last three hold the element budget, whose groups must not reach across the wall
+    // (the last solved between the groups).
     let cases = [
         (0, None, false),
         (6, None, false),
         (6, hierarchical, false),
         (6, None, true),
         (6, hierarchical, true),
+        (6, between_groups, true),
     ];
     for (split_depth, hierarchy, hold_budget) in cases {
         let mut t = RelightTechnique::new(

@@ -36,6 +36,16 @@ pub(super) struct ClusterLink {
     pub(super) c: f32,
 }
 
+/// One sample of a cluster link whose sender's leaves send their own radiosity
+/// ([`Refiner::cluster`] where the element budget's groups are the nodes): every leaf of
+/// the receiver node gains irradiance `f B_sender`, `sender` an element.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct SampleLink {
+    pub(super) receiver: u32,
+    pub(super) sender: u32,
+    pub(super) f: f32,
+}
+
 /// Offsets of a receiver-sorted link list: `offsets[i]..offsets[i + 1]` are receiver
 /// `i`'s links.
 pub(super) fn offsets(receivers: impl Iterator<Item = u32>, count: usize) -> Vec<u32> {
@@ -57,6 +67,11 @@ pub(super) struct LinkSet {
     pub(super) near_offsets: Vec<u32>,
     pub(super) cluster: Vec<ClusterLink>,
     pub(super) cluster_offsets: Vec<u32>,
+    pub(super) sampled: Vec<SampleLink>,
+    pub(super) sampled_offsets: Vec<u32>,
+    /// Cluster links made of samples: distinct (receiver node, sender node) pairs are not
+    /// kept, this counts them as made.
+    pub(super) sampled_links: usize,
 }
 
 impl LinkSet {
@@ -64,7 +79,11 @@ impl LinkSet {
         let far_offsets = offsets(links.far.iter().map(|l| l.receiver), nodes);
         let near_offsets = offsets(links.near.iter().map(|l| l.receiver), elements);
         let cluster_offsets = offsets(links.cluster.iter().map(|l| l.receiver), nodes);
+        let sampled_offsets = offsets(links.sampled.iter().map(|l| l.receiver), nodes);
         Self {
+            sampled: links.sampled,
+            sampled_offsets,
+            sampled_links: links.sampled_links,
             far: links.far,
             far_offsets,
             near: links.near,
@@ -78,7 +97,12 @@ impl LinkSet {
         self.far.len() * FAR_LINK_BYTES
             + self.near.len() * NEAR_LINK_BYTES
             + self.cluster.len() * CLUSTER_LINK_BYTES
-            + (self.far_offsets.len() + self.near_offsets.len() + self.cluster_offsets.len()) * 4
+            + self.sampled.len() * std::mem::size_of::<SampleLink>()
+            + (self.far_offsets.len()
+                + self.near_offsets.len()
+                + self.cluster_offsets.len()
+                + self.sampled_offsets.len())
+                * 4
     }
 }
 
@@ -187,6 +211,15 @@ impl Gather {
                     each_active(&active[s * words..(s + 1) * words], |m| {
                         mean[m] += power[s * k + m] * l.c;
                     });
+                }
+                let (a, z) = (
+                    links.sampled_offsets[i] as usize,
+                    links.sampled_offsets[i + 1] as usize,
+                );
+                for l in &links.sampled[a..z] {
+                    for m in 0..k {
+                        mean[m] += b[l.sender as usize * k + m] * l.f;
+                    }
                 }
                 let (a, z) = (
                     links.far_offsets[i] as usize,

@@ -67,6 +67,10 @@ pub(super) struct Tree {
     /// Whether the node's leaves see each other ([`Tree::coherence`]): only such nodes
     /// end far links.
     pub(super) coherent: Vec<bool>,
+    /// Per node, whether its leaves lie in one group of the element budget
+    /// ([`Meshing::groups`]); empty when every element is a group of its own. A grouped
+    /// tree has each group as one subtree ([`Tree::grouped`]).
+    pub(super) in_group: Vec<bool>,
 }
 
 /// The orientation class of a normal: its cube-map face and a 3 x 3 cell on it (axis
@@ -86,9 +90,14 @@ pub(super) fn orientation_class(n: Vec3) -> u32 {
 
 impl Tree {
     /// The tree over `meshing`'s elements, with its clusters' coherence found through
-    /// `rays`.
-    pub(super) fn build(meshing: &Meshing, rays: &RayScene) -> Self {
-        let mut tree = Self::nodes_only(meshing, false);
+    /// `rays`; with each of [`Meshing::groups`] one subtree where `by_group` and the
+    /// elements are grouped ([`Tree::grouped`]).
+    pub(super) fn build(meshing: &Meshing, rays: &RayScene, by_group: bool) -> Self {
+        let mut tree = if !by_group || meshing.groups.is_identity() {
+            Self::nodes_only(meshing, false)
+        } else {
+            Self::grouped(meshing)
+        };
         tree.coherent = tree.coherence(meshing, rays);
         tree
     }
@@ -100,10 +109,7 @@ impl Tree {
     pub(super) fn nodes_only(meshing: &Meshing, on_grid: bool) -> Self {
         let els = &meshing.elements;
         let mut keyed: Vec<(u32, u32)> = (0..els.len() as u32)
-            .filter(|&j| {
-                let e = &els[j as usize];
-                !e.hidden && e.area > 0.0 && e.area.is_finite()
-            })
+            .filter(|&j| in_tree(&els[j as usize]))
             .map(|j| (orientation_class(els[j as usize].normal), j))
             .collect();
         keyed.sort_unstable();
@@ -133,6 +139,86 @@ impl Tree {
             let keys = on_grid.then_some(keys.as_slice());
             build_node(els, keys, &class, &mut order, 0, count, &mut nodes);
         }
+        Self::with_nodes(els, nodes, order, Vec::new())
+    }
+
+    /// The solve's tree when the element budget grouped the elements
+    /// ([`Meshing::groups`]): each group is one subtree (its leaves by orientation, then
+    /// in space, as [`Tree::nodes_only`] orders them), and above the groups the tree
+    /// splits them likewise, by the orientation class of each group's mean normal, then at
+    /// the median of their centroids along the longest axis. The reflected light's links
+    /// then end at a group or above ([`Tree::in_group`]): the solve is as large as the
+    /// solution, not as the file.
+    pub(super) fn grouped(meshing: &Meshing) -> Self {
+        let els = &meshing.elements;
+        let groups = &meshing.groups;
+        let mut members: Vec<Vec<(u32, u32)>> = vec![Vec::new(); groups.count];
+        for (j, e) in els.iter().enumerate() {
+            if in_tree(e) {
+                members[groups.of(j)].push((orientation_class(e.normal), j as u32));
+            }
+        }
+        let mut units: Vec<Unit> = members
+            .iter_mut()
+            .enumerate()
+            .filter(|(_, m)| !m.is_empty())
+            .map(|(g, m)| {
+                m.sort_unstable();
+                let (mut area, mut centre, mut normal) = (0.0f64, glam::DVec3::ZERO, Vec3::ZERO);
+                for &(_, j) in m.iter() {
+                    let e = &els[j as usize];
+                    area += e.area as f64;
+                    centre += e.centroid.as_dvec3() * e.area as f64;
+                    normal += e.normal * e.area;
+                }
+                let class = if normal.length() > 1e-6 * area as f32 {
+                    orientation_class(normal)
+                } else {
+                    MIXED_CLASS
+                };
+                Unit {
+                    group: g as u32,
+                    class,
+                    centre: (centre / area.max(f64::MIN_POSITIVE)).as_vec3(),
+                }
+            })
+            .collect();
+        units.sort_unstable_by_key(|u| (u.class, u.group));
+        let shape = partition_units(&mut units);
+        let mut order = Vec::with_capacity(els.len());
+        let mut class = Vec::with_capacity(els.len());
+        let mut starts = Vec::with_capacity(units.len() + 1);
+        for u in &units {
+            starts.push(order.len());
+            for &(c, j) in &members[u.group as usize] {
+                order.push(j);
+                class.push(c);
+            }
+        }
+        starts.push(order.len());
+        let mut nodes = Vec::with_capacity(2 * order.len());
+        let mut in_group = Vec::with_capacity(2 * order.len());
+        if !units.is_empty() {
+            let mut build = GroupedBuild {
+                els,
+                class: &class,
+                order: &mut order,
+                starts: &starts,
+                nodes: &mut nodes,
+                in_group: &mut in_group,
+            };
+            build.node(&shape, 0, units.len());
+        }
+        Self::with_nodes(els, nodes, order, in_group)
+    }
+
+    /// The tree of `nodes` over `order`, with its area prefix sums and leaf table.
+    fn with_nodes(
+        els: &[crate::mesh::Element],
+        nodes: Vec<Node>,
+        order: Vec<u32>,
+        in_group: Vec<bool>,
+    ) -> Self {
         let mut area_prefix = Vec::with_capacity(order.len() + 1);
         let mut sum = 0.0f64;
         area_prefix.push(0.0);
@@ -152,6 +238,7 @@ impl Tree {
             area_prefix,
             leaf_of,
             coherent: Vec::new(),
+            in_group,
         }
     }
 
@@ -297,20 +384,7 @@ pub(super) fn build_node(
         });
         return index as u32;
     }
-    nodes.push(Node {
-        first: first as u32,
-        count: count as u32,
-        children: [NONE; 2],
-        centre: Vec3::ZERO,
-        radius: 0.0,
-        lo: Vec3::ZERO,
-        hi: Vec3::ZERO,
-        normal: Vec3::ZERO,
-        cone: 0.0,
-        cone_sin_cos: [0.0, 1.0],
-        plane: [0.0; 2],
-        area: 0.0,
-    });
+    nodes.push(Node::placeholder(first, count));
     let range = first..first + count;
     let split = if class[first] != class[first + count - 1] {
         // Orientation classes first: the class boundary nearest the middle.
@@ -358,6 +432,33 @@ pub(super) fn build_node(
     };
     let left = build_node(els, keys, class, order, first, split, nodes);
     let right = build_node(els, keys, class, order, first + split, count - split, nodes);
+    join(nodes, index, left, right);
+    index as u32
+}
+
+impl Node {
+    /// A cluster over `order[first..first + count]` whose bounds [`join`] fills in.
+    fn placeholder(first: usize, count: usize) -> Self {
+        Node {
+            first: first as u32,
+            count: count as u32,
+            children: [NONE; 2],
+            centre: Vec3::ZERO,
+            radius: 0.0,
+            lo: Vec3::ZERO,
+            hi: Vec3::ZERO,
+            normal: Vec3::ZERO,
+            cone: 0.0,
+            cone_sin_cos: [0.0, 1.0],
+            plane: [0.0; 2],
+            area: 0.0,
+        }
+    }
+}
+
+/// Makes node `index` (a placeholder) the parent of nodes `left` and `right`: its area,
+/// centroid, bounds, normal cone and plane from theirs.
+fn join(nodes: &mut [Node], index: usize, left: u32, right: u32) {
     let (l, r) = (nodes[left as usize], nodes[right as usize]);
     let area = l.area + r.area;
     let centre = (l.centre * l.area + r.centre * r.area) / area.max(f32::MIN_POSITIVE);
@@ -379,8 +480,8 @@ pub(super) fn build_node(
         [0.0; 2]
     };
     nodes[index] = Node {
-        first: first as u32,
-        count: count as u32,
+        first: nodes[index].first,
+        count: nodes[index].count,
         children: [left, right],
         centre,
         radius,
@@ -392,7 +493,6 @@ pub(super) fn build_node(
         plane,
         area,
     };
-    index as u32
 }
 
 /// How the leaves of node `a` see the region of node `b`.
@@ -629,6 +729,103 @@ impl Tree {
                     ea.area.total_cmp(&eb.area).then(b.cmp(&a))
                 })
                 .unwrap_or(&rest[0]);
+        }
+    }
+}
+
+/// Whether an element is a leaf of the tree: open and of finite, positive area.
+fn in_tree(e: &crate::mesh::Element) -> bool {
+    !e.hidden && e.area > 0.0 && e.area.is_finite()
+}
+
+/// The orientation class of a group whose normals cancel (after the 54 of
+/// [`orientation_class`]).
+const MIXED_CLASS: u32 = 54;
+
+/// A group of the element budget as [`Tree::grouped`] places it.
+struct Unit {
+    group: u32,
+    class: u32,
+    centre: Vec3,
+}
+
+/// How [`Tree::grouped`] splits the groups above them: one group, or the first `n` and
+/// the rest.
+enum Shape {
+    Group,
+    Split(usize, Box<Shape>, Box<Shape>),
+}
+
+/// Orders `units` (sorted by class) into the tree above the groups: the class boundary
+/// nearest the middle, then the median along the longest axis of the centroids.
+fn partition_units(units: &mut [Unit]) -> Shape {
+    let count = units.len();
+    if count <= 1 {
+        return Shape::Group;
+    }
+    let split = if units[0].class != units[count - 1].class {
+        let mid = count / 2;
+        let mut best = (usize::MAX, 1);
+        for i in 1..count {
+            if units[i].class != units[i - 1].class && i.abs_diff(mid) < best.0 {
+                best = (i.abs_diff(mid), i);
+            }
+        }
+        best.1
+    } else {
+        let (lo, hi) = units.iter().fold(
+            (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
+            |(a, b), u| (a.min(u.centre), b.max(u.centre)),
+        );
+        let axis = (hi - lo).max_position();
+        let half = count / 2;
+        units.select_nth_unstable_by(half, |a, b| {
+            a.centre[axis]
+                .total_cmp(&b.centre[axis])
+                .then(a.group.cmp(&b.group))
+        });
+        half
+    };
+    let (a, b) = units.split_at_mut(split);
+    Shape::Split(
+        split,
+        Box::new(partition_units(a)),
+        Box::new(partition_units(b)),
+    )
+}
+
+/// The state of [`Tree::grouped`]'s node building.
+struct GroupedBuild<'a> {
+    els: &'a [crate::mesh::Element],
+    class: &'a [u32],
+    order: &'a mut [u32],
+    /// Where each placed group's leaves start in `order` (and the end).
+    starts: &'a [usize],
+    nodes: &'a mut Vec<Node>,
+    in_group: &'a mut Vec<bool>,
+}
+
+impl GroupedBuild<'_> {
+    /// Builds the node over placed groups `first..first + count` of `shape`; returns its
+    /// index.
+    fn node(&mut self, shape: &Shape, first: usize, count: usize) -> u32 {
+        let (a, b) = (self.starts[first], self.starts[first + count]);
+        match shape {
+            Shape::Group => {
+                let index =
+                    build_node(self.els, None, self.class, self.order, a, b - a, self.nodes);
+                self.in_group.resize(self.nodes.len(), true);
+                index
+            }
+            Shape::Split(n, left, right) => {
+                let index = self.nodes.len();
+                self.nodes.push(Node::placeholder(a, b - a));
+                self.in_group.push(false);
+                let l = self.node(left, first, *n);
+                let r = self.node(right, first + n, count - n);
+                join(self.nodes, index, l, r);
+                index as u32
+            }
         }
     }
 }
