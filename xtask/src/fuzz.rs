@@ -382,20 +382,12 @@ fn fuzz_loop(name: &str, seconds: u64, seed: u64, dir: &Path) -> Result<(), Stri
             last_report = Instant::now();
         }
     }
-    let _ = writeln!(stdout.lock(), "done {inputs} {refused} {}", peak_rss_kib());
+    let _ = writeln!(
+        stdout.lock(),
+        "done {inputs} {refused} {}",
+        crate::peak_rss_kib()
+    );
     Ok(())
-}
-
-/// This process's peak resident set (VmHWM), in KiB.
-fn peak_rss_kib() -> u64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1).and_then(|v| v.parse().ok()))
-        })
-        .unwrap_or(0)
 }
 
 /// One new input: a corpus entry under one to four stacked mutations.

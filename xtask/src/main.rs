@@ -456,6 +456,19 @@ pub struct ViewArgs {
     pub exposure: f32,
 }
 
+/// This process's peak resident set so far (`VmHWM` of `/proc/self/status`), in KiB; 0
+/// where the system does not say.
+pub fn peak_rss_kib() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1).and_then(|v| v.parse().ok()))
+        })
+        .unwrap_or(0)
+}
+
 /// [`scene_core::range::check`] with the error as the commands print it.
 pub fn ranged<T: PartialOrd + std::fmt::Debug + Copy>(
     what: &str,

@@ -293,6 +293,14 @@ fn numbers_out_of_range_are_refused_before_any_work() {
             vec!["relight", "--cluster-radius", "17", "--out", o],
             "--cluster-radius = 17",
         ),
+        (
+            vec!["relight", "--solve-groups-above", "NaN", "--out", o],
+            "--solve-groups-above = NaN",
+        ),
+        (
+            vec!["relight", "--solve-groups-above=-1", "--out", o],
+            "--solve-groups-above = -1",
+        ),
         (vec!["ibrr", "--irpls", "0", "--out", o], "--irpls = 0"),
         (
             vec!["reference", "--exposure", "NaN", "--out", o],
