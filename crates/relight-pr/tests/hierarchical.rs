@@ -170,20 +170,33 @@ fn recolouring_equals_solving_again(target: usize, settings: &SolverSettings) {
 fn the_hierarchical_solve_is_the_same_on_one_thread_and_on_several() {
     let scene = scene_core::builtin::scene("cornell").unwrap();
     let meshing = Meshing::new(&scene, &MeshSettings::elements(512), 1).unwrap();
+    same_on_one_thread_and_on_three(&scene, &meshing, &hierarchical());
+}
+
+/// Solves `meshing` on 1 and on 3 threads, checks the solutions bit for bit and their links
+/// alike, and returns the first.
+fn same_on_one_thread_and_on_three(
+    scene: &Scene,
+    meshing: &Meshing,
+    settings: &SolverSettings,
+) -> Solution {
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| solve(&scene, &meshing, &hierarchical()))
+        pool.install(|| solve(scene, meshing, settings))
     };
     let (one, three) = (run(1), run(3));
     assert_eq!(one.direct, three.direct);
     assert_eq!(one.indirect, three.indirect);
-    assert_eq!(
-        one.stats.hierarchy.map(|h| h.far_links),
-        three.stats.hierarchy.map(|h| h.far_links)
-    );
+    let links = |s: &Solution| {
+        s.stats
+            .hierarchy
+            .map(|h| (h.far_links, h.near_links, h.cluster_links, h.by_group))
+    };
+    assert_eq!(links(&one), links(&three));
+    one
 }
 
 #[test]
@@ -322,18 +335,7 @@ fn with_cluster_radius(r: f32) -> SolverSettings {
 #[test]
 fn the_element_budget_clusters_small_triangles_and_the_furnace_holds() {
     let g = 24;
-    let mut mesh = scene_core::scene::Mesh::default();
-    for q in common::unit_box_faces() {
-        let at = |i: usize, j: usize| {
-            let (u, v) = (i as f32 / g as f32, j as f32 / g as f32);
-            q[0] + (q[1] - q[0]) * u + (q[3] - q[0]) * v
-        };
-        for a in 0..g {
-            for b in 0..g {
-                mesh.push_quad([at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)], 0);
-            }
-        }
-    }
+    let mesh = common::gridded_unit_box(g);
     let rho = 0.5f32;
     let scene = furnace_scene(rho, mesh);
     let meshing = Meshing::new(
@@ -351,13 +353,7 @@ fn the_element_budget_clusters_small_triangles_and_the_furnace_holds() {
     for r in [1.0, 0.0] {
         let s = solve(&scene, &meshing, &with_cluster_radius(r));
         let h = s.stats.hierarchy.unwrap();
-        let out = radiance(&meshing, &s);
-        let mean_error =
-            out.iter().map(|c| (c.x - expect).abs()).sum::<f32>() / (out.len() as f32 * expect);
-        let worst = out
-            .iter()
-            .map(|c| (c.x - expect).abs() / expect)
-            .fold(0.0f32, f32::max);
+        let (mean_error, worst) = furnace_errors(&meshing, &s, expect);
         eprintln!(
             "cluster_radius {r}: {} links ({} cluster, {} budget nodes), {:.2?}, mean error \
              {mean_error:.4}, worst element {worst:.4}",
@@ -398,15 +394,7 @@ fn the_element_budget_on_a_cluttered_room_matches_the_progressive_solve() {
         k,
     )
     .unwrap();
-    let progressive = solve(
-        &scene,
-        &meshing,
-        &SolverSettings {
-            max_unshot: 1e-4,
-            hierarchy: None,
-            ..Default::default()
-        },
-    );
+    let progressive = progressive_to_1e4(&scene, &meshing);
     let reference = radiance(&meshing, &progressive);
     let mut counts = Vec::new();
     for r in [1.0, 0.0] {
@@ -435,6 +423,29 @@ fn the_element_budget_on_a_cluttered_room_matches_the_progressive_solve() {
     assert!(counts[0].0 < counts[1].0, "{counts:?}");
 }
 
+/// The progressive solve of `meshing` to 1e-4 unshot: what the hierarchical solve is held
+/// to.
+fn progressive_to_1e4(scene: &Scene, meshing: &Meshing) -> Solution {
+    let settings = SolverSettings {
+        max_unshot: 1e-4,
+        hierarchy: None,
+        ..Default::default()
+    };
+    solve(scene, meshing, &settings)
+}
+
+/// The mean and the largest relative error of every mesh element's radiance (red) against
+/// the furnace's `expect`.
+fn furnace_errors(meshing: &Meshing, s: &Solution, expect: f32) -> (f32, f32) {
+    let out = radiance(meshing, s);
+    let mean = out.iter().map(|c| (c.x - expect).abs()).sum::<f32>() / (out.len() as f32 * expect);
+    let worst = out
+        .iter()
+        .map(|c| (c.x - expect).abs() / expect)
+        .fold(0.0f32, f32::max);
+    (mean, worst)
+}
+
 /// Solved between the element budget's groups wherever the meshing has groups
 /// ([`HierarchySettings::solve_groups_above`] 0).
 fn by_groups() -> SolverSettings {
@@ -451,24 +462,12 @@ fn by_groups() -> SolverSettings {
 /// The unit box cut into `g` x `g` quads a face (not merged), reflecting 0.6, lit by a point
 /// light off its centre.
 fn gridded_box_with_a_lamp(g: usize) -> Scene {
-    let mut mesh = scene_core::scene::Mesh::default();
-    for q in common::unit_box_faces() {
-        let at = |i: usize, j: usize| {
-            let (u, v) = (i as f32 / g as f32, j as f32 / g as f32);
-            q[0] + (q[1] - q[0]) * u + (q[3] - q[0]) * v
-        };
-        for a in 0..g {
-            for b in 0..g {
-                mesh.push_quad([at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)], 0);
-            }
-        }
-    }
     let mut scene = Scene::new("gridded box");
     scene.materials.push(scene_core::scene::Material::diffuse(
         "walls",
         Vec3::splat(0.6),
     ));
-    scene.meshes.push(mesh);
+    scene.meshes.push(common::gridded_unit_box(g));
     scene.point_lights.push(scene_core::scene::PointLight {
         name: "lamp".into(),
         position: Vec3::new(0.2, 0.8, 0.3),
@@ -486,18 +485,7 @@ fn gridded_box_with_a_lamp(g: usize) -> Scene {
 #[test]
 fn the_solve_between_groups_holds_the_furnace_and_matches_the_progressive_solve() {
     let g = 24;
-    let mut mesh = scene_core::scene::Mesh::default();
-    for q in common::unit_box_faces() {
-        let at = |i: usize, j: usize| {
-            let (u, v) = (i as f32 / g as f32, j as f32 / g as f32);
-            q[0] + (q[1] - q[0]) * u + (q[3] - q[0]) * v
-        };
-        for a in 0..g {
-            for b in 0..g {
-                mesh.push_quad([at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)], 0);
-            }
-        }
-    }
+    let mesh = common::gridded_unit_box(g);
     let rho = 0.5f32;
     let scene = furnace_scene(rho, mesh);
     let unmerged = |target: usize| MeshSettings {
@@ -513,13 +501,7 @@ fn the_solve_between_groups_holds_the_furnace_and_matches_the_progressive_solve(
     let s = solve(&scene, &meshing, &by_groups());
     assert!(s.stats.hierarchy.unwrap().by_group);
     let expect = 1.0 / (1.0 - rho);
-    let out = radiance(&meshing, &s);
-    let mean_error =
-        out.iter().map(|c| (c.x - expect).abs()).sum::<f32>() / (out.len() as f32 * expect);
-    let worst = out
-        .iter()
-        .map(|c| (c.x - expect).abs() / expect)
-        .fold(0.0f32, f32::max);
+    let (mean_error, worst) = furnace_errors(&meshing, &s, expect);
     eprintln!("furnace between groups: mean error {mean_error:.4}, worst {worst:.4}");
     // The bounds of the clusters of mesh elements above (Monte Carlo cluster links).
     assert!(mean_error <= 0.01 && worst <= 0.04, "{mean_error} {worst}");
@@ -534,15 +516,7 @@ fn the_solve_between_groups_holds_the_furnace_and_matches_the_progressive_solve(
     ] {
         let k = scene_core::lights::light_ids(&scene).len();
         let meshing = Meshing::new(&scene, &mesh, k).unwrap();
-        let progressive = solve(
-            &scene,
-            &meshing,
-            &SolverSettings {
-                max_unshot: 1e-4,
-                hierarchy: None,
-                ..Default::default()
-            },
-        );
+        let progressive = progressive_to_1e4(&scene, &meshing);
         let s = solve(&scene, &meshing, &by_groups());
         let h = s.stats.hierarchy.unwrap();
         assert!(h.by_group && h.budget_nodes <= meshing.groups.count);
@@ -570,19 +544,6 @@ fn the_solve_between_groups_is_the_same_on_one_thread_and_on_several() {
     let scene = scene_core::builtin::scene("corridor").unwrap();
     let meshing = Meshing::new(&scene, &MeshSettings::elements(256), 4).unwrap();
     assert!(!meshing.groups.is_identity());
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| solve(&scene, &meshing, &by_groups()))
-    };
-    let (one, three) = (run(1), run(3));
-    assert!(one.stats.hierarchy.unwrap().by_group);
-    assert_eq!(one.direct, three.direct);
-    assert_eq!(one.indirect, three.indirect);
-    assert_eq!(
-        one.stats.hierarchy.map(|h| h.cluster_links),
-        three.stats.hierarchy.map(|h| h.cluster_links)
-    );
+    let solution = same_on_one_thread_and_on_three(&scene, &meshing, &by_groups());
+    assert!(solution.stats.hierarchy.unwrap().by_group);
 }

@@ -52,3 +52,21 @@ pub fn unit_box() -> Mesh {
     }
     mesh
 }
+
+/// The unit box `[0, 1]^3` facing in, each face cut into `g` x `g` quads: a file's small
+/// triangles (`2 g^2` a face).
+pub fn gridded_unit_box(g: usize) -> Mesh {
+    let mut mesh = Mesh::default();
+    for q in unit_box_faces() {
+        let at = |i: usize, j: usize| {
+            let (u, v) = (i as f32 / g as f32, j as f32 / g as f32);
+            q[0] + (q[1] - q[0]) * u + (q[3] - q[0]) * v
+        };
+        for a in 0..g {
+            for b in 0..g {
+                mesh.push_quad([at(a, b), at(a + 1, b), at(a + 1, b + 1), at(a, b + 1)], 0);
+            }
+        }
+    }
+    mesh
+}
