@@ -8,7 +8,7 @@
 //! scene-core's BVH. The closed form stays exact as the distance goes to zero (touching and
 //! coincident elements), where point-sampled `cos cos / (pi r^2)` diverges.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use scene_core::sampling::{hash_seed, r2, uniform_triangle};
 
 /// The unoccluded form factor from a differential area at `x` with unit normal `n` to the
@@ -16,22 +16,7 @@ use scene_core::sampling::{hash_seed, r2, uniform_triangle};
 /// `F = 1/(2 pi) sum_i theta_i n . unit(R_i x R_i+1)` over the part of the polygon above
 /// the tangent plane of `x`.
 pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &[Vec3]) -> f32 {
-    // Clip to n . (v - x) >= 0 (Sutherland-Hodgman against one plane).
-    let mut clipped: [Vec3; 8] = [Vec3::ZERO; 8];
-    let mut count = 0;
-    for i in 0..poly.len() {
-        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
-        let (da, db) = (n.dot(a - x), n.dot(b - x));
-        if da >= 0.0 && count < 8 {
-            clipped[count] = a;
-            count += 1;
-        }
-        if (da >= 0.0) != (db >= 0.0) && count < 8 {
-            let t = da / (da - db);
-            clipped[count] = a + (b - a) * t;
-            count += 1;
-        }
-    }
+    let (clipped, count) = clip_above(x, n, poly);
     if count < 3 {
         return 0.0;
     }
@@ -48,6 +33,61 @@ pub fn point_to_polygon(x: Vec3, n: Vec3, poly: &[Vec3]) -> f32 {
         sum += theta * n.dot(c / len);
     }
     (sum.abs() / (2.0 * std::f32::consts::PI)).clamp(0.0, 1.0)
+}
+
+/// The part of the convex polygon `poly` on or above the plane through `x` with normal
+/// `n` (Sutherland and Hodgman against one plane): up to 8 corners, and how many.
+pub(crate) fn clip_above(x: Vec3, n: Vec3, poly: &[Vec3]) -> ([Vec3; 8], usize) {
+    let mut clipped: [Vec3; 8] = [Vec3::ZERO; 8];
+    let mut count = 0;
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        let (da, db) = (n.dot(a - x), n.dot(b - x));
+        if da >= 0.0 && count < 8 {
+            clipped[count] = a;
+            count += 1;
+        }
+        if (da >= 0.0) != (db >= 0.0) && count < 8 {
+            let t = da / (da - db);
+            clipped[count] = a + (b - a) * t;
+            count += 1;
+        }
+    }
+    (clipped, count)
+}
+
+/// A point drawn uniformly (by `u`, and `pick` in `[0, 1)` for the piece) on the part of
+/// triangle `corners` above the plane through `x` with normal `n` ([`clip_above`]): the
+/// part a point-to-triangle form factor counts, where a visibility ray from `x` is to go.
+/// `None` where no part of it is (or the part has no area).
+pub(crate) fn point_above(
+    corners: &[Vec3; 3],
+    x: Vec3,
+    n: Vec3,
+    u: Vec2,
+    pick: f32,
+) -> Option<Vec3> {
+    let (poly, count) = clip_above(x, n, corners);
+    if count < 3 {
+        return None;
+    }
+    // A fan from the first corner: the piece is picked by area.
+    let area = |i: usize| 0.5 * (poly[i] - poly[0]).cross(poly[i + 1] - poly[0]).length();
+    let total: f32 = (1..count - 1).map(area).sum();
+    if total.is_nan() || total <= 0.0 || !total.is_finite() {
+        return None;
+    }
+    let mut left = pick * total;
+    let mut piece = count - 2;
+    for i in 1..count - 1 {
+        left -= area(i);
+        if left < 0.0 {
+            piece = i;
+            break;
+        }
+    }
+    let t = uniform_triangle(u);
+    Some(poly[0] * (1.0 - t.x - t.y) + poly[piece] * t.x + poly[piece + 1] * t.y)
 }
 
 /// The form factor from a receiver at `x` (unit normal `n`) to the one-sided triangle
@@ -244,6 +284,37 @@ pub fn hemicube_row(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The points lie on the triangle's part in front of the plane, spread uniformly over
+    /// it: their mean is that part's centroid (here the triangle (0,0), (2,0), (0,2) cut at
+    /// x = 1, whose front part is the triangle (1,0), (2,0), (1,1), centroid (4/3, 1/3)).
+    #[test]
+    fn points_above_a_plane_cover_the_part_in_front_uniformly() {
+        let tri = [
+            Vec3::ZERO,
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        ];
+        let (x, n) = (Vec3::new(1.0, 5.0, 0.0), Vec3::X);
+        let mut rng = scene_core::sampling::Rng::new(7, 1);
+        let count = 20_000;
+        let mut mean = Vec3::ZERO;
+        for _ in 0..count {
+            let q = point_above(&tri, x, n, rng.next_vec2(), rng.next_f32()).unwrap();
+            assert!(
+                q.x >= 1.0 - 1e-5 && q.x + q.y <= 2.0 + 1e-5 && q.y >= -1e-6,
+                "{q}"
+            );
+            mean += q / count as f32;
+        }
+        let expect = Vec3::new(4.0 / 3.0, 1.0 / 3.0, 0.0);
+        assert!(mean.distance(expect) < 0.01, "{mean} against {expect}");
+        // Facing the other way, the part in front is the quadrilateral left of x = 1; a
+        // triangle wholly behind the plane has none.
+        let q = point_above(&tri, x, -n, Vec2::new(0.3, 0.6), 0.7).unwrap();
+        assert!(q.x <= 1.0 + 1e-5, "{q}");
+        assert!(point_above(&tri, Vec3::new(3.0, 0.0, 0.0), n, Vec2::splat(0.5), 0.5).is_none());
+    }
 
     #[test]
     fn a_large_parallel_polygon_overhead_approaches_one() {

@@ -19,7 +19,10 @@ pub(super) struct FarLink {
     pub(super) g: f32,
 }
 
-/// A link between two elements: the receiver's irradiance gains `f B_sender`.
+/// A link from an element: the receiver's irradiance gains `f B_sender`. The receiver is an
+/// element for a near link, and a node for a sample of a cluster link whose sender's
+/// elements send their own radiosity ([`Refiner::cluster`] between the element budget's
+/// groups: every leaf of the node gains it).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct NearLink {
     pub(super) receiver: u32,
@@ -34,16 +37,6 @@ pub(super) struct ClusterLink {
     pub(super) receiver: u32,
     pub(super) sender: u32,
     pub(super) c: f32,
-}
-
-/// One sample of a cluster link whose sender's leaves send their own radiosity
-/// ([`Refiner::cluster`] where the element budget's groups are the nodes): every leaf of
-/// the receiver node gains irradiance `f B_sender`, `sender` an element.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct SampleLink {
-    pub(super) receiver: u32,
-    pub(super) sender: u32,
-    pub(super) f: f32,
 }
 
 /// Offsets of a receiver-sorted link list: `offsets[i]..offsets[i + 1]` are receiver
@@ -67,7 +60,8 @@ pub(super) struct LinkSet {
     pub(super) near_offsets: Vec<u32>,
     pub(super) cluster: Vec<ClusterLink>,
     pub(super) cluster_offsets: Vec<u32>,
-    pub(super) sampled: Vec<SampleLink>,
+    /// Cluster links' samples from elements to nodes.
+    pub(super) sampled: Vec<NearLink>,
     pub(super) sampled_offsets: Vec<u32>,
     /// Cluster links made of samples: distinct (receiver node, sender node) pairs are not
     /// kept, this counts them as made.
@@ -97,7 +91,7 @@ impl LinkSet {
         self.far.len() * FAR_LINK_BYTES
             + self.near.len() * NEAR_LINK_BYTES
             + self.cluster.len() * CLUSTER_LINK_BYTES
-            + self.sampled.len() * std::mem::size_of::<SampleLink>()
+            + self.sampled.len() * NEAR_LINK_BYTES
             + (self.far_offsets.len()
                 + self.near_offsets.len()
                 + self.cluster_offsets.len()
@@ -212,15 +206,7 @@ impl Gather {
                         mean[m] += power[s * k + m] * l.c;
                     });
                 }
-                let (a, z) = (
-                    links.sampled_offsets[i] as usize,
-                    links.sampled_offsets[i + 1] as usize,
-                );
-                for l in &links.sampled[a..z] {
-                    for m in 0..k {
-                        mean[m] += b[l.sender as usize * k + m] * l.f;
-                    }
-                }
+                from_elements(mean, &links.sampled, &links.sampled_offsets, i, b);
                 let (a, z) = (
                     links.far_offsets[i] as usize,
                     links.far_offsets[i + 1] as usize,
@@ -269,16 +255,19 @@ impl Gather {
                 e[m] = (v[0] * n.x + v[1] * n.y + v[2] * n.z).max(Vec3::ZERO)
                     + mean[leaf as usize * k + m];
             }
-            let (a, z) = (
-                links.near_offsets[j] as usize,
-                links.near_offsets[j + 1] as usize,
-            );
-            for l in &links.near[a..z] {
-                for m in 0..k {
-                    e[m] += b[l.sender as usize * k + m] * l.f;
-                }
-            }
+            from_elements(e, &links.near, &links.near_offsets, j, b);
         });
+    }
+}
+
+/// Adds to `out` (receiver `i`'s irradiance per source) what its links from elements
+/// (`links[offsets[i]..offsets[i + 1]]`) bring from radiosity `b` (element-major).
+fn from_elements(out: &mut [Vec3], links: &[NearLink], offsets: &[u32], i: usize, b: &[Vec3]) {
+    let k = out.len();
+    for l in &links[offsets[i] as usize..offsets[i + 1] as usize] {
+        for (m, o) in out.iter_mut().enumerate() {
+            *o += b[l.sender as usize * k + m] * l.f;
+        }
     }
 }
 

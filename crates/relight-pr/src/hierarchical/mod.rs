@@ -52,7 +52,7 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 use scene_core::lights::LightId;
 use scene_core::ray::RayScene;
@@ -68,7 +68,7 @@ use crate::visibility;
 mod gather;
 mod tree;
 
-use gather::{ClusterLink, FarLink, Gather, LinkSet, NearLink, SampleLink};
+use gather::{ClusterLink, FarLink, Gather, LinkSet, NearLink};
 pub use tree::COHERENCE_RAYS;
 pub(crate) use tree::budget_cut;
 use tree::{Facing, Node, Tree, facing};
@@ -353,7 +353,7 @@ enum Step {
     Far(FarLink),
     Near(NearLink),
     Cluster(ClusterLink),
-    Sampled(Vec<SampleLink>),
+    Sampled(Vec<NearLink>),
     Split([(u32, u32); 4], usize),
 }
 
@@ -608,7 +608,7 @@ impl Refiner<'_> {
         let sees = |x: Vec3, n: Vec3, j: u32, rng: &mut Rng| {
             let b = &els[j as usize];
             let q = if self.whole_groups {
-                point_above(&b.corners, x, n, rng.next_vec2(), rng.next_f32())
+                crate::form_factor::point_above(&b.corners, x, n, rng.next_vec2(), rng.next_f32())
             } else {
                 (0..HORIZON_TRIES)
                     .map(|_| b.uniform_point(rng.next_vec2()))
@@ -633,12 +633,12 @@ impl Refiner<'_> {
         // Where the sender's leaves send their own radiosity ([`Refiner::whole_groups`]):
         // each sample's sender leaf and weight (irradiance per unit of its radiosity,
         // summed over the receiver's points before the mean is taken).
-        let mut samples: Vec<SampleLink> = Vec::new();
+        let mut samples: Vec<NearLink> = Vec::new();
         let mut sample = |j: u32, weight: f32| {
             if let Some(last) = samples.iter_mut().find(|l| l.sender == j) {
                 last.f += weight;
             } else {
-                samples.push(SampleLink {
+                samples.push(NearLink {
                     receiver: r,
                     sender: j,
                     f: weight,
@@ -656,9 +656,10 @@ impl Refiner<'_> {
                 let j = self.tree.leaf_at(sn, v);
                 let f = form_factor(x, a.normal, own, j);
                 if f > 0.0 && sees(x, a.normal, j, &mut rng) {
-                    sum += f * sn.area / els[j as usize].area;
+                    let w = f * sn.area / els[j as usize].area;
+                    sum += w;
                     if self.whole_groups {
-                        sample(j, f * sn.area / els[j as usize].area);
+                        sample(j, w);
                     }
                 }
                 continue;
@@ -890,7 +891,7 @@ struct Links {
     far: Vec<FarLink>,
     near: Vec<NearLink>,
     cluster: Vec<ClusterLink>,
-    sampled: Vec<SampleLink>,
+    sampled: Vec<NearLink>,
     /// Cluster links kept as `sampled`.
     sampled_links: usize,
 }
@@ -917,7 +918,6 @@ pub(crate) fn solve(
     let by_group = !meshing.groups.is_identity()
         && n as f64 > hierarchy.solve_groups_above as f64 * meshing.groups.count as f64;
     let tree = Tree::build(meshing, rays, by_group);
-    stats.by_group = by_group;
     stats.tree_time = t.elapsed();
     stats.nodes = tree.nodes.len();
     let node_bytes = tree.nodes.len() * k * NODE_SOURCE_BYTES;
@@ -986,6 +986,7 @@ pub(crate) fn solve(
         * (meshing.patch_area.max(0.0) / (4.0 * std::f32::consts::PI)).sqrt();
     // With the elements grouped, the reflected light's links end at the groups or above.
     let grouped = !tree.in_group.is_empty();
+    stats.by_group = grouped;
     // The budget nodes: the coarsest nodes that are elements or no wider than the budget
     // (the groups where grouped).
     stats.budget_nodes = {
@@ -1241,86 +1242,10 @@ fn finish(
     }
 }
 
-/// A point drawn uniformly (by `u`, and `pick` in `[0, 1)` for the piece) on the part of
-/// triangle `corners` strictly in front of the plane through `x` with normal `n`; `None`
-/// where no part of it is (or the part has no area).
-fn point_above(corners: &[Vec3; 3], x: Vec3, n: Vec3, u: Vec2, pick: f32) -> Option<Vec3> {
-    let d = corners.map(|c| n.dot(c - x));
-    // The clipped polygon (Sutherland and Hodgman against one plane): at most four corners.
-    let mut poly = [Vec3::ZERO; 4];
-    let mut len = 0;
-    for i in 0..3 {
-        let (a, b) = (i, (i + 1) % 3);
-        if d[a] > 0.0 {
-            poly[len] = corners[a];
-            len += 1;
-        }
-        if (d[a] > 0.0) != (d[b] > 0.0) {
-            let t = d[a] / (d[a] - d[b]);
-            if len < 4 && t.is_finite() {
-                poly[len] = corners[a] + (corners[b] - corners[a]) * t;
-                len += 1;
-            }
-        }
-    }
-    if len < 3 {
-        return None;
-    }
-    let area = |a: Vec3, b: Vec3, c: Vec3| 0.5 * (b - a).cross(c - a).length();
-    let first = area(poly[0], poly[1], poly[2]);
-    let second = if len == 4 {
-        area(poly[0], poly[2], poly[3])
-    } else {
-        0.0
-    };
-    let total = first + second;
-    if total.is_nan() || total <= 0.0 || !total.is_finite() {
-        return None;
-    }
-    let (a, b, c) = if pick * total < first {
-        (poly[0], poly[1], poly[2])
-    } else {
-        (poly[0], poly[2], poly[3])
-    };
-    let t = scene_core::sampling::uniform_triangle(u);
-    Some(a * (1.0 - t.x - t.y) + b * t.x + c * t.y)
-}
-
 #[cfg(test)]
 mod tests {
     use super::tree::orientation_class;
     use super::*;
-
-    /// The points lie on the triangle's part in front of the plane, spread uniformly over
-    /// it: their mean is that part's centroid (here the triangle (0,0), (2,0), (0,2) cut at
-    /// x = 1, whose front part is the triangle (1,0), (2,0), (1,1), centroid (4/3, 1/3)).
-    #[test]
-    fn points_above_a_plane_cover_the_part_in_front_uniformly() {
-        let tri = [
-            Vec3::ZERO,
-            Vec3::new(2.0, 0.0, 0.0),
-            Vec3::new(0.0, 2.0, 0.0),
-        ];
-        let (x, n) = (Vec3::new(1.0, 5.0, 0.0), Vec3::X);
-        let mut rng = Rng::new(7, 1);
-        let count = 20_000;
-        let mut mean = Vec3::ZERO;
-        for _ in 0..count {
-            let q = point_above(&tri, x, n, rng.next_vec2(), rng.next_f32()).unwrap();
-            assert!(
-                q.x >= 1.0 - 1e-5 && q.x + q.y <= 2.0 + 1e-5 && q.y >= -1e-6,
-                "{q}"
-            );
-            mean += q / count as f32;
-        }
-        let expect = Vec3::new(4.0 / 3.0, 1.0 / 3.0, 0.0);
-        assert!(mean.distance(expect) < 0.01, "{mean} against {expect}");
-        // Facing the other way, the part in front is the quadrilateral left of x = 1; a
-        // triangle wholly behind the plane has none.
-        let q = point_above(&tri, x, -n, Vec2::new(0.3, 0.6), 0.7).unwrap();
-        assert!(q.x <= 1.0 + 1e-5, "{q}");
-        assert!(point_above(&tri, Vec3::new(3.0, 0.0, 0.0), n, Vec2::splat(0.5), 0.5).is_none());
-    }
 
     #[test]
     fn orientation_classes_put_axes_at_cell_centres() {

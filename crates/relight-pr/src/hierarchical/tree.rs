@@ -90,13 +90,13 @@ pub(super) fn orientation_class(n: Vec3) -> u32 {
 
 impl Tree {
     /// The tree over `meshing`'s elements, with its clusters' coherence found through
-    /// `rays`; with each of [`Meshing::groups`] one subtree where `by_group` and the
-    /// elements are grouped ([`Tree::grouped`]).
+    /// `rays`; with each of [`Meshing::groups`] one subtree where `by_group`
+    /// ([`Tree::grouped`]).
     pub(super) fn build(meshing: &Meshing, rays: &RayScene, by_group: bool) -> Self {
-        let mut tree = if !by_group || meshing.groups.is_identity() {
-            Self::nodes_only(meshing, false)
-        } else {
+        let mut tree = if by_group {
             Self::grouped(meshing)
+        } else {
+            Self::nodes_only(meshing, false)
         };
         tree.coherent = tree.coherence(meshing, rays);
         tree
@@ -386,16 +386,9 @@ pub(super) fn build_node(
     }
     nodes.push(Node::placeholder(first, count));
     let range = first..first + count;
-    let split = if class[first] != class[first + count - 1] {
-        // Orientation classes first: the class boundary nearest the middle.
-        let mid = first + count / 2;
-        let mut best = (usize::MAX, first + 1);
-        for i in range.clone().skip(1) {
-            if class[i] != class[i - 1] && i.abs_diff(mid) < best.0 {
-                best = (i.abs_diff(mid), i);
-            }
-        }
-        best.1 - first
+    let split = if let Some(at) = class_split(&class[range.clone()]) {
+        // Orientation classes first.
+        at
     } else {
         // Then space: the median along the longest axis of the centroids' bounds (on
         // their grid, the first axis of equal extents).
@@ -756,6 +749,15 @@ enum Shape {
     Split(usize, Box<Shape>, Box<Shape>),
 }
 
+/// Where a run of items sorted by orientation class splits first: the class boundary
+/// nearest the middle (`None` when they are all of one class).
+fn class_split(class: &[u32]) -> Option<usize> {
+    let mid = class.len() / 2;
+    (1..class.len())
+        .filter(|&i| class[i] != class[i - 1])
+        .min_by_key(|&i| i.abs_diff(mid))
+}
+
 /// Orders `units` (sorted by class) into the tree above the groups: the class boundary
 /// nearest the middle, then the median along the longest axis of the centroids.
 fn partition_units(units: &mut [Unit]) -> Shape {
@@ -763,15 +765,9 @@ fn partition_units(units: &mut [Unit]) -> Shape {
     if count <= 1 {
         return Shape::Group;
     }
-    let split = if units[0].class != units[count - 1].class {
-        let mid = count / 2;
-        let mut best = (usize::MAX, 1);
-        for i in 1..count {
-            if units[i].class != units[i - 1].class && i.abs_diff(mid) < best.0 {
-                best = (i.abs_diff(mid), i);
-            }
-        }
-        best.1
+    let classes: Vec<u32> = units.iter().map(|u| u.class).collect();
+    let split = if let Some(at) = class_split(&classes) {
+        at
     } else {
         let (lo, hi) = units.iter().fold(
             (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)),
