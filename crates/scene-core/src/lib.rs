@@ -83,6 +83,8 @@ pub const SHADER_PASSES: &[gpu::shader::ShaderPass] = &[
     gpu::frame::PIXELS_TO_TEXTURE,
     gpu::frame::PIXELS_TO_TEXTURE_RGBA16F,
     crate::shadowed_lights::gpu_maps::SHADOW_MAPS,
+    #[cfg(feature = "reference")]
+    crate::reference::PATH_TRACER,
 ];
 
 /// Any error of the toolkit's shared layer.

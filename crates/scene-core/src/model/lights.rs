@@ -644,6 +644,11 @@ impl EmissionPattern {
         Some(Self { cdf })
     }
 
+    /// The cumulative distribution over the `TEXEL_GRID^2` sub-triangles (last entry 1).
+    pub fn cdf(&self) -> &[f32] {
+        &self.cdf
+    }
+
     fn probability(&self, s: usize) -> f32 {
         self.cdf[s] - if s == 0 { 0.0 } else { self.cdf[s - 1] }
     }

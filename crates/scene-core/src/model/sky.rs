@@ -268,6 +268,26 @@ impl Sky {
         (self.radiance[i], self.pixel_pdf(i))
     }
 
+    /// Per pixel of the map, row-major: its radiance, the solid-angle density
+    /// [`Sky::sample`] draws its directions with, and the probability that it picks the
+    /// pixel (what a sampler of its own, such as the GPU path tracer's alias table, needs);
+    /// empty for a black sky.
+    pub fn pixel_table(&self) -> Vec<(Vec3, f32, f64)> {
+        let Some(&last) = self.cdf.last() else {
+            return Vec::new();
+        };
+        (0..self.cdf.len())
+            .map(|i| {
+                let before = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+                (
+                    self.radiance[i],
+                    self.pixel_pdf(i),
+                    (self.cdf[i] - before) / last,
+                )
+            })
+            .collect()
+    }
+
     /// The solid-angle density of directions in pixel `i` (0 for a black sky).
     fn pixel_pdf(&self, i: usize) -> f32 {
         let Some(&last) = self.cdf.last() else {

@@ -594,6 +594,42 @@ impl Bvh4 {
         deepest
     }
 
+    /// The tree as the GPU path tracer reads it (`Node` and `Packet` of
+    /// `shaders/scene-core/path_tracer.wgsl`): each node as 32 four-byte words (the six
+    /// box rows, the children, the used mask, padding), each packet as 40 (nine rows of
+    /// lanes, the ids), integers as their bits; and whether a traversal may need more than
+    /// the shader's stack of [`STACK`] entries (the same bound as the CPU's fixed stack).
+    #[cfg(feature = "gpu")]
+    pub(crate) fn gpu_words(&self) -> (Vec<[u32; 32]>, Vec<[u32; 40]>, bool) {
+        let row = |v: &Vec4| v.to_array().map(f32::to_bits);
+        let nodes = self
+            .nodes
+            .iter()
+            .map(|n| {
+                let mut w = [0u32; 32];
+                for (r, v) in n.lo.iter().chain(&n.hi).enumerate() {
+                    w[4 * r..4 * r + 4].copy_from_slice(&row(v));
+                }
+                w[24..28].copy_from_slice(&n.child);
+                w[28] = n.used;
+                w
+            })
+            .collect();
+        let packets = self
+            .packets
+            .iter()
+            .map(|p| {
+                let mut w = [0u32; 40];
+                for (r, v) in p.v0.iter().chain(&p.e1).chain(&p.e2).enumerate() {
+                    w[4 * r..4 * r + 4].copy_from_slice(&row(v));
+                }
+                w[36..40].copy_from_slice(&p.id);
+                w
+            })
+            .collect();
+        (nodes, packets, self.deep)
+    }
+
     /// Heap bytes of the tree.
     pub(crate) fn bytes(&self) -> usize {
         self.nodes.len() * size_of::<Node>() + self.packets.len() * size_of::<Packet>()

