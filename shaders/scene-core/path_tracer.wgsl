@@ -186,15 +186,26 @@ fn next_index(n: u32) -> u32 {
     return x % n;
 }
 
+// The 32 bits of `x` in reverse order (WGSL's reverseBits, written out: the MSL versions
+// naga targets lack it).
+fn flip_bits(x: u32) -> u32 {
+    var v = x;
+    v = ((v >> 1u) & 0x55555555u) | ((v & 0x55555555u) << 1u);
+    v = ((v >> 2u) & 0x33333333u) | ((v & 0x33333333u) << 2u);
+    v = ((v >> 4u) & 0x0f0f0f0fu) | ((v & 0x0f0f0f0fu) << 4u);
+    v = ((v >> 8u) & 0x00ff00ffu) | ((v & 0x00ff00ffu) << 8u);
+    return (v >> 16u) | (v << 16u);
+}
+
 // scene_core::sampling::owen_scramble.
 fn owen_scramble(x: u32, seed: u32) -> u32 {
-    var v = reverseBits(x);
+    var v = flip_bits(x);
     v = v + seed;
     v = v ^ (v * 0x6c50b47cu);
     v = v ^ (v * 0xb82f1e52u);
     v = v ^ (v * 0xc7afe638u);
     v = v ^ (v * 0x8d22f6e6u);
-    return reverseBits(v);
+    return flip_bits(v);
 }
 
 // Dimension 1 of Sobol's sequence (direction numbers of x + 1).
@@ -221,7 +232,7 @@ fn sobol_point(base: u32, k: u32, index: u32) -> vec2<f32> {
     let s1 = pcg(s0 ^ 0x68e31da4u);
     let s2 = pcg(s1 ^ 0xb5297a4du);
     let i = owen_scramble(index, s0);
-    let x = owen_scramble(reverseBits(i), s1);
+    let x = owen_scramble(flip_bits(i), s1);
     let y = owen_scramble(sobol_y(i), s2);
     return vec2<f32>(unit(x), unit(y));
 }

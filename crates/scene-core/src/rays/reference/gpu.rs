@@ -433,10 +433,11 @@ impl GpuPathTracer {
             })
         });
         let has_sky = sky_factors != [Vec3::ZERO; 2];
-        let flags = u32::from(sees_emission) * FLAG_SEES_EMISSION
-            | u32::from(has_sky) * FLAG_SKY
-            | u32::from(has_sky && sky_nee) * FLAG_SKY_NEE
-            | u32::from(!rays.cutouts().is_empty()) * FLAG_CUTOUTS;
+        let flag = |on: bool, bit: u32| if on { bit } else { 0 };
+        let flags = flag(sees_emission, FLAG_SEES_EMISSION)
+            | flag(has_sky, FLAG_SKY)
+            | flag(has_sky && sky_nee, FLAG_SKY_NEE)
+            | flag(!rays.cutouts().is_empty(), FLAG_CUTOUTS);
         let base = Params {
             sky_direct: v4(sky_factors[0], 0.0),
             sky_indirect: v4(sky_factors[1], 0.0),
