@@ -1,3 +1,5 @@
+#import scene_core::texture_wrap::{wrap_texel, wrap_reduce}
+
 // The G-buffer geometry pass: one render pass writing four colour targets at once
 // (multiple render targets, thesis figure 4.1) plus the depth attachment:
 //
@@ -106,29 +108,6 @@ fn vs_main(v: VertexIn) -> VertexOut {
     }
     out.face = vec4<f32>(ng, select(1.0, -1.0, facing > 0.0));
     return out;
-}
-
-// Texel index `i` of a row of `n` under wrap `mode` (scene_core::Wrap::texel).
-fn wrap_texel(i: i32, n: i32, mode: u32) -> i32 {
-    if (mode == 1u) {
-        return clamp(i, 0, n - 1);
-    }
-    if (mode == 2u) {
-        let m = ((i % (2 * n)) + 2 * n) % (2 * n);
-        return select(2 * n - 1 - m, m, m < n);
-    }
-    return ((i % n) + n) % n;
-}
-
-// `t` brought into the range wrap `mode` repeats over (scene_core::Wrap::reduce).
-fn wrap_reduce(t: f32, mode: u32) -> f32 {
-    if (mode == 1u) {
-        return clamp(t, 0.0, 1.0);
-    }
-    if (mode == 2u) {
-        return t - 2.0 * floor(t * 0.5);
-    }
-    return t - floor(t);
 }
 
 fn texel(info: TextureInfo, x: i32, y: i32) -> vec4<f32> {

@@ -1,3 +1,5 @@
+#import scene_core::texture_wrap::{wrap_texel, wrap_reduce}
+
 // The GPU reference path tracer (scene_core::reference::gpu): the estimator of the CPU
 // reference (crates/scene-core/src/rays/reference/tracer.rs) on the same four-wide BVH,
 // one invocation per pixel, its samples in sample-index order.
@@ -303,29 +305,6 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 
 // ---- textures (scene_core::Texture::sample, as shaders/gbuffer/mrt.wgsl) ----
 
-fn wrap_texel(i: i32, n: i32, mode: u32) -> i32 {
-    if (i >= 0 && i < n) {
-        return i;
-    }
-    if (mode == 1u) {
-        return clamp(i, 0, n - 1);
-    }
-    if (mode == 2u) {
-        let m = ((i % (2 * n)) + 2 * n) % (2 * n);
-        return select(2 * n - 1 - m, m, m < n);
-    }
-    return ((i % n) + n) % n;
-}
-
-fn wrap_reduce(t: f32, mode: u32) -> f32 {
-    if (mode == 1u) {
-        return clamp(t, 0.0, 1.0);
-    }
-    if (mode == 2u) {
-        return t - 2.0 * floor(t * 0.5);
-    }
-    return t - floor(t);
-}
 
 fn texel_at(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
     let xi = wrap_texel(x, i32(info.y), info.w & 3u);

@@ -30,7 +30,7 @@ use crate::raster::check_target;
 pub const MRT: ShaderPass = ShaderPass::new(
     "gbuffer/mrt",
     scene_core::wgsl_file!("gbuffer", "mrt.wgsl"),
-    &[],
+    &[scene_core::gpu::shader::TEXTURE_WRAP],
 );
 
 /// The view uniform of `mrt.wgsl` (96 bytes).

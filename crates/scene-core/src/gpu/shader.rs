@@ -77,6 +77,11 @@ pub const RECONSTRUCT: Wgsl = crate::wgsl_file!("scene-core", "reconstruct.wgsl"
 /// pass imports instead of writing them out.
 pub const LIMITS: Wgsl = crate::wgsl_file!("scene-core", "limits.wgsl");
 
+/// `scene_core::texture_wrap` (`shaders/scene-core/texture_wrap.wgsl`): `wrap_texel` and
+/// `wrap_reduce`, a texture coordinate and a texel index under [`crate::Wrap`]'s modes, as
+/// the G-buffer pass and the GPU path tracer sample textures.
+pub const TEXTURE_WRAP: Wgsl = crate::wgsl_file!("scene-core", "texture_wrap.wgsl");
+
 /// One compiled shader: a main file, the library files it may import (directly or through
 /// each other, in any order) and the boolean shader defs (`#ifdef NAME`) of this variant.
 #[derive(Clone, Copy, Debug)]

@@ -42,7 +42,7 @@ use super::{Bounces, ReferenceSettings};
 pub const PATH_TRACER: ShaderPass = ShaderPass::new(
     "scene-core/path_tracer",
     crate::wgsl_file!("scene-core", "path_tracer.wgsl"),
-    &[],
+    &[crate::gpu::shader::TEXTURE_WRAP],
 );
 
 /// Paths one dispatch traces at most (at least one sample of every pixel): short enough
