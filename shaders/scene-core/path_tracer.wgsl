@@ -12,12 +12,11 @@
 // cosine-weighted bounce; Russian roulette from RR_START_DEPTH on, with survival equal to
 // the throughput; alpha masks in every ray query; textures sampled as
 // scene_core::Texture::sample does; the light state's direct and indirect factors. The
-// pixel position comes from the pixel's scrambled Sobol sequence (Burley 2020), as on the
-// CPU.
+// pixel position and the first four vertices' emitter points and bounces come from the
+// pixel's scrambled Sobol sequences (Burley 2020), as on the CPU.
 //
 // What differs: the random numbers (32-bit hashes instead of the CPU's 64-bit ones, so the
-// two tracers' images agree in distribution, not bit for bit); the first vertices'
-// emitter points and bounces are independent numbers, not stratified (see PAIRS); an emitter, and a sky
+// two tracers' images agree in distribution, not bit for bit); an emitter, and a sky
 // pixel, are picked from an alias table (Walker) rather than by bisecting a CDF, each
 // with its exact probability; the mean and the variance are accumulated by Welford's
 // update in f32 (stable, and the same whatever the split into dispatches).
@@ -32,13 +31,10 @@ const STACK: u32 = 64u;
 const FAR_WIDEN: f32 = 1.0000003576279;
 // scene_core::reference::RR_START_DEPTH.
 const RR_START_DEPTH: u32 = 4u;
-// Only the pixel position is stratified (slot 0). With the first four vertices' emitter
-// points and bounces stratified as on the CPU, the slots of a pixel came out correlated
-// with these 32-bit seeds, and at bounce 4 and beyond up to 2 % of the light moved
-// between 8x8 blocks of the Cornell box (z-tests at 1024 samples against the CPU);
-// independent numbers agree (docs/reference.md, "The GPU path tracer").
-const STRATIFIED_VERTICES: u32 = 0u;
-const PAIRS: u32 = 1u;
+// The decisions stratified per pixel, as on the CPU: the pixel position, then the emitter
+// point and the bounce of each of the first STRATIFIED_VERTICES vertices.
+const STRATIFIED_VERTICES: u32 = 4u;
+const PAIRS: u32 = 9u;
 
 const FLAG_SEES_EMISSION: u32 = 1u;
 const FLAG_SKY: u32 = 2u;
@@ -147,27 +143,33 @@ fn as_u(x: f32) -> u32 {
 
 // ---- random numbers ----
 
-// PCG's output permutation of one LCG step (Jarzynski and Olano 2020).
-fn pcg(v: u32) -> u32 {
-    let s = v * 747796405u + 2891336453u;
-    let w = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
-    return (w >> 22u) ^ w;
+// A 32-bit integer hash (Wellons' "lowbias32": two multiply-xorshift rounds).
+fn lowbias(v: u32) -> u32 {
+    var x = v;
+    x = x ^ (x >> 16u);
+    x = x * 0x7feb352du;
+    x = x ^ (x >> 15u);
+    x = x * 0x846ca68bu;
+    x = x ^ (x >> 16u);
+    return x;
 }
 
-// The sample's generator (an LCG with PCG's output permutation, whose state and
-// increment come from nested hashes of the seed, the pixel and the sample, so no two
-// samples share a stream), and its pixel's sequence seed and sample index: private to
-// the invocation, set before each sample.
-var<private> rng_state: u32;
-var<private> rng_inc: u32;
+// A hash of two numbers, non-linear in both (so that nearby pairs give unrelated values).
+fn hash2(a: u32, b: u32) -> u32 {
+    return lowbias(lowbias(a ^ 0x2545f491u) ^ (b * 0x9e3779b9u + 0x7f4a7c15u));
+}
+
+// The sample's generator (a counter hashed with the sample's key: every sample has its own
+// stream, the same on every adapter), and its pixel's sequence seed and sample index:
+// private to the invocation, set before each sample.
+var<private> rng_key: u32;
+var<private> rng_count: u32;
 var<private> draw_base: u32;
 var<private> draw_sample: u32;
 
 fn next_u32() -> u32 {
-    rng_state = rng_state * 747796405u + rng_inc;
-    let s = rng_state;
-    let w = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
-    return (w >> 22u) ^ w;
+    rng_count = rng_count + 1u;
+    return hash2(rng_key, rng_count);
 }
 
 fn unit(x: u32) -> f32 {
@@ -230,9 +232,10 @@ fn sobol_y(index: u32) -> u32 {
 
 // Point `index` of a pixel's scrambled Sobol sequence number `k` (scene_core::Sobol2d).
 fn sobol_point(base: u32, k: u32, index: u32) -> vec2<f32> {
-    let s0 = pcg(base ^ ((3u * k + 1u) * 0x9e3779b9u));
-    let s1 = pcg(s0 ^ 0x68e31da4u);
-    let s2 = pcg(s1 ^ 0xb5297a4du);
+    let slot = hash2(base, k);
+    let s0 = hash2(slot, 1u);
+    let s1 = hash2(slot, 2u);
+    let s2 = hash2(slot, 3u);
     let i = owen_scramble(index, s0);
     let x = owen_scramble(flip_bits(i), s1);
     let y = owen_scramble(sobol_y(i), s2);
@@ -252,21 +255,29 @@ fn pair(slot: u32) -> vec2<f32> {
 
 // ---- sampling (scene_core::sampling) ----
 
+// sin and cos of `t` in [-pi/4, pi/4] by their Taylor polynomials (errors below 4e-7):
+// WGSL's sin and cos need only be within 2^-11 absolute (Vulkan's bound), where the CPU's
+// are within an ulp.
+fn sin_cos_quarter(t: f32) -> vec2<f32> {
+    let t2 = t * t;
+    let s = t * (1.0 - t2 / 6.0 * (1.0 - t2 / 20.0 * (1.0 - t2 / 42.0 * (1.0 - t2 / 72.0))));
+    let c = 1.0 - t2 / 2.0 * (1.0 - t2 / 12.0 * (1.0 - t2 / 30.0 * (1.0 - t2 / 56.0 * (1.0 - t2 / 90.0))));
+    return vec2<f32>(s, c);
+}
+
+// scene_core::sampling::concentric_disk (Shirley-Chiu), its angles within a quarter turn.
 fn concentric_disk(u: vec2<f32>) -> vec2<f32> {
     let o = u * 2.0 - vec2<f32>(1.0);
     if (o.x == 0.0 && o.y == 0.0) {
         return vec2<f32>(0.0);
     }
-    var r: f32;
-    var theta: f32;
     if (abs(o.x) > abs(o.y)) {
-        r = o.x;
-        theta = 0.785398163397448 * (o.y / o.x);
-    } else {
-        r = o.y;
-        theta = 1.5707963267949 - 0.785398163397448 * (o.x / o.y);
+        let sc = sin_cos_quarter(0.785398163397448 * (o.y / o.x));
+        return o.x * vec2<f32>(sc.y, sc.x);
     }
-    return vec2<f32>(r * cos(theta), r * sin(theta));
+    // theta = pi/2 - t: cos(theta) = sin(t), sin(theta) = cos(t).
+    let sc = sin_cos_quarter(0.785398163397448 * (o.x / o.y));
+    return o.y * vec2<f32>(sc.x, sc.y);
 }
 
 fn orthonormal_basis(n: vec3<f32>) -> mat2x3<f32> {
@@ -940,16 +951,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let pixel = gid.y * P.width + gid.x;
-    let base = pcg(pcg(pcg(P.seed_lo ^ 0x5eed50b0u) ^ P.seed_hi) ^ pixel);
-    let stream = pcg(pcg(pcg(P.seed_lo) ^ P.seed_hi ^ 0x1b873593u) ^ pixel);
+    let seeded = hash2(hash2(P.seed_lo, P.seed_hi), pixel);
+    let base = hash2(seeded, 0x5eed50b0u);
+    let stream = hash2(seeded, 0x1b873593u);
     var mean = accum[2u * pixel].xyz;
     var m2 = accum[2u * pixel + 1u].xyz;
     for (var s = P.first_sample; s < P.first_sample + P.samples; s++) {
         draw_base = base;
         draw_sample = s;
-        let key = pcg(pcg(stream ^ pcg(s ^ 0x85ebca6bu)) + 0x27d4eb2fu);
-        rng_state = key;
-        rng_inc = pcg(key ^ 0x165667b1u) | 1u;
+        rng_key = hash2(stream, s);
+        rng_count = 0u;
         let jitter = pair(0u);
         let u = (f32(gid.x) + jitter.x) / f32(P.width);
         let v = (f32(gid.y) + jitter.y) / f32(P.height);
