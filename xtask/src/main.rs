@@ -300,6 +300,11 @@ enum Command {
         /// and times it).
         #[arg(long)]
         mitsuba: Option<PathBuf>,
+        /// Trace on the GPU (`scene_core::reference::GpuPathTracer`: the same estimator in
+        /// a wgpu compute shader, agreeing with the CPU tracer in distribution; the adapter
+        /// as `WGPU_BACKEND` and `WGPU_ADAPTER_NAME` choose).
+        #[arg(long)]
+        gpu: bool,
     },
     /// Radiosity relighting: mesh and solve a scene with light-tagged progressive
     /// refinement, relight it with the given light settings and write the view from a
@@ -581,14 +586,11 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
 fn reference(
     scene_spec: &str,
     camera: usize,
-    width: u32,
-    height: u32,
-    spp: u32,
-    bounces: Bounces,
-    seed: u64,
+    (width, height, spp, bounces, seed): (u32, u32, u32, Bounces, u64),
     exposure: f32,
     out: &Path,
     mitsuba: Option<&Path>,
+    gpu: bool,
 ) -> Result<(), String> {
     // The numbers were checked by `Command::check_numbers`.
     check_out_dir(out)?;
@@ -617,38 +619,73 @@ fn reference(
         scene.triangle_count(),
         cam.name
     );
-    let t0 = Instant::now();
-    let tracer = PathTracer::new(&scene);
-    eprintln!("BVH built in {:.1} ms", t0.elapsed().as_secs_f64() * 1e3);
-    let mut acc = Accumulator::new(width, height);
-    // Progressive passes of up to 64 spp so the bar moves on long renders.
-    let passes = spp.div_ceil(64);
-    let bar = progress_bar(height as u64 * passes as u64, "rendering (rows)");
-    let mut done = 0u32;
-    for pass in 0..passes {
-        let n = (spp - done).min(64);
-        let base = pass as u64 * height as u64;
-        let report = |rows: u64, _total: u64| bar.set_position(base + rows);
-        acc.add_pass(&tracer, &view, bounces, seed, n, Some(&report));
-        done += n;
-    }
-    bar.finish_and_clear();
-    let stats = acc.stats();
     let exr = out.join(format!("{stem}.exr"));
     let png = out.join(format!("{stem}.png"));
     let var = out.join(format!("{stem}.variance.exr"));
-    let image = acc.image();
+    let (image, variance) = if gpu {
+        let ctx = scene_core::gpu::GpuContext::new().map_err(|e| e.to_string())?;
+        let t0 = Instant::now();
+        let tracer = scene_core::reference::GpuPathTracer::new(
+            &ctx,
+            &scene,
+            &scene_core::LightState::default(),
+        )
+        .map_err(|e| e.to_string())?;
+        let mut acc = tracer
+            .accumulator(width, height)
+            .map_err(|e| e.to_string())?;
+        eprintln!(
+            "GPU tracer on {} ready in {:.1} ms",
+            ctx.adapter_summary(),
+            t0.elapsed().as_secs_f64() * 1e3
+        );
+        let bar = progress_bar(u64::from(spp), "rendering (samples per pixel)");
+        let report = |done: u32, _: u32| bar.set_position(u64::from(done));
+        tracer
+            .add_pass(&mut acc, &view, bounces, seed, spp, Some(&report))
+            .map_err(|e| e.to_string())?;
+        bar.finish_and_clear();
+        let paths = f64::from(width) * f64::from(height) * f64::from(spp);
+        eprintln!(
+            "{:.2} s, {:.3e} paths/s",
+            acc.seconds(),
+            paths / acc.seconds().max(1e-9)
+        );
+        (
+            acc.image().map_err(|e| e.to_string())?,
+            acc.variance().map_err(|e| e.to_string())?,
+        )
+    } else {
+        let t0 = Instant::now();
+        let tracer = PathTracer::new(&scene);
+        eprintln!("BVH built in {:.1} ms", t0.elapsed().as_secs_f64() * 1e3);
+        let mut acc = Accumulator::new(width, height);
+        // Progressive passes of up to 64 spp so the bar moves on long renders.
+        let passes = spp.div_ceil(64);
+        let bar = progress_bar(height as u64 * passes as u64, "rendering (rows)");
+        let mut done = 0u32;
+        for pass in 0..passes {
+            let n = (spp - done).min(64);
+            let base = pass as u64 * height as u64;
+            let report = |rows: u64, _total: u64| bar.set_position(base + rows);
+            acc.add_pass(&tracer, &view, bounces, seed, n, Some(&report));
+            done += n;
+        }
+        bar.finish_and_clear();
+        let stats = acc.stats();
+        eprintln!(
+            "{:.2} s, {:.2} Mrays/s ({} primary, {} shadow, {} bounce)",
+            stats.seconds,
+            stats.rays_per_second() / 1e6,
+            stats.primary,
+            stats.shadow,
+            stats.bounce
+        );
+        (acc.image(), acc.variance())
+    };
     image.write_exr(&exr).map_err(|e| e.to_string())?;
     image.write_png(&png, exposure).map_err(|e| e.to_string())?;
-    acc.variance().write_exr(&var).map_err(|e| e.to_string())?;
-    eprintln!(
-        "{:.2} s, {:.2} Mrays/s ({} primary, {} shadow, {} bounce)",
-        stats.seconds,
-        stats.rays_per_second() / 1e6,
-        stats.primary,
-        stats.shadow,
-        stats.bounce
-    );
+    variance.write_exr(&var).map_err(|e| e.to_string())?;
     println!("{}", exr.display());
     println!("{}", png.display());
     println!("{}", var.display());
@@ -767,8 +804,12 @@ pub fn fuzz_run_command(bytes: &[u8], scratch: &Path) -> Result<(), String> {
             spp,
             out: dir,
             mitsuba,
+            gpu,
             ..
         } => {
+            if *gpu {
+                return Err("--gpu: not run by the commands target (a device per input)".into());
+            }
             builtin(scene)?;
             tiny("pixels", u64::from(*width) * u64::from(*height), 16 * 12)?;
             tiny("spp", u64::from(*spp), 4)?;
@@ -840,17 +881,15 @@ fn run(cli: Cli) -> Result<(), String> {
             exposure,
             out,
             mitsuba,
+            gpu,
         } => reference(
             &scene,
             camera,
-            width,
-            height,
-            spp,
-            bounces,
-            seed,
+            (width, height, spp, bounces, seed),
             exposure,
             &out,
             mitsuba.as_deref(),
+            gpu,
         ),
         Command::Relight(options) => relight::run(&options),
         Command::Ibrr(options) => ibrr::run(&options),
