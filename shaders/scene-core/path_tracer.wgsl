@@ -134,7 +134,8 @@ struct Tri {
 @group(0) @binding(4) var<storage, read> data: array<vec4<f32>>;
 // All textures' linear RGB texels (w alpha), top row first, one after the other.
 @group(0) @binding(5) var<storage, read> texels: array<vec4<f32>>;
-// Per pixel: the running mean (2 i) and the sum of squared deviations (2 i + 1).
+// The running mean of every pixel (row-major), then every pixel's sum of squared
+// deviations: the first half is a pixel buffer (PixelsToTexture shows it).
 @group(0) @binding(6) var<storage, read_write> accum: array<vec4<f32>>;
 
 fn as_u(x: f32) -> u32 {
@@ -954,8 +955,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let seeded = hash2(hash2(P.seed_lo, P.seed_hi), pixel);
     let base = hash2(seeded, 0x5eed50b0u);
     let stream = hash2(seeded, 0x1b873593u);
-    var mean = accum[2u * pixel].xyz;
-    var m2 = accum[2u * pixel + 1u].xyz;
+    let pixels = P.width * P.height;
+    var mean = accum[pixel].xyz;
+    var m2 = accum[pixels + pixel].xyz;
     for (var s = P.first_sample; s < P.first_sample + P.samples; s++) {
         draw_base = base;
         draw_sample = s;
@@ -975,6 +977,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         mean = mean + delta / f32(s + 1u);
         m2 = m2 + delta * (l - mean);
     }
-    accum[2u * pixel] = vec4<f32>(mean, 0.0);
-    accum[2u * pixel + 1u] = vec4<f32>(m2, 0.0);
+    accum[pixel] = vec4<f32>(mean, 1.0);
+    accum[pixels + pixel] = vec4<f32>(m2, 0.0);
 }

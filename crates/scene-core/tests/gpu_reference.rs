@@ -452,3 +452,87 @@ fn gpu_samples_of_one_run_vary_as_independent_seeds() {
         "means {m_run} and {m_singles} (se {se})"
     );
 }
+
+/// The tracer in an engine's frame (`GpuFrame`): frames of one view add samples, so the
+/// target after three frames of 4 holds the accumulator's 12-sample image bit for bit; at
+/// `max_spp` frames only show it; a new light state starts again and equals its own
+/// accumulator; and a steady frame creates no GPU object.
+#[test]
+fn path_tracer_frame_accumulates_and_creates_nothing_per_frame() {
+    use scene_core::gpu::{FrameInputs, GpuFrame, GpuGBuffer, ObjectCounts};
+    use scene_core::reference::{PathTracerFrame, PathTracerFrameSettings};
+    let Some(ctx) = gpu_test_context() else {
+        return;
+    };
+    let (s, state) = everything();
+    let scene = std::sync::Arc::new(s);
+    let view = View::from_camera(&scene.cameras[0]);
+    let (w, h) = (16, 16);
+    let settings = PathTracerFrameSettings {
+        samples_per_frame: 4,
+        max_spp: 12,
+        bounces: Bounces::Unlimited,
+        seed: 3,
+    };
+    let bad = PathTracerFrameSettings {
+        samples_per_frame: 17,
+        ..settings
+    };
+    assert!(PathTracerFrame::prepare(&ctx, scene.clone(), bad).is_err());
+    let mut frame = PathTracerFrame::prepare(&ctx, scene.clone(), settings).unwrap();
+    let gbuffer = GpuGBuffer::new(&ctx, w, h).unwrap();
+    let target = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("reference frame target"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba32Float,
+        usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let expect = |lights: &LightState, spp: u32| {
+        let tracer = GpuPathTracer::new(&ctx, &scene, lights).unwrap();
+        let mut acc = tracer.accumulator(w, h).unwrap();
+        tracer
+            .add_pass(&mut acc, &view, Bounces::Unlimited, 3, spp, None)
+            .unwrap();
+        acc.image().unwrap()
+    };
+    let default = LightState::default();
+    for (k, lights, spp) in [
+        (0, &default, 4),
+        (1, &default, 8),
+        (2, &default, 12),
+        (3, &default, 12),
+        (4, &state, 4),
+        (5, &state, 8),
+    ] {
+        let inputs = FrameInputs {
+            gbuffer: &gbuffer,
+            view: &view,
+            lights,
+        };
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let (result, created) =
+            ObjectCounts::during(&ctx.device, || frame.encode(&mut encoder, &inputs, &target));
+        result.unwrap();
+        ctx.queue.submit([encoder.finish()]);
+        assert_eq!(frame.spp(), spp, "frame {k}");
+        let got = ctx.read_texture_rgba32f(&target).unwrap();
+        let want = expect(lights, spp);
+        assert!(
+            got.iter()
+                .zip(&want.pixels)
+                .all(|(g, p)| g[0] == p.x && g[1] == p.y && g[2] == p.z),
+            "frame {k}: not the accumulator's {spp}-sample image"
+        );
+        if k != 0 && k != 4 {
+            assert!(created.is_zero(), "frame {k} created {created}");
+        }
+    }
+}

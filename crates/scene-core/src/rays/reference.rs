@@ -30,7 +30,10 @@ pub use tracer::{Accumulator, PathTracer, ReferenceTechnique, render, render_lit
 #[cfg(all(feature = "reference", feature = "gpu"))]
 mod gpu;
 #[cfg(all(feature = "reference", feature = "gpu"))]
-pub use gpu::{GpuAccumulator, GpuPathTracer, GpuReferenceOutput, PATH_TRACER, render_gpu};
+pub use gpu::{
+    GpuAccumulator, GpuPathTracer, GpuReferenceOutput, PATH_TRACER, PathTracerFrame,
+    PathTracerFrameSettings, render_gpu,
+};
 
 /// Surface vertices before Russian roulette may end a path.
 pub const RR_START_DEPTH: u32 = 4;

@@ -28,6 +28,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3};
 
 use crate::BudgetExceeded;
+use crate::gpu::frame::{FrameInputs, FrameWriter, GpuFrame, KeptBuffer, Keyed, PixelsToTexture};
 use crate::gpu::shader::ShaderPass;
 use crate::gpu::{ComputePass, GpuContext, GpuError, WORKGROUP};
 use crate::image::Image;
@@ -55,6 +56,8 @@ const PATHS_PER_DISPATCH: u64 = 1 << 18;
 /// agree with each other and with independent seeds; `tests/gpu_reference.rs`, the
 /// variance check); 128 was already 4 % low. The cause is not found.
 const SAMPLES_PER_INVOCATION: u64 = 16;
+
+use std::sync::Arc;
 
 /// `Params` of the shader.
 #[repr(C)]
@@ -99,6 +102,14 @@ const FLAG_SKY: u32 = 2;
 const FLAG_SKY_NEE: u32 = 4;
 const FLAG_CUTOUTS: u32 = 8;
 const NONE: u32 = u32::MAX;
+
+/// The shader's last reflecting vertex for a bounce limit.
+fn max_vertex(bounces: Bounces) -> u32 {
+    match bounces {
+        Bounces::Limited(n) => n,
+        Bounces::Unlimited => u32::MAX - 1,
+    }
+}
 
 fn v4(v: Vec3, w: f32) -> [f32; 4] {
     [v.x, v.y, v.z, w]
@@ -146,6 +157,8 @@ pub struct GpuPathTracer {
     texels: wgpu::Buffer,
     /// Everything of `Params` but the view, the size and the samples.
     base: Params,
+    /// What of `Params` the light state does not change (the scene's flags and sizes).
+    fixed: Params,
     /// A camera ray's origin further than this (in the tree's scaled units) is refused.
     far_origin: f32,
 }
@@ -183,17 +196,20 @@ impl GpuAccumulator {
     /// Reads the mean and the unbiased per-sample variance back.
     fn read(&self) -> Result<(Image, Image), GpuError> {
         let values: Vec<[f32; 4]> = self.ctx.read_buffer_as(&self.accum)?;
+        let pixels = self.width as usize * self.height as usize;
         let n = self.spp as f32;
-        let (mut mean, mut var) = (Vec::new(), Vec::new());
-        for pair in values.chunks_exact(2) {
-            mean.push(Vec3::new(pair[0][0], pair[0][1], pair[0][2]));
-            let m2 = Vec3::new(pair[1][0], pair[1][1], pair[1][2]);
-            var.push(if self.spp < 2 {
-                Vec3::ZERO
-            } else {
-                (m2 / (n - 1.0)).max(Vec3::ZERO)
-            });
-        }
+        let rgb = |v: &[f32; 4]| Vec3::new(v[0], v[1], v[2]);
+        let mean = values[..pixels].iter().map(rgb).collect();
+        let var = values[pixels..2 * pixels]
+            .iter()
+            .map(|m2| {
+                if self.spp < 2 {
+                    Vec3::ZERO
+                } else {
+                    (rgb(m2) / (n - 1.0)).max(Vec3::ZERO)
+                }
+            })
+            .collect();
         let image = |pixels| Image {
             width: self.width,
             height: self.height,
@@ -291,11 +307,8 @@ impl GpuPathTracer {
             .sum();
         too_big("texels", texel_count * 16)?;
 
+        // The emitter entry of each triangle does not depend on the light state.
         let emitters = Emitters::new(scene, lights);
-        let factors = |id: LightId| {
-            let s = lights.get(id);
-            [s.direct_factor(), s.indirect_factor()]
-        };
 
         // Per triangle: normals, material, mesh, emitter entry, coordinates, colours.
         let mut tris: Vec<[[f32; 4]; 9]> = Vec::with_capacity(triangles as usize);
@@ -325,35 +338,28 @@ impl GpuPathTracer {
             }
         }
 
-        // The sections of `data`.
-        let mut data: Vec<[f32; 4]> = Vec::new();
-        let texture = |t: Option<u32>| t.filter(|&t| (t as usize) < scene.textures.len());
-        let off_materials = data.len() as u32;
-        for m in &scene.materials {
-            data.push(v4(
-                m.albedo,
-                bits(texture(m.albedo_texture).unwrap_or(NONE)),
-            ));
-            let emission_texture = texture(m.emission_texture).filter(|_| m.is_emissive());
-            data.push(v4(m.emission, bits(emission_texture.unwrap_or(NONE))));
-            data.push([
-                m.alpha_cutoff.filter(|&c| c > 0.0).unwrap_or(0.0),
-                0.0,
-                0.0,
-                0.0,
-            ]);
-        }
-        let off_textures = data.len() as u32;
+        let sees_emission = scene.meshes.iter().any(|m| {
+            m.material_ids.iter().any(|&id| {
+                scene
+                    .materials
+                    .get(id as usize)
+                    .is_some_and(|m| m.is_emissive())
+            })
+        });
+        let flag = |on: bool, bit: u32| if on { bit } else { 0 };
+        let fixed = Params {
+            flags: flag(sees_emission, FLAG_SEES_EMISSION)
+                | flag(!rays.cutouts().is_empty(), FLAG_CUTOUTS),
+            scale,
+            eps: extent * 2e-5,
+            far: extent * 4.0,
+            ..Zeroable::zeroed()
+        };
+        let (mut data, base) = pack_lights(scene, lights, &fixed);
+        too_big("light and material data", data.len() as u64 * 16)?;
         let mut texels: Vec<[f32; 4]> = Vec::with_capacity(texel_count as usize);
         for t in &scene.textures {
             let n = t.width as usize * t.height as usize;
-            let whole = t.texels.len() == n;
-            data.push([
-                bits(texels.len() as u32),
-                bits(if whole { t.width } else { 0 }),
-                bits(if whole { t.height } else { 0 }),
-                bits(t.sampler.bits()),
-            ]);
             let alpha = |i: usize| t.alpha.as_ref().and_then(|a| a.get(i)).copied();
             texels.extend(
                 t.texels
@@ -363,114 +369,6 @@ impl GpuPathTracer {
                     .map(|(i, c)| v4(*c, alpha(i).unwrap_or(1.0))),
             );
         }
-        let off_points = data.len() as u32;
-        for (i, l) in scene.point_lights.iter().enumerate() {
-            let [fd, fi] = factors(LightId::Point(i as u32));
-            let ramp = SpotRamp::of(l.cone.as_ref());
-            let radius = match l.radius {
-                None => -1.0,
-                Some(r) if r > 0.0 => r,
-                Some(_) => 0.0,
-            };
-            data.push(v4(l.position, radius));
-            data.push(v4(l.intensity * fd, 0.0));
-            data.push(v4(l.intensity * fi, ramp.scale));
-            data.push(v4(ramp.axis, ramp.offset));
-        }
-        let off_dirs = data.len() as u32;
-        for (i, l) in scene.directional_lights.iter().enumerate() {
-            let [fd, fi] = factors(LightId::Directional(i as u32));
-            data.push(v4(-l.direction.normalize(), 0.0));
-            data.push(v4(l.irradiance * fd, 0.0));
-            data.push(v4(l.irradiance * fi, 0.0));
-        }
-        let off_emitters = data.len() as u32;
-        let probabilities: Vec<f64> = (0..emitters.triangles.len())
-            .map(|k| emitters.pick_probability(k))
-            .collect();
-        let alias = alias_table(&probabilities);
-        let mut patterns: Vec<[f32; 4]> = Vec::new();
-        for (k, e) in emitters.triangles.iter().enumerate() {
-            let (threshold, other) = alias.get(k).copied().unwrap_or((1.0, k as u32));
-            let pattern = match emitters.patterns.get(k).and_then(Option::as_ref) {
-                Some(p) => {
-                    let at = patterns.len() as u32 * 4;
-                    patterns.extend(p.cdf().chunks(4).map(|c| [c[0], c[1], c[2], c[3]]));
-                    at / 4
-                }
-                None => NONE,
-            };
-            data.push(v4(e.corners[0], bits(e.triangle)));
-            data.push(v4(e.corners[1], bits(other)));
-            data.push(v4(e.corners[2], e.area));
-            data.push(v4(e.normal, probabilities[k] as f32));
-            data.push([threshold, bits(pattern), bits(e.mesh), 0.0]);
-        }
-        let off_patterns = data.len() as u32;
-        data.extend(patterns);
-        let off_meshes = data.len() as u32;
-        for i in 0..scene.meshes.len() as u32 {
-            let [fd, fi] = factors(LightId::Emissive(i));
-            data.push(v4(fd, 0.0));
-            data.push(v4(fi, 0.0));
-        }
-        let off_sky = data.len() as u32;
-        let (mut sky_w, mut sky_h, mut sky_factors, mut sky_nee) = (0, 0, [Vec3::ZERO; 2], false);
-        if let Some(sky) = scene.sky.as_ref().filter(|s| !s.is_black()) {
-            let table = sky.pixel_table();
-            let weights: Vec<f64> = table.iter().map(|p| p.2).collect();
-            let alias = alias_table(&weights);
-            (sky_w, sky_h) = sky.size();
-            sky_factors = factors(LightId::Sky);
-            sky_nee = !sky.is_uniform();
-            for (i, (radiance, pdf, _)) in table.iter().enumerate() {
-                let (threshold, other) = alias.get(i).copied().unwrap_or((1.0, i as u32));
-                data.push(v4(*radiance, *pdf));
-                data.push([threshold, bits(other), 0.0, 0.0]);
-            }
-        }
-        too_big("light and material data", data.len() as u64 * 16)?;
-
-        let sees_emission = scene.meshes.iter().any(|m| {
-            m.material_ids.iter().any(|&id| {
-                scene
-                    .materials
-                    .get(id as usize)
-                    .is_some_and(|m| m.is_emissive())
-            })
-        });
-        let has_sky = sky_factors != [Vec3::ZERO; 2];
-        let flag = |on: bool, bit: u32| if on { bit } else { 0 };
-        let flags = flag(sees_emission, FLAG_SEES_EMISSION)
-            | flag(has_sky, FLAG_SKY)
-            | flag(has_sky && sky_nee, FLAG_SKY_NEE)
-            | flag(!rays.cutouts().is_empty(), FLAG_CUTOUTS);
-        let base = Params {
-            sky_direct: v4(sky_factors[0], 0.0),
-            sky_indirect: v4(sky_factors[1], 0.0),
-            flags,
-            scale,
-            eps: extent * 2e-5,
-            far: extent * 4.0,
-            n_points: scene.point_lights.len() as u32,
-            n_dirs: scene.directional_lights.len() as u32,
-            n_emitters: if emitters.is_empty() {
-                0
-            } else {
-                emitters.triangles.len() as u32
-            },
-            sky_w,
-            sky_h,
-            off_materials,
-            off_textures,
-            off_points,
-            off_dirs,
-            off_emitters,
-            off_patterns,
-            off_meshes,
-            off_sky,
-            ..Zeroable::zeroed()
-        };
 
         let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..7)
             .map(|binding| wgpu::BindGroupLayoutEntry {
@@ -525,6 +423,7 @@ impl GpuPathTracer {
             data,
             texels,
             base,
+            fixed,
             far_origin: 1e18,
         })
     }
@@ -558,20 +457,9 @@ impl GpuPathTracer {
                 ),
             )
         })?;
-        let bind = self.ctx.validated(|| {
-            self.pass.bind(
-                &self.ctx.device,
-                &[
-                    params.as_entire_binding(),
-                    self.nodes.as_entire_binding(),
-                    self.packets.as_entire_binding(),
-                    self.tris.as_entire_binding(),
-                    self.data.as_entire_binding(),
-                    self.texels.as_entire_binding(),
-                    accum.as_entire_binding(),
-                ],
-            )
-        })?;
+        let bind = self
+            .ctx
+            .validated(|| self.bind(&params, &self.data, &accum))?;
         Ok(GpuAccumulator {
             width,
             height,
@@ -597,7 +485,7 @@ impl GpuPathTracer {
         samples: u32,
         progress: Option<&dyn Fn(u32, u32)>,
     ) -> Result<(), GpuError> {
-        let camera = self.camera(view)?;
+        let camera = self.camera_params(view, &self.base)?;
         let start = Instant::now();
         let samples = samples.min(u32::MAX - acc.spp);
         let pixels = u64::from(acc.width) * u64::from(acc.height);
@@ -610,10 +498,7 @@ impl GpuPathTracer {
                 height: acc.height,
                 first_sample: acc.spp + done,
                 samples: n,
-                max_vertex: match bounces {
-                    Bounces::Limited(n) => n,
-                    Bounces::Unlimited => u32::MAX - 1,
-                },
+                max_vertex: max_vertex(bounces),
                 seed_lo: seed as u32,
                 seed_hi: (seed >> 32) as u32,
                 ..camera
@@ -651,9 +536,36 @@ impl GpuPathTracer {
         Ok(())
     }
 
-    /// The shader's constants with `view`'s camera rays: origin `o0 + ou u + ov v`,
-    /// direction `d0 + du u + dv v` (normalised in the shader), as [`View::ray`].
-    fn camera(&self, view: &View) -> Result<Params, GpuError> {
+    /// The pipeline.
+    fn pipeline(&self) -> &wgpu::ComputePipeline {
+        &self.pass.pipeline
+    }
+
+    /// A bind group of the scene's buffers with `params`, `data` and `accum`.
+    fn bind(
+        &self,
+        params: &wgpu::Buffer,
+        data: &wgpu::Buffer,
+        accum: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        self.pass.bind(
+            &self.ctx.device,
+            &[
+                params.as_entire_binding(),
+                self.nodes.as_entire_binding(),
+                self.packets.as_entire_binding(),
+                self.tris.as_entire_binding(),
+                data.as_entire_binding(),
+                self.texels.as_entire_binding(),
+                accum.as_entire_binding(),
+            ],
+        )
+    }
+
+    /// `base` (the light state's constants) with `view`'s camera rays: origin
+    /// `o0 + ou u + ov v`, direction `d0 + du u + dv v` (normalised in the shader), as
+    /// [`View::ray`].
+    fn camera_params(&self, view: &View, base: &Params) -> Result<Params, GpuError> {
         let (o0, ou, ov, d0, du, dv) = match view.projection {
             Projection::Perspective {
                 left,
@@ -705,7 +617,7 @@ impl GpuPathTracer {
             cam_d0: v4(d0, 0.0),
             cam_du: v4(du, 0.0),
             cam_dv: v4(dv, 0.0),
-            ..self.base
+            ..*base
         })
     }
 }
@@ -741,6 +653,354 @@ pub fn render_gpu(
         seconds: acc.seconds,
         prepare_seconds,
     })
+}
+
+/// The sections of the shader's `data` under the light state `lights` (materials, texture
+/// infos, lights with their factors, emitters with their alias table and patterns, mesh
+/// factors, the sky), and `fixed` (the scene's own flags and sizes) completed with their
+/// offsets, counts and the sky's factors.
+fn pack_lights(scene: &Scene, lights: &LightState, fixed: &Params) -> (Vec<[f32; 4]>, Params) {
+    let emitters = Emitters::new(scene, lights);
+    let factors = |id: LightId| {
+        let s = lights.get(id);
+        [s.direct_factor(), s.indirect_factor()]
+    };
+    let mut data: Vec<[f32; 4]> = Vec::new();
+    let texture = |t: Option<u32>| t.filter(|&t| (t as usize) < scene.textures.len());
+    let off_materials = data.len() as u32;
+    for m in &scene.materials {
+        data.push(v4(
+            m.albedo,
+            bits(texture(m.albedo_texture).unwrap_or(NONE)),
+        ));
+        let emission_texture = texture(m.emission_texture).filter(|_| m.is_emissive());
+        data.push(v4(m.emission, bits(emission_texture.unwrap_or(NONE))));
+        data.push([
+            m.alpha_cutoff.filter(|&c| c > 0.0).unwrap_or(0.0),
+            0.0,
+            0.0,
+            0.0,
+        ]);
+    }
+    let off_textures = data.len() as u32;
+    let mut texel_offset = 0u32;
+    for t in &scene.textures {
+        let n = t.width as usize * t.height as usize;
+        let whole = t.texels.len() == n;
+        data.push([
+            bits(texel_offset),
+            bits(if whole { t.width } else { 0 }),
+            bits(if whole { t.height } else { 0 }),
+            bits(t.sampler.bits()),
+        ]);
+        texel_offset += t.texels.len().min(n) as u32;
+    }
+    let off_points = data.len() as u32;
+    for (i, l) in scene.point_lights.iter().enumerate() {
+        let [fd, fi] = factors(LightId::Point(i as u32));
+        let ramp = SpotRamp::of(l.cone.as_ref());
+        let radius = match l.radius {
+            None => -1.0,
+            Some(r) if r > 0.0 => r,
+            Some(_) => 0.0,
+        };
+        data.push(v4(l.position, radius));
+        data.push(v4(l.intensity * fd, 0.0));
+        data.push(v4(l.intensity * fi, ramp.scale));
+        data.push(v4(ramp.axis, ramp.offset));
+    }
+    let off_dirs = data.len() as u32;
+    for (i, l) in scene.directional_lights.iter().enumerate() {
+        let [fd, fi] = factors(LightId::Directional(i as u32));
+        data.push(v4(-l.direction.normalize(), 0.0));
+        data.push(v4(l.irradiance * fd, 0.0));
+        data.push(v4(l.irradiance * fi, 0.0));
+    }
+    let off_emitters = data.len() as u32;
+    let probabilities: Vec<f64> = (0..emitters.triangles.len())
+        .map(|k| emitters.pick_probability(k))
+        .collect();
+    let alias = alias_table(&probabilities);
+    let mut patterns: Vec<[f32; 4]> = Vec::new();
+    for (k, e) in emitters.triangles.iter().enumerate() {
+        let (threshold, other) = alias.get(k).copied().unwrap_or((1.0, k as u32));
+        let pattern = match emitters.patterns.get(k).and_then(Option::as_ref) {
+            Some(p) => {
+                let at = patterns.len() as u32 * 4;
+                patterns.extend(p.cdf().chunks(4).map(|c| [c[0], c[1], c[2], c[3]]));
+                at / 4
+            }
+            None => NONE,
+        };
+        data.push(v4(e.corners[0], bits(e.triangle)));
+        data.push(v4(e.corners[1], bits(other)));
+        data.push(v4(e.corners[2], e.area));
+        data.push(v4(e.normal, probabilities[k] as f32));
+        data.push([threshold, bits(pattern), bits(e.mesh), 0.0]);
+    }
+    let off_patterns = data.len() as u32;
+    data.extend(patterns);
+    let off_meshes = data.len() as u32;
+    for i in 0..scene.meshes.len() as u32 {
+        let [fd, fi] = factors(LightId::Emissive(i));
+        data.push(v4(fd, 0.0));
+        data.push(v4(fi, 0.0));
+    }
+    let off_sky = data.len() as u32;
+    let (mut sky_w, mut sky_h, mut sky_factors, mut sky_nee) = (0, 0, [Vec3::ZERO; 2], false);
+    if let Some(sky) = scene.sky.as_ref().filter(|s| !s.is_black()) {
+        let table = sky.pixel_table();
+        let weights: Vec<f64> = table.iter().map(|p| p.2).collect();
+        let alias = alias_table(&weights);
+        (sky_w, sky_h) = sky.size();
+        sky_factors = factors(LightId::Sky);
+        sky_nee = !sky.is_uniform();
+        for (i, (radiance, pdf, _)) in table.iter().enumerate() {
+            let (threshold, other) = alias.get(i).copied().unwrap_or((1.0, i as u32));
+            data.push(v4(*radiance, *pdf));
+            data.push([threshold, bits(other), 0.0, 0.0]);
+        }
+    }
+
+    let has_sky = sky_factors != [Vec3::ZERO; 2];
+    let flag = |on: bool, bit: u32| if on { bit } else { 0 };
+    let base = Params {
+        sky_direct: v4(sky_factors[0], 0.0),
+        sky_indirect: v4(sky_factors[1], 0.0),
+        flags: fixed.flags | flag(has_sky, FLAG_SKY) | flag(has_sky && sky_nee, FLAG_SKY_NEE),
+        n_points: scene.point_lights.len() as u32,
+        n_dirs: scene.directional_lights.len() as u32,
+        n_emitters: if emitters.is_empty() {
+            0
+        } else {
+            emitters.triangles.len() as u32
+        },
+        sky_w,
+        sky_h,
+        off_materials,
+        off_textures,
+        off_points,
+        off_dirs,
+        off_emitters,
+        off_patterns,
+        off_meshes,
+        off_sky,
+        ..*fixed
+    };
+    (data, base)
+}
+
+// ---- the GPU path tracer as an engine's frame ----
+//
+// An engine renders ground truth inside its own frame, into its own target, to validate
+// what it draws: frames of one view and one light state add samples to one running image
+// (a progressive reference); a new view, light state or size starts it again.
+
+/// What a [`PathTracerFrame`] traces per frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PathTracerFrameSettings {
+    /// Samples per pixel added by each frame (1 to 16).
+    pub samples_per_frame: u32,
+    /// Samples per pixel after which frames only show the image (at least 1).
+    pub max_spp: u32,
+    /// Bounce limit.
+    pub bounces: Bounces,
+    /// Seed of every image.
+    pub seed: u64,
+}
+
+impl Default for PathTracerFrameSettings {
+    fn default() -> Self {
+        Self {
+            samples_per_frame: 4,
+            max_spp: 4096,
+            bounces: Bounces::Unlimited,
+            seed: 1,
+        }
+    }
+}
+
+/// What the running image was traced for: the view's rays, the light state and the size.
+#[derive(Clone, Debug, PartialEq)]
+struct Traced {
+    camera: [u32; 24],
+    lights: u64,
+    size: (u32, u32),
+}
+
+/// The GPU path tracer in an engine's frame ([`GpuFrame`]). The G-buffer of the frame's
+/// inputs is not read (the tracer casts its own camera rays); its size is the target's.
+/// After the first frames of a view, a frame creates no GPU object.
+pub struct PathTracerFrame {
+    ctx: GpuContext,
+    scene: Arc<Scene>,
+    tracer: GpuPathTracer,
+    settings: PathTracerFrameSettings,
+    writer: FrameWriter,
+    to_texture: PixelsToTexture,
+    params: wgpu::Buffer,
+    data: KeptBuffer,
+    accum: KeptBuffer,
+    /// The bind group of the current data and accumulation buffers (their generations).
+    bind: Keyed<(u64, u64), wgpu::BindGroup>,
+    /// The light state whose data the data buffer holds, and its `Params`.
+    packed: Option<(u64, Params)>,
+    traced: Option<Traced>,
+    spp: u32,
+}
+
+impl std::fmt::Debug for PathTracerFrame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PathTracerFrame")
+            .field("settings", &self.settings)
+            .field("spp", &self.spp)
+            .finish_non_exhaustive()
+    }
+}
+
+impl PathTracerFrame {
+    /// Prepares `scene` on `ctx`'s device (the host's, [`GpuContext::from_device`]), as
+    /// every method's frame is prepared. Refuses `samples_per_frame` outside 1 to 16 and
+    /// `max_spp` 0.
+    pub fn prepare(
+        ctx: &GpuContext,
+        scene: Arc<Scene>,
+        settings: PathTracerFrameSettings,
+    ) -> Result<Self, crate::Error> {
+        if !(1..=SAMPLES_PER_INVOCATION as u32).contains(&settings.samples_per_frame)
+            || settings.max_spp == 0
+        {
+            return Err(crate::Error::InvalidArgument(format!(
+                "path tracer frame: samples_per_frame {} must be 1 to {SAMPLES_PER_INVOCATION} \
+                 and max_spp {} at least 1",
+                settings.samples_per_frame, settings.max_spp
+            )));
+        }
+        let tracer = GpuPathTracer::new(ctx, &scene, &LightState::default())?;
+        Ok(Self {
+            ctx: ctx.clone(),
+            writer: FrameWriter::new(&ctx.device, 1 << 16),
+            to_texture: PixelsToTexture::new(ctx)?,
+            params: ctx.frame_buffer(
+                "path tracer frame params",
+                size_of::<Params>() as u64,
+                wgpu::BufferUsages::UNIFORM,
+            ),
+            data: KeptBuffer::new(
+                "path tracer frame data",
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            ),
+            accum: KeptBuffer::new(
+                "path tracer frame accumulation",
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            ),
+            bind: Keyed::new(),
+            packed: None,
+            traced: None,
+            spp: 0,
+            scene,
+            tracer,
+            settings,
+        })
+    }
+
+    /// Samples per pixel of the image the last frame showed.
+    pub fn spp(&self) -> u32 {
+        self.spp
+    }
+}
+
+impl GpuFrame for PathTracerFrame {
+    fn name(&self) -> &str {
+        "reference"
+    }
+
+    fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        inputs: &FrameInputs<'_>,
+        target: &wgpu::Texture,
+    ) -> Result<(), crate::Error> {
+        let (w, h) = (target.width(), target.height());
+        crate::gpu::frame::check_frame_target(target, w, h)?;
+        inputs
+            .lights
+            .check(&self.scene)
+            .map_err(|e| crate::Error::InvalidArgument(e.to_string()))?;
+        let device = self.ctx.device.clone();
+        // The light state's data, packed again only when the state changes.
+        let fingerprint = inputs.lights.fingerprint();
+        let base = match &self.packed {
+            Some((f, p)) if *f == fingerprint => *p,
+            _ => {
+                let (data, base) = pack_lights(&self.scene, inputs.lights, &self.tracer.fixed);
+                let bytes: &[u8] = bytemuck::cast_slice(&data);
+                let buffer = self.data.ensure(&device, bytes.len() as u64).clone();
+                self.writer.write(encoder, &buffer, 0, bytes);
+                self.packed = Some((fingerprint, base));
+                base
+            }
+        };
+        let camera = self.tracer.camera_params(inputs.view, &base)?;
+        let traced = Traced {
+            camera: bytemuck::cast::<[[f32; 4]; 6], [u32; 24]>([
+                camera.cam_o0,
+                camera.cam_ou,
+                camera.cam_ov,
+                camera.cam_d0,
+                camera.cam_du,
+                camera.cam_dv,
+            ]),
+            lights: fingerprint,
+            size: (w, h),
+        };
+        let pixels = u64::from(w) * u64::from(h);
+        let accum = self.accum.ensure(&device, pixels * 32).clone();
+        if self.traced.as_ref() != Some(&traced) {
+            encoder.clear_buffer(&accum, 0, None);
+            self.spp = 0;
+            self.traced = Some(traced);
+        }
+        let n = self
+            .settings
+            .samples_per_frame
+            .min(self.settings.max_spp.saturating_sub(self.spp));
+        if n > 0 {
+            let params = Params {
+                width: w,
+                height: h,
+                first_sample: self.spp,
+                samples: n,
+                max_vertex: max_vertex(self.settings.bounces),
+                seed_lo: self.settings.seed as u32,
+                seed_hi: (self.settings.seed >> 32) as u32,
+                ..camera
+            };
+            self.writer
+                .write(encoder, &self.params, 0, bytemuck::bytes_of(&params));
+            self.writer.finish(encoder);
+            let key = (self.data.generation(), self.accum.generation());
+            let data = self.data.ensure(&device, 16).clone();
+            let bind = self
+                .bind
+                .get_or_make(key, |_| self.tracer.bind(&self.params, &data, &accum))
+                .clone();
+            let mut cp = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("path tracer frame"),
+                timestamp_writes: None,
+            });
+            cp.set_pipeline(self.tracer.pipeline());
+            cp.set_bind_group(0, &bind, &[]);
+            cp.dispatch_workgroups(w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1);
+            drop(cp);
+            self.spp += n;
+        } else {
+            self.writer.finish(encoder);
+        }
+        self.to_texture
+            .encode(&device, encoder, &accum, target)
+            .map_err(crate::Error::from)
+    }
 }
 
 #[cfg(test)]
