@@ -1007,6 +1007,51 @@ impl GpuFrame for PathTracerFrame {
 mod tests {
     use super::*;
 
+    /// The Rust `Params` has the WGSL struct's members at the same offsets and size.
+    #[test]
+    fn params_match_the_shader() {
+        let module = PATH_TRACER.compose().unwrap();
+        crate::check_layout!(
+            &module,
+            "Params",
+            Params {
+                cam_o0,
+                cam_ou,
+                cam_ov,
+                cam_d0,
+                cam_du,
+                cam_dv,
+                sky_direct,
+                sky_indirect,
+                width,
+                height,
+                first_sample,
+                samples,
+                max_vertex,
+                seed_lo,
+                seed_hi,
+                flags,
+                scale,
+                eps,
+                far,
+                n_points,
+                n_dirs,
+                n_emitters,
+                sky_w,
+                sky_h,
+                off_materials,
+                off_textures,
+                off_points,
+                off_dirs,
+                off_emitters,
+                off_patterns,
+                off_meshes,
+                off_sky
+            }
+        )
+        .unwrap();
+    }
+
     /// Each entry of an alias table is drawn with its weight's share: the table's implied
     /// probabilities (threshold of its own slot plus the leftovers aliased to it, over the
     /// slot count) equal the weights'.
