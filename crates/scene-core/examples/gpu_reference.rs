@@ -1,11 +1,15 @@
-//! The GPU path tracer beside the CPU one on a built-in scene: paths per second of each on
-//! this machine, and how far their images are apart.
+//! The GPU path tracer beside the CPU one on a scene: paths per second of each on this
+//! machine, and how far their images are apart (the image means, and a z-test of every 8x8
+//! block's mean per channel with the two variance images, at alpha 0.001).
 //!
-//! `cargo run --release -p scene-core --example gpu_reference -- [scene] [size] [spp] [bounces]`
-//! (defaults: cornell 256 64 inf). The CPU tracer uses every core (rayon).
+//! `cargo run --release -p scene-core --example gpu_reference -- [scene] [size] [spp] [bounces] [daylight]`
+//! (defaults: cornell 256 64 inf). `scene` is a built-in name or a glTF file; `daylight` adds
+//! the sun and the uniform sky that docs/results-interior.md lights the Breakfast Room with.
+//! The CPU tracer uses every core (rayon).
 
+use scene_core::glam::Vec3;
 use scene_core::reference::{Bounces, ReferenceSettings, render_gpu, render_lit};
-use scene_core::{LightState, View, builtin, gpu::GpuContext};
+use scene_core::{AddedLights, DirectionalLight, LightState, View, gpu::GpuContext, sky::Sky};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -13,11 +17,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let size: u32 = args.get(1).map_or(Ok(256), |s| s.parse())?;
     let spp: u32 = args.get(2).map_or(Ok(64), |s| s.parse())?;
     let bounces: Bounces = args.get(3).map_or(Ok(Bounces::Unlimited), |s| s.parse())?;
-    if !(1..=8192).contains(&size) || !(1..=1 << 16).contains(&spp) {
-        return Err(format!("size must be 1..=8192 and spp 1..=65536 (got {size}, {spp})").into());
+    if !(8..=8192).contains(&size) || !(2..=1 << 16).contains(&spp) {
+        return Err(format!("size must be 8..=8192 and spp 2..=65536 (got {size}, {spp})").into());
     }
-    let scene = builtin::scene(name)?;
-    let view = View::from_camera(&scene.cameras[0].with_aspect(1.0));
+    let mut added = AddedLights::default();
+    if args.get(4).is_some_and(|a| a == "daylight") {
+        added.suns.push(DirectionalLight {
+            name: "sun".into(),
+            direction: Vec3::new(-1.0, -0.8, 0.35),
+            irradiance: Vec3::new(12.0, 11.0, 9.5),
+        });
+        added.sky = Some(Sky::uniform(Vec3::new(0.5, 0.6, 0.8))?);
+    }
+    let scene = scene_core::open_scene_with(name, &added)?.scene;
+    let camera = scene.cameras.first().ok_or("the scene has no camera")?;
+    let view = View::from_camera(&camera.with_aspect(1.0));
     let settings = ReferenceSettings {
         width: size,
         height: size,
@@ -38,9 +52,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     render_gpu(&ctx, &scene, &view, &warm, &lights, None)?;
     let gpu = render_gpu(&ctx, &scene, &view, &settings, &lights, None)?;
     let cpu = render_lit(&scene, &view, &settings, &lights, None);
-    let mean = |p: &[scene_core::glam::Vec3]| {
-        p.iter().map(|c| f64::from(c.x + c.y + c.z)).sum::<f64>() / p.len() as f64
-    };
+    let mean =
+        |p: &[Vec3]| p.iter().map(|c| f64::from(c.element_sum())).sum::<f64>() / p.len() as f64;
     let (mc, mg) = (mean(&cpu.image.pixels), mean(&gpu.image.pixels));
     println!(
         "{name} {size}x{size} {spp} spp bounces {bounces}: GPU ({}) {:.3} s, {:.3e} paths/s \
@@ -54,6 +67,44 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         cpu.stats.seconds,
         paths / cpu.stats.seconds,
         (mg / mc - 1.0) * 100.0
+    );
+    // Block z-tests.
+    let (mut tests, mut rejected, mut resolved) = (0, 0, 0);
+    for by in 0..size / 8 {
+        for bx in 0..size / 8 {
+            for c in 0..3 {
+                let (mut a, mut b, mut va, mut vb) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+                for y in by * 8..by * 8 + 8 {
+                    for x in bx * 8..bx * 8 + 8 {
+                        let i = (y * size + x) as usize;
+                        a += f64::from(cpu.image.pixels[i][c]);
+                        b += f64::from(gpu.image.pixels[i][c]);
+                        va += f64::from(cpu.variance.pixels[i][c]);
+                        vb += f64::from(gpu.variance.pixels[i][c]);
+                    }
+                }
+                let (a, b) = (a / 64.0, b / 64.0);
+                if a.max(b) <= 0.0 {
+                    continue;
+                }
+                let se = ((va + vb) / f64::from(spp)).sqrt() / 64.0;
+                tests += 1;
+                if (b - a).abs() > 3.29 * se {
+                    rejected += 1;
+                    println!(
+                        "  block ({bx}, {by}) channel {c}: CPU {a:.5}, GPU {b:.5} ({:+.2} %, z {:.1})",
+                        (b / a - 1.0) * 100.0,
+                        (b - a) / se
+                    );
+                }
+                resolved += usize::from(3.0 * se < 0.03 * a);
+            }
+        }
+    }
+    println!(
+        "block z-tests (8x8, per channel, alpha 0.001): {rejected} of {tests} rejected \
+         ({:.2} expected by chance); {resolved} resolve 3 %",
+        tests as f64 * 0.001
     );
     Ok(())
 }
