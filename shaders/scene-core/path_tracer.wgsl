@@ -652,15 +652,30 @@ fn alias_pick(threshold: f32, other: u32, i: u32, u: f32) -> u32 {
 }
 
 // The sky's map: data[off_sky + 2 i] = (radiance, pdf), + 1 = (threshold, alias, 0, 0).
+// Row y's polar bounds: cos(pi y / h) and cos(pi (y + 1) / h), computed in f64 on the host.
+fn sky_row_bounds(y: u32) -> vec2<f32> {
+    return data[P.off_sky + 2u * y * P.sky_w + 1u].zw;
+}
+
 fn sky_pixel_of(d: vec3<f32>) -> u32 {
-    let theta = acos(clamp(d.y, -1.0, 1.0));
+    // The row: the last whose upper bound the direction lies at or below (the polar angle
+    // at or past the row's start), by bisection over the rows' bounds.
+    var lo = 0u;
+    var hi = P.sky_h;
+    while (lo + 1u < hi) {
+        let mid = (lo + hi) / 2u;
+        if (d.y <= sky_row_bounds(mid).x) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
     var phi = atan2(d.x, -d.z);
     if (phi < 0.0) {
         phi = phi + TAU;
     }
     let x = min(u32(max(phi / TAU * f32(P.sky_w), 0.0)), P.sky_w - 1u);
-    let y = min(u32(max(theta / PI * f32(P.sky_h), 0.0)), P.sky_h - 1u);
-    return y * P.sky_w + x;
+    return lo * P.sky_w + x;
 }
 
 // The sky light of throughput `beta` along `d` (which leaves the scene), drawn by a
@@ -735,8 +750,9 @@ fn direct(p: vec3<f32>, n: vec3<f32>, indirect: bool, vertex: u32) -> vec3<f32> 
         let x = px % P.sky_w;
         let y = px / P.sky_w;
         let phi = TAU * (f32(x) + rand()) / f32(P.sky_w);
-        let c0 = cos(PI * f32(y) / f32(P.sky_h));
-        let c1 = cos(PI * f32(y + 1u) / f32(P.sky_h));
+        let bounds = sky_row_bounds(y);
+        let c0 = bounds.x;
+        let c1 = bounds.y;
         let ct = c0 + (c1 - c0) * rand();
         let st = sqrt(max(1.0 - ct * ct, 0.0));
         let w = vec3<f32>(st * sin(phi), ct, -st * cos(phi));

@@ -755,10 +755,21 @@ fn pack_lights(scene: &Scene, lights: &LightState, fixed: &Params) -> (Vec<[f32;
         (sky_w, sky_h) = sky.size();
         sky_factors = factors(LightId::Sky);
         sky_nee = !sky.is_uniform();
+        // Each row's polar bounds, cos(pi y / h) and cos(pi (y + 1) / h) in f64, ride in the
+        // row's first pixel: the shader finds a direction's row by them (WGSL's acos may be
+        // as coarse as a few thousandths of a radian, enough to move the horizon).
+        let row_cos =
+            |y: u32| (std::f64::consts::PI * f64::from(y) / f64::from(sky_h)).cos() as f32;
         for (i, (radiance, pdf, _)) in table.iter().enumerate() {
             let (threshold, other) = alias.get(i).copied().unwrap_or((1.0, i as u32));
+            let (x, y) = (i as u32 % sky_w, i as u32 / sky_w);
+            let bounds = if x == 0 {
+                [row_cos(y), row_cos(y + 1)]
+            } else {
+                [0.0; 2]
+            };
             data.push(v4(*radiance, *pdf));
-            data.push([threshold, bits(other), 0.0, 0.0]);
+            data.push([threshold, bits(other), bounds[0], bounds[1]]);
         }
     }
 
