@@ -599,7 +599,7 @@ impl Bvh4 {
     /// box rows, the children, the used mask, padding), each packet as 40 (nine rows of
     /// lanes, the ids), integers as their bits; and whether a traversal may need more than
     /// the shader's stack of [`STACK`] entries (the same bound as the CPU's fixed stack).
-    #[cfg(feature = "gpu")]
+    #[cfg(all(feature = "gpu", feature = "reference"))]
     pub(crate) fn gpu_words(&self) -> (Vec<[u32; 32]>, Vec<[u32; 40]>, bool) {
         let row = |v: &Vec4| v.to_array().map(f32::to_bits);
         let nodes = self

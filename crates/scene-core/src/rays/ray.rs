@@ -37,7 +37,7 @@ pub struct RayQuery {
 }
 
 /// Nodes, packets and whether the tree is too deep for a fixed stack ([`Bvh4::gpu_words`]).
-#[cfg(feature = "gpu")]
+#[cfg(all(feature = "gpu", feature = "reference"))]
 pub(crate) type GpuTree = (Vec<[u32; 32]>, Vec<[u32; 40]>, bool);
 
 /// A scene's triangles in a four-wide BVH, ready for ray queries.
@@ -310,7 +310,7 @@ impl RayScene {
 
     /// The tree for the GPU path tracer ([`Bvh4::gpu_words`]) and the power-of-two scale
     /// of its coordinates; `None` for an empty scene.
-    #[cfg(feature = "gpu")]
+    #[cfg(all(feature = "gpu", feature = "reference"))]
     pub(crate) fn gpu_tree(&self) -> Option<(GpuTree, f32)> {
         self.bvh.as_ref().map(|b| (b.gpu_words(), self.scale))
     }
