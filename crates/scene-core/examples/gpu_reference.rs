@@ -8,7 +8,7 @@
 //! The CPU tracer uses every core (rayon).
 
 use scene_core::glam::Vec3;
-use scene_core::reference::{Bounces, ReferenceSettings, render_gpu, render_lit};
+use scene_core::reference::{Bounces, ReferenceSettings, block_z_tests, render_gpu, render_lit};
 use scene_core::{AddedLights, DirectionalLight, LightState, View, gpu::GpuContext, sky::Sky};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -69,37 +69,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (mg / mc - 1.0) * 100.0
     );
     // Block z-tests.
-    let (mut tests, mut rejected, mut resolved) = (0, 0, 0);
-    for by in 0..size / 8 {
-        for bx in 0..size / 8 {
-            for c in 0..3 {
-                let (mut a, mut b, mut va, mut vb) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-                for y in by * 8..by * 8 + 8 {
-                    for x in bx * 8..bx * 8 + 8 {
-                        let i = (y * size + x) as usize;
-                        a += f64::from(cpu.image.pixels[i][c]);
-                        b += f64::from(gpu.image.pixels[i][c]);
-                        va += f64::from(cpu.variance.pixels[i][c]);
-                        vb += f64::from(gpu.variance.pixels[i][c]);
-                    }
-                }
-                let (a, b) = (a / 64.0, b / 64.0);
-                if a.max(b) <= 0.0 {
-                    continue;
-                }
-                let se = ((va + vb) / f64::from(spp)).sqrt() / 64.0;
-                tests += 1;
-                if (b - a).abs() > 3.29 * se {
-                    rejected += 1;
-                    println!(
-                        "  block ({bx}, {by}) channel {c}: CPU {a:.5}, GPU {b:.5} ({:+.2} %, z {:.1})",
-                        (b / a - 1.0) * 100.0,
-                        (b - a) / se
-                    );
-                }
-                resolved += usize::from(3.0 * se < 0.03 * a);
-            }
-        }
+    let blocks = block_z_tests(
+        (&cpu.image, &cpu.variance),
+        (&gpu.image, &gpu.variance),
+        spp,
+        8,
+    );
+    let tests = blocks.len();
+    let rejected = blocks.iter().filter(|t| t.z().abs() > 3.29).count();
+    let resolved = blocks.iter().filter(|t| 3.0 * t.se < 0.03 * t.a).count();
+    for t in blocks.iter().filter(|t| t.z().abs() > 3.29) {
+        println!(
+            "  block {:?} channel {}: CPU {:.5}, GPU {:.5} ({:+.2} %, z {:.1})",
+            t.block,
+            t.channel,
+            t.a,
+            t.b,
+            (t.b / t.a - 1.0) * 100.0,
+            t.z()
+        );
     }
     println!(
         "block z-tests (8x8, per channel, alpha 0.001): {rejected} of {tests} rejected \

@@ -160,3 +160,103 @@ pub struct ReferenceOutput {
     /// Ray counts and time.
     pub stats: RayStats,
 }
+
+/// One block's test of [`block_z_tests`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BlockTest {
+    /// The block's column and row (in blocks).
+    pub block: (u32, u32),
+    /// The channel: 0 red, 1 green, 2 blue.
+    pub channel: usize,
+    /// The block's mean in the first render.
+    pub a: f64,
+    /// The block's mean in the second.
+    pub b: f64,
+    /// The standard error of their difference, from the variance images.
+    pub se: f64,
+}
+
+impl BlockTest {
+    /// `(b - a) / se`.
+    pub fn z(&self) -> f64 {
+        (self.b - self.a) / self.se.max(f64::MIN_POSITIVE)
+    }
+}
+
+/// Two renders of one view at `spp` samples per pixel each ([`ReferenceOutput`]'s image and
+/// per-sample variance image), compared per `block x block` pixels and per channel: each
+/// block's two means and the standard error of their difference, for a z-test. Blocks
+/// black in both are left out; pixels beyond the last whole block are not used. The
+/// variance images of a stratified render overstate its noise, so such tests are
+/// conservative. How the CPU and GPU path tracers are checked against each other.
+pub fn block_z_tests(
+    a: (&Image, &Image),
+    b: (&Image, &Image),
+    spp: u32,
+    block: u32,
+) -> Vec<BlockTest> {
+    let (w, h) = (a.0.width, a.0.height);
+    let block = block.max(1);
+    let n = f64::from(block * block);
+    let mut out = Vec::new();
+    for by in 0..h / block {
+        for bx in 0..w / block {
+            for channel in 0..3 {
+                let (mut ma, mut mb, mut var) = (0.0f64, 0.0f64, 0.0f64);
+                for y in by * block..(by + 1) * block {
+                    for x in bx * block..(bx + 1) * block {
+                        let i = (y * w + x) as usize;
+                        ma += f64::from(a.0.pixels[i][channel]);
+                        mb += f64::from(b.0.pixels[i][channel]);
+                        var += f64::from(a.1.pixels[i][channel] + b.1.pixels[i][channel]);
+                    }
+                }
+                let (ma, mb) = (ma / n, mb / n);
+                if ma.max(mb) <= 0.0 {
+                    continue;
+                }
+                out.push(BlockTest {
+                    block: (bx, by),
+                    channel,
+                    a: ma,
+                    b: mb,
+                    se: (var / f64::from(spp.max(1))).sqrt() / n,
+                });
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// Block means and the standard error of their difference from the variance images;
+    /// a partial block is left out, and so is a block black in both renders.
+    #[test]
+    fn block_z_tests_give_block_means_and_their_standard_error() {
+        let image = |w: u32, f: &dyn Fn(u32) -> Vec3| Image {
+            width: w,
+            height: 8,
+            pixels: (0..w * 8).map(|i| f(i % w)).collect(),
+        };
+        let a = image(20, &|x| if x < 8 { Vec3::ONE } else { Vec3::ZERO });
+        let b = image(20, &|x| if x < 8 { Vec3::splat(1.5) } else { Vec3::ZERO });
+        let var = image(20, &|_| Vec3::splat(2.0));
+        let tests = block_z_tests((&a, &var), (&b, &var), 16, 8);
+        assert_eq!(
+            tests.len(),
+            3,
+            "one lit block of two whole ones, three channels"
+        );
+        for t in &tests {
+            assert_eq!(t.block, (0, 0));
+            assert_eq!((t.a, t.b), (1.0, 1.5));
+            // Sum of the variances over 64 pixels, over spp, square root, over 64.
+            assert!((t.se - (64.0f64 * 4.0 / 16.0).sqrt() / 64.0).abs() < 1e-12);
+            assert!((t.z() - 0.5 / t.se).abs() < 1e-9);
+        }
+    }
+}

@@ -103,6 +103,11 @@ const FLAG_SKY_NEE: u32 = 4;
 const FLAG_CUTOUTS: u32 = 8;
 const NONE: u32 = u32::MAX;
 
+/// `bit` where `on`, else no bit.
+fn flag(on: bool, bit: u32) -> u32 {
+    if on { bit } else { 0 }
+}
+
 /// The shader's last reflecting vertex for a bounce limit.
 fn max_vertex(bounces: Bounces) -> u32 {
     match bounces {
@@ -346,7 +351,6 @@ impl GpuPathTracer {
                     .is_some_and(|m| m.is_emissive())
             })
         });
-        let flag = |on: bool, bit: u32| if on { bit } else { 0 };
         let fixed = Params {
             flags: flag(sees_emission, FLAG_SEES_EMISSION)
                 | flag(!rays.cutouts().is_empty(), FLAG_CUTOUTS),
@@ -774,7 +778,6 @@ fn pack_lights(scene: &Scene, lights: &LightState, fixed: &Params) -> (Vec<[f32;
     }
 
     let has_sky = sky_factors != [Vec3::ZERO; 2];
-    let flag = |on: bool, bit: u32| if on { bit } else { 0 };
     let base = Params {
         sky_direct: v4(sky_factors[0], 0.0),
         sky_indirect: v4(sky_factors[1], 0.0),
