@@ -1,4 +1,4 @@
-#import scene_core::texture_wrap::{wrap_texel, wrap_reduce}
+#import scene_core::texture_wrap::{texel_taps, blend_taps}
 
 // The G-buffer geometry pass: one render pass writing four colour targets at once
 // (multiple render targets, thesis figure 4.1) plus the depth attachment:
@@ -110,12 +110,6 @@ fn vs_main(v: VertexIn) -> VertexOut {
     return out;
 }
 
-fn texel(info: TextureInfo, x: i32, y: i32) -> vec4<f32> {
-    let xi = wrap_texel(x, i32(info.width), info.sampler & 3u);
-    let yi = wrap_texel(y, i32(info.height), (info.sampler >> 2u) & 3u);
-    return texels[info.offset + u32(yi) * info.width + u32(xi)];
-}
-
 // The texture's lookup by its sampler (bilinear or nearest, each axis wrapped by its mode),
 // as scene_core::Texture::sample (rgb) and Texture::sample_alpha (a).
 fn sample_texture(index: u32, uv_in: vec2<f32>) -> vec4<f32> {
@@ -123,20 +117,8 @@ fn sample_texture(index: u32, uv_in: vec2<f32>) -> vec4<f32> {
     if (info.width == 0u || info.height == 0u) {
         return vec4<f32>(0.0);
     }
-    let x = wrap_reduce(uv_in.x, info.sampler & 3u) * f32(info.width);
-    let y = wrap_reduce(uv_in.y, (info.sampler >> 2u) & 3u) * f32(info.height);
-    if ((info.sampler & 16u) != 0u) {
-        return texel(info, i32(floor(x)), i32(floor(y)));
-    }
-    let x0 = floor(x - 0.5);
-    let y0 = floor(y - 0.5);
-    let fx = x - 0.5 - x0;
-    let fy = y - 0.5 - y0;
-    let ix = i32(x0);
-    let iy = i32(y0);
-    let top = mix(texel(info, ix, iy), texel(info, ix + 1, iy), fx);
-    let bottom = mix(texel(info, ix, iy + 1), texel(info, ix + 1, iy + 1), fx);
-    return mix(top, bottom, fy);
+    let t = texel_taps(vec4<u32>(info.offset, info.width, info.height, info.sampler), uv_in);
+    return blend_taps(texels[t.top_left], texels[t.top_right], texels[t.bottom_left], texels[t.bottom_right], t.f);
 }
 
 struct GBufferOut {

@@ -1,4 +1,4 @@
-#import scene_core::texture_wrap::{wrap_texel, wrap_reduce}
+#import scene_core::texture_wrap::{texel_taps, blend_taps}
 
 // The GPU reference path tracer (scene_core::reference::gpu): the estimator of the CPU
 // reference (crates/scene-core/src/rays/reference/tracer.rs) on the same four-wide BVH,
@@ -318,12 +318,6 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 // ---- textures (scene_core::Texture::sample, as shaders/gbuffer/mrt.wgsl) ----
 
 
-fn texel_at(info: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
-    let xi = wrap_texel(x, i32(info.y), info.w & 3u);
-    let yi = wrap_texel(y, i32(info.z), (info.w >> 2u) & 3u);
-    return texels[info.x + u32(yi) * info.y + u32(xi)];
-}
-
 // Texture `index`'s lookup at `uv`: (rgb, alpha); black and alpha 0 where it is empty or
 // `uv` is not finite, as on the CPU.
 fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
@@ -332,20 +326,8 @@ fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     if (info.y == 0u || info.z == 0u || !finite) {
         return vec4<f32>(0.0);
     }
-    let x = wrap_reduce(uv.x, info.w & 3u) * f32(info.y);
-    let y = wrap_reduce(uv.y, (info.w >> 2u) & 3u) * f32(info.z);
-    if ((info.w & 16u) != 0u) {
-        return texel_at(info, i32(floor(x)), i32(floor(y)));
-    }
-    let x0 = floor(x - 0.5);
-    let y0 = floor(y - 0.5);
-    let fx = x - 0.5 - x0;
-    let fy = y - 0.5 - y0;
-    let ix = i32(x0);
-    let iy = i32(y0);
-    let top = mix(texel_at(info, ix, iy), texel_at(info, ix + 1, iy), fx);
-    let bottom = mix(texel_at(info, ix, iy + 1), texel_at(info, ix + 1, iy + 1), fx);
-    return mix(top, bottom, fy);
+    let t = texel_taps(info, uv);
+    return blend_taps(texels[t.top_left], texels[t.top_right], texels[t.bottom_left], texels[t.bottom_right], t.f);
 }
 
 // Material `m`: data[off + 3 m] = (albedo, albedo texture or NONE), + 1 = (emission,

@@ -77,9 +77,11 @@ pub const RECONSTRUCT: Wgsl = crate::wgsl_file!("scene-core", "reconstruct.wgsl"
 /// pass imports instead of writing them out.
 pub const LIMITS: Wgsl = crate::wgsl_file!("scene-core", "limits.wgsl");
 
-/// `scene_core::texture_wrap` (`shaders/scene-core/texture_wrap.wgsl`): `wrap_texel` and
-/// `wrap_reduce`, a texture coordinate and a texel index under [`crate::Wrap`]'s modes, as
-/// the G-buffer pass and the GPU path tracer sample textures.
+/// `scene_core::texture_wrap` (`shaders/scene-core/texture_wrap.wgsl`): a texture lookup
+/// as [`crate::Texture::sample`] makes it, `texel_taps` (the four texels and weights, each
+/// axis wrapped by [`crate::Wrap`]'s mode, nearest or bilinear) and `blend_taps`; each
+/// shader fetches the taps from its own binding. The G-buffer pass and the GPU path
+/// tracer sample textures through it.
 pub const TEXTURE_WRAP: Wgsl = crate::wgsl_file!("scene-core", "texture_wrap.wgsl");
 
 /// One compiled shader: a main file, the library files it may import (directly or through
