@@ -17,75 +17,15 @@ use std::time::Instant;
 
 use glam::Vec3;
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{
-    FrameInputs, GpuContext, GpuFrame, GpuGBuffer, HostGBufferPass, ObjectCounts,
-};
+use scene_core::gpu::{FrameInputs, GpuContext, GpuGBuffer, HostGBufferPass, ObjectCounts};
 use scene_core::lights::{LightState, light_ids};
 use scene_core::shadowed_lights::{LightSet, ShadowSettings};
 use scene_core::testing::EngineGBuffer;
-use scene_core::{GBufferRenderer, Scene, Technique, View, builtin};
+use scene_core::{GBufferRenderer, Scene, View, builtin};
+
+use crate::gpu_frames::{BoxedFrame, GpuSpan, ibrr_maker, isr_maker, relight_maker};
 
 use crate::bench::median;
-
-/// GPU time between two points of a command encoder: an empty compute pass writing a
-/// timestamp at its beginning, and another writing one at its end (`TIMESTAMP_QUERY`
-/// only). `None` on a CPU adapter, whose timestamps do not time the work (`PassTimer`).
-struct GpuSpan {
-    set: wgpu::QuerySet,
-    resolved: wgpu::Buffer,
-    period_ns: f64,
-}
-
-impl GpuSpan {
-    fn new(ctx: &GpuContext) -> Option<Self> {
-        if !ctx
-            .device
-            .features()
-            .contains(wgpu::Features::TIMESTAMP_QUERY)
-            || ctx.adapter_info().device_type == wgpu::DeviceType::Cpu
-        {
-            return None;
-        }
-        Some(Self {
-            set: ctx.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("bench frame span"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2,
-            }),
-            resolved: ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("bench frame span"),
-                size: 16,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
-            period_ns: f64::from(ctx.queue.get_timestamp_period()),
-        })
-    }
-
-    /// Records the mark at the beginning (`end` false) or the end of the span.
-    fn mark(&self, encoder: &mut wgpu::CommandEncoder, end: bool) {
-        let index = Some(u32::from(end));
-        encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("bench frame span"),
-            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
-                query_set: &self.set,
-                beginning_of_pass_write_index: if end { None } else { index },
-                end_of_pass_write_index: if end { index } else { None },
-            }),
-        });
-        if end {
-            encoder.resolve_query_set(&self.set, 0..2, &self.resolved, 0);
-        }
-    }
-
-    /// Milliseconds between the marks (after the submission has run).
-    fn read(&self, ctx: &GpuContext) -> Result<f64, String> {
-        let t: Vec<u64> = ctx
-            .read_buffer_as(&self.resolved)
-            .map_err(|e| e.to_string())?;
-        Ok(t[1].saturating_sub(t[0]) as f64 * self.period_ns * 1e-6)
-    }
-}
 
 /// Relighting's element target (the main job's larger one).
 const RELIGHT_ELEMENTS: usize = 1024;
@@ -106,47 +46,25 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
 }
 
 /// A method on the frame contract and its precomputation time in seconds.
-type Prepared = (Box<dyn GpuFrame + Send>, f64);
+type Prepared = (BoxedFrame, f64);
 
-/// The methods, prepared for `scene` on `ctx`'s device, with their precomputation times.
+/// The methods (DL, ISR, relighting at [`RELIGHT_ELEMENTS`] in half precision, the IBRR at
+/// its defaults), prepared for `scene` on `ctx`'s device, with their precomputation times.
 fn methods(ctx: &GpuContext, scene: &Arc<Scene>, threads: usize) -> Result<Vec<Prepared>, String> {
     let pool = crate::bench::worker_pool(threads)?;
     pool.install(|| {
+        let makers = [
+            isr_maker(isr::IsrSettings::dl()),
+            isr_maker(isr::IsrSettings::default()),
+            relight_maker(RELIGHT_ELEMENTS, relight_pr::packed::Precision::F16),
+            ibrr_maker(ibrr_ldc::IbrrSettings::default()),
+        ];
         let mut out: Vec<Prepared> = Vec::new();
-        let shadows = ShadowSettings::default();
-        for settings in [isr::IsrSettings::dl(), isr::IsrSettings::default()] {
+        for mut make in makers {
             let t0 = Instant::now();
-            let lights = LightSet::new(scene, &shadows).map_err(|e| e.to_string())?;
-            let frame =
-                isr::IsrFrame::prepare(ctx, &lights, settings).map_err(|e| e.to_string())?;
-            out.push((Box::new(frame), t0.elapsed().as_secs_f64()));
+            let frame = make(ctx, scene).map_err(|e| e.to_string())?;
+            out.push((frame, t0.elapsed().as_secs_f64()));
         }
-
-        let t0 = Instant::now();
-        let prepared = relight_pr::Prepared::solve(
-            scene.clone(),
-            &relight_pr::MeshSettings::elements(RELIGHT_ELEMENTS),
-            &relight_pr::SolverSettings::default(),
-            &mut |_| {},
-        )
-        .map_err(|e| e.to_string())?;
-        let lights = LightSet::new(scene, &shadows).map_err(|e| e.to_string())?;
-        let settings = relight_pr::RelightFrameSettings {
-            precision: relight_pr::packed::Precision::F16,
-            shadowed_direct: Some((&lights, 3)),
-        };
-        let frame = relight_pr::RelightFrame::prepare(ctx, &prepared, &settings)
-            .map_err(|e| e.to_string())?;
-        out.push((Box::new(frame), t0.elapsed().as_secs_f64()));
-
-        let t0 = Instant::now();
-        let mut ibrr = ibrr_ldc::IbrrTechnique::new(
-            ibrr_ldc::IbrrSettings::default(),
-            Box::new(RayCastRenderer::new()),
-        );
-        ibrr.prepare(scene.clone()).map_err(|e| e.to_string())?;
-        let frame = ibrr_ldc::IbrrFrame::prepare(ctx, ibrr).map_err(|e| e.to_string())?;
-        out.push((Box::new(frame), t0.elapsed().as_secs_f64()));
         Ok(out)
     })
 }

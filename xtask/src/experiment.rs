@@ -48,7 +48,7 @@ pub struct Options {
     pub size: String,
     /// Output folder.
     pub out: PathBuf,
-    /// Run ISR on the GPU.
+    /// Run every method on the GPU through its frame contract, with GPU references.
     pub gpu: bool,
     /// Camera lists, `SCENE=FILE.json`.
     pub cameras: Vec<String>,
@@ -646,6 +646,34 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
     let mut techniques: Vec<TechniqueSetup> = choices
         .into_iter()
         .map(|c| {
+            if let Backend::Gpu(ctx) = &backend {
+                let make = match &c.kind {
+                    ChoiceKind::Isr(settings) => crate::gpu_frames::isr_maker(*settings),
+                    ChoiceKind::Relight { elements } => crate::gpu_frames::relight_maker(
+                        *elements,
+                        relight_pr::packed::Precision::F32,
+                    ),
+                    ChoiceKind::Ibrr {
+                        ldc,
+                        irpls,
+                        camera_importance,
+                    } => crate::gpu_frames::ibrr_maker(ibrr_ldc::IbrrSettings {
+                        resolution: *ldc,
+                        irpls: *irpls,
+                        camera_importance: *camera_importance,
+                        ..Default::default()
+                    }),
+                };
+                return Ok(TechniqueSetup {
+                    technique: Box::new(crate::gpu_frames::FrameTechnique::new(
+                        &c.label, ctx, make,
+                    )?),
+                    label: c.label,
+                    family: c.family,
+                    description: c.description,
+                    single_frame: false,
+                });
+            }
             let technique: Box<dyn Technique> = match &c.kind {
                 ChoiceKind::Isr(settings) => Box::new(
                     IsrTechnique::new(*settings, Box::new(CpuRasterizer::new()))
@@ -683,15 +711,15 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                     }
                 }
             };
-            TechniqueSetup {
+            Ok(TechniqueSetup {
                 label: c.label,
                 family: c.family,
                 description: c.description,
                 technique,
                 single_frame: false,
-            }
+            })
         })
-        .collect();
+        .collect::<Result<_, String>>()?;
     let sequence = sequence_spec(o, &scenes, &bounces)?;
     if o.povray {
         if bench_harness::povray::povray_available() {
@@ -749,6 +777,10 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
             },
             out_dir: o.out.clone(),
             cache_dir: o.cache.clone(),
+            reference_renderer: match &backend {
+                Backend::Gpu(ctx) => Some(Arc::new(crate::gpu_frames::GpuReference::new(ctx))),
+                _ => None,
+            },
             baseline: "dl".into(),
             error_metric,
             correlation_metric: Measure::Pearson.name().into(),

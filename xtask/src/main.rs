@@ -25,6 +25,7 @@ mod bench_scaling;
 mod checks;
 mod experiment;
 mod fuzz;
+mod gpu_frames;
 mod ibrr;
 mod relight;
 mod results_doc;
@@ -139,10 +140,13 @@ struct ExperimentArgs {
     /// Output directory.
     #[arg(long, default_value = "out/experiment")]
     out: PathBuf,
-    /// Run ISR and DL on the GPU (wgpu).
+    /// Run every method on the GPU (wgpu) as an engine hosts it: the G-buffer drawn on the
+    /// GPU, each method's frame on the frame contract timed on the device (GPU timestamps
+    /// where the adapter has them) apart from the harness, whose wall time is reported
+    /// beside; references and the equal-error ladder from the GPU path tracer.
     #[arg(long, conflicts_with = "cpu")]
     gpu: bool,
-    /// Run ISR and DL on the CPU (the default).
+    /// Run every method on the CPU (the default).
     #[arg(long)]
     cpu: bool,
     /// A camera list for a scene: SCENE=FILE.json (repeatable).

@@ -47,6 +47,69 @@ struct CacheMeta {
     bounces: String,
 }
 
+/// A reference render: the image and the seconds its sampling took (the renderer's own
+/// preparation, such as uploading the scene, left out).
+#[derive(Clone, Debug)]
+pub struct RenderedReference {
+    /// The mean radiance per pixel.
+    pub image: Image,
+    /// Seconds of the sampling.
+    pub seconds: f64,
+}
+
+/// What renders the references and the equal-error ladder: the CPU path tracer, the
+/// definition (the default, [`CpuReference`]), or a twin of its estimator on another device
+/// (the GPU path tracer, supplied by a composition point such as `xtask experiment --gpu`),
+/// whose ladder then times what that device's path tracer costs.
+pub trait ReferenceRenderer: Send + Sync + std::fmt::Debug {
+    /// The renderer in words, for reports (`cpu`, `gpu: NVIDIA H200 (Vulkan)`).
+    fn describe(&self) -> String;
+
+    /// A tag in the cache keys of its renders: renderers whose images differ for the same
+    /// seed (another random number sequence) must tag differently. The CPU tracer's is empty,
+    /// keeping the keys of caches made before renderers existed.
+    fn key_tag(&self) -> &str;
+
+    /// Renders `view` of `scene` under `lights`; `progress(rows_done, rows)` follows it.
+    fn render(
+        &self,
+        scene: &Scene,
+        view: &View,
+        settings: &ReferenceSettings,
+        lights: &LightState,
+        progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+    ) -> Result<RenderedReference, HarnessError>;
+}
+
+/// The CPU path tracer ([`reference::render_lit`]) as a [`ReferenceRenderer`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CpuReference;
+
+impl ReferenceRenderer for CpuReference {
+    fn describe(&self) -> String {
+        "the CPU path tracer".into()
+    }
+
+    fn key_tag(&self) -> &str {
+        ""
+    }
+
+    fn render(
+        &self,
+        scene: &Scene,
+        view: &View,
+        settings: &ReferenceSettings,
+        lights: &LightState,
+        progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+    ) -> Result<RenderedReference, HarnessError> {
+        let out = reference::render_lit(scene, view, settings, lights, progress);
+        Ok(RenderedReference {
+            image: out.image,
+            seconds: out.stats.seconds,
+        })
+    }
+}
+
 /// A cached or freshly rendered reference.
 #[derive(Clone, Debug)]
 pub struct CachedReference {
@@ -64,12 +127,30 @@ pub struct CachedReference {
 #[derive(Clone, Debug)]
 pub struct ReferenceCache {
     dir: PathBuf,
+    renderer: std::sync::Arc<dyn ReferenceRenderer>,
 }
 
 impl ReferenceCache {
-    /// A cache in `dir` (created on the first write).
+    /// A cache in `dir` (created on the first write) of the CPU path tracer's renders.
     pub fn new(dir: impl Into<PathBuf>) -> Self {
-        Self { dir: dir.into() }
+        Self::with_renderer(dir, std::sync::Arc::new(CpuReference))
+    }
+
+    /// A cache in `dir` of `renderer`'s renders (its [`ReferenceRenderer::key_tag`] is part
+    /// of every key, so renderers share a folder without mixing).
+    pub fn with_renderer(
+        dir: impl Into<PathBuf>,
+        renderer: std::sync::Arc<dyn ReferenceRenderer>,
+    ) -> Self {
+        Self {
+            dir: dir.into(),
+            renderer,
+        }
+    }
+
+    /// What renders this cache's misses.
+    pub fn renderer(&self) -> &dyn ReferenceRenderer {
+        self.renderer.as_ref()
     }
 
     /// The cache folder.
@@ -110,6 +191,12 @@ impl ReferenceCache {
         progress: Option<&(dyn Fn(u64, u64) + Sync)>,
     ) -> Result<CachedReference, HarnessError> {
         let mut key = reference_key(scene_hash, camera, settings);
+        let tag = self.renderer.key_tag();
+        if !tag.is_empty() {
+            let mut h = Fnv::default();
+            h.u64(key).str(tag);
+            key = h.finish();
+        }
         if !lights.is_default() {
             let mut h = Fnv::default();
             h.u64(key).u64(lights.fingerprint());
@@ -140,13 +227,13 @@ impl ReferenceCache {
                 ),
             }
         }
-        let out = reference::render_lit(
+        let out = self.renderer.render(
             scene,
             &View::from_camera(camera),
             settings,
             lights,
             progress,
-        );
+        )?;
         let bad = out.image.non_finite_count();
         if bad > 0 {
             return Err(HarnessError::Invalid(format!(
@@ -162,8 +249,8 @@ impl ReferenceCache {
         crate::write_json(
             &meta_path,
             &CacheMeta {
-                seconds: out.stats.seconds,
-                spp: out.spp,
+                seconds: out.seconds,
+                spp: settings.spp,
                 scene: scene.name.clone(),
                 camera: camera.name.clone(),
                 bounces: settings.bounces.to_string(),
@@ -171,7 +258,7 @@ impl ReferenceCache {
         )?;
         Ok(CachedReference {
             image: out.image,
-            seconds: out.stats.seconds,
+            seconds: out.seconds,
             key,
             from_cache: false,
         })

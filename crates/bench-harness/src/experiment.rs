@@ -142,10 +142,19 @@ impl Experiment {
             warmup: s.warmup,
             repeats: s.repeats,
             still_repeats: s.still_repeats,
+            reference_renderer: self.reference_renderer().describe(),
             baseline: s.baseline.clone(),
             error_metric: s.error_metric.clone(),
             correlation_metric: s.correlation_metric.clone(),
         }
+    }
+
+    /// What renders the references and the ladder.
+    fn reference_renderer(&self) -> std::sync::Arc<dyn crate::ReferenceRenderer> {
+        self.settings
+            .reference_renderer
+            .clone()
+            .unwrap_or_else(|| std::sync::Arc::new(crate::CpuReference))
     }
 
     fn infos(&self) -> Vec<TechniqueInfo> {
@@ -177,7 +186,8 @@ impl Experiment {
             .u64(s.still_repeats as u64)
             .u64(s.ladder_extend as u64)
             .str(&s.baseline)
-            .str(&s.error_metric);
+            .str(&s.error_metric)
+            .str(self.reference_renderer().key_tag());
         for b in &s.bounces {
             h.str(&b.to_string());
         }
@@ -249,11 +259,12 @@ impl Experiment {
         let out = self.settings.out_dir.clone();
         let views_dir = out.join("views");
         std::fs::create_dir_all(&views_dir).map_err(|e| HarnessError::io(&views_dir, e))?;
-        let cache = ReferenceCache::new(
+        let cache = ReferenceCache::with_renderer(
             self.settings
                 .cache_dir
                 .clone()
                 .unwrap_or_else(|| out.join("reference-cache")),
+            self.reference_renderer(),
         );
         let total_views: usize = self.scenes.iter().map(|s| s.cameras.len()).sum();
         let multi = MultiProgress::new();
@@ -646,14 +657,26 @@ impl Experiment {
                 source: Box::new(e),
             };
             let lights = LightState::default();
+            // Each frame's time: the technique's own device time when it measures one (the
+            // harness's wall time of the whole render kept beside it), else the wall time.
+            let mut clock = None;
+            let mut walls = Vec::new();
             let mut frame = |c: &Camera| -> Result<(Image, f64), HarnessError> {
                 let t0 = Instant::now();
                 let img = t
                     .technique
                     .render(&FrameRequest::from_camera(c, w, h, &lights))
                     .map_err(fail)?;
+                let wall = t0.elapsed().as_secs_f64();
                 renders += 1;
-                Ok((img, t0.elapsed().as_secs_f64()))
+                walls.push(wall);
+                Ok(match t.technique.device_time() {
+                    Some(d) => {
+                        clock = Some(d.clock);
+                        (img, d.seconds)
+                    }
+                    None => (img, wall),
+                })
             };
             let (warmup, repeats, still) = if t.single_frame {
                 (0, 1, 0)
@@ -673,6 +696,9 @@ impl Experiment {
             for _ in 0..still {
                 still_samples.push(frame(&cam)?.1);
             }
+            // The harness's wall times of the moving-camera frames (after the warm-up).
+            let moving_walls = &walls[warmup as usize..(warmup + repeats) as usize];
+            let harness = clock.map(|_| Timing::from_samples(moving_walls));
             if img.width != s.width || img.height != s.height {
                 return Err(HarnessError::Invalid(format!(
                     "technique '{}' returned {}x{} for {}x{}",
@@ -685,6 +711,8 @@ impl Experiment {
                 prepare_s: prepare_times.get(ti).copied().unwrap_or(0.0),
                 frame: Timing::from_samples(&moving),
                 still: (!still_samples.is_empty()).then(|| Timing::from_samples(&still_samples)),
+                clock: clock.map(|c| c.describe().to_string()),
+                harness,
                 errors: Vec::new(),
             });
             images.push(img);

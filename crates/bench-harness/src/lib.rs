@@ -79,7 +79,7 @@ pub mod sequence;
 
 use std::path::{Path, PathBuf};
 
-pub use cache::{ReferenceCache, scene_hash};
+pub use cache::{CpuReference, ReferenceCache, ReferenceRenderer, RenderedReference, scene_hash};
 pub use cameras::{
     CameraSpec, RandomCameraSettings, cameras_for, load_camera_list, parse_camera_list,
     random_cameras,

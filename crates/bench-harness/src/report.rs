@@ -293,6 +293,13 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
         s.error_metric,
         s.baseline
     );
+    if !s.reference_renderer.is_empty() {
+        let _ = writeln!(
+            o,
+            "References and the equal-error ladder: {}.\n",
+            s.reference_renderer
+        );
+    }
     o.push_str(&ranking_section(r));
     let _ = writeln!(o, "\n## Techniques\n");
     let _ = writeln!(o, "| label | family | parameters |\n|---|---|---|");
@@ -303,19 +310,33 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
         o,
         "\n## Time (the thesis' Table 2)\n\nTotal = sum of the per-view median frame times.\n"
     );
+    let device = r.summary.times.iter().any(|t| t.clock.is_some());
+    if device {
+        let _ = writeln!(
+            o,
+            "Frame times of a technique with a clock are the method's own time on its device, \
+             its G-buffer drawn and its image read back outside it; the harness wall time is \
+             the whole render the harness timed around it (G-buffer, method, readback), a \
+             second, labelled figure that nothing else is computed from.\n"
+        );
+    }
+    let mut headers = vec![
+        "technique",
+        "views",
+        "total time (s)",
+        "average frame time (ms)",
+        "average FPS",
+        "still camera (ms)",
+        "precomputation (s)",
+    ];
+    if device {
+        headers.extend(["clock", "harness wall (ms)"]);
+    }
     table(
         &mut o,
-        &[
-            "technique",
-            "views",
-            "total time (s)",
-            "average frame time (ms)",
-            "average FPS",
-            "still camera (ms)",
-            "precomputation (s)",
-        ],
+        &headers,
         r.summary.times.iter().map(|t| {
-            vec![
+            let mut row = vec![
                 t.label.clone(),
                 t.views.to_string(),
                 fmt_s(t.total_s),
@@ -323,7 +344,12 @@ pub fn markdown(r: &Results, headline: Option<&str>) -> String {
                 fmt_2(t.avg_fps),
                 opt_ms(t.still_frame_ms),
                 fmt_s(t.prepare_s),
-            ]
+            ];
+            if device {
+                row.push(t.clock.clone().unwrap_or_else(|| "harness wall".into()));
+                row.push(opt_ms(t.harness_frame_ms));
+            }
+            row
         }),
     );
     surface_section(&mut o, r);

@@ -274,6 +274,16 @@ pub struct TechniqueResult {
     /// (a second, labelled figure; `None` when not measured).
     #[serde(default)]
     pub still: Option<Timing>,
+    /// How `frame` and `still` were measured: `None` for the harness's wall clock around
+    /// the technique's whole render; else the technique's own device clock (GPU timestamps,
+    /// or the wall clock from recording its frame to the device's completion), which leaves
+    /// out what the harness does around the method (its G-buffer, the readback for scoring).
+    #[serde(default)]
+    pub clock: Option<String>,
+    /// When `frame` is the technique's device time: the harness's wall-clock times of the
+    /// same moving-camera frames (G-buffer, method, readback), a second, labelled figure.
+    #[serde(default)]
+    pub harness: Option<Timing>,
     /// Errors per reference bounce limit.
     pub errors: Vec<ErrorSet>,
 }
@@ -344,8 +354,9 @@ impl ViewResult {
             let l = &t.label;
             non_negative(|| format!("{l}: precomputation seconds"), t.prepare_s)?;
             let f = &t.frame;
-            for (kind, f) in
-                std::iter::once(("frame", f)).chain(t.still.iter().map(|s| ("still", s)))
+            for (kind, f) in std::iter::once(("frame", f))
+                .chain(t.still.iter().map(|s| ("still", s)))
+                .chain(t.harness.iter().map(|s| ("harness", s)))
             {
                 for (name, v) in [("min", f.min_s), ("median", f.median_s), ("max", f.max_s)] {
                     non_negative(|| format!("{l}: {kind} {name} seconds"), v)?;
@@ -444,6 +455,14 @@ pub struct TimeRow {
     /// Average still-camera frame time (milliseconds; the same view again), when measured.
     #[serde(default)]
     pub still_frame_ms: Option<f64>,
+    /// The clock of the frame times when it is the technique's own device clock (see
+    /// [`TechniqueResult::clock`]); `None`: the harness's wall clock.
+    #[serde(default)]
+    pub clock: Option<String>,
+    /// With a device clock: the average of the harness's wall-clock frame times
+    /// (milliseconds; G-buffer, method and readback together), labelled as such.
+    #[serde(default)]
+    pub harness_frame_ms: Option<f64>,
 }
 
 /// The thesis' summary statistics of one technique against the baseline at one bounce limit.
@@ -641,6 +660,10 @@ pub struct RunSettings {
     /// Timed still-camera frames per view and technique (0: not measured).
     #[serde(default)]
     pub still_repeats: u32,
+    /// What rendered the references and the equal-error ladder, in words (empty in
+    /// results written before the choice existed: the CPU path tracer).
+    #[serde(default)]
+    pub reference_renderer: String,
     /// Baseline technique label.
     pub baseline: String,
     /// The metric that decides "closer" (eq. 19).
@@ -884,8 +907,17 @@ pub fn summarize(
             .filter_map(|v| v.technique(&t.label)?.still.as_ref())
             .map(|s| s.median_s * 1e3)
             .collect();
+        let harness: Vec<f64> = views
+            .iter()
+            .filter_map(|v| v.technique(&t.label)?.harness.as_ref())
+            .map(|s| s.median_s * 1e3)
+            .collect();
         let mut row = time_row(t.label.clone(), &frames, prepare);
         row.still_frame_ms = mean(still);
+        row.harness_frame_ms = mean(harness);
+        row.clock = views
+            .iter()
+            .find_map(|v| v.technique(&t.label)?.clock.clone());
         times.push(row);
     }
     for b in &settings.bounces {
@@ -1190,6 +1222,8 @@ fn time_row(label: String, frames: &[f64], prepare_s: f64) -> TimeRow {
         avg_fps: if total > 0.0 { n as f64 / total } else { 0.0 },
         prepare_s,
         still_frame_ms: None,
+        clock: None,
+        harness_frame_ms: None,
     }
 }
 

@@ -72,6 +72,9 @@ pub struct ExperimentSettings {
     pub out_dir: PathBuf,
     /// Reference cache folder (default `<out_dir>/reference-cache`).
     pub cache_dir: Option<PathBuf>,
+    /// What renders the references and the equal-error ladder (`None`: the CPU path
+    /// tracer); a GPU twin makes the ladder's speedups those over the GPU path tracer.
+    pub reference_renderer: Option<std::sync::Arc<dyn crate::ReferenceRenderer>>,
     /// Label of the baseline technique (DL).
     pub baseline: String,
     /// The metric whose value decides which image is closer (eq. 19's mean error).
@@ -197,6 +200,7 @@ impl Default for ExperimentSettings {
             run_info: Default::default(),
             out_dir: PathBuf::from("out/experiment"),
             cache_dir: None,
+            reference_renderer: None,
             baseline: "dl".into(),
             error_metric: "mean-error".into(),
             correlation_metric: "pearson".into(),

@@ -953,3 +953,122 @@ fn a_run_split_in_shards_and_merged_equals_the_unsplit_run() {
     assert_eq!(merged.run.merged_shards, 2);
     std::fs::remove_dir_all(&base).ok();
 }
+
+/// A technique whose harness work (a sleep) is much longer than the time it reports for
+/// its device ([`DEVICE`]).
+struct DeviceTimed;
+
+const DEVICE: f64 = 0.002;
+const AROUND: std::time::Duration = std::time::Duration::from_millis(20);
+
+impl Technique for DeviceTimed {
+    fn name(&self) -> &str {
+        "device-timed"
+    }
+    fn prepare(&mut self, _: Arc<Scene>) -> Result<(), Error> {
+        Ok(())
+    }
+    fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {
+        std::thread::sleep(AROUND);
+        Ok(Image::filled(frame.width, frame.height, Vec3::splat(0.1)))
+    }
+    fn device_time(&self) -> Option<scene_core::DeviceTime> {
+        Some(scene_core::DeviceTime {
+            seconds: DEVICE,
+            clock: scene_core::DeviceClock::Timestamps,
+        })
+    }
+}
+
+/// The CPU path tracer with another key tag, counting its renders.
+#[derive(Debug)]
+struct Tagged(Arc<AtomicU64>);
+
+impl bench_harness::ReferenceRenderer for Tagged {
+    fn describe(&self) -> String {
+        "a tagged tracer".into()
+    }
+    fn key_tag(&self) -> &str {
+        "tagged"
+    }
+    fn render(
+        &self,
+        scene: &Scene,
+        view: &scene_core::View,
+        settings: &scene_core::reference::ReferenceSettings,
+        lights: &scene_core::LightState,
+        progress: Option<&(dyn Fn(u64, u64) + Sync)>,
+    ) -> Result<bench_harness::RenderedReference, HarnessError> {
+        self.0.fetch_add(1, Ordering::SeqCst);
+        bench_harness::CpuReference.render(scene, view, settings, lights, progress)
+    }
+}
+
+#[test]
+fn a_device_clock_is_the_frame_time_and_the_harness_wall_a_labelled_second_figure() {
+    let out = temp_dir("device-clock");
+    let renders = Arc::new(AtomicU64::new(0));
+    let tagged = Arc::new(AtomicU64::new(0));
+    let mut x = experiment(&out, &renders);
+    x.settings.reference_renderer = Some(Arc::new(Tagged(tagged.clone())));
+    x.settings.ladder_spp = vec![1, 2];
+    x.settings.ladder_extend = false;
+    x.techniques.push(TechniqueSetup {
+        label: "device".into(),
+        family: "device".into(),
+        description: "reports its device time".into(),
+        technique: Box::new(DeviceTimed),
+        single_frame: false,
+    });
+    let r = x.run().unwrap().results;
+    assert_eq!(r.settings.reference_renderer, "a tagged tracer");
+    // Every reference and rung of every view came from the renderer given.
+    let rungs: usize = r
+        .views
+        .iter()
+        .flat_map(|v| &v.references)
+        .map(|rf| 1 + rf.ladder.len())
+        .sum();
+    assert_eq!(tagged.load(Ordering::SeqCst) as usize, rungs);
+    for v in &r.views {
+        let t = v.technique("device").unwrap();
+        assert_eq!(t.frame.median_s, DEVICE, "{:?}", t.frame);
+        assert_eq!(t.clock.as_deref(), Some("GPU timestamps"));
+        let harness = t.harness.as_ref().expect("the harness wall time beside");
+        assert!(harness.min_s >= AROUND.as_secs_f64(), "{harness:?}");
+        assert_eq!(harness.repeats, 2);
+        // A technique without a clock keeps the harness's wall time as its frame time.
+        let flat = v.technique("dl").unwrap();
+        assert!(flat.clock.is_none() && flat.harness.is_none());
+    }
+    let times = r
+        .summary
+        .times
+        .iter()
+        .find(|t| t.label == "device")
+        .unwrap();
+    assert!(
+        (times.avg_frame_ms - DEVICE * 1e3).abs() < 1e-9,
+        "{times:?}"
+    );
+    assert!(
+        times.harness_frame_ms.unwrap() >= AROUND.as_secs_f64() * 1e3,
+        "{times:?}"
+    );
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("References and the equal-error ladder: a tagged tracer."));
+    let time = section(&md, "## Time");
+    let cells = row(time, "device", None);
+    assert!(cells.contains(&"GPU timestamps".to_string()), "{cells:?}");
+    // The tagged tracer's entries are not the CPU tracer's: a run with the CPU tracer on
+    // the same cache renders every reference again.
+    let second = temp_dir("device-clock-cpu");
+    let mut y = experiment(&second, &renders);
+    y.settings.cache_dir = Some(out.join("cache"));
+    y.settings.ladder_spp = vec![1, 2];
+    y.settings.ladder_extend = false;
+    let outcome = y.run().unwrap();
+    assert_eq!(outcome.reference_renders as usize, rungs);
+    std::fs::remove_dir_all(&out).ok();
+    std::fs::remove_dir_all(&second).ok();
+}

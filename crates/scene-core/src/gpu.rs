@@ -148,6 +148,8 @@ pub struct GpuContext {
     pub device: wgpu::Device,
     /// The device's queue.
     pub queue: wgpu::Queue,
+    /// Readbacks made through this context and its clones ([`GpuContext::readbacks`]).
+    readbacks: std::sync::Arc<std::sync::atomic::AtomicU64>,
 }
 
 /// Optional features requested when the adapter has them: timestamp queries, for
@@ -247,6 +249,7 @@ impl GpuContext {
             adapter: Some(adapter),
             device,
             queue,
+            readbacks: Default::default(),
         })
     }
 
@@ -260,7 +263,16 @@ impl GpuContext {
             adapter: None,
             device,
             queue,
+            readbacks: Default::default(),
         }
+    }
+
+    /// How many readbacks (buffer or texture copies mapped for the CPU) this context and
+    /// its clones have made: every readback of the toolkit goes through the context's
+    /// `read_*` helpers, so the difference across a frame is the frame's readbacks. The
+    /// frame contract reads nothing back; a harness asserts it with this count.
+    pub fn readbacks(&self) -> u64 {
+        self.readbacks.load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// What the device says of its adapter.
@@ -647,6 +659,8 @@ impl GpuContext {
         encoder: wgpu::CommandEncoder,
         staging: &wgpu::Buffer,
     ) -> Result<Vec<u8>, GpuError> {
+        self.readbacks
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.queue.submit([encoder.finish()]);
         let slice = staging.slice(..);

@@ -66,7 +66,9 @@ pub use lights::{InvalidLightSetting, LightId, LightSetting, LightState, Unknown
 pub use scene::{
     Bounds, Camera, DirectionalLight, Material, Mesh, PointLight, Sampler, Scene, Texture, Wrap,
 };
-pub use technique::{FrameRequest, Metric, MetricValue, Refinement, StageTimings, Technique};
+pub use technique::{
+    DeviceClock, DeviceTime, FrameRequest, Metric, MetricValue, Refinement, StageTimings, Technique,
+};
 pub use view::{DepthConvention, FrustumCorners, HemicubeFace, Projection, View};
 
 pub use glam;

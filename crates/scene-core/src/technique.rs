@@ -104,6 +104,45 @@ pub trait Technique {
     /// Renders one frame of the prepared scene. Errors with
     /// [`Error::NotPrepared`] before [`Technique::prepare`].
     fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error>;
+
+    /// The method's own time for the last frame [`Technique::render`] made, measured on
+    /// its device apart from the work a harness does around it (drawing the G-buffer,
+    /// reading the image back): what an engine hosting the method pays. `None` (the
+    /// default) when the technique cannot separate the two; a harness then has only its
+    /// wall-clock time of the whole `render`.
+    fn device_time(&self) -> Option<DeviceTime> {
+        None
+    }
+}
+
+/// A frame's time measured on the device that ran it ([`Technique::device_time`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DeviceTime {
+    /// Seconds.
+    pub seconds: f64,
+    /// How they were measured.
+    pub clock: DeviceClock,
+}
+
+/// How a [`DeviceTime`] was measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DeviceClock {
+    /// GPU timestamps written before the frame's first command and after its last.
+    Timestamps,
+    /// The wall clock from recording the frame to the device's completion of it (an
+    /// adapter without timestamp queries, or a CPU adapter, whose timestamps do not time
+    /// the work); recording and submission are inside.
+    WallAfterWait,
+}
+
+impl DeviceClock {
+    /// The clock in words, for reports.
+    pub fn describe(&self) -> &'static str {
+        match self {
+            DeviceClock::Timestamps => "GPU timestamps",
+            DeviceClock::WallAfterWait => "wall clock from recording to completion",
+        }
+    }
 }
 
 /// The outcome of a comparison.
