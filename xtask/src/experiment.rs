@@ -84,12 +84,14 @@ pub struct Options {
 /// the command line overrides its value.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Preset {
-    /// `default` or `full`.
+    /// `default`, `full` or `hd`.
     pub name: &'static str,
     /// What it is for, in words.
     pub about: &'static str,
     /// Image size.
     pub size: &'static str,
+    /// Image size with `--gpu`, when it differs.
+    pub gpu_size: Option<&'static str>,
     /// Reference spp.
     pub spp: u32,
     /// Technique list.
@@ -103,13 +105,16 @@ pub struct Preset {
 }
 
 /// The presets: `default` answers in minutes on 2 cores with every method, both bounce
-/// limits, the ladder and a sequence; `full` is the thorough run.
-pub const PRESETS: [Preset; 2] = [
+/// limits, the ladder and a sequence; `full` is the thorough run; `hd` runs every method at
+/// the sizes users render (its references take hours on 2 cores, minutes on a GPU with
+/// `--gpu`).
+pub const PRESETS: [Preset; 3] = [
     Preset {
         name: "default",
         about: "every method at one setting each (DL, ISR in both modes at 24/48/80 samples, \
                 relighting at 256 elements, the IBRR at LDC 128 with 64 IRPLs), 128x96, 512 spp",
         size: "128x96",
+        gpu_size: None,
         spp: 512,
         techniques: "dl,isr,relight-256,ibrr-128-64",
         repeats: 3,
@@ -121,11 +126,25 @@ pub const PRESETS: [Preset; 2] = [
         about: "every method at every setting (relighting at 256 and 1024 elements, the IBRR \
                 at LDC 128/64 IRPLs and 256/184), 256x192, 512 spp",
         size: "256x192",
+        gpu_size: None,
         spp: 512,
         techniques: "dl,isr,relight,ibrr",
         repeats: 3,
         still_repeats: 3,
         sequence_frames: 8,
+    },
+    Preset {
+        name: "hd",
+        about: "every method (DL, ISR at 24/48/80 samples, relighting at 1024 elements, the IBRR \
+                at LDC 256 with 184 IRPLs) at the sizes users render: 1280x720, 1920x1080 with \
+                --gpu (whose references and ladder then come from the GPU path tracer), 256 spp",
+        size: "1280x720",
+        gpu_size: Some("1920x1080"),
+        spp: 256,
+        techniques: "dl,isr-default,relight-1024,ibrr-256-184",
+        repeats: 3,
+        still_repeats: 2,
+        sequence_frames: 4,
     },
 ];
 

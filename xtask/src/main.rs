@@ -101,8 +101,9 @@ struct ExperimentArgs {
     #[command(subcommand)]
     then: Option<ExperimentCommand>,
     /// The sizes of the run: default (minutes on 2 cores: every method at one setting,
-    /// 128x96, 512 spp) or full (every setting, 256x192, 512 spp). Options given
-    /// override the preset's.
+    /// 128x96, 512 spp), full (every setting, 256x192, 512 spp) or hd (every method at
+    /// 1280x720, 1920x1080 with --gpu, 256 spp; minutes on a GPU, hours on 2 cores).
+    /// Options given override the preset's.
     #[arg(long, default_value = "default")]
     preset: String,
     /// Run only share K of N (views and the sequence dealt round the shards), e.g. 2/4;
@@ -197,7 +198,13 @@ impl ExperimentArgs {
             views: self.views,
             spp: self.spp.unwrap_or(p.spp),
             bounces: self.bounces.clone(),
-            size: self.size.clone().unwrap_or_else(|| p.size.into()),
+            size: self
+                .size
+                .clone()
+                .unwrap_or_else(|| match p.gpu_size.filter(|_| self.gpu) {
+                    Some(s) => s.into(),
+                    None => p.size.into(),
+                }),
             out: self.out.clone(),
             gpu: self.gpu,
             cameras: self.cameras.clone(),

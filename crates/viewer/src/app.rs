@@ -303,7 +303,7 @@ impl App {
             let passes = &self.reference.passes;
             if !passes.is_empty() {
                 println!(
-                    "  reference passes (1 spp, CPU) {:>4} seen, median {:8.2} ms",
+                    "  reference passes {:>4} seen, median {:8.2} ms",
                     passes.len(),
                     median(passes) * 1e3
                 );
@@ -375,6 +375,30 @@ impl App {
         let mut renderer = Renderer::new(ctx.clone(), self.scene.clone(), format)?;
         let frame = renderer.fit(w, h, self.scale);
         renderer.resize(frame.0, frame.1)?;
+        let on_gpu = match self.args.reference_on.as_str() {
+            "gpu" => true,
+            "cpu" => false,
+            _ => ctx.adapter_info().device_type != wgpu::DeviceType::Cpu,
+        };
+        if on_gpu {
+            renderer.use_gpu_reference(
+                self.scene.clone(),
+                scene_core::reference::PathTracerFrameSettings {
+                    samples_per_frame: 4,
+                    max_spp: self.args.max_spp,
+                    bounces: self.args.bounces,
+                    seed: self.args.seed,
+                },
+            )?;
+        }
+        eprintln!(
+            "reference: {}",
+            if on_gpu {
+                "the GPU path tracer, 4 spp a frame"
+            } else {
+                "the CPU path tracer on a worker thread, 1 spp a pass"
+            }
+        );
         self.size = frame;
         let egui_ctx = egui::Context::default();
         let max_side = ctx.device.limits().max_texture_dimension_2d as usize;
@@ -568,9 +592,12 @@ impl App {
     /// Restarts, pauses or resumes the reference for this frame's view; with `want_spp`,
     /// waits until it holds exactly that many samples per pixel.
     fn update_reference(&mut self, view: &View, want_spp: Option<u32>) -> Result<(), String> {
-        let Some(gfx) = self.gfx.as_ref() else {
+        let Some(gfx) = self.gfx.as_mut() else {
             return Ok(());
         };
+        if gfx.renderer.has_gpu_reference() {
+            return self.update_gpu_reference(view, want_spp);
+        }
         let r = &mut self.reference;
         let needed = self.state.needs_reference() || want_spp.is_some();
         let key = ReferenceKey {
@@ -646,6 +673,63 @@ impl App {
             r.pixels = u.pixels;
             gfx.renderer.upload_reference(&r.pixels);
         }
+        Ok(())
+    }
+
+    /// The GPU reference's bookkeeping for this frame's view: a new view, size or light
+    /// state restarts the count (the tracer restarts itself); with `want_spp` (a replay),
+    /// frames are traced and waited for until the image holds exactly that many samples.
+    /// The frame's own samples are traced in [`App::redraw`], inside its encoder.
+    fn update_gpu_reference(&mut self, view: &View, want_spp: Option<u32>) -> Result<(), String> {
+        let Some(gfx) = self.gfx.as_mut() else {
+            return Ok(());
+        };
+        let r = &mut self.reference;
+        let needed = self.state.needs_reference() || want_spp.is_some();
+        r.running = needed;
+        let key = ReferenceKey {
+            view: *view,
+            size: self.size,
+            lights: self.state.lights.fingerprint(),
+        };
+        if needed && r.key.as_ref() != Some(&key) {
+            r.key = Some(key);
+            r.spp = 0;
+            r.error = None;
+        }
+        let Some(n) = want_spp else {
+            gfx.renderer.set_reference_max_spp(self.args.max_spp);
+            return Ok(());
+        };
+        if r.spp > n {
+            return Err(format!(
+                "the reference already holds {} spp, more than the {n} asked for (ask for \
+                 samples before moving on, or move the camera to restart it)",
+                r.spp
+            ));
+        }
+        gfx.renderer.set_reference_max_spp(n);
+        let ctx = gfx.renderer.ctx.clone();
+        let start = Instant::now();
+        while r.spp < n {
+            let t0 = Instant::now();
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            let spp = gfx
+                .renderer
+                .encode_reference(&mut encoder, view, &self.state.lights)?
+                .unwrap_or(n);
+            ctx.queue.submit([encoder.finish()]);
+            ctx.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| e.to_string())?;
+            r.pass_seconds = t0.elapsed().as_secs_f64();
+            r.passes.push(r.pass_seconds);
+            r.spp = spp;
+            if start.elapsed() > Duration::from_secs(600) {
+                return Err(format!("the reference did not reach {n} spp in 10 minutes"));
+            }
+        }
+        r.pixels = gfx.renderer.read_reference()?.pixels;
         Ok(())
     }
 
@@ -857,6 +941,18 @@ impl App {
             exposure: self.state.exposure,
             surface: (gfx.config.width, gfx.config.height),
         };
+        if self.reference.running && gfx.renderer.has_gpu_reference() {
+            // Its samples are traced inside the frame: the frame time is the pass time
+            // (the panel's timings; a pass here is a frame's 4 spp).
+            if let Some(spp) =
+                gfx.renderer
+                    .encode_reference(&mut encoder, &view, &self.state.lights)?
+            {
+                self.reference.spp = spp;
+                self.reference.pass_seconds = f64::from(dt);
+            }
+            profiler.mark("reference (GPU path tracer)", &mut encoder);
+        }
         gfx.renderer
             .encode_frame(&mut encoder, &spec, &mut profiler)?;
 
@@ -992,6 +1088,9 @@ impl App {
                     .error_at
                     .is_none_or(|t| t.elapsed() > Duration::from_millis(500));
             if due && self.state.mode != Mode::Reference {
+                if gfx.renderer.has_gpu_reference() {
+                    self.reference.pixels = gfx.renderer.read_reference()?.pixels;
+                }
                 let test = gfx.renderer.read_slot(0)?;
                 let reference = scene_core::Image {
                     width: w,

@@ -62,6 +62,11 @@ pub struct Args {
     /// The reference's seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Where the progressive reference is traced: `gpu` (the GPU path tracer on the
+    /// viewer's device, a few samples per pixel each frame), `cpu` (a worker thread, one
+    /// sample per pixel a pass) or `auto`: the GPU unless the adapter is a CPU (lavapipe).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "cpu", "gpu"])]
+    pub reference_on: String,
     /// The reference stops accumulating at this many samples per pixel.
     #[arg(long, default_value_t = 1024)]
     pub max_spp: u32,

@@ -19,6 +19,7 @@ use scene_core::gpu::layout::{
 };
 use scene_core::gpu::shader::ShaderPass;
 use scene_core::gpu::{FrameInputs, FrameWriter, GpuContext, GpuFrame, GpuGBuffer};
+use scene_core::reference::{PathTracerFrame, PathTracerFrameSettings};
 use scene_core::{Image, LightState, Scene, View};
 
 use crate::mode::{Layout, Mode};
@@ -220,6 +221,10 @@ pub struct Renderer {
     pub relight: Option<RelightGpu>,
     /// The IBRR, once constructed.
     pub ibrr: Option<IbrrFrame>,
+    /// The progressive reference on the GPU ([`Renderer::use_gpu_reference`]) and the
+    /// frame-sized target its frames write (the image reaches the reference buffer by a
+    /// copy of its running mean).
+    gpu_reference: Option<(PathTracerFrame, Option<wgpu::Texture>)>,
 }
 
 #[repr(C)]
@@ -385,6 +390,7 @@ impl Renderer {
             targets: None,
             relight: None,
             ibrr: None,
+            gpu_reference: None,
             ctx,
         })
     }
@@ -559,6 +565,77 @@ impl Renderer {
     pub fn set_ibrr(&mut self, technique: IbrrTechnique) -> Result<(), String> {
         self.ibrr = Some(IbrrFrame::prepare(&self.ctx, technique).map_err(err)?);
         Ok(())
+    }
+
+    /// Makes the progressive reference a GPU path tracer on the viewer's device
+    /// ([`PathTracerFrame`]) with `settings`: frames that show the reference then add
+    /// samples on the GPU ([`Renderer::encode_reference`]) instead of the CPU worker's
+    /// uploads.
+    pub fn use_gpu_reference(
+        &mut self,
+        scene: Arc<Scene>,
+        settings: PathTracerFrameSettings,
+    ) -> Result<(), String> {
+        let frame = PathTracerFrame::prepare(&self.ctx, scene, settings).map_err(err)?;
+        self.gpu_reference = Some((frame, None));
+        Ok(())
+    }
+
+    /// True when the reference is traced on the GPU.
+    pub fn has_gpu_reference(&self) -> bool {
+        self.gpu_reference.is_some()
+    }
+
+    /// Stops the GPU reference at `max_spp` samples per pixel (frames after that show it).
+    pub fn set_reference_max_spp(&mut self, max_spp: u32) {
+        if let Some((frame, _)) = self.gpu_reference.as_mut() {
+            frame.set_max_spp(max_spp);
+        }
+    }
+
+    /// Records one frame of the GPU reference for `view` under `lights` (a new view, size or
+    /// light state starts it again; otherwise it adds samples until its maximum) and copies
+    /// its running mean into the buffer the reference modes show. Returns the samples per
+    /// pixel of the image, or `None` without a GPU reference or a frame size.
+    pub fn encode_reference(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        view: &View,
+        lights: &LightState,
+    ) -> Result<Option<u32>, String> {
+        let (Some((frame, target)), Some(t)) = (self.gpu_reference.as_mut(), &self.targets) else {
+            return Ok(None);
+        };
+        if target
+            .as_ref()
+            .is_none_or(|x| (x.width(), x.height()) != (t.width, t.height))
+        {
+            *target = Some(self.ctx.create_texture_2d(
+                "viewer gpu reference",
+                t.width,
+                t.height,
+                wgpu::TextureFormat::Rgba32Float,
+                wgpu::TextureUsages::STORAGE_BINDING,
+            ));
+        }
+        let target = target.as_ref().expect("made above");
+        let inputs = FrameInputs {
+            gbuffer: &t.gbuffer,
+            view,
+            lights,
+        };
+        self.ctx
+            .validated_with(|| frame.encode(encoder, &inputs, target))
+            .map_err(err)?;
+        frame.copy_mean_to(encoder, &t.reference);
+        Ok(Some(frame.spp()))
+    }
+
+    /// Reads the reference buffer back (the error view's mean error against a GPU
+    /// reference, a few times a second).
+    pub fn read_reference(&self) -> Result<Image, String> {
+        let t = self.targets.as_ref().ok_or("no frame yet")?;
+        self.read_buffer(&t.reference)
     }
 
     /// Uploads the reference's accumulated image (row-major, the frame's size).
@@ -852,6 +929,73 @@ mod allocation_tests {
                 }
             }
         }
+    }
+}
+
+/// The GPU progressive reference in the viewer's frame: the reference buffer the reference
+/// modes show holds, after k frames of one view, the GPU path tracer's image at k times the
+/// samples per frame, bit for bit (its running mean does not depend on how the samples are
+/// split); a maximum set stops it there; a new view starts again.
+#[cfg(test)]
+mod gpu_reference_tests {
+    use super::*;
+    use scene_core::reference::{Bounces, ReferenceSettings, render_gpu};
+    use scene_core::testing::gpu_test_context;
+
+    #[test]
+    fn the_gpu_reference_accumulates_the_gpu_tracers_image() {
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        let scene = Arc::new(scene_core::builtin::scene("cornell").unwrap());
+        let mut r = Renderer::new(
+            ctx.clone(),
+            scene.clone(),
+            wgpu::TextureFormat::Rgba8UnormSrgb,
+        )
+        .unwrap();
+        let (w, h) = (20, 15);
+        r.resize(w, h).unwrap();
+        let settings = PathTracerFrameSettings {
+            samples_per_frame: 4,
+            max_spp: 1024,
+            bounces: Bounces::Limited(2),
+            seed: 7,
+        };
+        r.use_gpu_reference(scene.clone(), settings).unwrap();
+        r.set_reference_max_spp(10);
+        let view = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32));
+        let lights = LightState::default();
+        let frame = |r: &mut Renderer, view: &View| {
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            let spp = r.encode_reference(&mut encoder, view, &lights).unwrap();
+            ctx.queue.submit([encoder.finish()]);
+            spp.unwrap()
+        };
+        // 4 + 4 + 2 (the maximum), then frames only show it.
+        let spps: Vec<u32> = (0..4).map(|_| frame(&mut r, &view)).collect();
+        assert_eq!(spps, [4, 8, 10, 10]);
+        let shown = r.read_reference().unwrap();
+        let traced = render_gpu(
+            &ctx,
+            &scene,
+            &view,
+            &ReferenceSettings {
+                width: w,
+                height: h,
+                spp: 10,
+                bounces: settings.bounces,
+                seed: settings.seed,
+            },
+            &lights,
+            None,
+        )
+        .unwrap();
+        assert!(traced.image.mean().max_element() > 0.0);
+        assert_eq!(shown.pixels, traced.image.pixels);
+        // A new view starts again.
+        let moved = View::from_camera(&scene.cameras[0].with_aspect(w as f32 / h as f32 * 1.1));
+        assert_eq!(frame(&mut r, &moved), 4);
     }
 }
 

@@ -854,3 +854,57 @@ fn a_light_change_keeps_the_reference_half_until_its_first_new_pass() {
         sum(&b)
     );
 }
+
+/// With `--reference-on gpu` the reference is the GPU path tracer in the viewer's frame: a
+/// replayed reference of 8 spp (two frames of 4) is the GPU tracer's image of that camera at
+/// 8 spp, and the error view's mean is measured against it.
+#[test]
+fn the_gpu_reference_replays_as_the_gpu_tracer_renders() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let dir = out_dir("gpu-reference");
+    let (lines, _) = replay_file(
+        &{
+            let file = dir.join("walk.json");
+            std::fs::write(
+                &file,
+                r#"{"version": 1, "steps": [{"mode": "reference", "reference_spp": 8,
+                    "screenshot": "reference"}, {"layout": "error", "mode": "dl",
+                    "reference_spp": 8, "screenshot": "error"}]}"#,
+            )
+            .unwrap();
+            file
+        },
+        &dir.join("shots"),
+        &["--reference-on", "gpu"],
+    );
+    let text = lines.join("\n");
+    assert!(text.contains("reference: the GPU path tracer"), "{text}");
+    assert!(
+        text.contains("mean error (eq. 19) of dl against the reference at 8 spp"),
+        "{text}"
+    );
+    let scene = scene();
+    let s = shot(&dir, "reference");
+    let (w, h) = s.size();
+    assert_eq!(s.meta["reference_spp"].as_u64(), Some(8));
+    let expected = scene_core::reference::render_gpu(
+        &ctx,
+        &scene,
+        &s.view(),
+        &ReferenceSettings {
+            width: w,
+            height: h,
+            spp: 8,
+            bounces: Bounces::Unlimited,
+            seed: 1,
+        },
+        &s.lights(&scene),
+        None,
+    )
+    .unwrap()
+    .image;
+    assert!(expected.mean().max_element() > 0.0);
+    assert_matches("gpu reference", &s.image, &expected);
+}

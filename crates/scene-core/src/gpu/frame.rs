@@ -175,6 +175,11 @@ impl KeptBuffer {
     pub fn generation(&self) -> u64 {
         self.generation
     }
+
+    /// The buffer as it is (`None` before the first [`KeptBuffer::ensure`]).
+    pub fn clone_buffer(&self) -> Option<wgpu::Buffer> {
+        self.buffer.clone()
+    }
 }
 
 /// Live GPU objects of a device by kind, from wgpu's internal counters (the `counters`

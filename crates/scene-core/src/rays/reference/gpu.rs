@@ -906,7 +906,9 @@ impl PathTracerFrame {
             ),
             accum: KeptBuffer::new(
                 "path tracer frame accumulation",
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
             ),
             bind: Keyed::new(),
             packed: None,
@@ -921,6 +923,30 @@ impl PathTracerFrame {
     /// Samples per pixel of the image the last frame showed.
     pub fn spp(&self) -> u32 {
         self.spp
+    }
+
+    /// Changes the samples per pixel after which frames only show the image (at least 1):
+    /// a host that needs an image of exactly `n` samples sets `n` and draws frames until
+    /// [`PathTracerFrame::spp`] reaches it.
+    pub fn set_max_spp(&mut self, max_spp: u32) {
+        self.settings.max_spp = max_spp.max(1);
+    }
+
+    /// Records a copy of the running mean (`[r, g, b, 1]` per pixel as `f32`, row-major, the
+    /// last frame's size) into the start of `dst` (`COPY_DST`, at least that long): how a
+    /// host shows the image in a buffer of its own without a readback. Nothing is recorded
+    /// before the first frame or when `dst` is too short.
+    pub fn copy_mean_to(&self, encoder: &mut wgpu::CommandEncoder, dst: &wgpu::Buffer) {
+        let Some(traced) = &self.traced else {
+            return;
+        };
+        let bytes = u64::from(traced.size.0) * u64::from(traced.size.1) * 16;
+        if let Some(src) = self.accum.clone_buffer()
+            && dst.size() >= bytes
+            && src.size() >= bytes
+        {
+            encoder.copy_buffer_to_buffer(&src, 0, dst, 0, bytes);
+        }
     }
 }
 
