@@ -236,6 +236,13 @@ pub fn render(r: &Results, results_name: &str) -> String {
         },
         run.command
     );
+    if !r.settings.reference_renderer.is_empty() {
+        let _ = writeln!(
+            o,
+            "References and the equal-error ladder: {}.\n",
+            r.settings.reference_renderer
+        );
+    }
     if !run.tuning.is_empty() {
         let _ = writeln!(o, "Defaults of the methods measured here:\n");
         for t in &run.tuning {
