@@ -978,3 +978,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     accum[pixel] = vec4<f32>(mean, 1.0);
     accum[pixels + pixel] = vec4<f32>(m2, 0.0);
 }
+
+// The tree's ray queries alone (GpuPathTracer::trace_rays, what the tests compare with the
+// CPU's): ray i reads accum[2 i] = (origin, t_min) and accum[2 i + 1] = (unit direction,
+// t_max) in world units, and writes accum[2 i] = (found, triangle id bits, t, occluded) and
+// accum[2 i + 1] = (u, v, 0, 0). P.width rays.
+@compute @workgroup_size(64, 1, 1)
+fn trace_rays(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i >= P.width) {
+        return;
+    }
+    let a = accum[2u * i];
+    let b = accum[2u * i + 1u];
+    let h = closest_hit(a.xyz, b.xyz, a.w, b.w);
+    let blocked = occluded(a.xyz, b.xyz, a.w, b.w);
+    accum[2u * i] = vec4<f32>(select(0.0, 1.0, h.found), bitcast<f32>(h.id), h.t, select(0.0, 1.0, blocked));
+    accum[2u * i + 1u] = vec4<f32>(h.b, 0.0, 0.0);
+}

@@ -2,9 +2,10 @@
 //! machine, and how far their images are apart (the image means, and a z-test of every 8x8
 //! block's mean per channel with the two variance images, at alpha 0.001).
 //!
-//! `cargo run --release -p scene-core --example gpu_reference -- [scene] [size] [spp] [bounces] [daylight]`
+//! `cargo run --release -p scene-core --example gpu_reference -- [scene] [size] [spp] [bounces] [daylight|sun|sky]`
 //! (defaults: cornell 256 64 inf). `scene` is a built-in name or a glTF file; `daylight` adds
-//! the sun and the uniform sky that docs/results-interior.md lights the Breakfast Room with.
+//! the sun and the uniform sky that docs/results-interior.md lights the Breakfast Room with
+//! (`sun` or `sky` one of them alone).
 //! The CPU tracer uses every core (rayon).
 
 use scene_core::glam::Vec3;
@@ -21,12 +22,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err(format!("size must be 8..=8192 and spp 2..=65536 (got {size}, {spp})").into());
     }
     let mut added = AddedLights::default();
-    if args.get(4).is_some_and(|a| a == "daylight") {
+    let light = args.get(4).map_or("", String::as_str);
+    if light == "daylight" || light == "sun" {
         added.suns.push(DirectionalLight {
             name: "sun".into(),
             direction: Vec3::new(-1.0, -0.8, 0.35),
             irradiance: Vec3::new(12.0, 11.0, 9.5),
         });
+    }
+    if light == "daylight" || light == "sky" {
         added.sky = Some(Sky::uniform(Vec3::new(0.5, 0.6, 0.8))?);
     }
     let scene = scene_core::open_scene_with(name, &added)?.scene;

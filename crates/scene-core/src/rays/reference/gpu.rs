@@ -33,7 +33,7 @@ use crate::gpu::shader::ShaderPass;
 use crate::gpu::{ComputePass, GpuContext, GpuError, WORKGROUP};
 use crate::image::Image;
 use crate::lights::{Emitters, LightId, LightState, SpotRamp};
-use crate::ray::RayScene;
+use crate::ray::{Hit, RayQuery, RayScene};
 use crate::scene::Scene;
 use crate::view::{Projection, View};
 
@@ -374,22 +374,7 @@ impl GpuPathTracer {
             );
         }
 
-        let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..7)
-            .map(|binding| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: match binding {
-                        0 => wgpu::BufferBindingType::Uniform,
-                        6 => wgpu::BufferBindingType::Storage { read_only: false },
-                        _ => wgpu::BufferBindingType::Storage { read_only: true },
-                    },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            })
-            .collect();
+        let entries = layout_entries();
         let pass = ctx.validated(|| {
             ComputePass::new(&ctx.device, "path tracer", &PATH_TRACER, &entries, &[])
         })??;
@@ -540,6 +525,95 @@ impl GpuPathTracer {
         Ok(())
     }
 
+    /// The closest hit (alpha masks applied) and the occlusion of each ray, answered by the
+    /// shader's traversal of the tree on the GPU: the ray queries of [`crate::ray::RayScene`]
+    /// on the device, for checking the GPU's tree against the CPU's ray by ray. Directions
+    /// must be unit vectors (`t` is a world distance). Waits for the answer (a readback).
+    pub fn trace_rays(&self, rays: &[RayQuery]) -> Result<Vec<(Option<Hit>, bool)>, GpuError> {
+        if rays.is_empty() {
+            return Ok(Vec::new());
+        }
+        let bytes = rays.len() as u64 * 32;
+        if rays.len() > u32::MAX as usize || bytes > self.ctx.storage_binding_limit() {
+            return Err(GpuError::Budget(BudgetExceeded {
+                what: "the rays of one trace_rays call".into(),
+                needed: bytes,
+                limit: self.ctx.storage_binding_limit(),
+                unit: "bytes",
+                hint: "trace them in batches".into(),
+            }));
+        }
+        let input: Vec<[f32; 4]> = rays
+            .iter()
+            .flat_map(|r| [v4(r.origin, r.t_min), v4(r.direction, r.t_max)])
+            .collect();
+        let device = &self.ctx.device;
+        let module = PATH_TRACER.create_module(device)?;
+        let (pass, accum, params) = self.ctx.validated(|| {
+            let entries = layout_entries();
+            (
+                ComputePass::from_entry_point(
+                    device,
+                    "path tracer rays",
+                    &module,
+                    "trace_rays",
+                    &entries,
+                    &[],
+                ),
+                self.ctx.buffer_with(
+                    "path tracer rays",
+                    bytemuck::cast_slice(&input),
+                    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                ),
+                self.ctx.uniform_buffer(
+                    "path tracer rays params",
+                    &Params {
+                        width: rays.len() as u32,
+                        ..self.base
+                    },
+                ),
+            )
+        })?;
+        let bind = self.ctx.validated(|| {
+            pass.bind(
+                device,
+                &[
+                    params.as_entire_binding(),
+                    self.nodes.as_entire_binding(),
+                    self.packets.as_entire_binding(),
+                    self.tris.as_entire_binding(),
+                    self.data.as_entire_binding(),
+                    self.texels.as_entire_binding(),
+                    accum.as_entire_binding(),
+                ],
+            )
+        })?;
+        self.ctx.validated(|| {
+            self.ctx.submit_encoded(|encoder| {
+                let mut cp = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("path tracer rays"),
+                    timestamp_writes: None,
+                });
+                cp.set_pipeline(&pass.pipeline);
+                cp.set_bind_group(0, &bind, &[]);
+                cp.dispatch_workgroups((rays.len() as u32).div_ceil(64), 1, 1);
+                Ok::<(), GpuError>(())
+            })
+        })??;
+        let out: Vec<[f32; 4]> = self.ctx.read_buffer_as(&accum)?;
+        Ok(out
+            .chunks_exact(2)
+            .map(|w| {
+                let hit = (w[0][0] > 0.5).then(|| Hit {
+                    triangle: w[0][1].to_bits(),
+                    t: w[0][2],
+                    barycentric: Vec2::new(w[1][0], w[1][1]),
+                });
+                (hit, w[0][3] > 0.5)
+            })
+            .collect())
+    }
+
     /// The pipeline.
     fn pipeline(&self) -> &wgpu::ComputePipeline {
         &self.pass.pipeline
@@ -624,6 +698,27 @@ impl GpuPathTracer {
             ..*base
         })
     }
+}
+
+/// The shader's bindings: the uniform `Params`, the scene's five read-only buffers and the
+/// read-write accumulation.
+fn layout_entries() -> Vec<wgpu::BindGroupLayoutEntry> {
+    (0..7)
+        .map(|binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: match binding {
+                    0 => wgpu::BufferBindingType::Uniform,
+                    6 => wgpu::BufferBindingType::Storage { read_only: false },
+                    _ => wgpu::BufferBindingType::Storage { read_only: true },
+                },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        })
+        .collect()
 }
 
 /// Renders `scene` from `view` with `settings` under `lights` on the GPU, in one call
