@@ -979,20 +979,42 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     accum[pixels + pixel] = vec4<f32>(m2, 0.0);
 }
 
-// The tree's ray queries alone (GpuPathTracer::trace_rays, what the tests compare with the
-// CPU's): ray i reads accum[2 i] = (origin, t_min) and accum[2 i + 1] = (unit direction,
-// t_max) in world units, and writes accum[2 i] = (found, triangle id bits, t, occluded) and
-// accum[2 i + 1] = (u, v, 0, 0). P.width rays.
+// The tree's ray queries alone, and what shading reads at the hit (GpuPathTracer::trace_rays,
+// what the tests compare with the CPU's): ray i reads accum[4 i] = (origin, t_min) and
+// accum[4 i + 1] = (unit direction, t_max) in world units, and writes accum[4 i] = (found,
+// triangle id bits, t, occluded), accum[4 i + 1] = (u, v, 0, 0), accum[4 i + 2] = (albedo
+// at the hit, 0) and accum[4 i + 3] = (unit shading normal, facing the geometric normal
+// that faces the ray, 0). P.width rays.
 @compute @workgroup_size(64, 1, 1)
 fn trace_rays(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     if (i >= P.width) {
         return;
     }
-    let a = accum[2u * i];
-    let b = accum[2u * i + 1u];
+    let a = accum[4u * i];
+    let b = accum[4u * i + 1u];
     let h = closest_hit(a.xyz, b.xyz, a.w, b.w);
     let blocked = occluded(a.xyz, b.xyz, a.w, b.w);
-    accum[2u * i] = vec4<f32>(select(0.0, 1.0, h.found), bitcast<f32>(h.id), h.t, select(0.0, 1.0, blocked));
-    accum[2u * i + 1u] = vec4<f32>(h.b, 0.0, 0.0);
+    accum[4u * i] = vec4<f32>(select(0.0, 1.0, h.found), bitcast<f32>(h.id), h.t, select(0.0, 1.0, blocked));
+    accum[4u * i + 1u] = vec4<f32>(h.b, 0.0, 0.0);
+    if (!h.found) {
+        accum[4u * i + 2u] = vec4<f32>(0.0);
+        accum[4u * i + 3u] = vec4<f32>(0.0);
+        return;
+    }
+    let tri = tris[h.id];
+    let ng0 = tri.ng.xyz;
+    let ng = select(-ng0, ng0, dot(ng0, b.xyz) < 0.0);
+    var ns = tri.n0.xyz * (1.0 - h.b.x - h.b.y) + tri.n1.xyz * h.b.x + tri.n2.xyz * h.b.y;
+    let len2 = dot(ns, ns);
+    if (len2 > 0.0) {
+        ns = ns * inverseSqrt(len2);
+        if (dot(ns, ng) < 0.0) {
+            ns = -ns;
+        }
+    } else {
+        ns = ng;
+    }
+    accum[4u * i + 2u] = vec4<f32>(albedo_at(tri, h.b), 0.0);
+    accum[4u * i + 3u] = vec4<f32>(ns, 0.0);
 }

@@ -560,42 +560,136 @@ fn probe_rays(scene: &Scene, n: usize, seed: u64) -> Vec<scene_core::ray::RayQue
         .collect()
 }
 
-/// Ray by ray, the GPU's traversal of the tree answers as the CPU's: the same closest
-/// triangle at the same distance, and the same occlusion. The two round the triangle test's
-/// products differently (the GPU may fuse them), so a ray through an edge or a tie may pick
-/// the neighbour: at most 1 in 1 000 rays may differ.
+/// What the CPU tracer shades with at a hit of `scene`: the albedo (material, texture,
+/// vertex colours) and the unit shading normal on the side of the geometric normal that
+/// faces the ray (`PathTracer::radiance`'s rules, from the scene's own data).
+fn cpu_shading(scene: &Scene, hit: &scene_core::ray::Hit, d: Vec3) -> (Vec3, Vec3) {
+    let offsets = scene.mesh_offsets();
+    let r = scene.triangle_ref(&offsets, hit.triangle).unwrap();
+    let mesh = &scene.meshes[r.mesh as usize];
+    let t = mesh.indices[r.local as usize];
+    let (b1, b2) = (hit.barycentric.x, hit.barycentric.y);
+    let w = [1.0 - b1 - b2, b1, b2];
+    let p = t.map(|i| mesh.positions[i as usize]);
+    let ng0 = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+    let ng = if ng0.dot(d) < 0.0 { ng0 } else { -ng0 };
+    let n = t.map(|i| mesh.normals.get(i as usize).copied().unwrap_or(Vec3::ZERO));
+    let ns = (n[0] * w[0] + n[1] * w[1] + n[2] * w[2]).normalize_or_zero();
+    let ns = if ns == Vec3::ZERO {
+        ng
+    } else if ns.dot(ng) < 0.0 {
+        -ns
+    } else {
+        ns
+    };
+    let uv = mesh
+        .uvs
+        .as_ref()
+        .map(|uv| uv[t[0] as usize] * w[0] + uv[t[1] as usize] * w[1] + uv[t[2] as usize] * w[2]);
+    let colour = mesh.colors.as_ref().map_or(Vec3::ONE, |c| {
+        c[t[0] as usize] * w[0] + c[t[1] as usize] * w[1] + c[t[2] as usize] * w[2]
+    });
+    let material = mesh.material_ids[r.local as usize];
+    (scene.albedo_at(material, uv) * colour, ns)
+}
+
+/// Ray by ray, the GPU's traversal of the tree answers as the CPU's (the same closest
+/// triangle at the same distance, the same occlusion), and the shader shades a hit with the
+/// CPU's albedo and shading normal. The two round the triangle test's products differently
+/// (the GPU may fuse them), so a ray through an edge or a tie may pick the neighbour: at
+/// most 1 in 1 000 rays may differ.
 fn assert_same_queries(name: &str, scene: &Scene, n: usize) -> (usize, usize) {
     let Some(ctx) = gpu_test_context() else {
         return (0, 0);
     };
-    let rays = probe_rays(scene, n, 5);
     let cpu = scene_core::ray::RayScene::build(scene);
+    // Half the rays from the scene's box; half leave a surface the first half hit, from
+    // the point a path continues from (offset along the normal by the tracers' 2e-5 of
+    // the extent), towards a fixed sun-like direction and in random directions.
+    let mut rays = probe_rays(scene, n / 2, 5);
+    let eps = scene.extent() * 2e-5;
+    let sun = Vec3::new(1.0, 0.8, -0.35).normalize();
+    let leaving: Vec<_> = rays
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| {
+            let h = cpu.closest_hit(r.origin, r.direction, r.t_min, r.t_max)?;
+            let offsets = scene.mesh_offsets();
+            let t = scene.triangle_ref(&offsets, h.triangle).unwrap();
+            let mesh = &scene.meshes[t.mesh as usize];
+            let p = mesh.indices[t.local as usize].map(|k| mesh.positions[k as usize]);
+            let ng0 = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            let ng = if ng0.dot(r.direction) < 0.0 {
+                ng0
+            } else {
+                -ng0
+            };
+            let origin = r.origin + r.direction * h.t + ng * eps;
+            let direction = if i % 2 == 0 {
+                sun
+            } else {
+                -r.direction.reflect(ng)
+            };
+            Some(scene_core::ray::RayQuery {
+                origin,
+                direction: if direction.dot(ng) > 0.0 {
+                    direction
+                } else {
+                    -direction
+                },
+                t_min: 0.0,
+                t_max: f32::INFINITY,
+            })
+        })
+        .collect();
+    rays.extend(leaving);
+    let n = rays.len();
     let gpu = GpuPathTracer::new(&ctx, scene, &LightState::default()).unwrap();
     let answers = gpu.trace_rays(&rays).unwrap();
-    let (mut hits, mut differ) = (0, 0);
-    for (r, (g, g_occluded)) in rays.iter().zip(&answers) {
+    let (mut hits, mut differ, mut shaded_apart) = (0, 0, 0);
+    for (r, g) in rays.iter().zip(&answers) {
         let c = cpu.closest_hit(r.origin, r.direction, r.t_min, r.t_max);
         let c_occluded = cpu.occluded(r.origin, r.direction, r.t_min, r.t_max);
         hits += usize::from(c.is_some());
-        let same_hit = match (&c, g) {
+        let same_hit = match (&c, &g.hit) {
             (None, None) => true,
             (Some(a), Some(b)) => {
                 a.triangle == b.triangle && (a.t - b.t).abs() <= 1e-4 * a.t.max(1e-3)
             }
             _ => false,
         };
-        if !same_hit || c_occluded != *g_occluded {
+        if !same_hit || c_occluded != g.occluded {
             differ += 1;
             if differ <= 5 {
-                eprintln!(
-                    "{name}: {r:?}: CPU {c:?} occluded {c_occluded}, GPU {g:?} occluded {g_occluded}"
-                );
+                eprintln!("{name}: {r:?}: CPU {c:?} occluded {c_occluded}, GPU {g:?}");
+            }
+            continue;
+        }
+        if let Some(h) = &g.hit {
+            let (albedo, ns) = cpu_shading(scene, h, r.direction);
+            let apart = (albedo - g.albedo).abs().max_element()
+                > 1e-4 * albedo.max_element().max(1e-3)
+                || (ns - g.shading_normal).length() > 1e-4;
+            if apart {
+                shaded_apart += 1;
+                if shaded_apart <= 5 {
+                    eprintln!(
+                        "{name}: triangle {}: CPU albedo {albedo} normal {ns}, GPU albedo {} normal {}",
+                        h.triangle, g.albedo, g.shading_normal
+                    );
+                }
             }
         }
     }
-    eprintln!("{name}: {differ} of {n} rays differ ({hits} hit on the CPU)");
+    eprintln!(
+        "{name}: {differ} of {n} rays differ ({hits} hit on the CPU); {shaded_apart} hits shaded apart"
+    );
     assert!(hits > n / 10, "{name}: too few rays hit to test ({hits})");
     assert!(differ * 1000 <= n, "{name}: {differ} of {n} rays differ");
+    assert!(
+        shaded_apart * 1000 <= hits,
+        "{name}: {shaded_apart} hits shaded apart"
+    );
     (hits, differ)
 }
 

@@ -31,7 +31,7 @@ pub use tracer::{Accumulator, PathTracer, ReferenceTechnique, render, render_lit
 mod gpu;
 #[cfg(all(feature = "reference", feature = "gpu"))]
 pub use gpu::{
-    GpuAccumulator, GpuPathTracer, GpuReferenceOutput, PATH_TRACER, PathTracerFrame,
+    GpuAccumulator, GpuPathTracer, GpuRayAnswer, GpuReferenceOutput, PATH_TRACER, PathTracerFrame,
     PathTracerFrameSettings, render_gpu,
 };
 

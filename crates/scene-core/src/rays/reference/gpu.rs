@@ -526,14 +526,15 @@ impl GpuPathTracer {
     }
 
     /// The closest hit (alpha masks applied) and the occlusion of each ray, answered by the
-    /// shader's traversal of the tree on the GPU: the ray queries of [`crate::ray::RayScene`]
-    /// on the device, for checking the GPU's tree against the CPU's ray by ray. Directions
-    /// must be unit vectors (`t` is a world distance). Waits for the answer (a readback).
-    pub fn trace_rays(&self, rays: &[RayQuery]) -> Result<Vec<(Option<Hit>, bool)>, GpuError> {
+    /// shader's traversal of the tree on the GPU, with what the shader's shading reads at
+    /// the hit: the ray queries of [`crate::ray::RayScene`] on the device, for checking the
+    /// GPU's tree and shading data against the CPU's ray by ray. Directions must be unit
+    /// vectors (`t` is a world distance). Waits for the answer (a readback).
+    pub fn trace_rays(&self, rays: &[RayQuery]) -> Result<Vec<GpuRayAnswer>, GpuError> {
         if rays.is_empty() {
             return Ok(Vec::new());
         }
-        let bytes = rays.len() as u64 * 32;
+        let bytes = rays.len() as u64 * 64;
         if rays.len() > u32::MAX as usize || bytes > self.ctx.storage_binding_limit() {
             return Err(GpuError::Budget(BudgetExceeded {
                 what: "the rays of one trace_rays call".into(),
@@ -545,7 +546,14 @@ impl GpuPathTracer {
         }
         let input: Vec<[f32; 4]> = rays
             .iter()
-            .flat_map(|r| [v4(r.origin, r.t_min), v4(r.direction, r.t_max)])
+            .flat_map(|r| {
+                [
+                    v4(r.origin, r.t_min),
+                    v4(r.direction, r.t_max),
+                    [0.0; 4],
+                    [0.0; 4],
+                ]
+            })
             .collect();
         let device = &self.ctx.device;
         let module = PATH_TRACER.create_module(device)?;
@@ -601,15 +609,18 @@ impl GpuPathTracer {
             })
         })??;
         let out: Vec<[f32; 4]> = self.ctx.read_buffer_as(&accum)?;
+        let xyz = |v: [f32; 4]| Vec3::new(v[0], v[1], v[2]);
         Ok(out
-            .chunks_exact(2)
-            .map(|w| {
-                let hit = (w[0][0] > 0.5).then(|| Hit {
+            .chunks_exact(4)
+            .map(|w| GpuRayAnswer {
+                hit: (w[0][0] > 0.5).then(|| Hit {
                     triangle: w[0][1].to_bits(),
                     t: w[0][2],
                     barycentric: Vec2::new(w[1][0], w[1][1]),
-                });
-                (hit, w[0][3] > 0.5)
+                }),
+                occluded: w[0][3] > 0.5,
+                albedo: xyz(w[2]),
+                shading_normal: xyz(w[3]),
             })
             .collect())
     }
@@ -698,6 +709,21 @@ impl GpuPathTracer {
             ..*base
         })
     }
+}
+
+/// One ray's answer from [`GpuPathTracer::trace_rays`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpuRayAnswer {
+    /// The closest hit that exists.
+    pub hit: Option<Hit>,
+    /// Whether anything that exists lies on the segment.
+    pub occluded: bool,
+    /// The albedo the shader reflects with at the hit (material, texture, vertex colours;
+    /// zero without a hit).
+    pub albedo: Vec3,
+    /// The unit shading normal at the hit, on the side of the geometric normal that faces
+    /// the ray (zero without a hit).
+    pub shading_normal: Vec3,
 }
 
 /// The shader's bindings: the uniform `Params`, the scene's five read-only buffers and the
