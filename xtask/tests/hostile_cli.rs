@@ -340,7 +340,7 @@ fn numbers_out_of_range_are_refused_before_any_work() {
         ),
         (
             vec!["experiment", "--preset", "huge", "--out", o],
-            "unknown preset 'huge' (known: default, full)",
+            "unknown preset 'huge' (known: default, full, hd)",
         ),
         (vec!["experiment", "merge", o, "--out", o], "results.json"),
         (
