@@ -956,6 +956,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let pixels = P.width * P.height;
     var mean = accum[pixel].xyz;
     var m2 = accum[pixels + pixel].xyz;
+    // The host dispatches one sample at a time (P.samples = 1): several samples in one
+    // invocation's loop came out wrong on lavapipe (gpu.rs, SAMPLES_PER_SUBMIT).
     for (var s = P.first_sample; s < P.first_sample + P.samples; s++) {
         draw_base = base;
         draw_sample = s;
