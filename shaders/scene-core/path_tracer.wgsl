@@ -340,6 +340,18 @@ fn has_uv(t: Tri) -> bool {
     return (as_u(t.n2.w) & 1u) != 0u;
 }
 
+// The unit shading normal at `b` (the vertex normals interpolated), on the side of `ng`,
+// the geometric normal facing the incoming ray; `ng` itself where the normals vanish.
+fn shading_normal(t: Tri, b: vec2<f32>, ng: vec3<f32>) -> vec3<f32> {
+    let ns = t.n0.xyz * (1.0 - b.x - b.y) + t.n1.xyz * b.x + t.n2.xyz * b.y;
+    let len2 = dot(ns, ns);
+    if (len2 > 0.0) {
+        let unit = ns * inverseSqrt(len2);
+        return select(unit, -unit, dot(unit, ng) < 0.0);
+    }
+    return ng;
+}
+
 fn albedo_at(t: Tri, b: vec2<f32>) -> vec3<f32> {
     let m = data[P.off_materials + 3u * as_u(t.ng.w)];
     var a = m.xyz;
@@ -910,16 +922,7 @@ fn radiance(origin: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
         }
         // Surface frame, flipped towards the incoming ray (two-sided reflection).
         let ng = select(-ng0, ng0, dot(ng0, d) < 0.0);
-        var ns = tri.n0.xyz * (1.0 - b.x - b.y) + tri.n1.xyz * b.x + tri.n2.xyz * b.y;
-        let len2 = dot(ns, ns);
-        if (len2 > 0.0) {
-            ns = ns * inverseSqrt(len2);
-            if (dot(ns, ng) < 0.0) {
-                ns = -ns;
-            }
-        } else {
-            ns = ng;
-        }
+        let ns = shading_normal(tri, b, ng);
         let albedo = albedo_at(tri, b);
         let p = x + ng * P.eps;
         l = l + beta * albedo * INV_PI * direct(p, ns, k > 0u, k);
@@ -1007,16 +1010,6 @@ fn trace_rays(@builtin(global_invocation_id) gid: vec3<u32>) {
     let tri = tris[h.id];
     let ng0 = tri.ng.xyz;
     let ng = select(-ng0, ng0, dot(ng0, b.xyz) < 0.0);
-    var ns = tri.n0.xyz * (1.0 - h.b.x - h.b.y) + tri.n1.xyz * h.b.x + tri.n2.xyz * h.b.y;
-    let len2 = dot(ns, ns);
-    if (len2 > 0.0) {
-        ns = ns * inverseSqrt(len2);
-        if (dot(ns, ng) < 0.0) {
-            ns = -ns;
-        }
-    } else {
-        ns = ng;
-    }
     accum[4u * i + 2u] = vec4<f32>(albedo_at(tri, h.b), 0.0);
-    accum[4u * i + 3u] = vec4<f32>(ns, 0.0);
+    accum[4u * i + 3u] = vec4<f32>(shading_normal(tri, h.b, ng), 0.0);
 }

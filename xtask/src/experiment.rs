@@ -666,6 +666,11 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
         .into_iter()
         .map(|c| {
             if let Backend::Gpu(ctx) = &backend {
+                let description = format!(
+                    "{}; on the GPU frame contract over a GPU G-buffer, the method's frame \
+                     timed on the device",
+                    c.description.replace(", CPU rasteriser G-buffer", "")
+                );
                 let make = match &c.kind {
                     ChoiceKind::Isr(settings) => crate::gpu_frames::isr_maker(*settings),
                     ChoiceKind::Relight { elements } => crate::gpu_frames::relight_maker(
@@ -689,7 +694,7 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                     )?),
                     label: c.label,
                     family: c.family,
-                    description: c.description,
+                    description,
                     single_frame: false,
                 });
             }

@@ -238,14 +238,15 @@ impl FrameTechnique {
         }
         Ok(())
     }
+}
 
-    fn wait(&self) -> Result<(), Error> {
-        self.ctx
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map(|_| ())
-            .map_err(gpu_error)
-    }
+/// Submits `encoder` on `ctx`'s queue and waits until the device has run it.
+fn submit_and_wait(ctx: &GpuContext, encoder: wgpu::CommandEncoder) -> Result<(), Error> {
+    ctx.validated(|| ctx.queue.submit([encoder.finish()]))?;
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map(|_| ())
+        .map_err(gpu_error)
 }
 
 impl Technique for FrameTechnique {
@@ -277,12 +278,7 @@ impl Technique for FrameTechnique {
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         self.raster
             .encode(&mut encoder, uploaded, &frame.view, &t.gbuffer)?;
-        self.ctx
-            .validated(|| self.ctx.queue.submit([encoder.finish()]))?;
-        self.ctx
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(gpu_error)?;
+        submit_and_wait(&self.ctx, encoder)?;
         // The method's frame, timed.
         let readbacks = self.ctx.readbacks();
         let t0 = Instant::now();
@@ -307,12 +303,7 @@ impl Technique for FrameTechnique {
         if let Some(span) = &self.span {
             span.mark(&mut encoder, true);
         }
-        self.ctx
-            .validated(|| self.ctx.queue.submit([encoder.finish()]))?;
-        self.ctx
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(gpu_error)?;
+        submit_and_wait(&self.ctx, encoder)?;
         let wall = t0.elapsed().as_secs_f64();
         let read = self.ctx.readbacks() - readbacks;
         self.timed_readbacks += read;
@@ -338,7 +329,6 @@ impl Technique for FrameTechnique {
             },
         };
         let image = self.ctx.read_texture_image(&t.target)?;
-        self.wait()?;
         self.last = Some(last);
         Ok(image)
     }
