@@ -341,7 +341,8 @@ fn has_uv(t: Tri) -> bool {
 }
 
 // The unit shading normal at `b` (the vertex normals interpolated), on the side of `ng`,
-// the geometric normal facing the incoming ray; `ng` itself where the normals vanish.
+// the geometric normal facing the incoming ray; `ng` itself where the normals vanish
+// (scene_core::view::shading_normal).
 fn shading_normal(t: Tri, b: vec2<f32>, ng: vec3<f32>) -> vec3<f32> {
     let ns = t.n0.xyz * (1.0 - b.x - b.y) + t.n1.xyz * b.x + t.n2.xyz * b.y;
     let len2 = dot(ns, ns);

@@ -286,18 +286,13 @@ impl Technique for FrameTechnique {
         if let Some(span) = &self.span {
             span.mark(&mut encoder, false);
         }
-        let view: View = frame.view;
-        let lights: &LightState = frame.lights;
+        let inputs = FrameInputs {
+            gbuffer: &t.gbuffer,
+            view: &frame.view,
+            lights: frame.lights,
+        };
         let (recorded, created) = ObjectCounts::during(&self.ctx.device, || {
-            method.encode(
-                &mut encoder,
-                &FrameInputs {
-                    gbuffer: &t.gbuffer,
-                    view: &view,
-                    lights,
-                },
-                &t.target,
-            )
+            method.encode(&mut encoder, &inputs, &t.target)
         });
         recorded?;
         if let Some(span) = &self.span {

@@ -203,17 +203,12 @@ pub(crate) fn surface_at(
     if ng.dot(d) > 0.0 {
         ng = -ng;
     }
-    let ns = (0..3)
-        .map(|k| mesh.normals.get(tri[k] as usize).copied().unwrap_or(ng) * b[k])
-        .sum::<Vec3>()
-        .normalize_or_zero();
-    let ns = if ns == Vec3::ZERO {
-        ng
-    } else if ns.dot(ng) < 0.0 {
-        -ns
-    } else {
-        ns
-    };
+    let ns = scene_core::view::shading_normal(
+        ng,
+        (0..3)
+            .map(|k| mesh.normals.get(tri[k] as usize).copied().unwrap_or(ng) * b[k])
+            .sum::<Vec3>(),
+    );
     let uv = mesh
         .uvs
         .as_ref()

@@ -574,23 +574,16 @@ fn cpu_shading(scene: &Scene, hit: &scene_core::ray::Hit, d: Vec3) -> (Vec3, Vec
     let ng0 = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
     let ng = if ng0.dot(d) < 0.0 { ng0 } else { -ng0 };
     let n = t.map(|i| mesh.normals.get(i as usize).copied().unwrap_or(Vec3::ZERO));
-    let ns = (n[0] * w[0] + n[1] * w[1] + n[2] * w[2]).normalize_or_zero();
-    let ns = if ns == Vec3::ZERO {
-        ng
-    } else if ns.dot(ng) < 0.0 {
-        -ns
-    } else {
-        ns
-    };
+    let ns = scene_core::view::shading_normal(ng, n[0] * w[0] + n[1] * w[1] + n[2] * w[2]);
     let uv = mesh
         .uvs
         .as_ref()
         .map(|uv| uv[t[0] as usize] * w[0] + uv[t[1] as usize] * w[1] + uv[t[2] as usize] * w[2]);
-    let colour = mesh.colors.as_ref().map_or(Vec3::ONE, |c| {
-        c[t[0] as usize] * w[0] + c[t[1] as usize] * w[1] + c[t[2] as usize] * w[2]
-    });
     let material = mesh.material_ids[r.local as usize];
-    (scene.albedo_at(material, uv) * colour, ns)
+    (
+        scene.albedo_at(material, uv) * mesh.color_at(r.local as usize, w),
+        ns,
+    )
 }
 
 /// Ray by ray, the GPU's traversal of the tree answers as the CPU's (the same closest

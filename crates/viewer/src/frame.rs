@@ -865,6 +865,20 @@ mod tests {
     }
 }
 
+/// A renderer of the Cornell box at `width x height` (for the tests).
+#[cfg(test)]
+fn cornell_renderer(ctx: &GpuContext, width: u32, height: u32) -> (Arc<Scene>, Renderer) {
+    let scene = Arc::new(scene_core::builtin::scene("cornell").unwrap());
+    let mut r = Renderer::new(
+        ctx.clone(),
+        scene.clone(),
+        wgpu::TextureFormat::Rgba8UnormSrgb,
+    )
+    .unwrap();
+    r.resize(width, height).unwrap();
+    (scene, r)
+}
+
 /// The viewer's frame loop on the frame contract creates no GPU object once each mode and
 /// the size have been seen: every mode in a single layout, split against another, and the
 /// error view (relighting and the IBRR show direct light until precomputed, so their
@@ -880,14 +894,7 @@ mod allocation_tests {
         let Some(ctx) = gpu_test_context() else {
             return;
         };
-        let scene = Arc::new(scene_core::builtin::scene("cornell").unwrap());
-        let mut r = Renderer::new(
-            ctx.clone(),
-            scene.clone(),
-            wgpu::TextureFormat::Rgba8UnormSrgb,
-        )
-        .unwrap();
-        r.resize(40, 30).unwrap();
+        let (scene, mut r) = cornell_renderer(&ctx, 40, 30);
         let view = View::from_camera(&scene.cameras[0].with_aspect(40.0 / 30.0));
         let lights = LightState::default();
         let layouts = [
@@ -947,15 +954,8 @@ mod gpu_reference_tests {
         let Some(ctx) = gpu_test_context() else {
             return;
         };
-        let scene = Arc::new(scene_core::builtin::scene("cornell").unwrap());
-        let mut r = Renderer::new(
-            ctx.clone(),
-            scene.clone(),
-            wgpu::TextureFormat::Rgba8UnormSrgb,
-        )
-        .unwrap();
         let (w, h) = (20, 15);
-        r.resize(w, h).unwrap();
+        let (scene, mut r) = cornell_renderer(&ctx, w, h);
         let settings = PathTracerFrameSettings {
             samples_per_frame: 4,
             max_spp: 1024,

@@ -288,6 +288,22 @@ pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
     (t, bt)
 }
 
+/// The unit shading normal of a hit: `interpolated` (the vertex normals blended at the hit)
+/// normalised and turned to the side of `ng`, the unit geometric normal already facing the
+/// incoming ray; `ng` itself where `interpolated` vanishes or is not finite. The rule the
+/// reference tracer reflects with (its GPU twin's `shading_normal`), the IBRR's walks and
+/// the tests that compare the two tracers share.
+pub fn shading_normal(ng: Vec3, interpolated: Vec3) -> Vec3 {
+    let ns = interpolated.normalize_or_zero();
+    if ns == Vec3::ZERO {
+        ng
+    } else if ns.dot(ng) < 0.0 {
+        -ns
+    } else {
+        ns
+    }
+}
+
 impl View {
     /// A perspective view from a camera (its aspect ratio is the camera's; its up is
     /// [`Camera::view_up`], so a camera looking straight up or down has a view too).

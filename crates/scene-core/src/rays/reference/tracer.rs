@@ -277,14 +277,7 @@ impl<'a> PathTracer<'a> {
             }
             // Surface frame, flipped towards the incoming ray (two-sided reflection).
             let ng = if tri.ng.dot(d) < 0.0 { tri.ng } else { -tri.ng };
-            let ns = (tri.n[0] * b0 + tri.n[1] * b1 + tri.n[2] * b2).normalize_or_zero();
-            let ns = if ns == Vec3::ZERO {
-                ng
-            } else if ns.dot(ng) < 0.0 {
-                -ns
-            } else {
-                ns
-            };
+            let ns = crate::view::shading_normal(ng, tri.n[0] * b0 + tri.n[1] * b1 + tri.n[2] * b2);
             let uv = self.uvs[hit.triangle as usize].map(|uv| uv[0] * b0 + uv[1] * b1 + uv[2] * b2);
             let color = self.colors[hit.triangle as usize]
                 .map_or(Vec3::ONE, |c| c[0] * b0 + c[1] * b1 + c[2] * b2);
