@@ -8,9 +8,13 @@
 //! colour (relighting's factors, ISR's light buffers, the IBRR's per-source recombination on
 //! the CPU). Beside the wall-clock time, where the adapter has timestamp queries and is not
 //! a CPU, the GPU's own time from the frame's first command to its last (two empty compute
-//! passes marking them): on a fast GPU a small frame's wall-clock time is mostly submission
-//! and wake-up latency. Every method's precomputation is done before the clock starts and
-//! reported beside. Figures are printed; nothing is asserted.
+//! passes marking them), and the method's commands alone (the conversion left out, what the
+//! main job with `--gpu` times): on a fast GPU a small frame's wall-clock time is mostly
+//! submission and wake-up latency. Timed frames run at the device's working clocks: after an
+//! idle second, the method's frames saturate the device first (gpu_frames' `Warmth`). Every
+//! method's precomputation is done before the clock starts and reported beside. Figures are
+//! printed; nothing is asserted. The "GPU method" span begins with a timestamp written when
+//! the method's first command is reached, which may be before the conversion has finished.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -23,7 +27,7 @@ use scene_core::shadowed_lights::{LightSet, ShadowSettings};
 use scene_core::testing::EngineGBuffer;
 use scene_core::{GBufferRenderer, Scene, View, builtin};
 
-use crate::gpu_frames::{BoxedFrame, GpuSpan, ibrr_maker, isr_maker, relight_maker};
+use crate::gpu_frames::{BoxedFrame, GpuSpan, Warmth, ibrr_maker, isr_maker, relight_maker};
 
 use crate::bench::median;
 
@@ -87,6 +91,8 @@ pub fn run(
         ctx.adapter_summary()
     );
     let span = GpuSpan::new(&ctx);
+    // A second span inside the first: the method's own commands, the conversion left out.
+    let method_span = GpuSpan::new(&ctx);
     if span.is_none() {
         println!("  (no GPU time: this adapter has no timestamp queries, or is a CPU)");
     }
@@ -145,11 +151,48 @@ pub fn run(
             median(convert_ms)
         );
         println!(
-            "  {:<8} {:>12} {:>10} {:>12} {:>10} {:>26}",
-            "method", "steady wall", "GPU", "change wall", "GPU", "created per steady frame"
+            "  {:<8} {:>12} {:>10} {:>10} {:>12} {:>10} {:>26}",
+            "method",
+            "steady wall",
+            "GPU",
+            "GPU method",
+            "change wall",
+            "GPU",
+            "created per steady frame"
         );
         for (method, _) in prepared.iter_mut() {
-            let mut frame = |lights: &LightState| -> Result<(f64, f64, ObjectCounts), String> {
+            let colour = |i: usize| {
+                let mut s = LightState::default();
+                s.set_color(first, Vec3::new(1.0, 0.5 + 0.1 * (i % 5) as f32, 0.5));
+                s
+            };
+            // On a device that has cooled, saturated first until its clocks are up
+            // (gpu_frames' `Warmth`).
+            let cooled = Warmth::cooled();
+            Warmth::before_timing(
+                span.is_some() && cooled,
+                &ctx.device,
+                |encoder| {
+                    convert.encode(encoder, &host, &convention, &converted)?;
+                    method
+                        .encode(
+                            encoder,
+                            &FrameInputs {
+                                gbuffer: &converted,
+                                view: &view,
+                                lights: &colour(0),
+                            },
+                            &target,
+                        )
+                        .map_err(|e| scene_core::gpu::GpuError::Validation(e.to_string()))
+                },
+                |encoder| {
+                    ctx.queue.submit([encoder.finish()]);
+                    wait().map_err(scene_core::gpu::GpuError::Validation)
+                },
+            )
+            .map_err(|e| format!("{}: {e}", method.name()))?;
+            let mut frame = |lights: &LightState| -> Result<(f64, f64, f64, ObjectCounts), String> {
                 let t0 = Instant::now();
                 let mut encoder = ctx.device.create_command_encoder(&Default::default());
                 if let Some(span) = &span {
@@ -157,6 +200,9 @@ pub fn run(
                 }
                 let (result, created) = ObjectCounts::during(&ctx.device, || {
                     convert.encode(&mut encoder, &host, &convention, &converted)?;
+                    if let Some(span) = &method_span {
+                        span.mark(&mut encoder, false);
+                    }
                     method
                         .encode(
                             &mut encoder,
@@ -167,40 +213,42 @@ pub fn run(
                             },
                             &target,
                         )
-                        .map_err(|e| scene_core::gpu::GpuError::Validation(e.to_string()))
+                        .map_err(|e| scene_core::gpu::GpuError::Validation(e.to_string()))?;
+                    if let Some(span) = &method_span {
+                        span.mark(&mut encoder, true);
+                    }
+                    Ok(())
                 });
-                result.map_err(|e| format!("{}: {e}", method.name()))?;
+                result.map_err(|e: scene_core::gpu::GpuError| format!("{}: {e}", method.name()))?;
                 if let Some(span) = &span {
                     span.mark(&mut encoder, true);
                 }
                 ctx.queue.submit([encoder.finish()]);
                 wait()?;
                 let wall = t0.elapsed().as_secs_f64() * 1e3;
-                let gpu = match &span {
-                    Some(span) => span.read(&ctx)?,
-                    None => f64::NAN,
+                Warmth::busy();
+                let read = |s: &Option<GpuSpan>| match s {
+                    Some(s) => s.read(&ctx),
+                    None => Ok(f64::NAN),
                 };
-                Ok((wall, gpu, created))
-            };
-            let colour = |i: usize| {
-                let mut s = LightState::default();
-                s.set_color(first, Vec3::new(1.0, 0.5 + 0.1 * (i % 5) as f32, 0.5));
-                s
+                Ok((wall, read(&span)?, read(&method_span)?, created))
             };
             let still = colour(0);
             frame(&still)?;
-            let (mut steady, mut steady_gpu) = (Vec::new(), Vec::new());
+            let (mut steady, mut steady_gpu, mut steady_method) =
+                (Vec::new(), Vec::new(), Vec::new());
             let mut created = ObjectCounts::default();
             for _ in 0..repeats {
-                let (ms, gpu, c) = frame(&still)?;
+                let (ms, gpu, alone, c) = frame(&still)?;
                 steady.push(ms);
                 steady_gpu.push(gpu);
+                steady_method.push(alone);
                 created = c;
             }
             frame(&colour(1))?;
             let (mut changing, mut changing_gpu) = (Vec::new(), Vec::new());
             for i in 0..repeats {
-                let (ms, gpu, _) = frame(&colour(i + 2))?;
+                let (ms, gpu, _, _) = frame(&colour(i + 2))?;
                 changing.push(ms);
                 changing_gpu.push(gpu);
             }
@@ -212,10 +260,11 @@ pub fn run(
                 }
             };
             println!(
-                "  {:<8} {:>12.2} {:>10} {:>12.2} {:>10} {:>26}",
+                "  {:<8} {:>12.2} {:>10} {:>10} {:>12.2} {:>10} {:>26}",
                 method.name(),
                 median(steady),
                 gpu_ms(steady_gpu),
+                gpu_ms(steady_method),
                 median(changing),
                 gpu_ms(changing_gpu),
                 if ObjectCounts::available(&ctx.device) {

@@ -11,9 +11,21 @@
 //! has timestamp queries and is not a CPU, else the wall clock from recording to completion
 //! ([`DeviceClock`]). Readbacks and GPU objects created inside each timed frame are counted
 //! ([`FrameTechnique::timed_readbacks`]): the frame contract reads nothing back.
+//!
+//! A GPU left idle lowers its clocks, and an engine does not leave it idle. On an NVIDIA
+//! H200 (2026-11-28, `nvidia-smi` sampling every 100-200 ms) the shader clock sat at 345 MHz
+//! idle and fell back to it 3 to 3.5 s after work stopped. It rose to its working 1 980 MHz
+//! within 0.2 to 0.4 s of work at 98 % utilisation, but frames submitted one at a time and
+//! waited for (40 to 50 %) took 2.4 s, and in one run over 3.5 s; a short burst (a small
+//! reference render) did not raise it at all. `bench frames` timed at the idle clock read 2
+//! to 5 times its figures at the working clock. So where frames are timed by GPU
+//! timestamps, a timed frame on a device that has had no timed frame for [`COOLS_AFTER`] is
+//! preceded by [`WARM_UP`] of the same method's frames, untimed, many to a submission so that
+//! the device is saturated ([`Warmth`]). On a CPU adapter nothing is done: there is no clock
+//! to raise.
 
-use std::sync::Arc;
-use std::time::Instant;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use bench_harness::{HarnessError, ReferenceRenderer, RenderedReference};
 use gbuffer::{GpuPreparedScene, GpuRasterizer};
@@ -82,6 +94,80 @@ impl GpuSpan {
             .read_buffer_as(&self.resolved)
             .map_err(|e| e.to_string())?;
         Ok(t[1].saturating_sub(t[0]) as f64 * self.period_ns * 1e-6)
+    }
+}
+
+/// Idle time after which the device's clocks may have dropped (the H200 kept them 3 s).
+pub const COOLS_AFTER: Duration = Duration::from_secs(1);
+
+/// How long the device is kept saturated before a timed frame on a device that may have
+/// cooled. The H200's clock rose from idle to its working value within 0.2 to 0.4 s of work
+/// at 98 % utilisation, but took 2.4 to over 3.5 s of frames submitted one by one (40 to
+/// 50 %), so the warm-up records many frames per submission.
+pub const WARM_UP: Duration = Duration::from_secs(1);
+
+/// A warm-up submission grows (doubling its frames, up to [`MAX_WARM_BATCH`]) while it takes
+/// less than this: the submission and the wait are then a small share of the device's time.
+const WARM_BATCH_TIME: Duration = Duration::from_millis(20);
+
+/// The most frames recorded into one warm-up submission.
+const MAX_WARM_BATCH: u32 = 256;
+
+/// When this process last had timed frames, or a warm-up, on the device (module docs): a
+/// short burst of other work does not raise the clocks, so only these count.
+static LAST_BUSY: Mutex<Option<Instant>> = Mutex::new(None);
+
+/// The device-clock warm-up of timed frames (module docs).
+pub struct Warmth;
+
+impl Warmth {
+    /// Notes that a timed frame, or a warm-up, has just finished on the device.
+    pub fn busy() {
+        if let Ok(mut last) = LAST_BUSY.lock() {
+            *last = Some(Instant::now());
+        }
+    }
+
+    /// Whether the device has had no timed frame or warm-up for longer than [`COOLS_AFTER`]
+    /// (or never).
+    pub fn cooled() -> bool {
+        Self::cooled_since(LAST_BUSY.lock().ok().and_then(|l| *l), Instant::now())
+    }
+
+    /// [`Warmth::cooled`] for a last busy instant and a present one.
+    pub fn cooled_since(last: Option<Instant>, now: Instant) -> bool {
+        last.is_none_or(|t| now.saturating_duration_since(t) > COOLS_AFTER)
+    }
+
+    /// When `needed` (frames timed on the device, which has [`cooled`](Warmth::cooled)),
+    /// keeps the device saturated for [`WARM_UP`]: submissions of frames recorded by
+    /// `record`, each submission handed to `submit_and_wait`, their frame count doubling
+    /// while a submission takes under 20 ms. Returns the frames run (0 when not needed).
+    pub fn before_timing<E>(
+        needed: bool,
+        device: &wgpu::Device,
+        mut record: impl FnMut(&mut wgpu::CommandEncoder) -> Result<(), E>,
+        mut submit_and_wait: impl FnMut(wgpu::CommandEncoder) -> Result<(), E>,
+    ) -> Result<u32, E> {
+        if !needed {
+            return Ok(0);
+        }
+        let start = Instant::now();
+        let (mut frames, mut batch) = (0, 1);
+        while start.elapsed() < WARM_UP {
+            let t0 = Instant::now();
+            let mut encoder = device.create_command_encoder(&Default::default());
+            for _ in 0..batch {
+                record(&mut encoder)?;
+            }
+            submit_and_wait(encoder)?;
+            frames += batch;
+            if t0.elapsed() < WARM_BATCH_TIME {
+                batch = (batch * 2).min(MAX_WARM_BATCH);
+            }
+        }
+        Self::busy();
+        Ok(frames)
     }
 }
 
@@ -274,11 +360,25 @@ impl Technique for FrameTechnique {
         else {
             unreachable!("prepared and targets checked above");
         };
+        // Whether the device has cooled, asked before the G-buffer's work.
+        let cooled = Warmth::cooled();
         // The G-buffer, untimed: the engine has its own.
         let mut encoder = self.ctx.device.create_command_encoder(&Default::default());
         self.raster
             .encode(&mut encoder, uploaded, &frame.view, &t.gbuffer)?;
         submit_and_wait(&self.ctx, encoder)?;
+        let inputs = FrameInputs {
+            gbuffer: &t.gbuffer,
+            view: &frame.view,
+            lights: frame.lights,
+        };
+        // The device's working clocks, as an engine that keeps it busy finds them.
+        Warmth::before_timing(
+            self.span.is_some() && cooled,
+            &self.ctx.device,
+            |encoder| method.encode(encoder, &inputs, &t.target),
+            |encoder| submit_and_wait(&self.ctx, encoder),
+        )?;
         // The method's frame, timed.
         let readbacks = self.ctx.readbacks();
         let t0 = Instant::now();
@@ -286,11 +386,6 @@ impl Technique for FrameTechnique {
         if let Some(span) = &self.span {
             span.mark(&mut encoder, false);
         }
-        let inputs = FrameInputs {
-            gbuffer: &t.gbuffer,
-            view: &frame.view,
-            lights: frame.lights,
-        };
         let (recorded, created) = ObjectCounts::during(&self.ctx.device, || {
             method.encode(&mut encoder, &inputs, &t.target)
         });
@@ -300,6 +395,7 @@ impl Technique for FrameTechnique {
         }
         submit_and_wait(&self.ctx, encoder)?;
         let wall = t0.elapsed().as_secs_f64();
+        Warmth::busy();
         let read = self.ctx.readbacks() - readbacks;
         self.timed_readbacks += read;
         self.timed_frames += 1;
@@ -398,6 +494,63 @@ mod tests {
         let mut moved = c.clone();
         moved.position += glam::Vec3::new(0.05, 0.02, 0.0);
         [c, moved]
+    }
+
+    /// The warm-up's rule: a device never busy, or idle for longer than [`COOLS_AFTER`], has
+    /// cooled; one busy a moment ago has not; no warm-up runs unless needed, and a frame that
+    /// fails ends it with its error.
+    #[test]
+    fn a_device_idle_for_a_second_is_warmed_before_timing() {
+        let now = Instant::now();
+        assert!(Warmth::cooled_since(None, now));
+        assert!(!Warmth::cooled_since(Some(now), now));
+        let earlier = now.checked_sub(COOLS_AFTER + Duration::from_millis(10));
+        assert!(earlier.is_none() || Warmth::cooled_since(earlier, now));
+        let recent = now.checked_sub(COOLS_AFTER / 2);
+        assert!(recent.is_none() || !Warmth::cooled_since(recent, now));
+        let Some(ctx) = gpu_test_context() else {
+            return;
+        };
+        let device = &ctx.device;
+        let never = |_: wgpu::CommandEncoder| -> Result<(), &str> { Err("submitted") };
+        assert_eq!(
+            Warmth::before_timing(false, device, |_| Err("recorded"), never),
+            Ok(0)
+        );
+        assert_eq!(
+            Warmth::before_timing(true, device, |_| Err("lost"), never),
+            Err("lost")
+        );
+        // A warm-up that runs: frames recorded into growing submissions for WARM_UP.
+        let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("warm-up test"),
+            size: 1 << 16,
+            usage: wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let (mut recorded, mut submissions) = (0_u32, 0_u32);
+        let t0 = Instant::now();
+        let frames = Warmth::before_timing(
+            true,
+            device,
+            |encoder| {
+                encoder.clear_buffer(&buffer, 0, None);
+                recorded += 1;
+                Ok::<(), String>(())
+            },
+            |encoder| {
+                submissions += 1;
+                submit_and_wait(&ctx, encoder).map_err(|e| e.to_string())
+            },
+        )
+        .unwrap();
+        assert!(t0.elapsed() >= WARM_UP);
+        assert_eq!(frames, recorded);
+        assert!(
+            submissions < frames,
+            "{frames} frames in {submissions} submissions: the batches did not grow"
+        );
+        assert!(!Warmth::cooled(), "a warm-up leaves the device warm");
     }
 
     /// Every method's frame, hosted as the main job hosts it with `--gpu`: a time measured
