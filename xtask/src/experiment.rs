@@ -392,13 +392,30 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
     }
 }
 
+/// The light-space senders of the `isr-ls-N` techniques (about this many; issue 50).
+const LIGHT_SENDERS: u32 = 4096;
+
+fn isr_ls_choice(samples: u32) -> TechniqueChoice {
+    TechniqueChoice {
+        label: format!("isr-ls-{samples}"),
+        family: "isr".into(),
+        kind: ChoiceKind::Isr(IsrSettings::with_light_senders(samples, LIGHT_SENDERS)),
+        description: format!(
+            "{samples} samples and about {LIGHT_SENDERS} light-space senders (reflective shadow \
+             maps, each surface counted once, k_isr 1; CPU only), CPU rasteriser G-buffer"
+        ),
+    }
+}
+
 /// Parses a technique list: `dl`, `isr` (both modes at 24, 48 and 80 samples), `isr-default`,
-/// `isr-thesis`, `isr-N`, `isr-thesis-N`, `relight` (256 and 1024 elements), `relight-N`,
+/// `isr-thesis`, `isr-N`, `isr-thesis-N`, `isr-ls` and `isr-ls-N` (with light-space
+/// senders), `relight` (256 and 1024 elements), `relight-N`,
 /// `ibrr` (LDC 128 with 64 IRPLs, LDC 256 with 184), `ibrr-RES-N`, `ibrr-RES-N-cam` (with
 /// camera importance). `dl` (the baseline) is
 /// added first when missing.
 pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
-    let known = "dl, isr, isr-default, isr-thesis, isr-N, isr-thesis-N (N in 1..=256), \
+    let known = "dl, isr, isr-default, isr-thesis, isr-N, isr-thesis-N, isr-ls, isr-ls-N (N in \
+                 1..=256), \
                  relight, relight-N (N elements, 16..=1000000), ibrr, ibrr-RES-N (LDC RES in \
                  8..=2048, N IRPLs in 1..=100000), ibrr-RES-N-cam (camera importance)";
     let mut out: Vec<TechniqueChoice> = Vec::new();
@@ -418,6 +435,7 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
             }
             "isr-default" => add.extend(SAMPLES.map(|n| isr_choice(false, n))),
             "isr-thesis" => add.extend(SAMPLES.map(|n| isr_choice(true, n))),
+            "isr-ls" => add.extend(SAMPLES.map(isr_ls_choice)),
             "relight" => add.extend(RELIGHT_ELEMENTS.map(relight_choice)),
             "ibrr" => add.extend(IBRR_SETTINGS.map(|(r, n)| ibrr_choice(r, n, false))),
             _ if t.starts_with("relight-") => {
@@ -444,10 +462,12 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                 add.push(ibrr_choice(r, n, cam));
             }
             _ => {
-                let (thesis, n) = if let Some(n) = t.strip_prefix("isr-thesis-") {
-                    (true, n)
+                let (mode, n) = if let Some(n) = t.strip_prefix("isr-thesis-") {
+                    (Some(true), n)
+                } else if let Some(n) = t.strip_prefix("isr-ls-") {
+                    (None, n)
                 } else if let Some(n) = t.strip_prefix("isr-") {
-                    (false, n)
+                    (Some(false), n)
                 } else {
                     return Err(format!("unknown technique '{token}' (known: {known})"));
                 };
@@ -456,7 +476,10 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                     .ok()
                     .filter(|n| (1..=256).contains(n))
                     .ok_or_else(|| format!("unknown technique '{token}' (known: {known})"))?;
-                add.push(isr_choice(thesis, n));
+                add.push(match mode {
+                    Some(thesis) => isr_choice(thesis, n),
+                    None => isr_ls_choice(n),
+                });
             }
         }
         for c in add {

@@ -121,7 +121,8 @@ struct ExperimentArgs {
     #[arg(long = "scene")]
     scenes: Vec<String>,
     /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
-    /// isr-N, isr-thesis-N, relight (256 and 1024 elements), relight-N, ibrr (LDC 128
+    /// isr-N, isr-thesis-N, isr-ls-N (with light-space senders, CPU only), relight (256 and
+    /// 1024 elements), relight-N, ibrr (LDC 128
     /// with 64 IRPLs and LDC 256 with 184), ibrr-RES-N, ibrr-RES-N-cam (camera importance); comma-separated.
     /// Default: the preset's.
     #[arg(long)]

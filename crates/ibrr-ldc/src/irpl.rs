@@ -28,7 +28,7 @@
 use glam::{Vec2, Vec3};
 use scene_core::Scene;
 use scene_core::lights::{Emitters, LightId, LightState};
-use scene_core::ray::{Hit, RayScene};
+use scene_core::ray::RayScene;
 use scene_core::sampling::{
     Rng, cosine_hemisphere, halton, hash_seed, sobol_1d, sobol_2d, uniform_sphere, uniform_triangle,
 };
@@ -168,60 +168,8 @@ enum Start {
     },
 }
 
-/// Surface properties where a ray hit.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Surface {
-    pub p: Vec3,
-    /// Geometric normal facing the incoming ray.
-    pub ng: Vec3,
-    /// Shading normal on the same side.
-    pub ns: Vec3,
-    pub albedo: Vec3,
-}
-
-/// The surface at `hit` of a ray travelling along `d`.
-pub(crate) fn surface_at(
-    scene: &Scene,
-    offsets: &[u32],
-    hit: &Hit,
-    o: Vec3,
-    d: Vec3,
-) -> Option<Surface> {
-    let r = scene.triangle_ref(offsets, hit.triangle)?;
-    let mesh = &scene.meshes[r.mesh as usize];
-    let tri = mesh.indices[r.local as usize];
-    let b = [
-        1.0 - hit.barycentric.x - hit.barycentric.y,
-        hit.barycentric.x,
-        hit.barycentric.y,
-    ];
-    let pos = tri.map(|i| mesh.positions[i as usize]);
-    let mut ng = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
-    if ng == Vec3::ZERO {
-        return None;
-    }
-    if ng.dot(d) > 0.0 {
-        ng = -ng;
-    }
-    let ns = scene_core::view::shading_normal(
-        ng,
-        (0..3)
-            .map(|k| mesh.normals.get(tri[k] as usize).copied().unwrap_or(ng) * b[k])
-            .sum::<Vec3>(),
-    );
-    let uv = mesh
-        .uvs
-        .as_ref()
-        .map(|uvs| (0..3).map(|k| uvs[tri[k] as usize] * b[k]).sum::<Vec2>());
-    let albedo = scene.albedo_at(mesh.material_ids[r.local as usize], uv)
-        * mesh.color_at(r.local as usize, b);
-    Some(Surface {
-        p: o + d * hit.t,
-        ng,
-        ns,
-        albedo,
-    })
-}
+/// The surface a walk hit: scene-core's.
+pub(crate) use scene_core::ray::surface_at;
 
 /// Settings of the particle walks.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -6,6 +6,7 @@ use glam::{Vec3, Vec4};
 use scene_core::{GBuffer, Image, View};
 
 use crate::geometry::Screen;
+use crate::light_senders::LightSenders;
 use crate::light_set::LightSet;
 use crate::settings::{IsrSettings, Sender};
 use crate::{IsrError, blur, lighting, radiosity, upsample};
@@ -132,7 +133,29 @@ pub fn render_cpu(
     inputs: &IsrInputs<'_>,
     settings: &IsrSettings,
 ) -> Result<Frame, IsrError> {
+    render_cpu_with(scene, inputs, settings, None)
+}
+
+/// [`render_cpu`] with light-space senders ([`LightSenders`], made from the same light set
+/// and the scene): their one bounce is added to the ISR pass' output before the blur, each
+/// surface counted once (its time is in [`PassTimings::radiosity`]). Errors when
+/// `settings.light_senders` asks for them and none are given.
+pub fn render_cpu_with(
+    scene: &LightSet,
+    inputs: &IsrInputs<'_>,
+    settings: &IsrSettings,
+    light_senders: Option<&LightSenders>,
+) -> Result<Frame, IsrError> {
     settings.validate(scene.extent)?;
+    if settings.light_senders > 0 && light_senders.is_none() {
+        return Err(IsrError::InvalidSetting {
+            name: "light_senders",
+            value: settings.light_senders.to_string(),
+            reason: "no light-space senders were given: make them with LightSenders::new and \
+                     render with render_cpu_with"
+                .into(),
+        });
+    }
     check_gbuffer("full", inputs.full)?;
     check_gbuffer("coarse", inputs.coarse)?;
     let screen = Screen::new(inputs.view);
@@ -157,6 +180,11 @@ pub fn render_cpu(
         let senders = (!frame.senders.is_empty()).then_some(frame.senders.as_slice());
         let radius = settings.radius.world(scene.extent);
         frame.radiosity = radiosity::radiosity(&screen, coarse, senders, settings, radius);
+        if let Some(light) =
+            light_senders.filter(|_| settings.indirect && settings.light_senders > 0)
+        {
+            light.add_to(&mut frame.radiosity, inputs.view, coarse, scene, radius);
+        }
         t.radiosity = start.elapsed();
         let start = Instant::now();
         frame.blurred = blur::blur(&screen, coarse, &frame.radiosity, settings);

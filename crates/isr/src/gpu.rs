@@ -743,6 +743,13 @@ impl GpuIsr {
         output: &wgpu::Texture,
     ) -> Result<(), IsrError> {
         settings.validate(self.extent)?;
+        if settings.light_senders > 0 {
+            return Err(IsrError::InvalidSetting {
+                name: "light_senders",
+                value: settings.light_senders.to_string(),
+                reason: "light-space senders run on the CPU only so far".into(),
+            });
+        }
         let full = inputs.full;
         self.check_output(output, full)?;
         let full_size = (full.width, full.height);

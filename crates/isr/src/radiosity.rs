@@ -103,6 +103,60 @@ pub fn radiosity(
         .collect()
 }
 
+/// A coarse pixel as a receiver of the pass: its surface and the screen-space disk its
+/// samples fall in.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Receiver {
+    /// World position.
+    pub p: Vec3,
+    /// Unit normal (towards the viewer where the G-buffer has none).
+    pub n: Vec3,
+    /// Reflectance: albedo times the radiation mask.
+    pub rho: Vec3,
+    /// The disk's radius on the image plane (tangent units or metres, as `Screen::span_u`).
+    pub rp: f32,
+    /// The disk's radii in pixels.
+    pub radius_px: Vec2,
+    /// The pixel's centre in pixels.
+    pub centre: Vec2,
+}
+
+impl Receiver {
+    /// Coarse pixel `(x, y)` of `g` with a world-space sample radius `radius`; `None` on
+    /// the background or without a usable depth.
+    pub(crate) fn at(screen: &Screen, g: &GBuffer, radius: f32, x: u32, y: u32) -> Option<Self> {
+        let (w, h) = (g.width, g.height);
+        let i = (y * w + x) as usize;
+        if g.is_background(i) {
+            return None;
+        }
+        let uv = pixel_uv(x, y, w, h);
+        let z0 = g.depth[i];
+        if z0.is_nan() || z0 <= 0.0 {
+            return None;
+        }
+        // A disk wider than twice the image reaches every pixel from anywhere: clamp there.
+        let rp = screen
+            .plane_radius(z0, radius)
+            .min(2.0 * screen.span_u.max(screen.span_v));
+        Some(Self {
+            p: screen.world(uv, z0),
+            n: normal_or_viewer(g.normal[i], screen, uv),
+            rho: g.albedo[i].truncate() * g.albedo[i].w,
+            rp,
+            radius_px: Vec2::new(rp / screen.span_u * w as f32, rp / screen.span_v * h as f32),
+            centre: Vec2::new(x as f32 + 0.5, y as f32 + 0.5),
+        })
+    }
+
+    /// Whether the screen-space samples can land on pixel `(sx, sy)`: its centre lies in
+    /// the disk.
+    pub(crate) fn disk_holds(&self, sx: u32, sy: u32) -> bool {
+        let d = (Vec2::new(sx as f32 + 0.5, sy as f32 + 0.5) - self.centre) / self.radius_px;
+        d.length_squared() <= 1.0
+    }
+}
+
 /// One coarse pixel of the pass: eq. 25 (indirect light, with eq. 6's form factor or the
 /// disk form factor) and eq. 26 (spherical-occluder AO, eq. 14 per sample) over the
 /// pattern's samples.
@@ -119,26 +173,20 @@ fn gather(
 ) -> Vec4 {
     let (w, h) = (g.width, g.height);
     let i = (y * w + x) as usize;
-    if g.is_background(i) {
+    let Some(Receiver {
+        p: p0,
+        n: n0,
+        rho,
+        rp,
+        radius_px,
+        centre,
+    }) = Receiver::at(screen, g, radius, x, y)
+    else {
         return Vec4::new(0.0, 0.0, 0.0, 1.0);
-    }
-    let uv = pixel_uv(x, y, w, h);
-    let z0 = g.depth[i];
-    if z0.is_nan() || z0 <= 0.0 {
-        return Vec4::new(0.0, 0.0, 0.0, 1.0);
-    }
-    let p0 = screen.world(uv, z0);
-    let n0 = normal_or_viewer(g.normal[i], screen, uv);
-    let rho = g.albedo[i].truncate() * g.albedo[i].w;
+    };
     let n = settings.samples as f32;
-    // A disk wider than twice the image reaches every pixel from anywhere: clamp there.
-    let rp = screen
-        .plane_radius(z0, radius)
-        .min(2.0 * screen.span_u.max(screen.span_v));
-    let radius_px = Vec2::new(rp / screen.span_u * w as f32, rp / screen.span_v * h as f32);
     let disk_share = PI * rp * rp / n;
     let rot = pattern.rotations[((y % 4) * 4 + x % 4) as usize];
-    let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
     let thesis = settings.estimator == Estimator::Thesis;
     let mut gi = Vec3::ZERO;
     let mut occlusion = 0.0f32;

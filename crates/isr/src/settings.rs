@@ -124,6 +124,12 @@ pub struct IsrSettings {
     /// silhouettes, averaged inside surfaces; the thesis averages every sample
     /// ([`DownsampleMode::Average`]), which invents surfaces at silhouettes.
     pub downsample: DownsampleMode,
+    /// About this many light-space senders ([`crate::light_senders`], reflective shadow
+    /// maps: the surfaces each light reaches first, so that lit surfaces off screen send
+    /// their bounce too); 0 (the default) for screen-space senders alone. With them, `k_isr`
+    /// 1 is the unscaled estimate ([`IsrSettings::with_light_senders`]). CPU only for now:
+    /// the GPU refuses a setting above 0.
+    pub light_senders: u32,
 }
 
 impl Default for IsrSettings {
@@ -145,6 +151,7 @@ impl Default for IsrSettings {
             k_isr: 4.0,
             ao_indirect_only: false,
             downsample: DownsampleMode::NearestSurface,
+            light_senders: 0,
         }
     }
 }
@@ -169,6 +176,18 @@ impl IsrSettings {
             k_ssao: 0.5,
             k_isr: 0.5,
             radius: Radius::Relative(0.25),
+            ..Self::default()
+        }
+    }
+
+    /// `samples` screen-space samples and about `light_senders` light-space senders, each
+    /// surface counted once and nothing scaled (`k_isr` 1): the estimate the two sender
+    /// sets make together.
+    pub fn with_light_senders(samples: u32, light_senders: u32) -> Self {
+        Self {
+            samples,
+            k_isr: 1.0,
+            light_senders,
             ..Self::default()
         }
     }
@@ -242,6 +261,13 @@ impl IsrSettings {
                 "radius",
                 format!("{:?}", self.radius),
                 "must give a positive finite world radius",
+            );
+        }
+        if self.light_senders > crate::light_senders::MAX_LIGHT_SENDERS {
+            return bad(
+                "light_senders",
+                self.light_senders.to_string(),
+                "at most 65536",
             );
         }
         if self.blur_radius > MAX_BLUR_RADIUS {

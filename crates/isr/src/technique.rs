@@ -6,7 +6,8 @@ use std::sync::Arc;
 
 use scene_core::{Error, FrameRequest, GBufferRenderer, Image, Scene, Technique, ViewTarget};
 
-use crate::frame::{IsrInputs, PassTimings, render_cpu, timed};
+use crate::frame::{IsrInputs, PassTimings, render_cpu_with, timed};
+use crate::light_senders::LightSenders;
 use crate::light_set::LightSet;
 use crate::settings::{IsrSettings, ShadowSettings};
 use scene_core::gbuffer::downsample;
@@ -37,6 +38,7 @@ pub struct IsrTechnique {
     backend: Backend,
     gpu: Option<crate::GpuIsr>,
     prepared: Option<(Arc<Scene>, LightSet)>,
+    light_senders: Option<LightSenders>,
     timings: PassTimings,
 }
 
@@ -68,6 +70,7 @@ impl IsrTechnique {
             backend: Backend::Cpu,
             gpu: None,
             prepared: None,
+            light_senders: None,
             timings: PassTimings::default(),
         }
     }
@@ -115,6 +118,15 @@ impl Technique for IsrTechnique {
         scene_core::contract::check(&scene)?;
         self.renderer.prepare(scene.clone())?;
         let lights = LightSet::new(&scene, &self.shadows).map_err(crate::IsrError::from)?;
+        self.light_senders = if self.settings.light_senders > 0 {
+            Some(LightSenders::new(
+                &scene,
+                &lights,
+                self.settings.light_senders,
+            )?)
+        } else {
+            None
+        };
         self.prepared = Some((scene, lights));
         Ok(())
     }
@@ -144,7 +156,8 @@ impl Technique for IsrTechnique {
                     coarse: &coarse,
                     view: &frame.view,
                 };
-                let out = render_cpu(lights, &inputs, &self.settings)?;
+                let out =
+                    render_cpu_with(lights, &inputs, &self.settings, self.light_senders.as_ref())?;
                 self.timings = out.timings;
                 self.timings.downsample = t_down;
                 Ok(out.image)

@@ -23,6 +23,64 @@ pub struct Hit {
     pub barycentric: Vec2,
 }
 
+/// The surface a ray hit, as diffuse transport needs it ([`surface_at`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePoint {
+    /// Where the ray hit.
+    pub p: Vec3,
+    /// Unit geometric normal, on the side the ray came from.
+    pub ng: Vec3,
+    /// Unit shading normal on the same side ([`crate::view::shading_normal`]).
+    pub ns: Vec3,
+    /// Diffuse albedo there: the material's (texture included) times the vertex colour.
+    pub albedo: Vec3,
+}
+
+/// The surface at `hit` of a ray from `o` travelling along the unit `d` (`offsets`:
+/// [`Scene::mesh_offsets`]); `None` for an id outside the scene or a degenerate triangle.
+pub fn surface_at(
+    scene: &Scene,
+    offsets: &[u32],
+    hit: &Hit,
+    o: Vec3,
+    d: Vec3,
+) -> Option<SurfacePoint> {
+    let r = scene.triangle_ref(offsets, hit.triangle)?;
+    let mesh = &scene.meshes[r.mesh as usize];
+    let tri = mesh.indices[r.local as usize];
+    let b = [
+        1.0 - hit.barycentric.x - hit.barycentric.y,
+        hit.barycentric.x,
+        hit.barycentric.y,
+    ];
+    let pos = tri.map(|i| mesh.positions[i as usize]);
+    let mut ng = (pos[1] - pos[0]).cross(pos[2] - pos[0]).normalize_or_zero();
+    if ng == Vec3::ZERO {
+        return None;
+    }
+    if ng.dot(d) > 0.0 {
+        ng = -ng;
+    }
+    let ns = crate::view::shading_normal(
+        ng,
+        (0..3)
+            .map(|k| mesh.normals.get(tri[k] as usize).copied().unwrap_or(ng) * b[k])
+            .sum::<Vec3>(),
+    );
+    let uv = mesh
+        .uvs
+        .as_ref()
+        .map(|uvs| (0..3).map(|k| uvs[tri[k] as usize] * b[k]).sum::<Vec2>());
+    let albedo = scene.albedo_at(mesh.material_ids[r.local as usize], uv)
+        * mesh.color_at(r.local as usize, b);
+    Some(SurfacePoint {
+        p: o + d * hit.t,
+        ng,
+        ns,
+        albedo,
+    })
+}
+
 /// A ray for batched queries.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RayQuery {

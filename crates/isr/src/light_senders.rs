@@ -1,0 +1,316 @@
+//! Light-space senders (issue 50): the surfaces each light reaches first, seen from the
+//! light, so that directly lit surfaces off screen, behind the camera or outside a pixel's
+//! screen-space disk send their one bounce too. They are reflective shadow maps (Dachsbacher
+//! and Stamminger 2005, "Reflective shadow maps"): one ray per texel of a map placed as the
+//! light's shadow map is (an orthographic square over the scene for a directional light, a
+//! cube around a point light or an emitter sample), its first hit keeping position, normal
+//! and reflected power.
+//!
+//! **A sender.** A texel whose ray leaves the light with a perpendicular footprint
+//! `A_perp` (orthographic: the texel's area; cube: `t^2 dw`, `dw` the texel's solid angle
+//! `(2/res)^2 / |d|^3` for the unnormalised face direction `d`) lands on a surface of albedo
+//! `rho` at angle `theta` to its normal. The surface patch it stands for has area
+//! `A = A_perp / cos(theta)` and receives the light's unshadowed irradiance `E` (the light
+//! set's own light model: [`Light::irradiance`]); it reflects the power `rho E A`
+//! (`cos(theta)` cancels: `rho E_perp A_perp`), a Lambertian disk of radiance
+//! `L = rho E / pi`.
+//!
+//! **Gathering** (the screen-space senders' disk form factor, eq. 25 in its `Patch` form,
+//! [`crate::Estimator::Patch`]): a receiver at `P` with normal `n_P` gets
+//! `rho_P sum_s L_s cos_P cos_s A_s / (pi r^2 + A_s)` from the senders in front of it and
+//! facing it, times each sender's light's frame factor ([`Light::indirect`]). As for the
+//! screen-space senders there is no visibility test between sender and receiver.
+//!
+//! **Counted once.** A surface the camera sees inside the receiver's screen-space disk is
+//! already a screen-space sender of that receiver, so a light-space sender is skipped for
+//! that receiver when it is visible in the coarse G-buffer (its depth within 2 % of the
+//! pixel's, normals within 60 degrees) and its pixel's centre lies in the receiver's disk
+//! (`radiosity::Receiver::disk_holds`). Everything else (off screen, hidden, outside the
+//! disk) comes from the light-space senders alone.
+
+use std::f32::consts::PI;
+
+use glam::{Vec2, Vec3, Vec4};
+use rayon::prelude::*;
+use scene_core::ray::{RayScene, surface_at};
+use scene_core::{GBuffer, Scene, View};
+
+use crate::IsrError;
+use crate::geometry::Screen;
+use crate::light_set::esm::cube_direction;
+use crate::light_set::{LightKind, LightSet};
+use crate::radiosity::Receiver;
+
+/// The most light-space senders a light set may be asked for.
+pub const MAX_LIGHT_SENDERS: u32 = 1 << 16;
+
+/// One light-space sender: a surface patch a light reaches first.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSender {
+    /// Where the light's ray hit.
+    pub position: Vec3,
+    /// Unit shading normal on the lit side.
+    pub normal: Vec3,
+    /// Reflected power `rho E A` before the frame's factor on its light.
+    pub power: Vec3,
+    /// The patch's area `A`.
+    pub area: f32,
+    /// Index of its light in [`LightSet::lights`].
+    pub light: u32,
+}
+
+/// The light-space senders of a scene's lights (module docs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightSenders {
+    /// Every sender, light by light, texel by texel.
+    pub senders: Vec<LightSender>,
+    /// Texels per side of each light's map (per face for cubes), by light.
+    pub resolutions: Vec<u32>,
+    /// Leave out, per receiver, the senders its screen-space samples already see (true,
+    /// the default). False counts those surfaces twice: for tests and measurements only.
+    pub once: bool,
+}
+
+impl Default for LightSenders {
+    fn default() -> Self {
+        Self {
+            senders: Vec::new(),
+            resolutions: Vec::new(),
+            once: true,
+        }
+    }
+}
+
+impl LightSenders {
+    /// About `budget` senders over `lights`' lights (each light a share of texels in
+    /// proportion to the power it sends into the scene, at least 2x2 per map or face),
+    /// traced against `scene` (the scene the light set was made from). Rays that leave the scene, and hits on degenerate triangles, make no
+    /// sender.
+    ///
+    /// Errors when `budget` is above [`MAX_LIGHT_SENDERS`].
+    pub fn new(scene: &Scene, lights: &LightSet, budget: u32) -> Result<Self, IsrError> {
+        if budget > MAX_LIGHT_SENDERS {
+            return Err(IsrError::InvalidSetting {
+                name: "light_senders",
+                value: budget.to_string(),
+                reason: format!("at most {MAX_LIGHT_SENDERS}"),
+            });
+        }
+        if budget == 0 || lights.lights.is_empty() || scene.triangle_count() == 0 {
+            return Ok(Self::default());
+        }
+        let rays = RayScene::build(scene);
+        let offsets = scene.mesh_offsets();
+        let center = lights.bounds.center();
+        // Half the bounds' diagonal: a square of twice this side covers the scene from any
+        // direction.
+        let reach = (0.5 * (lights.bounds.max - lights.bounds.min).length()).max(1e-6);
+        // Each light's share of the budget follows the power it sends into the scene.
+        let power: Vec<f64> = lights
+            .lights
+            .iter()
+            .map(|l| {
+                let c = f64::from(l.color.element_sum().max(0.0));
+                match l.kind {
+                    LightKind::Directional => c * f64::from(2.0 * reach).powi(2),
+                    LightKind::Point => c * 4.0 * std::f64::consts::PI,
+                    LightKind::EmitterSample => c * std::f64::consts::PI * f64::from(l.area),
+                }
+            })
+            .collect();
+        let total: f64 = power.iter().sum();
+        let eps = 1e-4 * lights.extent;
+        let mut senders = Vec::new();
+        let mut resolutions = Vec::with_capacity(lights.lights.len());
+        for (index, light) in lights.lights.iter().enumerate() {
+            let faces = if light.kind == LightKind::Directional {
+                1.0
+            } else {
+                6.0
+            };
+            let share = if total > 0.0 && total.is_finite() {
+                power[index] / total
+            } else {
+                1.0 / lights.lights.len() as f64
+            };
+            let res = ((f64::from(budget) * share / faces).sqrt().floor() as u32).max(2);
+            resolutions.push(res);
+            let texels: Vec<(Vec3, Vec3, f32)> = match light.kind {
+                LightKind::Directional => {
+                    let d = light.direction;
+                    let right = d.any_orthonormal_vector();
+                    let up = d.cross(right);
+                    let side = 2.0 * reach / res as f32;
+                    (0..res * res)
+                        .map(|k| {
+                            let (x, y) = (k % res, k / res);
+                            let sx = -reach + side * (x as f32 + 0.5);
+                            let sy = -reach + side * (y as f32 + 0.5);
+                            (
+                                center - d * (2.0 * reach) + right * sx + up * sy,
+                                d,
+                                side * side,
+                            )
+                        })
+                        .collect()
+                }
+                LightKind::Point | LightKind::EmitterSample => {
+                    let texel = 2.0 / res as f32;
+                    (0..6 * res * res)
+                        .filter_map(|k| {
+                            let face = (k / (res * res)) as usize;
+                            let (x, y) = (k % res, (k / res) % res);
+                            let uv = Vec2::new(
+                                (x as f32 + 0.5) / res as f32,
+                                (y as f32 + 0.5) / res as f32,
+                            );
+                            let raw = cube_direction(face, uv);
+                            let len = raw.length();
+                            let d = raw / len;
+                            let mut o = light.position;
+                            if light.kind == LightKind::EmitterSample {
+                                // One-sided: only the emitting side, leaving from just above it.
+                                if d.dot(light.direction) <= 0.0 {
+                                    return None;
+                                }
+                                o += light.direction * eps;
+                            }
+                            // The solid angle: A_perp = t^2 dw once the hit is known.
+                            Some((o, d, texel * texel / (len * len * len)))
+                        })
+                        .collect()
+                }
+            };
+            let hits: Vec<LightSender> = texels
+                .par_iter()
+                .filter_map(|&(o, d, footprint)| {
+                    let hit = rays.closest_hit(o, d, 0.0, f32::INFINITY)?;
+                    let s = surface_at(scene, &offsets, &hit, o, d)?;
+                    let cos = s.ns.dot(-d).max(s.ng.dot(-d)).max(1e-2);
+                    let a_perp = if light.kind == LightKind::Directional {
+                        footprint
+                    } else {
+                        hit.t * hit.t * footprint
+                    };
+                    let area = a_perp / cos;
+                    let power = s.albedo * light.irradiance(s.p, s.ns) * area;
+                    (power.max_element() > 0.0 && power.is_finite() && area.is_finite()).then_some(
+                        LightSender {
+                            position: s.p,
+                            normal: s.ns,
+                            power,
+                            area,
+                            light: index as u32,
+                        },
+                    )
+                })
+                .collect();
+            senders.extend(hits);
+        }
+        Ok(Self {
+            senders,
+            resolutions,
+            once: true,
+        })
+    }
+
+    /// Whether there is no sender.
+    pub fn is_empty(&self) -> bool {
+        self.senders.is_empty()
+    }
+
+    /// The one-bounce radiance the senders give each pixel of the coarse buffer `coarse`
+    /// seen through `view` (module docs), with the frame factors of `lights` (the set the
+    /// senders were made from) and the screen-space disk of world radius `radius`; `once`
+    /// leaves out, per receiver, the senders its screen-space samples already see.
+    pub fn gather(
+        &self,
+        view: &View,
+        coarse: &GBuffer,
+        lights: &LightSet,
+        radius: f32,
+        once: bool,
+    ) -> Vec<Vec3> {
+        let screen = Screen::new(view);
+        let (w, h) = (coarse.width, coarse.height);
+        let factors: Vec<Vec3> = lights.lights.iter().map(|l| l.indirect).collect();
+        // Per sender: its power this frame, and the coarse pixel that shows it, if any.
+        let prepared: Vec<(Vec3, Option<(u32, u32)>)> = self
+            .senders
+            .par_iter()
+            .map(|s| {
+                let power = s.power * factors.get(s.light as usize).copied().unwrap_or(Vec3::ZERO);
+                (power, once.then(|| shown_at(view, coarse, s)).flatten())
+            })
+            .collect();
+        (0..h)
+            .into_par_iter()
+            .flat_map_iter(|y| {
+                let prepared = &prepared;
+                let screen = &screen;
+                (0..w).map(move |x| {
+                    let Some(r) = Receiver::at(screen, coarse, radius, x, y) else {
+                        return Vec3::ZERO;
+                    };
+                    let mut sum = Vec3::ZERO;
+                    for (s, (power, shown)) in self.senders.iter().zip(prepared) {
+                        if shown.is_some_and(|(sx, sy)| r.disk_holds(sx, sy)) {
+                            continue;
+                        }
+                        let d = s.position - r.p;
+                        let r2 = d.length_squared();
+                        if !(r2 > 0.0 && r2.is_finite()) {
+                            continue;
+                        }
+                        let dir = d / r2.sqrt();
+                        let cos_p = r.n.dot(dir);
+                        let cos_s = -s.normal.dot(dir);
+                        if cos_p <= 0.0 || cos_s <= 0.0 {
+                            continue;
+                        }
+                        // L A cos cos / (pi r^2 + A) with L = power / (pi A).
+                        sum += *power * (cos_p * cos_s / (PI * (PI * r2 + s.area)));
+                    }
+                    r.rho * sum
+                })
+            })
+            .collect()
+    }
+
+    /// [`LightSenders::gather`] added to the ISR pass' output `radiosity` (indirect in
+    /// `rgb`), counting each surface once unless [`LightSenders::once`] is off.
+    pub fn add_to(
+        &self,
+        radiosity: &mut [Vec4],
+        view: &View,
+        coarse: &GBuffer,
+        lights: &LightSet,
+        radius: f32,
+    ) {
+        let light = self.gather(view, coarse, lights, radius, self.once);
+        for (r, l) in radiosity.iter_mut().zip(light) {
+            *r += l.extend(0.0);
+        }
+    }
+}
+
+/// The coarse pixel of `g` seen through `view` that shows sender `s`, if it is visible there:
+/// the pixel is not background, its depth is within 2 % of the sender's and its normal
+/// within 60 degrees of the sender's.
+fn shown_at(view: &View, g: &GBuffer, s: &LightSender) -> Option<(u32, u32)> {
+    let uv = view.project_uv(s.position)?;
+    if !(uv.x >= 0.0 && uv.y >= 0.0 && uv.x < 1.0 && uv.y < 1.0) {
+        return None;
+    }
+    let (x, y) = (
+        ((uv.x * g.width as f32) as u32).min(g.width - 1),
+        ((uv.y * g.height as f32) as u32).min(g.height - 1),
+    );
+    let k = (y * g.width + x) as usize;
+    if g.is_background(k) {
+        return None;
+    }
+    let z = view.linear_depth(s.position);
+    let zg = g.depth[k];
+    ((z - zg).abs() <= 0.02 * zg && g.normal[k].dot(s.normal) >= 0.5).then_some((x, y))
+}
