@@ -395,14 +395,25 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
 /// The light-space senders of the `isr-ls-N` techniques (about this many; issue 50).
 const LIGHT_SENDERS: u32 = 4096;
 
-fn isr_ls_choice(samples: u32) -> TechniqueChoice {
+fn isr_ls_choice(samples: u32, shadowed: bool) -> TechniqueChoice {
+    let (suffix, how) = if shadowed {
+        (
+            "lsv",
+            ", their light shadowed by a ray per receiver and sender",
+        )
+    } else {
+        ("ls", "")
+    };
     TechniqueChoice {
-        label: format!("isr-ls-{samples}"),
+        label: format!("isr-{suffix}-{samples}"),
         family: "isr".into(),
-        kind: ChoiceKind::Isr(IsrSettings::with_light_senders(samples, LIGHT_SENDERS)),
+        kind: ChoiceKind::Isr(IsrSettings {
+            light_sender_shadows: shadowed,
+            ..IsrSettings::with_light_senders(samples, LIGHT_SENDERS)
+        }),
         description: format!(
             "{samples} samples and about {LIGHT_SENDERS} light-space senders (reflective shadow \
-             maps, each surface counted once, k_isr 1; CPU only), CPU rasteriser G-buffer"
+             maps, each surface counted once, k_isr 1; CPU only){how}, CPU rasteriser G-buffer"
         ),
     }
 }
@@ -414,8 +425,8 @@ fn isr_ls_choice(samples: u32) -> TechniqueChoice {
 /// camera importance). `dl` (the baseline) is
 /// added first when missing.
 pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
-    let known = "dl, isr, isr-default, isr-thesis, isr-N, isr-thesis-N, isr-ls, isr-ls-N (N in \
-                 1..=256), \
+    let known = "dl, isr, isr-default, isr-thesis, isr-N, isr-thesis-N, isr-ls, isr-ls-N, \
+                 isr-lsv-N (N in 1..=256), \
                  relight, relight-N (N elements, 16..=1000000), ibrr, ibrr-RES-N (LDC RES in \
                  8..=2048, N IRPLs in 1..=100000), ibrr-RES-N-cam (camera importance)";
     let mut out: Vec<TechniqueChoice> = Vec::new();
@@ -435,7 +446,7 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
             }
             "isr-default" => add.extend(SAMPLES.map(|n| isr_choice(false, n))),
             "isr-thesis" => add.extend(SAMPLES.map(|n| isr_choice(true, n))),
-            "isr-ls" => add.extend(SAMPLES.map(isr_ls_choice)),
+            "isr-ls" => add.extend(SAMPLES.map(|n| isr_ls_choice(n, false))),
             "relight" => add.extend(RELIGHT_ELEMENTS.map(relight_choice)),
             "ibrr" => add.extend(IBRR_SETTINGS.map(|(r, n)| ibrr_choice(r, n, false))),
             _ if t.starts_with("relight-") => {
@@ -463,11 +474,13 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
             }
             _ => {
                 let (mode, n) = if let Some(n) = t.strip_prefix("isr-thesis-") {
-                    (Some(true), n)
+                    ("thesis", n)
                 } else if let Some(n) = t.strip_prefix("isr-ls-") {
-                    (None, n)
+                    ("ls", n)
+                } else if let Some(n) = t.strip_prefix("isr-lsv-") {
+                    ("lsv", n)
                 } else if let Some(n) = t.strip_prefix("isr-") {
-                    (Some(false), n)
+                    ("default", n)
                 } else {
                     return Err(format!("unknown technique '{token}' (known: {known})"));
                 };
@@ -477,8 +490,9 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                     .filter(|n| (1..=256).contains(n))
                     .ok_or_else(|| format!("unknown technique '{token}' (known: {known})"))?;
                 add.push(match mode {
-                    Some(thesis) => isr_choice(thesis, n),
-                    None => isr_ls_choice(n),
+                    "ls" => isr_ls_choice(n, false),
+                    "lsv" => isr_ls_choice(n, true),
+                    m => isr_choice(m == "thesis", n),
                 });
             }
         }

@@ -183,7 +183,15 @@ pub fn render_cpu_with(
         if let Some(light) =
             light_senders.filter(|_| settings.indirect && settings.light_senders > 0)
         {
-            light.add_to(&mut frame.radiosity, inputs.view, coarse, scene, radius);
+            let shadowed = settings.light_sender_shadows;
+            light.add_to(
+                &mut frame.radiosity,
+                inputs.view,
+                coarse,
+                scene,
+                radius,
+                shadowed,
+            );
         }
         t.radiosity = start.elapsed();
         let start = Instant::now();

@@ -29,6 +29,7 @@
 //! disk) comes from the light-space senders alone.
 
 use std::f32::consts::PI;
+use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
@@ -60,7 +61,7 @@ pub struct LightSender {
 }
 
 /// The light-space senders of a scene's lights (module docs).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct LightSenders {
     /// Every sender, light by light, texel by texel.
     pub senders: Vec<LightSender>,
@@ -69,6 +70,17 @@ pub struct LightSenders {
     /// Leave out, per receiver, the senders its screen-space samples already see (true,
     /// the default). False counts those surfaces twice: for tests and measurements only.
     pub once: bool,
+    /// The scene's triangles, for [`IsrSettings::light_sender_shadows`](crate::IsrSettings::light_sender_shadows).
+    rays: Option<Arc<RayScene>>,
+}
+
+impl PartialEq for LightSenders {
+    /// The same senders, maps and counting (the ray-query tree is the scene's either way).
+    fn eq(&self, other: &Self) -> bool {
+        self.senders == other.senders
+            && self.resolutions == other.resolutions
+            && self.once == other.once
+    }
 }
 
 impl Default for LightSenders {
@@ -77,6 +89,7 @@ impl Default for LightSenders {
             senders: Vec::new(),
             resolutions: Vec::new(),
             once: true,
+            rays: None,
         }
     }
 }
@@ -211,6 +224,7 @@ impl LightSenders {
             senders,
             resolutions,
             once: true,
+            rays: Some(Arc::new(rays)),
         })
     }
 
@@ -222,7 +236,10 @@ impl LightSenders {
     /// The one-bounce radiance the senders give each pixel of the coarse buffer `coarse`
     /// seen through `view` (module docs), with the frame factors of `lights` (the set the
     /// senders were made from) and the screen-space disk of world radius `radius`; `once`
-    /// leaves out, per receiver, the senders its screen-space samples already see.
+    /// leaves out, per receiver, the senders its screen-space samples already see;
+    /// `shadowed` casts one occlusion ray from each receiver to each sender it would count
+    /// (a measurement of what the missing visibility costs: its time grows with pixels
+    /// times senders).
     pub fn gather(
         &self,
         view: &View,
@@ -230,7 +247,11 @@ impl LightSenders {
         lights: &LightSet,
         radius: f32,
         once: bool,
+        shadowed: bool,
     ) -> Vec<Vec3> {
+        let rays = self.rays.as_deref().filter(|_| shadowed);
+        // Off the receiver's surface, past the coarse depth's error.
+        let eps = 1e-3 * lights.extent;
         let screen = Screen::new(view);
         let (w, h) = (coarse.width, coarse.height);
         let factors: Vec<Vec3> = lights.lights.iter().map(|l| l.indirect).collect();
@@ -268,6 +289,12 @@ impl LightSenders {
                         if cos_p <= 0.0 || cos_s <= 0.0 {
                             continue;
                         }
+                        let r_len = r2.sqrt();
+                        if rays.is_some_and(|rays| {
+                            rays.occluded(r.p + r.n * eps, dir, 0.0, r_len - 2.0 * eps)
+                        }) {
+                            continue;
+                        }
                         // L A cos cos / (pi r^2 + A) with L = power / (pi A).
                         sum += *power * (cos_p * cos_s / (PI * (PI * r2 + s.area)));
                     }
@@ -286,8 +313,9 @@ impl LightSenders {
         coarse: &GBuffer,
         lights: &LightSet,
         radius: f32,
+        shadowed: bool,
     ) {
-        let light = self.gather(view, coarse, lights, radius, self.once);
+        let light = self.gather(view, coarse, lights, radius, self.once, shadowed);
         for (r, l) in radiosity.iter_mut().zip(light) {
             *r += l.extend(0.0);
         }

@@ -130,6 +130,10 @@ pub struct IsrSettings {
     /// 1 is the unscaled estimate ([`IsrSettings::with_light_senders`]). CPU only for now:
     /// the GPU refuses a setting above 0.
     pub light_senders: u32,
+    /// Shadow the light-space senders' light: one occlusion ray per receiver and sender
+    /// (off by default; a measurement of the leaks the missing visibility lets through,
+    /// not a real-time setting).
+    pub light_sender_shadows: bool,
 }
 
 impl Default for IsrSettings {
@@ -152,6 +156,7 @@ impl Default for IsrSettings {
             ao_indirect_only: false,
             downsample: DownsampleMode::NearestSurface,
             light_senders: 0,
+            light_sender_shadows: false,
         }
     }
 }
