@@ -11,15 +11,18 @@
 //! `(2/res)^2 / |d|^3` for the unnormalised face direction `d`) lands on a surface of albedo
 //! `rho` at angle `theta` to its normal. The surface patch it stands for has area
 //! `A = A_perp / cos(theta)` and receives the light's unshadowed irradiance `E` (the light
-//! set's own light model: [`Light::irradiance`]); it reflects the power `rho E A`
-//! (`cos(theta)` cancels: `rho E_perp A_perp`), a Lambertian disk of radiance
-//! `L = rho E / pi`.
+//! set's own light model: [`Light::irradiance`](crate::Light::irradiance)); it reflects the
+//! power `rho E A` (`cos(theta)` cancels: `rho E_perp A_perp`), a Lambertian disk of
+//! radiance `L = rho E / pi`.
 //!
 //! **Gathering** (the screen-space senders' disk form factor, eq. 25 in its `Patch` form,
 //! [`crate::Estimator::Patch`]): a receiver at `P` with normal `n_P` gets
 //! `rho_P sum_s L_s cos_P cos_s A_s / (pi r^2 + A_s)` from the senders in front of it and
-//! facing it, times each sender's light's frame factor ([`Light::indirect`]). As for the
-//! screen-space senders there is no visibility test between sender and receiver.
+//! facing it, times each sender's light's frame factor
+//! ([`Light::indirect`](crate::Light::indirect)). As for the screen-space senders there is
+//! no visibility test between sender and receiver (unless
+//! [`IsrSettings::light_sender_shadows`](crate::IsrSettings::light_sender_shadows) asks for
+//! one ray per receiver and sender).
 //!
 //! **Counted once.** A surface the camera sees inside the receiver's screen-space disk is
 //! already a screen-space sender of that receiver, so a light-space sender is skipped for
