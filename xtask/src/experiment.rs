@@ -393,7 +393,7 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
 }
 
 /// The light-space senders of the `isr-ls-N` techniques (about this many; issue 50).
-const LIGHT_SENDERS: u32 = 4096;
+pub const LIGHT_SENDERS: u32 = 4096;
 
 fn isr_ls_choice(samples: u32, shadowed: bool) -> TechniqueChoice {
     let (suffix, how) = if shadowed {

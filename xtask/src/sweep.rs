@@ -2,7 +2,9 @@
 //! reference, to choose the default mode from measurement. Every combination of the indirect
 //! power `k_isr`, ambient occlusion (on at `k_ssao` 0.5, or off) and the sampling radius runs
 //! at each of the thesis' sample counts through the same experiment harness as the main job,
-//! and the most accurate setting per sample count is printed.
+//! and the most accurate setting per sample count is printed, each setting with its mean
+//! gain over DL and its share of views closer to the reference than DL (the thesis' check).
+//! Beside the grid, `isr-ls-N`: light-space senders at `k_isr` 1, which has nothing to tune.
 //!
 //! The sweep is held out from what the main job scores: it runs on seeded random cameras
 //! of the built-in scenes ([`HELD_OUT_SEED`]), never on their own cameras, which are the
@@ -112,7 +114,13 @@ pub fn run(
     }];
     let mut labels = Vec::new();
     for n in crate::experiment::SAMPLES {
-        for s in grid(n) {
+        // Beside the grid, the setting with light-space senders (k_isr 1, nothing to tune):
+        // what the grid's scale factor stands in for.
+        let ls = Setting {
+            label: format!("isr-ls-{n}"),
+            settings: IsrSettings::with_light_senders(n, crate::experiment::LIGHT_SENDERS),
+        };
+        for s in grid(n).into_iter().chain([ls]) {
             labels.push((n, s.label.clone(), s.settings));
             techniques.push(TechniqueSetup {
                 label: s.label.clone(),
@@ -147,25 +155,37 @@ pub fn run(
     };
     let outcome = x.run().map_err(|e| e.to_string())?;
     let r = &outcome.results;
-    let gain = |label: &str, b: &str| {
+    let comparison = |label: &str, b: &str| {
         r.summary
             .comparisons
             .iter()
             .find(|c| c.technique == label && c.bounces == b)
+    };
+    let gain = |label: &str, b: &str| {
+        comparison(label, b)
             .map(|c| c.mean_gain)
             .unwrap_or(f64::NEG_INFINITY)
     };
-    println!("{:<28} {:>12} {:>12}", "setting", "gain b=1", "gain b=inf");
+    let better = |label: &str| {
+        comparison(label, "1")
+            .map(|c| c.share_views_better)
+            .unwrap_or(0.0)
+    };
+    println!(
+        "{:<28} {:>12} {:>12} {:>18}",
+        "setting", "gain b=1", "gain b=inf", "better than DL b=1"
+    );
     for n in crate::experiment::SAMPLES {
         let mut rows: Vec<&(u32, String, IsrSettings)> =
             labels.iter().filter(|l| l.0 == n).collect();
         rows.sort_by(|a, b| gain(&b.1, "1").total_cmp(&gain(&a.1, "1")));
         for (i, (_, label, _)) in rows.iter().enumerate() {
             println!(
-                "{:<28} {:>11.2}% {:>11.2}%{}",
+                "{:<28} {:>11.2}% {:>11.2}% {:>17.2}%{}",
                 label,
                 gain(label, "1") * 100.0,
                 gain(label, "inf") * 100.0,
+                better(label) * 100.0,
                 if i == 0 {
                     "  <- most accurate at bounce 1"
                 } else {
