@@ -11,9 +11,11 @@ use bench_harness::{
 };
 use gbuffer::CpuRasterizer;
 use imalyzer::{Measure, MeasureMetric};
-use isr::{Backend, IsrSettings, IsrTechnique};
+use isr::{Backend, IsrTechnique};
 use scene_core::reference::Bounces;
 use scene_core::{FrameRequest, Metric, Technique};
+
+use crate::techniques::{ChoiceKind, parse_techniques};
 
 /// The built-in scenes of the default run.
 pub const DEFAULT_SCENES: [&str; 4] = ["cornell", "cornell-point", "primitives", "corridor"];
@@ -27,9 +29,6 @@ pub const MEASURES: [Measure; 6] = [
     Measure::Ssim,
     Measure::Flip,
 ];
-
-/// The ISR sample counts of the thesis.
-pub const SAMPLES: [u32; 3] = [24, 48, 80];
 
 /// Everything `cargo xtask experiment` takes.
 #[derive(Clone, Debug)]
@@ -289,226 +288,6 @@ impl Technique for PovrayTechnique {
         }
         Ok(scene_core::Image::read_exr(&exr)?)
     }
-}
-
-/// What a technique the command line named is, with its settings.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ChoiceKind {
-    /// DL or ISR with these frame settings.
-    Isr(IsrSettings),
-    /// Radiosity relighting at this target element count (per-pixel direct light).
-    Relight {
-        /// Target element count.
-        elements: usize,
-    },
-    /// The image-based radiosity representation.
-    Ibrr {
-        /// LDC resolution.
-        ldc: u32,
-        /// IRPLs.
-        irpls: u32,
-        /// The IRPL budget spent where the scene's cameras look
-        /// (`IbrrSettings::camera_importance`).
-        camera_importance: bool,
-    },
-}
-
-/// One technique the command line named.
-#[derive(Clone, Debug, PartialEq)]
-pub struct TechniqueChoice {
-    /// Label.
-    pub label: String,
-    /// `dl`, `isr`, `relight` or `ibrr`.
-    pub family: String,
-    /// What to build.
-    pub kind: ChoiceKind,
-    /// Parameters in words.
-    pub description: String,
-}
-
-/// The element counts of `relight` in a technique list (a coarse and a fine mesh; 4096
-/// elements solve for minutes per scene and gain little over 1024 on the built-in scenes).
-pub const RELIGHT_ELEMENTS: [usize; 2] = [256, 1024];
-
-/// The (LDC resolution, IRPLs) pairs of `ibrr` in a technique list.
-pub const IBRR_SETTINGS: [(u32, u32); 2] = [(128, 64), (256, 184)];
-
-fn relight_choice(elements: usize) -> TechniqueChoice {
-    TechniqueChoice {
-        label: format!("relight-{elements}"),
-        family: "relight".into(),
-        kind: ChoiceKind::Relight { elements },
-        description: format!(
-            "radiosity relighting, {elements} elements, ray-cast form factors, per-pixel direct light, progressive solve (hierarchical above 8 192 elements, e.g. a file of 10^5 triangles) (precomputed per scene)"
-        ),
-    }
-}
-
-fn ibrr_choice(ldc: u32, irpls: u32, camera_importance: bool) -> TechniqueChoice {
-    let (suffix, importance) = if camera_importance {
-        (
-            "-cam",
-            ", camera importance (IRPLs the scene's cameras do not see kept 1 in 8)",
-        )
-    } else {
-        ("", "")
-    };
-    TechniqueChoice {
-        label: format!("ibrr-{ldc}-{irpls}{suffix}"),
-        family: "ibrr".into(),
-        kind: ChoiceKind::Ibrr {
-            ldc,
-            irpls,
-            camera_importance,
-        },
-        description: format!(
-            "image-based radiosity, LDC {ldc}, {irpls} IRPLs, exact splats, bilinear lookup{importance} (precomputed per scene)"
-        ),
-    }
-}
-
-fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
-    let base = if thesis {
-        IsrSettings::thesis()
-    } else {
-        IsrSettings::for_samples(samples)
-    };
-    let (label, mode) = if thesis {
-        (
-            format!("isr-thesis-{samples}"),
-            "thesis mode (eq. 25 as published, albedo senders)",
-        )
-    } else {
-        (
-            format!("isr-{samples}"),
-            "default mode (patch estimator, lit senders, no AO, k_isr measured for the sample count)",
-        )
-    };
-    TechniqueChoice {
-        label,
-        family: "isr".into(),
-        kind: ChoiceKind::Isr(IsrSettings { samples, ..base }),
-        description: format!("{samples} samples, {mode}, CPU rasteriser G-buffer"),
-    }
-}
-
-/// The light-space senders of the `isr-ls-N` techniques (about this many; issue 50).
-pub const LIGHT_SENDERS: u32 = 4096;
-
-fn isr_ls_choice(samples: u32, shadowed: bool) -> TechniqueChoice {
-    let (suffix, how) = if shadowed {
-        (
-            "lsv",
-            ", their light shadowed by a ray per receiver and sender",
-        )
-    } else {
-        ("ls", "")
-    };
-    TechniqueChoice {
-        label: format!("isr-{suffix}-{samples}"),
-        family: "isr".into(),
-        kind: ChoiceKind::Isr(IsrSettings {
-            light_sender_shadows: shadowed,
-            ..IsrSettings::with_light_senders(samples, LIGHT_SENDERS)
-        }),
-        description: format!(
-            "{samples} samples and about {LIGHT_SENDERS} light-space senders (reflective shadow \
-             maps, each surface counted once, k_isr 1; CPU only){how}, CPU rasteriser G-buffer"
-        ),
-    }
-}
-
-/// Parses a technique list: `dl`, `isr` (both modes at 24, 48 and 80 samples), `isr-default`,
-/// `isr-thesis`, `isr-N`, `isr-thesis-N`, `isr-ls` and `isr-ls-N` (with light-space
-/// senders), `relight` (256 and 1024 elements), `relight-N`,
-/// `ibrr` (LDC 128 with 64 IRPLs, LDC 256 with 184), `ibrr-RES-N`, `ibrr-RES-N-cam` (with
-/// camera importance). `dl` (the baseline) is
-/// added first when missing.
-pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
-    let known = "dl, isr, isr-default, isr-thesis, isr-N, isr-thesis-N, isr-ls, isr-ls-N, \
-                 isr-lsv-N (N in 1..=256), \
-                 relight, relight-N (N elements, 16..=1000000), ibrr, ibrr-RES-N (LDC RES in \
-                 8..=2048, N IRPLs in 1..=100000), ibrr-RES-N-cam (camera importance)";
-    let mut out: Vec<TechniqueChoice> = Vec::new();
-    for token in list.split(',').map(str::trim).filter(|t| !t.is_empty()) {
-        let t = token.to_ascii_lowercase();
-        let mut add: Vec<TechniqueChoice> = Vec::new();
-        match t.as_str() {
-            "dl" => add.push(TechniqueChoice {
-                label: "dl".into(),
-                family: "dl".into(),
-                kind: ChoiceKind::Isr(IsrSettings::dl()),
-                description: "direct light with ESM shadows (the thesis' I_DL)".into(),
-            }),
-            "isr" => {
-                add.extend(SAMPLES.map(|n| isr_choice(false, n)));
-                add.extend(SAMPLES.map(|n| isr_choice(true, n)));
-            }
-            "isr-default" => add.extend(SAMPLES.map(|n| isr_choice(false, n))),
-            "isr-thesis" => add.extend(SAMPLES.map(|n| isr_choice(true, n))),
-            "isr-ls" => add.extend(SAMPLES.map(|n| isr_ls_choice(n, false))),
-            "relight" => add.extend(RELIGHT_ELEMENTS.map(relight_choice)),
-            "ibrr" => add.extend(IBRR_SETTINGS.map(|(r, n)| ibrr_choice(r, n, false))),
-            _ if t.starts_with("relight-") => {
-                let n: usize = t["relight-".len()..]
-                    .parse()
-                    .ok()
-                    .filter(|n| (16..=1_000_000).contains(n))
-                    .ok_or_else(|| format!("unknown technique '{token}' (known: {known})"))?;
-                add.push(relight_choice(n));
-            }
-            _ if t.starts_with("ibrr-") => {
-                let rest = &t["ibrr-".len()..];
-                let (rest, cam) = match rest.strip_suffix("-cam") {
-                    Some(r) => (r, true),
-                    None => (rest, false),
-                };
-                let parsed = rest.split_once('-').and_then(|(r, n)| {
-                    let r: u32 = r.parse().ok().filter(|r| (8..=2048).contains(r))?;
-                    let n: u32 = n.parse().ok().filter(|n| (1..=100_000).contains(n))?;
-                    Some((r, n))
-                });
-                let (r, n) = parsed
-                    .ok_or_else(|| format!("unknown technique '{token}' (known: {known})"))?;
-                add.push(ibrr_choice(r, n, cam));
-            }
-            _ => {
-                let (mode, n) = if let Some(n) = t.strip_prefix("isr-thesis-") {
-                    ("thesis", n)
-                } else if let Some(n) = t.strip_prefix("isr-ls-") {
-                    ("ls", n)
-                } else if let Some(n) = t.strip_prefix("isr-lsv-") {
-                    ("lsv", n)
-                } else if let Some(n) = t.strip_prefix("isr-") {
-                    ("default", n)
-                } else {
-                    return Err(format!("unknown technique '{token}' (known: {known})"));
-                };
-                let n: u32 = n
-                    .parse()
-                    .ok()
-                    .filter(|n| (1..=256).contains(n))
-                    .ok_or_else(|| format!("unknown technique '{token}' (known: {known})"))?;
-                add.push(match mode {
-                    "ls" => isr_ls_choice(n, false),
-                    "lsv" => isr_ls_choice(n, true),
-                    m => isr_choice(m == "thesis", n),
-                });
-            }
-        }
-        for c in add {
-            if !out.iter().any(|o| o.label == c.label) {
-                out.push(c);
-            }
-        }
-    }
-    if out.is_empty() {
-        return Err(format!("no technique given (known: {known})"));
-    }
-    if !out.iter().any(|c| c.label == "dl") {
-        out.insert(0, parse_techniques("dl")?.remove(0));
-    }
-    Ok(out)
 }
 
 /// Parses `WxH`.

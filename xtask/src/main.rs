@@ -31,6 +31,7 @@ mod relight;
 mod results_doc;
 mod shaders;
 mod sweep;
+mod techniques;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -237,7 +238,7 @@ impl ExperimentArgs {
         let o = self.options()?;
         experiment::parse_size(&o.size)?;
         experiment::parse_bounces(&o.bounces)?;
-        experiment::parse_techniques(&o.techniques)?;
+        techniques::parse_techniques(&o.techniques)?;
         experiment::check_numbers(&o)
     }
 }

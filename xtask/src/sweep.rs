@@ -113,12 +113,12 @@ pub fn run(
         single_frame: false,
     }];
     let mut labels = Vec::new();
-    for n in crate::experiment::SAMPLES {
+    for n in crate::techniques::SAMPLES {
         // Beside the grid, the setting with light-space senders (k_isr 1, nothing to tune):
         // what the grid's scale factor stands in for.
         let ls = Setting {
             label: format!("isr-ls-{n}"),
-            settings: IsrSettings::with_light_senders(n, crate::experiment::LIGHT_SENDERS),
+            settings: IsrSettings::with_light_senders(n, crate::techniques::LIGHT_SENDERS),
         };
         for s in grid(n).into_iter().chain([ls]) {
             labels.push((n, s.label.clone(), s.settings));
@@ -175,7 +175,7 @@ pub fn run(
         "{:<28} {:>12} {:>12} {:>18}",
         "setting", "gain b=1", "gain b=inf", "better than DL b=1"
     );
-    for n in crate::experiment::SAMPLES {
+    for n in crate::techniques::SAMPLES {
         let mut rows: Vec<&(u32, String, IsrSettings)> =
             labels.iter().filter(|l| l.0 == n).collect();
         rows.sort_by(|a, b| gain(&b.1, "1").total_cmp(&gain(&a.1, "1")));
