@@ -39,6 +39,15 @@ pub fn techniques(
             )),
         ),
         (
+            // Light-space senders (issue 50), a small budget: the hard cases' far, huge and
+            // degenerate geometry reaches the sender maps and the gather too.
+            "isr-ls",
+            Box::new(IsrTechnique::new(
+                IsrSettings::with_light_senders(24, 256),
+                Box::new(CpuRasterizer::new()),
+            )),
+        ),
+        (
             "relight",
             Box::new(relight_pr::RelightTechnique::new(
                 relight_pr::MeshSettings::elements(64),
