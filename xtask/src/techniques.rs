@@ -226,3 +226,105 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn technique_lists_expand_and_unknown_names_are_refused() {
+        let all = parse_techniques("isr").unwrap();
+        let labels: Vec<&str> = all.iter().map(|c| c.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "dl",
+                "isr-24",
+                "isr-48",
+                "isr-80",
+                "isr-thesis-24",
+                "isr-thesis-48",
+                "isr-thesis-80"
+            ]
+        );
+        assert_eq!(parse_techniques("dl, isr-thesis-48").unwrap().len(), 2);
+        let e = parse_techniques("dl,magic").unwrap_err();
+        assert!(
+            e.contains("unknown technique 'magic'") && e.contains("known"),
+            "{e}"
+        );
+        assert!(parse_techniques("isr-0").is_err());
+        let methods =
+            parse_techniques("relight,ibrr,relight-100,ibrr-64-32,ibrr-64-32-cam").unwrap();
+        let labels: Vec<&str> = methods.iter().map(|c| c.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "dl",
+                "relight-256",
+                "relight-1024",
+                "ibrr-128-64",
+                "ibrr-256-184",
+                "relight-100",
+                "ibrr-64-32",
+                "ibrr-64-32-cam"
+            ]
+        );
+        assert!(matches!(
+            methods[7].kind,
+            ChoiceKind::Ibrr {
+                camera_importance: true,
+                ..
+            }
+        ));
+        assert!(matches!(
+            methods[6].kind,
+            ChoiceKind::Ibrr {
+                camera_importance: false,
+                ..
+            }
+        ));
+        for bad in [
+            "relight-3",
+            "ibrr-4-10",
+            "ibrr-64",
+            "ibrr-64-0",
+            "ibrr-64-32-cat",
+            "ibrr-cam",
+            "relight-x",
+        ] {
+            assert!(
+                parse_techniques(bad)
+                    .unwrap_err()
+                    .contains("unknown technique"),
+                "{bad}"
+            );
+        }
+        assert!(parse_techniques("isr-999").is_err());
+        // Light-space senders: k_isr 1, the sender budget, shadowed senders only with -lsv.
+        let ls = parse_techniques("isr-ls,isr-lsv-24").unwrap();
+        let labels: Vec<&str> = ls.iter().map(|c| c.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            ["dl", "isr-ls-24", "isr-ls-48", "isr-ls-80", "isr-lsv-24"]
+        );
+        for c in &ls[1..] {
+            let ChoiceKind::Isr(s) = &c.kind else {
+                panic!("{} is not ISR", c.label)
+            };
+            assert_eq!(
+                (s.k_isr, s.light_senders),
+                (1.0, LIGHT_SENDERS),
+                "{}",
+                c.label
+            );
+            assert_eq!(
+                s.light_sender_shadows,
+                c.label.starts_with("isr-lsv"),
+                "{}",
+                c.label
+            );
+        }
+        assert!(parse_techniques("isr-ls-0").is_err());
+    }
+}
