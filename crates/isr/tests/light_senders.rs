@@ -281,3 +281,36 @@ fn shadowed_light_space_senders_do_not_leak_through_a_panel() {
         "shadowed {shadowed} against {expected}"
     );
 }
+
+/// A light's colour in the frame's light state reaches its light-space senders without a
+/// rebuild: the sun recoloured to (0.5, 1, 2) scales the wall's bounce (all of it from the
+/// off-screen floor) by exactly that, and the sun switched off leaves the wall black.
+#[test]
+fn a_recoloured_light_rescales_its_light_space_senders_without_a_rebuild() {
+    let setup = Setup::new(off_screen_floor(), 0, 24, 24);
+    let senders = LightSenders::new(&setup.scene, &setup.prepared, 1024).unwrap();
+    let settings = IsrSettings::with_light_senders(24, 1024);
+    let render_in = |state: &scene_core::LightState| {
+        let mut lights = setup.prepared.clone();
+        lights.apply(state);
+        render_cpu_with(&lights, &setup.inputs(), &settings, Some(&senders))
+            .unwrap()
+            .image
+    };
+    let sun = scene_core::LightId::Directional(0);
+    let base = render_in(&scene_core::LightState::default());
+    let mut state = scene_core::LightState::default();
+    let tint = Vec3::new(0.5, 1.0, 2.0);
+    state.set_color(sun, tint);
+    let tinted = render_in(&state);
+    let sum = |img: &Image| img.pixels.iter().fold(Vec3::ZERO, |a, p| a + *p);
+    let (b, t) = (sum(&base), sum(&tinted));
+    assert!(b.min_element() > 0.0);
+    let ratio = t / b;
+    assert!(
+        (ratio - tint).abs().max_element() < 1e-4 * tint.max_element(),
+        "{ratio}"
+    );
+    state.set_enabled(sun, false);
+    assert_eq!(sum(&render_in(&state)), Vec3::ZERO);
+}
