@@ -21,10 +21,13 @@ use std::time::Instant;
 
 use glam::Vec3;
 use scene_core::gbuffer::RayCastRenderer;
-use scene_core::gpu::{FrameInputs, GpuContext, GpuGBuffer, HostGBufferPass, ObjectCounts};
+use scene_core::gpu::{
+    FrameInputs, GpuContext, GpuError, GpuGBuffer, HostGBuffer, HostGBufferPass, ObjectCounts,
+};
 use scene_core::lights::{LightState, light_ids};
 use scene_core::shadowed_lights::{LightSet, ShadowSettings};
 use scene_core::testing::EngineGBuffer;
+use scene_core::view::DepthConvention;
 use scene_core::{GBufferRenderer, Scene, View, builtin};
 
 use crate::gpu_frames::{BoxedFrame, GpuSpan, Warmth, ibrr_maker, isr_maker, relight_maker};
@@ -73,6 +76,47 @@ fn methods(ctx: &GpuContext, scene: &Arc<Scene>, threads: usize) -> Result<Vec<P
     })
 }
 
+/// An engine's frame at one size: its compact G-buffer converted by `HostGBufferPass`, then
+/// a method's `encode` into an `Rgba16Float` target, all recorded into the engine's encoder.
+struct EngineFrame<'a> {
+    convert: HostGBufferPass,
+    host: HostGBuffer<'a>,
+    convention: DepthConvention,
+    converted: GpuGBuffer,
+    view: View,
+    target: wgpu::Texture,
+}
+
+impl EngineFrame<'_> {
+    /// Records the conversion and `method`'s frame under `lights`; `marks` (when given)
+    /// brackets the method's own commands.
+    fn record(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        method: &mut BoxedFrame,
+        lights: &LightState,
+        marks: Option<&GpuSpan>,
+    ) -> Result<(), GpuError> {
+        self.convert
+            .encode(encoder, &self.host, &self.convention, &self.converted)?;
+        if let Some(span) = marks {
+            span.mark(encoder, false);
+        }
+        let inputs = FrameInputs {
+            gbuffer: &self.converted,
+            view: &self.view,
+            lights,
+        };
+        method
+            .encode(encoder, &inputs, &self.target)
+            .map_err(|e| GpuError::Validation(e.to_string()))?;
+        if let Some(span) = marks {
+            span.mark(encoder, true);
+        }
+        Ok(())
+    }
+}
+
 /// `cargo xtask bench frames` (module docs) on the built-in `scene` at each of `sizes`.
 pub fn run(
     scene_name: &str,
@@ -115,16 +159,20 @@ pub fn run(
             .map_err(|e| e.to_string())?;
         let engine =
             EngineGBuffer::compact(&ctx, &g, view.far, &convention).map_err(|e| e.to_string())?;
-        let host = engine.host();
-        let mut convert = HostGBufferPass::new(&ctx).map_err(|e| e.to_string())?;
-        let converted = GpuGBuffer::new(&ctx, w, h).map_err(|e| e.to_string())?;
-        let target = ctx.create_texture_2d(
-            "bench frame target",
-            w,
-            h,
-            wgpu::TextureFormat::Rgba16Float,
-            wgpu::TextureUsages::STORAGE_BINDING,
-        );
+        let mut engine_frame = EngineFrame {
+            convert: HostGBufferPass::new(&ctx).map_err(|e| e.to_string())?,
+            host: engine.host(),
+            convention,
+            converted: GpuGBuffer::new(&ctx, w, h).map_err(|e| e.to_string())?,
+            view,
+            target: ctx.create_texture_2d(
+                "bench frame target",
+                w,
+                h,
+                wgpu::TextureFormat::Rgba16Float,
+                wgpu::TextureUsages::STORAGE_BINDING,
+            ),
+        };
         let wait = || {
             ctx.device
                 .poll(wgpu::PollType::wait_indefinitely())
@@ -136,8 +184,9 @@ pub fn run(
         for i in 0..=repeats {
             let t0 = Instant::now();
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            convert
-                .encode(&mut encoder, &host, &convention, &converted)
+            let f = &mut engine_frame;
+            f.convert
+                .encode(&mut encoder, &f.host, &f.convention, &f.converted)
                 .map_err(|e| e.to_string())?;
             ctx.queue.submit([encoder.finish()]);
             wait()?;
@@ -166,29 +215,17 @@ pub fn run(
                 s.set_color(first, Vec3::new(1.0, 0.5 + 0.1 * (i % 5) as f32, 0.5));
                 s
             };
+            let still = colour(0);
             // On a device that has cooled, saturated first until its clocks are up
             // (gpu_frames' `Warmth`).
             let cooled = Warmth::cooled();
             Warmth::before_timing(
                 span.is_some() && cooled,
                 &ctx.device,
-                |encoder| {
-                    convert.encode(encoder, &host, &convention, &converted)?;
-                    method
-                        .encode(
-                            encoder,
-                            &FrameInputs {
-                                gbuffer: &converted,
-                                view: &view,
-                                lights: &colour(0),
-                            },
-                            &target,
-                        )
-                        .map_err(|e| scene_core::gpu::GpuError::Validation(e.to_string()))
-                },
+                |encoder| engine_frame.record(encoder, method, &still, None),
                 |encoder| {
                     ctx.queue.submit([encoder.finish()]);
-                    wait().map_err(scene_core::gpu::GpuError::Validation)
+                    wait().map_err(GpuError::Validation)
                 },
             )
             .map_err(|e| format!("{}: {e}", method.name()))?;
@@ -199,27 +236,9 @@ pub fn run(
                     span.mark(&mut encoder, false);
                 }
                 let (result, created) = ObjectCounts::during(&ctx.device, || {
-                    convert.encode(&mut encoder, &host, &convention, &converted)?;
-                    if let Some(span) = &method_span {
-                        span.mark(&mut encoder, false);
-                    }
-                    method
-                        .encode(
-                            &mut encoder,
-                            &FrameInputs {
-                                gbuffer: &converted,
-                                view: &view,
-                                lights,
-                            },
-                            &target,
-                        )
-                        .map_err(|e| scene_core::gpu::GpuError::Validation(e.to_string()))?;
-                    if let Some(span) = &method_span {
-                        span.mark(&mut encoder, true);
-                    }
-                    Ok(())
+                    engine_frame.record(&mut encoder, method, lights, method_span.as_ref())
                 });
-                result.map_err(|e: scene_core::gpu::GpuError| format!("{}: {e}", method.name()))?;
+                result.map_err(|e| format!("{}: {e}", method.name()))?;
                 if let Some(span) = &span {
                     span.mark(&mut encoder, true);
                 }
@@ -233,7 +252,6 @@ pub fn run(
                 };
                 Ok((wall, read(&span)?, read(&method_span)?, created))
             };
-            let still = colour(0);
             frame(&still)?;
             let (mut steady, mut steady_gpu, mut steady_method) =
                 (Vec::new(), Vec::new(), Vec::new());
