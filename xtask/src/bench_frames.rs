@@ -13,7 +13,9 @@
 //! submission and wake-up latency. Timed frames run at the device's working clocks: after an
 //! idle second, the method's frames saturate the device first (gpu_frames' `Warmth`). Every
 //! method's precomputation is done before the clock starts and reported beside. Figures are
-//! printed; nothing is asserted. The "GPU method" span begins with a timestamp written when
+//! printed; nothing is asserted. With `--cold-cache`, 256 MiB are written through the device
+//! (submitted and waited for, untimed) before each timed frame, so that the frame finds its
+//! caches as an engine's other passes leave them. The "GPU method" span begins with a timestamp written when
 //! the method's first command is reached, which may be before the conversion has finished.
 
 use std::sync::Arc;
@@ -117,22 +119,42 @@ impl EngineFrame<'_> {
     }
 }
 
-/// `cargo xtask bench frames` (module docs) on the built-in `scene` at each of `sizes`.
+/// Bytes written through the device before each timed frame with `--cold-cache`: several
+/// times the last-level cache of current GPUs (an H100's or H200's L2 holds 50-60 MiB).
+const COLD_CACHE_BYTES: u64 = 256 << 20;
+
+/// `cargo xtask bench frames` (module docs) on the built-in `scene` at each of `sizes`;
+/// `cold_cache` writes [`COLD_CACHE_BYTES`] through the device (submitted and waited for,
+/// outside the timed frame) before each timed frame.
 pub fn run(
     scene_name: &str,
     threads: usize,
     repeats: usize,
     sizes: &[(u32, u32)],
+    cold_cache: bool,
 ) -> Result<(), String> {
     let ctx = GpuContext::new().map_err(|e| e.to_string())?;
+    let flush = cold_cache.then(|| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bench frames cache flush"),
+            size: COLD_CACHE_BYTES.min(ctx.device.limits().max_buffer_size),
+            usage: wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    });
     let scene = Arc::new(builtin::scene(scene_name).map_err(|e| e.to_string())?);
     let first = *light_ids(&scene)
         .first()
         .ok_or_else(|| format!("{scene_name} has no light to recolour"))?;
     println!(
         "frames through the frame contract on {scene_name}; GPU: {}; CPU work on {threads} \
-         thread(s); median of {repeats} frames after 1 warm-up, recording to completion (ms)",
-        ctx.adapter_summary()
+         thread(s); median of {repeats} frames after 1 warm-up, recording to completion (ms){}",
+        ctx.adapter_summary(),
+        if flush.is_some() {
+            "; each frame after 256 MiB written through the device (cold caches)"
+        } else {
+            ""
+        }
     );
     let span = GpuSpan::new(&ctx);
     // A second span inside the first: the method's own commands, the conversion left out.
@@ -230,6 +252,12 @@ pub fn run(
             )
             .map_err(|e| format!("{}: {e}", method.name()))?;
             let mut frame = |lights: &LightState| -> Result<(f64, f64, f64, ObjectCounts), String> {
+                if let Some(flush) = &flush {
+                    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                    encoder.clear_buffer(flush, 0, None);
+                    ctx.queue.submit([encoder.finish()]);
+                    wait()?;
+                }
                 let t0 = Instant::now();
                 let mut encoder = ctx.device.create_command_encoder(&Default::default());
                 if let Some(span) = &span {

@@ -426,6 +426,11 @@ enum Command {
         /// `frames` only: the built-in scene.
         #[arg(long, default_value = "cornell")]
         scene: String,
+        /// `frames` only: before each timed frame, write 256 MiB through the device's
+        /// memory so that the frame finds its caches cold, as after an engine's other work
+        /// (the default times frames back to back).
+        #[arg(long)]
+        cold_cache: bool,
     },
 }
 
@@ -980,12 +985,15 @@ fn run(cli: Cli) -> Result<(), String> {
             max_triangles,
             sizes,
             scene,
+            cold_cache,
         } => match what.as_str() {
             "frames" => sizes
                 .split(',')
                 .map(bench_frames::parse_size)
                 .collect::<Result<Vec<_>, _>>()
-                .and_then(|sizes| bench_frames::run(&scene, threads, repeats, &sizes)),
+                .and_then(|sizes| {
+                    bench_frames::run(&scene, threads, repeats, &sizes, cold_cache)
+                }),
             "reference" => bench::reference(threads, repeats),
             "isr" => bench::isr(threads, repeats),
             "gbuffer" => bench::gbuffer(threads, repeats),
