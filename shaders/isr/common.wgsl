@@ -29,6 +29,10 @@ struct Globals {
     shadow: vec4<f32>,
     // Eq. 24's vectors (scene_core::reconstruct).
     frustum: FrustumReconstruction,
+    // World to clip space (the light-space senders' projection onto the coarse buffer).
+    view_proj: mat4x4<f32>,
+    // Light-space senders: count, once (1: leave out those a receiver's disk shows); unused x2.
+    senders: vec4<u32>,
 }
 
 const FLAG_INDIRECT: u32 = 1u;

@@ -187,8 +187,15 @@ fn shadowed_lights(scene: &Scene) -> Result<LightSet, Error> {
 pub fn isr_maker(settings: isr::IsrSettings) -> FrameMaker {
     Box::new(move |ctx, scene| {
         let lights = shadowed_lights(scene)?;
-        let frame =
+        let mut frame =
             isr::IsrFrame::prepare(ctx, &lights, settings).map_err(|e| Error::method("isr", e))?;
+        if settings.light_senders > 0 {
+            let senders = isr::LightSenders::new(scene, &lights, settings.light_senders)
+                .map_err(|e| Error::method("isr", e))?;
+            frame = frame
+                .with_light_senders(&senders)
+                .map_err(|e| Error::method("isr", e))?;
+        }
         Ok(Box::new(frame) as BoxedFrame)
     })
 }

@@ -38,6 +38,8 @@ pub struct PassTimings {
     pub senders: Duration,
     /// The ISR + SSAO pass.
     pub radiosity: Duration,
+    /// The light-space senders' gather ([`crate::LightSenders`]; zero without them).
+    pub light_senders: Duration,
     /// Both blur directions.
     pub blur: Duration,
     /// Bilateral upsampling.
@@ -49,7 +51,13 @@ pub struct PassTimings {
 impl PassTimings {
     /// The sum of all passes.
     pub fn total(&self) -> Duration {
-        self.downsample + self.senders + self.radiosity + self.blur + self.upsample + self.lighting
+        self.downsample
+            + self.senders
+            + self.radiosity
+            + self.light_senders
+            + self.blur
+            + self.upsample
+            + self.lighting
     }
 }
 
@@ -138,7 +146,7 @@ pub fn render_cpu(
 
 /// [`render_cpu`] with light-space senders ([`LightSenders`], made from the same light set
 /// and the scene): their one bounce is added to the ISR pass' output before the blur, each
-/// surface counted once (its time is in [`PassTimings::radiosity`]). Errors when
+/// surface counted once (its time is [`PassTimings::light_senders`]). Errors when
 /// `settings.light_senders` asks for them and none are given.
 pub fn render_cpu_with(
     scene: &LightSet,
@@ -180,9 +188,11 @@ pub fn render_cpu_with(
         let senders = (!frame.senders.is_empty()).then_some(frame.senders.as_slice());
         let radius = settings.radius.world(scene.extent);
         frame.radiosity = radiosity::radiosity(&screen, coarse, senders, settings, radius);
+        t.radiosity = start.elapsed();
         if let Some(light) =
             light_senders.filter(|_| settings.indirect && settings.light_senders > 0)
         {
+            let start = Instant::now();
             let shadowed = settings.light_sender_shadows;
             light.add_to(
                 &mut frame.radiosity,
@@ -192,8 +202,8 @@ pub fn render_cpu_with(
                 radius,
                 shadowed,
             );
+            t.light_senders = start.elapsed();
         }
-        t.radiosity = start.elapsed();
         let start = Instant::now();
         frame.blurred = blur::blur(&screen, coarse, &frame.radiosity, settings);
         t.blur = start.elapsed();

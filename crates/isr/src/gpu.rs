@@ -44,8 +44,10 @@ use scene_core::{GBuffer, Image, View};
 
 use crate::geometry::Screen;
 use crate::light_set::LightSet;
+use crate::light_senders::{GpuLightSender, LightSenders};
 use crate::passes::{
-    BlurPass, LightBuffers, LightingPass, RadiosityPass, UpsamplePass, Variant, bind_lighting,
+    BlurPass, LightBuffers, LightSendersPass, LightingPass, RadiosityPass, UpsamplePass, Variant,
+    bind_lighting,
 };
 use crate::radiosity::SamplePattern;
 use crate::settings::{Blur, Estimator, IsrSettings, Sender};
@@ -72,6 +74,11 @@ pub struct Globals {
     pub shadow: [f32; 4],
     /// Eq. 24's vectors ([`scene_core::view::FrustumReconstruction::uniform`]).
     pub frustum: [[f32; 4]; 6],
+    /// World to clip space, by columns (the light-space senders' projection).
+    pub view_proj: [[f32; 4]; 4],
+    /// Light-space senders: how many, whether each is counted once (1) or not (0); unused,
+    /// unused. Zero count: the pass does not run.
+    pub senders: [u32; 4],
 }
 
 /// Flag bits of [`Globals::config`]`[1]`.
@@ -142,6 +149,8 @@ impl Globals {
                 0.0,
             ],
             frustum: screen.reconstruction.uniform(),
+            view_proj: [[0.0; 4]; 4],
+            senders: [0; 4],
         }
     }
 }
@@ -196,6 +205,9 @@ struct Targets {
     coarse: (u32, u32),
     coarse_gbuffer: Option<GpuGBuffer>,
     senders: wgpu::Texture,
+    /// The ISR + SSAO pass' output when the light-space senders' pass adds to it (into
+    /// `radiosity`); unused otherwise.
+    screen_radiosity: wgpu::Texture,
     radiosity: wgpu::Texture,
     tmp: wgpu::Texture,
     blurred: wgpu::Texture,
@@ -208,6 +220,7 @@ enum Stage {
     Downsample,
     Senders,
     Radiosity,
+    LightSenders,
     Blur,
     Upsample,
     Lighting,
@@ -219,6 +232,7 @@ impl Stage {
             Stage::Downsample => "downsample",
             Stage::Senders => "senders",
             Stage::Radiosity => "radiosity",
+            Stage::LightSenders => "light senders",
             Stage::Blur => "blur",
             Stage::Upsample => "upsample",
             Stage::Lighting => "lighting",
@@ -230,6 +244,7 @@ impl Stage {
             Stage::Downsample => timings.downsample += t,
             Stage::Senders => timings.senders += t,
             Stage::Radiosity => timings.radiosity += t,
+            Stage::LightSenders => timings.light_senders += t,
             Stage::Blur => timings.blur += t,
             Stage::Upsample => timings.upsample += t,
             Stage::Lighting => timings.lighting += t,
@@ -299,9 +314,9 @@ impl Recorder<'_> {
     }
 }
 
-/// Timed passes per frame at most (downsample, senders, radiosity, two blur directions,
-/// upsample, lighting).
-const MAX_TIMED_PASSES: u32 = 7;
+/// Timed passes per frame at most (downsample, senders, radiosity, light-space senders, two
+/// blur directions, upsample, lighting).
+const MAX_TIMED_PASSES: u32 = 8;
 
 /// ISR on the GPU for one light set: pipelines (all compiled in [`GpuIsr::new`]), the
 /// lights, shadow maps and emitters in storage buffers, and intermediate textures
@@ -319,6 +334,10 @@ pub struct GpuIsr {
     downsample: GpuDownsampler,
     lighting: LightingPass,
     radiosity: RadiosityPass,
+    light_senders_pass: LightSendersPass,
+    /// The light-space senders ([`GpuIsr::set_light_senders`]): their buffer, how many,
+    /// whether each surface is counted once.
+    light_senders: Option<(wgpu::Buffer, u32, bool)>,
     blur: BlurPass,
     upsample: UpsamplePass,
     lights: wgpu::Buffer,
@@ -356,6 +375,7 @@ struct BindKey {
     downsample: scene_core::gbuffer::DownsampleMode,
     run_isr: bool,
     lit: bool,
+    light_senders: bool,
     blur: bool,
     half: bool,
 }
@@ -365,6 +385,7 @@ struct Bound {
     downsample: Option<wgpu::BindGroup>,
     senders: Option<wgpu::BindGroup>,
     radiosity: Option<wgpu::BindGroup>,
+    light_senders: Option<wgpu::BindGroup>,
     blur: Option<[wgpu::BindGroup; 2]>,
     upsample: Option<wgpu::BindGroup>,
     compose: wgpu::BindGroup,
@@ -437,6 +458,8 @@ impl GpuIsr {
             downsample: GpuDownsampler::new(ctx)?,
             lighting: LightingPass::new(device)?,
             radiosity: RadiosityPass::new(device)?,
+            light_senders_pass: LightSendersPass::new(device)?,
+            light_senders: None,
             blur: BlurPass::new(device)?,
             upsample: UpsamplePass::new(device)?,
             lights: ctx.buffer_with("isr lights", bytemuck::cast_slice(&lights), storage),
@@ -558,6 +581,71 @@ impl GpuIsr {
             Intermediate::Blurred => &t.blurred,
             Intermediate::Upsampled => &t.upsampled,
         })
+    }
+
+    /// Uploads the light-space senders `senders` ([`LightSenders::new`], from the scene and
+    /// the light set this ISR was made with) for the frames whose settings ask for them
+    /// ([`IsrSettings::light_senders`] above 0): the GPU twin of
+    /// [`crate::render_cpu_with`]'s, a pass between the ISR + SSAO pass and the blur.
+    /// Replaces any given before (a moved light needs new ones); the frame's light state
+    /// scales them by their lights' indirect factors, as it does on the CPU. Errors when
+    /// their buffer exceeds the device's storage-buffer limit.
+    pub fn set_light_senders(&mut self, senders: &LightSenders) -> Result<(), IsrError> {
+        let mut data = senders.to_gpu();
+        let count = data.len() as u32;
+        let bytes = std::mem::size_of_val(data.as_slice()) as u64;
+        let limit = self.ctx.device.limits().max_storage_buffer_binding_size;
+        if bytes > limit {
+            return Err(IsrError::Budget(scene_core::BudgetExceeded {
+                what: "the light-space senders".into(),
+                needed: bytes,
+                limit,
+                unit: "bytes",
+                hint: "the device's storage buffer limit; ask for fewer light senders".into(),
+            }));
+        }
+        if data.is_empty() {
+            // A binding needs one whole element; the count stays 0 and the pass is skipped.
+            data.push(GpuLightSender::default());
+        }
+        let buffer = self.ctx.buffer_with(
+            "isr light senders",
+            bytemuck::cast_slice(&data),
+            wgpu::BufferUsages::STORAGE,
+        );
+        self.light_senders = Some((buffer, count, senders.once));
+        // The cached bind groups refer to the previous buffer.
+        self.generation += 1;
+        Ok(())
+    }
+
+    /// The light-space senders a frame with `settings` gathers: their count and whether
+    /// each surface is counted once, `None` when the settings ask for none (or there is
+    /// none). Errors when the settings ask for them and none were given, or for their
+    /// shadow rays (CPU only).
+    fn frame_light_senders(&self, settings: &IsrSettings) -> Result<Option<(u32, bool)>, IsrError> {
+        if settings.light_senders == 0 || !settings.indirect {
+            return Ok(None);
+        }
+        if settings.light_sender_shadows {
+            return Err(IsrError::InvalidSetting {
+                name: "light_sender_shadows",
+                value: "true".into(),
+                reason: "shadowed light-space senders (a ray per receiver and sender) run on \
+                         the CPU only"
+                    .into(),
+            });
+        }
+        match &self.light_senders {
+            None => Err(IsrError::InvalidSetting {
+                name: "light_senders",
+                value: settings.light_senders.to_string(),
+                reason: "no light-space senders were given: make them with LightSenders::new \
+                         and hand them to GpuIsr::set_light_senders"
+                    .into(),
+            }),
+            Some((_, count, once)) => Ok((*count > 0).then_some((*count, *once))),
+        }
     }
 
     /// Blocks until the device has finished all submitted work (for timing).
@@ -727,6 +815,7 @@ impl GpuIsr {
                 None
             },
             senders: rgba_texture(ctx, "isr senders", cw, ch),
+            screen_radiosity: rgba_texture(ctx, "isr screen-space radiosity", cw, ch),
             radiosity: rgba_texture(ctx, "isr radiosity", cw, ch),
             tmp: rgba_texture(ctx, "isr blur tmp", cw, ch),
             blurred: rgba_texture(ctx, "isr blurred", cw, ch),
@@ -743,13 +832,7 @@ impl GpuIsr {
         output: &wgpu::Texture,
     ) -> Result<(), IsrError> {
         settings.validate(self.extent)?;
-        if settings.light_senders > 0 {
-            return Err(IsrError::InvalidSetting {
-                name: "light_senders",
-                value: settings.light_senders.to_string(),
-                reason: "light-space senders run on the CPU only so far".into(),
-            });
-        }
+        let light_senders = self.frame_light_senders(settings)?;
         let full = inputs.full;
         self.check_output(output, full)?;
         let full_size = (full.width, full.height);
@@ -775,7 +858,11 @@ impl GpuIsr {
             ));
         }
         let screen = Screen::new(inputs.view);
-        let globals = Globals::new(&screen, &self.light_set, settings, full_size, coarse_size);
+        let mut globals = Globals::new(&screen, &self.light_set, settings, full_size, coarse_size);
+        globals.view_proj = inputs.view.view_projection().to_cols_array_2d();
+        if let Some((count, once)) = light_senders {
+            globals.senders = [count, u32::from(once), 0, 0];
+        }
         // This frame's uniforms, copied into the one globals buffer by a command of the
         // frame's own encoder (so a second view encoded before the submit reads its own).
         rec.upload(
@@ -809,6 +896,7 @@ impl GpuIsr {
             downsample: settings.downsample,
             run_isr,
             lit: settings.indirect && settings.sender == Sender::Lit,
+            light_senders: run_isr && light_senders.is_some(),
             blur: settings.blur_radius > 0,
             half: key_half(output),
         };
@@ -846,6 +934,13 @@ impl GpuIsr {
         if let Some(bg) = &b.radiosity {
             rec.pass(Stage::Radiosity, |e, ts| {
                 self.radiosity
+                    .pipeline
+                    .dispatch(e, bg, coarse.width, coarse.height, ts)
+            });
+        }
+        if let Some(bg) = &b.light_senders {
+            rec.pass(Stage::LightSenders, |e, ts| {
+                self.light_senders_pass
                     .pipeline
                     .dispatch(e, bg, coarse.width, coarse.height, ts)
             });
@@ -917,6 +1012,7 @@ impl GpuIsr {
         };
         let globals = &self.globals;
         let (mut senders, mut radiosity, mut blur, mut upsample) = (None, None, None, None);
+        let mut light_senders = None;
         if key.run_isr {
             if key.lit {
                 let lp = self.lighting.pipeline(device, Variant::Senders);
@@ -931,13 +1027,30 @@ impl GpuIsr {
                 ));
             }
             let senders_tex = if key.lit { &t.senders } else { &self.dummy };
+            // With light-space senders the screen-space pass writes its own texture and
+            // the light-space pass adds to it into `radiosity`.
+            let screen_out = match self.light_senders.as_ref().filter(|_| key.light_senders) {
+                Some((buffer, _, _)) => {
+                    light_senders = Some(self.light_senders_pass.bind(
+                        device,
+                        globals,
+                        buffer,
+                        coarse,
+                        &self.lights,
+                        &t.screen_radiosity,
+                        &t.radiosity,
+                    ));
+                    &t.screen_radiosity
+                }
+                None => &t.radiosity,
+            };
             radiosity = Some(self.radiosity.bind(
                 device,
                 globals,
                 pattern,
                 coarse,
                 senders_tex,
-                &t.radiosity,
+                screen_out,
             ));
             let blurred = if key.blur {
                 blur = Some([
@@ -981,6 +1094,7 @@ impl GpuIsr {
             downsample,
             senders,
             radiosity,
+            light_senders,
             blur,
             upsample,
             compose,

@@ -4,7 +4,7 @@
 
 use crate::gpu::{GpuIsr, GpuIsrInputs};
 use crate::settings::IsrSettings;
-use crate::{IsrError, LightSet};
+use crate::{IsrError, LightSenders, LightSet};
 use scene_core::gpu::GpuContext;
 
 /// ISR, or DL with [`IsrSettings::dl`], on the frame contract
@@ -48,6 +48,14 @@ impl IsrFrame {
             settings,
             name,
         })
+    }
+
+    /// The same frame gathering the light-space senders `senders` as well ([`LightSenders`],
+    /// made from the scene and `lights`), for settings that ask for them
+    /// ([`IsrSettings::light_senders`] above 0, e.g. [`IsrSettings::with_light_senders`]).
+    pub fn with_light_senders(mut self, senders: &LightSenders) -> Result<Self, IsrError> {
+        self.isr.set_light_senders(senders)?;
+        Ok(self)
     }
 }
 

@@ -63,6 +63,19 @@ pub struct LightSender {
     pub light: u32,
 }
 
+/// One light-space sender in the GPU layout (`LightSender` in
+/// `shaders/isr/light_senders.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuLightSender {
+    /// Position; `w`: the patch's area.
+    pub position_area: [f32; 4],
+    /// Unit normal; `w`: the light's index, its bits.
+    pub normal_light: [f32; 4],
+    /// Reflected power before the frame's factor; `w` unused.
+    pub power: [f32; 4],
+}
+
 /// The light-space senders of a scene's lights (module docs).
 #[derive(Clone, Debug)]
 pub struct LightSenders {
@@ -229,6 +242,18 @@ impl LightSenders {
             once: true,
             rays: Some(Arc::new(rays)),
         })
+    }
+
+    /// The senders in the GPU layout ([`crate::GpuIsr::set_light_senders`] uploads them).
+    pub fn to_gpu(&self) -> Vec<GpuLightSender> {
+        self.senders
+            .iter()
+            .map(|s| GpuLightSender {
+                position_area: s.position.extend(s.area).to_array(),
+                normal_light: s.normal.extend(f32::from_bits(s.light)).to_array(),
+                power: s.power.extend(0.0).to_array(),
+            })
+            .collect()
     }
 
     /// Whether there is no sender.

@@ -33,6 +33,12 @@ pub const RADIOSITY: ShaderPass = ShaderPass::new(
     wgsl_file!("isr", "radiosity.wgsl"),
     LIBRARY,
 );
+/// The light-space senders' gather after the ISR + SSAO pass (`crate::light_senders`).
+pub const LIGHT_SENDERS: ShaderPass = ShaderPass::new(
+    "isr/light_senders",
+    wgsl_file!("isr", "light_senders.wgsl"),
+    LIBRARY,
+);
 /// One direction of the separable blur.
 pub const BLUR: ShaderPass = ShaderPass::new("isr/blur", wgsl_file!("isr", "blur.wgsl"), LIBRARY);
 /// Bilateral upsampling of the blurred coarse buffer.
@@ -40,7 +46,14 @@ pub const UPSAMPLE: ShaderPass =
     ShaderPass::new("isr/upsample", wgsl_file!("isr", "upsample.wgsl"), LIBRARY);
 
 /// Every ISR shader pass, as `cargo xtask shaders` validates them.
-pub const SHADER_PASSES: &[ShaderPass] = &[LIGHTING, LIGHTING_RGBA16F, RADIOSITY, BLUR, UPSAMPLE];
+pub const SHADER_PASSES: &[ShaderPass] = &[
+    LIGHTING,
+    LIGHTING_RGBA16F,
+    RADIOSITY,
+    LIGHT_SENDERS,
+    BLUR,
+    UPSAMPLE,
+];
 
 // ---- bind-group layout entries ----
 
@@ -224,6 +237,83 @@ impl RadiosityPass {
                 out,
             ],
         )
+    }
+}
+
+// ---- the light-space senders ----
+
+/// The light-space senders' gather (`crate::light_senders`): reads the ISR + SSAO pass'
+/// output and writes it with the senders' one bounce added.
+pub(crate) struct LightSendersPass {
+    pub pipeline: scene_core::gpu::ComputePass,
+}
+
+impl LightSendersPass {
+    pub(crate) fn new(device: &wgpu::Device) -> Result<Self, scene_core::gpu::GpuError> {
+        Ok(Self {
+            pipeline: scene_core::gpu::ComputePass::new(
+                device,
+                "isr light senders",
+                &LIGHT_SENDERS,
+                &[
+                    uniform_entry(0),
+                    storage_buffer_entry(1),
+                    texture_entry(2, false),
+                    texture_entry(3, false),
+                    texture_entry(4, false),
+                    texture_entry(5, true),
+                    // The light set's lights, where `scene_core::light_set` declares them.
+                    storage_buffer_entry(6),
+                    texture_entry(7, false),
+                    storage_texture_entry(10, wgpu::TextureFormat::Rgba32Float),
+                ],
+                &[],
+            )?,
+        })
+    }
+
+    /// The bind group over the coarse G-buffer `coarse`, the senders (`GpuLightSender`s),
+    /// the light set's `lights`, the ISR + SSAO output `radiosity` and the output `out`.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn bind(
+        &self,
+        device: &wgpu::Device,
+        globals: &wgpu::Buffer,
+        senders: &wgpu::Buffer,
+        coarse: &scene_core::gpu::GpuGBuffer,
+        lights: &wgpu::Buffer,
+        radiosity: &wgpu::Texture,
+        out: &wgpu::Texture,
+    ) -> wgpu::BindGroup {
+        let v = |t: &wgpu::Texture| t.create_view(&Default::default());
+        let views = [
+            v(&coarse.albedo),
+            v(&coarse.normal),
+            v(&coarse.depth),
+            v(&coarse.triangle_id),
+            v(radiosity),
+            v(out),
+        ];
+        let resources = [
+            (0, globals.as_entire_binding()),
+            (1, senders.as_entire_binding()),
+            (2, wgpu::BindingResource::TextureView(&views[0])),
+            (3, wgpu::BindingResource::TextureView(&views[1])),
+            (4, wgpu::BindingResource::TextureView(&views[2])),
+            (5, wgpu::BindingResource::TextureView(&views[3])),
+            (6, lights.as_entire_binding()),
+            (7, wgpu::BindingResource::TextureView(&views[4])),
+            (10, wgpu::BindingResource::TextureView(&views[5])),
+        ];
+        let entries: Vec<wgpu::BindGroupEntry<'_>> = resources
+            .into_iter()
+            .map(|(binding, resource)| wgpu::BindGroupEntry { binding, resource })
+            .collect();
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("isr light senders"),
+            layout: &self.pipeline.layout,
+            entries: &entries,
+        })
     }
 }
 

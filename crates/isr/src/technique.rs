@@ -164,7 +164,11 @@ impl Technique for IsrTechnique {
             }
             Backend::Gpu(ctx) => {
                 if self.gpu.is_none() {
-                    self.gpu = Some(crate::GpuIsr::new(ctx, lights)?);
+                    let mut gpu = crate::GpuIsr::new(ctx, lights)?;
+                    if let Some(senders) = &self.light_senders {
+                        gpu.set_light_senders(senders)?;
+                    }
+                    self.gpu = Some(gpu);
                 }
                 let Some(gpu) = self.gpu.as_mut() else {
                     return Err(Error::NotPrepared("the GPU ISR pipelines".into()));

@@ -203,25 +203,95 @@ fn senders_are_deterministic_and_their_budget_is_bounded() {
     assert!(e.contains("light_senders"), "{e}");
 }
 
-/// The GPU passes do not have the light-space senders yet: a frame that asks for them is
-/// refused by name rather than rendered without them.
+/// A GPU frame that asks for light-space senders without having been given any, or for
+/// their shadow rays (CPU only), is refused by name rather than rendered without them.
 #[test]
-fn the_gpu_refuses_light_space_senders_by_name() {
+fn the_gpu_refuses_missing_or_shadowed_light_space_senders_by_name() {
     let Some(ctx) = scene_core::testing::gpu_test_context() else {
         return;
     };
     let setup = Setup::new(off_screen_floor(), 0, 16, 16);
     let mut gpu = isr::GpuIsr::new(&ctx, &setup.prepared).unwrap();
+    let settings = IsrSettings::with_light_senders(24, 64);
     let e = gpu
-        .render_gbuffer(
-            &setup.full,
-            None,
-            &setup.view,
-            &IsrSettings::with_light_senders(24, 64),
-        )
+        .render_gbuffer(&setup.full, None, &setup.view, &settings)
         .unwrap_err()
         .to_string();
     assert!(e.contains("light_senders"), "{e}");
+    let senders = LightSenders::new(&setup.scene, &setup.prepared, 64).unwrap();
+    gpu.set_light_senders(&senders).unwrap();
+    let shadowed = IsrSettings {
+        light_sender_shadows: true,
+        ..settings
+    };
+    let e = gpu
+        .render_gbuffer(&setup.full, None, &setup.view, &shadowed)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("light_sender_shadows"), "{e}");
+}
+
+/// The GPU twin of the light-space senders' gather against the CPU's, on the same coarse
+/// buffer: the off-screen floor (all of the wall's light comes from them) and the small
+/// built-in scenes, each surface counted once and (a measurement mode) twice, within the
+/// bounds of the screen-space passes' twin test (tests/gpu.rs): mean difference under 1e-3
+/// of the image mean, every pixel within 1e-4 of the peak (at least 1).
+#[test]
+fn the_gpu_twin_gathers_the_light_space_senders_as_the_cpu_does() {
+    let Some(ctx) = scene_core::testing::gpu_test_context() else {
+        return;
+    };
+    let mut setups = vec![("off-screen floor", Setup::new(off_screen_floor(), 0, 48, 48))];
+    for name in scene_core::builtin::SMALL_INSTANCES {
+        setups.push((name, Setup::builtin(name, 0, 96, 72)));
+    }
+    for (name, setup) in &setups {
+        let settings = IsrSettings::with_light_senders(24, 256);
+        let mut senders = LightSenders::new(&setup.scene, &setup.prepared, 256).unwrap();
+        for once in [true, false] {
+            senders.once = once;
+            let cpu = render_with(setup, &settings, Some(&senders));
+            let without = image_mean(&render_with(
+                setup,
+                &IsrSettings::with_light_senders(24, 0),
+                None,
+            ));
+            let mut gpu = isr::GpuIsr::new(&ctx, &setup.prepared).unwrap();
+            gpu.set_light_senders(&senders).unwrap();
+            let (img, timings) = gpu
+                .render_gbuffer(&setup.full, Some(&setup.coarse), &setup.view, &settings)
+                .unwrap();
+            assert_eq!(img.non_finite_count(), 0, "{name}");
+            let m = image_mean(&cpu);
+            let e = common::mean_error(&cpu, &img);
+            let (dmax, at) = common::max_difference(&cpu, &img);
+            let peak = cpu
+                .pixels
+                .iter()
+                .map(|p| p.max_element())
+                .fold(0.0f32, f32::max);
+            eprintln!(
+                "{name:16} once {once:5}: mean {m:.4} (screen-space only {without:.4}), rel \
+                 diff {:.2e}, max {dmax:.3e} at {at} (peak {peak:.3}); light senders pass \
+                 {:?}",
+                e / m,
+                timings.light_senders
+            );
+            assert!(
+                m > without,
+                "{name}: the light-space senders add light on the CPU"
+            );
+            assert!(
+                e < 1e-3 * m,
+                "{name} once {once}: mean |cpu - gpu| = {e:.3e}, image mean {m:.4}"
+            );
+            let bound = 1e-4 * f64::from(peak.max(1.0));
+            assert!(
+                dmax <= bound,
+                "{name} once {once}: max |cpu - gpu| = {dmax:.3e} at pixel {at}, over {bound:.3e}"
+            );
+        }
+    }
 }
 
 /// [`off_screen_floor`] with a 2.5 m panel (albedo 0.5) standing 1 m in front of the wall

@@ -1,0 +1,121 @@
+#import isr::common::{PI, MIN_POSITIVE, pixel_uv, world, view_scale, normal_or_viewer, g}
+#import scene_core::limits::{BACKGROUND, MAX_FINITE}
+#import scene_core::light_set::lights
+// The light-space senders' gather (issue 50; mirrors crates/isr/src/light_senders.rs'
+// `LightSenders::gather`, which documents the estimator): after the ISR + SSAO pass, per
+// coarse pixel P, the one-bounce light of every light-space sender S in front of P and
+// facing it,
+//   rho_P sum_S power_S f_l cos_P cos_S / (pi (pi r^2 + A_S)),
+// f_l the frame's indirect factor of S's light, added to the pass' indirect radiance
+// (accessibility kept). With once on (g.senders.y), a sender the coarse G-buffer shows
+// (depth within 2 %, normals within 60 degrees) at a pixel whose centre lies in P's
+// screen-space disk is left out: P's screen-space samples already stand for it.
+
+struct LightSender {
+    // xyz: where the light's ray hit; w: the patch's area A_S.
+    position_area: vec4<f32>,
+    // xyz: unit normal on the lit side; w: the light's index (its bits).
+    normal_light: vec4<f32>,
+    // rgb: reflected power before the frame's factor.
+    power: vec4<f32>,
+}
+
+@group(0) @binding(1) var<storage, read> senders: array<LightSender>;
+@group(0) @binding(2) var albedo_tex: texture_2d<f32>;
+@group(0) @binding(3) var normal_tex: texture_2d<f32>;
+@group(0) @binding(4) var depth_tex: texture_2d<f32>;
+@group(0) @binding(5) var id_tex: texture_2d<u32>;
+// (binding 6: the light set's lights, scene_core::light_set)
+// The ISR + SSAO pass' output: indirect rgb, accessibility a.
+@group(0) @binding(7) var radiosity_tex: texture_2d<f32>;
+@group(0) @binding(10) var out_tex: texture_storage_2d<rgba32float, write>;
+
+// Whether the coarse G-buffer shows the point q (unit normal nq) at a pixel whose centre
+// lies in the disk of pixel radii radius_px around centre (light_senders.rs' `shown_at`
+// and `Receiver::disk_holds`).
+fn shown_in_disk(
+    q: vec3<f32>,
+    nq: vec3<f32>,
+    size: vec2<u32>,
+    centre: vec2<f32>,
+    radius_px: vec2<f32>,
+) -> bool {
+    let clip = g.view_proj * vec4<f32>(q, 1.0);
+    if (!(clip.w > 0.0)) {
+        return false;
+    }
+    let ndc = clip.xy / clip.w;
+    let uv = vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
+    if (!(uv.x >= 0.0 && uv.y >= 0.0 && uv.x < 1.0 && uv.y < 1.0)) {
+        return false;
+    }
+    let px = min(vec2<u32>(uv * vec2<f32>(size)), size - vec2<u32>(1u));
+    let d = (vec2<f32>(px) + vec2<f32>(0.5) - centre) / radius_px;
+    if (!(dot(d, d) <= 1.0)) {
+        return false;
+    }
+    let pi = vec2<i32>(px);
+    if (textureLoad(id_tex, pi, 0).x == BACKGROUND) {
+        return false;
+    }
+    let zq = dot(q - g.eye_far.xyz, g.forward_extent.xyz) / g.eye_far.w;
+    let zg = textureLoad(depth_tex, pi, 0).x;
+    return abs(zq - zg) <= 0.02 * zg && dot(textureLoad(normal_tex, pi, 0).xyz, nq) >= 0.5;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = textureDimensions(depth_tex);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    let p = vec2<i32>(gid.xy);
+    let base = textureLoad(radiosity_tex, p, 0);
+    if (textureLoad(id_tex, p, 0).x == BACKGROUND) {
+        textureStore(out_tex, p, base);
+        return;
+    }
+    let z0 = textureLoad(depth_tex, p, 0).x;
+    if (!(z0 > 0.0)) {
+        textureStore(out_tex, p, base);
+        return;
+    }
+    // The receiver (radiosity.rs' `Receiver::at`, as the ISR + SSAO pass sets it up).
+    let uv = pixel_uv(p, size);
+    let p0 = world(uv, z0);
+    let n0 = normal_or_viewer(textureLoad(normal_tex, p, 0).xyz, uv);
+    let a0 = textureLoad(albedo_tex, p, 0);
+    let rho = a0.rgb * a0.a;
+    let span = vec2<f32>(g.du_span.w, g.dv_span.w);
+    let rp = min(g.k.w / max(view_scale(z0), MIN_POSITIVE), 2.0 * max(span.x, span.y));
+    let radius_px = vec2<f32>(rp / span.x * f32(size.x), rp / span.y * f32(size.y));
+    let centre = vec2<f32>(p) + vec2<f32>(0.5);
+    let count = g.senders.x;
+    let once = g.senders.y != 0u;
+    let light_count = arrayLength(&lights);
+    var sum = vec3<f32>(0.0);
+    for (var k = 0u; k < count; k++) {
+        let s = senders[k];
+        let d = s.position_area.xyz - p0;
+        let r2 = dot(d, d);
+        if (!(r2 > 0.0 && r2 <= MAX_FINITE)) {
+            continue;
+        }
+        let dir = d / sqrt(r2);
+        let cos_p = dot(n0, dir);
+        let cos_s = -dot(s.normal_light.xyz, dir);
+        if (cos_p <= 0.0 || cos_s <= 0.0) {
+            continue;
+        }
+        let light = bitcast<u32>(s.normal_light.w);
+        if (light >= light_count) {
+            continue;
+        }
+        if (once && shown_in_disk(s.position_area.xyz, s.normal_light.xyz, size, centre, radius_px)) {
+            continue;
+        }
+        let power = s.power.rgb * lights[light].indirect;
+        sum += power * (cos_p * cos_s / (PI * (PI * r2 + s.position_area.w)));
+    }
+    textureStore(out_tex, p, vec4<f32>(base.rgb + rho * sum, base.a));
+}
