@@ -7,7 +7,8 @@
 // facing it,
 //   rho_P sum_S power_S f_l cos_P cos_S / (pi (pi r^2 + A_S)),
 // f_l the frame's indirect factor of S's light, added to the pass' indirect radiance
-// (accessibility kept). With once on (g.senders.y), a sender the coarse G-buffer shows
+// (accessibility kept). Interleaved (g.senders.z), a pixel gathers only the senders of its
+// place in the 4x4 tile, each weighted 16, and the blur averages the 16 phases. With once on (g.senders.y), a sender the coarse G-buffer shows
 // (depth within 2 %, normals within 60 degrees) at a pixel whose centre lies in P's
 // screen-space disk is left out: P's screen-space samples already stand for it.
 
@@ -90,11 +91,20 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let rp = min(g.k.w / max(view_scale(z0), MIN_POSITIVE), 2.0 * max(span.x, span.y));
     let radius_px = vec2<f32>(rp / span.x * f32(size.x), rp / span.y * f32(size.y));
     let centre = vec2<f32>(p) + vec2<f32>(0.5);
-    let count = g.senders.x;
+    // Interleaved: this pixel's phase of the 4x4 tile, each of its senders weighted 16.
+    var first = 0u;
+    var end = g.senders.x;
+    var weight = 1.0;
+    if (g.senders.z != 0u) {
+        let phase = (gid.y % 4u) * 4u + gid.x % 4u;
+        first = g.sender_phases[phase / 4u][phase % 4u];
+        end = g.sender_phases[(phase + 1u) / 4u][(phase + 1u) % 4u];
+        weight = 16.0;
+    }
     let once = g.senders.y != 0u;
     let light_count = arrayLength(&lights);
     var sum = vec3<f32>(0.0);
-    for (var k = 0u; k < count; k++) {
+    for (var k = first; k < end; k++) {
         let s = senders[k];
         let d = s.position_area.xyz - p0;
         let r2 = dot(d, d);
@@ -117,5 +127,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let power = s.power.rgb * lights[light].indirect;
         sum += power * (cos_p * cos_s / (PI * (PI * r2 + s.position_area.w)));
     }
-    textureStore(out_tex, p, vec4<f32>(base.rgb + rho * sum, base.a));
+    textureStore(out_tex, p, vec4<f32>(base.rgb + rho * sum * weight, base.a));
 }

@@ -76,9 +76,11 @@ pub struct Globals {
     pub frustum: [[f32; 4]; 6],
     /// World to clip space, by columns (the light-space senders' projection).
     pub view_proj: [[f32; 4]; 4],
-    /// Light-space senders: how many, whether each is counted once (1) or not (0); unused,
-    /// unused. Zero count: the pass does not run.
+    /// Light-space senders: how many, whether each is counted once (1) or not (0), whether
+    /// the gather is interleaved (1) or not (0); unused. Zero count: the pass does not run.
     pub senders: [u32; 4],
+    /// [`LightSenders::phase_offsets`], four to a row (the last three unused).
+    pub sender_phases: [[u32; 4]; 5],
 }
 
 /// Flag bits of [`Globals::config`]`[1]`.
@@ -151,6 +153,7 @@ impl Globals {
             frustum: screen.reconstruction.uniform(),
             view_proj: [[0.0; 4]; 4],
             senders: [0; 4],
+            sender_phases: [[0; 4]; 5],
         }
     }
 }
@@ -335,9 +338,8 @@ pub struct GpuIsr {
     lighting: LightingPass,
     radiosity: RadiosityPass,
     light_senders_pass: LightSendersPass,
-    /// The light-space senders ([`GpuIsr::set_light_senders`]): their buffer, how many,
-    /// whether each surface is counted once.
-    light_senders: Option<(wgpu::Buffer, u32, bool)>,
+    /// The light-space senders ([`GpuIsr::set_light_senders`]).
+    light_senders: Option<UploadedSenders>,
     blur: BlurPass,
     upsample: UpsamplePass,
     lights: wgpu::Buffer,
@@ -362,6 +364,15 @@ pub struct GpuIsr {
     bound: Keyed<BindKey, Bound>,
     /// Set by [`GpuIsr::apply`]: the next frame rewrites the light and emitter buffers.
     lights_changed: bool,
+}
+
+/// The light-space senders on the GPU: their buffer and what the frame's globals say of them.
+struct UploadedSenders {
+    buffer: wgpu::Buffer,
+    /// [`Globals::senders`] without the frame's settings.
+    senders: [u32; 4],
+    /// [`Globals::sender_phases`].
+    phases: [[u32; 4]; 5],
 }
 
 /// What a frame's bind groups depend on: the caller's textures (by identity), the
@@ -613,17 +624,32 @@ impl GpuIsr {
             bytemuck::cast_slice(&data),
             wgpu::BufferUsages::STORAGE,
         );
-        self.light_senders = Some((buffer, count, senders.once));
+        let mut phases = [[0u32; 4]; 5];
+        for (i, offset) in senders.phase_offsets.iter().enumerate() {
+            phases[i / 4][i % 4] = *offset;
+        }
+        self.light_senders = Some(UploadedSenders {
+            buffer,
+            senders: [
+                count,
+                u32::from(senders.once),
+                u32::from(senders.interleaved),
+                0,
+            ],
+            phases,
+        });
         // The cached bind groups refer to the previous buffer.
         self.generation += 1;
         Ok(())
     }
 
-    /// The light-space senders a frame with `settings` gathers: their count and whether
-    /// each surface is counted once, `None` when the settings ask for none (or there is
-    /// none). Errors when the settings ask for them and none were given, or for their
+    /// The light-space senders a frame with `settings` gathers, `None` when the settings ask
+    /// for none (or there is none). Errors when the settings ask for them and none were given, or for their
     /// shadow rays (CPU only).
-    fn frame_light_senders(&self, settings: &IsrSettings) -> Result<Option<(u32, bool)>, IsrError> {
+    fn frame_light_senders(
+        &self,
+        settings: &IsrSettings,
+    ) -> Result<Option<&UploadedSenders>, IsrError> {
         if settings.light_senders == 0 || !settings.indirect {
             return Ok(None);
         }
@@ -644,7 +670,7 @@ impl GpuIsr {
                          and hand them to GpuIsr::set_light_senders"
                     .into(),
             }),
-            Some((_, count, once)) => Ok((*count > 0).then_some((*count, *once))),
+            Some(uploaded) => Ok((uploaded.senders[0] > 0).then_some(uploaded)),
         }
     }
 
@@ -832,7 +858,9 @@ impl GpuIsr {
         output: &wgpu::Texture,
     ) -> Result<(), IsrError> {
         settings.validate(self.extent)?;
-        let light_senders = self.frame_light_senders(settings)?;
+        let light_senders = self
+            .frame_light_senders(settings)?
+            .map(|u| (u.senders, u.phases));
         let full = inputs.full;
         self.check_output(output, full)?;
         let full_size = (full.width, full.height);
@@ -860,8 +888,9 @@ impl GpuIsr {
         let screen = Screen::new(inputs.view);
         let mut globals = Globals::new(&screen, &self.light_set, settings, full_size, coarse_size);
         globals.view_proj = inputs.view.view_projection().to_cols_array_2d();
-        if let Some((count, once)) = light_senders {
-            globals.senders = [count, u32::from(once), 0, 0];
+        if let Some((senders, phases)) = light_senders {
+            globals.senders = senders;
+            globals.sender_phases = phases;
         }
         // This frame's uniforms, copied into the one globals buffer by a command of the
         // frame's own encoder (so a second view encoded before the submit reads its own).
@@ -1030,7 +1059,7 @@ impl GpuIsr {
             // With light-space senders the screen-space pass writes its own texture and
             // the light-space pass adds to it into `radiosity`.
             let screen_out = match self.light_senders.as_ref().filter(|_| key.light_senders) {
-                Some((buffer, _, _)) => {
+                Some(UploadedSenders { buffer, .. }) => {
                     light_senders = Some(self.light_senders_pass.bind(
                         device,
                         globals,

@@ -31,7 +31,9 @@ impl std::fmt::Debug for IsrFrame {
 impl IsrFrame {
     /// Prepares ISR (or DL) on the host's device `ctx` from its precomputed state, the
     /// light set `lights` (lights, shadow maps, emitter samples: [`LightSet::new`]), to
-    /// render every frame with `settings` (named `dl` when they are direct light only).
+    /// render every frame with `settings` (named `dl` when they are direct light only,
+    /// `isr-ls` when they gather light-space senders: give them with
+    /// [`IsrFrame::with_light_senders`]).
     /// Every method's frame is made this way: `prepare(ctx, precomputed state, settings)`.
     pub fn prepare(
         ctx: &GpuContext,
@@ -40,6 +42,8 @@ impl IsrFrame {
     ) -> Result<Self, IsrError> {
         let name = if settings.is_direct_only() {
             "dl"
+        } else if settings.light_senders > 0 {
+            "isr-ls"
         } else {
             "isr"
         };

@@ -24,6 +24,16 @@
 //! [`IsrSettings::light_sender_shadows`](crate::IsrSettings::light_sender_shadows) asks for
 //! one ray per receiver and sender).
 //!
+//! **Interleaved** (as the screen-space samples' 16 rotations are): each sender belongs to one
+//! of 16 phases, by its texel's place in a 4x4 Bayer tile of its map (offset per light and
+//! cube face, so that small maps spread over the phases too), and a coarse pixel at `(x, y)`
+//! gathers only the senders of phase `(y mod 4) * 4 + x mod 4`, each weighted 16. Every
+//! sender is thus counted, with its full weight, by one pixel in 16 of every 4x4 block, and
+//! the blur that follows (a Gaussian of sigma 2 coarse pixels by default, which leaves under
+//! 1 % of a pattern of period 4) averages the 16: a frame gathers a sixteenth of the
+//! senders per pixel. [`LightSenders::interleaved`] off gathers every sender at every pixel
+//! (for measurements).
+//!
 //! **Counted once.** A surface the camera sees inside the receiver's screen-space disk is
 //! already a screen-space sender of that receiver, so a light-space sender is skipped for
 //! that receiver when it is visible in the coarse G-buffer (its depth within 2 % of the
@@ -47,6 +57,22 @@ use crate::radiosity::Receiver;
 
 /// The most light-space senders a light set may be asked for.
 pub const MAX_LIGHT_SENDERS: u32 = 1 << 16;
+
+/// Phases of the interleaved gather (module docs): a 4x4 tile of coarse pixels.
+pub const PHASES: usize = 16;
+
+/// The 4x4 Bayer matrix that orders a map's texels into the phases.
+const BAYER4: [u32; 16] = [0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5];
+
+/// The phase of texel `(x, y)` of face `face` of light `light`'s map.
+fn phase_of(light: usize, face: u32, x: u32, y: u32) -> u32 {
+    (BAYER4[((y % 4) * 4 + x % 4) as usize] + 5 * light as u32 + 3 * face) % PHASES as u32
+}
+
+/// The phase a coarse pixel `(x, y)` gathers.
+pub fn pixel_phase(x: u32, y: u32) -> usize {
+    ((y % 4) * 4 + x % 4) as usize
+}
 
 /// One light-space sender: a surface patch a light reaches first.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,8 +105,14 @@ pub struct GpuLightSender {
 /// The light-space senders of a scene's lights (module docs).
 #[derive(Clone, Debug)]
 pub struct LightSenders {
-    /// Every sender, light by light, texel by texel.
+    /// Every sender, phase by phase (module docs), within a phase light by light, texel by
+    /// texel.
     pub senders: Vec<LightSender>,
+    /// Where each phase's senders begin in `senders` (and, last, their count).
+    pub phase_offsets: [u32; PHASES + 1],
+    /// Whether each coarse pixel gathers only its phase's senders, weighted 16 (true, the
+    /// default), or every sender (module docs).
+    pub interleaved: bool,
     /// Texels per side of each light's map (per face for cubes), by light.
     pub resolutions: Vec<u32>,
     /// Leave out, per receiver, the senders its screen-space samples already see (true,
@@ -94,6 +126,8 @@ impl PartialEq for LightSenders {
     /// The same senders, maps and counting (the ray-query tree is the scene's either way).
     fn eq(&self, other: &Self) -> bool {
         self.senders == other.senders
+            && self.phase_offsets == other.phase_offsets
+            && self.interleaved == other.interleaved
             && self.resolutions == other.resolutions
             && self.once == other.once
     }
@@ -103,6 +137,8 @@ impl Default for LightSenders {
     fn default() -> Self {
         Self {
             senders: Vec::new(),
+            phase_offsets: [0; PHASES + 1],
+            interleaved: true,
             resolutions: Vec::new(),
             once: true,
             rays: None,
@@ -164,7 +200,7 @@ impl LightSenders {
             };
             let res = ((f64::from(budget) * share / faces).sqrt().floor() as u32).max(2);
             resolutions.push(res);
-            let texels: Vec<(Vec3, Vec3, f32)> = match light.kind {
+            let texels: Vec<(Vec3, Vec3, f32, u32)> = match light.kind {
                 LightKind::Directional => {
                     let d = light.direction;
                     let right = d.any_orthonormal_vector();
@@ -179,6 +215,7 @@ impl LightSenders {
                                 center - d * (2.0 * reach) + right * sx + up * sy,
                                 d,
                                 side * side,
+                                phase_of(index, 0, x, y),
                             )
                         })
                         .collect()
@@ -205,14 +242,19 @@ impl LightSenders {
                                 o += light.direction * eps;
                             }
                             // The solid angle: A_perp = t^2 dw once the hit is known.
-                            Some((o, d, texel * texel / (len * len * len)))
+                            Some((
+                                o,
+                                d,
+                                texel * texel / (len * len * len),
+                                phase_of(index, face as u32, x, y),
+                            ))
                         })
                         .collect()
                 }
             };
-            let hits: Vec<LightSender> = texels
+            let hits: Vec<(u32, LightSender)> = texels
                 .par_iter()
-                .filter_map(|&(o, d, footprint)| {
+                .filter_map(|&(o, d, footprint, phase)| {
                     let hit = rays.closest_hit(o, d, 0.0, f32::INFINITY)?;
                     let s = surface_at(scene, &offsets, &hit, o, d)?;
                     let cos = s.ns.dot(-d).max(s.ng.dot(-d)).max(1e-2);
@@ -223,7 +265,8 @@ impl LightSenders {
                     };
                     let area = a_perp / cos;
                     let power = s.albedo * light.irradiance(s.p, s.ns) * area;
-                    (power.max_element() > 0.0 && power.is_finite() && area.is_finite()).then_some(
+                    (power.max_element() > 0.0 && power.is_finite() && area.is_finite()).then_some((
+                        phase,
                         LightSender {
                             position: s.p,
                             normal: s.ns,
@@ -231,13 +274,25 @@ impl LightSenders {
                             area,
                             light: index as u32,
                         },
-                    )
+                    ))
                 })
                 .collect();
             senders.extend(hits);
         }
+        // Phase by phase (a stable sort: within a phase, the order of the lights and texels).
+        senders.sort_by_key(|(phase, _)| *phase);
+        let mut phase_offsets = [0u32; PHASES + 1];
+        for (phase, _) in &senders {
+            phase_offsets[*phase as usize + 1] += 1;
+        }
+        for p in 0..PHASES {
+            phase_offsets[p + 1] += phase_offsets[p];
+        }
+        let senders = senders.into_iter().map(|(_, s)| s).collect();
         Ok(Self {
             senders,
+            phase_offsets,
+            interleaved: true,
             resolutions,
             once: true,
             rays: Some(Arc::new(rays)),
@@ -254,6 +309,20 @@ impl LightSenders {
                 power: s.power.extend(0.0).to_array(),
             })
             .collect()
+    }
+
+    /// The senders coarse pixel `(x, y)` gathers and the weight of each: its phase's,
+    /// weighted [`PHASES`], or all of them, weighted 1 ([`LightSenders::interleaved`]).
+    pub fn gathered_by(&self, x: u32, y: u32) -> (std::ops::Range<usize>, f32) {
+        if self.interleaved {
+            let p = pixel_phase(x, y);
+            (
+                self.phase_offsets[p] as usize..self.phase_offsets[p + 1] as usize,
+                PHASES as f32,
+            )
+        } else {
+            (0..self.senders.len(), 1.0)
+        }
     }
 
     /// Whether there is no sender.
@@ -302,7 +371,10 @@ impl LightSenders {
                         return Vec3::ZERO;
                     };
                     let mut sum = Vec3::ZERO;
-                    for (s, (power, shown)) in self.senders.iter().zip(prepared) {
+                    let (range, weight) = self.gathered_by(x, y);
+                    for (s, (power, shown)) in
+                        self.senders[range.clone()].iter().zip(&prepared[range])
+                    {
                         if shown.is_some_and(|(sx, sy)| r.disk_holds(sx, sy)) {
                             continue;
                         }
@@ -326,7 +398,7 @@ impl LightSenders {
                         // L A cos cos / (pi r^2 + A) with L = power / (pi A).
                         sum += *power * (cos_p * cos_s / (PI * (PI * r2 + s.area)));
                     }
-                    r.rho * sum
+                    r.rho * sum * weight
                 })
             })
             .collect()
