@@ -32,7 +32,8 @@ struct Globals {
     // World to clip space (the light-space senders' projection onto the coarse buffer).
     view_proj: mat4x4<f32>,
     // Light-space senders: count, once (1: leave out those a receiver's disk shows),
-    // interleaved (1: a pixel gathers its phase's senders, weighted 16); unused.
+    // interleaved (1: a pixel gathers its phase's senders, weighted 16), visibility maps (1:
+    // on).
     senders: vec4<u32>,
     // Where each of the 16 phases' senders begin (the 17th: their count), four to a vector.
     sender_phases: array<vec4<u32>, 5>,

@@ -19,7 +19,16 @@ struct LightSender {
     normal_light: vec4<f32>,
     // rgb: reflected power before the frame's factor.
     power: vec4<f32>,
+    // xyz: the visibility map's tangent (its bitangent is normal x tangent).
+    tangent: vec4<f32>,
 }
+
+// Texels per side of a sender's visibility map and its depth test's slope-scaled slack
+// (light_senders.rs' DEPTH_RES, DEPTH_SLACK, DEPTH_SLOPE, MAX_SLACK).
+const DEPTH_RES: u32 = 16u;
+const DEPTH_SLACK: f32 = 0.05;
+const DEPTH_SLOPE: f32 = 0.3;
+const MAX_SLACK: f32 = 0.95;
 
 @group(0) @binding(1) var<storage, read> senders: array<LightSender>;
 @group(0) @binding(2) var albedo_tex: texture_2d<f32>;
@@ -30,6 +39,38 @@ struct LightSender {
 // The ISR + SSAO pass' output: indirect rgb, accessibility a.
 @group(0) @binding(7) var radiosity_tex: texture_2d<f32>;
 @group(0) @binding(10) var out_tex: texture_storage_2d<rgba32float, write>;
+// Each sender's visibility map: DEPTH_RES^2 distances, row by row.
+@group(0) @binding(11) var<storage, read> depths: array<f32>;
+
+// The visibility (0 to 1) of a receiver at distance r in unit direction w from sender k, its
+// normal at cosine cos_p to -w (light_senders.rs' `map_visibility`: paraboloid map,
+// slope-scaled slack, bilinear percentage-closer test).
+fn map_visibility(k: u32, s: LightSender, w: vec3<f32>, r: f32, cos_p: f32) -> f32 {
+    let n = s.normal_light.xyz;
+    let t = s.tangent.xyz;
+    let b = cross(n, t);
+    let z = max(dot(n, w), 0.0);
+    let uv = vec2<f32>(dot(t, w), dot(b, w)) / (1.0 + z);
+    let f = (uv * 0.5 + vec2<f32>(0.5)) * f32(DEPTH_RES) - vec2<f32>(0.5);
+    let base = floor(f);
+    let a = f - base;
+    let tan_a = sqrt(max(1.0 - cos_p * cos_p, 0.0)) / max(cos_p, 1e-6);
+    let far = r * (1.0 - min(DEPTH_SLACK + DEPTH_SLOPE * tan_a, MAX_SLACK));
+    let first = k * DEPTH_RES * DEPTH_RES;
+    let last = i32(DEPTH_RES) - 1;
+    var seen = 0.0;
+    for (var c = 0u; c < 4u; c++) {
+        let dx = i32(c & 1u);
+        let dy = i32(c >> 1u);
+        let weight = select(1.0 - a.x, a.x, dx == 1) * select(1.0 - a.y, a.y, dy == 1);
+        let x = u32(clamp(i32(base.x) + dx, 0, last));
+        let y = u32(clamp(i32(base.y) + dy, 0, last));
+        if (far <= depths[first + y * DEPTH_RES + x]) {
+            seen += weight;
+        }
+    }
+    return seen;
+}
 
 // Whether the coarse G-buffer shows the point q (unit normal nq) at a pixel whose centre
 // lies in the disk of pixel radii radius_px around centre (light_senders.rs' `shown_at`
@@ -102,6 +143,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         weight = 16.0;
     }
     let once = g.senders.y != 0u;
+    let visibility = g.senders.w != 0u;
     let light_count = arrayLength(&lights);
     var sum = vec3<f32>(0.0);
     for (var k = first; k < end; k++) {
@@ -124,8 +166,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (once && shown_in_disk(s.position_area.xyz, s.normal_light.xyz, size, centre, radius_px)) {
             continue;
         }
+        var seen = 1.0;
+        if (visibility) {
+            seen = map_visibility(k, s, -dir, sqrt(r2), cos_p);
+        }
         let power = s.power.rgb * lights[light].indirect;
-        sum += power * (cos_p * cos_s / (PI * (PI * r2 + s.position_area.w)));
+        sum += power * (seen * cos_p * cos_s / (PI * (PI * r2 + s.position_area.w)));
     }
     textureStore(out_tex, p, vec4<f32>(base.rgb + rho * sum * weight, base.a));
 }

@@ -77,7 +77,8 @@ pub struct Globals {
     /// World to clip space, by columns (the light-space senders' projection).
     pub view_proj: [[f32; 4]; 4],
     /// Light-space senders: how many, whether each is counted once (1) or not (0), whether
-    /// the gather is interleaved (1) or not (0); unused. Zero count: the pass does not run.
+    /// the gather is interleaved (1) or not (0), whether it reads their visibility maps (1)
+    /// or not (0). Zero count: the pass does not run.
     pub senders: [u32; 4],
     /// [`LightSenders::phase_offsets`], four to a row (the last three unused).
     pub sender_phases: [[u32; 4]; 5],
@@ -369,6 +370,8 @@ pub struct GpuIsr {
 /// The light-space senders on the GPU: their buffer and what the frame's globals say of them.
 struct UploadedSenders {
     buffer: wgpu::Buffer,
+    /// Their visibility maps (one zero when they have none).
+    depths: wgpu::Buffer,
     /// [`Globals::senders`] without the frame's settings.
     senders: [u32; 4],
     /// [`Globals::sender_phases`].
@@ -604,7 +607,10 @@ impl GpuIsr {
     pub fn set_light_senders(&mut self, senders: &LightSenders) -> Result<(), IsrError> {
         let mut data = senders.to_gpu();
         let count = data.len() as u32;
-        let bytes = std::mem::size_of_val(data.as_slice()) as u64;
+        let texels = (crate::light_senders::DEPTH_RES * crate::light_senders::DEPTH_RES) as usize;
+        let maps = senders.visibility && senders.depths.len() == senders.senders.len() * texels;
+        let bytes = std::mem::size_of_val(data.as_slice())
+            .max(std::mem::size_of_val(senders.depths.as_slice())) as u64;
         let limit = self.ctx.device.limits().max_storage_buffer_binding_size;
         if bytes > limit {
             return Err(IsrError::Budget(scene_core::BudgetExceeded {
@@ -624,17 +630,28 @@ impl GpuIsr {
             bytemuck::cast_slice(&data),
             wgpu::BufferUsages::STORAGE,
         );
+        let depths: &[f32] = if maps && !senders.depths.is_empty() {
+            &senders.depths
+        } else {
+            &[0.0]
+        };
+        let depths = self.ctx.buffer_with(
+            "isr light sender visibility maps",
+            bytemuck::cast_slice(depths),
+            wgpu::BufferUsages::STORAGE,
+        );
         let mut phases = [[0u32; 4]; 5];
         for (i, offset) in senders.phase_offsets.iter().enumerate() {
             phases[i / 4][i % 4] = *offset;
         }
         self.light_senders = Some(UploadedSenders {
             buffer,
+            depths,
             senders: [
                 count,
                 u32::from(senders.once),
                 u32::from(senders.interleaved),
-                0,
+                u32::from(maps),
             ],
             phases,
         });
@@ -1059,11 +1076,12 @@ impl GpuIsr {
             // With light-space senders the screen-space pass writes its own texture and
             // the light-space pass adds to it into `radiosity`.
             let screen_out = match self.light_senders.as_ref().filter(|_| key.light_senders) {
-                Some(UploadedSenders { buffer, .. }) => {
+                Some(UploadedSenders { buffer, depths, .. }) => {
                     light_senders = Some(self.light_senders_pass.bind(
                         device,
                         globals,
                         buffer,
+                        depths,
                         coarse,
                         &self.lights,
                         &t.screen_radiosity,

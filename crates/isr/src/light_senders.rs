@@ -24,6 +24,20 @@
 //! [`IsrSettings::light_sender_shadows`](crate::IsrSettings::light_sender_shadows) asks for
 //! one ray per receiver and sender).
 //!
+//! **Visibility** (imperfect shadow maps, Ritschel et al. 2008, made exact for the few
+//! directions they hold): each sender keeps a small depth map of the hemisphere over its
+//! surface, [`DEPTH_RES`]^2 texels in a paraboloid projection (a direction `w` of local
+//! coordinates `(x, y, z)`, `z` along the normal, lands at `(x, y) / (1 + z)` in the unit
+//! disk), each texel the distance a ray from the sender travels before it hits the scene,
+//! traced once when the senders are made. A receiver at distance `r` in direction `w` is
+//! seen where `r` less a slope-scaled slack is not beyond the texel's depth, bilinearly
+//! weighted over the four
+//! texels around `w` (percentage-closer filtering), so that walls between a sender and a
+//! receiver stop its light: senders outside a room no longer light its inside. One lookup
+//! per receiver and sender, on the CPU and the GPU alike; [`LightSenders::visibility`] off
+//! leaves it out (for measurements), and `shadowed` in [`LightSenders::gather`] casts an
+//! exact ray instead.
+//!
 //! **Interleaved** (as the screen-space samples' 16 rotations are): each sender belongs to one
 //! of 16 phases, by its texel's place in a 4x4 Bayer tile of its map (offset per light and
 //! cube face, so that small maps spread over the phases too), and a coarse pixel at `(x, y)`
@@ -58,6 +72,73 @@ use crate::radiosity::Receiver;
 /// The most light-space senders a light set may be asked for.
 pub const MAX_LIGHT_SENDERS: u32 = 1 << 16;
 
+/// Texels per side of each sender's visibility map (module docs).
+pub const DEPTH_RES: u32 = 16;
+
+/// The depth test's slack (module docs): a receiver at distance `r` is seen through a texel
+/// of depth `d` when `r (1 - slack) <= d`, with `slack = DEPTH_SLACK + DEPTH_SLOPE tan(a)`
+/// (at most [`MAX_SLACK`]), `a` the angle between the ray and the receiver's normal. A
+/// receiver's own surface spreads over a texel's neighbours at depths that differ from `r`
+/// by about `r tan(a)` times the angle between texel centres (up to 0.25 rad, at the
+/// paraboloid's centre): the slope-scaled bias of shadow maps.
+const DEPTH_SLACK: f32 = 0.05;
+/// See [`DEPTH_SLACK`].
+const DEPTH_SLOPE: f32 = 0.3;
+/// See [`DEPTH_SLACK`].
+const MAX_SLACK: f32 = 0.95;
+
+/// The local direction (`z` along the normal) through the centre of texel `(x, y)` of a
+/// [`DEPTH_RES`]-sided paraboloid map; centres outside the unit disk are moved onto it
+/// (just above the horizon).
+fn map_direction(x: u32, y: u32) -> Vec3 {
+    let n = DEPTH_RES as f32;
+    let mut uv = Vec2::new(
+        (x as f32 + 0.5) / n * 2.0 - 1.0,
+        (y as f32 + 0.5) / n * 2.0 - 1.0,
+    );
+    let q = uv.length_squared();
+    if q > 0.998 {
+        uv *= (0.998 / q).sqrt();
+    }
+    let q = uv.length_squared();
+    let z = (1.0 - q) / (1.0 + q);
+    (uv * (1.0 + z)).extend(z)
+}
+
+/// The visibility (0 to 1) of a receiver at distance `r` in unit direction `w` from a
+/// sender with frame `(t, b, n)` and visibility map `depths`, the receiver's normal at
+/// cosine `cos_p` to `-w` (module docs).
+pub fn map_visibility(
+    depths: &[f32],
+    (t, b, n): (Vec3, Vec3, Vec3),
+    w: Vec3,
+    r: f32,
+    cos_p: f32,
+) -> f32 {
+    let z = n.dot(w).max(0.0);
+    let uv = Vec2::new(t.dot(w), b.dot(w)) / (1.0 + z);
+    let res = DEPTH_RES as f32;
+    let f = (uv * 0.5 + 0.5) * res - 0.5;
+    let base = f.floor();
+    let a = f - base;
+    let tan_a = (1.0 - cos_p * cos_p).max(0.0).sqrt() / cos_p.max(1e-6);
+    let far = r * (1.0 - (DEPTH_SLACK + DEPTH_SLOPE * tan_a).min(MAX_SLACK));
+    let mut seen = 0.0;
+    for (dx, dy, weight) in [
+        (0, 0, (1.0 - a.x) * (1.0 - a.y)),
+        (1, 0, a.x * (1.0 - a.y)),
+        (0, 1, (1.0 - a.x) * a.y),
+        (1, 1, a.x * a.y),
+    ] {
+        let x = (base.x as i32 + dx).clamp(0, DEPTH_RES as i32 - 1) as usize;
+        let y = (base.y as i32 + dy).clamp(0, DEPTH_RES as i32 - 1) as usize;
+        if far <= depths[y * DEPTH_RES as usize + x] {
+            seen += weight;
+        }
+    }
+    seen
+}
+
 /// Phases of the interleaved gather (module docs): a 4x4 tile of coarse pixels.
 pub const PHASES: usize = 16;
 
@@ -87,6 +168,8 @@ pub struct LightSender {
     pub area: f32,
     /// Index of its light in [`LightSet::lights`].
     pub light: u32,
+    /// A unit tangent: the visibility map's `x` axis (`y` is `normal x tangent`).
+    pub tangent: Vec3,
 }
 
 /// One light-space sender in the GPU layout (`LightSender` in
@@ -100,6 +183,8 @@ pub struct GpuLightSender {
     pub normal_light: [f32; 4],
     /// Reflected power before the frame's factor; `w` unused.
     pub power: [f32; 4],
+    /// The visibility map's tangent; `w` unused.
+    pub tangent: [f32; 4],
 }
 
 /// The light-space senders of a scene's lights (module docs).
@@ -113,6 +198,12 @@ pub struct LightSenders {
     /// Whether each coarse pixel gathers only its phase's senders, weighted 16 (true, the
     /// default), or every sender (module docs).
     pub interleaved: bool,
+    /// Each sender's visibility map, [`DEPTH_RES`]^2 distances row by row, in the order of
+    /// `senders` (module docs); a ray that leaves the scene keeps `f32::MAX`.
+    pub depths: Vec<f32>,
+    /// Whether the gather weighs each sender's light by its visibility map (true, the
+    /// default) or counts every sender in front of a receiver as seen (module docs).
+    pub visibility: bool,
     /// Texels per side of each light's map (per face for cubes), by light.
     pub resolutions: Vec<u32>,
     /// Leave out, per receiver, the senders its screen-space samples already see (true,
@@ -128,6 +219,8 @@ impl PartialEq for LightSenders {
         self.senders == other.senders
             && self.phase_offsets == other.phase_offsets
             && self.interleaved == other.interleaved
+            && self.depths == other.depths
+            && self.visibility == other.visibility
             && self.resolutions == other.resolutions
             && self.once == other.once
     }
@@ -139,6 +232,8 @@ impl Default for LightSenders {
             senders: Vec::new(),
             phase_offsets: [0; PHASES + 1],
             interleaved: true,
+            depths: Vec::new(),
+            visibility: true,
             resolutions: Vec::new(),
             once: true,
             rays: None,
@@ -273,6 +368,7 @@ impl LightSenders {
                             power,
                             area,
                             light: index as u32,
+                            tangent: s.ns.any_orthonormal_vector(),
                         },
                     ))
                 })
@@ -288,11 +384,30 @@ impl LightSenders {
         for p in 0..PHASES {
             phase_offsets[p + 1] += phase_offsets[p];
         }
-        let senders = senders.into_iter().map(|(_, s)| s).collect();
+        let senders: Vec<LightSender> = senders.into_iter().map(|(_, s)| s).collect();
+        // Each sender's visibility map: one ray per texel, from just above its surface.
+        let directions: Vec<Vec3> = (0..DEPTH_RES * DEPTH_RES)
+            .map(|k| map_direction(k % DEPTH_RES, k / DEPTH_RES))
+            .collect();
+        let depths: Vec<f32> = senders
+            .par_iter()
+            .flat_map_iter(|s| {
+                let (t, b, n) = (s.tangent, s.normal.cross(s.tangent), s.normal);
+                let o = s.position + n * eps;
+                let rays = &rays;
+                directions.iter().map(move |l| {
+                    let d = (t * l.x + b * l.y + n * l.z).normalize_or_zero();
+                    rays.closest_hit(o, d, 0.0, f32::INFINITY)
+                        .map_or(f32::MAX, |h| h.t)
+                })
+            })
+            .collect();
         Ok(Self {
             senders,
             phase_offsets,
             interleaved: true,
+            depths,
+            visibility: true,
             resolutions,
             once: true,
             rays: Some(Arc::new(rays)),
@@ -307,6 +422,7 @@ impl LightSenders {
                 position_area: s.position.extend(s.area).to_array(),
                 normal_light: s.normal.extend(f32::from_bits(s.light)).to_array(),
                 power: s.power.extend(0.0).to_array(),
+                tangent: s.tangent.extend(0.0).to_array(),
             })
             .collect()
     }
@@ -347,6 +463,9 @@ impl LightSenders {
         shadowed: bool,
     ) -> Vec<Vec3> {
         let rays = self.rays.as_deref().filter(|_| shadowed);
+        let texels = (DEPTH_RES * DEPTH_RES) as usize;
+        let maps = (self.visibility && self.depths.len() == self.senders.len() * texels)
+            .then_some(self.depths.as_slice());
         // Off the receiver's surface, past the coarse depth's error.
         let eps = 1e-3 * lights.extent;
         let screen = Screen::new(view);
@@ -372,9 +491,8 @@ impl LightSenders {
                     };
                     let mut sum = Vec3::ZERO;
                     let (range, weight) = self.gathered_by(x, y);
-                    for (s, (power, shown)) in
-                        self.senders[range.clone()].iter().zip(&prepared[range])
-                    {
+                    for k in range {
+                        let (s, (power, shown)) = (&self.senders[k], &prepared[k]);
                         if shown.is_some_and(|(sx, sy)| r.disk_holds(sx, sy)) {
                             continue;
                         }
@@ -390,13 +508,25 @@ impl LightSenders {
                             continue;
                         }
                         let r_len = r2.sqrt();
-                        if rays.is_some_and(|rays| {
-                            rays.occluded(r.p + r.n * eps, dir, 0.0, r_len - 2.0 * eps)
-                        }) {
-                            continue;
-                        }
+                        let seen = match rays {
+                            Some(rays) => {
+                                if rays.occluded(r.p + r.n * eps, dir, 0.0, r_len - 2.0 * eps) {
+                                    continue;
+                                }
+                                1.0
+                            }
+                            None => maps.map_or(1.0, |maps| {
+                                map_visibility(
+                                    &maps[k * texels..(k + 1) * texels],
+                                    (s.tangent, s.normal.cross(s.tangent), s.normal),
+                                    -dir,
+                                    r_len,
+                                    cos_p,
+                                )
+                            }),
+                        };
                         // L A cos cos / (pi r^2 + A) with L = power / (pi A).
-                        sum += *power * (cos_p * cos_s / (PI * (PI * r2 + s.area)));
+                        sum += *power * (seen * cos_p * cos_s / (PI * (PI * r2 + s.area)));
                     }
                     r.rho * sum * weight
                 })

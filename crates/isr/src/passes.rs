@@ -266,13 +266,15 @@ impl LightSendersPass {
                     storage_buffer_entry(6),
                     texture_entry(7, false),
                     storage_texture_entry(10, wgpu::TextureFormat::Rgba32Float),
+                    storage_buffer_entry(11),
                 ],
                 &[],
             )?,
         })
     }
 
-    /// The bind group over the coarse G-buffer `coarse`, the senders (`GpuLightSender`s),
+    /// The bind group over the coarse G-buffer `coarse`, the senders (`GpuLightSender`s)
+    /// and their visibility maps `depths`,
     /// the light set's `lights`, the ISR + SSAO output `radiosity` and the output `out`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn bind(
@@ -280,6 +282,7 @@ impl LightSendersPass {
         device: &wgpu::Device,
         globals: &wgpu::Buffer,
         senders: &wgpu::Buffer,
+        depths: &wgpu::Buffer,
         coarse: &scene_core::gpu::GpuGBuffer,
         lights: &wgpu::Buffer,
         radiosity: &wgpu::Texture,
@@ -304,6 +307,7 @@ impl LightSendersPass {
             (6, lights.as_entire_binding()),
             (7, wgpu::BindingResource::TextureView(&views[4])),
             (10, wgpu::BindingResource::TextureView(&views[5])),
+            (11, depths.as_entire_binding()),
         ];
         let entries: Vec<wgpu::BindGroupEntry<'_>> = resources
             .into_iter()
