@@ -241,6 +241,7 @@ impl scene_core::technique::StageTimings for PassTimings {
             ("downsample", self.downsample),
             ("senders", self.senders),
             ("radiosity", self.radiosity),
+            ("light senders", self.light_senders),
             ("blur", self.blur),
             ("upsample", self.upsample),
             ("lighting", self.lighting),
@@ -261,11 +262,12 @@ mod stage_tests {
             downsample: ms(1),
             senders: ms(2),
             radiosity: ms(4),
+            light_senders: ms(64),
             blur: ms(8),
             upsample: ms(16),
             lighting: ms(32),
         };
         assert_eq!(t.total_time(), t.total());
-        assert_eq!(t.total_time(), ms(63));
+        assert_eq!(t.total_time(), ms(127));
     }
 }
