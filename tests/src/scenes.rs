@@ -107,7 +107,17 @@ pub fn techniques(
             "isr-gpu",
             Box::new(
                 IsrTechnique::new(IsrSettings::default(), Box::new(CpuRasterizer::new()))
-                    .with_backend(backend),
+                    .with_backend(backend.clone()),
+            ),
+        ));
+        out.push((
+            "isr-ls-gpu",
+            Box::new(
+                IsrTechnique::new(
+                    IsrSettings::with_light_senders(24, 256),
+                    Box::new(CpuRasterizer::new()),
+                )
+                .with_backend(backend),
             ),
         ));
         out.push((
@@ -217,13 +227,14 @@ pub fn compared_methods_seeded(seed: u64) -> Vec<(&'static str, Box<dyn Techniqu
             Box::new(gbuffer::CpuRasterizer::new()),
         )
     };
-    // Not the light-space senders: a sky's 64 directions share their budget, and the
-    // sky-lit room of tests/tests/sky.rs read 0.72-0.74 off the reference at 256 senders
-    // and 0.62 under a one-pixel sky at 4 096 (bound 0.57), against 0.37-0.38 under a sun
-    // (issue 50: a sender budget for skies).
+    // Not the light-space senders: a sky's 64 directions share their budget (2x2 texels
+    // each at 256 senders, few of which pass the window), and the sky-lit room of
+    // tests/tests/sky.rs read 0.72-0.74 off the reference at 256 senders with visibility
+    // maps (bound 0.70; 0.47 under a sun) and 0.62 under a one-pixel sky at 4 096 without
+    // them (bound 0.57) (issue 50: a sender budget for skies).
     techniques(ctx.as_ref())
         .into_iter()
-        .filter(|(name, _)| *name != "reference" && *name != "isr-ls")
+        .filter(|(name, _)| !matches!(*name, "reference" | "isr-ls" | "isr-ls-gpu"))
         .map(|(name, t)| match (name, &ctx) {
             ("ibrr", _) => (name, Box::new(ibrr()) as Box<dyn Technique>),
             ("ibrr-cam", _) => {
