@@ -227,11 +227,11 @@ pub fn compared_methods_seeded(seed: u64) -> Vec<(&'static str, Box<dyn Techniqu
             Box::new(gbuffer::CpuRasterizer::new()),
         )
     };
-    // Not the light-space senders: a sky's 64 directions share their budget (2x2 texels
-    // each at 256 senders, few of which pass the window), and the sky-lit room of
-    // tests/tests/sky.rs read 0.72-0.74 off the reference at 256 senders with visibility
-    // maps (bound 0.70; 0.47 under a sun) and 0.62 under a one-pixel sky at 4 096 without
-    // them (bound 0.57) (issue 50: a sender budget for skies).
+    // Not the light-space senders: in the sky-lit room of tests/tests/sky.rs, at the 256
+    // senders of `isr-ls` (16 per pixel interleaved, the few that pass the window noisy),
+    // a uniform sky reads 0.66 off the reference (bound 0.70) but a one-pixel sky 0.72
+    // (bound 0.67); under a sun through the same window they read 0.47, the closest of
+    // every method (issue 50: a sender budget for rooms lit through openings).
     techniques(ctx.as_ref())
         .into_iter()
         .filter(|(name, _)| !matches!(*name, "reference" | "isr-ls" | "isr-ls-gpu"))

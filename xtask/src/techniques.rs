@@ -129,7 +129,8 @@ fn isr_ls_choice(samples: u32, shadowed: bool) -> TechniqueChoice {
         }),
         description: format!(
             "{samples} samples and about {LIGHT_SENDERS} light-space senders (reflective shadow \
-             maps, each surface counted once, k_isr 1; CPU only){how}, CPU rasteriser G-buffer"
+             maps with visibility maps, interleaved 4x4, each surface counted once, k_isr 1){how}, \
+             CPU rasteriser G-buffer"
         ),
     }
 }

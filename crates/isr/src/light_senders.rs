@@ -15,6 +15,14 @@
 //! power `rho E A` (`cos(theta)` cancels: `rho E_perp A_perp`), a Lambertian disk of
 //! radiance `L = rho E / pi`.
 //!
+//! **Directional lights share a map.** A sun and a sky's directions (scene-core turns a sky
+//! into 64 of them) share one orthographic grid, sized by their joint power: each texel
+//! takes one of them, drawn in proportion to its power by a low-discrepancy number (the R2
+//! sequence over the texel grid), and its power is divided by that probability, an
+//! unbiased stand-in for all of them. Maps of their own would give each of a sky's 64
+//! directions a sixty-fourth of the resolution (2x2 texels at 256 senders), too coarse to
+//! find a window.
+//!
 //! **Gathering** (the screen-space senders' disk form factor, eq. 25 in its `Patch` form,
 //! [`crate::Estimator::Patch`]): a receiver at `P` with normal `n_P` gets
 //! `rho_P sum_s L_s cos_P cos_s A_s / (pi r^2 + A_s)` from the senders in front of it and
@@ -204,7 +212,8 @@ pub struct LightSenders {
     /// Whether the gather weighs each sender's light by its visibility map (true, the
     /// default) or counts every sender in front of a receiver as seen (module docs).
     pub visibility: bool,
-    /// Texels per side of each light's map (per face for cubes), by light.
+    /// Texels per side of each light's map (per face for cubes), by light; the directional
+    /// lights share one map (module docs), each listed with its side.
     pub resolutions: Vec<u32>,
     /// Leave out, per receiver, the senders its screen-space samples already see (true,
     /// the default). False counts those surfaces twice: for tests and measurements only.
@@ -243,7 +252,8 @@ impl Default for LightSenders {
 
 impl LightSenders {
     /// About `budget` senders over `lights`' lights (each light a share of texels in
-    /// proportion to the power it sends into the scene, at least 2x2 per map or face),
+    /// proportion to the power it sends into the scene, at least 2x2 per map or face; the
+    /// directional lights share one map, each texel one of them drawn by power),
     /// traced against `scene` (the scene the light set was made from). Rays that leave the scene, and hits on degenerate triangles, make no
     /// sender.
     ///
@@ -279,102 +289,137 @@ impl LightSenders {
             })
             .collect();
         let total: f64 = power.iter().sum();
-        let eps = 1e-4 * lights.extent;
-        let mut senders = Vec::new();
-        let mut resolutions = Vec::with_capacity(lights.lights.len());
-        for (index, light) in lights.lights.iter().enumerate() {
-            let faces = if light.kind == LightKind::Directional {
-                1.0
-            } else {
-                6.0
-            };
-            let share = if total > 0.0 && total.is_finite() {
-                power[index] / total
+        let share = |p: f64| {
+            if total > 0.0 && total.is_finite() {
+                p / total
             } else {
                 1.0 / lights.lights.len() as f64
+            }
+        };
+        let eps = 1e-4 * lights.extent;
+        // Every texel to trace: origin, direction, footprint (an area, or a solid angle for
+        // cubes), phase, light, and the weight of its light's choice (1 / its probability).
+        let mut texels: Vec<(Vec3, Vec3, f32, u32, usize, f32)> = Vec::new();
+        let mut resolutions = vec![0; lights.lights.len()];
+        // The directional lights (a sun, a sky's directions) share one grid over the scene:
+        // each texel takes one of them, chosen in proportion to its power by a
+        // low-discrepancy number, and stands for it weighted by the inverse of that choice's
+        // probability. A sky's 64 directions then share the grid's whole resolution, where
+        // maps of their own would each get a 64th of it.
+        let directional: Vec<usize> = (0..lights.lights.len())
+            .filter(|&i| lights.lights[i].kind == LightKind::Directional)
+            .collect();
+        if !directional.is_empty() {
+            let group: f64 = directional.iter().map(|&i| power[i]).sum();
+            let res = ((f64::from(budget) * share(group)).sqrt().floor() as u32).max(2);
+            // The choice: a cumulative distribution over the group's powers (uniform when
+            // they carry none).
+            let weights: Vec<f64> = if group > 0.0 && group.is_finite() {
+                directional.iter().map(|&i| power[i] / group).collect()
+            } else {
+                vec![1.0 / directional.len() as f64; directional.len()]
             };
-            let res = ((f64::from(budget) * share / faces).sqrt().floor() as u32).max(2);
-            resolutions.push(res);
-            let texels: Vec<(Vec3, Vec3, f32, u32)> = match light.kind {
-                LightKind::Directional => {
-                    let d = light.direction;
-                    let right = d.any_orthonormal_vector();
-                    let up = d.cross(right);
-                    let side = 2.0 * reach / res as f32;
-                    (0..res * res)
-                        .map(|k| {
-                            let (x, y) = (k % res, k / res);
-                            let sx = -reach + side * (x as f32 + 0.5);
-                            let sy = -reach + side * (y as f32 + 0.5);
-                            (
-                                center - d * (2.0 * reach) + right * sx + up * sy,
-                                d,
-                                side * side,
-                                phase_of(index, 0, x, y),
-                            )
-                        })
-                        .collect()
+            let side = 2.0 * reach / res as f32;
+            for k in 0..res * res {
+                let (x, y) = (k % res, k / res);
+                // The R2 sequence's plastic-number steps over the texel grid.
+                let u = (0.5 + 0.754_877_666_246_692_7 * f64::from(x)
+                    + 0.569_840_290_998_053_2 * f64::from(y))
+                .fract();
+                let mut acc = 0.0;
+                let mut pick = directional.len() - 1;
+                for (j, w) in weights.iter().enumerate() {
+                    acc += w;
+                    if u < acc {
+                        pick = j;
+                        break;
+                    }
                 }
-                LightKind::Point | LightKind::EmitterSample => {
-                    let texel = 2.0 / res as f32;
-                    (0..6 * res * res)
-                        .filter_map(|k| {
-                            let face = (k / (res * res)) as usize;
-                            let (x, y) = (k % res, (k / res) % res);
-                            let uv = Vec2::new(
-                                (x as f32 + 0.5) / res as f32,
-                                (y as f32 + 0.5) / res as f32,
-                            );
-                            let raw = cube_direction(face, uv);
-                            let len = raw.length();
-                            let d = raw / len;
-                            let mut o = light.position;
-                            if light.kind == LightKind::EmitterSample {
-                                // One-sided: only the emitting side, leaving from just above it.
-                                if d.dot(light.direction) <= 0.0 {
-                                    return None;
-                                }
-                                o += light.direction * eps;
-                            }
-                            // The solid angle: A_perp = t^2 dw once the hit is known.
-                            Some((
-                                o,
-                                d,
-                                texel * texel / (len * len * len),
-                                phase_of(index, face as u32, x, y),
-                            ))
-                        })
-                        .collect()
+                if weights[pick] <= 0.0 {
+                    continue;
                 }
-            };
-            let hits: Vec<(u32, LightSender)> = texels
-                .par_iter()
-                .filter_map(|&(o, d, footprint, phase)| {
-                    let hit = rays.closest_hit(o, d, 0.0, f32::INFINITY)?;
-                    let s = surface_at(scene, &offsets, &hit, o, d)?;
-                    let cos = s.ns.dot(-d).max(s.ng.dot(-d)).max(1e-2);
-                    let a_perp = if light.kind == LightKind::Directional {
-                        footprint
-                    } else {
-                        hit.t * hit.t * footprint
-                    };
-                    let area = a_perp / cos;
-                    let power = s.albedo * light.irradiance(s.p, s.ns) * area;
-                    (power.max_element() > 0.0 && power.is_finite() && area.is_finite()).then_some((
-                        phase,
-                        LightSender {
-                            position: s.p,
-                            normal: s.ns,
-                            power,
-                            area,
-                            light: index as u32,
-                            tangent: s.ns.any_orthonormal_vector(),
-                        },
-                    ))
-                })
-                .collect();
-            senders.extend(hits);
+                let index = directional[pick];
+                let d = lights.lights[index].direction;
+                let right = d.any_orthonormal_vector();
+                let up = d.cross(right);
+                let sx = -reach + side * (x as f32 + 0.5);
+                let sy = -reach + side * (y as f32 + 0.5);
+                texels.push((
+                    center - d * (2.0 * reach) + right * sx + up * sy,
+                    d,
+                    side * side,
+                    phase_of(0, 0, x, y),
+                    index,
+                    (1.0 / weights[pick]) as f32,
+                ));
+            }
+            for &i in &directional {
+                resolutions[i] = res;
+            }
         }
+        for (index, light) in lights.lights.iter().enumerate() {
+            if light.kind == LightKind::Directional {
+                continue;
+            }
+            let res = ((f64::from(budget) * share(power[index]) / 6.0).sqrt().floor() as u32).max(2);
+            resolutions[index] = res;
+            let texel = 2.0 / res as f32;
+            for k in 0..6 * res * res {
+                let face = (k / (res * res)) as usize;
+                let (x, y) = (k % res, (k / res) % res);
+                let uv = Vec2::new(
+                    (x as f32 + 0.5) / res as f32,
+                    (y as f32 + 0.5) / res as f32,
+                );
+                let raw = cube_direction(face, uv);
+                let len = raw.length();
+                let d = raw / len;
+                let mut o = light.position;
+                if light.kind == LightKind::EmitterSample {
+                    // One-sided: only the emitting side, leaving from just above it.
+                    if d.dot(light.direction) <= 0.0 {
+                        continue;
+                    }
+                    o += light.direction * eps;
+                }
+                // The solid angle: A_perp = t^2 dw once the hit is known.
+                texels.push((
+                    o,
+                    d,
+                    texel * texel / (len * len * len),
+                    phase_of(index, face as u32, x, y),
+                    index,
+                    1.0,
+                ));
+            }
+        }
+        let mut senders: Vec<(u32, LightSender)> = texels
+            .par_iter()
+            .filter_map(|&(o, d, footprint, phase, index, weight)| {
+                let light = &lights.lights[index];
+                let hit = rays.closest_hit(o, d, 0.0, f32::INFINITY)?;
+                let s = surface_at(scene, &offsets, &hit, o, d)?;
+                let cos = s.ns.dot(-d).max(s.ng.dot(-d)).max(1e-2);
+                let a_perp = if light.kind == LightKind::Directional {
+                    footprint
+                } else {
+                    hit.t * hit.t * footprint
+                };
+                let area = a_perp / cos;
+                let power = s.albedo * light.irradiance(s.p, s.ns) * area * weight;
+                (power.max_element() > 0.0 && power.is_finite() && area.is_finite()).then_some((
+                    phase,
+                    LightSender {
+                        position: s.p,
+                        normal: s.ns,
+                        power,
+                        area,
+                        light: index as u32,
+                        tangent: s.ns.any_orthonormal_vector(),
+                    },
+                ))
+            })
+            .collect();
         // Phase by phase (a stable sort: within a phase, the order of the lights and texels).
         senders.sort_by_key(|(phase, _)| *phase);
         let mut phase_offsets = [0u32; PHASES + 1];
