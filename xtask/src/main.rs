@@ -991,9 +991,7 @@ fn run(cli: Cli) -> Result<(), String> {
                 .split(',')
                 .map(bench_frames::parse_size)
                 .collect::<Result<Vec<_>, _>>()
-                .and_then(|sizes| {
-                    bench_frames::run(&scene, threads, repeats, &sizes, cold_cache)
-                }),
+                .and_then(|sizes| bench_frames::run(&scene, threads, repeats, &sizes, cold_cache)),
             "reference" => bench::reference(threads, repeats),
             "isr" => bench::isr(threads, repeats),
             "gbuffer" => bench::gbuffer(threads, repeats),

@@ -24,9 +24,10 @@ use scene_core::Metric;
 use scene_core::reference::Bounces;
 
 /// Where ISR's defaults were tuned, as the main job's results record it.
-pub const TUNING_NOTE: &str = "ISR's k_isr per sample count: `cargo xtask sweep-isr`, on \
-    held-out views (seeded random cameras, seed 7001, of the built-in scenes; none of them is \
-    a view the main job scores)";
+pub const TUNING_NOTE: &str = "ISR (`isr-N`): screen-space and light-space senders at \
+    k_isr 1, nothing tuned (4 096 senders, a round number); `isr-scaled-N`'s k_isr per sample \
+    count was chosen by `cargo xtask sweep-isr` on held-out views (seeded random cameras, seed \
+    7001, of the built-in scenes; none of them is a view the main job scores)";
 
 /// The seed of the sweep's random cameras (the main job scores the scenes' own cameras).
 pub const HELD_OUT_SEED: u64 = 7001;

@@ -83,6 +83,8 @@ fn ibrr_choice(ldc: u32, irpls: u32, camera_importance: bool) -> TechniqueChoice
     }
 }
 
+/// The screen-space-only mode of ISR: `isr-scaled-N` (`k_isr` measured on the sweep's
+/// views) or `isr-thesis-N` (the thesis' constants).
 fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
     let base = if thesis {
         IsrSettings::thesis()
@@ -96,8 +98,8 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
         )
     } else {
         (
-            format!("isr-{samples}"),
-            "default mode (patch estimator, lit senders, no AO, k_isr measured for the sample count)",
+            format!("isr-scaled-{samples}"),
+            "screen-space senders only (patch estimator, lit senders, no AO, k_isr measured for the sample count on sweep-isr's views)",
         )
     };
     TechniqueChoice {
@@ -111,17 +113,21 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
 /// The light-space senders of the `isr-ls-N` techniques (about this many; issue 50).
 pub const LIGHT_SENDERS: u32 = 4096;
 
-fn isr_ls_choice(samples: u32, shadowed: bool) -> TechniqueChoice {
+/// ISR with light-space senders: the default `isr-N` (`named` false), or under the name
+/// `isr-ls-N`, or `isr-lsv-N` with exact shadow rays.
+fn isr_ls_choice(samples: u32, shadowed: bool, named: bool) -> TechniqueChoice {
     let (suffix, how) = if shadowed {
         (
-            "lsv",
+            "-lsv",
             ", their light shadowed by a ray per receiver and sender",
         )
+    } else if named {
+        ("-ls", "")
     } else {
-        ("ls", "")
+        ("", "")
     };
     TechniqueChoice {
-        label: format!("isr-{suffix}-{samples}"),
+        label: format!("isr{suffix}-{samples}"),
         family: "isr".into(),
         kind: ChoiceKind::Isr(IsrSettings {
             light_sender_shadows: shadowed,
@@ -135,15 +141,17 @@ fn isr_ls_choice(samples: u32, shadowed: bool) -> TechniqueChoice {
     }
 }
 
-/// Parses a technique list: `dl`, `isr` (both modes at 24, 48 and 80 samples), `isr-default`,
-/// `isr-thesis`, `isr-N`, `isr-thesis-N`, `isr-ls` and `isr-ls-N` (with light-space
-/// senders), `relight` (256 and 1024 elements), `relight-N`,
+/// Parses a technique list: `dl`, `isr` (the default and the thesis' modes at 24, 48 and 80
+/// samples), `isr-default`, `isr-thesis`, `isr-scaled`, `isr-N` (the default: screen-space
+/// and light-space senders, `k_isr` 1), `isr-thesis-N`, `isr-scaled-N` (screen-space senders
+/// scaled by a measured `k_isr`), `isr-ls` and `isr-ls-N` (the default under another name),
+/// `isr-lsv-N` (with shadow rays), `relight` (256 and 1024 elements), `relight-N`,
 /// `ibrr` (LDC 128 with 64 IRPLs, LDC 256 with 184), `ibrr-RES-N`, `ibrr-RES-N-cam` (with
 /// camera importance). `dl` (the baseline) is
 /// added first when missing.
 pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
-    let known = "dl, isr, isr-default, isr-thesis, isr-N, isr-thesis-N, isr-ls, isr-ls-N, \
-                 isr-lsv-N (N in 1..=256), \
+    let known = "dl, isr, isr-default, isr-thesis, isr-scaled, isr-N, isr-thesis-N, \
+                 isr-scaled-N, isr-ls, isr-ls-N, isr-lsv-N (N in 1..=256), \
                  relight, relight-N (N elements, 16..=1000000), ibrr, ibrr-RES-N (LDC RES in \
                  8..=2048, N IRPLs in 1..=100000), ibrr-RES-N-cam (camera importance)";
     let mut out: Vec<TechniqueChoice> = Vec::new();
@@ -158,12 +166,13 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                 description: "direct light with ESM shadows (the thesis' I_DL)".into(),
             }),
             "isr" => {
-                add.extend(SAMPLES.map(|n| isr_choice(false, n)));
+                add.extend(SAMPLES.map(|n| isr_ls_choice(n, false, false)));
                 add.extend(SAMPLES.map(|n| isr_choice(true, n)));
             }
-            "isr-default" => add.extend(SAMPLES.map(|n| isr_choice(false, n))),
+            "isr-default" => add.extend(SAMPLES.map(|n| isr_ls_choice(n, false, false))),
             "isr-thesis" => add.extend(SAMPLES.map(|n| isr_choice(true, n))),
-            "isr-ls" => add.extend(SAMPLES.map(|n| isr_ls_choice(n, false))),
+            "isr-scaled" => add.extend(SAMPLES.map(|n| isr_choice(false, n))),
+            "isr-ls" => add.extend(SAMPLES.map(|n| isr_ls_choice(n, false, true))),
             "relight" => add.extend(RELIGHT_ELEMENTS.map(relight_choice)),
             "ibrr" => add.extend(IBRR_SETTINGS.map(|(r, n)| ibrr_choice(r, n, false))),
             _ if t.starts_with("relight-") => {
@@ -192,6 +201,8 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
             _ => {
                 let (mode, n) = if let Some(n) = t.strip_prefix("isr-thesis-") {
                     ("thesis", n)
+                } else if let Some(n) = t.strip_prefix("isr-scaled-") {
+                    ("scaled", n)
                 } else if let Some(n) = t.strip_prefix("isr-ls-") {
                     ("ls", n)
                 } else if let Some(n) = t.strip_prefix("isr-lsv-") {
@@ -207,9 +218,11 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                     .filter(|n| (1..=256).contains(n))
                     .ok_or_else(|| format!("unknown technique '{token}' (known: {known})"))?;
                 add.push(match mode {
-                    "ls" => isr_ls_choice(n, false),
-                    "lsv" => isr_ls_choice(n, true),
-                    m => isr_choice(m == "thesis", n),
+                    "ls" => isr_ls_choice(n, false, true),
+                    "lsv" => isr_ls_choice(n, true, true),
+                    "scaled" => isr_choice(false, n),
+                    "thesis" => isr_choice(true, n),
+                    _ => isr_ls_choice(n, false, false),
                 });
             }
         }
@@ -327,5 +340,32 @@ mod tests {
             );
         }
         assert!(parse_techniques("isr-ls-0").is_err());
+        // The default `isr-N` is the light-space form; the screen-space scale is
+        // `isr-scaled-N`, with the measured k_isr.
+        let isr = parse_techniques("isr-48,isr-scaled-48,isr-scaled").unwrap();
+        let labels: Vec<&str> = isr.iter().map(|c| c.label.as_str()).collect();
+        assert_eq!(
+            labels,
+            [
+                "dl",
+                "isr-48",
+                "isr-scaled-48",
+                "isr-scaled-24",
+                "isr-scaled-80"
+            ]
+        );
+        let settings = |i: usize| match &isr[i].kind {
+            ChoiceKind::Isr(s) => *s,
+            _ => panic!("{} is not ISR", isr[i].label),
+        };
+        assert_eq!(
+            (settings(1).k_isr, settings(1).light_senders),
+            (1.0, LIGHT_SENDERS)
+        );
+        assert_eq!(
+            (settings(2).k_isr, settings(2).light_senders),
+            (IsrSettings::k_isr_for_samples(48), 0)
+        );
+        assert!(parse_techniques("isr-scaled-0").is_err());
     }
 }

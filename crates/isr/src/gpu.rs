@@ -43,8 +43,8 @@ use scene_core::lights::LightState;
 use scene_core::{GBuffer, Image, View};
 
 use crate::geometry::Screen;
-use crate::light_set::LightSet;
 use crate::light_senders::{GpuLightSender, LightSenders};
+use crate::light_set::LightSet;
 use crate::passes::{
     BlurPass, LightBuffers, LightSendersPass, LightingPass, RadiosityPass, UpsamplePass, Variant,
     bind_lighting,

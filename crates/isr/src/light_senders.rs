@@ -323,7 +323,8 @@ impl LightSenders {
             for k in 0..res * res {
                 let (x, y) = (k % res, k / res);
                 // The R2 sequence's plastic-number steps over the texel grid.
-                let u = (0.5 + 0.754_877_666_246_692_7 * f64::from(x)
+                let u = (0.5
+                    + 0.754_877_666_246_692_7 * f64::from(x)
                     + 0.569_840_290_998_053_2 * f64::from(y))
                 .fract();
                 let mut acc = 0.0;
@@ -361,16 +362,16 @@ impl LightSenders {
             if light.kind == LightKind::Directional {
                 continue;
             }
-            let res = ((f64::from(budget) * share(power[index]) / 6.0).sqrt().floor() as u32).max(2);
+            let res = ((f64::from(budget) * share(power[index]) / 6.0)
+                .sqrt()
+                .floor() as u32)
+                .max(2);
             resolutions[index] = res;
             let texel = 2.0 / res as f32;
             for k in 0..6 * res * res {
                 let face = (k / (res * res)) as usize;
                 let (x, y) = (k % res, (k / res) % res);
-                let uv = Vec2::new(
-                    (x as f32 + 0.5) / res as f32,
-                    (y as f32 + 0.5) / res as f32,
-                );
+                let uv = Vec2::new((x as f32 + 0.5) / res as f32, (y as f32 + 0.5) / res as f32);
                 let raw = cube_direction(face, uv);
                 let len = raw.length();
                 let d = raw / len;

@@ -272,7 +272,10 @@ fn the_gpu_twin_gathers_the_light_space_senders_as_the_cpu_does() {
     let Some(ctx) = scene_core::testing::gpu_test_context() else {
         return;
     };
-    let mut setups = vec![("off-screen floor", Setup::new(off_screen_floor(), 0, 48, 48))];
+    let mut setups = vec![(
+        "off-screen floor",
+        Setup::new(off_screen_floor(), 0, 48, 48),
+    )];
     for name in scene_core::builtin::SMALL_INSTANCES {
         setups.push((name, Setup::builtin(name, 0, 96, 72)));
     }
