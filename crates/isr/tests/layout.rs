@@ -3,8 +3,9 @@
 //! module scene-core's composer builds, and every member's offset and the size must equal
 //! the `#[repr(C)]` Rust struct's (`scene_core::check_layout!`).
 
+use isr::GpuLightSender;
 use isr::gpu::{Globals, GpuLight};
-use isr::passes::{LIGHTING, SHADER_PASSES};
+use isr::passes::{LIGHT_SENDERS, LIGHTING, SHADER_PASSES};
 use scene_core::check_layout;
 
 #[test]
@@ -28,10 +29,29 @@ fn globals_match_common_wgsl() {
                 filters,
                 shadow,
                 frustum,
+                view_proj,
+                senders,
+                sender_phases,
             }
         )
         .unwrap_or_else(|e| panic!("{}: {e}", pass.name));
     }
+}
+
+#[test]
+fn light_senders_match_light_senders_wgsl() {
+    let module = LIGHT_SENDERS.compose().unwrap();
+    check_layout!(
+        &module,
+        "LightSender",
+        GpuLightSender {
+            position_area,
+            normal_light,
+            power,
+            tangent,
+        }
+    )
+    .unwrap();
 }
 
 #[test]
