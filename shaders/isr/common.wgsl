@@ -101,6 +101,16 @@ fn view_scale(depth: f32) -> f32 {
     }
     return depth * g.eye_far.w;
 }
+// The screen-space disk of a coarse pixel at linear depth z0 in a buffer of `size`
+// (radiosity.rs' `Receiver::at`): x, its radius on the image plane (tangent units or
+// metres; a disk wider than twice the image reaches every pixel from anywhere, so it is
+// clamped there); yz, its radii in pixels.
+fn receiver_disk(z0: f32, size: vec2<u32>) -> vec3<f32> {
+    let span = vec2<f32>(g.du_span.w, g.dv_span.w);
+    let rp = min(g.k.w / max(view_scale(z0), MIN_POSITIVE), 2.0 * max(span.x, span.y));
+    return vec3<f32>(rp, rp / span.x * f32(size.x), rp / span.y * f32(size.y));
+}
+
 // The normal if usable, else the direction to the viewer (computed only then).
 fn normal_or_viewer(n: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
     let len_sq = dot(n, n);

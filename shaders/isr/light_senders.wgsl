@@ -1,4 +1,4 @@
-#import isr::common::{PI, MIN_POSITIVE, pixel_uv, world, view_scale, normal_or_viewer, g}
+#import isr::common::{PI, pixel_uv, world, receiver_disk, normal_or_viewer, g}
 #import scene_core::limits::{BACKGROUND, MAX_FINITE}
 #import scene_core::light_set::lights
 // The light-space senders' gather (issue 50; mirrors crates/isr/src/light_senders.rs'
@@ -128,9 +128,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let n0 = normal_or_viewer(textureLoad(normal_tex, p, 0).xyz, uv);
     let a0 = textureLoad(albedo_tex, p, 0);
     let rho = a0.rgb * a0.a;
-    let span = vec2<f32>(g.du_span.w, g.dv_span.w);
-    let rp = min(g.k.w / max(view_scale(z0), MIN_POSITIVE), 2.0 * max(span.x, span.y));
-    let radius_px = vec2<f32>(rp / span.x * f32(size.x), rp / span.y * f32(size.y));
+    let radius_px = receiver_disk(z0, size).yz;
     let centre = vec2<f32>(p) + vec2<f32>(0.5);
     // Interleaved: this pixel's phase of the 4x4 tile, each of its senders weighted 16.
     var first = 0u;

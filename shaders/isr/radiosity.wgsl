@@ -1,4 +1,4 @@
-#import isr::common::{FLAG_INDIRECT, FLAG_SSAO, FLAG_THESIS, FLAG_LIT, PI, MIN_FOOTPRINT_COS, MIN_POSITIVE, has_flag, pixel_uv, world, ray_q, view_scale, normal_or_viewer, g}
+#import isr::common::{FLAG_INDIRECT, FLAG_SSAO, FLAG_THESIS, FLAG_LIT, PI, MIN_FOOTPRINT_COS, has_flag, pixel_uv, world, ray_q, view_scale, receiver_disk, normal_or_viewer, g}
 #import scene_core::limits::{BACKGROUND, MAX_FINITE}
 // The ISR + SSAO pass on the coarse buffers (thesis section 4.4, listing 6; mirrors
 // crates/isr/src/radiosity.rs, which documents the readings of the equations).
@@ -51,9 +51,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let rho = a0.rgb * a0.a;
     let samples = g.config.x;
     let n = f32(samples);
+    let disk = receiver_disk(z0, size);
+    let rp = disk.x;
+    let radius_px = disk.yz;
     let span = vec2<f32>(g.du_span.w, g.dv_span.w);
-    let rp = min(g.k.w / max(view_scale(z0), MIN_POSITIVE), 2.0 * max(span.x, span.y));
-    let radius_px = vec2<f32>(rp / span.x * f32(size.x), rp / span.y * f32(size.y));
     let disk_share = PI * rp * rp / n;
     let rot = pattern[(gid.y % 4u) * 4u + gid.x % 4u].xy;
     let centre = vec2<f32>(p) + vec2<f32>(0.5);
