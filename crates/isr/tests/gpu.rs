@@ -4,7 +4,9 @@
 
 mod common;
 
-use common::{Setup, image_mean, max_difference, mean_error, modes, small_shadows};
+use common::{
+    Setup, assert_gpu_twin, image_mean, max_difference, mean_error, modes, small_shadows,
+};
 use isr::{Backend, Blur, GpuIsr, GpuIsrInputs, IsrError, IsrSettings, IsrTechnique, render_cpu};
 use std::sync::Arc;
 
@@ -50,47 +52,13 @@ fn gpu_matches_cpu_on_the_builtin_scenes() {
             let (img, _) = gpu
                 .render_gbuffer(&setup.full, Some(&setup.coarse), &setup.view, &s)
                 .unwrap();
-            let m = image_mean(&cpu.image);
-            let e = mean_error(&cpu.image, &img);
-            assert_eq!(img.non_finite_count(), 0, "{name} {mode}");
-            let (dmax, at) = max_difference(&cpu.image, &img);
-            let peak = cpu
-                .image
-                .pixels
-                .iter()
-                .map(|p| p.max_element())
-                .fold(0.0f32, f32::max);
-            eprintln!(
-                "{name:14} {mode:50} mean {m:.4} rel diff {:.2e} max {dmax:.3e} at {at} (peak {peak:.3})",
-                e / m
-            );
-            assert!(
-                e < 1e-3 * m,
-                "{name} {mode}: mean |cpu - gpu| = {e:.3e}, image mean {m:.4}"
-            );
-            // Every pixel, not only the mean: both paths compute in f32 and differ by
-            // rounding (measured on lavapipe: at most 4e-6 against peaks of 35, about 1e-7
-            // of the peak). 1e-4 of the peak leaves room for GPUs' faster transcendentals and
-            // catches any pixel that takes another branch (a shadow test, a depth guard).
-            let bound = 1e-4 * f64::from(peak.max(1.0));
-            assert!(
-                dmax <= bound,
-                "{name} {mode}: max |cpu - gpu| = {dmax:.3e} at pixel {at}, over {bound:.3e}"
-            );
+            // Every pixel, not only the mean (common::assert_gpu_twin).
+            assert_gpu_twin(&format!("{name} {mode}"), &cpu.image, &img);
             // ... and the coarse buffer downsampled on the GPU.
             let (img, _) = gpu
                 .render_gbuffer(&setup.full, None, &setup.view, &s)
                 .unwrap();
-            let e = mean_error(&cpu.image, &img);
-            assert!(
-                e < 1e-3 * m,
-                "{name} {mode}, GPU downsample: mean |cpu - gpu| = {e:.3e}, image mean {m:.4}"
-            );
-            let (dmax, at) = max_difference(&cpu.image, &img);
-            assert!(
-                dmax <= bound,
-                "{name} {mode}, GPU downsample: max |cpu - gpu| = {dmax:.3e} at pixel {at}"
-            );
+            assert_gpu_twin(&format!("{name} {mode}, GPU downsample"), &cpu.image, &img);
         }
     }
 }
