@@ -42,7 +42,7 @@ use crate::geometry::{Screen, normal_or_viewer, pixel_uv};
 use crate::settings::{Estimator, IsrSettings, Sender};
 
 /// The 4x4 Bayer matrix ordering the 16 per-pixel rotations.
-const BAYER4: [u32; 16] = [0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5];
+pub(crate) const BAYER4: [u32; 16] = [0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5];
 
 /// The sample pattern: `N` offsets in the unit disk and 16 rotations `(cos, sin)`.
 #[derive(Clone, Debug, PartialEq)]
