@@ -521,7 +521,7 @@ impl LightSenders {
         let factors: Vec<Vec3> = lights.lights.iter().map(|l| l.indirect).collect();
         // Per sender: its power this frame, the coarse pixel that shows it, if any, and its
         // visibility map's frame (made once here, not per receiver).
-        let prepared: Vec<(Vec3, Option<(u32, u32)>, (Vec3, Vec3, Vec3))> = self
+        let prepared: Vec<Prepared> = self
             .senders
             .par_iter()
             .map(|s| {
@@ -604,6 +604,11 @@ impl LightSenders {
         }
     }
 }
+
+/// A sender as one frame's gather reads it: its power under the frame's factors, the
+/// coarse pixel that shows it (if any), and its visibility map's frame (tangent,
+/// bitangent, normal).
+type Prepared = (Vec3, Option<(u32, u32)>, (Vec3, Vec3, Vec3));
 
 /// The coarse pixel of `g` seen through `view` that shows sender `s`, if it is visible there:
 /// the pixel is not background, its depth is within 2 % of the sender's and its normal
