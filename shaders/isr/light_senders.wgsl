@@ -161,7 +161,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (light >= light_count) {
             continue;
         }
-        if (once && shown_in_disk(s.position_area.xyz, s.normal_light.xyz, size, centre, radius_px)) {
+        // Only a first bounce's sender (tangent.w 1) is what the screen-space senders send.
+        if (once && s.tangent.w < 1.5 && shown_in_disk(s.position_area.xyz, s.normal_light.xyz, size, centre, radius_px)) {
             continue;
         }
         var seen = 1.0;

@@ -190,8 +190,13 @@ pub fn isr_maker(settings: isr::IsrSettings) -> FrameMaker {
         let mut frame =
             isr::IsrFrame::prepare(ctx, &lights, settings).map_err(|e| Error::method("isr", e))?;
         if settings.light_senders > 0 {
-            let senders = isr::LightSenders::new(scene, &lights, settings.light_senders)
-                .map_err(|e| Error::method("isr", e))?;
+            let senders = isr::LightSenders::with_bounces(
+                scene,
+                &lights,
+                settings.light_senders,
+                settings.light_sender_bounces,
+            )
+            .map_err(|e| Error::method("isr", e))?;
             frame = frame
                 .with_light_senders(&senders)
                 .map_err(|e| Error::method("isr", e))?;

@@ -113,6 +113,24 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
 /// The light-space senders of the `isr-ls-N` techniques (about this many; issue 50).
 pub const LIGHT_SENDERS: u32 = 4096;
 
+/// ISR with light-space senders carrying every bounce: `isr-mb-N` (light paths continued
+/// from the first senders until Russian roulette ends them).
+fn isr_mb_choice(samples: u32) -> TechniqueChoice {
+    TechniqueChoice {
+        label: format!("isr-mb-{samples}"),
+        family: "isr".into(),
+        kind: ChoiceKind::Isr(IsrSettings {
+            light_sender_bounces: scene_core::reference::Bounces::Unlimited,
+            ..IsrSettings::with_light_senders(samples, LIGHT_SENDERS)
+        }),
+        description: format!(
+            "{samples} samples and about {LIGHT_SENDERS} light-space senders with every bounce \
+             (as isr-{samples}, and as many light paths continued from them, Russian roulette \
+             on the albedo), CPU rasteriser G-buffer"
+        ),
+    }
+}
+
 /// ISR with light-space senders: the default `isr-N` (`named` false), or under the name
 /// `isr-ls-N`, or `isr-lsv-N` with exact shadow rays.
 fn isr_ls_choice(samples: u32, shadowed: bool, named: bool) -> TechniqueChoice {
@@ -145,13 +163,13 @@ fn isr_ls_choice(samples: u32, shadowed: bool, named: bool) -> TechniqueChoice {
 /// samples), `isr-default`, `isr-thesis`, `isr-scaled`, `isr-N` (the default: screen-space
 /// and light-space senders, `k_isr` 1), `isr-thesis-N`, `isr-scaled-N` (screen-space senders
 /// scaled by a measured `k_isr`), `isr-ls` and `isr-ls-N` (the default under another name),
-/// `isr-lsv-N` (with shadow rays), `relight` (256 and 1024 elements), `relight-N`,
+/// `isr-lsv-N` (with shadow rays), `isr-mb-N` (every bounce), `relight` (256 and 1024 elements), `relight-N`,
 /// `ibrr` (LDC 128 with 64 IRPLs, LDC 256 with 184), `ibrr-RES-N`, `ibrr-RES-N-cam` (with
 /// camera importance). `dl` (the baseline) is
 /// added first when missing.
 pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
     let known = "dl, isr, isr-default, isr-thesis, isr-scaled, isr-N, isr-thesis-N, \
-                 isr-scaled-N, isr-ls, isr-ls-N, isr-lsv-N (N in 1..=256), \
+                 isr-scaled-N, isr-ls, isr-ls-N, isr-lsv-N, isr-mb-N (N in 1..=256), \
                  relight, relight-N (N elements, 16..=1000000), ibrr, ibrr-RES-N (LDC RES in \
                  8..=2048, N IRPLs in 1..=100000), ibrr-RES-N-cam (camera importance)";
     let mut out: Vec<TechniqueChoice> = Vec::new();
@@ -207,6 +225,8 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                     ("ls", n)
                 } else if let Some(n) = t.strip_prefix("isr-lsv-") {
                     ("lsv", n)
+                } else if let Some(n) = t.strip_prefix("isr-mb-") {
+                    ("mb", n)
                 } else if let Some(n) = t.strip_prefix("isr-") {
                     ("default", n)
                 } else {
@@ -220,6 +240,7 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                 add.push(match mode {
                     "ls" => isr_ls_choice(n, false, true),
                     "lsv" => isr_ls_choice(n, true, true),
+                    "mb" => isr_mb_choice(n),
                     "scaled" => isr_choice(false, n),
                     "thesis" => isr_choice(true, n),
                     _ => isr_ls_choice(n, false, false),

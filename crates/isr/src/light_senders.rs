@@ -70,6 +70,8 @@ use std::sync::Arc;
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use scene_core::ray::{RayScene, surface_at};
+use scene_core::reference::Bounces;
+use scene_core::sampling::{Rng, cosine_hemisphere, mix64};
 use scene_core::{GBuffer, Scene, View};
 
 use crate::IsrError;
@@ -177,6 +179,10 @@ pub struct LightSender {
     pub light: u32,
     /// A unit tangent: the visibility map's `x` axis (`y` is `normal x tangent`).
     pub tangent: Vec3,
+    /// The bounce this sender's light makes at a receiver: 1 for a surface its light reaches
+    /// first, `k` for the end of a light path of `k - 1` reflections from such a surface
+    /// (module docs, "Further bounces").
+    pub bounce: u32,
 }
 
 /// One light-space sender in the GPU layout (`LightSender` in
@@ -190,7 +196,8 @@ pub struct GpuLightSender {
     pub normal_light: [f32; 4],
     /// Reflected power before the frame's factor; `w` unused.
     pub power: [f32; 4],
-    /// The visibility map's tangent; `w` unused.
+    /// The visibility map's tangent; `w`: the sender's bounce ([`LightSender::bounce`]), as
+    /// a float.
     pub tangent: [f32; 4],
 }
 
@@ -258,6 +265,20 @@ impl LightSenders {
     ///
     /// Errors when `budget` is above [`MAX_LIGHT_SENDERS`].
     pub fn new(scene: &Scene, lights: &LightSet, budget: u32) -> Result<Self, IsrError> {
+        Self::with_bounces(scene, lights, budget, Bounces::Limited(1))
+    }
+
+    /// [`LightSenders::new`] with the light of `bounces` bounces (module docs, "Further
+    /// bounces"): `Limited(1)` (or 0) makes the first senders alone, as `new` does; `Limited(k)`
+    /// adds the ends of light paths of up to `k - 1` further reflections, `Unlimited` paths
+    /// that Russian roulette ends (at most [`MAX_PATH_BOUNCES`] bounces). About `budget`
+    /// paths are traced for them.
+    pub fn with_bounces(
+        scene: &Scene,
+        lights: &LightSet,
+        budget: u32,
+        bounces: Bounces,
+    ) -> Result<Self, IsrError> {
         if budget > MAX_LIGHT_SENDERS {
             return Err(IsrError::InvalidSetting {
                 name: "light_senders",
@@ -419,10 +440,20 @@ impl LightSenders {
                         area,
                         light: index as u32,
                         tangent: s.ns.any_orthonormal_vector(),
+                        bounce: 1,
                     },
                 ))
             })
             .collect();
+        // Further bounces: light paths continued from the first senders.
+        if let Some(last) = match bounces {
+            Bounces::Limited(n) if n >= 2 => Some(n.min(MAX_PATH_BOUNCES)),
+            Bounces::Limited(_) => None,
+            Bounces::Unlimited => Some(MAX_PATH_BOUNCES),
+        } {
+            let deep = deep_senders(scene, &offsets, &rays, &senders, budget, last, eps, lights);
+            senders.extend(deep);
+        }
         // Phase by phase (a stable sort: within a phase, the order of the lights and texels).
         senders.sort_by_key(|(phase, _)| *phase);
         let mut phase_offsets = [0u32; PHASES + 1];
@@ -470,7 +501,7 @@ impl LightSenders {
                 position_area: s.position.extend(s.area).to_array(),
                 normal_light: s.normal.extend(f32::from_bits(s.light)).to_array(),
                 power: s.power.extend(0.0).to_array(),
-                tangent: s.tangent.extend(0.0).to_array(),
+                tangent: s.tangent.extend(s.bounce as f32).to_array(),
             })
             .collect()
     }
@@ -528,7 +559,10 @@ impl LightSenders {
                 let power = s.power * factors.get(s.light as usize).copied().unwrap_or(Vec3::ZERO);
                 (
                     power,
-                    once.then(|| shown_at(view, coarse, s)).flatten(),
+                    // Only the light of a first bounce is what the screen-space senders send.
+                    (once && s.bounce == 1)
+                        .then(|| shown_at(view, coarse, s))
+                        .flatten(),
                     (s.tangent, s.normal.cross(s.tangent), s.normal),
                 )
             })
@@ -603,6 +637,111 @@ impl LightSenders {
             *r += l.extend(0.0);
         }
     }
+}
+
+/// The most bounces a light path of [`LightSenders::with_bounces`] makes.
+pub const MAX_PATH_BOUNCES: u32 = 64;
+
+/// Seed of the further bounces' light paths (module docs, "Further bounces").
+const PATH_SEED: u64 = 0x15_0050;
+
+/// The senders of bounces 2 to `last` (module docs, "Further bounces"): `paths` light paths,
+/// each starting at one of the first senders `first` drawn in proportion to its power
+/// (stratified over the paths), continued by cosine-distributed rays, one sender at each
+/// surface they hit, ended by Russian roulette on the albedo. Each path's phase is a hash
+/// of its index. Deterministic whatever the thread count: path `k` draws from its own
+/// stream.
+#[allow(clippy::too_many_arguments)]
+fn deep_senders(
+    scene: &Scene,
+    offsets: &[u32],
+    rays: &RayScene,
+    first: &[(u32, LightSender)],
+    paths: u32,
+    last: u32,
+    eps: f32,
+    lights: &LightSet,
+) -> Vec<(u32, LightSender)> {
+    let weights: Vec<f64> = first
+        .iter()
+        .map(|(_, s)| f64::from(s.power.element_sum()))
+        .collect();
+    let cdf: Vec<f64> = weights
+        .iter()
+        .scan(0.0, |acc, w| {
+            *acc += w;
+            Some(*acc)
+        })
+        .collect();
+    let total = cdf.last().copied().unwrap_or(0.0);
+    if paths == 0 || !(total > 0.0 && total.is_finite()) {
+        return Vec::new();
+    }
+    // The area each path's sender stands for (the disk form factor's guard against the
+    // 1/r^2 singularity): the scene's surface, at most its bounds' box, shared by the paths.
+    let surface: f64 = scene
+        .meshes
+        .iter()
+        .flat_map(|m| {
+            m.indices.iter().map(|t| {
+                let [a, b, c] = t.map(|i| m.positions[i as usize].as_dvec3());
+                0.5 * (b - a).cross(c - a).length()
+            })
+        })
+        .sum();
+    let size = (lights.bounds.max - lights.bounds.min).as_dvec3();
+    let box_area = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
+    let area = (surface.min(box_area) / f64::from(paths)) as f32;
+    if !(area > 0.0 && area.is_finite()) {
+        return Vec::new();
+    }
+    (0..paths)
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let mut rng = Rng::new(PATH_SEED, u64::from(k));
+            let u = (f64::from(k) + rng.next_f64()) / f64::from(paths) * total;
+            let i = cdf.partition_point(|&c| c <= u).min(first.len() - 1);
+            let parent = first[i].1;
+            let phase = (mix64(u64::from(k)) % PHASES as u64) as u32;
+            // The power this path carries out of its first sender.
+            let mut flux = parent.power * (total / (f64::from(paths) * weights[i])) as f32;
+            let (mut p, mut n) = (parent.position, parent.normal);
+            let mut out = Vec::new();
+            for bounce in 2..=last {
+                let d = cosine_hemisphere(n, rng.next_vec2());
+                let o = p + n * eps;
+                let Some(hit) = rays.closest_hit(o, d, 0.0, f32::INFINITY) else {
+                    break;
+                };
+                let Some(s) = surface_at(scene, offsets, &hit, o, d) else {
+                    break;
+                };
+                let power = flux * s.albedo;
+                if !(power.max_element() > 0.0 && power.is_finite()) {
+                    break;
+                }
+                out.push((
+                    phase,
+                    LightSender {
+                        position: s.p,
+                        normal: s.ns,
+                        power,
+                        area,
+                        light: parent.light,
+                        tangent: s.ns.any_orthonormal_vector(),
+                        bounce,
+                    },
+                ));
+                let survive = s.albedo.max_element().min(0.95);
+                if bounce == last || rng.next_f32() >= survive {
+                    break;
+                }
+                flux = power / survive;
+                (p, n) = (s.p, s.ns);
+            }
+            out
+        })
+        .collect()
 }
 
 /// A sender as one frame's gather reads it: its power under the frame's factors, the

@@ -2,6 +2,7 @@
 //! maps ([`ShadowSettings`]).
 
 use scene_core::gbuffer::DownsampleMode;
+use scene_core::reference::Bounces;
 
 use crate::IsrError;
 
@@ -134,6 +135,12 @@ pub struct IsrSettings {
     /// (off by default; a measurement of the leaks the missing visibility lets through,
     /// not a real-time setting).
     pub light_sender_shadows: bool,
+    /// The bounces the light-space senders carry ([`crate::LightSenders::with_bounces`]):
+    /// `Limited(1)` (the default) for one bounce, the thesis' scope; more adds light paths
+    /// continued from the first senders, so that surfaces the light reaches second, third
+    /// and so on send their light too ([`Bounces::Unlimited`] until Russian roulette ends
+    /// them). Without light-space senders this changes nothing.
+    pub light_sender_bounces: Bounces,
 }
 
 impl Default for IsrSettings {
@@ -157,6 +164,7 @@ impl Default for IsrSettings {
             downsample: DownsampleMode::NearestSurface,
             light_senders: 0,
             light_sender_shadows: false,
+            light_sender_bounces: Bounces::Limited(1),
         }
     }
 }

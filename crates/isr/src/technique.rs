@@ -119,10 +119,11 @@ impl Technique for IsrTechnique {
         self.renderer.prepare(scene.clone())?;
         let lights = LightSet::new(&scene, &self.shadows).map_err(crate::IsrError::from)?;
         self.light_senders = if self.settings.light_senders > 0 {
-            Some(LightSenders::new(
+            Some(LightSenders::with_bounces(
                 &scene,
                 &lights,
                 self.settings.light_senders,
+                self.settings.light_sender_bounces,
             )?)
         } else {
             None
