@@ -110,37 +110,40 @@ pub struct Preset {
 pub const PRESETS: [Preset; 3] = [
     Preset {
         name: "default",
-        about: "every method at one setting each (DL, ISR in both modes at 24/48/80 samples, \
-                relighting at 256 elements, the IBRR at LDC 128 with 64 IRPLs), 128x96, 512 spp",
+        about: "every method at one setting each (DL, ISR in both modes at 24/48/80 samples and \
+                with every bounce at 80, relighting at 256 elements, the IBRR at LDC 128 with 64 \
+                IRPLs), 128x96, 512 spp",
         size: "128x96",
         gpu_size: None,
         spp: 512,
-        techniques: "dl,isr,relight-256,ibrr-128-64",
+        techniques: "dl,isr,isr-mb-80,relight-256,ibrr-128-64",
         repeats: 3,
         still_repeats: 2,
         sequence_frames: 8,
     },
     Preset {
         name: "full",
-        about: "every method at every setting (relighting at 256 and 1024 elements, the IBRR \
-                at LDC 128/64 IRPLs and 256/184), 256x192, 512 spp",
+        about: "every method at every setting (ISR with one bounce and with every bounce, \
+                relighting at 256 and 1024 elements, the IBRR at LDC 128/64 IRPLs and 256/184), \
+                256x192, 512 spp",
         size: "256x192",
         gpu_size: None,
         spp: 512,
-        techniques: "dl,isr,relight,ibrr",
+        techniques: "dl,isr,isr-mb,relight,ibrr",
         repeats: 3,
         still_repeats: 3,
         sequence_frames: 8,
     },
     Preset {
         name: "hd",
-        about: "every method (DL, ISR at 24/48/80 samples, relighting at 1024 elements, the IBRR \
+        about: "every method (DL, ISR at 24/48/80 samples and with every bounce at 80, \
+                relighting at 1024 elements, the IBRR \
                 at LDC 256 with 184 IRPLs) at the sizes users render: 1280x720, 1920x1080 with \
                 --gpu (whose references and ladder then come from the GPU path tracer), 256 spp",
         size: "1280x720",
         gpu_size: Some("1920x1080"),
         spp: 256,
-        techniques: "dl,isr-default,relight-1024,ibrr-256-184",
+        techniques: "dl,isr-default,isr-mb-80,relight-1024,ibrr-256-184",
         repeats: 3,
         still_repeats: 2,
         sequence_frames: 4,

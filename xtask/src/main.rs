@@ -121,11 +121,13 @@ struct ExperimentArgs {
     /// cornell-point, primitives, corridor).
     #[arg(long = "scene")]
     scenes: Vec<String>,
-    /// Techniques: dl, isr (both modes at 24/48/80 samples), isr-default, isr-thesis,
-    /// isr-N, isr-thesis-N, isr-ls-N (with light-space senders, CPU only), relight (256 and
-    /// 1024 elements), relight-N, ibrr (LDC 128
-    /// with 64 IRPLs and LDC 256 with 184), ibrr-RES-N, ibrr-RES-N-cam (camera importance); comma-separated.
-    /// Default: the preset's.
+    /// Techniques: dl, isr (the default and the thesis' modes at 24/48/80 samples),
+    /// isr-default, isr-thesis, isr-scaled, isr-N (screen-space and light-space senders, one
+    /// bounce), isr-thesis-N, isr-scaled-N (screen-space senders, measured k_isr), isr-ls-N,
+    /// isr-lsv-N (exact shadow rays, CPU only), isr-mb, isr-mb-N (every bounce), relight (256
+    /// and 1024 elements), relight-N, ibrr (LDC 128 with 64 IRPLs and LDC 256 with 184),
+    /// ibrr-RES-N, ibrr-RES-N-cam (camera importance); comma-separated. Default: the
+    /// preset's.
     #[arg(long)]
     techniques: Option<String>,
     /// Views per scene: the scene's cameras first, then seeded random ones.

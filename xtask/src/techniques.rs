@@ -163,13 +163,13 @@ fn isr_ls_choice(samples: u32, shadowed: bool, named: bool) -> TechniqueChoice {
 /// samples), `isr-default`, `isr-thesis`, `isr-scaled`, `isr-N` (the default: screen-space
 /// and light-space senders, `k_isr` 1), `isr-thesis-N`, `isr-scaled-N` (screen-space senders
 /// scaled by a measured `k_isr`), `isr-ls` and `isr-ls-N` (the default under another name),
-/// `isr-lsv-N` (with shadow rays), `isr-mb-N` (every bounce), `relight` (256 and 1024 elements), `relight-N`,
+/// `isr-lsv-N` (with shadow rays), `isr-mb` and `isr-mb-N` (every bounce), `relight` (256 and 1024 elements), `relight-N`,
 /// `ibrr` (LDC 128 with 64 IRPLs, LDC 256 with 184), `ibrr-RES-N`, `ibrr-RES-N-cam` (with
 /// camera importance). `dl` (the baseline) is
 /// added first when missing.
 pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
     let known = "dl, isr, isr-default, isr-thesis, isr-scaled, isr-N, isr-thesis-N, \
-                 isr-scaled-N, isr-ls, isr-ls-N, isr-lsv-N, isr-mb-N (N in 1..=256), \
+                 isr-scaled-N, isr-ls, isr-ls-N, isr-lsv-N, isr-mb, isr-mb-N (N in 1..=256), \
                  relight, relight-N (N elements, 16..=1000000), ibrr, ibrr-RES-N (LDC RES in \
                  8..=2048, N IRPLs in 1..=100000), ibrr-RES-N-cam (camera importance)";
     let mut out: Vec<TechniqueChoice> = Vec::new();
@@ -191,6 +191,7 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
             "isr-thesis" => add.extend(SAMPLES.map(|n| isr_choice(true, n))),
             "isr-scaled" => add.extend(SAMPLES.map(|n| isr_choice(false, n))),
             "isr-ls" => add.extend(SAMPLES.map(|n| isr_ls_choice(n, false, true))),
+            "isr-mb" => add.extend(SAMPLES.map(isr_mb_choice)),
             "relight" => add.extend(RELIGHT_ELEMENTS.map(relight_choice)),
             "ibrr" => add.extend(IBRR_SETTINGS.map(|(r, n)| ibrr_choice(r, n, false))),
             _ if t.starts_with("relight-") => {
