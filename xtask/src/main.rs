@@ -124,7 +124,7 @@ struct ExperimentArgs {
     /// Techniques: dl, isr (the default and the thesis' modes at 24/48/80 samples),
     /// isr-default, isr-thesis, isr-scaled, isr-N (screen-space and light-space senders, one
     /// bounce), isr-thesis-N, isr-scaled-N (screen-space senders, measured k_isr), isr-ls-N,
-    /// isr-lsv-N (exact shadow rays, CPU only), isr-mb, isr-mb-N (every bounce), relight (256
+    /// isr-lsv-N (exact shadow rays, CPU only), isr-mb, isr-mb-N (every bounce), isr-mbv-N (every bounce, shadow rays), relight (256
     /// and 1024 elements), relight-N, ibrr (LDC 128 with 64 IRPLs and LDC 256 with 184),
     /// ibrr-RES-N, ibrr-RES-N-cam (camera importance); comma-separated. Default: the
     /// preset's.

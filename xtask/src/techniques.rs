@@ -114,19 +114,29 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
 pub const LIGHT_SENDERS: u32 = 4096;
 
 /// ISR with light-space senders carrying every bounce: `isr-mb-N` (light paths continued
-/// from the first senders until Russian roulette ends them).
-fn isr_mb_choice(samples: u32) -> TechniqueChoice {
+/// from the first senders until Russian roulette ends them), or
+/// `isr-mbv-N` with exact shadow rays (a measurement, CPU only).
+fn isr_mb_choice(samples: u32, shadowed: bool) -> TechniqueChoice {
+    let (suffix, how) = if shadowed {
+        (
+            "mbv",
+            ", their light shadowed by a ray per receiver and sender",
+        )
+    } else {
+        ("mb", "")
+    };
     TechniqueChoice {
-        label: format!("isr-mb-{samples}"),
+        label: format!("isr-{suffix}-{samples}"),
         family: "isr".into(),
         kind: ChoiceKind::Isr(IsrSettings {
             light_sender_bounces: scene_core::reference::Bounces::Unlimited,
+            light_sender_shadows: shadowed,
             ..IsrSettings::with_light_senders(samples, LIGHT_SENDERS)
         }),
         description: format!(
             "{samples} samples and about {LIGHT_SENDERS} light-space senders with every bounce \
              (as isr-{samples}, and as many light paths continued from them, Russian roulette \
-             on the albedo), CPU rasteriser G-buffer"
+             on the albedo){how}, CPU rasteriser G-buffer"
         ),
     }
 }
@@ -163,13 +173,14 @@ fn isr_ls_choice(samples: u32, shadowed: bool, named: bool) -> TechniqueChoice {
 /// samples), `isr-default`, `isr-thesis`, `isr-scaled`, `isr-N` (the default: screen-space
 /// and light-space senders, `k_isr` 1), `isr-thesis-N`, `isr-scaled-N` (screen-space senders
 /// scaled by a measured `k_isr`), `isr-ls` and `isr-ls-N` (the default under another name),
-/// `isr-lsv-N` (with shadow rays), `isr-mb` and `isr-mb-N` (every bounce), `relight` (256 and 1024 elements), `relight-N`,
+/// `isr-lsv-N` (with shadow rays), `isr-mb` and `isr-mb-N` (every bounce), `isr-mbv-N`
+/// (every bounce, shadow rays), `relight` (256 and 1024 elements), `relight-N`,
 /// `ibrr` (LDC 128 with 64 IRPLs, LDC 256 with 184), `ibrr-RES-N`, `ibrr-RES-N-cam` (with
 /// camera importance). `dl` (the baseline) is
 /// added first when missing.
 pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
     let known = "dl, isr, isr-default, isr-thesis, isr-scaled, isr-N, isr-thesis-N, \
-                 isr-scaled-N, isr-ls, isr-ls-N, isr-lsv-N, isr-mb, isr-mb-N (N in 1..=256), \
+                 isr-scaled-N, isr-ls, isr-ls-N, isr-lsv-N, isr-mb, isr-mb-N, isr-mbv-N (N in 1..=256), \
                  relight, relight-N (N elements, 16..=1000000), ibrr, ibrr-RES-N (LDC RES in \
                  8..=2048, N IRPLs in 1..=100000), ibrr-RES-N-cam (camera importance)";
     let mut out: Vec<TechniqueChoice> = Vec::new();
@@ -191,7 +202,7 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
             "isr-thesis" => add.extend(SAMPLES.map(|n| isr_choice(true, n))),
             "isr-scaled" => add.extend(SAMPLES.map(|n| isr_choice(false, n))),
             "isr-ls" => add.extend(SAMPLES.map(|n| isr_ls_choice(n, false, true))),
-            "isr-mb" => add.extend(SAMPLES.map(isr_mb_choice)),
+            "isr-mb" => add.extend(SAMPLES.map(|n| isr_mb_choice(n, false))),
             "relight" => add.extend(RELIGHT_ELEMENTS.map(relight_choice)),
             "ibrr" => add.extend(IBRR_SETTINGS.map(|(r, n)| ibrr_choice(r, n, false))),
             _ if t.starts_with("relight-") => {
@@ -226,6 +237,8 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                     ("ls", n)
                 } else if let Some(n) = t.strip_prefix("isr-lsv-") {
                     ("lsv", n)
+                } else if let Some(n) = t.strip_prefix("isr-mbv-") {
+                    ("mbv", n)
                 } else if let Some(n) = t.strip_prefix("isr-mb-") {
                     ("mb", n)
                 } else if let Some(n) = t.strip_prefix("isr-") {
@@ -241,7 +254,8 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
                 add.push(match mode {
                     "ls" => isr_ls_choice(n, false, true),
                     "lsv" => isr_ls_choice(n, true, true),
-                    "mb" => isr_mb_choice(n),
+                    "mb" => isr_mb_choice(n, false),
+                    "mbv" => isr_mb_choice(n, true),
                     "scaled" => isr_choice(false, n),
                     "thesis" => isr_choice(true, n),
                     _ => isr_ls_choice(n, false, false),
