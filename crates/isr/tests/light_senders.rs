@@ -528,3 +528,76 @@ fn every_bounce_comes_close_to_the_all_bounce_reference_on_cornell() {
     );
     assert!(mb.abs() < 0.06, "every bounce: {:+.2} %", 100.0 * mb);
 }
+
+/// Hard cases of the further bounces: a near-white furnace (a closed box of albedo 0.99;
+/// the scene contract refuses 1), where paths end only by the roulette's 0.95 cap and the
+/// 64-bounce limit, gives finite senders whose bounce-`k` power is `0.99^k` of the
+/// light's (bounces 1 and 2 within the first senders' quadrature); a scene without lights
+/// gives none; and cornell in millimetres
+/// and in kilometres gives the picture of metres (the offsets and the further senders'
+/// disks follow the scene's size).
+#[test]
+fn further_bounces_in_a_white_furnace_without_lights_and_at_any_scale() {
+    let mut scene = Scene::new("white furnace");
+    scene
+        .materials
+        .push(Material::diffuse("white", Vec3::splat(0.99)));
+    let mut m = Mesh::default();
+    m.push_box(Vec3::ZERO, Vec3::ONE, 0.0, 0);
+    scene.meshes.push(m);
+    scene.point_lights.push(scene_core::PointLight::new(
+        "bulb",
+        Vec3::ZERO,
+        Vec3::splat(1.0),
+    ));
+    scene.validate().unwrap();
+    let lights = LightSet::new(&scene, &small_shadows()).unwrap();
+    let senders = LightSenders::with_bounces(&scene, &lights, 1024, Bounces::Unlimited).unwrap();
+    let phi = 4.0 * std::f64::consts::PI;
+    assert!(senders.senders.iter().all(|s| s.power.is_finite()
+        && s.area.is_finite()
+        && (1..=isr::light_senders::MAX_PATH_BOUNCES).contains(&s.bounce)));
+    for k in 1..=2u32 {
+        let got: f64 = senders
+            .senders
+            .iter()
+            .filter(|s| s.bounce == k)
+            .map(|s| f64::from(s.power.y))
+            .sum();
+        let expected = phi * 0.99f64.powi(k as i32);
+        assert!(
+            (got / expected - 1.0).abs() < 0.01,
+            "bounce {k}: {got} against {expected}"
+        );
+    }
+    scene.point_lights.clear();
+    let dark = LightSet::new(&scene, &small_shadows()).unwrap();
+    assert!(
+        LightSenders::with_bounces(&scene, &dark, 1024, Bounces::Unlimited)
+            .unwrap()
+            .is_empty()
+    );
+    let settings = IsrSettings {
+        light_sender_bounces: Bounces::Unlimited,
+        ..IsrSettings::with_light_senders(24, 1024)
+    };
+    let picture = |scene: Scene| {
+        let setup = Setup::new(scene, 0, 32, 24);
+        let senders =
+            LightSenders::with_bounces(&setup.scene, &setup.prepared, 1024, Bounces::Unlimited)
+                .unwrap();
+        render_with(&setup, &settings, Some(&senders))
+    };
+    let base = picture(scene_core::builtin::scene("cornell").unwrap());
+    for k in [1e-3f32, 1e4] {
+        let mut scaled = scene_core::builtin::scene("cornell").unwrap().scaled(k);
+        scaled.validate().unwrap();
+        let img = picture(scaled);
+        let e = common::mean_error(&base, &img);
+        assert!(
+            e <= 1e-3 * image_mean(&base),
+            "x{k}: mean difference {e} against mean {}",
+            image_mean(&base)
+        );
+    }
+}
