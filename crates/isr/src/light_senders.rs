@@ -63,13 +63,27 @@
 //! pixel's, normals within 60 degrees) and its pixel's centre lies in the receiver's disk
 //! (`radiosity::Receiver::disk_holds`). Everything else (off screen, hidden, outside the
 //! disk) comes from the light-space senders alone.
+//!
+//! **Further bounces** ([`LightSenders::with_bounces`], instant radiosity's light paths,
+//! Keller 1997, started from the reflective shadow maps' points): as many paths as the
+//! budget, each starting at a first sender drawn in proportion to its power (stratified
+//! over the paths) and carrying `total / paths` of the first senders' power, continue by
+//! cosine-distributed rays; at each surface a ray hits, a sender of the next bounce gets
+//! `rho` times the carried power, its path's light (so a light's frame factor still scales
+//! all of its light) and its bounce number; Russian roulette on the albedo (survival
+//! `max(rho)`, at most 0.95, the power divided by it) or the bounce limit ends the path.
+//! Their disks stand for the scene's surface (at most its bounds' box) shared by the paths,
+//! the form factor's guard against `1/r^2`. The screen-space senders send direct light
+//! only, so these senders are never left out for them ("counted once" applies to bounce 1
+//! alone). Each path draws from its own random stream: the same senders whatever the
+//! thread count.
 
 use std::f32::consts::PI;
 use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
-use scene_core::ray::{RayScene, surface_at};
+use scene_core::ray::{RayScene, SurfacePoint, surface_at};
 use scene_core::reference::Bounces;
 use scene_core::sampling::{Rng, cosine_hemisphere, mix64};
 use scene_core::{GBuffer, Scene, View};
@@ -183,6 +197,22 @@ pub struct LightSender {
     /// first, `k` for the end of a light path of `k - 1` reflections from such a surface
     /// (module docs, "Further bounces").
     pub bounce: u32,
+}
+
+impl LightSender {
+    /// A sender on the surface point `s` (its position and shading normal, a tangent of
+    /// that normal for its visibility map).
+    fn on(s: &SurfacePoint, power: Vec3, area: f32, light: u32, bounce: u32) -> Self {
+        Self {
+            position: s.p,
+            normal: s.ns,
+            power,
+            area,
+            light,
+            tangent: s.ns.any_orthonormal_vector(),
+            bounce,
+        }
+    }
 }
 
 /// One light-space sender in the GPU layout (`LightSender` in
@@ -431,18 +461,8 @@ impl LightSenders {
                 };
                 let area = a_perp / cos;
                 let power = s.albedo * light.irradiance(s.p, s.ns) * area * weight;
-                (power.max_element() > 0.0 && power.is_finite() && area.is_finite()).then_some((
-                    phase,
-                    LightSender {
-                        position: s.p,
-                        normal: s.ns,
-                        power,
-                        area,
-                        light: index as u32,
-                        tangent: s.ns.any_orthonormal_vector(),
-                        bounce: 1,
-                    },
-                ))
+                (power.max_element() > 0.0 && power.is_finite() && area.is_finite())
+                    .then_some((phase, LightSender::on(&s, power, area, index as u32, 1)))
             })
             .collect();
         // Further bounces: light paths continued from the first senders.
@@ -722,15 +742,7 @@ fn deep_senders(
                 }
                 out.push((
                     phase,
-                    LightSender {
-                        position: s.p,
-                        normal: s.ns,
-                        power,
-                        area,
-                        light: parent.light,
-                        tangent: s.ns.any_orthonormal_vector(),
-                        bounce,
-                    },
+                    LightSender::on(&s, power, area, parent.light, bounce),
                 ));
                 let survive = s.albedo.max_element().min(0.95);
                 if bounce == last || rng.next_f32() >= survive {
