@@ -23,12 +23,10 @@ struct LightSender {
     tangent: vec4<f32>,
 }
 
-// Texels per side of a sender's visibility map and its depth test's slope-scaled slack
-// (light_senders.rs' DEPTH_RES, DEPTH_SLACK, DEPTH_SLOPE, MAX_SLACK).
+// Texels per side of a sender's visibility map and the plane test's tolerance
+// (light_senders.rs' DEPTH_RES, PLANE_TOLERANCE).
 const DEPTH_RES: u32 = 16u;
-const DEPTH_SLACK: f32 = 0.05;
-const DEPTH_SLOPE: f32 = 0.3;
-const MAX_SLACK: f32 = 0.95;
+const PLANE_TOLERANCE: f32 = 0.02;
 
 @group(0) @binding(1) var<storage, read> senders: array<LightSender>;
 @group(0) @binding(2) var albedo_tex: texture_2d<f32>;
@@ -42,20 +40,36 @@ const MAX_SLACK: f32 = 0.95;
 // Each sender's visibility map: DEPTH_RES^2 distances, row by row.
 @group(0) @binding(11) var<storage, read> depths: array<f32>;
 
-// The visibility (0 to 1) of a receiver at distance r in unit direction w from sender k, its
-// normal at cosine cos_p to -w (light_senders.rs' `map_visibility`: paraboloid map,
-// slope-scaled slack, bilinear percentage-closer test).
-fn map_visibility(k: u32, s: LightSender, w: vec3<f32>, r: f32, cos_p: f32) -> f32 {
+// The local direction (z along the normal) through the centre of texel (x, y) of a
+// sender's paraboloid map, centres outside the unit disk moved onto it (light_senders.rs'
+// `map_direction`).
+fn map_direction(x: u32, y: u32) -> vec3<f32> {
+    let res = f32(DEPTH_RES);
+    var uv = vec2<f32>((f32(x) + 0.5) / res * 2.0 - 1.0, (f32(y) + 0.5) / res * 2.0 - 1.0);
+    let q0 = dot(uv, uv);
+    if (q0 > 0.998) {
+        uv = uv * sqrt(0.998 / q0);
+    }
+    let q = dot(uv, uv);
+    let z = (1.0 - q) / (1.0 + q);
+    return vec3<f32>(uv * (1.0 + z), z);
+}
+
+// The visibility (0 to 1) of a receiver at p0 with unit normal n0, at distance r from
+// sender k (light_senders.rs' `map_visibility`: paraboloid map, the plane test, bilinear
+// percentage-closer weights).
+fn map_visibility(k: u32, s: LightSender, p0: vec3<f32>, n0: vec3<f32>, r: f32) -> f32 {
+    let sender = s.position_area.xyz;
     let n = s.normal_light.xyz;
     let t = s.tangent.xyz;
     let b = cross(n, t);
+    let w = (p0 - sender) / r;
     let z = max(dot(n, w), 0.0);
     let uv = vec2<f32>(dot(t, w), dot(b, w)) / (1.0 + z);
     let f = (uv * 0.5 + vec2<f32>(0.5)) * f32(DEPTH_RES) - vec2<f32>(0.5);
     let base = floor(f);
     let a = f - base;
-    let tan_a = sqrt(max(1.0 - cos_p * cos_p, 0.0)) / max(cos_p, 1e-6);
-    let far = r * (1.0 - min(DEPTH_SLACK + DEPTH_SLOPE * tan_a, MAX_SLACK));
+    let tolerance = PLANE_TOLERANCE * r;
     let first = k * DEPTH_RES * DEPTH_RES;
     let last = i32(DEPTH_RES) - 1;
     var seen = 0.0;
@@ -65,7 +79,14 @@ fn map_visibility(k: u32, s: LightSender, w: vec3<f32>, r: f32, cos_p: f32) -> f
         let weight = select(1.0 - a.x, a.x, dx == 1) * select(1.0 - a.y, a.y, dy == 1);
         let x = u32(clamp(i32(base.x) + dx, 0, last));
         let y = u32(clamp(i32(base.y) + dy, 0, last));
-        if (far <= depths[first + y * DEPTH_RES + x]) {
+        let depth = depths[first + y * DEPTH_RES + x];
+        if (depth >= MAX_FINITE) {
+            seen += weight;
+            continue;
+        }
+        let l = map_direction(x, y);
+        let hit = sender + (t * l.x + b * l.y + n * l.z) * depth;
+        if (dot(hit - p0, n0) <= tolerance) {
             seen += weight;
         }
     }
@@ -167,7 +188,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         var seen = 1.0;
         if (visibility) {
-            seen = map_visibility(k, s, -dir, sqrt(r2), cos_p);
+            seen = map_visibility(k, s, p0, n0, sqrt(r2));
         }
         let power = s.power.rgb * lights[light].indirect;
         sum += power * (seen * cos_p * cos_s / (PI * (PI * r2 + s.position_area.w)));

@@ -38,11 +38,17 @@
 //! surface, [`DEPTH_RES`]^2 texels in a paraboloid projection (a direction `w` of local
 //! coordinates `(x, y, z)`, `z` along the normal, lands at `(x, y) / (1 + z)` in the unit
 //! disk), each texel the distance a ray from the sender travels before it hits the scene,
-//! traced once when the senders are made. A receiver at distance `r` in direction `w` is
-//! seen where `r` less a slope-scaled slack is not beyond the texel's depth, bilinearly
-//! weighted over the four
-//! texels around `w` (percentage-closer filtering), so that walls between a sender and a
-//! receiver stop its light: senders outside a room no longer light its inside. One lookup
+//! traced once when the senders are made. A receiver at `p` with normal `n_p`, in direction
+//! `w` from the sender, is seen through a texel whose first hit (the sender's position plus
+//! the texel's centre direction times its depth) is not in front of the receiver's tangent
+//! plane, `(hit - p) . n_p <= 0.02 r`: the receiver's own surface and anything beyond it
+//! pass, an occluder between them does not. Bilinearly weighted over the four texels
+//! around `w` (percentage-closer filtering), so that walls between a sender and a receiver
+//! stop its light: senders outside a room no longer light its inside. (A depth test with a
+//! slope-scaled slack, `r (1 - slack) <= depth`, is what shadow maps do; a slack wide
+//! enough for a receiver's own surface seen at a slant let light through a blind's slats
+//! and the furniture of a room, +11 points over the Breakfast Room's lit surfaces against
+//! exact rays, where this plane test reads as exact rays do.) One lookup
 //! per receiver and sender, on the CPU and the GPU alike; [`LightSenders::visibility`] off
 //! leaves it out (for measurements), and `shadowed` in [`LightSenders::gather`] casts an
 //! exact ray instead.
@@ -100,17 +106,10 @@ pub const MAX_LIGHT_SENDERS: u32 = 1 << 16;
 /// Texels per side of each sender's visibility map (module docs).
 pub const DEPTH_RES: u32 = 16;
 
-/// The depth test's slack (module docs): a receiver at distance `r` is seen through a texel
-/// of depth `d` when `r (1 - slack) <= d`, with `slack = DEPTH_SLACK + DEPTH_SLOPE tan(a)`
-/// (at most [`MAX_SLACK`]), `a` the angle between the ray and the receiver's normal. A
-/// receiver's own surface spreads over a texel's neighbours at depths that differ from `r`
-/// by about `r tan(a)` times the angle between texel centres (up to 0.25 rad, at the
-/// paraboloid's centre): the slope-scaled bias of shadow maps.
-const DEPTH_SLACK: f32 = 0.05;
-/// See [`DEPTH_SLACK`].
-const DEPTH_SLOPE: f32 = 0.3;
-/// See [`DEPTH_SLACK`].
-const MAX_SLACK: f32 = 0.95;
+/// The plane test's tolerance (module docs), as a share of the sender-receiver distance
+/// `r`: a texel's first hit at most `PLANE_TOLERANCE r` in front of the receiver's tangent
+/// plane counts as the receiver's own surface (or beyond it).
+const PLANE_TOLERANCE: f32 = 0.02;
 
 /// The local direction (`z` along the normal) through the centre of texel `(x, y)` of a
 /// [`DEPTH_RES`]-sided paraboloid map; centres outside the unit disk are moved onto it
@@ -130,24 +129,27 @@ fn map_direction(x: u32, y: u32) -> Vec3 {
     (uv * (1.0 + z)).extend(z)
 }
 
-/// The visibility (0 to 1) of a receiver at distance `r` in unit direction `w` from a
-/// sender with frame `(t, b, n)` and visibility map `depths`, the receiver's normal at
-/// cosine `cos_p` to `-w` (module docs).
+/// The visibility (0 to 1) of a receiver at `p` with unit normal `n_p`, at distance `r`
+/// from a sender at `sender` with frame `(t, b, n)` and visibility map `depths` (module
+/// docs): over the four texels around the receiver's direction, bilinearly weighted, the
+/// share whose first hit is not in front of the receiver's tangent plane (by more than
+/// [`PLANE_TOLERANCE`] `r`), or left the scene.
 pub fn map_visibility(
     depths: &[f32],
     (t, b, n): (Vec3, Vec3, Vec3),
-    w: Vec3,
+    sender: Vec3,
+    p: Vec3,
+    n_p: Vec3,
     r: f32,
-    cos_p: f32,
 ) -> f32 {
+    let w = (p - sender) / r;
     let z = n.dot(w).max(0.0);
     let uv = Vec2::new(t.dot(w), b.dot(w)) / (1.0 + z);
     let res = DEPTH_RES as f32;
     let f = (uv * 0.5 + 0.5) * res - 0.5;
     let base = f.floor();
     let a = f - base;
-    let tan_a = (1.0 - cos_p * cos_p).max(0.0).sqrt() / cos_p.max(1e-6);
-    let far = r * (1.0 - (DEPTH_SLACK + DEPTH_SLOPE * tan_a).min(MAX_SLACK));
+    let tolerance = PLANE_TOLERANCE * r;
     let mut seen = 0.0;
     for (dx, dy, weight) in [
         (0, 0, (1.0 - a.x) * (1.0 - a.y)),
@@ -155,9 +157,16 @@ pub fn map_visibility(
         (0, 1, (1.0 - a.x) * a.y),
         (1, 1, a.x * a.y),
     ] {
-        let x = (base.x as i32 + dx).clamp(0, DEPTH_RES as i32 - 1) as usize;
-        let y = (base.y as i32 + dy).clamp(0, DEPTH_RES as i32 - 1) as usize;
-        if far <= depths[y * DEPTH_RES as usize + x] {
+        let x = (base.x as i32 + dx).clamp(0, DEPTH_RES as i32 - 1) as u32;
+        let y = (base.y as i32 + dy).clamp(0, DEPTH_RES as i32 - 1) as u32;
+        let depth = depths[(y * DEPTH_RES + x) as usize];
+        if depth >= f32::MAX {
+            seen += weight;
+            continue;
+        }
+        let l = map_direction(x, y);
+        let hit = sender + (t * l.x + b * l.y + n * l.z) * depth;
+        if (hit - p).dot(n_p) <= tolerance {
             seen += weight;
         }
     }
@@ -626,9 +635,10 @@ impl LightSenders {
                                 map_visibility(
                                     &maps[k * texels..(k + 1) * texels],
                                     *frame,
-                                    -dir,
+                                    s.position,
+                                    r.p,
+                                    r.n,
                                     r_len,
-                                    cos_p,
                                 )
                             }),
                         };
