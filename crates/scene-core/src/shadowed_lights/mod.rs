@@ -57,7 +57,10 @@ pub struct ShadowSettings {
     pub directional_resolution: u32,
     /// Texels per side of the orthographic map of each of the sky's directions
     /// ([`crate::sky::Sky::lights`]): many, each carrying a small share of soft light,
-    /// so coarser than a sun's.
+    /// so coarser than a sun's. The most: where the maps would not fit
+    /// [`ShadowSettings::max_texels`], the sky's are halved first (down to 64 texels, many
+    /// directions at 512 would be gigabytes), then the cubes ([`LightSet::sky_resolution`]
+    /// is the one used).
     pub sky_resolution: u32,
     /// Texels per side of each cube-map face of a point light.
     pub cube_resolution: u32,
@@ -87,8 +90,8 @@ impl Default for ShadowSettings {
     fn default() -> Self {
         Self {
             enabled: true,
-            directional_resolution: 1024,
-            sky_resolution: 256,
+            directional_resolution: 2048,
+            sky_resolution: 512,
             cube_resolution: 256,
             emitter_samples: 16,
             emitter_cube_resolution: 128,
@@ -369,6 +372,9 @@ pub struct LightSet {
     /// The cube-map resolution actually used after fitting [`ShadowSettings::max_texels`]
     /// (point lights, emitter samples).
     pub cube_resolutions: (u32, u32),
+    /// The sky maps' resolution actually used after fitting [`ShadowSettings::max_texels`]
+    /// (at most [`ShadowSettings::sky_resolution`]).
+    pub sky_resolution: u32,
     /// The bounds the shadow maps cover (the scene's, or the engine's casters and lights).
     pub bounds: Bounds,
 }
@@ -434,6 +440,7 @@ impl LightSet {
             emitters,
             shadows: *shadows,
             cube_resolutions: (shadows.cube_resolution, shadows.emitter_cube_resolution),
+            sky_resolution: shadows.sky_resolution,
             bounds: scene.bounds(),
         };
         if shadows.enabled && !this.lights.is_empty() {
@@ -560,6 +567,7 @@ impl LightSet {
             emitters: EmitterTable::default(),
             shadows: *shadows,
             cube_resolutions: (shadows.cube_resolution, shadows.emitter_cube_resolution),
+            sky_resolution: shadows.sky_resolution,
             bounds,
         })
     }
@@ -600,10 +608,22 @@ impl LightSet {
             .iter()
             .filter(|l| l.kind == LightKind::Directional && l.id == LightId::Sky)
             .count() as u64;
-        let dir_texels = (n_dir - n_sky) * (s.directional_resolution as u64).pow(2)
-            + n_sky * (s.sky_resolution as u64).pow(2);
+        let mut sky = s.sky_resolution;
+        let dir_texels = |sky: u32| {
+            (n_dir - n_sky) * (s.directional_resolution as u64).pow(2) + n_sky * (sky as u64).pow(2)
+        };
+        // The sky's many maps give way first, down to 64 texels (or their setting if less).
+        while n_sky > 0
+            && dir_texels(sky)
+                + 6 * n_point * (cube as u64).pow(2)
+                + 6 * n_emit * (emit as u64).pow(2)
+                > s.max_texels
+            && sky > 64
+        {
+            sky = (sky / 2).max(64);
+        }
         let total = |c: u32, e: u32| {
-            dir_texels + 6 * n_point * (c as u64).pow(2) + 6 * n_emit * (e as u64).pow(2)
+            dir_texels(sky) + 6 * n_point * (c as u64).pow(2) + 6 * n_emit * (e as u64).pow(2)
         };
         while total(cube, emit) > s.max_texels && (cube > 16 || emit > 16) {
             cube = (cube / 2).max(16.min(cube));
@@ -619,6 +639,7 @@ impl LightSet {
             }));
         }
         self.cube_resolutions = (cube, emit);
+        self.sky_resolution = sky;
         let bounds = self.bounds;
         let extent = self.extent;
         let center = if bounds.is_empty() {
@@ -642,7 +663,7 @@ impl LightSet {
                             half_extent: half,
                         },
                         if light.id == LightId::Sky {
-                            s.sky_resolution
+                            sky
                         } else {
                             s.directional_resolution
                         },
@@ -865,6 +886,24 @@ mod tests {
         );
         let all_finite = s.shadow_texels.iter().all(|t| t.is_finite());
         assert!(all_finite);
+    }
+
+    /// A sky of 256 directions at the default 512 texels would need 67 M texels: its maps
+    /// are halved to 256 (16.8 M with the sun's 4.2 M, under the 33.6 M default budget)
+    /// rather than refused; 64 directions keep 512.
+    #[test]
+    fn budget_halves_sky_maps_first() {
+        let mut scene = builtin::scene("primitives").unwrap();
+        let sky = crate::sky::Sky::uniform(Vec3::splat(0.5)).unwrap();
+        scene.sky = Some(sky.with_directions(64).unwrap());
+        let s = LightSet::new(&scene, &ShadowSettings::default()).unwrap();
+        assert_eq!(s.sky_resolution, 512);
+        scene.sky = Some(sky.with_directions(256).unwrap());
+        let s = LightSet::new(&scene, &ShadowSettings::default()).unwrap();
+        assert_eq!(s.sky_resolution, 256);
+        let sky_maps = s.lights.iter().filter(|l| l.id == LightId::Sky).count();
+        assert_eq!(sky_maps, 256);
+        assert!(s.shadow_texels.len() as u64 <= ShadowSettings::default().max_texels);
     }
 
     #[test]
