@@ -69,7 +69,10 @@ fn map_visibility(k: u32, s: LightSender, p0: vec3<f32>, n0: vec3<f32>, r: f32) 
     let f = (uv * 0.5 + vec2<f32>(0.5)) * f32(DEPTH_RES) - vec2<f32>(0.5);
     let base = floor(f);
     let a = f - base;
-    let tolerance = PLANE_TOLERANCE * r;
+    // (hit - p0) . n0 = (sender - p0) . n0 + depth (l . (t, b, n) . n0), l the texel's local
+    // direction: the frame's axes against the receiver's normal are found once.
+    let tolerance = PLANE_TOLERANCE * r - dot(sender - p0, n0);
+    let axes = vec3<f32>(dot(t, n0), dot(b, n0), dot(n, n0));
     let first = k * DEPTH_RES * DEPTH_RES;
     let last = i32(DEPTH_RES) - 1;
     var seen = 0.0;
@@ -80,13 +83,7 @@ fn map_visibility(k: u32, s: LightSender, p0: vec3<f32>, n0: vec3<f32>, r: f32) 
         let x = u32(clamp(i32(base.x) + dx, 0, last));
         let y = u32(clamp(i32(base.y) + dy, 0, last));
         let depth = depths[first + y * DEPTH_RES + x];
-        if (depth >= MAX_FINITE) {
-            seen += weight;
-            continue;
-        }
-        let l = map_direction(x, y);
-        let hit = sender + (t * l.x + b * l.y + n * l.z) * depth;
-        if (dot(hit - p0, n0) <= tolerance) {
+        if (depth >= MAX_FINITE || depth * dot(map_direction(x, y), axes) <= tolerance) {
             seen += weight;
         }
     }

@@ -129,6 +129,16 @@ fn map_direction(x: u32, y: u32) -> Vec3 {
     (uv * (1.0 + z)).extend(z)
 }
 
+/// [`map_direction`] of every texel, row by row (made once).
+fn map_directions() -> &'static [Vec3] {
+    static DIRECTIONS: std::sync::OnceLock<Vec<Vec3>> = std::sync::OnceLock::new();
+    DIRECTIONS.get_or_init(|| {
+        (0..DEPTH_RES * DEPTH_RES)
+            .map(|k| map_direction(k % DEPTH_RES, k / DEPTH_RES))
+            .collect()
+    })
+}
+
 /// The visibility (0 to 1) of a receiver at `p` with unit normal `n_p`, at distance `r`
 /// from a sender at `sender` with frame `(t, b, n)` and visibility map `depths` (module
 /// docs): over the four texels around the receiver's direction, bilinearly weighted, the
@@ -149,7 +159,11 @@ pub fn map_visibility(
     let f = (uv * 0.5 + 0.5) * res - 0.5;
     let base = f.floor();
     let a = f - base;
-    let tolerance = PLANE_TOLERANCE * r;
+    // (hit - p) . n_p = (sender - p) . n_p + depth (l . (t, b, n) . n_p), `l` the texel's
+    // local direction: the frame's axes against the receiver's normal are found once.
+    let tolerance = PLANE_TOLERANCE * r - (sender - p).dot(n_p);
+    let axes = Vec3::new(t.dot(n_p), b.dot(n_p), n.dot(n_p));
+    let directions = map_directions();
     let mut seen = 0.0;
     for (dx, dy, weight) in [
         (0, 0, (1.0 - a.x) * (1.0 - a.y)),
@@ -159,14 +173,9 @@ pub fn map_visibility(
     ] {
         let x = (base.x as i32 + dx).clamp(0, DEPTH_RES as i32 - 1) as u32;
         let y = (base.y as i32 + dy).clamp(0, DEPTH_RES as i32 - 1) as u32;
-        let depth = depths[(y * DEPTH_RES + x) as usize];
-        if depth >= f32::MAX {
-            seen += weight;
-            continue;
-        }
-        let l = map_direction(x, y);
-        let hit = sender + (t * l.x + b * l.y + n * l.z) * depth;
-        if (hit - p).dot(n_p) <= tolerance {
+        let k = (y * DEPTH_RES + x) as usize;
+        let depth = depths[k];
+        if depth >= f32::MAX || depth * directions[k].dot(axes) <= tolerance {
             seen += weight;
         }
     }
@@ -494,9 +503,7 @@ impl LightSenders {
         }
         let senders: Vec<LightSender> = senders.into_iter().map(|(_, s)| s).collect();
         // Each sender's visibility map: one ray per texel, from just above its surface.
-        let directions: Vec<Vec3> = (0..DEPTH_RES * DEPTH_RES)
-            .map(|k| map_direction(k % DEPTH_RES, k / DEPTH_RES))
-            .collect();
+        let directions = map_directions();
         let depths: Vec<f32> = senders
             .par_iter()
             .flat_map_iter(|s| {
