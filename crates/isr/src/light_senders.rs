@@ -109,7 +109,7 @@ pub const DEPTH_RES: u32 = 16;
 /// The plane test's tolerance (module docs), as a share of the sender-receiver distance
 /// `r`: a texel's first hit at most `PLANE_TOLERANCE r` in front of the receiver's tangent
 /// plane counts as the receiver's own surface (or beyond it).
-const PLANE_TOLERANCE: f32 = 0.02;
+pub const PLANE_TOLERANCE: f32 = 0.02;
 
 /// The local direction (`z` along the normal) through the centre of texel `(x, y)` of a
 /// [`DEPTH_RES`]-sided paraboloid map; centres outside the unit disk are moved onto it

@@ -114,6 +114,19 @@ fn light_space_senders_light_a_wall_whose_lit_floor_is_off_screen() {
     assert!(rel.abs() < 0.03, "{:+.2} % from the reference", 100.0 * rel);
 }
 
+/// [`render_with`] with one exact shadow ray per receiver and sender
+/// (`light_sender_shadows`): the visibility the maps stand for.
+fn render_shadowed(setup: &Setup, settings: &IsrSettings, senders: &LightSenders) -> Image {
+    render_with(
+        setup,
+        &IsrSettings {
+            light_sender_shadows: true,
+            ..*settings
+        },
+        Some(senders),
+    )
+}
+
 /// The mean of `img` over the pixels that show a reflecting surface lit in `reference`
 /// (not the background, not an emitter): the lit-surface bias `sum img / sum ref - 1`.
 fn surface_bias(setup: &Setup, img: &Image, reference: &Image) -> f64 {
@@ -156,14 +169,7 @@ fn a_surface_the_camera_and_the_light_both_see_is_counted_once() {
     );
     let rays = surface_bias(
         &setup,
-        &render_with(
-            &setup,
-            &IsrSettings {
-                light_sender_shadows: true,
-                ..settings
-            },
-            Some(&senders),
-        ),
+        &render_shadowed(&setup, &settings, &senders),
         &reference,
     );
     senders.visibility = false;
@@ -359,14 +365,7 @@ fn light_space_senders_do_not_leak_through_a_panel() {
     let maps = image_mean(&render_with(&setup, &settings, Some(&senders)));
     senders.visibility = false;
     let leaky = image_mean(&render_with(&setup, &settings, Some(&senders)));
-    let shadowed = image_mean(&render_with(
-        &setup,
-        &IsrSettings {
-            light_sender_shadows: true,
-            ..settings
-        },
-        Some(&senders),
-    ));
+    let shadowed = image_mean(&render_shadowed(&setup, &settings, &senders));
     eprintln!(
         "behind the panel: reference {expected:.5}, no visibility {leaky:.5} ({:+.1} %), \
          visibility maps {maps:.5} ({:+.1} %), shadow rays {shadowed:.5} ({:+.1} %)",
@@ -515,14 +514,7 @@ fn every_bounce_comes_close_to_the_all_bounce_reference_on_cornell() {
     );
     let rays = surface_bias(
         &setup,
-        &render_with(
-            &setup,
-            &IsrSettings {
-                light_sender_shadows: true,
-                ..settings
-            },
-            Some(&every),
-        ),
+        &render_shadowed(&setup, &settings, &every),
         &reference,
     );
     let one = surface_bias(
