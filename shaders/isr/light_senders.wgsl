@@ -55,23 +55,22 @@ fn map_direction(x: u32, y: u32) -> vec3<f32> {
     return vec3<f32>(uv * (1.0 + z), z);
 }
 
-// The visibility (0 to 1) of a receiver at p0 with unit normal n0, at distance r from
-// sender k (light_senders.rs' `map_visibility`: paraboloid map, the plane test, bilinear
-// percentage-closer weights).
-fn map_visibility(k: u32, s: LightSender, p0: vec3<f32>, n0: vec3<f32>, r: f32) -> f32 {
-    let sender = s.position_area.xyz;
+// The visibility (0 to 1) of a receiver in unit direction w at distance r from sender k,
+// its unit normal n0 at cosine cos_p to -w (light_senders.rs' `map_visibility`: paraboloid
+// map, the plane test, bilinear percentage-closer weights).
+fn map_visibility(k: u32, s: LightSender, w: vec3<f32>, r: f32, n0: vec3<f32>, cos_p: f32) -> f32 {
     let n = s.normal_light.xyz;
     let t = s.tangent.xyz;
     let b = cross(n, t);
-    let w = (p0 - sender) / r;
     let z = max(dot(n, w), 0.0);
     let uv = vec2<f32>(dot(t, w), dot(b, w)) / (1.0 + z);
     let f = (uv * 0.5 + vec2<f32>(0.5)) * f32(DEPTH_RES) - vec2<f32>(0.5);
     let base = floor(f);
     let a = f - base;
     // (hit - p0) . n0 = (sender - p0) . n0 + depth (l . (t, b, n) . n0), l the texel's local
-    // direction: the frame's axes against the receiver's normal are found once.
-    let tolerance = PLANE_TOLERANCE * r - dot(sender - p0, n0);
+    // direction and (sender - p0) . n0 = r cos_p: the frame's axes against the receiver's
+    // normal are found once.
+    let tolerance = r * (PLANE_TOLERANCE - cos_p);
     let axes = vec3<f32>(dot(t, n0), dot(b, n0), dot(n, n0));
     let first = k * DEPTH_RES * DEPTH_RES;
     let last = i32(DEPTH_RES) - 1;
@@ -185,7 +184,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         var seen = 1.0;
         if (visibility) {
-            seen = map_visibility(k, s, p0, n0, sqrt(r2));
+            seen = map_visibility(k, s, -dir, sqrt(r2), n0, cos_p);
         }
         let power = s.power.rgb * lights[light].indirect;
         sum += power * (seen * cos_p * cos_s / (PI * (PI * r2 + s.position_area.w)));

@@ -139,20 +139,19 @@ fn map_directions() -> &'static [Vec3] {
     })
 }
 
-/// The visibility (0 to 1) of a receiver at `p` with unit normal `n_p`, at distance `r`
-/// from a sender at `sender` with frame `(t, b, n)` and visibility map `depths` (module
-/// docs): over the four texels around the receiver's direction, bilinearly weighted, the
-/// share whose first hit is not in front of the receiver's tangent plane (by more than
-/// [`PLANE_TOLERANCE`] `r`), or left the scene.
+/// The visibility (0 to 1) of a receiver in unit direction `w` at distance `r` from a sender
+/// with frame `(t, b, n)` and visibility map `depths`, the receiver's unit normal `n_p` at
+/// cosine `cos_p` to `-w` (module docs): over the four texels around `w`, bilinearly
+/// weighted, the share whose first hit is not in front of the receiver's tangent plane (by
+/// more than [`PLANE_TOLERANCE`] `r`), or left the scene.
 pub fn map_visibility(
     depths: &[f32],
     (t, b, n): (Vec3, Vec3, Vec3),
-    sender: Vec3,
-    p: Vec3,
-    n_p: Vec3,
+    w: Vec3,
     r: f32,
+    n_p: Vec3,
+    cos_p: f32,
 ) -> f32 {
-    let w = (p - sender) / r;
     let z = n.dot(w).max(0.0);
     let uv = Vec2::new(t.dot(w), b.dot(w)) / (1.0 + z);
     let res = DEPTH_RES as f32;
@@ -160,8 +159,9 @@ pub fn map_visibility(
     let base = f.floor();
     let a = f - base;
     // (hit - p) . n_p = (sender - p) . n_p + depth (l . (t, b, n) . n_p), `l` the texel's
-    // local direction: the frame's axes against the receiver's normal are found once.
-    let tolerance = PLANE_TOLERANCE * r - (sender - p).dot(n_p);
+    // local direction and (sender - p) . n_p = r cos_p: the frame's axes against the
+    // receiver's normal are found once.
+    let tolerance = r * (PLANE_TOLERANCE - cos_p);
     let axes = Vec3::new(t.dot(n_p), b.dot(n_p), n.dot(n_p));
     let directions = map_directions();
     let mut seen = 0.0;
@@ -642,10 +642,10 @@ impl LightSenders {
                                 map_visibility(
                                     &maps[k * texels..(k + 1) * texels],
                                     *frame,
-                                    s.position,
-                                    r.p,
-                                    r.n,
+                                    -dir,
                                     r_len,
+                                    r.n,
+                                    cos_p,
                                 )
                             }),
                         };

@@ -420,6 +420,32 @@ fn a_recoloured_light_rescales_its_light_space_senders_without_a_rebuild() {
     assert_eq!(sum(&render_in(&state)), Vec3::ZERO);
 }
 
+/// A closed 2 m box of grey albedo `albedo` around a point light of intensity 1 at `bulb`.
+fn closed_box(name: &str, albedo: f32, bulb: Vec3) -> Scene {
+    let mut scene = Scene::new(name);
+    scene
+        .materials
+        .push(Material::diffuse("walls", Vec3::splat(albedo)));
+    let mut m = Mesh::default();
+    m.push_box(Vec3::ZERO, Vec3::ONE, 0.0, 0);
+    scene.meshes.push(m);
+    scene
+        .point_lights
+        .push(scene_core::PointLight::new("bulb", bulb, Vec3::splat(1.0)));
+    scene.validate().unwrap();
+    scene
+}
+
+/// The total power (green) of `senders`' senders of bounce `k`.
+fn power_of_bounce(senders: &LightSenders, k: u32) -> f64 {
+    senders
+        .senders
+        .iter()
+        .filter(|s| s.bounce == k)
+        .map(|s| f64::from(s.power.y))
+        .sum()
+}
+
 /// The further bounces' senders carry the power a closed enclosure reflects bounce by
 /// bounce: in a 2 m box of albedo 0.5 around a point light, the first senders reflect
 /// `0.5 Phi` (the light's power `Phi = 4 pi I`; every ray hits a wall) and those of bounce
@@ -431,32 +457,13 @@ fn a_recoloured_light_rescales_its_light_space_senders_without_a_rebuild() {
 /// shrinks, no bias). `Limited(3)` stops at bounce 3.
 #[test]
 fn further_bounces_carry_the_power_a_closed_box_reflects() {
-    let mut scene = Scene::new("closed box");
-    scene
-        .materials
-        .push(Material::diffuse("grey", Vec3::splat(0.5)));
-    let mut m = Mesh::default();
-    m.push_box(Vec3::ZERO, Vec3::ONE, 0.0, 0);
-    scene.meshes.push(m);
-    scene.point_lights.push(scene_core::PointLight::new(
-        "bulb",
-        Vec3::new(0.1, 0.2, -0.15),
-        Vec3::splat(1.0),
-    ));
-    scene.validate().unwrap();
+    let scene = closed_box("closed box", 0.5, Vec3::new(0.1, 0.2, -0.15));
     let lights = LightSet::new(&scene, &small_shadows()).unwrap();
     let phi = 4.0 * std::f64::consts::PI;
     let senders = LightSenders::with_bounces(&scene, &lights, 4096, Bounces::Unlimited).unwrap();
-    let per_bounce = |s: &LightSenders, k: u32| -> f64 {
-        s.senders
-            .iter()
-            .filter(|s| s.bounce == k)
-            .map(|s| f64::from(s.power.x))
-            .sum()
-    };
     for k in 1..=4u32 {
         let expected = 0.5f64.powi(k as i32) * phi;
-        let got = per_bounce(&senders, k);
+        let got = power_of_bounce(&senders, k);
         eprintln!(
             "bounce {k}: {got:.4} W, expected {expected:.4} W ({:+.2} %)",
             100.0 * (got / expected - 1.0)
@@ -554,19 +561,7 @@ fn every_bounce_comes_close_to_the_all_bounce_reference_on_cornell() {
 /// disks follow the scene's size).
 #[test]
 fn further_bounces_in_a_white_furnace_without_lights_and_at_any_scale() {
-    let mut scene = Scene::new("white furnace");
-    scene
-        .materials
-        .push(Material::diffuse("white", Vec3::splat(0.99)));
-    let mut m = Mesh::default();
-    m.push_box(Vec3::ZERO, Vec3::ONE, 0.0, 0);
-    scene.meshes.push(m);
-    scene.point_lights.push(scene_core::PointLight::new(
-        "bulb",
-        Vec3::ZERO,
-        Vec3::splat(1.0),
-    ));
-    scene.validate().unwrap();
+    let mut scene = closed_box("white furnace", 0.99, Vec3::ZERO);
     let lights = LightSet::new(&scene, &small_shadows()).unwrap();
     let senders = LightSenders::with_bounces(&scene, &lights, 1024, Bounces::Unlimited).unwrap();
     let phi = 4.0 * std::f64::consts::PI;
@@ -574,12 +569,7 @@ fn further_bounces_in_a_white_furnace_without_lights_and_at_any_scale() {
         && s.area.is_finite()
         && (1..=isr::light_senders::MAX_PATH_BOUNCES).contains(&s.bounce)));
     for k in 1..=2u32 {
-        let got: f64 = senders
-            .senders
-            .iter()
-            .filter(|s| s.bounce == k)
-            .map(|s| f64::from(s.power.y))
-            .sum();
+        let got = power_of_bounce(&senders, k);
         let expected = phi * 0.99f64.powi(k as i32);
         assert!(
             (got / expected - 1.0).abs() < 0.01,
