@@ -1,12 +1,14 @@
 //! Exponential shadow maps with PCF (section 4.6, eq. 30, listing 8).
 //!
 //! The maps do not depend on the camera, so [`super::LightSet::new`] builds them once per
-//! scene, on the CPU, by casting one ray per texel through the scene's BVH (the depth a
-//! rasteriser would store at the texel centre): an orthographic map for each directional
-//! light and a six-face cube map for each point light and each emitter sample. Depths are
+//! scene, on the CPU: an orthographic map for each directional light (and each of the sky's
+//! directions), rasterised at the texel centres ([`raster_ortho`]), and a six-face cube map
+//! for each point light and each emitter sample, a ray per texel through the scene's BVH
+//! ([`render_cube`]): both the depth of the nearest surface at the texel centre. Depths are
 //! stored in units of the scene's extent, so the ESM exponent means the same at every scale.
-//! There is no GPU pass for building them: the GPU lighting pass reads the same texels from
-//! a storage buffer, so both paths see identical maps.
+//! The GPU lighting passes read the same texels from a storage buffer, so both paths see
+//! identical maps ([`super::gpu_maps`] renders them on the GPU instead, for an engine's
+//! meshes).
 //!
 //! **Log-space filtering.** ESM prefilters `exp(c o)` linearly; stored as is, `exp(c o)`
 //! overflows f32 once `c o > 88.7` (the thesis' `c = 90` with a depth near 1 already does).
@@ -181,8 +183,10 @@ pub fn render_cube(rays: &RayScene, center: Vec3, res: u32, extent: f32, miss: f
         .collect()
 }
 
-/// Renders an orthographic map: per texel the distance from the map plane through `eye` to
-/// the nearest surface along `forward`, in units of `extent`.
+/// Renders an orthographic map by a ray per texel: per texel the distance from the map plane
+/// through `eye` to the nearest surface along `forward`, in units of `extent`. The light
+/// sets draw these maps with [`raster_ortho`] (the same depths, a fraction of the cost);
+/// this is its reference.
 pub fn render_ortho(rays: &RayScene, kind: &MapKind, res: u32, extent: f32) -> Vec<f32> {
     let MapKind::Ortho {
         eye,
@@ -212,6 +216,165 @@ pub fn render_ortho(rays: &RayScene, kind: &MapKind, res: u32, extent: f32) -> V
         .collect()
 }
 
+/// Rows of an orthographic map one task of [`raster_ortho`] fills: the triangles are binned
+/// by these bands once, then each band is drawn alone.
+const RASTER_BAND: usize = 16;
+
+/// [`render_ortho`]'s map drawn by rasterising `triangles` instead of casting a ray per
+/// texel: per texel centre the nearest triangle covering it, its depth interpolated along
+/// `forward` (exact in an orthographic projection), kept where a ray would take it (`t` in
+/// `[0, 4 half_extent)`), passed over where the triangle's alpha mask cuts a hole at that
+/// point (`cutouts`, by triangle index, as the ray cast's any-hit test). The same depths as
+/// the ray cast but where a triangle's edge passes within rounding of a texel centre, in a
+/// cost of the texels plus the triangles' coverage instead of a BVH traversal per texel:
+/// a 64-direction sky's maps at 512 texels are 16.7 million texels.
+///
+/// A triangle whose projection is degenerate (seen edge-on) or not finite covers nothing,
+/// as a ray would meet it nowhere. Bands of rows are drawn in parallel; a texel keeps the
+/// least depth whatever the order, so the map does not depend on the thread count.
+pub fn raster_ortho(
+    triangles: &[[Vec3; 3]],
+    cutouts: &crate::cutout::Cutouts,
+    kind: &MapKind,
+    res: u32,
+    extent: f32,
+) -> Vec<f32> {
+    let MapKind::Ortho {
+        eye,
+        right,
+        up,
+        forward,
+        half_extent,
+    } = *kind
+    else {
+        return Vec::new();
+    };
+    let miss = 4.0 * half_extent / extent;
+    let n = res as usize;
+    let far = 4.0 * half_extent;
+    // Each corner in texel coordinates (texel x's centre at x + 1/2, rows downward) and its
+    // depth along `forward`, in f64 so that the coverage tests are not a source of cracks.
+    let scale = 0.5 * f64::from(res) / f64::from(half_extent);
+    let project = |p: Vec3| {
+        let d = p - eye;
+        let (u, v, t) = (d.dot(right), d.dot(up), d.dot(forward));
+        [
+            (f64::from(u) + f64::from(half_extent)) * scale,
+            (f64::from(half_extent) - f64::from(v)) * scale,
+            f64::from(t),
+        ]
+    };
+    let bands = n.div_ceil(RASTER_BAND);
+    let mut binned: Vec<Vec<u32>> = vec![Vec::new(); bands];
+    let projected: Vec<Option<[[f64; 3]; 3]>> = triangles
+        .par_iter()
+        .with_min_len(1024)
+        .map(|tri| {
+            let c = tri.map(project);
+            let area = (c[1][0] - c[0][0]) * (c[2][1] - c[0][1])
+                - (c[1][1] - c[0][1]) * (c[2][0] - c[0][0]);
+            let finite = c.iter().flatten().all(|x| x.is_finite());
+            (finite && area != 0.0).then_some(c)
+        })
+        .collect();
+    for (i, c) in projected.iter().enumerate() {
+        let Some(c) = c else { continue };
+        let lo = c[0][1].min(c[1][1]).min(c[2][1]);
+        let hi = c[0][1].max(c[1][1]).max(c[2][1]);
+        // Rows whose centres y + 1/2 lie in [lo, hi].
+        let first = (lo - 0.5).ceil().max(0.0);
+        let last = (hi - 0.5).floor().min(n as f64 - 1.0);
+        if first > last {
+            continue;
+        }
+        let bands = first as usize / RASTER_BAND..=last as usize / RASTER_BAND;
+        for members in &mut binned[bands] {
+            members.push(i as u32);
+        }
+    }
+    let mut map = vec![miss; n * n];
+    map.par_chunks_mut(RASTER_BAND * n)
+        .zip(binned.par_iter())
+        .enumerate()
+        .for_each(|(band, (rows, members))| {
+            let y0 = band * RASTER_BAND;
+            let y1 = y0 + rows.len() / n.max(1);
+            let mut depth = vec![f64::INFINITY; rows.len()];
+            for &i in members {
+                let Some(c) = projected[i as usize] else {
+                    continue;
+                };
+                // The barycentric weight of each corner as a plane over texel coordinates,
+                // `w_k = a_k x + b_k y + d_k`, and the depth as the planes' sum.
+                let area = (c[1][0] - c[0][0]) * (c[2][1] - c[0][1])
+                    - (c[1][1] - c[0][1]) * (c[2][0] - c[0][0]);
+                let plane = |k: usize| {
+                    let (p, q) = (c[(k + 1) % 3], c[(k + 2) % 3]);
+                    let (a, b) = (-(q[1] - p[1]) / area, (q[0] - p[0]) / area);
+                    [a, b, -(a * p[0] + b * p[1])]
+                };
+                let w = [plane(0), plane(1), plane(2)];
+                let lo_x = c[0][0].min(c[1][0]).min(c[2][0]);
+                let hi_x = c[0][0].max(c[1][0]).max(c[2][0]);
+                let lo_y = c[0][1].min(c[1][1]).min(c[2][1]);
+                let hi_y = c[0][1].max(c[1][1]).max(c[2][1]);
+                let xs = (lo_x - 0.5).ceil().max(0.0);
+                let xe = (hi_x - 0.5).floor().min(n as f64 - 1.0);
+                let ys = (lo_y - 0.5).ceil().max(y0 as f64);
+                let ye = (hi_y - 0.5).floor().min(y1 as f64 - 1.0);
+                if xs > xe || ys > ye {
+                    continue;
+                }
+                for y in ys as usize..=ye as usize {
+                    let py = y as f64 + 0.5;
+                    let row = w.map(|[_, b, d]| b * py + d);
+                    // The span of texel centres where every weight is non-negative (each
+                    // texel is tested again below: the span only saves the empty ones).
+                    let (mut from, mut to) = (xs, xe);
+                    for k in 0..3 {
+                        let a = w[k][0];
+                        if a > 0.0 {
+                            from = from.max((-row[k] / a - 0.5).ceil() - 1.0);
+                        } else if a < 0.0 {
+                            to = to.min((-row[k] / a - 0.5).floor() + 1.0);
+                        }
+                    }
+                    if from > to {
+                        continue;
+                    }
+                    for x in from as usize..=to as usize {
+                        let px = x as f64 + 0.5;
+                        let (w0, w1, w2) = (
+                            w[0][0] * px + row[0],
+                            w[1][0] * px + row[1],
+                            w[2][0] * px + row[2],
+                        );
+                        if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                            continue;
+                        }
+                        let t = w0 * c[0][2] + w1 * c[1][2] + w2 * c[2][2];
+                        let k = (y - y0) * n + x;
+                        if !(t >= 0.0 && t < f64::from(far) && t < depth[k]) {
+                            continue;
+                        }
+                        if !cutouts.is_empty()
+                            && !cutouts.opaque(i, Vec2::new(w1 as f32, w2 as f32))
+                        {
+                            continue;
+                        }
+                        depth[k] = t;
+                    }
+                }
+            }
+            for (texel, &t) in rows.iter_mut().zip(&depth) {
+                if t.is_finite() {
+                    *texel = (t as f32 / extent).min(miss);
+                }
+            }
+        });
+    map
+}
+
 /// The ESM prefilter of section 4.6 ("filter (blur) the shadow map"), for eq. 30: a
 /// separable log-space Gaussian of `faces` square faces of `res` texels (clamped at
 /// face edges): each texel becomes `o_max + ln(sum w_i exp(c (o_i - o_max))) / c` over its
@@ -228,35 +391,64 @@ pub fn log_filter(map: &mut [f32], res: u32, faces: usize, radius: u32, c: f32) 
         .collect();
     let total: f32 = weights.iter().sum();
     let weights: Vec<f32> = weights.iter().map(|w| w / total).collect();
+    // Shortcuts that give the same bits as the sum they skip (most of a map is flat: the
+    // texels nothing is behind, a wall seen square on): `exp(0)` is exactly 1, so taps all
+    // equal to their maximum give `o_max + ln(sum of the weights) / c`; and an exponential
+    // of an argument below -105 rounds to 0 in f32.
+    const EXP_UNDERFLOW: f32 = -105.0;
+    let flat_offset = weights
+        .iter()
+        .fold(0.0f32, |s, w| s + w)
+        .max(f32::MIN_POSITIVE)
+        .ln()
+        / c;
     let n = res as usize;
+    let len = (faces * n * n).min(map.len());
+    let r = radius as i32;
+    let mut src = vec![0.0f32; len];
     for horizontal in [true, false] {
-        let src = map.to_vec();
-        map.par_chunks_mut(n * n)
-            .take(faces)
+        src.copy_from_slice(&map[..len]);
+        // One task per output row of every face (a one-face map is filtered by every
+        // thread too); each texel is computed alone, so the result does not depend on the
+        // thread count.
+        map[..len]
+            .par_chunks_mut(n)
             .enumerate()
-            .for_each(|(f, face)| {
+            .for_each(|(row, out)| {
+                let (f, y) = (row / n, row % n);
                 let base = &src[f * n * n..(f + 1) * n * n];
-                for y in 0..n {
-                    for x in 0..n {
-                        let tap = |k: i32| {
-                            let (tx, ty) = if horizontal {
-                                ((x as i32 + k).clamp(0, n as i32 - 1) as usize, y)
-                            } else {
-                                (x, (y as i32 + k).clamp(0, n as i32 - 1) as usize)
-                            };
-                            base[ty * n + tx]
+                for (x, texel) in out.iter_mut().enumerate() {
+                    let tap = |k: i32| {
+                        let (tx, ty) = if horizontal {
+                            ((x as i32 + k).clamp(0, n as i32 - 1) as usize, y)
+                        } else {
+                            (x, (y as i32 + k).clamp(0, n as i32 - 1) as usize)
                         };
-                        let r = radius as i32;
-                        let mut o_max = f32::NEG_INFINITY;
-                        for k in -r..=r {
-                            o_max = o_max.max(tap(k));
-                        }
-                        let mut sum = 0.0f32;
-                        for k in -r..=r {
-                            sum += weights[(k + r) as usize] * (c * (tap(k) - o_max)).exp();
-                        }
-                        face[y * n + x] = o_max + sum.max(f32::MIN_POSITIVE).ln() / c;
+                        base[ty * n + tx]
+                    };
+                    let mut o_max = f32::NEG_INFINITY;
+                    let mut flat = true;
+                    for k in -r..=r {
+                        o_max = o_max.max(tap(k));
+                        flat &= tap(k) == tap(-r);
                     }
+                    if flat {
+                        *texel = o_max + flat_offset;
+                        continue;
+                    }
+                    let mut sum = 0.0f32;
+                    for k in -r..=r {
+                        let x = c * (tap(k) - o_max);
+                        let w = weights[(k + r) as usize];
+                        sum += if x == 0.0 {
+                            w
+                        } else if x < EXP_UNDERFLOW {
+                            0.0
+                        } else {
+                            w * x.exp()
+                        };
+                    }
+                    *texel = o_max + sum.max(f32::MIN_POSITIVE).ln() / c;
                 }
             });
     }

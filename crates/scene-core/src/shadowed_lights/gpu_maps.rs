@@ -7,8 +7,9 @@
 //! (`isr::GpuIsr::copy_shadow_texels`, `relight_pr::gpu::GpuRelight::copy_shadow_texels`), or
 //! [`ShadowMapPass::read_texels`] hands them to the CPU twins.
 //!
-//! The raster samples each texel at its centre, the ray the CPU casts there
-//! ([`super::esm::render_cube`], [`super::esm::render_ortho`]), so the two agree texel for
+//! The raster samples each texel at its centre, as the CPU does (a ray per texel of a cube
+//! map, [`super::esm::render_cube`]; a raster of the orthographic ones,
+//! [`super::esm::raster_ortho`]), so the two agree texel for
 //! texel except where a caster's edge passes within rounding of a texel centre, and to
 //! float rounding elsewhere (the GPU's `exp` and `log` in the filter are not correctly
 //! rounded).

@@ -444,7 +444,10 @@ impl LightSet {
             bounds: scene.bounds(),
         };
         if shadows.enabled && !this.lights.is_empty() {
-            this.build_shadow_maps(|| RayScene::build(scene))?;
+            let cutouts = crate::cutout::Cutouts::of(scene);
+            this.build_shadow_maps(&scene.triangle_corners(), &cutouts, || {
+                RayScene::build(scene)
+            })?;
         }
         Ok(this)
     }
@@ -452,7 +455,7 @@ impl LightSet {
     /// A light set from an engine's own lights (made with [`Light::point`] and
     /// [`Light::directional`]; [`LightKind::EmitterSample`]s are accepted too) and the
     /// triangles that cast their shadows, with no [`Scene`]. The shadow maps are rendered
-    /// over `casters` by a ray-cast pass (one ray per texel); with no casters, or with
+    /// over `casters` (orthographic maps rasterised, cube maps by a ray per texel); with no casters, or with
     /// `shadows.enabled` off, the lights are unshadowed. The extent (the unit of relative
     /// radii and of shadow depths) is the diagonal of the bounds of the casters and
     /// the point lights.
@@ -466,7 +469,8 @@ impl LightSet {
     ) -> Result<Self, LightSetError> {
         let mut this = Self::engine(lights, casters, Bounds::EMPTY, shadows)?;
         if shadows.enabled && !casters.is_empty() && !this.lights.is_empty() {
-            this.build_shadow_maps(|| RayScene::from_triangles(casters))?;
+            let none = crate::cutout::Cutouts::default();
+            this.build_shadow_maps(casters, &none, || RayScene::from_triangles(casters))?;
         } else {
             this.shadows.enabled = false;
         }
@@ -706,9 +710,18 @@ impl LightSet {
         Ok(planned)
     }
 
-    fn build_shadow_maps(&mut self, rays: impl FnOnce() -> RayScene) -> Result<(), LightSetError> {
+    /// Renders and filters the planned maps: the orthographic ones (suns, the sky) by
+    /// rasterising `triangles` ([`esm::raster_ortho`], alpha holes from `cutouts`), the cube
+    /// ones by a ray per texel through the tree `rays` makes (made only when a cube map is
+    /// planned).
+    fn build_shadow_maps(
+        &mut self,
+        triangles: &[[Vec3; 3]],
+        cutouts: &crate::cutout::Cutouts,
+        rays: impl FnOnce() -> RayScene,
+    ) -> Result<(), LightSetError> {
         let planned = self.plan_shadow_maps()?;
-        let rays = rays();
+        let rays = std::cell::LazyCell::new(rays);
         let extent = self.extent;
         let c = self.shadows.esm_exponent;
         let filter = self.shadows.filter_radius;
@@ -719,7 +732,10 @@ impl LightSet {
                 MapKind::Cube { center } => {
                     (esm::render_cube(&rays, center, res, extent, p.miss), 6)
                 }
-                MapKind::Ortho { .. } => (esm::render_ortho(&rays, &p.map.kind, res, extent), 1),
+                MapKind::Ortho { .. } => (
+                    esm::raster_ortho(triangles, cutouts, &p.map.kind, res, extent),
+                    1,
+                ),
             };
             esm::log_filter(&mut map, res, faces, filter, c);
             texels.extend_from_slice(&map);
