@@ -34,7 +34,7 @@ pub fn techniques(
         (
             "isr",
             Box::new(IsrTechnique::new(
-                IsrSettings::default(),
+                IsrSettings::screen_space(),
                 Box::new(CpuRasterizer::new()),
             )),
         ),
@@ -109,7 +109,7 @@ pub fn techniques(
         out.push((
             "isr-gpu",
             Box::new(
-                IsrTechnique::new(IsrSettings::default(), Box::new(CpuRasterizer::new()))
+                IsrTechnique::new(IsrSettings::screen_space(), Box::new(CpuRasterizer::new()))
                     .with_backend(backend.clone()),
             ),
         ));

@@ -45,7 +45,7 @@ fn rasterised_and_ray_cast_gbuffers_give_the_same_isr_image() {
                 coarse: &coarse,
                 view: &view,
             };
-            images.push(render_image(&prepared, &inputs, &IsrSettings::default()).unwrap());
+            images.push(render_image(&prepared, &inputs, &IsrSettings::screen_space()).unwrap());
         }
         // The two renderers differ only where a pixel centre lies on a triangle edge.
         let e = imalyzer::mean_error(&images[1], &images[0]).unwrap();
@@ -85,7 +85,7 @@ fn every_coarse_buffer_of_the_gbuffer_crate_keeps_isr_closer_than_dl() {
                 view: &view,
             };
             let dl = render_image(&prepared, &inputs, &IsrSettings::dl()).unwrap();
-            let isr = render_image(&prepared, &inputs, &IsrSettings::default()).unwrap();
+            let isr = render_image(&prepared, &inputs, &IsrSettings::screen_space()).unwrap();
             assert_eq!(isr.non_finite_count(), 0);
             let (e_dl, e_isr) = (
                 imalyzer::mean_error(&reference, &dl).unwrap(),
@@ -133,7 +133,7 @@ fn gpu_rasteriser_to_lit_image_without_readback() {
         coarse: None,
         view: &view,
     };
-    ctx.submit_encoded(|e| isr.encode(e, &inputs, &IsrSettings::default(), &target))
+    ctx.submit_encoded(|e| isr.encode(e, &inputs, &IsrSettings::screen_space(), &target))
         .unwrap();
     // Read back only to check it against the CPU path on the CPU rasteriser's buffer.
     let gpu = ctx.read_texture_image(&target).unwrap();
@@ -146,7 +146,7 @@ fn gpu_rasteriser_to_lit_image_without_readback() {
             coarse: &coarse,
             view: &view,
         },
-        &IsrSettings::default(),
+        &IsrSettings::screen_space(),
     )
     .unwrap();
     let e = imalyzer::mean_error(&cpu, &gpu).unwrap();

@@ -101,10 +101,10 @@ pub fn isr(threads: usize, repeats: usize) -> Result<(), String> {
             .iter()
             .map(|&n| {
                 (
-                    format!("ISR {n} samples"),
+                    format!("ISR {n} samples, screen space"),
                     IsrSettings {
                         samples: n,
-                        ..Default::default()
+                        ..IsrSettings::screen_space()
                     },
                 )
             })

@@ -57,18 +57,15 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
 /// A method on the frame contract and its precomputation time in seconds.
 type Prepared = (BoxedFrame, f64);
 
-/// The methods (DL, ISR, ISR with the light-space senders of the `isr-ls-N` techniques,
+/// The methods (DL, screen-space ISR, ISR at its defaults with the light-space senders of the `isr-N` techniques,
 /// relighting at [`RELIGHT_ELEMENTS`] in half precision, the IBRR at its defaults), prepared for `scene` on `ctx`'s device, with their precomputation times.
 fn methods(ctx: &GpuContext, scene: &Arc<Scene>, threads: usize) -> Result<Vec<Prepared>, String> {
     let pool = crate::bench::worker_pool(threads)?;
     pool.install(|| {
         let makers = [
             isr_maker(isr::IsrSettings::dl()),
+            isr_maker(isr::IsrSettings::screen_space()),
             isr_maker(isr::IsrSettings::default()),
-            isr_maker(isr::IsrSettings::with_light_senders(
-                isr::IsrSettings::default().samples,
-                crate::techniques::LIGHT_SENDERS,
-            )),
             relight_maker(RELIGHT_ELEMENTS, relight_pr::packed::Precision::F16),
             ibrr_maker(ibrr_ldc::IbrrSettings::default()),
         ];

@@ -60,7 +60,7 @@ pub fn grid(samples: u32) -> Vec<Setting> {
                     ssao: ao.is_some(),
                     k_ssao: ao.unwrap_or(0.0),
                     radius: Radius::Relative(r),
-                    ..IsrSettings::default()
+                    ..IsrSettings::screen_space()
                 };
                 let label = format!(
                     "isr-{samples}-k{k}-{}-r{r}",

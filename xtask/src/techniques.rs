@@ -110,8 +110,9 @@ fn isr_choice(thesis: bool, samples: u32) -> TechniqueChoice {
     }
 }
 
-/// The light-space senders of the `isr-ls-N` techniques (about this many; issue 50).
-pub const LIGHT_SENDERS: u32 = 4096;
+/// The light-space senders of the `isr-N`, `isr-ls-N` and `isr-mb-N` techniques (about this
+/// many; issue 50): the library's default.
+pub const LIGHT_SENDERS: u32 = isr::DEFAULT_LIGHT_SENDERS;
 
 /// ISR with light-space senders carrying every bounce: `isr-mb-N` (light paths continued
 /// from the first senders until Russian roulette ends them), or

@@ -69,7 +69,7 @@ fn main() -> Result<(), ExampleError> {
     // Once: the engine's light and shadow casters, and ISR prepared on its device.
     let lamp = Light::point(LightId::Point(0), LAMP, Vec3::splat(6.0));
     let lights = LightSet::from_lights(vec![lamp], &casters(), &ShadowSettings::default())?;
-    let mut method = IsrFrame::prepare(&ctx, &lights, IsrSettings::default())?;
+    let mut method = IsrFrame::prepare(&ctx, &lights, IsrSettings::screen_space())?;
 
     let (eye, target) = (Vec3::new(0.0, 1.6, 5.5), Vec3::new(0.0, 0.8, 0.0));
     let matrices = ExampleHost::engine_matrices(eye, target, 1.0, SIZE);

@@ -30,7 +30,7 @@
 //! let inputs = GpuIsrInputs { full: &gbuffer, coarse: None, view: &view };
 //! // Records every pass into the engine's encoder; the engine submits it.
 //! let mut encoder = ctx.device.create_command_encoder(&Default::default());
-//! isr.encode(&mut encoder, &inputs, &IsrSettings::default(), &target).unwrap();
+//! isr.encode(&mut encoder, &inputs, &IsrSettings::screen_space(), &target).unwrap();
 //! ctx.queue.submit([encoder.finish()]);
 //! ```
 

@@ -32,8 +32,8 @@ impl IsrFrame {
     /// Prepares ISR (or DL) on the host's device `ctx` from its precomputed state, the
     /// light set `lights` (lights, shadow maps, emitter samples: [`LightSet::new`]), to
     /// render every frame with `settings` (named `dl` when they are direct light only,
-    /// `isr-ls` when they gather light-space senders: give them with
-    /// [`IsrFrame::with_light_senders`]).
+    /// `isr-ss` for screen-space senders alone, `isr` otherwise). Settings that gather light-space senders (the default's) need them given
+    /// with [`IsrFrame::with_light_senders`]; [`IsrSettings::screen_space`] does not.
     /// Every method's frame is made this way: `prepare(ctx, precomputed state, settings)`.
     pub fn prepare(
         ctx: &GpuContext,
@@ -43,9 +43,9 @@ impl IsrFrame {
         let name = if settings.is_direct_only() {
             "dl"
         } else if settings.light_senders > 0 {
-            "isr-ls"
-        } else {
             "isr"
+        } else {
+            "isr-ss"
         };
         Ok(Self {
             isr: GpuIsr::new(ctx, lights)?,

@@ -18,7 +18,7 @@
 //! // Lights and shadow maps, once per scene.
 //! let prepared = LightSet::new(&scene, &ShadowSettings { cube_resolution: 32, ..Default::default() }).unwrap();
 //! let isr = render_cpu(&prepared, &IsrInputs { full: &full, coarse: &coarse, view: &view },
-//!                      &IsrSettings::default()).unwrap();
+//!                      &IsrSettings::screen_space()).unwrap();
 //! let dl = render_cpu(&prepared, &IsrInputs { full: &full, coarse: &coarse, view: &view },
 //!                     &IsrSettings::dl()).unwrap();
 //! // ISR adds the indirect bounce that direct lighting lacks.
@@ -71,7 +71,9 @@ pub use gpu_frame::IsrFrame;
 pub use light_senders::{GpuLightSender, LightSender, LightSenders};
 pub use light_set::{Light, LightKind, LightSet, Part};
 pub use scene_core::gbuffer::downsample::{DownsampleMode, coarse_size, downsample};
-pub use settings::{Blur, Estimator, IsrSettings, Radius, Sender, ShadowSettings};
+pub use settings::{
+    Blur, DEFAULT_LIGHT_SENDERS, Estimator, IsrSettings, Radius, Sender, ShadowSettings,
+};
 pub use technique::{Backend, DlTechnique, IsrTechnique};
 
 /// Every shader pass of ISR, as `cargo xtask shaders` validates them (see [`passes`]).

@@ -70,16 +70,26 @@ impl Radius {
 
 /// The parameters of one frame of image-space radiosity.
 ///
-/// The defaults are the most accurate setting measured (`cargo xtask sweep-isr`: `k_isr`,
-/// AO on or off and the sampling radius swept on held-out views, 16 seeded random cameras
-/// of the built-in scenes that the main job does not score, against the bounce-1
-/// reference; `docs/isr.md`): the physically sound reading of eq. 25 (`Patch` estimator,
-/// `Lit` senders, `k_dl = 1`: see [`IsrSettings::k_dl`]), 80 samples (section 5.3.1),
-/// Gaussian blur, radius half the scene's extent, no ambient occlusion, and `k_isr` 4
-/// ([`IsrSettings::for_samples`] has the measured best at other sample counts). `k_isr` above 1 puts back light the screen-space disk cannot see (senders
-/// outside it or off screen); `k_isr = 1` is the unscaled estimator. The thesis' constants
-/// (`k_ssao = k_isr = 0.5`, AO on, section 4.7) are [`IsrSettings::thesis_constants`], and
-/// the thesis as published is [`IsrSettings::thesis`].
+/// The defaults are the method's physical estimate, with no free scale: the physically
+/// sound reading of eq. 25 (`Patch` estimator, `Lit` senders, `k_dl = 1`: see
+/// [`IsrSettings::k_dl`]), 80 screen-space samples (section 5.3.1) and about
+/// [`DEFAULT_LIGHT_SENDERS`] light-space senders (the surfaces the lights reach first, on
+/// screen or not: [`crate::light_senders`]), each surface counted once, `k_isr` 1, Gaussian
+/// blur, radius half the scene's extent, no ambient occlusion. On held-out views (`cargo
+/// xtask sweep-isr`, seeded random cameras the main job does not score) and on the main
+/// job's 12 views it is closer to the bounce-1 reference than direct light on every view
+/// (`docs/isr.md`). The light-space senders are made from the scene
+/// ([`crate::LightSenders::new`]): [`crate::IsrTechnique`] makes them itself; a host
+/// drawing its own frames hands them to [`crate::IsrFrame::with_light_senders`] or
+/// [`crate::GpuIsr::set_light_senders`], or, with no scene to make them from, runs
+/// [`IsrSettings::screen_space`].
+///
+/// [`IsrSettings::screen_space`] is the screen-space estimator alone with its measured
+/// scale (`k_isr` 4, which puts back light the screen-space disk cannot see: senders
+/// outside it or off screen); [`IsrSettings::for_samples`] has that scale at other sample
+/// counts. The thesis' constants (`k_ssao = k_isr = 0.5`, AO on, section 4.7) are
+/// [`IsrSettings::thesis_constants`], and the thesis as published is
+/// [`IsrSettings::thesis`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IsrSettings {
     /// Compute the indirect (ISR) term. Off together with `ssao` this is the DL baseline.
@@ -127,9 +137,11 @@ pub struct IsrSettings {
     pub downsample: DownsampleMode,
     /// About this many light-space senders ([`crate::light_senders`], reflective shadow
     /// maps: the surfaces each light reaches first, so that lit surfaces off screen send
-    /// their bounce too); 0 (the default) for screen-space senders alone. With them, `k_isr`
-    /// 1 is the unscaled estimate ([`IsrSettings::with_light_senders`]). CPU only for now:
-    /// the GPU refuses a setting above 0.
+    /// their bounce too); [`DEFAULT_LIGHT_SENDERS`] by default, 0 for screen-space senders
+    /// alone ([`IsrSettings::screen_space`]). With them, `k_isr` 1 is the unscaled
+    /// estimate. A frame with a setting above 0 needs the senders handed to it (the CPU's
+    /// [`crate::render_cpu_with`], the GPU's [`crate::GpuIsr::set_light_senders`]); without them it
+    /// is refused by name.
     pub light_senders: u32,
     /// Shadow the light-space senders' light: one occlusion ray per receiver and sender
     /// (off by default; a measurement of the leaks the missing visibility lets through,
@@ -145,6 +157,24 @@ pub struct IsrSettings {
 
 impl Default for IsrSettings {
     fn default() -> Self {
+        Self {
+            k_isr: 1.0,
+            light_senders: DEFAULT_LIGHT_SENDERS,
+            ..Self::screen_space()
+        }
+    }
+}
+
+/// About this many light-space senders by default ([`IsrSettings::light_senders`]): the
+/// main job's `isr-N` setting, whose error and cost per scene `docs/isr.md` gives.
+pub const DEFAULT_LIGHT_SENDERS: u32 = 4096;
+
+impl IsrSettings {
+    /// The screen-space estimator alone (no light-space senders) at 80 samples, with the
+    /// scale measured on held-out views (`k_isr` 4, [`IsrSettings::k_isr_for_samples`]): the
+    /// default before light-space senders, and what a host with a G-buffer but no scene to
+    /// make light-space senders from can run.
+    pub fn screen_space() -> Self {
         Self {
             indirect: true,
             ssao: false,
@@ -167,9 +197,7 @@ impl Default for IsrSettings {
             light_sender_bounces: Bounces::Limited(1),
         }
     }
-}
 
-impl IsrSettings {
     /// The thesis' configuration: eq. 25 as published with albedo senders and the thesis'
     /// constants ([`IsrSettings::thesis_constants`]).
     pub fn thesis() -> Self {
@@ -180,8 +208,8 @@ impl IsrSettings {
         }
     }
 
-    /// The default estimator with the thesis' constants of section 4.7: `k_isr = k_ssao =
-    /// 0.5` with ambient occlusion on, radius a quarter of the extent (the defaults before
+    /// The screen-space estimator with the thesis' constants of section 4.7: `k_isr = k_ssao
+    /// = 0.5` with ambient occlusion on, radius a quarter of the extent (the defaults before
     /// they were measured).
     pub fn thesis_constants() -> Self {
         Self {
@@ -189,7 +217,7 @@ impl IsrSettings {
             k_ssao: 0.5,
             k_isr: 0.5,
             radius: Radius::Relative(0.25),
-            ..Self::default()
+            ..Self::screen_space()
         }
     }
 
@@ -227,22 +255,23 @@ impl IsrSettings {
         MEASURED[2].1
     }
 
-    /// The default settings at `samples` samples with the measured best `k_isr` for that
-    /// count ([`IsrSettings::k_isr_for_samples`]).
+    /// The screen-space estimator ([`IsrSettings::screen_space`]) at `samples` samples with
+    /// the measured best `k_isr` for that count ([`IsrSettings::k_isr_for_samples`]).
     pub fn for_samples(samples: u32) -> Self {
         Self {
             samples,
             k_isr: Self::k_isr_for_samples(samples),
-            ..Self::default()
+            ..Self::screen_space()
         }
     }
 
-    /// The DL baseline of the thesis (`I_DL`): the same pipeline with ISR and SSAO off.
+    /// The DL baseline of the thesis (`I_DL`): the same pipeline with ISR and SSAO off (and
+    /// no light-space senders to make).
     pub fn dl() -> Self {
         Self {
             indirect: false,
             ssao: false,
-            ..Self::default()
+            ..Self::screen_space()
         }
     }
 

@@ -42,8 +42,9 @@ fn an_engine_light_list_and_casters_give_the_scene_path_s_frame() {
         LightSet::from_lights(engine_lights(&scene), &triangles(&scene), &shadows).unwrap();
     assert_eq!(engine.extent, from_scene.prepared.extent);
     assert_eq!(engine.shadow_texels, from_scene.prepared.shadow_texels);
-    let a = from_scene.render(&IsrSettings::default());
-    let b = Setup::with_prepared(scene.clone(), engine, 0, 48, 36).render(&IsrSettings::default());
+    let a = from_scene.render(&IsrSettings::screen_space());
+    let b =
+        Setup::with_prepared(scene.clone(), engine, 0, 48, 36).render(&IsrSettings::screen_space());
     assert_eq!(a.pixels, b.pixels);
 
     // No casters: unshadowed, as the scene path with shadows off.
@@ -141,7 +142,7 @@ fn engine_textures_are_checked_and_two_views_share_one_submission() {
     let alone: Vec<Image> = setups
         .iter()
         .map(|s| {
-            isr.render_gbuffer(&s.full, None, &s.view, &IsrSettings::default())
+            isr.render_gbuffer(&s.full, None, &s.view, &IsrSettings::screen_space())
                 .unwrap()
                 .0
         })
@@ -160,7 +161,7 @@ fn engine_textures_are_checked_and_two_views_share_one_submission() {
             coarse: None,
             view: &s.view,
         };
-        isr.encode(&mut encoder, &inputs, &IsrSettings::default(), out)
+        isr.encode(&mut encoder, &inputs, &IsrSettings::screen_space(), out)
             .unwrap();
     }
     ctx.queue.submit([encoder.finish()]);
@@ -188,7 +189,7 @@ fn reverse_z_and_infinite_inputs_give_the_standard_image() {
     use scene_core::testing::EngineGBuffer;
     let setup = Setup::builtin("cornell", 0, 64, 48);
     let (w, h) = (64, 48);
-    let s = IsrSettings::default();
+    let s = IsrSettings::screen_space();
     let render = |g: &GpuGBuffer, view: &scene_core::View| {
         let mut gpu = GpuIsr::new(&ctx, &setup.prepared).unwrap();
         let target = gpu.output_texture(w, h).unwrap();
@@ -275,7 +276,10 @@ fn the_frame_contract_gives_isr_and_dl_and_creates_nothing_per_frame() {
             wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
         )
     };
-    for (name, settings) in [("isr", IsrSettings::default()), ("dl", IsrSettings::dl())] {
+    for (name, settings) in [
+        ("isr-ss", IsrSettings::screen_space()),
+        ("dl", IsrSettings::dl()),
+    ] {
         // The library's frames, one GpuIsr per light state.
         let expected: Vec<Vec<[f32; 4]>> = [LightState::default(), dim.clone()]
             .iter()
@@ -384,7 +388,7 @@ fn shadow_maps_rendered_on_the_gpu_give_the_ray_cast_maps_frame() {
 
     let setup = Setup::with_prepared(scene.clone(), cpu.clone(), 0, 48, 36);
     let g = GpuGBuffer::upload(&ctx, &setup.full).unwrap();
-    let s = IsrSettings::default();
+    let s = IsrSettings::screen_space();
     let render = |gpu: &mut GpuIsr| {
         let target = gpu.output_texture(48, 36).unwrap();
         let inputs = GpuIsrInputs {

@@ -61,10 +61,10 @@ fn golden_images_of_every_mode() {
         "primitives-patch-lit",
         &primitives.render(&IsrSettings::thesis_constants()),
     );
-    // The measured default (k_isr 2, no AO).
+    // The screen-space setting (measured k_isr, no AO).
     check(
         "primitives-default",
-        &primitives.render(&IsrSettings::default()),
+        &primitives.render(&IsrSettings::screen_space()),
     );
 }
 

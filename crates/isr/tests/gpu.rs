@@ -26,7 +26,7 @@ fn all_settings() -> Vec<(&'static str, IsrSettings)> {
             upsample_normal_power: 8.0,
             ao_indirect_only: true,
             samples: 24,
-            ..Default::default()
+            ..IsrSettings::screen_space()
         },
     ));
     v
@@ -71,7 +71,7 @@ fn engine_integration_records_into_the_callers_encoder_and_texture() {
     let setup = Setup::builtin("cornell", 0, 64, 48);
     let mut gpu = GpuIsr::new(&ctx, &setup.prepared).unwrap();
     let full = GpuGBuffer::upload(&ctx, &setup.full).unwrap();
-    let s = IsrSettings::default();
+    let s = IsrSettings::screen_space();
     let cpu = render_cpu(&setup.prepared, &setup.inputs(), &s)
         .unwrap()
         .image;
@@ -153,7 +153,7 @@ fn bad_outputs_and_inputs_are_typed_errors() {
         coarse: None,
         view: &setup.view,
     };
-    let s = IsrSettings::default();
+    let s = IsrSettings::screen_space();
     let wrong_size = output(&ctx, 16, 24, wgpu::TextureFormat::Rgba32Float);
     assert!(matches!(
         ctx.submit_encoded(|e| gpu.encode(e, &inputs, &s, &wrong_size))
@@ -247,7 +247,7 @@ fn steady_state_frames_create_no_gpu_objects() {
         "wgpu's counters read zero: built without its `counters` feature"
     );
     for (name, s) in [
-        ("default", IsrSettings::default()),
+        ("default", IsrSettings::screen_space()),
         ("dl", IsrSettings::dl()),
     ] {
         for frame in 0..5 {
@@ -281,7 +281,7 @@ fn steady_state_frames_create_no_gpu_objects() {
         v.eye += v.right() * 0.05;
         v
     };
-    let s = IsrSettings::default();
+    let s = IsrSettings::screen_space();
     let alone = |view: &scene_core::View, gpu: &mut GpuIsr| {
         let t = output(&ctx, 64, 48, wgpu::TextureFormat::Rgba32Float);
         let inputs = GpuIsrInputs {

@@ -24,7 +24,7 @@ fn all_settings() -> Vec<(&'static str, IsrSettings)> {
             blur: Blur::EdgeAware,
             upsample_normal_power: 8.0,
             ao_indirect_only: true,
-            ..Default::default()
+            ..IsrSettings::screen_space()
         },
     ));
     v
@@ -228,7 +228,7 @@ fn vanished_upsampling_weights_and_cancelled_normals() {
     };
     let s = IsrSettings {
         upsample_normal_power: 2.0,
-        ..Default::default()
+        ..IsrSettings::screen_space()
     };
     let f = render_cpu(&setup.prepared, &inputs, &s).unwrap();
     assert_eq!(f.image.non_finite_count(), 0);
@@ -300,7 +300,7 @@ fn shadow_exponent_at_the_f32_limit() {
             "c = {c}"
         );
         let setup = Setup::with_prepared(scene.clone(), prepared, 0, 48, 36);
-        let img = setup.render(&IsrSettings::default());
+        let img = setup.render(&IsrSettings::screen_space());
         assert_eq!(img.non_finite_count(), 0, "c = {c}");
         img
     };
@@ -341,7 +341,8 @@ fn shadow_exponent_at_the_f32_limit() {
             ..small_shadows()
         };
         let prepared = LightSet::new(&scene, &shadows).unwrap();
-        Setup::with_prepared(scene.clone(), prepared, 0, 48, 36).render(&IsrSettings::default())
+        Setup::with_prepared(scene.clone(), prepared, 0, 48, 36)
+            .render(&IsrSettings::screen_space())
     };
     let lit = mean_error(&unshadowed, &hard);
     eprintln!("no shadows: mean difference {lit:.3e}");
@@ -372,7 +373,7 @@ fn a_scene_without_lights_is_black() {
     .unwrap();
     assert!(prepared.lights.is_empty());
     let setup = Setup::with_prepared(scene, prepared, 0, 32, 24);
-    let img = setup.render(&IsrSettings::default());
+    let img = setup.render(&IsrSettings::screen_space());
     let lit = img.pixels.iter().filter(|p| **p != Vec3::ZERO).count();
     assert!(lit > 0 && lit < 40, "{lit} pixels see the light");
     // An empty scene is refused naming the fault (the scene contract).
@@ -461,7 +462,7 @@ fn bad_input_gives_typed_errors() {
             s,
         )
     };
-    let s = IsrSettings::default();
+    let s = IsrSettings::screen_space();
     // NaN depth on a surface pixel.
     let mut bad = setup.full.clone();
     let i = bad.triangle_id.iter().position(|&t| t != u32::MAX).unwrap();

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use gbuffer::{GpuPreparedScene, GpuRasterizer};
 use glam::Vec3;
 use ibrr_ldc::{IbrrFrame, IbrrTechnique};
-use isr::{Intermediate, IsrFrame, IsrSettings, LightSet, ShadowSettings};
+use isr::{Intermediate, IsrFrame, IsrSettings, LightSenders, LightSet, ShadowSettings};
 use relight_pr::packed::Precision;
 use relight_pr::{Prepared, RelightFrame, RelightFrameSettings, RelightTechnique};
 use scene_core::gpu::compute::ComputePass;
@@ -200,6 +200,11 @@ pub struct Renderer {
     scene_gpu: GpuPreparedScene,
     /// The scene's lights and shadow maps, for the ISR-family modes' frames.
     light_set: LightSet,
+    /// The scene, for the light-space senders.
+    scene: Arc<Scene>,
+    /// The light-space senders of the ISR modes' settings ([`IsrSettings::light_senders`]),
+    /// made when an ISR mode is first shown.
+    light_senders: Option<LightSenders>,
     /// The ISR-family modes' frames by mode and slot (a mode on both sides of a split has
     /// a frame for each, so that neither remakes its bind groups), each made when first
     /// shown.
@@ -376,6 +381,8 @@ impl Renderer {
             raster,
             scene_gpu,
             light_set,
+            scene: scene.clone(),
+            light_senders: None,
             isr_frames: HashMap::new(),
             resolve,
             resolve_to_texture,
@@ -677,7 +684,22 @@ impl Renderer {
         };
         if !self.isr_frames.contains_key(&(mode, slot)) {
             let (settings, which, channel) = isr_view(mode).expect("an ISR-family mode");
-            let isr = IsrFrame::prepare(&self.ctx, &self.light_set, settings).map_err(err)?;
+            let mut isr = IsrFrame::prepare(&self.ctx, &self.light_set, settings).map_err(err)?;
+            if settings.light_senders > 0 && settings.indirect {
+                if self.light_senders.is_none() {
+                    self.light_senders = Some(
+                        LightSenders::with_bounces(
+                            &self.scene,
+                            &self.light_set,
+                            settings.light_senders,
+                            settings.light_sender_bounces,
+                        )
+                        .map_err(err)?,
+                    );
+                }
+                let senders = self.light_senders.as_ref().expect("made above");
+                isr = isr.with_light_senders(senders).map_err(err)?;
+            }
             let frame: Box<dyn GpuFrame> = match which {
                 None => Box::new(isr),
                 Some(which) => Box::new(IsrBufferView {

@@ -261,6 +261,16 @@ fn isr_frame(ctx: &GpuContext, scene: &Arc<Scene>, mode: Mode, s: &Shot) -> Imag
     let g = raster.render_gpu(&prepared, &view, w, h).unwrap();
     let set = LightSet::new(scene, &ShadowSettings::default()).unwrap();
     let mut isr = GpuIsr::new(ctx, &set).unwrap();
+    if settings.light_senders > 0 && settings.indirect {
+        let senders = isr::LightSenders::with_bounces(
+            scene,
+            &set,
+            settings.light_senders,
+            settings.light_sender_bounces,
+        )
+        .unwrap();
+        isr.set_light_senders(&senders).unwrap();
+    }
     isr.apply(&lights);
     let out = isr.output_texture(w, h).unwrap();
     let inputs = GpuIsrInputs {
