@@ -850,7 +850,18 @@ fn read_view(
     lower_is_better: &dyn Fn(&str) -> bool,
 ) -> Option<ViewResult> {
     let bytes = scene_core::budget::read_file(path, &scene_core::Budget::default()).ok()?;
-    let v: ViewResult = serde_json::from_slice(&bytes).ok()?;
+    let v: ViewResult = match serde_json::from_slice(&bytes) {
+        Ok(v) => v,
+        Err(e) => {
+            // A value JSON cannot hold (a NaN or an infinity is written as null) or a file
+            // cut short: say so rather than measuring again in silence.
+            eprintln!(
+                "note: resume file {} does not read back ({e}); computing the view again",
+                path.display()
+            );
+            return None;
+        }
+    };
     if !(v.config == config && v.camera == CameraSpec::from_camera(camera)) {
         return None;
     }

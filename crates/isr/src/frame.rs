@@ -147,7 +147,7 @@ pub fn render_cpu(
 /// [`render_cpu`] with light-space senders ([`LightSenders`], made from the same light set
 /// and the scene): their one bounce is added to the ISR pass' output before the blur, each
 /// surface counted once (its time is [`PassTimings::light_senders`]). Errors when
-/// `settings.light_senders` asks for them and none are given.
+/// `settings.light_senders` asks for them (with the indirect term on) and none are given.
 pub fn render_cpu_with(
     scene: &LightSet,
     inputs: &IsrInputs<'_>,
@@ -155,7 +155,7 @@ pub fn render_cpu_with(
     light_senders: Option<&LightSenders>,
 ) -> Result<Frame, IsrError> {
     settings.validate(scene.extent)?;
-    if settings.light_senders > 0 && light_senders.is_none() {
+    if settings.light_senders > 0 && settings.indirect && light_senders.is_none() {
         return Err(IsrError::InvalidSetting {
             name: "light_senders",
             value: settings.light_senders.to_string(),

@@ -327,6 +327,19 @@ impl LightSenders {
         budget: u32,
         bounces: Bounces,
     ) -> Result<Self, IsrError> {
+        Self::with_rays(scene, None, lights, budget, bounces)
+    }
+
+    /// [`LightSenders::with_bounces`] traced through `rays`, the ray-query tree of `scene`
+    /// ([`RayScene::build`]) when the caller has one (the light set's, as
+    /// [`crate::IsrTechnique`] shares it); `None` builds it.
+    pub fn with_rays(
+        scene: &Scene,
+        rays: Option<Arc<RayScene>>,
+        lights: &LightSet,
+        budget: u32,
+        bounces: Bounces,
+    ) -> Result<Self, IsrError> {
         if budget > MAX_LIGHT_SENDERS {
             return Err(IsrError::InvalidSetting {
                 name: "light_senders",
@@ -337,7 +350,7 @@ impl LightSenders {
         if budget == 0 || lights.lights.is_empty() || scene.triangle_count() == 0 {
             return Ok(Self::default());
         }
-        let rays = RayScene::build(scene);
+        let rays = rays.unwrap_or_else(|| Arc::new(RayScene::build(scene)));
         let offsets = scene.mesh_offsets();
         let center = lights.bounds.center();
         // Half the bounds' diagonal: a square of twice this side covers the scene from any
@@ -525,7 +538,7 @@ impl LightSenders {
             visibility: true,
             resolutions,
             once: true,
-            rays: Some(Arc::new(rays)),
+            rays: Some(rays),
         })
     }
 

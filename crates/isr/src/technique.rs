@@ -117,16 +117,24 @@ impl Technique for IsrTechnique {
         self.gpu = None;
         scene_core::contract::check(&scene)?;
         self.renderer.prepare(scene.clone())?;
-        let lights = LightSet::new(&scene, &self.shadows).map_err(crate::IsrError::from)?;
-        self.light_senders = if self.settings.light_senders > 0 {
-            Some(LightSenders::with_bounces(
+        // With light-space senders, one ray-query tree serves the shadow maps' cubes and the
+        // senders' rays.
+        let senders = self.settings.light_senders > 0 && self.settings.indirect;
+        let rays = senders.then(|| Arc::new(scene_core::ray::RayScene::build(&scene)));
+        let lights = match &rays {
+            Some(rays) => LightSet::with_rays(&scene, &self.shadows, rays),
+            None => LightSet::new(&scene, &self.shadows),
+        }
+        .map_err(crate::IsrError::from)?;
+        self.light_senders = match rays {
+            Some(rays) => Some(LightSenders::with_rays(
                 &scene,
+                Some(rays),
                 &lights,
                 self.settings.light_senders,
                 self.settings.light_sender_bounces,
-            )?)
-        } else {
-            None
+            )?),
+            None => None,
         };
         self.prepared = Some((scene, lights));
         Ok(())

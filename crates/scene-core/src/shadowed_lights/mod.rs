@@ -388,6 +388,25 @@ impl LightSet {
     /// Errors on invalid settings, non-finite light data, or shadow maps that do not fit
     /// `shadows.max_texels` even at 16 texels per cube face.
     pub fn new(scene: &Scene, shadows: &ShadowSettings) -> Result<Self, LightSetError> {
+        Self::from_scene(scene, shadows, || Box::new(RayScene::build(scene)))
+    }
+
+    /// [`LightSet::new`] with the cube maps cast through `rays`, the caller's ray-query tree
+    /// of `scene` ([`RayScene::build`]), so that a method that traces the scene too builds
+    /// one tree, not two.
+    pub fn with_rays(
+        scene: &Scene,
+        shadows: &ShadowSettings,
+        rays: &RayScene,
+    ) -> Result<Self, LightSetError> {
+        Self::from_scene(scene, shadows, || rays)
+    }
+
+    fn from_scene<R: std::ops::Deref<Target = RayScene>>(
+        scene: &Scene,
+        shadows: &ShadowSettings,
+        rays: impl FnOnce() -> R,
+    ) -> Result<Self, LightSetError> {
         shadows.validate()?;
         let extent = scene.extent();
         let mut lights = Vec::new();
@@ -445,9 +464,7 @@ impl LightSet {
         };
         if shadows.enabled && !this.lights.is_empty() {
             let cutouts = crate::cutout::Cutouts::of(scene);
-            this.build_shadow_maps(&scene.triangle_corners(), &cutouts, || {
-                RayScene::build(scene)
-            })?;
+            this.build_shadow_maps(&scene.triangle_corners(), &cutouts, rays)?;
         }
         Ok(this)
     }
@@ -470,7 +487,9 @@ impl LightSet {
         let mut this = Self::engine(lights, casters, Bounds::EMPTY, shadows)?;
         if shadows.enabled && !casters.is_empty() && !this.lights.is_empty() {
             let none = crate::cutout::Cutouts::default();
-            this.build_shadow_maps(casters, &none, || RayScene::from_triangles(casters))?;
+            this.build_shadow_maps(casters, &none, || {
+                Box::new(RayScene::from_triangles(casters))
+            })?;
         } else {
             this.shadows.enabled = false;
         }
@@ -714,11 +733,11 @@ impl LightSet {
     /// rasterising `triangles` ([`esm::raster_ortho`], alpha holes from `cutouts`), the cube
     /// ones by a ray per texel through the tree `rays` makes (made only when a cube map is
     /// planned).
-    fn build_shadow_maps(
+    fn build_shadow_maps<R: std::ops::Deref<Target = RayScene>>(
         &mut self,
         triangles: &[[Vec3; 3]],
         cutouts: &crate::cutout::Cutouts,
-        rays: impl FnOnce() -> RayScene,
+        rays: impl FnOnce() -> R,
     ) -> Result<(), LightSetError> {
         let planned = self.plan_shadow_maps()?;
         let rays = std::cell::LazyCell::new(rays);
