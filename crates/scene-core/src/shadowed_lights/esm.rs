@@ -75,6 +75,23 @@ pub enum MapKind {
     },
 }
 
+impl MapKind {
+    /// An orthographic map's frame: `(eye, right, up, forward, half_extent)`; `None` for
+    /// a cube.
+    pub fn ortho_frame(&self) -> Option<(Vec3, Vec3, Vec3, Vec3, f32)> {
+        match *self {
+            MapKind::Ortho {
+                eye,
+                right,
+                up,
+                forward,
+                half_extent,
+            } => Some((eye, right, up, forward, half_extent)),
+            MapKind::Cube { .. } => None,
+        }
+    }
+}
+
 impl ShadowMap {
     /// A map of `kind` with `resolution` texels per side starting at texel `offset`.
     pub fn new(offset: usize, resolution: u32, kind: MapKind) -> Self {
@@ -188,14 +205,7 @@ pub fn render_cube(rays: &RayScene, center: Vec3, res: u32, extent: f32, miss: f
 /// sets draw these maps with [`raster_ortho`] (the same depths, a fraction of the cost);
 /// this is its reference.
 pub fn render_ortho(rays: &RayScene, kind: &MapKind, res: u32, extent: f32) -> Vec<f32> {
-    let MapKind::Ortho {
-        eye,
-        right,
-        up,
-        forward,
-        half_extent,
-    } = *kind
-    else {
+    let Some((eye, right, up, forward, half_extent)) = kind.ortho_frame() else {
         return Vec::new();
     };
     let miss = 4.0 * half_extent / extent;
@@ -214,6 +224,16 @@ pub fn render_ortho(rays: &RayScene, kind: &MapKind, res: u32, extent: f32) -> V
             })
         })
         .collect()
+}
+
+/// A triangle as [`raster_ortho`] draws it: the barycentric weight of each corner as a
+/// plane over texel coordinates, the corners' depths, and the first and last texel centre
+/// its bounds hold on each axis (none when first > last).
+struct Projected {
+    w: [[f64; 3]; 3],
+    t: [f64; 3],
+    x: (f64, f64),
+    y: (f64, f64),
 }
 
 /// Rows of an orthographic map one task of [`raster_ortho`] fills: the triangles are binned
@@ -239,14 +259,7 @@ pub fn raster_ortho(
     res: u32,
     extent: f32,
 ) -> Vec<f32> {
-    let MapKind::Ortho {
-        eye,
-        right,
-        up,
-        forward,
-        half_extent,
-    } = *kind
-    else {
+    let Some((eye, right, up, forward, half_extent)) = kind.ortho_frame() else {
         return Vec::new();
     };
     let miss = 4.0 * half_extent / extent;
@@ -266,7 +279,9 @@ pub fn raster_ortho(
     };
     let bands = n.div_ceil(RASTER_BAND);
     let mut binned: Vec<Vec<u32>> = vec![Vec::new(); bands];
-    let projected: Vec<Option<[[f64; 3]; 3]>> = triangles
+    // Per triangle, once: the barycentric weight of each corner as a plane over texel
+    // coordinates (`w_k = a_k x + b_k y + d_k`), the corners' depths and the texel bounds.
+    let projected: Vec<Option<Projected>> = triangles
         .par_iter()
         .with_min_len(1024)
         .map(|tri| {
@@ -274,17 +289,35 @@ pub fn raster_ortho(
             let area = (c[1][0] - c[0][0]) * (c[2][1] - c[0][1])
                 - (c[1][1] - c[0][1]) * (c[2][0] - c[0][0]);
             let finite = c.iter().flatten().all(|x| x.is_finite());
-            (finite && area != 0.0).then_some(c)
+            if !finite || area == 0.0 {
+                return None;
+            }
+            let plane = |k: usize| {
+                let (p, q) = (c[(k + 1) % 3], c[(k + 2) % 3]);
+                let (a, b) = (-(q[1] - p[1]) / area, (q[0] - p[0]) / area);
+                [a, b, -(a * p[0] + b * p[1])]
+            };
+            // Texel centres x + 1/2 within the corners' span on axis `i`.
+            let span = |i: usize| {
+                let lo = c[0][i].min(c[1][i]).min(c[2][i]);
+                let hi = c[0][i].max(c[1][i]).max(c[2][i]);
+                (
+                    (lo - 0.5).ceil().max(0.0),
+                    (hi - 0.5).floor().min(n as f64 - 1.0),
+                )
+            };
+            Some(Projected {
+                w: [plane(0), plane(1), plane(2)],
+                t: [c[0][2], c[1][2], c[2][2]],
+                x: span(0),
+                y: span(1),
+            })
         })
         .collect();
-    for (i, c) in projected.iter().enumerate() {
-        let Some(c) = c else { continue };
-        let lo = c[0][1].min(c[1][1]).min(c[2][1]);
-        let hi = c[0][1].max(c[1][1]).max(c[2][1]);
-        // Rows whose centres y + 1/2 lie in [lo, hi].
-        let first = (lo - 0.5).ceil().max(0.0);
-        let last = (hi - 0.5).floor().min(n as f64 - 1.0);
-        if first > last {
+    for (i, p) in projected.iter().enumerate() {
+        let Some(p) = p else { continue };
+        let (first, last) = p.y;
+        if first > last || p.x.0 > p.x.1 {
             continue;
         }
         let bands = first as usize / RASTER_BAND..=last as usize / RASTER_BAND;
@@ -301,28 +334,13 @@ pub fn raster_ortho(
             let y1 = y0 + rows.len() / n.max(1);
             let mut depth = vec![f64::INFINITY; rows.len()];
             for &i in members {
-                let Some(c) = projected[i as usize] else {
+                let Some(p) = &projected[i as usize] else {
                     continue;
                 };
-                // The barycentric weight of each corner as a plane over texel coordinates,
-                // `w_k = a_k x + b_k y + d_k`, and the depth as the planes' sum.
-                let area = (c[1][0] - c[0][0]) * (c[2][1] - c[0][1])
-                    - (c[1][1] - c[0][1]) * (c[2][0] - c[0][0]);
-                let plane = |k: usize| {
-                    let (p, q) = (c[(k + 1) % 3], c[(k + 2) % 3]);
-                    let (a, b) = (-(q[1] - p[1]) / area, (q[0] - p[0]) / area);
-                    [a, b, -(a * p[0] + b * p[1])]
-                };
-                let w = [plane(0), plane(1), plane(2)];
-                let lo_x = c[0][0].min(c[1][0]).min(c[2][0]);
-                let hi_x = c[0][0].max(c[1][0]).max(c[2][0]);
-                let lo_y = c[0][1].min(c[1][1]).min(c[2][1]);
-                let hi_y = c[0][1].max(c[1][1]).max(c[2][1]);
-                let xs = (lo_x - 0.5).ceil().max(0.0);
-                let xe = (hi_x - 0.5).floor().min(n as f64 - 1.0);
-                let ys = (lo_y - 0.5).ceil().max(y0 as f64);
-                let ye = (hi_y - 0.5).floor().min(y1 as f64 - 1.0);
-                if xs > xe || ys > ye {
+                let (w, (xs, xe)) = (&p.w, p.x);
+                let ys = p.y.0.max(y0 as f64);
+                let ye = p.y.1.min(y1 as f64 - 1.0);
+                if ys > ye {
                     continue;
                 }
                 for y in ys as usize..=ye as usize {
@@ -352,7 +370,7 @@ pub fn raster_ortho(
                         if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
                             continue;
                         }
-                        let t = w0 * c[0][2] + w1 * c[1][2] + w2 * c[2][2];
+                        let t = w0 * p.t[0] + w1 * p.t[1] + w2 * p.t[2];
                         let k = (y - y0) * n + x;
                         if !(t >= 0.0 && t < f64::from(far) && t < depth[k]) {
                             continue;
