@@ -326,7 +326,7 @@ pub fn parse_bounces(s: &str) -> Result<Vec<Bounces>, String> {
     Ok(v)
 }
 
-fn scene_id(spec: &str) -> String {
+pub(crate) fn scene_id(spec: &str) -> String {
     let lower = spec.to_ascii_lowercase();
     if lower.ends_with(".gltf") || lower.ends_with(".glb") {
         Path::new(spec)

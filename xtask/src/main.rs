@@ -356,6 +356,15 @@ enum Command {
         /// Random views per scene.
         #[arg(long, default_value_t = 4)]
         views: usize,
+        /// Scenes to sweep (built-in names or .gltf/.glb paths; repeatable). Default: the
+        /// four built-in scenes of the main job.
+        #[arg(long = "scene")]
+        scenes: Vec<String>,
+        /// Leave out the screen-space grid: DL and the default ISR (light-space senders,
+        /// `k_isr` 1, nothing tuned) at each sample count only, the held-out check on a
+        /// large file in minutes.
+        #[arg(long)]
+        no_grid: bool,
     },
     /// Regenerate a generated results document (docs/results.md) from the results.json it
     /// names, check that it is unchanged, or generate it from a run's results.json.
@@ -925,7 +934,17 @@ fn run(cli: Cli) -> Result<(), String> {
             size,
             spp,
             views,
-        } => sweep::run(out, cache, &size, spp, views),
+            scenes,
+            no_grid,
+        } => sweep::run(sweep::Options {
+            out,
+            cache,
+            size,
+            spp,
+            views,
+            scenes,
+            grid: !no_grid,
+        }),
         Command::ResultsDoc {
             doc,
             from: Some(from),

@@ -73,19 +73,49 @@ pub fn grid(samples: u32) -> Vec<Setting> {
     out
 }
 
+/// What `cargo xtask sweep-isr` runs.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Output directory.
+    pub out: PathBuf,
+    /// Reference cache folder.
+    pub cache: Option<PathBuf>,
+    /// Image size `WxH`.
+    pub size: String,
+    /// Reference samples per pixel.
+    pub spp: u32,
+    /// Random views per scene.
+    pub views: usize,
+    /// Scenes (built-in names or glTF paths); empty: the main job's built-in scenes.
+    pub scenes: Vec<String>,
+    /// Whether the screen-space grid runs (false: DL and the default ISR alone).
+    pub grid: bool,
+}
+
 /// Runs the sweep.
-pub fn run(
-    out: PathBuf,
-    cache: Option<PathBuf>,
-    size: &str,
-    spp: u32,
-    views: usize,
-) -> Result<(), String> {
-    let (width, height) = crate::experiment::parse_size(size)?;
+pub fn run(o: Options) -> Result<(), String> {
+    let Options {
+        out,
+        cache,
+        size,
+        spp,
+        views,
+        scenes: names,
+        grid: with_grid,
+    } = o;
+    let (width, height) = crate::experiment::parse_size(&size)?;
     // The numbers were checked by `Command::check_numbers`.
     crate::check_out_dir(&out)?;
+    let names: Vec<String> = if names.is_empty() {
+        crate::experiment::DEFAULT_SCENES
+            .iter()
+            .map(|s| s.to_string())
+            .collect()
+    } else {
+        names
+    };
     let mut scenes = Vec::new();
-    for name in crate::experiment::DEFAULT_SCENES {
+    for name in &names {
         let scene = crate::load_scene(name)?;
         // Random cameras only: none of the scene's own (scored) cameras.
         let cameras = cameras_for(
@@ -99,7 +129,7 @@ pub fn run(
         )
         .map_err(|e| e.to_string())?;
         scenes.push(SceneSetup {
-            id: name.to_string(),
+            id: crate::experiment::scene_id(name),
             scene: Arc::new(scene),
             cameras,
         });
@@ -121,7 +151,8 @@ pub fn run(
             label: format!("isr-ls-{n}"),
             settings: IsrSettings::with_light_senders(n, crate::techniques::LIGHT_SENDERS),
         };
-        for s in grid(n).into_iter().chain([ls]) {
+        let swept = if with_grid { grid(n) } else { Vec::new() };
+        for s in swept.into_iter().chain([ls]) {
             labels.push((n, s.label.clone(), s.settings));
             techniques.push(TechniqueSetup {
                 label: s.label.clone(),

@@ -30,12 +30,29 @@ fn gpu_shadow_maps_equal_the_ray_cast_maps() {
     let Some(ctx) = gpu_test_context() else {
         return;
     };
+    // The default (the cube maps prefiltered, the orthographic ones not) and the other way
+    // round.
+    for (filter_radius, directional_filter_radius) in [(1, 0), (0, 1)] {
+        eprintln!(
+            "prefilter radius {filter_radius} (cubes), {directional_filter_radius} (orthographic):"
+        );
+        gpu_maps_equal_ray_cast_maps(&ctx, filter_radius, directional_filter_radius);
+    }
+}
+
+fn gpu_maps_equal_ray_cast_maps(
+    ctx: &scene_core::gpu::GpuContext,
+    filter_radius: u32,
+    directional_filter_radius: u32,
+) {
     let scene = builtin::scene("cornell").unwrap();
     let shadows = ShadowSettings {
         cube_resolution: 64,
         emitter_samples: 6,
         emitter_cube_resolution: 32,
         directional_resolution: 128,
+        filter_radius,
+        directional_filter_radius,
         ..Default::default()
     };
     let casters = scene.triangle_corners();
@@ -72,7 +89,7 @@ fn gpu_shadow_maps_equal_the_ray_cast_maps() {
         stride: 24,
         offset: 0,
     };
-    let pass = ShadowMapPass::new(&ctx, &gpu_set, &plan, layout).unwrap();
+    let pass = ShadowMapPass::new(ctx, &gpu_set, &plan, layout).unwrap();
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
     let bad = Casters {
         vertices: &vb,
@@ -91,7 +108,7 @@ fn gpu_shadow_maps_equal_the_ray_cast_maps() {
     )
     .unwrap();
     ctx.queue.submit([encoder.finish()]);
-    let texels = pass.read_texels(&ctx).unwrap();
+    let texels = pass.read_texels(ctx).unwrap();
 
     let n = texels.len();
     let diffs: Vec<f32> = texels

@@ -407,17 +407,20 @@ impl ShadowMapPass {
     /// The faces' records for `set` (whose maps must be where the plan put them).
     fn records(&self, set: &LightSet) -> Result<Vec<u8>, GpuError> {
         let s = &set.shadows;
-        let r = s.filter_radius.min(4);
-        let sigma = 0.5 * r as f32 + 0.5;
-        let mut weights: Vec<f32> = (-(r as i32)..=r as i32)
-            .map(|i| (-(i * i) as f32 / (2.0 * sigma * sigma)).exp())
-            .collect();
-        let total: f32 = weights.iter().sum();
-        weights.iter_mut().for_each(|w| *w /= total);
-        let mut packed = [[0.0f32; 4]; 3];
-        for (k, w) in weights.iter().enumerate() {
-            packed[k / 4][k % 4] = *w;
-        }
+        // The prefilter's normalised Gaussian weights for `r` taps a side, packed.
+        let weights_of = |r: u32| {
+            let sigma = 0.5 * r as f32 + 0.5;
+            let mut weights: Vec<f32> = (-(r as i32)..=r as i32)
+                .map(|i| (-(i * i) as f32 / (2.0 * sigma * sigma)).exp())
+                .collect();
+            let total: f32 = weights.iter().sum();
+            weights.iter_mut().for_each(|w| *w /= total);
+            let mut packed = [[0.0f32; 4]; 3];
+            for (k, w) in weights.iter().enumerate() {
+                packed[k / 4][k % 4] = *w;
+            }
+            packed
+        };
         let mut bytes = vec![0u8; self.face_stride as usize * self.face_count];
         let mut face = 0;
         let mut finite = true;
@@ -435,6 +438,7 @@ impl ShadowMapPass {
                 )));
             };
             let res = map.resolution;
+            let r = s.filter_radius_of(&map.kind);
             let inv_extent = 1.0 / set.extent;
             let base = FaceRecord {
                 view_proj: [0.0; 16],
@@ -448,7 +452,7 @@ impl ShadowMapPass {
                 radius: r,
                 esm_exponent: s.esm_exponent,
                 pad: 0,
-                weights: packed,
+                weights: weights_of(r),
             };
             let mut push = |record: FaceRecord| {
                 finite &= record.view_proj.iter().all(|v| v.is_finite());
