@@ -40,6 +40,8 @@ const FLAG_SEES_EMISSION: u32 = 1u;
 const FLAG_SKY: u32 = 2u;
 const FLAG_SKY_NEE: u32 = 4u;
 const FLAG_CUTOUTS: u32 = 8u;
+// trace_rays answers the closest hit alone (GpuPathTracer::closest_hits): no occlusion query.
+const FLAG_HITS_ONLY: u32 = 16u;
 
 struct Params {
     // The camera ray through image point (u, v): origin o0 + ou u + ov v, direction
@@ -990,7 +992,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // accum[4 i + 1] = (unit direction, t_max) in world units, and writes accum[4 i] = (found,
 // triangle id bits, t, occluded), accum[4 i + 1] = (u, v, 0, 0), accum[4 i + 2] = (albedo
 // at the hit, 0) and accum[4 i + 3] = (unit shading normal, facing the geometric normal
-// that faces the ray, 0). P.width rays.
+// that faces the ray, 0). P.width rays. With FLAG_HITS_ONLY the occlusion query is left out
+// (`occluded` then repeats `found`).
 @compute @workgroup_size(64, 1, 1)
 fn trace_rays(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -1000,7 +1003,10 @@ fn trace_rays(@builtin(global_invocation_id) gid: vec3<u32>) {
     let a = accum[4u * i];
     let b = accum[4u * i + 1u];
     let h = closest_hit(a.xyz, b.xyz, a.w, b.w);
-    let blocked = occluded(a.xyz, b.xyz, a.w, b.w);
+    var blocked = h.found;
+    if ((P.flags & FLAG_HITS_ONLY) == 0u) {
+        blocked = occluded(a.xyz, b.xyz, a.w, b.w);
+    }
     accum[4u * i] = vec4<f32>(select(0.0, 1.0, h.found), bitcast<f32>(h.id), h.t, select(0.0, 1.0, blocked));
     accum[4u * i + 1u] = vec4<f32>(h.b, 0.0, 0.0);
     if (!h.found) {

@@ -168,6 +168,7 @@ pub fn run(
         println!("  {:<8} prepared in {seconds:.2} s", method.name());
     }
     shadow_maps(&ctx, &scene, threads, repeats, span.as_ref())?;
+    light_senders(&ctx, &scene, threads, repeats)?;
     let mut renderer = RayCastRenderer::new();
     for &(w, h) in sizes {
         let cam = scene.cameras[0].with_aspect(w as f32 / h as f32);
@@ -325,6 +326,52 @@ pub fn run(
             );
         }
     }
+    Ok(())
+}
+
+/// The default ISR's light-space senders (`isr::DEFAULT_LIGHT_SENDERS`, one bounce, their
+/// visibility maps): traced on the CPU (`threads` workers, the scene's tree built once
+/// beforehand) against traced on the GPU through the GPU path tracer's tree
+/// (`LightSenders::on_gpu`, with its readbacks), what a light that moves costs. Wall
+/// clock, median of `repeats` after a warm-up.
+fn light_senders(
+    ctx: &GpuContext,
+    scene: &Scene,
+    threads: usize,
+    repeats: usize,
+) -> Result<(), String> {
+    use isr::LightSenders;
+    use scene_core::ray::RayScene;
+    use scene_core::reference::{Bounces, GpuPathTracer};
+    let set = LightSet::new(scene, &ShadowSettings::default()).map_err(|e| e.to_string())?;
+    let budget = isr::DEFAULT_LIGHT_SENDERS;
+    let tree = Arc::new(RayScene::build(scene));
+    let pool = crate::bench::worker_pool(threads)?;
+    let cpu_ms = pool.install(|| {
+        crate::bench::time_ms(repeats, || {
+            LightSenders::with_rays(scene, Some(tree.clone()), &set, budget, Bounces::Limited(1))
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        })
+    })?;
+    let tracer =
+        GpuPathTracer::new(ctx, scene, &LightState::default()).map_err(|e| e.to_string())?;
+    let gpu_ms = pool.install(|| {
+        crate::bench::time_ms(repeats, || {
+            LightSenders::on_gpu(scene, &tracer, &set, budget, Bounces::Limited(1))
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        })
+    })?;
+    let count = LightSenders::on_gpu(scene, &tracer, &set, budget, Bounces::Limited(1))
+        .map_err(|e| e.to_string())?
+        .senders
+        .len();
+    println!(
+        "  light-space senders ({count}, {} visibility rays): traced on the CPU {cpu_ms:.1} ms; \
+         on the GPU {gpu_ms:.1} ms wall (readbacks included)",
+        count * (isr::light_senders::DEPTH_RES * isr::light_senders::DEPTH_RES) as usize
+    );
     Ok(())
 }
 

@@ -164,6 +164,19 @@ pub fn render_cpu_with(
                 .into(),
         });
     }
+    if settings.light_sender_shadows
+        && settings.indirect
+        && light_senders.is_some_and(|l| !l.is_empty() && !l.has_rays())
+    {
+        return Err(IsrError::InvalidSetting {
+            name: "light_sender_shadows",
+            value: "true".into(),
+            reason: "these light-space senders carry no CPU ray-query tree for the shadow \
+                     rays (made on the GPU, LightSenders::on_gpu): make them with \
+                     LightSenders::new"
+                .into(),
+        });
+    }
     check_gbuffer("full", inputs.full)?;
     check_gbuffer("coarse", inputs.coarse)?;
     let screen = Screen::new(inputs.view);

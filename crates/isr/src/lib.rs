@@ -68,7 +68,7 @@ pub use scene_core::shadowed_lights::esm as shadow;
 pub use frame::{Frame, IsrInputs, PassTimings, render_cpu, render_cpu_with, render_image};
 pub use gpu::{GpuIsr, GpuIsrInputs, Intermediate};
 pub use gpu_frame::IsrFrame;
-pub use light_senders::{GpuLightSender, LightSender, LightSenders};
+pub use light_senders::{GpuLightSender, LightSender, LightSenders, SenderRays};
 pub use light_set::{Light, LightKind, LightSet, Part};
 pub use scene_core::gbuffer::downsample::{DownsampleMode, coarse_size, downsample};
 pub use settings::{

@@ -89,8 +89,9 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
-use scene_core::ray::{RayScene, SurfacePoint, surface_at};
+use scene_core::ray::{Hit, RayQuery, RayScene, SurfacePoint, surface_at};
 use scene_core::reference::Bounces;
+use scene_core::reference::GpuPathTracer;
 use scene_core::sampling::{Rng, cosine_hemisphere, mix64};
 use scene_core::{GBuffer, Scene, View};
 
@@ -249,6 +250,31 @@ pub struct GpuLightSender {
     pub tangent: [f32; 4],
 }
 
+/// Where [`LightSenders::traced`] traces the senders' rays: the first hits from the
+/// lights, the further bounces' paths (in waves, one ray per path and wave) and the
+/// visibility maps (most of the rays: [`DEPTH_RES`]^2 per sender).
+#[derive(Clone, Copy, Debug)]
+pub enum SenderRays<'a> {
+    /// scene-core's CPU ray-query tree of the scene ([`RayScene::build`]).
+    Cpu(&'a RayScene),
+    /// The GPU path tracer's tree of the same scene
+    /// ([`GpuPathTracer::closest_hits`]): the host's device traverses it, and the hits are
+    /// read back, in batches, to be shaded and kept on the CPU as [`Cpu`](SenderRays::Cpu)
+    /// keeps them. The senders equal the CPU's but where the two traversals' rounding
+    /// differs at an edge.
+    Gpu(&'a GpuPathTracer),
+}
+
+impl SenderRays<'_> {
+    /// The closest hit of each ray, in order.
+    fn closest_hits(&self, rays: &[RayQuery]) -> Result<Vec<Option<Hit>>, IsrError> {
+        match self {
+            SenderRays::Cpu(tree) => Ok(tree.closest_hits(rays)),
+            SenderRays::Gpu(tracer) => Ok(tracer.closest_hits(rays)?),
+        }
+    }
+}
+
 /// The light-space senders of a scene's lights (module docs).
 #[derive(Clone, Debug)]
 pub struct LightSenders {
@@ -340,6 +366,49 @@ impl LightSenders {
         budget: u32,
         bounces: Bounces,
     ) -> Result<Self, IsrError> {
+        if budget == 0 || lights.lights.is_empty() || scene.triangle_count() == 0 {
+            // Checks the budget and makes no tree.
+            return Self::traced(scene, None, lights, budget, bounces);
+        }
+        let rays = rays.unwrap_or_else(|| Arc::new(RayScene::build(scene)));
+        let mut senders =
+            Self::traced(scene, Some(SenderRays::Cpu(&rays)), lights, budget, bounces)?;
+        senders.rays = Some(rays);
+        Ok(senders)
+    }
+
+    /// [`LightSenders::with_bounces`] with its rays traced on the GPU by `tracer`, the
+    /// [`GpuPathTracer`] of `scene` (any light state: only its tree and shading data are
+    /// read): for a host that remakes the senders when a light moves and holds the scene
+    /// on its device. The senders equal [`LightSenders::with_bounces`]' but where the GPU's
+    /// traversal rounds an edge differently; they carry no CPU tree, so a frame that asks
+    /// for [`IsrSettings::light_sender_shadows`](crate::IsrSettings::light_sender_shadows)
+    /// with them is refused.
+    pub fn on_gpu(
+        scene: &Scene,
+        tracer: &GpuPathTracer,
+        lights: &LightSet,
+        budget: u32,
+        bounces: Bounces,
+    ) -> Result<Self, IsrError> {
+        Self::traced(
+            scene,
+            Some(SenderRays::Gpu(tracer)),
+            lights,
+            budget,
+            bounces,
+        )
+    }
+
+    /// The senders of `budget` (module docs) with their rays traced by `rays` (`None`
+    /// only where there is nothing to trace: no budget, light or triangle).
+    pub fn traced(
+        scene: &Scene,
+        rays: Option<SenderRays<'_>>,
+        lights: &LightSet,
+        budget: u32,
+        bounces: Bounces,
+    ) -> Result<Self, IsrError> {
         if budget > MAX_LIGHT_SENDERS {
             return Err(IsrError::InvalidSetting {
                 name: "light_senders",
@@ -350,7 +419,13 @@ impl LightSenders {
         if budget == 0 || lights.lights.is_empty() || scene.triangle_count() == 0 {
             return Ok(Self::default());
         }
-        let rays = rays.unwrap_or_else(|| Arc::new(RayScene::build(scene)));
+        let Some(rays) = rays else {
+            return Err(IsrError::InvalidSetting {
+                name: "light_senders",
+                value: budget.to_string(),
+                reason: "senders of a lit scene need a ray-query tree to trace them".into(),
+            });
+        };
         let offsets = scene.mesh_offsets();
         let center = lights.bounds.center();
         // Half the bounds' diagonal: a square of twice this side covers the scene from any
@@ -478,11 +553,22 @@ impl LightSenders {
                 ));
             }
         }
+        let queries: Vec<RayQuery> = texels
+            .iter()
+            .map(|&(origin, direction, ..)| RayQuery {
+                origin,
+                direction,
+                t_min: 0.0,
+                t_max: f32::INFINITY,
+            })
+            .collect();
+        let hits = rays.closest_hits(&queries)?;
         let mut senders: Vec<(u32, LightSender)> = texels
             .par_iter()
-            .filter_map(|&(o, d, footprint, phase, index, weight)| {
+            .zip(hits)
+            .filter_map(|(&(o, d, footprint, phase, index, weight), hit)| {
                 let light = &lights.lights[index];
-                let hit = rays.closest_hit(o, d, 0.0, f32::INFINITY)?;
+                let hit = hit?;
                 let s = surface_at(scene, &offsets, &hit, o, d)?;
                 let cos = s.ns.dot(-d).max(s.ng.dot(-d)).max(1e-2);
                 let a_perp = if light.kind == LightKind::Directional {
@@ -502,7 +588,7 @@ impl LightSenders {
             Bounces::Limited(_) => None,
             Bounces::Unlimited => Some(MAX_PATH_BOUNCES),
         } {
-            let deep = deep_senders(scene, &offsets, &rays, &senders, budget, last, eps, lights);
+            let deep = deep_senders(scene, &offsets, &rays, &senders, budget, last, eps, lights)?;
             senders.extend(deep);
         }
         // Phase by phase (a stable sort: within a phase, the order of the lights and texels).
@@ -515,21 +601,30 @@ impl LightSenders {
             phase_offsets[p + 1] += phase_offsets[p];
         }
         let senders: Vec<LightSender> = senders.into_iter().map(|(_, s)| s).collect();
-        // Each sender's visibility map: one ray per texel, from just above its surface.
+        // Each sender's visibility map: one ray per texel, from just above its surface, for
+        // a thousand senders at a time (a million rays, 32 MB of queries).
         let directions = map_directions();
-        let depths: Vec<f32> = senders
-            .par_iter()
-            .flat_map_iter(|s| {
-                let (t, b, n) = (s.tangent, s.normal.cross(s.tangent), s.normal);
-                let o = s.position + n * eps;
-                let rays = &rays;
-                directions.iter().map(move |l| {
-                    let d = (t * l.x + b * l.y + n * l.z).normalize_or_zero();
-                    rays.closest_hit(o, d, 0.0, f32::INFINITY)
-                        .map_or(f32::MAX, |h| h.t)
+        let mut depths: Vec<f32> = Vec::with_capacity(senders.len() * directions.len());
+        for chunk in senders.chunks(1024) {
+            let queries: Vec<RayQuery> = chunk
+                .par_iter()
+                .flat_map_iter(|s| {
+                    let (t, b, n) = (s.tangent, s.normal.cross(s.tangent), s.normal);
+                    let origin = s.position + n * eps;
+                    directions.iter().map(move |l| RayQuery {
+                        origin,
+                        direction: (t * l.x + b * l.y + n * l.z).normalize_or_zero(),
+                        t_min: 0.0,
+                        t_max: f32::INFINITY,
+                    })
                 })
-            })
-            .collect();
+                .collect();
+            depths.extend(
+                rays.closest_hits(&queries)?
+                    .into_iter()
+                    .map(|h| h.map_or(f32::MAX, |h| h.t)),
+            );
+        }
         Ok(Self {
             senders,
             phase_offsets,
@@ -538,7 +633,7 @@ impl LightSenders {
             visibility: true,
             resolutions,
             once: true,
-            rays: Some(rays),
+            rays: None,
         })
     }
 
@@ -567,6 +662,13 @@ impl LightSenders {
         } else {
             (0..self.senders.len(), 1.0)
         }
+    }
+
+    /// Whether the senders keep the scene's CPU ray-query tree, which
+    /// [`IsrSettings::light_sender_shadows`](crate::IsrSettings::light_sender_shadows)
+    /// traces (those made on the GPU do not).
+    pub fn has_rays(&self) -> bool {
+        self.rays.is_some()
     }
 
     /// Whether there is no sender.
@@ -699,19 +801,20 @@ const PATH_SEED: u64 = 0x15_0050;
 /// each starting at one of the first senders `first` drawn in proportion to its power
 /// (stratified over the paths), continued by cosine-distributed rays, one sender at each
 /// surface they hit, ended by Russian roulette on the albedo. Each path's phase is a hash
-/// of its index. Deterministic whatever the thread count: path `k` draws from its own
-/// stream.
+/// of its index. Traced in waves (one ray of every living path per wave, so that a GPU
+/// answers them together); deterministic whatever the thread count or the tracer: path `k`
+/// draws from its own stream, and its senders come in the order of the paths.
 #[allow(clippy::too_many_arguments)]
 fn deep_senders(
     scene: &Scene,
     offsets: &[u32],
-    rays: &RayScene,
+    rays: &SenderRays<'_>,
     first: &[(u32, LightSender)],
     paths: u32,
     last: u32,
     eps: f32,
     lights: &LightSet,
-) -> Vec<(u32, LightSender)> {
+) -> Result<Vec<(u32, LightSender)>, IsrError> {
     let weights: Vec<f64> = first
         .iter()
         .map(|(_, s)| f64::from(s.power.element_sum()))
@@ -725,7 +828,7 @@ fn deep_senders(
         .collect();
     let total = cdf.last().copied().unwrap_or(0.0);
     if paths == 0 || !(total > 0.0 && total.is_finite()) {
-        return Vec::new();
+        return Ok(Vec::new());
     }
     // The area each path's sender stands for (the disk form factor's guard against the
     // 1/r^2 singularity): the scene's surface, at most its bounds' box, shared by the paths.
@@ -743,47 +846,92 @@ fn deep_senders(
     let box_area = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
     let area = (surface.min(box_area) / f64::from(paths)) as f32;
     if !(area > 0.0 && area.is_finite()) {
-        return Vec::new();
+        return Ok(Vec::new());
     }
-    (0..paths)
+    let mut walks: Vec<Walk> = (0..paths)
         .into_par_iter()
-        .flat_map_iter(|k| {
+        .map(|k| {
             let mut rng = Rng::new(PATH_SEED, u64::from(k));
             let u = (f64::from(k) + rng.next_f64()) / f64::from(paths) * total;
             let i = cdf.partition_point(|&c| c <= u).min(first.len() - 1);
             let parent = first[i].1;
-            let phase = (mix64(u64::from(k)) % PHASES as u64) as u32;
-            // The power this path carries out of its first sender.
-            let mut flux = parent.power * (total / (f64::from(paths) * weights[i])) as f32;
-            let (mut p, mut n) = (parent.position, parent.normal);
-            let mut out = Vec::new();
-            for bounce in 2..=last {
-                let d = cosine_hemisphere(n, rng.next_vec2());
-                let o = p + n * eps;
-                let Some(hit) = rays.closest_hit(o, d, 0.0, f32::INFINITY) else {
-                    break;
-                };
-                let Some(s) = surface_at(scene, offsets, &hit, o, d) else {
-                    break;
-                };
-                let power = flux * s.albedo;
-                if !(power.max_element() > 0.0 && power.is_finite()) {
-                    break;
-                }
-                out.push((
-                    phase,
-                    LightSender::on(&s, power, area, parent.light, bounce),
-                ));
-                let survive = s.albedo.max_element().min(0.95);
-                if bounce == last || rng.next_f32() >= survive {
-                    break;
-                }
-                flux = power / survive;
-                (p, n) = (s.p, s.ns);
+            Walk {
+                rng,
+                phase: (mix64(u64::from(k)) % PHASES as u64) as u32,
+                light: parent.light,
+                // The power this path carries out of its first sender.
+                flux: parent.power * (total / (f64::from(paths) * weights[i])) as f32,
+                p: parent.position,
+                n: parent.normal,
+                ray: None,
+                alive: true,
+                out: Vec::new(),
             }
-            out
         })
-        .collect()
+        .collect();
+    for bounce in 2..=last {
+        // Each living path's next ray.
+        walks.par_iter_mut().filter(|w| w.alive).for_each(|w| {
+            let d = cosine_hemisphere(w.n, w.rng.next_vec2());
+            w.ray = Some(RayQuery {
+                origin: w.p + w.n * eps,
+                direction: d,
+                t_min: 0.0,
+                t_max: f32::INFINITY,
+            });
+        });
+        let queries: Vec<RayQuery> = walks
+            .iter()
+            .filter_map(|w| w.alive.then_some(w.ray).flatten())
+            .collect();
+        if queries.is_empty() {
+            break;
+        }
+        let hits = rays.closest_hits(&queries)?;
+        let living: Vec<&mut Walk> = walks.iter_mut().filter(|w| w.alive).collect();
+        living.into_par_iter().zip(hits).for_each(|(w, hit)| {
+            w.alive = false;
+            let Some(ray) = w.ray.take() else {
+                return;
+            };
+            let Some(s) =
+                hit.and_then(|h| surface_at(scene, offsets, &h, ray.origin, ray.direction))
+            else {
+                return;
+            };
+            let power = w.flux * s.albedo;
+            if !(power.max_element() > 0.0 && power.is_finite()) {
+                return;
+            }
+            w.out
+                .push((w.phase, LightSender::on(&s, power, area, w.light, bounce)));
+            let survive = s.albedo.max_element().min(0.95);
+            if bounce == last || w.rng.next_f32() >= survive {
+                return;
+            }
+            w.flux = power / survive;
+            (w.p, w.n) = (s.p, s.ns);
+            w.alive = true;
+        });
+    }
+    Ok(walks.into_iter().flat_map(|w| w.out).collect())
+}
+
+/// One light path of [`deep_senders`] between waves.
+struct Walk {
+    rng: Rng,
+    phase: u32,
+    light: u32,
+    /// The power it carries out of its last vertex.
+    flux: Vec3,
+    /// Its last vertex and that surface's normal.
+    p: Vec3,
+    n: Vec3,
+    /// The ray of this wave.
+    ray: Option<RayQuery>,
+    alive: bool,
+    /// Its senders, in the order of their bounces.
+    out: Vec<(u32, LightSender)>,
 }
 
 /// A sender as one frame's gather reads it: its power under the frame's factors, the

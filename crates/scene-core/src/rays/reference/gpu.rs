@@ -109,6 +109,7 @@ const FLAG_SEES_EMISSION: u32 = 1;
 const FLAG_SKY: u32 = 2;
 const FLAG_SKY_NEE: u32 = 4;
 const FLAG_CUTOUTS: u32 = 8;
+const FLAG_HITS_ONLY: u32 = 16;
 const NONE: u32 = u32::MAX;
 
 /// `bit` where `on`, else no bit.
@@ -174,6 +175,8 @@ pub struct GpuPathTracer {
     fixed: Params,
     /// A camera ray's origin further than this (in the tree's scaled units) is refused.
     far_origin: f32,
+    /// The ray-query pipeline ([`GpuPathTracer::trace_rays`]), compiled on first use.
+    rays_pass: std::sync::OnceLock<ComputePass>,
 }
 
 impl std::fmt::Debug for GpuPathTracer {
@@ -424,6 +427,7 @@ impl GpuPathTracer {
             base,
             fixed,
             far_origin: 1e18,
+            rays_pass: std::sync::OnceLock::new(),
         })
     }
 
@@ -545,6 +549,32 @@ impl GpuPathTracer {
     /// GPU's tree and shading data against the CPU's ray by ray. Directions must be unit
     /// vectors (`t` is a world distance). Waits for the answer (a readback).
     pub fn trace_rays(&self, rays: &[RayQuery]) -> Result<Vec<GpuRayAnswer>, GpuError> {
+        self.answer_rays(rays, 0)
+    }
+
+    /// The closest hit of each ray (alpha masks applied), found by the GPU's traversal of
+    /// the tree: [`crate::ray::RayScene::closest_hits`] on the device, for work that traces
+    /// many rays and reads their hits back (the light-space senders' visibility maps of
+    /// `isr`). Directions must be unit vectors (`t` is a world distance). Rays go in
+    /// batches that fit the device's storage-binding limit; each batch waits for its answer
+    /// (a readback).
+    pub fn closest_hits(&self, rays: &[RayQuery]) -> Result<Vec<Option<Hit>>, GpuError> {
+        // 64 bytes a ray, at most a quarter of the binding limit a batch.
+        let batch = ((self.ctx.storage_binding_limit() / 4 / 64).clamp(1, 1 << 22)) as usize;
+        let mut out = Vec::with_capacity(rays.len());
+        for chunk in rays.chunks(batch) {
+            out.extend(
+                self.answer_rays(chunk, FLAG_HITS_ONLY)?
+                    .into_iter()
+                    .map(|a| a.hit),
+            );
+        }
+        Ok(out)
+    }
+
+    /// [`GpuPathTracer::trace_rays`] with `flags` added to the shader's (`FLAG_HITS_ONLY`:
+    /// no occlusion query, `occluded` then says whether a hit was found).
+    fn answer_rays(&self, rays: &[RayQuery], flags: u32) -> Result<Vec<GpuRayAnswer>, GpuError> {
         if rays.is_empty() {
             return Ok(Vec::new());
         }
@@ -570,18 +600,26 @@ impl GpuPathTracer {
             })
             .collect();
         let device = &self.ctx.device;
-        let module = PATH_TRACER.create_module(device)?;
-        let (pass, accum, params) = self.ctx.validated(|| {
-            let entries = layout_entries();
+        let pass = match self.rays_pass.get() {
+            Some(pass) => pass,
+            None => {
+                let module = PATH_TRACER.create_module(device)?;
+                let pass = self.ctx.validated(|| {
+                    ComputePass::from_entry_point(
+                        device,
+                        "path tracer rays",
+                        &module,
+                        "trace_rays",
+                        &layout_entries(),
+                        &[],
+                    )
+                })?;
+                // Another thread may have set it first: the same pipeline either way.
+                self.rays_pass.get_or_init(|| pass)
+            }
+        };
+        let (accum, params) = self.ctx.validated(|| {
             (
-                ComputePass::from_entry_point(
-                    device,
-                    "path tracer rays",
-                    &module,
-                    "trace_rays",
-                    &entries,
-                    &[],
-                ),
                 self.ctx.buffer_with(
                     "path tracer rays",
                     bytemuck::cast_slice(&input),
@@ -591,6 +629,7 @@ impl GpuPathTracer {
                     "path tracer rays params",
                     &Params {
                         width: rays.len() as u32,
+                        flags: self.base.flags | flags,
                         ..self.base
                     },
                 ),
