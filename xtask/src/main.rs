@@ -340,32 +340,7 @@ enum Command {
     /// ISR's settings (k_isr, AO on/off, radius) swept at 24/48/80 samples on held-out
     /// views (seeded random cameras of the built-in scenes, none of which the main job
     /// scores) against the reference; prints the most accurate setting per sample count.
-    SweepIsr {
-        /// Output directory.
-        #[arg(long, default_value = "out/sweep-isr")]
-        out: PathBuf,
-        /// Reference cache folder.
-        #[arg(long)]
-        cache: Option<PathBuf>,
-        /// Image size WxH.
-        #[arg(long, default_value = "128x96")]
-        size: String,
-        /// Reference samples per pixel.
-        #[arg(long, default_value_t = 512)]
-        spp: u32,
-        /// Random views per scene.
-        #[arg(long, default_value_t = 4)]
-        views: usize,
-        /// Scenes to sweep (built-in names or .gltf/.glb paths; repeatable). Default: the
-        /// four built-in scenes of the main job.
-        #[arg(long = "scene")]
-        scenes: Vec<String>,
-        /// Leave out the screen-space grid: DL and the default ISR (light-space senders,
-        /// `k_isr` 1, nothing tuned) at each sample count only, the held-out check on a
-        /// large file in minutes.
-        #[arg(long)]
-        no_grid: bool,
-    },
+    SweepIsr(sweep::Options),
     /// Regenerate a generated results document (docs/results.md) from the results.json it
     /// names, check that it is unchanged, or generate it from a run's results.json.
     ResultsDoc {
@@ -748,12 +723,10 @@ impl Command {
             }
             Command::Relight(o) => o.check_numbers(),
             Command::Ibrr(o) => ibrr::check_numbers(o),
-            Command::SweepIsr {
-                size, spp, views, ..
-            } => {
-                experiment::parse_size(size)?;
-                ranged("--views", *views, 1..=100)?;
-                ranged("--spp", *spp, SPP).map(|_| ())
+            Command::SweepIsr(o) => {
+                experiment::parse_size(&o.size)?;
+                ranged("--views", o.views, 1..=100)?;
+                ranged("--spp", o.spp, SPP).map(|_| ())
             }
             Command::Experiment(args) => args.check_numbers(),
             Command::Fuzz { seconds, jobs, .. } => {
@@ -928,23 +901,7 @@ fn run(cli: Cli) -> Result<(), String> {
             println!("{}", out.display());
             Ok(())
         }
-        Command::SweepIsr {
-            out,
-            cache,
-            size,
-            spp,
-            views,
-            scenes,
-            no_grid,
-        } => sweep::run(sweep::Options {
-            out,
-            cache,
-            size,
-            spp,
-            views,
-            scenes,
-            grid: !no_grid,
-        }),
+        Command::SweepIsr(o) => sweep::run(o),
         Command::ResultsDoc {
             doc,
             from: Some(from),

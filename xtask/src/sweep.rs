@@ -73,23 +73,33 @@ pub fn grid(samples: u32) -> Vec<Setting> {
     out
 }
 
-/// What `cargo xtask sweep-isr` runs.
-#[derive(Clone, Debug)]
+/// What `cargo xtask sweep-isr` runs (its command-line options).
+#[derive(Clone, Debug, clap::Args)]
 pub struct Options {
     /// Output directory.
+    #[arg(long, default_value = "out/sweep-isr")]
     pub out: PathBuf,
     /// Reference cache folder.
+    #[arg(long)]
     pub cache: Option<PathBuf>,
-    /// Image size `WxH`.
+    /// Image size WxH.
+    #[arg(long, default_value = "128x96")]
     pub size: String,
     /// Reference samples per pixel.
+    #[arg(long, default_value_t = 512)]
     pub spp: u32,
     /// Random views per scene.
+    #[arg(long, default_value_t = 4)]
     pub views: usize,
-    /// Scenes (built-in names or glTF paths); empty: the main job's built-in scenes.
+    /// Scenes to sweep (built-in names or .gltf/.glb paths; repeatable). Default: the
+    /// four built-in scenes of the main job.
+    #[arg(long = "scene")]
     pub scenes: Vec<String>,
-    /// Whether the screen-space grid runs (false: DL and the default ISR alone).
-    pub grid: bool,
+    /// Leave out the screen-space grid: DL and the default ISR (light-space senders,
+    /// `k_isr` 1, nothing tuned) at each sample count only, the held-out check on a
+    /// large file in minutes.
+    #[arg(long)]
+    pub no_grid: bool,
 }
 
 /// Runs the sweep.
@@ -101,8 +111,9 @@ pub fn run(o: Options) -> Result<(), String> {
         spp,
         views,
         scenes: names,
-        grid: with_grid,
+        no_grid,
     } = o;
+    let with_grid = !no_grid;
     let (width, height) = crate::experiment::parse_size(&size)?;
     // The numbers were checked by `Command::check_numbers`.
     crate::check_out_dir(&out)?;

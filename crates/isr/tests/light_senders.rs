@@ -274,6 +274,18 @@ fn the_gpu_refuses_missing_or_shadowed_light_space_senders_by_name() {
     assert!(e.contains("light_sender_shadows"), "{e}");
 }
 
+/// The off-screen floor at 48x48 and the small built-in scenes at `w x h`, by name.
+fn small_setups(w: u32, h: u32) -> Vec<(&'static str, Setup)> {
+    let mut setups = vec![(
+        "off-screen floor",
+        Setup::new(off_screen_floor(), 0, 48, 48),
+    )];
+    for name in scene_core::builtin::SMALL_INSTANCES {
+        setups.push((name, Setup::builtin(name, 0, w, h)));
+    }
+    setups
+}
+
 /// The GPU twin of the light-space senders' gather against the CPU's, on the same coarse
 /// buffer: the off-screen floor (all of the wall's light comes from them) and the small
 /// built-in scenes, each surface counted once and (a measurement mode) twice, within the
@@ -284,13 +296,7 @@ fn the_gpu_twin_gathers_the_light_space_senders_as_the_cpu_does() {
     let Some(ctx) = scene_core::testing::gpu_test_context() else {
         return;
     };
-    let mut setups = vec![(
-        "off-screen floor",
-        Setup::new(off_screen_floor(), 0, 48, 48),
-    )];
-    for name in scene_core::builtin::SMALL_INSTANCES {
-        setups.push((name, Setup::builtin(name, 0, 96, 72)));
-    }
+    let setups = small_setups(96, 72);
     for (name, setup) in &setups {
         let settings = IsrSettings::with_light_senders(24, 256);
         let first = LightSenders::new(&setup.scene, &setup.prepared, 256).unwrap();
@@ -338,13 +344,7 @@ fn senders_traced_on_the_gpu_equal_those_traced_on_the_cpu() {
     let Some(ctx) = scene_core::testing::gpu_test_context() else {
         return;
     };
-    let mut setups = vec![(
-        "off-screen floor",
-        Setup::new(off_screen_floor(), 0, 48, 48),
-    )];
-    for name in scene_core::builtin::SMALL_INSTANCES {
-        setups.push((name, Setup::builtin(name, 0, 64, 48)));
-    }
+    let setups = small_setups(64, 48);
     for (name, setup) in &setups {
         let tracer = scene_core::reference::GpuPathTracer::new(
             &ctx,
