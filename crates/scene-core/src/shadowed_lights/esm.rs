@@ -97,13 +97,10 @@ impl ShadowMap {
     pub fn new(offset: usize, resolution: u32, kind: MapKind) -> Self {
         let (origin, right, up, forward, half_extent) = match kind {
             MapKind::Cube { center } => (center, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, 0.0),
-            MapKind::Ortho {
-                eye,
-                right,
-                up,
-                forward,
-                half_extent,
-            } => (eye, right, up, forward, half_extent),
+            MapKind::Ortho { .. } => {
+                kind.ortho_frame()
+                    .unwrap_or((Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, 0.0))
+            }
         };
         Self {
             origin,
