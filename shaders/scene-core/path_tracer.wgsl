@@ -993,7 +993,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // triangle id bits, t, occluded), accum[4 i + 1] = (u, v, 0, 0), accum[4 i + 2] = (albedo
 // at the hit, 0) and accum[4 i + 3] = (unit shading normal, facing the geometric normal
 // that faces the ray, 0). P.width rays. With FLAG_HITS_ONLY the occlusion query is left out
-// (`occluded` then repeats `found`).
+// (`occluded` then repeats `found`) and so is the shading (albedo and normal read 0).
 @compute @workgroup_size(64, 1, 1)
 fn trace_rays(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -1009,7 +1009,8 @@ fn trace_rays(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     accum[4u * i] = vec4<f32>(select(0.0, 1.0, h.found), bitcast<f32>(h.id), h.t, select(0.0, 1.0, blocked));
     accum[4u * i + 1u] = vec4<f32>(h.b, 0.0, 0.0);
-    if (!h.found) {
+    // Hits alone: no shading read back (GpuPathTracer::closest_hits).
+    if (!h.found || (P.flags & FLAG_HITS_ONLY) != 0u) {
         accum[4u * i + 2u] = vec4<f32>(0.0);
         accum[4u * i + 3u] = vec4<f32>(0.0);
         return;

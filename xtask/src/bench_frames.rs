@@ -356,17 +356,16 @@ fn light_senders(
     })?;
     let tracer =
         GpuPathTracer::new(ctx, scene, &LightState::default()).map_err(|e| e.to_string())?;
+    let mut count = 0;
     let gpu_ms = pool.install(|| {
         crate::bench::time_ms(repeats, || {
-            LightSenders::on_gpu(scene, &tracer, &set, budget, Bounces::Limited(1))
-                .map(|_| ())
-                .map_err(|e| e.to_string())
+            count = LightSenders::on_gpu(scene, &tracer, &set, budget, Bounces::Limited(1))
+                .map_err(|e| e.to_string())?
+                .senders
+                .len();
+            Ok(())
         })
     })?;
-    let count = LightSenders::on_gpu(scene, &tracer, &set, budget, Bounces::Limited(1))
-        .map_err(|e| e.to_string())?
-        .senders
-        .len();
     println!(
         "  light-space senders ({count}, {} visibility rays): traced on the CPU {cpu_ms:.1} ms; \
          on the GPU {gpu_ms:.1} ms wall (readbacks included)",

@@ -366,7 +366,7 @@ impl LightSenders {
         budget: u32,
         bounces: Bounces,
     ) -> Result<Self, IsrError> {
-        if budget == 0 || lights.lights.is_empty() || scene.triangle_count() == 0 {
+        if nothing_to_trace(scene, lights, budget) {
             // Checks the budget and makes no tree.
             return Self::traced(scene, None, lights, budget, bounces);
         }
@@ -416,7 +416,7 @@ impl LightSenders {
                 reason: format!("at most {MAX_LIGHT_SENDERS}"),
             });
         }
-        if budget == 0 || lights.lights.is_empty() || scene.triangle_count() == 0 {
+        if nothing_to_trace(scene, lights, budget) {
             return Ok(Self::default());
         }
         let Some(rays) = rays else {
@@ -791,6 +791,12 @@ impl LightSenders {
     }
 }
 
+/// Whether `budget` senders of `lights` in `scene` are none at all: no budget, no light or
+/// no triangle (no ray to trace, no tree to build).
+fn nothing_to_trace(scene: &Scene, lights: &LightSet, budget: u32) -> bool {
+    budget == 0 || lights.lights.is_empty() || scene.triangle_count() == 0
+}
+
 /// The most bounces a light path of [`LightSenders::with_bounces`] makes.
 pub const MAX_PATH_BOUNCES: u32 = 64;
 
@@ -848,6 +854,13 @@ fn deep_senders(
     if !(area > 0.0 && area.is_finite()) {
         return Ok(Vec::new());
     }
+    // The ray a path leaves `p` by, along a cosine-distributed direction about `n`.
+    let next_ray = |rng: &mut Rng, p: Vec3, n: Vec3| RayQuery {
+        origin: p + n * eps,
+        direction: cosine_hemisphere(n, rng.next_vec2()),
+        t_min: 0.0,
+        t_max: f32::INFINITY,
+    };
     let mut walks: Vec<Walk> = (0..paths)
         .into_par_iter()
         .map(|k| {
@@ -855,42 +868,26 @@ fn deep_senders(
             let u = (f64::from(k) + rng.next_f64()) / f64::from(paths) * total;
             let i = cdf.partition_point(|&c| c <= u).min(first.len() - 1);
             let parent = first[i].1;
+            let ray = next_ray(&mut rng, parent.position, parent.normal);
             Walk {
                 rng,
                 phase: (mix64(u64::from(k)) % PHASES as u64) as u32,
                 light: parent.light,
                 // The power this path carries out of its first sender.
                 flux: parent.power * (total / (f64::from(paths) * weights[i])) as f32,
-                p: parent.position,
-                n: parent.normal,
-                ray: None,
-                alive: true,
+                ray: Some(ray),
                 out: Vec::new(),
             }
         })
         .collect();
     for bounce in 2..=last {
-        // Each living path's next ray.
-        walks.par_iter_mut().filter(|w| w.alive).for_each(|w| {
-            let d = cosine_hemisphere(w.n, w.rng.next_vec2());
-            w.ray = Some(RayQuery {
-                origin: w.p + w.n * eps,
-                direction: d,
-                t_min: 0.0,
-                t_max: f32::INFINITY,
-            });
-        });
-        let queries: Vec<RayQuery> = walks
-            .iter()
-            .filter_map(|w| w.alive.then_some(w.ray).flatten())
-            .collect();
+        let queries: Vec<RayQuery> = walks.iter().filter_map(|w| w.ray).collect();
         if queries.is_empty() {
             break;
         }
         let hits = rays.closest_hits(&queries)?;
-        let living: Vec<&mut Walk> = walks.iter_mut().filter(|w| w.alive).collect();
+        let living: Vec<&mut Walk> = walks.iter_mut().filter(|w| w.ray.is_some()).collect();
         living.into_par_iter().zip(hits).for_each(|(w, hit)| {
-            w.alive = false;
             let Some(ray) = w.ray.take() else {
                 return;
             };
@@ -910,8 +907,7 @@ fn deep_senders(
                 return;
             }
             w.flux = power / survive;
-            (w.p, w.n) = (s.p, s.ns);
-            w.alive = true;
+            w.ray = Some(next_ray(&mut w.rng, s.p, s.ns));
         });
     }
     Ok(walks.into_iter().flat_map(|w| w.out).collect())
@@ -924,12 +920,8 @@ struct Walk {
     light: u32,
     /// The power it carries out of its last vertex.
     flux: Vec3,
-    /// Its last vertex and that surface's normal.
-    p: Vec3,
-    n: Vec3,
-    /// The ray of this wave.
+    /// The ray it leaves its last vertex by; `None` once it has ended.
     ray: Option<RayQuery>,
-    alive: bool,
     /// Its senders, in the order of their bounces.
     out: Vec<(u32, LightSender)>,
 }

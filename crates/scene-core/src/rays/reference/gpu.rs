@@ -573,7 +573,8 @@ impl GpuPathTracer {
     }
 
     /// [`GpuPathTracer::trace_rays`] with `flags` added to the shader's (`FLAG_HITS_ONLY`:
-    /// no occlusion query, `occluded` then says whether a hit was found).
+    /// no occlusion query and no shading, `occluded` then says whether a hit was found and
+    /// the albedo and normal are zero).
     fn answer_rays(&self, rays: &[RayQuery], flags: u32) -> Result<Vec<GpuRayAnswer>, GpuError> {
         if rays.is_empty() {
             return Ok(Vec::new());
