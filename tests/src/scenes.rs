@@ -19,6 +19,7 @@ pub fn techniques(
     use gbuffer::CpuRasterizer;
     use isr::{IsrSettings, IsrTechnique};
     let ibrr = ibrr_ldc::IbrrSettings {
+        target_error: 0.0,
         resolution: 32,
         irpls: 8,
         ..Default::default()
@@ -81,6 +82,7 @@ pub fn techniques(
             "ibrr-cam",
             Box::new(ibrr_ldc::IbrrTechnique::new(
                 ibrr_ldc::IbrrSettings {
+                    target_error: 0.0,
                     camera_importance: true,
                     ..ibrr
                 },
@@ -222,6 +224,7 @@ pub fn compared_methods_seeded(seed: u64) -> Vec<(&'static str, Box<dyn Techniqu
     let ibrr = || {
         ibrr_ldc::IbrrTechnique::new(
             ibrr_ldc::IbrrSettings {
+                target_error: 0.0,
                 resolution: 64,
                 irpls: 64,
                 seed,

@@ -67,7 +67,7 @@ fn methods(ctx: &GpuContext, scene: &Arc<Scene>, threads: usize) -> Result<Vec<P
             isr_maker(isr::IsrSettings::screen_space()),
             isr_maker(isr::IsrSettings::default()),
             relight_maker(RELIGHT_ELEMENTS, relight_pr::packed::Precision::F16),
-            ibrr_maker(ibrr_ldc::IbrrSettings::default()),
+            ibrr_maker(ibrr_ldc::IbrrSettings::default().fixed_count()),
         ];
         let mut out: Vec<Prepared> = Vec::new();
         for mut make in makers {

@@ -99,6 +99,7 @@ pub fn run(threads: usize, repeats: usize) -> Result<(), String> {
         let scene = Arc::new(field(tris));
         for res in [128u32, 256, 512] {
             let settings = IbrrSettings {
+                target_error: 0.0,
                 resolution: res,
                 irpls: 184,
                 ..Default::default()
@@ -136,6 +137,7 @@ pub fn run(threads: usize, repeats: usize) -> Result<(), String> {
     let scene = Arc::new(field(26_000));
     for irpls in [200u32, 371, 589, 751] {
         let settings = IbrrSettings {
+            target_error: 0.0,
             resolution: 256,
             irpls,
             ..Default::default()

@@ -118,6 +118,7 @@ pub fn run(threads: usize, repeats: usize, max_triangles: u64) -> Result<(), Str
             Box::new(|s| {
                 let mut t = ibrr_ldc::IbrrTechnique::new(
                     ibrr_ldc::IbrrSettings {
+                        target_error: 0.0,
                         resolution: 128,
                         irpls: 64,
                         ..Default::default()

@@ -501,6 +501,7 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                         irpls,
                         camera_importance,
                     } => crate::gpu_frames::ibrr_maker(ibrr_ldc::IbrrSettings {
+                        target_error: 0.0,
                         resolution: *ldc,
                         irpls: *irpls,
                         camera_importance: *camera_importance,
@@ -541,6 +542,7 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                     camera_importance,
                 } => {
                     let settings = ibrr_ldc::IbrrSettings {
+                        target_error: 0.0,
                         resolution: *ldc,
                         irpls: *irpls,
                         camera_importance: *camera_importance,

@@ -584,6 +584,7 @@ mod tests {
             (
                 "ibrr",
                 ibrr_maker(ibrr_ldc::IbrrSettings {
+                    target_error: 0.0,
                     resolution: 64,
                     irpls: 8,
                     ..Default::default()

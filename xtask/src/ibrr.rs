@@ -20,9 +20,22 @@ pub struct Options {
     /// LDI resolution along each side of the scene's bounding cube.
     #[arg(long, default_value_t = 256)]
     pub ldc: u32,
-    /// About this many instant-radiosity point lights.
+    /// About this many instant-radiosity point lights in the first round (with
+    /// `--target-error 0`, in all: the paper's fixed count).
     #[arg(long, default_value_t = 184)]
     pub irpls: u32,
+    /// Add rounds of paths until the build's own estimate of its lit-surface error (the
+    /// half-width of a 95 % interval, largest channel) is below this, or a budget ends
+    /// it (0: the fixed count of --irpls).
+    #[arg(long, default_value_t = IbrrSettings::default().target_error)]
+    pub target_error: f32,
+    /// Most IRPLs a build aiming at --target-error makes (0: twice --irpls).
+    #[arg(long, default_value_t = 0)]
+    pub irpl_budget: u32,
+    /// Seconds after which a build aiming at --target-error starts no further round (0:
+    /// no limit; the result then depends on the machine's speed).
+    #[arg(long, default_value_t = 0.0)]
+    pub time_budget: f32,
     /// How renders become LDC values: nearest (the paper), gaussian (the paper's planned
     /// kernel) or exact (geometry term at every LDI pixel, renders as shadow maps).
     #[arg(long, default_value = "exact")]
@@ -67,6 +80,15 @@ pub fn check_numbers(o: &Options) -> Result<(), String> {
     crate::ranged("--ldc", o.ldc, 8..=2048)?;
     crate::ranged("--irpls", o.irpls, 1..=100_000)?;
     crate::ranged("--clamp", o.clamp, 0.0..=1.0)?;
+    crate::ranged("--target-error", o.target_error, 0.0..=1.0)?;
+    crate::ranged("--irpl-budget", o.irpl_budget, 1..=1_000_000)?;
+    crate::ranged("--time-budget", o.time_budget, 0.0..=1e6)?;
+    if o.target_error > 0.0 && o.irpl_budget < o.irpls {
+        return Err(format!(
+            "--irpl-budget ({}) must be at least --irpls ({})",
+            o.irpl_budget, o.irpls
+        ));
+    }
     crate::ranged("--bounces", o.bounces, 0..=1024)?;
     crate::ranged("--direct-render", o.direct_render, 0..=8192)?;
     crate::ranged("--indirect-render", o.indirect_render, 0..=8192)?;
@@ -88,6 +110,9 @@ pub fn run(o: &Options) -> Result<(), String> {
     let settings = IbrrSettings {
         resolution: o.ldc,
         irpls: o.irpls,
+        target_error: o.target_error,
+        irpl_budget: o.irpl_budget,
+        time_budget: o.time_budget,
         splat,
         lookup,
         clamp: o.clamp,
@@ -155,7 +180,9 @@ pub fn run(o: &Options) -> Result<(), String> {
     let served = write_served(&o.out, technique.last_served(), o.view.width, o.view.height)?;
     let frame_ms = ms(steady);
     let sources = ldc.sources.sources();
-    let summary = serde_json::json!({
+    let estimate = c.error_estimate();
+    let stop = c.stopped().map(|s| s.name());
+    let mut summary = serde_json::json!({
         "scene": scene.name,
         "triangles": scene.triangle_count(),
         "ldc_resolution": o.ldc,
@@ -168,6 +195,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "compensation": o.compensation,
         "compensation_seconds": stats.compensation_time.as_secs_f64(),
         "irpls": c.irpls.irpls.len(),
+
         "exact_sources": c.irpls.exact,
         "paths": c.irpls.paths,
         "layers": ldc.layer_count(),
@@ -192,12 +220,26 @@ pub fn run(o: &Options) -> Result<(), String> {
         "width": o.view.width,
         "height": o.view.height,
     });
+    // The build's error target and its own estimate (ibrr_ldc::estimate).
+    let target = serde_json::json!({
+        "target_error": o.target_error,
+        "irpl_budget": c.settings.budget(),
+        "time_budget_seconds": o.time_budget,
+        "rounds": c.round() + 1,
+        "stopped_by": stop,
+        "error_estimate": estimate.map(|e| e.worst()),
+        "error_estimate_rgb": estimate.map(|e| e.relative),
+        "error_estimate_batches": estimate.map(|e| e.batches),
+        "error_estimate_probes": estimate.map(|e| e.probes),
+    });
+    if let (Some(all), Some(more)) = (summary.as_object_mut(), target.as_object()) {
+        all.extend(more.clone());
+    }
     let json = crate::write_summary(&o.out, &summary)?;
     eprintln!(
-        "{}: {} IRPLs ({} paths), {} layers, {:.1} MB ({sources} light sources), built in {build_s:.2} s; frame {frame_ms:.2} ms, {:.2} ms after a light change (relight {:.2} ms), {} pixels without a layer",
+        "{}: {}, {} layers, {:.1} MB ({sources} light sources), built in {build_s:.2} s; frame {frame_ms:.2} ms, {:.2} ms after a light change (relight {:.2} ms), {} pixels without a layer",
         scene.name,
-        c.irpls.irpls.len(),
-        c.irpls.paths,
+        c.describe(),
         ldc.layer_count(),
         ldc.bytes() as f64 / 1e6,
         ms(after_change),

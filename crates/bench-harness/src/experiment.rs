@@ -714,6 +714,7 @@ impl Experiment {
                 clock: clock.map(|c| c.describe().to_string()),
                 harness,
                 errors: Vec::new(),
+                stated_error: t.technique.stated_error(),
             });
             images.push(img);
         }

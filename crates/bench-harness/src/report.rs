@@ -186,19 +186,33 @@ pub fn surface_section(o: &mut String, r: &Results) {
          / B over those pixels ((sum test - sum reference) / sum reference: -10% is 10% \
          dark).\n"
     );
+    let stated = r.summary.surface.iter().any(|x| x.stated_error.is_some());
+    if stated {
+        let _ = writeln!(
+            o,
+            "Stated error: the method's own estimate of its lit-surface error on the scene, \
+             made from its precomputation alone (the half-width of a 95% interval of the \
+             lit-surface mean, largest channel; the IBRR's batches of particle paths), to \
+             hold against the bias beside it.\n"
+        );
+    }
+    let mut headers = vec![
+        "technique",
+        "scene",
+        "bounces",
+        "views",
+        "surface error",
+        "image error",
+        "surface bias",
+    ];
+    if stated {
+        headers.push("stated error");
+    }
     table(
         o,
-        &[
-            "technique",
-            "scene",
-            "bounces",
-            "views",
-            "surface error",
-            "image error",
-            "surface bias",
-        ],
+        &headers,
         r.summary.surface.iter().map(|x| {
-            vec![
+            let mut row = vec![
                 x.technique.clone(),
                 x.scene.clone(),
                 x.bounces.clone(),
@@ -206,7 +220,15 @@ pub fn surface_section(o: &mut String, r: &Results) {
                 fmt_err(x.mean_error),
                 fmt_err(x.image_error),
                 fmt_bias(x.bias),
-            ]
+            ];
+            if stated {
+                row.push(
+                    x.stated_error
+                        .map(|e| format!("{:.1}%", 100.0 * e))
+                        .unwrap_or_else(|| "-".into()),
+                );
+            }
+            row
         }),
     );
 }

@@ -286,6 +286,10 @@ pub struct TechniqueResult {
     pub harness: Option<Timing>,
     /// Errors per reference bounce limit.
     pub errors: Vec<ErrorSet>,
+    /// The technique's own estimate of its lit-surface error for the view's scene
+    /// ([`scene_core::Technique::stated_error`]); `None` for methods that state none.
+    #[serde(default)]
+    pub stated_error: Option<f64>,
 }
 
 /// A reference image of one view.
@@ -353,6 +357,9 @@ impl ViewResult {
         for t in &self.techniques {
             let l = &t.label;
             non_negative(|| format!("{l}: precomputation seconds"), t.prepare_s)?;
+            if let Some(e) = t.stated_error {
+                non_negative(|| format!("{l}: stated error"), e)?;
+            }
             let f = &t.frame;
             for (kind, f) in std::iter::once(("frame", f))
                 .chain(t.still.iter().map(|s| ("still", s)))
@@ -586,6 +593,11 @@ pub struct SurfaceRow {
     pub image_error: f64,
     /// Mean over views of the per-channel bias on lit surfaces.
     pub bias: [f64; 3],
+    /// The technique's own estimate of its lit-surface error on the scene
+    /// ([`TechniqueResult::stated_error`], the scene's first view); `None` when it states
+    /// none.
+    #[serde(default)]
+    pub stated_error: Option<f64>,
 }
 
 /// A technique's place in the run's ranking.
@@ -1126,6 +1138,10 @@ pub fn summarize(
                     )
                     .unwrap_or(0.0),
                     bias,
+                    stated_error: views
+                        .iter()
+                        .filter(|v| v.scene == sc)
+                        .find_map(|v| v.technique(&t.label)?.stated_error),
                 });
             }
         }

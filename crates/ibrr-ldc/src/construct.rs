@@ -23,6 +23,7 @@ use scene_core::view::{FrustumReconstruction, Projection, pixel_uv};
 use scene_core::{GBuffer, GBufferRenderer, LightState, Scene, View, ViewTarget, luminance};
 
 use crate::error::IbrrError;
+use crate::estimate::{BatchSums, ErrorEstimate, Probes, Stop};
 use crate::irpl::{Irpl, IrplKind, IrplSet, WalkSettings, generate};
 use crate::ldc::{Channel, Combine, Ldc, LdcBuilder, LdcFrame, axes_of};
 use crate::settings::{IbrrSettings, Splat};
@@ -116,6 +117,24 @@ pub struct Construction {
     stats: ConstructionStats,
     /// The exact mode's gather on the GPU, when asked for ([`Construction::gather_on_gpu`]).
     gpu: Option<crate::gpu::GpuGather>,
+    /// Where the build's error estimate looks (made once the first round's layers are
+    /// founded; the exact mode only).
+    probes: Option<Probes>,
+    /// The probes' light per batch of paths.
+    sums: BatchSums,
+    /// When the construction started (the time budget counts from here).
+    started: Instant,
+    /// Why the last [`Construction::build`] stopped adding rounds.
+    stopped: Option<Stop>,
+}
+
+/// What [`Construction::plan`] says comes after a finished round.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Plan {
+    /// Another round of this many paths.
+    More(u64),
+    /// No further round, and why.
+    Stop(Stop),
 }
 
 impl Construction {
@@ -148,6 +167,7 @@ impl Construction {
         let mut c = Self::with_irpls(scene, irpls, settings)?;
         c.lights = lights.clone();
         c.stats.walk_time = walk_time;
+        c.started = t;
         Ok(c)
     }
 
@@ -205,6 +225,10 @@ impl Construction {
             rounds: 0,
             last_complete: None,
             gpu: None,
+            probes: None,
+            sums: BatchSums::default(),
+            started: Instant::now(),
+            stopped: None,
         })
     }
 
@@ -245,6 +269,12 @@ impl Construction {
     /// float summation order. Until the round is done, [`Construction::ldc`] shows the
     /// last complete one. Returns the number of IRPLs added.
     pub fn extend(&mut self, more_paths: u64) -> Result<usize, IbrrError> {
+        self.extend_keeping(more_paths, true)
+    }
+
+    /// [`Construction::extend`], keeping the last complete LDC for viewing during the
+    /// round only when `keep_last` ([`Construction::build`] shows nothing meanwhile).
+    fn extend_keeping(&mut self, more_paths: u64, keep_last: bool) -> Result<usize, IbrrError> {
         if !self.is_done() {
             return Err(IbrrError::Settings(
                 "extend: the construction's current round is not finished".into(),
@@ -253,8 +283,12 @@ impl Construction {
         if more_paths == 0 || self.irpls.paths == 0 {
             return Ok(0);
         }
-        let last = self.ldc()?;
-        self.last_complete = Some(last);
+        self.stopped = None;
+        if keep_last {
+            let last = self.ldc()?;
+            self.last_complete = Some(last);
+        }
+        let t = Instant::now();
         let rays = RayScene::build(&self.scene);
         let s = &self.settings;
         let before = self.irpls.irpls.len();
@@ -272,6 +306,7 @@ impl Construction {
             &mut self.irpls,
             more_paths,
         );
+        self.stats.walk_time += t.elapsed();
         let added = self.irpls.irpls.len() - before;
         let exact = self.settings.splat == Splat::Exact;
         self.founding_order
@@ -286,6 +321,119 @@ impl Construction {
         self.stats.irpls_total = self.irpls.irpls.len();
         self.rounds += 1;
         Ok(added)
+    }
+
+    /// The build's estimate of its own error on lit surfaces ([`crate::estimate`]), once
+    /// every IRPL is warped; `None` before, for the paper's kernels (the exact mode only),
+    /// and when the probes see no light or fewer than two batches hold paths.
+    pub fn error_estimate(&self) -> Option<ErrorEstimate> {
+        let probes = self.probes.as_ref()?;
+        if !self.is_done() {
+            return None;
+        }
+        self.sums.estimate(self.irpls.paths, probes.points)
+    }
+
+    /// Why the last [`Construction::build`] (or progressive refinement) stopped adding
+    /// rounds (`None` before it ends).
+    pub fn stopped(&self) -> Option<Stop> {
+        self.stopped
+    }
+
+    /// The build in a line, for logs and panels: IRPLs, paths and rounds, the stated
+    /// error ([`Construction::error_estimate`]) and what ended the build.
+    pub fn describe(&self) -> String {
+        let stated = match self.error_estimate() {
+            Some(e) => format!(
+                "stated error {:.1} % (95 %, largest channel)",
+                100.0 * e.worst()
+            ),
+            None => "no error estimate".into(),
+        };
+        format!(
+            "{} IRPLs ({} paths, {} rounds), {stated}, stopped by {}",
+            self.irpls.irpls.len(),
+            self.irpls.paths,
+            self.rounds + 1,
+            self.stopped.map_or("-", Stop::name)
+        )
+    }
+
+    /// Records why refinement stopped adding rounds, once a finished round plans none
+    /// ([`Construction::plan`]; progressive refinement with its own IRPL count: that
+    /// count).
+    pub(crate) fn mark_stopped(&mut self) {
+        if self.stopped.is_none() && self.is_done() {
+            self.stopped = Some(match self.plan() {
+                Plan::Stop(s) => s,
+                Plan::More(_) => Stop::Count,
+            });
+        }
+    }
+
+    /// What comes after a finished round under [`IbrrSettings::target_error`]: another
+    /// round of paths, enough by the estimate's `1 / sqrt(paths)` fall to meet the target
+    /// (at least 1.5 and at most 4 times the paths so far, within the IRPL budget), or
+    /// the reason to stop.
+    pub fn plan(&self) -> Plan {
+        let s = &self.settings;
+        if s.target_error <= 0.0 {
+            return Plan::Stop(Stop::Count);
+        }
+        let paths = self.irpls.paths;
+        let Some(e) = self.error_estimate() else {
+            return Plan::Stop(Stop::NoEstimate);
+        };
+        let (worst, target) = (e.worst(), f64::from(s.target_error));
+        if worst <= target {
+            return Plan::Stop(Stop::Target);
+        }
+        if s.time_budget > 0.0 && self.started.elapsed().as_secs_f64() >= f64::from(s.time_budget) {
+            return Plan::Stop(Stop::TimeBudget);
+        }
+        let exact = self.irpls.exact as f64;
+        let per_path = (self.irpls.irpls.len() as f64 - exact) / paths.max(1) as f64;
+        let room = f64::from(s.budget()) - self.irpls.irpls.len() as f64;
+        let most = (room / per_path.max(1e-9)).floor();
+        // A round smaller than a quarter of the paths so far costs a catch-up over every
+        // earlier IRPL for little.
+        if most < 0.25 * paths as f64 {
+            return Plan::Stop(Stop::IrplBudget);
+        }
+        let n = paths as f64;
+        let wanted = n * (worst / target).powi(2) * 1.1;
+        let total = wanted.clamp(1.5 * n, 4.0 * n);
+        Plan::More(((total - n).ceil()).min(most).max(1.0) as u64)
+    }
+
+    /// Warps every IRPL through `renderer` (prepared with [`Construction::prepare_renderer`]),
+    /// then adds rounds while [`Construction::plan`] asks for them, reporting `(steps done,
+    /// steps total)` to `progress` (the total grows with each round). Returns why it
+    /// stopped ([`Construction::stopped`]).
+    pub fn build(
+        &mut self,
+        renderer: &mut dyn GBufferRenderer,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<Stop, IbrrError> {
+        loop {
+            while !self.is_done() {
+                self.step(renderer, 16)?;
+                let (done, total) = self.progress();
+                progress(done, total);
+            }
+            match self.plan() {
+                Plan::More(paths) => {
+                    if self.extend_keeping(paths, false)? == 0 {
+                        self.stopped = Some(Stop::NoEstimate);
+                        return Ok(Stop::NoEstimate);
+                    }
+                }
+                Plan::Stop(stop) => {
+                    self.stopped = Some(stop);
+                    return Ok(stop);
+                }
+            }
+        }
     }
 
     /// Rounds added by [`Construction::extend`] (0: the first round only).
@@ -351,6 +499,13 @@ impl Construction {
         count: usize,
     ) -> Result<usize, IbrrError> {
         self.advance();
+        if self.probes.is_none()
+            && !self.founding
+            && self.round_start == 0
+            && self.settings.splat == Splat::Exact
+        {
+            self.probes = Some(Probes::new(&self.scene, &self.builder, renderer)?);
+        }
         let pass_end = if self.catch_up {
             self.round_start
         } else {
@@ -755,6 +910,12 @@ impl Construction {
             .iter()
             .position(|&id| id == irpl.light)
             .unwrap_or(0);
+        if !self.catch_up
+            && let Some(probes) = &self.probes
+        {
+            let path = irpl.is_path_node().then_some(irpl.path);
+            self.sums.add(path, probes.read(&self.builder));
+        }
         self.builder.finish(channel, source);
         Ok(())
     }

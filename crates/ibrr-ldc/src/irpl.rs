@@ -486,8 +486,14 @@ impl Walker<'_> {
         let (scene, lights, emitters) = (self.scene, self.lights, self.emitters);
         let (starts, weights, cdf, total) = (self.starts, self.weights, self.cdf, self.total);
         let (lift, centre, radius) = (self.lift, self.centre, self.radius);
+        // Path `path` is walk `path / BATCHES` of batch `path % BATCHES`, whose sequences
+        // are scrambled by the batch's own seed: the batches are independent replicates of
+        // one randomised quasi-Monte Carlo estimate (the build's error estimate,
+        // `crate::estimate`, compares them).
+        let (batch, index) = (batch_of(path as u32) as u64, path / BATCHES as u64);
+        let seed_value = batch_seed(seed_value, batch);
         let seed = Some(seed_value);
-        let u0 = f64::from(halton(path, 0, seed));
+        let u0 = f64::from(halton(index, 0, seed));
         let k = cdf.partition_point(|&c| c <= u0).min(starts.len() - 1);
         let pick = weights[k] / total;
         if pick <= 0.0 {
@@ -495,9 +501,9 @@ impl Walker<'_> {
         }
         let (start, power, id) = starts[k];
         let power = power / pick as f32;
-        let (u1, u2) = (halton(path, 1, seed), halton(path, 2, seed));
-        let (u3, u4) = (halton(path, 3, seed), halton(path, 4, seed));
-        let mut rng = Rng::new(seed_value, path);
+        let (u1, u2) = (halton(index, 1, seed), halton(index, 2, seed));
+        let (u3, u4) = (halton(index, 3, seed), halton(index, 4, seed));
+        let mut rng = Rng::new(seed_value, index);
         let path_id = path as u32;
         // A particle travelling along `dir` from afar starts on the disk across the
         // scene's bounding sphere, `2 radius` before its centre.
@@ -535,7 +541,7 @@ impl Walker<'_> {
                 let Some(light) = sky.lights().get(region as usize) else {
                     return;
                 };
-                let u = Vec3::new(u3, u4, halton(path, 5, seed));
+                let u = Vec3::new(u3, u4, halton(index, 5, seed));
                 let Some((towards_sky, weight)) = sky.sample_light(region as usize, u) else {
                     return;
                 };
@@ -633,11 +639,11 @@ impl Walker<'_> {
             // out the hemisphere, in the proportions asked, instead of by chance.
             let q = s.albedo.max_element().min(1.0);
             let at_depth = |k: u64| hash_seed(seed_value, k, u64::from(depth));
-            if q <= 0.0 || sobol_1d(path as u32, at_depth(0x5a)) >= q {
+            if q <= 0.0 || sobol_1d(index as u32, at_depth(0x5a)) >= q {
                 break;
             }
             carried = reflected / q;
-            let nd = cosine_hemisphere(s.ns, sobol_2d(path as u32, at_depth(0xd1)));
+            let nd = cosine_hemisphere(s.ns, sobol_2d(index as u32, at_depth(0xd1)));
             if nd.dot(s.ng) <= 0.0 {
                 break;
             }
@@ -646,6 +652,30 @@ impl Walker<'_> {
             t_min = 0.0;
         }
     }
+}
+
+/// Independent batches the paths are dealt into, round robin: path `p` belongs to batch
+/// `p % BATCHES` ([`batch_of`]), each batch walking its own scrambled sequences
+/// ([`batch_seed`]). The build's error estimate ([`crate::estimate`]) is the spread of the
+/// batches' estimates.
+pub const BATCHES: u32 = 16;
+
+/// The batch of path `path` ([`BATCHES`]).
+#[inline]
+pub fn batch_of(path: u32) -> usize {
+    (path % BATCHES) as usize
+}
+
+/// The seed of batch `batch`'s sequences under the build's `seed`.
+#[inline]
+fn batch_seed(seed: u64, batch: u64) -> u64 {
+    hash_seed(seed, 0xba7c_4e5, batch)
+}
+
+/// Paths of batch `batch` among the first `paths` paths.
+pub fn paths_in_batch(paths: u64, batch: usize) -> u64 {
+    let b = u64::from(BATCHES);
+    paths / b + u64::from((batch as u64) < paths % b)
 }
 
 /// A direction uniform within `cone`'s outer cone (about its axis) from `u` in [0, 1)^2:

@@ -310,6 +310,21 @@ impl LdcBuilder {
         self.layers.len()
     }
 
+    /// The layers being built that a point `p` with normal `n` reads with the bilinear
+    /// kernel ([`Ldc::layer_weights`]'s, on the builder's layer indices).
+    pub(crate) fn layer_weights(&self, p: Vec3, n: Vec3, out: &mut Vec<(usize, f32)>) {
+        bilinear_layers(&self.frame, p, n, out, |index| {
+            self.best_match(index, p, n).map(|l| l as usize)
+        });
+    }
+
+    /// The light the current IRPL gives layer `layer` (its splats combined, or its
+    /// gathered value), before [`LdcBuilder::finish`] adds it; `None` where it gave none.
+    pub(crate) fn current(&self, layer: usize) -> Option<Vec3> {
+        let l = self.layers.get(layer)?;
+        (l.stamp == self.stamp && l.scratch.w > 0.0).then(|| l.scratch.truncate() / l.scratch.w)
+    }
+
     /// Starts the splats of a new IRPL.
     pub fn begin(&mut self) {
         self.stamp = self.stamp.wrapping_add(1);
@@ -887,40 +902,55 @@ impl Ldc {
     /// Construction's compensation uses it (in `reconstruct.rs` until 2026-11-27); the
     /// reconstruction's bilinear lookup is the same kernel with visibility and fallback.
     pub(crate) fn layer_weights(&self, p: Vec3, n: Vec3, out: &mut Vec<(usize, f32)>) {
-        out.clear();
-        let frame = &self.frame;
-        let mut total = 0.0f32;
-        for (axis, w_axis) in axes_of(n, frame.band) {
-            if w_axis <= 0.0 {
+        bilinear_layers(&self.frame, p, n, out, |index| self.find(index, p, n));
+    }
+}
+
+/// The layers a point `p` with normal `n` reads with the bilinear kernel in every LDI its
+/// normal belongs to, with weights summing to 1 (empty when none matches), `find(pixel)`
+/// giving the matching layer of an LDI pixel: [`Ldc::layer_weights`], and the build's
+/// error probes on the layers being built ([`LdcBuilder::layer_weights`]).
+pub(crate) fn bilinear_layers(
+    frame: &LdcFrame,
+    p: Vec3,
+    n: Vec3,
+    out: &mut Vec<(usize, f32)>,
+    find: impl Fn(usize) -> Option<usize>,
+) {
+    out.clear();
+    let mut total = 0.0f32;
+    for (axis, w_axis) in axes_of(n, frame.band) {
+        if w_axis <= 0.0 {
+            continue;
+        }
+        let f = frame.pixel_coords(axis, p) - Vec2::splat(0.5);
+        let (i0, j0) = (f.x.floor() as i64, f.y.floor() as i64);
+        let t = f - Vec2::new(i0 as f32, j0 as f32);
+        for (i, j, w) in [
+            (i0, j0, (1.0 - t.x) * (1.0 - t.y)),
+            (i0 + 1, j0, t.x * (1.0 - t.y)),
+            (i0, j0 + 1, (1.0 - t.x) * t.y),
+            (i0 + 1, j0 + 1, t.x * t.y),
+        ] {
+            if w <= 0.0 {
                 continue;
             }
-            let f = frame.pixel_coords(axis, p) - Vec2::splat(0.5);
-            let (i0, j0) = (f.x.floor() as i64, f.y.floor() as i64);
-            let t = f - Vec2::new(i0 as f32, j0 as f32);
-            for (i, j, w) in [
-                (i0, j0, (1.0 - t.x) * (1.0 - t.y)),
-                (i0 + 1, j0, t.x * (1.0 - t.y)),
-                (i0, j0 + 1, (1.0 - t.x) * t.y),
-                (i0 + 1, j0 + 1, t.x * t.y),
-            ] {
-                if w <= 0.0 {
-                    continue;
-                }
-                if let Some(index) = frame.pixel_index(axis, i, j)
-                    && let Some(l) = self.find(index, p, n)
-                {
-                    out.push((l, w * w_axis));
-                    total += w * w_axis;
-                }
-            }
-        }
-        if total > 0.0 {
-            for (_, w) in out.iter_mut() {
-                *w /= total;
+            if let Some(index) = frame.pixel_index(axis, i, j)
+                && let Some(l) = find(index)
+            {
+                out.push((l, w * w_axis));
+                total += w * w_axis;
             }
         }
     }
+    if total > 0.0 {
+        for (_, w) in out.iter_mut() {
+            *w /= total;
+        }
+    }
+}
 
+impl Ldc {
     /// The layer of pixel `index` matching `(p, n)` best (smallest plane distance).
     #[inline]
     pub fn find(&self, index: usize, p: Vec3, n: Vec3) -> Option<usize> {

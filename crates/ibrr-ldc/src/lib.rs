@@ -26,6 +26,7 @@
 pub mod compensate;
 pub mod construct;
 pub mod error;
+pub mod estimate;
 pub mod gpu;
 pub mod gpu_frame;
 pub mod irpl;
@@ -36,6 +37,7 @@ pub mod technique;
 
 pub use construct::{Construction, ConstructionStats};
 pub use error::IbrrError;
+pub use estimate::{ErrorEstimate, Stop};
 pub use gpu::GpuLdc;
 pub use gpu_frame::IbrrFrame;
 pub use irpl::{Irpl, IrplKind, IrplSet};

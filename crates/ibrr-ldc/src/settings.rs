@@ -81,8 +81,25 @@ pub struct IbrrSettings {
     /// LDI resolution along each side of the bounding cube (paper: 128 to 512).
     pub resolution: u32,
     /// About this many IRPLs (paper: 184): exact sources, plus as many particle paths as a
-    /// pilot walk says give the rest on average.
+    /// pilot walk says give the rest on average. With [`IbrrSettings::target_error`], the
+    /// first round's count.
     pub irpls: u32,
+    /// The relative error on lit surfaces a build aims at (the half-width of the 95 %
+    /// confidence interval of the lit-surface mean radiance, largest channel, from the
+    /// build's own batches: [`crate::estimate`]). Construction adds rounds of paths until
+    /// its estimate is below this, or [`IbrrSettings::irpl_budget`] or
+    /// [`IbrrSettings::time_budget`] would be exceeded
+    /// ([`crate::Construction::stopped`] says which). 0: exactly the paths `irpls` asks
+    /// for, the paper's fixed count (its Table 1).
+    pub target_error: f32,
+    /// Most IRPLs a build aiming at [`IbrrSettings::target_error`] makes; 0 (the
+    /// default): twice `irpls`, which keeps a build within about twice the time of the
+    /// fixed count ([`IbrrSettings::budget`]).
+    pub irpl_budget: u32,
+    /// Seconds after which a build aiming at [`IbrrSettings::target_error`] adds no
+    /// further round (checked between rounds; 0: no limit). A build stopped by time
+    /// depends on the machine's speed; the IRPL budget does not.
+    pub time_budget: f32,
     /// Number of particle paths; `0` (the default): derived from `irpls` by a pilot walk.
     /// Fixing it keeps the same paths when the geometry is cut differently.
     pub paths: u32,
@@ -152,6 +169,9 @@ impl Default for IbrrSettings {
         Self {
             resolution: 256,
             irpls: 184,
+            target_error: 0.02,
+            irpl_budget: 0,
+            time_budget: 0.0,
             paths: 0,
             direct_hemicube: 0,
             indirect_hemicube: 0,
@@ -185,6 +205,24 @@ impl IbrrSettings {
         }
     }
 
+    /// The IRPL budget in effect ([`IbrrSettings::irpl_budget`], 0 read as twice
+    /// `irpls`).
+    pub fn budget(&self) -> u32 {
+        if self.irpl_budget == 0 {
+            self.irpls.saturating_mul(2)
+        } else {
+            self.irpl_budget
+        }
+    }
+
+    /// The paper's fixed IRPL count: these settings without an error target.
+    pub fn fixed_count(self) -> Self {
+        Self {
+            target_error: 0.0,
+            ..self
+        }
+    }
+
     /// The indirect hemicube resolution in effect.
     pub fn indirect_resolution(&self) -> u32 {
         if self.indirect_hemicube == 0 {
@@ -208,6 +246,24 @@ impl IbrrSettings {
                 "irpls must be in 1..=10^7 (none lights nothing) and paths at most 10^7, got {} \
                  and {}",
                 self.irpls, self.paths
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.target_error) {
+            return bad(format!(
+                "target_error must be in [0, 1] (0: the fixed IRPL count), got {}",
+                self.target_error
+            ));
+        }
+        if self.irpl_budget != 0 && !(self.irpls..=10_000_000).contains(&self.irpl_budget) {
+            return bad(format!(
+                "irpl_budget must be 0 (twice irpls) or in irpls..=10^7 ({}..=10^7), got {}",
+                self.irpls, self.irpl_budget
+            ));
+        }
+        if !(self.time_budget >= 0.0 && self.time_budget <= 1e6) {
+            return bad(format!(
+                "time_budget must be in [0, 10^6] seconds (0: none), got {}",
+                self.time_budget
             ));
         }
         if self.direct_resolution() > 8192 || self.indirect_resolution() > 8192 {

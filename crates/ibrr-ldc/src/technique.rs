@@ -39,7 +39,7 @@ use std::time::{Duration, Instant};
 
 use scene_core::{Error, FrameRequest, GBufferRenderer, Image, LightState, Scene, Technique};
 
-use crate::construct::Construction;
+use crate::construct::{Construction, Plan};
 use crate::error::IbrrError;
 use crate::gpu::GpuLdc;
 use crate::ldc::Ldc;
@@ -196,11 +196,7 @@ impl IbrrTechnique {
         }
         c.prepare_renderer(self.renderer.as_mut())?;
         if !self.progressive {
-            while !c.is_done() {
-                c.step(self.renderer.as_mut(), 16)?;
-                let (done, total) = c.progress();
-                progress(done, total);
-            }
+            c.build(self.renderer.as_mut(), progress)?;
         }
         self.ldc = Some(c.ldc()?);
         self.shown = c.lights.fingerprint();
@@ -240,20 +236,36 @@ impl IbrrTechnique {
     }
 }
 
-/// Whether progressive refinement adds another round: while the IRPLs still wanted are at
-/// least a quarter of those built (a smaller round would cost a catch-up over every IRPL
-/// for little) and the last round changed the LDC by more than `target` (0: no target).
-fn wants_more(
+/// The paths of the next round of progressive refinement, if one is wanted. With
+/// `max_irpls`: while the IRPLs still wanted are at least a quarter of those built (a
+/// smaller round would cost a catch-up over every IRPL for little) and the last round
+/// changed the LDC by more than `target` (0: no target), about the IRPLs still wanted.
+/// Without it: what the construction's error target plans ([`Construction::plan`]).
+fn next_round(
     progressive: bool,
     max_irpls: u32,
     target: f64,
     last_change: Option<f64>,
     c: &Construction,
-) -> bool {
+) -> Option<u64> {
+    if !progressive || !c.is_done() || c.irpls.paths == 0 {
+        return None;
+    }
+    if max_irpls == 0 {
+        return match c.plan() {
+            Plan::More(paths) => Some(paths),
+            Plan::Stop(_) => None,
+        };
+    }
     let n = c.irpls.irpls.len() as u64;
-    progressive
-        && 4 * u64::from(max_irpls) > 5 * n
-        && (target <= 0.0 || last_change.is_none_or(|x| x > target))
+    if 4 * u64::from(max_irpls) <= 5 * n || target > 0.0 && last_change.is_some_and(|x| x <= target)
+    {
+        return None;
+    }
+    // About the IRPLs still wanted, at most as many paths as there are.
+    let per_path = c.irpls.irpls.len().saturating_sub(c.irpls.exact) as f64 / c.irpls.paths as f64;
+    let wanted = u64::from(max_irpls) - n;
+    Some(((wanted as f64 / per_path.max(1e-9)).ceil() as u64).clamp(1, c.irpls.paths))
 }
 
 impl Technique for IbrrTechnique {
@@ -273,22 +285,14 @@ impl Technique for IbrrTechnique {
         let mut steps = 0;
         let (progressive, max_irpls) = (self.progressive, self.max_irpls);
         let (target, last_change) = (self.target_change, self.last_change);
-        let more_rounds =
-            |c: &Construction| wants_more(progressive, max_irpls, target, last_change, c);
         // At least one IRPL per call, then as many as the budget allows, up to the end of a
         // round; the next call starts another round while more IRPLs are wanted.
         let mut finished_round = false;
         while steps == 0 || start.elapsed() < budget {
             if c.is_done() {
-                if !more_rounds(c) || c.irpls.paths == 0 {
+                let Some(more) = next_round(progressive, max_irpls, target, last_change, c) else {
                     break;
-                }
-                // About the IRPLs still wanted, at most as many paths as there are.
-                let per_path =
-                    c.irpls.irpls.len().saturating_sub(c.irpls.exact) as f64 / c.irpls.paths as f64;
-                let wanted = u64::from(self.max_irpls) - c.irpls.irpls.len() as u64;
-                let more =
-                    ((wanted as f64 / per_path.max(1e-9)).ceil() as u64).clamp(1, c.irpls.paths);
+                };
                 if c.extend(more)? == 0 {
                     break;
                 }
@@ -317,16 +321,26 @@ impl Technique for IbrrTechnique {
             }
         }
         let (done, total) = c.progress();
-        let more = wants_more(progressive, max_irpls, target, self.last_change, c);
+        let more = next_round(progressive, max_irpls, target, self.last_change, c).is_some();
+        if c.is_done() && !more {
+            c.mark_stopped();
+        }
         Ok(scene_core::Refinement {
             done: c.is_done() && !more,
             steps,
             remaining: Some(if more && c.is_done() {
-                1.0 - c.irpls.irpls.len() as f64 / f64::from(self.max_irpls)
+                1.0 - c.irpls.irpls.len() as f64 / f64::from(self.max_irpls.max(1))
             } else {
                 (total - done) as f64 / total.max(1) as f64
             }),
         })
+    }
+
+    fn stated_error(&self) -> Option<f64> {
+        self.construction
+            .as_ref()
+            .and_then(|c| c.error_estimate())
+            .map(|e| e.worst())
     }
 
     fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error> {

@@ -25,6 +25,7 @@ fn bias_over_seeds(name: &str) -> ([f64; 3], [f64; 3]) {
     let per_seed: Vec<[f64; 3]> = (1..=SEEDS)
         .map(|seed| {
             let settings = IbrrSettings {
+                target_error: 0.0,
                 resolution: 64,
                 seed,
                 ..Default::default()

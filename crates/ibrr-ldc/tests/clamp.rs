@@ -82,6 +82,7 @@ fn the_clamp_with_local_compensation_lowers_hot_spots_and_keeps_the_energy_near_
         })
         .collect();
     let base = IbrrSettings {
+        target_error: 0.0,
         resolution: 128,
         clamp: 0.0,
         ..Default::default()
@@ -91,6 +92,7 @@ fn the_clamp_with_local_compensation_lowers_hot_spots_and_keeps_the_energy_near_
         common::ibrr_image(
             &scene,
             IbrrSettings {
+                target_error: 0.0,
                 clamp: 0.1,
                 compensation,
                 ..base

@@ -82,6 +82,7 @@ fn tessellating_16x_keeps_memory_and_picture() {
     // The same number of paths for both (a pilot's mean over other triangles can round
     // to one path more or less).
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 96,
         paths: 16,
         ..Default::default()
@@ -112,6 +113,7 @@ fn tessellating_16x_keeps_memory_and_picture() {
 fn the_same_ldc_whatever_the_thread_count() {
     let scene = Arc::new(builtin::scene("cornell").unwrap());
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 48,
         irpls: 16,
         ..Default::default()
@@ -133,6 +135,7 @@ fn the_same_ldc_whatever_the_thread_count() {
 fn progressive_construction_is_viewable_and_ends_where_a_full_build_does() {
     let scene = Arc::new(builtin::scene("cornell").unwrap());
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 48,
         irpls: 24,
         ..Default::default()
@@ -167,6 +170,7 @@ fn progressive_construction_is_viewable_and_ends_where_a_full_build_does() {
 fn a_new_light_state_is_shown_by_relighting_not_rebuilding() {
     let scene = Arc::new(builtin::scene("cornell").unwrap());
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 48,
         irpls: 24,
         ..Default::default()
@@ -255,6 +259,7 @@ fn irradiance_image(
 fn the_same_irpls_in_another_order_give_the_same_ldc() {
     let scene = Arc::new(builtin::scene("cornell-point").unwrap());
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 64,
         direct_hemicube: 64,
         indirect_hemicube: 32,
@@ -292,6 +297,7 @@ fn progressive_refinement_lowers_the_error_as_paths_complete() {
         scene_core::reference::Bounces::Unlimited,
     );
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 64,
         irpls: 360,
         // The clamp's compensation runs once the LDC is complete, so frames before the end
@@ -348,6 +354,7 @@ fn a_round_added_later_equals_asking_for_all_the_paths_at_once() {
     // summation order.
     let scene = Arc::new(builtin::scene("cornell-point").unwrap());
     let settings = |paths| IbrrSettings {
+        target_error: 0.0,
         resolution: 48,
         paths,
         ..Default::default()
@@ -414,6 +421,7 @@ fn progressive_refinement_goes_on_past_the_irpls_asked_and_keeps_converging() {
     );
     let mut t = IbrrTechnique::new(
         IbrrSettings {
+            target_error: 0.0,
             resolution: 64,
             irpls: 90,
             ..Default::default()
@@ -459,6 +467,7 @@ fn progressive_refinement_stops_at_its_target_change() {
     let scene = Arc::new(builtin::scene("cornell").unwrap());
     let mut t = IbrrTechnique::new(
         IbrrSettings {
+            target_error: 0.0,
             resolution: 48,
             irpls: 60,
             ..Default::default()

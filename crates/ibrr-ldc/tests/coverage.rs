@@ -59,6 +59,7 @@ fn every_surface_pixel_of_a_cluttered_room_finds_a_layer_and_the_bias_stays_with
     let mut biases = Vec::new();
     for seed in 1..=6u64 {
         let settings = IbrrSettings {
+            target_error: 0.0,
             seed,
             ..Default::default()
         };

@@ -33,6 +33,7 @@ fn the_error_falls_as_irpls_are_added() {
             let (mut errors, mut levels) = (Vec::new(), Vec::new());
             for seed in 1..=SEEDS {
                 let settings = IbrrSettings {
+                    target_error: 0.0,
                     resolution: 64,
                     irpls,
                     seed,

@@ -26,6 +26,7 @@ fn an_engine_gbuffer_in_reverse_z_gives_the_own_gbuffers_image() {
     };
     let scene = Arc::new(builtin::scene("cornell").unwrap());
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 48,
         irpls: 24,
         ..Default::default()
@@ -130,6 +131,7 @@ fn the_frame_contract_gives_the_reconstruction_and_creates_nothing_per_frame() {
     use scene_core::lights::{LightId, light_ids};
     let scene = Arc::new(builtin::scene("cornell").unwrap());
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 32,
         irpls: 16,
         ..Default::default()

@@ -43,6 +43,7 @@ fn the_furnace_converges_to_le_over_one_minus_rho_over_seeds() {
                 mean_of(
                     &scene,
                     IbrrSettings {
+                        target_error: 0.0,
                         resolution: 32,
                         irpls: 256,
                         max_depth,

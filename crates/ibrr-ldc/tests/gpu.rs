@@ -20,6 +20,7 @@ fn gpu_reconstruction_equals_the_cpu_one() {
         let scene = Arc::new(builtin::scene(name).unwrap());
         // A coarse LDC and few IRPLs, so that the fallback and missing pixels occur.
         let settings = IbrrSettings {
+            target_error: 0.0,
             resolution: 48,
             irpls: 24,
             ..Default::default()
@@ -91,6 +92,7 @@ fn the_technique_on_the_gpu_renders_what_it_renders_on_the_cpu() {
     };
     let scene = Arc::new(builtin::scene("cornell-point").unwrap());
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 48,
         irpls: 16,
         ..Default::default()
@@ -127,6 +129,7 @@ fn the_gpu_gather_builds_the_ldc_the_cpu_gather_builds() {
     for name in ["cornell-point", "primitives"] {
         let scene = Arc::new(builtin::scene(name).unwrap());
         let settings = IbrrSettings {
+            target_error: 0.0,
             resolution: 48,
             irpls: 12,
             clamp: 0.02,
@@ -190,6 +193,7 @@ fn steady_state_frames_create_no_gpu_objects() {
     );
     let scene = Arc::new(builtin::scene("cornell").unwrap());
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 32,
         irpls: 16,
         ..Default::default()

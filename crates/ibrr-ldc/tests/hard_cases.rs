@@ -15,6 +15,7 @@ use scene_core::{
 
 fn small() -> IbrrSettings {
     IbrrSettings {
+        target_error: 0.0,
         resolution: 64,
         irpls: 24,
         ..Default::default()

@@ -158,6 +158,7 @@ fn one_irpl_above_a_plane_gives_the_analytic_irradiance() {
     };
     for splat in [Splat::Exact, Splat::Nearest, Splat::Gaussian] {
         let settings = IbrrSettings {
+            target_error: 0.0,
             resolution: 128,
             direct_hemicube: 128,
             indirect_hemicube: 128,
@@ -266,6 +267,7 @@ fn the_memory_budget_fails_typed_before_allocating() {
     // Layers: a budget that holds the heads and a few layers fails on the next one.
     let scene = Arc::new(scene_core::builtin::scene("cornell").unwrap());
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 32,
         irpls: 4,
         max_bytes: 3 * 32 * 32 * 4 + 1000,
@@ -285,6 +287,7 @@ fn the_memory_budget_fails_typed_before_allocating() {
     // warp's samples) do not fit the default 2 GiB beside a small LDC: refused before any is
     // rendered.
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 64,
         irpls: 4,
         direct_hemicube: 4096,
@@ -310,22 +313,27 @@ fn the_memory_budget_fails_typed_before_allocating() {
 fn settings_out_of_range_are_named() {
     let bad = [
         IbrrSettings {
+            target_error: 0.0,
             resolution: 0,
             ..Default::default()
         },
         IbrrSettings {
+            target_error: 0.0,
             eps_distance_px: f32::NAN,
             ..Default::default()
         },
         IbrrSettings {
+            target_error: 0.0,
             eps_normal: 0.0,
             ..Default::default()
         },
         IbrrSettings {
+            target_error: 0.0,
             band: 1.0,
             ..Default::default()
         },
         IbrrSettings {
+            target_error: 0.0,
             max_splat_px: 0.0,
             ..Default::default()
         },
@@ -359,6 +367,7 @@ fn a_clamped_irpl_rescaled_keeps_its_power_and_loses_its_hot_spot() {
     };
     let integrate = |clamp: f32| {
         let settings = IbrrSettings {
+            target_error: 0.0,
             resolution: 256,
             direct_hemicube: 256,
             indirect_hemicube: 256,
@@ -473,6 +482,7 @@ fn a_sun_through_slats_finer_than_an_ldi_pixel_lights_the_share_they_let_through
     };
     // The sun's render at four times the LDC's resolution: a dozen samples an LDI pixel.
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 128,
         direct_hemicube: 512,
         ..Default::default()

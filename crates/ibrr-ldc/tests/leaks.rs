@@ -112,6 +112,7 @@ fn two_rooms(with_wall: bool) -> Scene {
 /// The lit and the far room's mean under `splat`.
 fn means(scene: &Arc<Scene>, splat: Splat) -> (f64, f64) {
     let settings = IbrrSettings {
+        target_error: 0.0,
         resolution: 128,
         irpls: 64,
         splat,

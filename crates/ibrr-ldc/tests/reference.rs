@@ -20,6 +20,7 @@ fn cornell_point_direct_light_matches_the_reference_at_bounce_zero() {
     for res in [48u32, 128] {
         // One IRPL: the point light's own cube, no paths.
         let settings = IbrrSettings {
+            target_error: 0.0,
             resolution: res,
             irpls: 1,
             ..Default::default()
@@ -48,6 +49,7 @@ fn unlimited_bounces_against_the_reference() {
         let mut out = Vec::new();
         for (res, irpls) in [(48u32, 32u32), (128, 184)] {
             let settings = IbrrSettings {
+                target_error: 0.0,
                 resolution: res,
                 irpls,
                 ..Default::default()

@@ -18,6 +18,7 @@ const H: u32 = 48;
 
 fn settings() -> IbrrSettings {
     IbrrSettings {
+        target_error: 0.0,
         resolution: 64,
         irpls: 48,
         ..Default::default()
@@ -129,6 +130,7 @@ fn relighting_the_corridor_equals_rebuilding_with_the_new_emissions() {
     // indirect light and follows the indirect multiplier, which scaling the IRPLs'
     // powers cannot reproduce when the two multipliers differ; below.)
     let settings = IbrrSettings {
+        target_error: 0.0,
         clamp: 0.0,
         ..settings()
     };
@@ -262,6 +264,7 @@ fn f16_relights_like_f32_at(bright: f32) {
     let frame = FrameRequest::from_camera(&scene.cameras[0], W, H, &state);
     let a = built(&scene, settings()).render(&frame).unwrap();
     let half = IbrrSettings {
+        target_error: 0.0,
         source_precision: SourcePrecision::F16,
         ..settings()
     };

@@ -105,6 +105,15 @@ pub trait Technique {
     /// [`Error::NotPrepared`] before [`Technique::prepare`].
     fn render(&mut self, frame: &FrameRequest<'_>) -> Result<Image, Error>;
 
+    /// The method's own estimate of its relative error on lit surfaces after
+    /// [`Technique::prepare`] (and any refinement): the half-width of a 95 % confidence
+    /// interval of the lit-surface mean radiance, largest channel, for methods whose
+    /// precomputation is a Monte Carlo estimate that can tell its own spread (the IBRR's
+    /// batches of particle paths). `None` (the default) for methods that state none.
+    fn stated_error(&self) -> Option<f64> {
+        None
+    }
+
     /// The method's own time for the last frame [`Technique::render`] made, measured on
     /// its device apart from the work a harness does around it (drawing the G-buffer,
     /// reading the image back): what an engine hosting the method pays. `None` (the

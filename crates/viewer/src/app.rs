@@ -508,6 +508,7 @@ impl App {
             match done {
                 Some(Ok((t, _lights))) => {
                     self.ibrr = None;
+                    self.info.ibrr_build = t.construction().map(|c| c.describe());
                     self.ibrr_status = Some(match gfx.renderer.set_ibrr(t) {
                         Ok(()) => JobStatus::Ready,
                         Err(e) => JobStatus::Failed(e),

@@ -94,6 +94,8 @@ pub struct PanelInfo {
     pub ibrr: Option<JobStatus>,
     /// True when the IBRR on the GPU was built for other light settings.
     pub ibrr_stale: bool,
+    /// The IBRR's build in a line: IRPLs spent, its stated error, what ended it.
+    pub ibrr_build: Option<String>,
     /// Reference samples per pixel and the last pass' seconds.
     pub reference: Option<(u32, f64)>,
     /// The error view's mean error (eq. 19) and the reference spp it was measured at.
@@ -282,6 +284,9 @@ pub fn panel(
             }
             if let Some(s) = &info.ibrr {
                 status_line(ui, "IBRR", s);
+            }
+            if let Some(b) = &info.ibrr_build {
+                ui.label(format!("IBRR: {b}"));
             }
             if info.ibrr_stale {
                 ui.colored_label(
