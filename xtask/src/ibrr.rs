@@ -81,9 +81,9 @@ pub fn check_numbers(o: &Options) -> Result<(), String> {
     crate::ranged("--irpls", o.irpls, 1..=100_000)?;
     crate::ranged("--clamp", o.clamp, 0.0..=1.0)?;
     crate::ranged("--target-error", o.target_error, 0.0..=1.0)?;
-    crate::ranged("--irpl-budget", o.irpl_budget, 1..=1_000_000)?;
+    crate::ranged("--irpl-budget", o.irpl_budget, 0..=1_000_000)?;
     crate::ranged("--time-budget", o.time_budget, 0.0..=1e6)?;
-    if o.target_error > 0.0 && o.irpl_budget < o.irpls {
+    if o.irpl_budget != 0 && o.irpl_budget < o.irpls {
         return Err(format!(
             "--irpl-budget ({}) must be at least --irpls ({})",
             o.irpl_budget, o.irpls

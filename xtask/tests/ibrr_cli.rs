@@ -42,6 +42,21 @@ fn ibrr_writes_the_view_and_the_summary() {
         (3 * 32 * 32 + 1) * 4 + (40 + 24) * layers
     );
     assert!(summary["irpls"].as_u64().unwrap() >= 1);
+    // The build states its own error and what ended its rounds: at the default target
+    // (2 %) a build of 12 IRPLs runs into its budget (twice that) first.
+    let stated = summary["error_estimate"].as_f64().unwrap();
+    let rgb: Vec<f64> = summary["error_estimate_rgb"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(rgb.iter().copied().fold(0.0, f64::max), stated);
+    assert!(stated > 0.02, "{stated}");
+    assert_eq!(summary["stopped_by"], "irpl budget");
+    assert_eq!(summary["irpl_budget"], 24);
+    assert!(summary["rounds"].as_u64().unwrap() >= 2);
+    assert!(summary["irpls"].as_u64().unwrap() <= 24 + 4);
     assert!(summary["construction_seconds"].as_f64().unwrap() > 0.0);
     assert!(summary["pixels_without_layer"].is_u64());
     // `served.exr` marks how each pixel found its light: its counts are the summary's.
@@ -69,6 +84,9 @@ fn ibrr_writes_the_view_and_the_summary() {
     let (direct_summary, direct) = run(&["--bounces", "0"]);
     assert_eq!(direct_summary["bounces"], 0);
     assert_eq!(direct_summary["irpls"], direct_summary["exact_sources"]);
+    // No paths: nothing to estimate from, and no round added.
+    assert!(direct_summary["error_estimate"].is_null());
+    assert_eq!(direct_summary["stopped_by"], "no estimate");
     assert!(summary["irpls"].as_u64() > direct_summary["irpls"].as_u64());
     let d = direct.mean();
     assert!(d.y > 0.0 && d.y < w.y, "direct {d}, all bounces {w}");
@@ -87,6 +105,18 @@ fn ibrr_refuses_bad_options_by_name() {
         (
             vec!["--irpls", "0"],
             "--irpls = 0 is outside its range [1, 100000]",
+        ),
+        (
+            vec!["--target-error", "2"],
+            "--target-error = 2.0 is outside its range [0.0, 1.0]",
+        ),
+        (
+            vec!["--irpls", "12", "--irpl-budget", "5"],
+            "--irpl-budget (5) must be at least --irpls (12)",
+        ),
+        (
+            vec!["--time-budget", "NaN"],
+            "--time-budget = NaN is outside its range",
         ),
         (
             vec!["--bounces", "2000"],
