@@ -193,9 +193,11 @@ pub fn surface_section(o: &mut String, r: &Results) {
             "Stated error: the method's own estimate of its lit-surface error on the scene, \
              made from its precomputation alone (the half-width of a 95% interval of the \
              lit-surface mean, largest channel; the IBRR's batches of particle paths), to \
-             hold against the bias beside it.\n"
+             hold against the bias beside it at the run's last bounce limit (the methods \
+             that state one carry every bounce).\n"
         );
     }
+    let last = r.settings.bounces.last();
     let mut headers = vec![
         "technique",
         "scene",
@@ -224,6 +226,7 @@ pub fn surface_section(o: &mut String, r: &Results) {
             if stated {
                 row.push(
                     x.stated_error
+                        .filter(|_| last == Some(&x.bounces))
                         .map(|e| format!("{:.1}%", 100.0 * e))
                         .unwrap_or_else(|| "-".into()),
                 );
