@@ -71,6 +71,11 @@ pub struct Options {
     /// surface point sees are kept one in eight, eight times as strong (unbiased).
     #[arg(long)]
     pub camera_importance: bool,
+    /// Start suns' and sky regions' particles where their light enters what the scene's
+    /// cameras see (a window, found by pilot rays); the rest fewer and stronger
+    /// (unbiased).
+    #[arg(long)]
+    pub entry_importance: bool,
 }
 
 /// Every number against its stated range (no file touched), run by `Command::check_numbers`
@@ -122,6 +127,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         direct_hemicube: o.direct_render,
         indirect_hemicube: o.indirect_render,
         camera_importance: o.camera_importance,
+        entry_importance: o.entry_importance,
         source_precision: if o.f16 {
             SourcePrecision::F16
         } else {
@@ -191,6 +197,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "seed": o.seed,
         "bounces": o.bounces,
         "camera_importance": o.camera_importance,
+        "entry_importance": o.entry_importance,
         "clamp": o.clamp,
         "compensation": o.compensation,
         "compensation_seconds": stats.compensation_time.as_secs_f64(),

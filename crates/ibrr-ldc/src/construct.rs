@@ -161,6 +161,7 @@ impl Construction {
                 max_depth: settings.max_depth,
                 paths: settings.paths,
                 camera_importance: settings.camera_importance,
+                entry_importance: settings.entry_importance,
             },
         );
         let walk_time = t.elapsed();
@@ -302,6 +303,7 @@ impl Construction {
                 max_depth: s.max_depth,
                 paths: 0,
                 camera_importance: s.camera_importance,
+                entry_importance: s.entry_importance,
             },
             &mut self.irpls,
             more_paths,
@@ -914,7 +916,7 @@ impl Construction {
             && let Some(probes) = &self.probes
         {
             let path = irpl.is_path_node().then_some(irpl.path);
-            self.sums.add(path, probes.read(&self.builder));
+            self.sums.add(path, &probes.read(&self.builder));
         }
         self.builder.finish(channel, source);
         Ok(())

@@ -190,6 +190,116 @@ pub struct WalkSettings {
     /// the light the cameras see, the estimate stays unbiased everywhere. No effect on a
     /// scene without cameras.
     pub camera_importance: bool,
+    /// Start the particles of suns and sky regions where their light enters what the
+    /// scene's cameras see ([`EntryImportance`]): more of them through a window, the rest
+    /// fewer and stronger (unbiased). No effect on a scene without cameras or without
+    /// directional light.
+    pub entry_importance: bool,
+}
+
+/// Where the particles of a directional light (a sun, a sky region) start on the disk
+/// across the scene's bounding sphere ([`WalkSettings::entry_importance`]; beyond the
+/// paper). A grid of [`EntryImportance::SIDE`]^2 cells over the unit square that maps onto
+/// the disk; from each cell's centre one pilot ray travels along the light, and the cell
+/// counts as an entry when the surface it first meets is seen by one of (up to
+/// [`EntryImportance::WITNESSES`]) points the scene's cameras see. A start is drawn from
+/// a mixture: with probability [`EntryImportance::ENTRY_SHARE`] uniformly over the entry
+/// cells, else uniformly over the whole disk (so every start stays possible, and the light
+/// arriving elsewhere is carried at most `1 / (1 - ENTRY_SHARE)` times stronger), its
+/// power divided by the density there: the estimate is unchanged while a room lit
+/// through its window gets half its particles through the window, however small the
+/// window is against the disk. The geometry finds the openings: nothing is marked.
+#[derive(Clone, Debug)]
+pub struct EntryImportance {
+    /// Cumulative weights over the cells (row-major), the last 1.
+    cdf: Vec<f64>,
+    /// Per cell, its density relative to a uniform start.
+    density: Vec<f32>,
+    /// Cells that are entries.
+    pub entries: usize,
+}
+
+impl EntryImportance {
+    /// Cells along each side of the grid.
+    pub const SIDE: u32 = 48;
+    /// The share of the particles drawn over the entry cells alone.
+    pub const ENTRY_SHARE: f64 = 0.5;
+    /// Most camera points a pilot's surface is tested against.
+    pub const WITNESSES: usize = 32;
+
+    /// The starts of light travelling along the unit `dir`, from the disk of `radius`
+    /// across `centre` (`disk`: a point of the unit square to the disk), seen from
+    /// `witnesses`; `None` when no cell is an entry (the uniform start).
+    fn new(
+        scene: &Scene,
+        rays: &RayScene,
+        witnesses: &CameraImportance,
+        dir: Vec3,
+        disk: &(dyn Fn(Vec2) -> Vec3 + Sync),
+        lift: f32,
+    ) -> Option<Self> {
+        use rayon::prelude::*;
+        let side = Self::SIDE;
+        let offsets = scene.mesh_offsets();
+        let entry: Vec<bool> = (0..side * side)
+            .into_par_iter()
+            .map(|c| {
+                let u = Vec2::new(
+                    ((c % side) as f32 + 0.5) / side as f32,
+                    ((c / side) as f32 + 0.5) / side as f32,
+                );
+                let o = disk(u);
+                rays.closest_hit(o, dir, 0.0, f32::INFINITY)
+                    .and_then(|hit| surface_at(scene, &offsets, &hit, o, dir))
+                    .is_some_and(|s| witnesses.sees(rays, s.p + s.ng * lift, s.ng))
+            })
+            .collect();
+        let entries = entry.iter().filter(|&&e| e).count();
+        if entries == 0 {
+            return None;
+        }
+        // Each cell's probability: the mixture of the entries alone and the whole disk.
+        let n = entry.len() as f64;
+        let share = Self::ENTRY_SHARE;
+        let w: Vec<f64> = entry
+            .iter()
+            .map(|&e| (1.0 - share) / n + if e { share / entries as f64 } else { 0.0 })
+            .collect();
+        let total: f64 = w.iter().sum();
+        let mut acc = 0.0;
+        let cdf = w
+            .iter()
+            .map(|x| {
+                acc += x / total;
+                acc
+            })
+            .collect();
+        let density = w.iter().map(|x| (x * n / total) as f32).collect();
+        Some(Self {
+            cdf,
+            density,
+            entries,
+        })
+    }
+
+    /// A point of the unit square drawn by the cells' weights from `u` in [0, 1)^2 (`u.x`
+    /// picks the cell and, rescaled, the column within it; `u.y` the row), and its density
+    /// relative to a uniform draw.
+    fn sample(&self, u: Vec2) -> (Vec2, f32) {
+        let side = Self::SIDE;
+        let x = f64::from(u.x);
+        let k = self
+            .cdf
+            .partition_point(|&c| c <= x)
+            .min(self.cdf.len() - 1);
+        let lo = if k == 0 { 0.0 } else { self.cdf[k - 1] };
+        let t = ((x - lo) / (self.cdf[k] - lo).max(f64::MIN_POSITIVE)).clamp(0.0, 1.0 - 1e-7);
+        let (i, j) = ((k as u32 % side) as f32, (k as u32 / side) as f32);
+        (
+            Vec2::new((i + t as f32) / side as f32, (j + u.y) / side as f32),
+            self.density[k],
+        )
+    }
 }
 
 /// Surface points the scene's cameras see, for [`WalkSettings::camera_importance`]: a
@@ -418,7 +528,43 @@ fn walks(
     let importance = (settings.camera_importance && !scene.cameras.is_empty())
         .then(|| CameraImportance::of(scene, rays))
         .filter(|i| !i.points.is_empty());
+    // Where each directional start's particles enter what the cameras see.
+    let on_disk = |dir: Vec3| {
+        let (t, b) = scene_core::view::orthonormal_basis(dir);
+        move |u: Vec2| {
+            let disk = scene_core::sampling::concentric_disk(u) * radius;
+            centre - dir * (2.0 * radius) + t * disk.x + b * disk.y
+        }
+    };
+    let witnesses = (settings.entry_importance && !scene.cameras.is_empty())
+        .then(|| {
+            let all = CameraImportance::of(scene, rays).points;
+            let step = all.len().div_ceil(EntryImportance::WITNESSES).max(1);
+            CameraImportance {
+                points: all.into_iter().step_by(step).collect(),
+            }
+        })
+        .filter(|w| !w.points.is_empty());
+    let entries: Vec<Option<EntryImportance>> = starts
+        .iter()
+        .map(|(start, _, _)| {
+            let w = witnesses.as_ref()?;
+            let dir = match *start {
+                Start::Directional { direction } => direction,
+                Start::SkyRegion { region } => scene
+                    .sky
+                    .as_ref()?
+                    .lights()
+                    .get(region as usize)?
+                    .direction
+                    .normalize_or_zero(),
+                _ => return None,
+            };
+            EntryImportance::new(scene, rays, w, dir, &on_disk(dir), lift)
+        })
+        .collect();
     let walker = Walker {
+        entries: &entries,
         importance: importance.as_ref(),
         scene,
         rays,
@@ -465,6 +611,8 @@ fn walks(
 
 /// Everything one particle walk needs.
 struct Walker<'a> {
+    /// Per start, where its particles enter ([`EntryImportance`]; `None`: uniform).
+    entries: &'a [Option<EntryImportance>],
     importance: Option<&'a CameraImportance>,
     scene: &'a Scene,
     rays: &'a RayScene,
@@ -514,11 +662,21 @@ impl Walker<'_> {
         let mut rng = Rng::new(seed_value, index);
         let path_id = path as u32;
         // A particle travelling along `dir` from afar starts on the disk across the
-        // scene's bounding sphere, `2 radius` before its centre.
+        // scene's bounding sphere, `2 radius` before its centre: uniformly, or where its
+        // light enters what the cameras see ([`EntryImportance`]), its power divided by
+        // the density there.
+        let entry = self.entries.get(k).and_then(Option::as_ref);
         let on_disk = |dir: Vec3| {
+            let (u, density) = match entry {
+                Some(e) => e.sample(Vec2::new(u1, u2)),
+                None => (Vec2::new(u1, u2), 1.0),
+            };
             let (t, b) = scene_core::view::orthonormal_basis(dir);
-            let disk = scene_core::sampling::concentric_disk(Vec2::new(u1, u2)) * radius;
-            centre - dir * (2.0 * radius) + t * disk.x + b * disk.y
+            let disk = scene_core::sampling::concentric_disk(u) * radius;
+            (
+                centre - dir * (2.0 * radius) + t * disk.x + b * disk.y,
+                1.0 / density,
+            )
         };
         // The particle: origin, direction, carried power (before reflection).
         let (mut o, mut d, mut carried) = match start {
@@ -537,7 +695,10 @@ impl Walker<'_> {
                     }
                 }
             }
-            Start::Directional { direction: dir } => (on_disk(dir), dir, power),
+            Start::Directional { direction: dir } => {
+                let (o, weight) = on_disk(dir);
+                (o, dir, power * weight)
+            }
             Start::SkyRegion { region } => {
                 // The region's light `int L dw` times the disk's area, drawn as a
                 // direction with weight `L dw / p` ([`Sky::sample_light`]): the particle
@@ -555,7 +716,8 @@ impl Walker<'_> {
                 };
                 let mean = light.irradiance;
                 let scale = Vec3::select(mean.cmpgt(Vec3::ZERO), weight / mean, Vec3::ZERO);
-                (on_disk(-towards_sky), -towards_sky, power * scale)
+                let (o, weight) = on_disk(-towards_sky);
+                (o, -towards_sky, power * scale * weight)
             }
             Start::Emitter { triangle } => {
                 let t = &emitters.triangles[triangle];

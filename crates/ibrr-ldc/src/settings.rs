@@ -136,6 +136,10 @@ pub struct IbrrSettings {
     /// Spend the IRPL budget on the light the scene's cameras see
     /// ([`crate::irpl::WalkSettings::camera_importance`]); off: every surface alike.
     pub camera_importance: bool,
+    /// Start suns' and sky regions' particles where their light enters what the scene's
+    /// cameras see ([`crate::irpl::EntryImportance`]; unbiased; no effect without cameras
+    /// or directional light).
+    pub entry_importance: bool,
     /// Memory budget of the LDC in bytes (construction fails with a typed error before
     /// exceeding it).
     pub max_bytes: u64,
@@ -186,6 +190,7 @@ impl Default for IbrrSettings {
             seed: 1,
             max_depth: 32,
             camera_importance: false,
+            entry_importance: false,
             max_bytes: 2 << 30,
             source_precision: crate::ldc::SourcePrecision::F32,
             compensation: Compensation::Local,

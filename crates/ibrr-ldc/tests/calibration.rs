@@ -89,7 +89,10 @@ fn the_stated_error_holds_the_measured_error_in_nine_builds_of_ten() {
         // of 16 weighs in the estimate as the heavy tail it is).
         let (stated, rms) = (stated_sum / 16.0 / 2.131, (measured_sq / 16.0).sqrt());
         println!("{name}: mean stated standard error {stated:.4}, RMS measured error {rms:.4}");
-        assert!(stated <= 2.5 * rms, "{name}: stated {stated:.4} against {rms:.4}");
+        assert!(
+            stated <= 2.5 * rms,
+            "{name}: stated {stated:.4} against {rms:.4}"
+        );
     }
     println!("within the stated error: {within} of {total}");
     assert!(
@@ -112,6 +115,9 @@ fn a_build_that_meets_its_target_is_within_it() {
         assert_eq!(stop, Some(Stop::Target), "seed {seed}");
         assert!(irpls > 184, "seed {seed}: the first round alone met 8 %");
         assert!(e.worst() <= 0.08, "seed {seed}: estimate {}", e.worst());
-        assert!(worst(measured) <= 0.08, "seed {seed}: measured {measured:?}");
+        assert!(
+            worst(measured) <= 0.08,
+            "seed {seed}: measured {measured:?}"
+        );
     }
 }

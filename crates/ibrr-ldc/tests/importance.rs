@@ -121,6 +121,7 @@ fn over_seeds(
     rays: &RayScene,
     points: &[(Vec3, Vec3)],
     importance: bool,
+    entry: bool,
     seeds: u64,
 ) -> (f64, f64, f64) {
     let r = 0.3f32;
@@ -138,6 +139,7 @@ fn over_seeds(
                     max_depth: 32,
                     paths: 0,
                     camera_importance: importance,
+                    entry_importance: entry,
                 },
             );
             let mut sum = 0.0f64;
@@ -180,8 +182,8 @@ fn camera_importance_keeps_the_estimate_and_lowers_its_spread_over_seeds() {
         ("the camera's points", &seen),
         ("the ground outside", &outside),
     ] {
-        let (plain, plain_sd, plain_n) = over_seeds(&scene, &rays, points, false, SEEDS);
-        let (imp, imp_sd, imp_n) = over_seeds(&scene, &rays, points, true, SEEDS);
+        let (plain, plain_sd, plain_n) = over_seeds(&scene, &rays, points, false, false, SEEDS);
+        let (imp, imp_sd, imp_n) = over_seeds(&scene, &rays, points, true, false, SEEDS);
         println!(
             "indirect light at {name} over {SEEDS} seeds (about 64 IRPLs): every surface alike {plain:.5} (sd {plain_sd:.5}, {plain_n:.0} IRPLs), camera importance {imp:.5} (sd {imp_sd:.5}, {imp_n:.0} IRPLs)"
         );
@@ -198,6 +200,47 @@ fn camera_importance_keeps_the_estimate_and_lowers_its_spread_over_seeds() {
         // Where the camera looks, the budget spent inside: a smaller spread.
         if name.starts_with("the camera") {
             assert!(imp_sd < 0.75 * plain_sd, "sd {imp_sd} against {plain_sd}");
+        }
+    }
+}
+
+/// Entry importance (`WalkSettings::entry_importance`): the sun's particles start where
+/// its light enters what the camera sees (the window, found by pilot rays), the rest fewer
+/// and stronger. At the camera's points and on the ground outside, the IRPLs' light keeps
+/// its mean over seeds (within three standard errors of the difference), and where the
+/// camera looks its spread falls below half the uniform starts'.
+#[test]
+fn entry_importance_keeps_the_estimate_and_lowers_its_spread_over_seeds() {
+    let scene = room_on_a_ground();
+    let rays = RayScene::build(&scene);
+    const SEEDS: u64 = 96;
+    let seen = CameraImportance::of(&scene, &rays).points;
+    let outside: Vec<(Vec3, Vec3)> = (0..400)
+        .map(|k| {
+            let (x, z) = ((k % 20) as f32 * 0.5 - 4.75, (k / 20) as f32 * 0.5 - 4.75);
+            (Vec3::new(x, -0.1, z), Vec3::Y)
+        })
+        .filter(|(p, _)| p.x.abs() > 1.2 || p.z.abs() > 1.2)
+        .collect();
+    for (name, points) in [
+        ("the camera's points", &seen),
+        ("the ground outside", &outside),
+    ] {
+        let (plain, plain_sd, _) = over_seeds(&scene, &rays, points, false, false, SEEDS);
+        let (entry, entry_sd, _) = over_seeds(&scene, &rays, points, false, true, SEEDS);
+        println!(
+            "indirect light at {name} over {SEEDS} seeds (about 64 IRPLs): uniform starts {plain:.5} (sd {plain_sd:.5}), entry importance {entry:.5} (sd {entry_sd:.5})"
+        );
+        let se = ((plain_sd.powi(2) + entry_sd.powi(2)) / SEEDS as f64).sqrt();
+        assert!(
+            (entry - plain).abs() < 3.0 * se,
+            "{name}: {entry} against {plain} (se {se})"
+        );
+        if name.starts_with("the camera") {
+            assert!(
+                entry_sd < 0.5 * plain_sd,
+                "sd {entry_sd} against {plain_sd}"
+            );
         }
     }
 }
@@ -257,6 +300,7 @@ fn the_walks_carry_each_bounce_of_the_window_rooms_light() {
                     max_depth: 3,
                     paths: 0,
                     camera_importance: false,
+                    entry_importance: false,
                 },
             );
             let mut sums = [0.0f64; 3];

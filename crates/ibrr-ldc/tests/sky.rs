@@ -119,6 +119,7 @@ fn walked_power_under_the_hole(scene: &Scene, seeds: u64) -> (f64, f64) {
                     max_depth: 1,
                     paths: 100_000,
                     camera_importance: false,
+                    entry_importance: false,
                 },
             );
             let under: f64 = set
