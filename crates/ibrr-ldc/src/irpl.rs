@@ -826,7 +826,7 @@ impl Walker<'_> {
 
 /// Independent batches the paths are dealt into, round robin: path `p` belongs to batch
 /// `p % BATCHES` ([`batch_of`]), each batch walking its own scrambled sequences
-/// ([`batch_seed`]). The build's error estimate ([`crate::estimate`]) is the spread of the
+/// (`batch_seed`). The build's error estimate ([`crate::estimate`]) is the spread of the
 /// batches' estimates.
 pub const BATCHES: u32 = 16;
 
@@ -839,7 +839,7 @@ pub fn batch_of(path: u32) -> usize {
 /// The seed of batch `batch`'s sequences under the build's `seed`.
 #[inline]
 fn batch_seed(seed: u64, batch: u64) -> u64 {
-    hash_seed(seed, 0xba7c_4e5, batch)
+    hash_seed(seed, 0x0ba7_c4e5, batch)
 }
 
 /// Paths of batch `batch` among the first `paths` paths.
