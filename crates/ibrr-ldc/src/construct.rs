@@ -916,7 +916,7 @@ impl Construction {
             && let Some(probes) = &self.probes
         {
             let path = irpl.is_path_node().then_some(irpl.path);
-            self.sums.add(path, &probes.read(&self.builder));
+            self.sums.add(path, probes.read(&self.builder));
         }
         self.builder.finish(channel, source);
         Ok(())

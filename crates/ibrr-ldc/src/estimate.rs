@@ -7,13 +7,12 @@
 //! mean. Probes are the points the scene's cameras see on reflecting surfaces (a grid of
 //! [`PROBE_COLUMNS`] columns per camera; every layer alike in a scene without cameras),
 //! each read through the layers it looks up with the bilinear kernel. While the LDC is
-//! lit, each IRPL's light on those layers is summed per camera and batch (exact sources
-//! apart: they are the same in every batch), weighted by the probes' albedo: each batch's
-//! lit-surface mean radiance in each camera's view. The spread of the batch means gives the standard error of the build's
+//! lit, each IRPL's light on those layers is summed per batch (exact sources apart: they
+//! are the same in every batch), weighted by the probes' albedo: each batch's lit-surface
+//! mean radiance. The spread of the batch means gives the standard error of the build's
 //! mean (batch means, weighted by the batches' path counts), and the stated error is the
 //! half-width of its 95 % confidence interval (Student's t with one degree of freedom
-//! fewer than the batches), relative to the mean, per channel; a scene with several
-//! cameras states its worst camera's.
+//! fewer than the batches), relative to the mean, per channel.
 //!
 //! What it does not see: a bias that every batch shares (the clamp's compensation is
 //! computed after the walks and left out; the LDC's resolution, the lookup's fallback).
@@ -40,14 +39,13 @@ const T_975: [f64; 15] = [
     2.145, 2.131,
 ];
 
-/// Where the estimate looks: per view (each scene camera, or every layer in a scene
-/// without cameras), per layer (the builder's index), the weight of its light in the
-/// view's mean radiance (`albedo / pi` times the bilinear weight, over the view's probe
+/// Where the estimate looks: per layer (the builder's index), the weight of its light in
+/// the probes' mean radiance (`albedo / pi` times the bilinear weight, over the probe
 /// count).
 #[derive(Clone, Debug, Default)]
 pub struct Probes {
-    views: Vec<Vec<(u32, Vec3)>>,
-    /// Probe points (camera samples on reflecting surfaces, or layers), over every view.
+    layers: Vec<(u32, Vec3)>,
+    /// Probe points (camera samples on reflecting surfaces, or layers).
     pub points: usize,
 }
 
@@ -63,17 +61,15 @@ impl Probes {
         if scene.cameras.is_empty() {
             let n = builder.layer_count();
             return Ok(Self {
-                views: vec![(0..n as u32).map(|l| (l, Vec3::ONE / n as f32)).collect()],
+                layers: (0..n as u32).map(|l| (l, Vec3::ONE / n as f32)).collect(),
                 points: n,
             });
         }
         let offsets = scene.mesh_offsets();
-        let mut views = Vec::new();
-        let mut all = 0usize;
+        let mut weights: BTreeMap<u32, Vec3> = BTreeMap::new();
+        let mut points = 0usize;
         let mut around = Vec::new();
         for camera in &scene.cameras {
-            let mut weights: BTreeMap<u32, Vec3> = BTreeMap::new();
-            let mut points = 0usize;
             let view = View::from_camera(camera);
             let cols = PROBE_COLUMNS;
             let rows = ((cols as f32 / camera.aspect.max(1e-3)).round() as u32).clamp(1, 4 * cols);
@@ -108,45 +104,33 @@ impl Probes {
                         albedo * (w * std::f32::consts::FRAC_1_PI);
                 }
             }
-            if points > 0 {
-                let inv = 1.0 / points as f32;
-                views.push(weights.into_iter().map(|(l, w)| (l, w * inv)).collect());
-                all += points;
+        }
+        let inv = 1.0 / points.max(1) as f32;
+        Ok(Self {
+            layers: weights.into_iter().map(|(l, w)| (l, w * inv)).collect(),
+            points,
+        })
+    }
+
+    /// The probes' mean radiance from the current IRPL's light on the layers
+    /// ([`LdcBuilder::current`]).
+    pub(crate) fn read(&self, builder: &LdcBuilder) -> [f64; 3] {
+        let mut sum = [0.0f64; 3];
+        for &(l, w) in &self.layers {
+            if let Some(v) = builder.current(l as usize) {
+                let v = w * v;
+                for c in 0..3 {
+                    sum[c] += f64::from(v[c]);
+                }
             }
         }
-        Ok(Self { views, points: all })
-    }
-
-    /// Each view's mean radiance from the current IRPL's light on the layers
-    /// ([`LdcBuilder::current`]).
-    pub(crate) fn read(&self, builder: &LdcBuilder) -> Vec<[f64; 3]> {
-        self.views
-            .iter()
-            .map(|layers| {
-                let mut sum = [0.0f64; 3];
-                for &(l, w) in layers {
-                    if let Some(v) = builder.current(l as usize) {
-                        let v = w * v;
-                        for c in 0..3 {
-                            sum[c] += f64::from(v[c]);
-                        }
-                    }
-                }
-                sum
-            })
-            .collect()
+        sum
     }
 }
 
-/// Each view's probe light summed per batch while the LDC is lit.
+/// The probes' light summed per batch while the LDC is lit.
 #[derive(Clone, Debug, Default)]
 pub struct BatchSums {
-    views: Vec<ViewSums>,
-}
-
-/// One view's sums.
-#[derive(Clone, Debug, Default)]
-struct ViewSums {
     /// The exact sources' light (the same in every batch).
     exact: [f64; 3],
     /// Per batch, its paths' light (summed over the paths, not yet divided by them).
@@ -154,46 +138,26 @@ struct ViewSums {
 }
 
 impl BatchSums {
-    /// Adds an IRPL's light at each view's probes ([`Probes::read`]): an exact source's
-    /// (`path` `None`) or a path node's.
-    pub(crate) fn add(&mut self, path: Option<u32>, values: &[[f64; 3]]) {
-        if self.views.len() < values.len() {
-            self.views.resize(values.len(), ViewSums::default());
-        }
-        for (view, value) in self.views.iter_mut().zip(values) {
-            let slot = match path {
-                None => &mut view.exact,
-                Some(p) => {
-                    if view.batches.is_empty() {
-                        view.batches = vec![[0.0; 3]; BATCHES as usize];
-                    }
-                    &mut view.batches[batch_of(p)]
+    /// Adds an IRPL's light at the probes: an exact source's (`path` `None`) or a path
+    /// node's.
+    pub(crate) fn add(&mut self, path: Option<u32>, value: [f64; 3]) {
+        let slot = match path {
+            None => &mut self.exact,
+            Some(p) => {
+                if self.batches.is_empty() {
+                    self.batches = vec![[0.0; 3]; BATCHES as usize];
                 }
-            };
-            for c in 0..3 {
-                slot[c] += value[c];
+                &mut self.batches[batch_of(p)]
             }
+        };
+        for c in 0..3 {
+            slot[c] += value[c];
         }
     }
 
-    /// The estimate for a build of `paths` paths: the view whose largest channel is the
-    /// worst (a user looks through one camera, and a view's mean is noisier than all of
-    /// them pooled); `None` with fewer than two batches holding paths, or where no view's
-    /// probes receive light.
+    /// The estimate for a build of `paths` paths; `None` with fewer than two batches
+    /// holding paths, or where the probes receive no light.
     pub fn estimate(&self, paths: u64, probes: usize) -> Option<ErrorEstimate> {
-        self.views
-            .iter()
-            .filter_map(|v| v.estimate(paths, probes))
-            .max_by(|a, b| a.worst().total_cmp(&b.worst()))
-            .map(|e| ErrorEstimate {
-                views: self.views.len(),
-                ..e
-            })
-    }
-}
-
-impl ViewSums {
-    fn estimate(&self, paths: u64, probes: usize) -> Option<ErrorEstimate> {
         let used: Vec<(u64, [f64; 3])> = (0..BATCHES as usize)
             .map(|b| {
                 (
@@ -230,7 +194,6 @@ impl ViewSums {
                 batches: used.len() as u32,
                 paths,
                 probes,
-                views: 1,
             },
         )
     }
@@ -249,11 +212,8 @@ pub struct ErrorEstimate {
     pub batches: u32,
     /// Paths of the build.
     pub paths: u64,
-    /// Probe points, over every view.
+    /// Probe points.
     pub probes: usize,
-    /// Views probed (the scene's cameras; one without cameras). `mean` and `relative` are
-    /// the view whose largest channel is the worst.
-    pub views: usize,
 }
 
 impl ErrorEstimate {
