@@ -220,6 +220,16 @@ pub fn compared_methods() -> Vec<(&'static str, Box<dyn Technique>)> {
 /// [`compared_methods`] with the IBRR's builds (`ibrr`, `ibrr-cam`, `ibrr-gpu`) drawn from
 /// `seed`; the other methods are deterministic and the same whatever the seed.
 pub fn compared_methods_seeded(seed: u64) -> Vec<(&'static str, Box<dyn Technique>)> {
+    compared_methods_with(seed, false)
+}
+
+/// [`compared_methods_seeded`], the IBRR's suns' and skies' particles started where their
+/// light enters what the cameras see when `entry_importance` (its setting for rooms lit
+/// through a window).
+pub fn compared_methods_with(
+    seed: u64,
+    entry_importance: bool,
+) -> Vec<(&'static str, Box<dyn Technique>)> {
     let ctx = scene_core::testing::gpu_test_context();
     let ibrr = || {
         ibrr_ldc::IbrrTechnique::new(
@@ -228,6 +238,7 @@ pub fn compared_methods_seeded(seed: u64) -> Vec<(&'static str, Box<dyn Techniqu
                 resolution: 64,
                 irpls: 64,
                 seed,
+                entry_importance,
                 ..Default::default()
             },
             Box::new(gbuffer::CpuRasterizer::new()),

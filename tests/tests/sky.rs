@@ -251,7 +251,13 @@ fn window_room_matches_the_reference(sky: Sky) {
         // spreads widely in a room lit through a window (under a one-pixel sky, seed 1 read
         // 0.794 off with camera importance while 8 seeds averaged 0.44, the same as under
         // the uniform sky's 0.44), and its per-build error is issue 48's subject. Every
-        // build's figures are printed.
+        // build's figures are printed. It is built as for a room lit through a window,
+        // with entry importance (docs/ibrr-ldc.md). Since its walks are dealt into 16
+        // independent batches (2026-11-29), uniform starts read 0.73 off under this sky
+        // over 8 builds (0.45 to 1.10 each) against 0.46 for the sun, past the bound
+        // below; with entry importance the sky reads 0.43 to 0.47 over 4 builds, within
+        // even the uniform starts' bound, while the sun through the window reads 0.56 to
+        // 0.84 (0.38 to 0.68 uniform), which is not understood yet.
         let builds = if name.starts_with("ibrr") {
             IBRR_BUILDS
         } else {
@@ -259,8 +265,8 @@ fn window_room_matches_the_reference(sky: Sky) {
         };
         let (mut e_sky, mut e_usual) = (0.0, 0.0);
         for seed in 1..=builds {
-            let mut t = scenes::compared_methods_seeded(seed).swap_remove(i).1;
-            let mut usual = scenes::compared_methods_seeded(seed).swap_remove(i).1;
+            let mut t = scenes::compared_methods_with(seed, true).swap_remove(i).1;
+            let mut usual = scenes::compared_methods_with(seed, true).swap_remove(i).1;
             let image = render(t.as_mut(), &room);
             let (e, u) = (
                 rel(&image, &ref_sky),
