@@ -393,10 +393,8 @@ impl Construction {
         if s.time_budget > 0.0 && self.started.elapsed().as_secs_f64() >= f64::from(s.time_budget) {
             return Plan::Stop(Stop::TimeBudget);
         }
-        let exact = self.irpls.exact as f64;
-        let per_path = (self.irpls.irpls.len() as f64 - exact) / paths.max(1) as f64;
         let room = f64::from(s.budget()) - self.irpls.irpls.len() as f64;
-        let most = (room / per_path.max(1e-9)).floor();
+        let most = self.paths_for(room).floor();
         // A round smaller than a quarter of the paths so far costs a catch-up over every
         // earlier IRPL for little.
         if most < 0.25 * paths as f64 {
@@ -406,6 +404,14 @@ impl Construction {
         let wanted = n * (worst / target).powi(2) * 1.1;
         let total = wanted.clamp(1.5 * n, 4.0 * n);
         Plan::More(((total - n).ceil()).min(most).max(1.0) as u64)
+    }
+
+    /// About how many paths make `irpls` more IRPLs, at the mean IRPLs per path so far
+    /// (exact sources left out).
+    pub(crate) fn paths_for(&self, irpls: f64) -> f64 {
+        let per_path = self.irpls.irpls.len().saturating_sub(self.irpls.exact) as f64
+            / self.irpls.paths.max(1) as f64;
+        irpls / per_path.max(1e-9)
     }
 
     /// Warps every IRPL through `renderer` (prepared with [`Construction::prepare_renderer`]),

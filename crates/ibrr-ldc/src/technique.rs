@@ -263,9 +263,8 @@ fn next_round(
         return None;
     }
     // About the IRPLs still wanted, at most as many paths as there are.
-    let per_path = c.irpls.irpls.len().saturating_sub(c.irpls.exact) as f64 / c.irpls.paths as f64;
-    let wanted = u64::from(max_irpls) - n;
-    Some(((wanted as f64 / per_path.max(1e-9)).ceil() as u64).clamp(1, c.irpls.paths))
+    let wanted = (u64::from(max_irpls) - n) as f64;
+    Some((c.paths_for(wanted).ceil() as u64).clamp(1, c.irpls.paths))
 }
 
 impl Technique for IbrrTechnique {

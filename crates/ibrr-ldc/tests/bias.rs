@@ -31,14 +31,7 @@ fn bias_over_seeds(name: &str) -> ([f64; 3], [f64; 3]) {
                 ..Default::default()
             };
             let (img, _) = common::ibrr_image(&scene, settings, SIZE);
-            let (mut t, mut r) = ([0.0f64; 3], [0.0f64; 3]);
-            for &i in &pixels {
-                for c in 0..3 {
-                    t[c] += f64::from(img.pixels[i][c]);
-                    r[c] += f64::from(reference.pixels[i][c]);
-                }
-            }
-            [0, 1, 2].map(|c| t[c] / r[c] - 1.0)
+            common::channel_bias(&img, &reference, &pixels)
         })
         .collect();
     let n = per_seed.len() as f64;

@@ -32,14 +32,7 @@ fn build(
     let reference = common::reference(&scene, SIZE, 4096, Bounces::Unlimited);
     let pixels = common::lit_surface_pixels(&scene, &reference, SIZE);
     let (img, t) = common::ibrr_image(&scene, settings, SIZE);
-    let (mut a, mut r) = ([0.0f64; 3], [0.0f64; 3]);
-    for &i in &pixels {
-        for c in 0..3 {
-            a[c] += f64::from(img.pixels[i][c]);
-            r[c] += f64::from(reference.pixels[i][c]);
-        }
-    }
-    let measured = [0, 1, 2].map(|c| a[c] / r[c] - 1.0);
+    let measured = common::channel_bias(&img, &reference, &pixels);
     let c = t.construction().unwrap();
     let e = c
         .error_estimate()

@@ -102,3 +102,17 @@ pub fn lit_surface_pixels(scene: &Scene, reference: &Image, size: u32) -> Vec<us
         .filter(|&i| classes[i] == PixelClass::Surface && luminance(reference.pixels[i]) <= cut)
         .collect()
 }
+
+/// Each channel's `sum(test) / sum(reference) - 1` over `pixels` (the lit-surface bias of
+/// one image, as the main job's surface error measures it).
+#[allow(dead_code)]
+pub fn channel_bias(test: &Image, reference: &Image, pixels: &[usize]) -> [f64; 3] {
+    let (mut t, mut r) = ([0.0f64; 3], [0.0f64; 3]);
+    for &i in pixels {
+        for c in 0..3 {
+            t[c] += f64::from(test.pixels[i][c]);
+            r[c] += f64::from(reference.pixels[i][c]);
+        }
+    }
+    [0, 1, 2].map(|c| t[c] / r[c] - 1.0)
+}
