@@ -5,8 +5,9 @@
 // step: unproject the pixel, pick the LDIs its normal belongs to (blended near their
 // boundaries), read the matching layers with the nearest / average / bilinear kernel (a
 // neighbouring layer only if the camera's G-buffer sees its centre on its plane), fall back
-// to rings of LDI pixels, and shade albedo / pi x E plus the glow of emitters seen from
-// their emitting side.
+// to rings of LDI pixels (`main`, into `irradiance`); then fill the pixels without a layer
+// from the camera pixels around them and shade albedo / pi x E plus the glow of emitters
+// seen from their emitting side (`fill`, into `image`).
 
 // 0 nearest, 1 average, 2 bilinear.
 override LOOKUP: u32 = 2u;
@@ -27,6 +28,10 @@ struct Params {
     eps_normal: f32,
     band: f32,
     triangles: u32,
+    fill_radius: u32,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
 }
 
 struct Triangle {
@@ -42,12 +47,15 @@ struct Triangle {
 // Per layer: direct irradiance at 2 l, indirect at 2 l + 1.
 @group(0) @binding(3) var<storage, read> values: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> triangles: array<Triangle>;
-// rgb: radiance; w: 0 found, 1 fallback, 2 no layer, 3 background.
+// rgb: radiance; w: 0 found, 1 fallback, 2 no layer, 3 background, 4 filled.
 @group(0) @binding(5) var<storage, read_write> image: array<vec4<f32>>;
-@group(0) @binding(6) var g_albedo: texture_2d<f32>;
-@group(0) @binding(7) var g_normal: texture_2d<f32>;
-@group(0) @binding(8) var g_depth: texture_2d<f32>;
-@group(0) @binding(9) var g_id: texture_2d<u32>;
+// Written by `main`, read by `fill`: at 2 i the direct irradiance and in w the status as in
+// `image` (0 to 3), at 2 i + 1 the indirect irradiance.
+@group(0) @binding(6) var<storage, read_write> irradiance: array<vec4<f32>>;
+@group(0) @binding(7) var g_albedo: texture_2d<f32>;
+@group(0) @binding(8) var g_normal: texture_2d<f32>;
+@group(0) @binding(9) var g_depth: texture_2d<f32>;
+@group(0) @binding(10) var g_id: texture_2d<u32>;
 
 const NO_LAYER: u32 = 0xffffffffu;
 
@@ -270,7 +278,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let id = textureLoad(g_id, xy, 0).x;
     let n = textureLoad(g_normal, xy, 0).xyz;
     if id == BACKGROUND || all(n == vec3<f32>(0.0)) {
-        image[pixel] = vec4<f32>(0.0, 0.0, 0.0, 3.0);
+        irradiance[2u * pixel] = vec4<f32>(0.0, 0.0, 0.0, 3.0);
+        irradiance[2u * pixel + 1u] = vec4<f32>(0.0);
         return;
     }
     let p = world_at(gid.x, gid.y);
@@ -378,8 +387,93 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
+    irradiance[2u * pixel] = vec4<f32>(direct, status);
+    irradiance[2u * pixel + 1u] = vec4<f32>(indirect, 0.0);
+}
+
+// The hole fill (reconstruct.rs, `fill_holes`): no direct light, and the mean indirect
+// irradiance of the nearest ring of camera pixels served by the LDC (status 0 or 1) of the
+// pixel's orientation on its plane, else of its orientation on another plane, else facing
+// its side. Reads only served pixels.
+fn filled(x: i32, y: i32, p: vec3<f32>, n: vec3<f32>) -> vec4<f32> {
+    var other = vec4<f32>(0.0);
+    var facing = vec4<f32>(0.0);
+    let w = i32(params.width);
+    let h = i32(params.height);
+    for (var r = 1; r <= i32(params.fill_radius); r++) {
+        var plane = vec4<f32>(0.0);
+        var off = vec4<f32>(0.0);
+        var side = vec4<f32>(0.0);
+        for (var v = y - r; v <= y + r; v++) {
+            if v < 0 || v >= h {
+                continue;
+            }
+            for (var u = x - r; u <= x + r; u++) {
+                if u < 0 || u >= w || (abs(u - x) != r && abs(v - y) != r) {
+                    continue;
+                }
+                let k = u32(v * w + u);
+                if irradiance[2u * k].w > 1.5 {
+                    continue;
+                }
+                let e = irradiance[2u * k + 1u];
+                let cos = dot(n, textureLoad(g_normal, vec2<i32>(u, v), 0).xyz);
+                if cos <= 0.0 {
+                    continue;
+                }
+                if cos <= 1.0 - params.eps_normal {
+                    side += vec4<f32>(e.xyz, 1.0);
+                } else if abs(dot(world_at(u32(u), u32(v)) - p, n)) < 2.0 * params.eps_distance {
+                    plane += vec4<f32>(e.xyz, 1.0);
+                } else {
+                    off += vec4<f32>(e.xyz, 1.0);
+                }
+            }
+        }
+        if plane.w > 0.0 {
+            return vec4<f32>(plane.xyz / plane.w, 1.0);
+        }
+        if other.w == 0.0 && off.w > 0.0 {
+            other = off;
+        }
+        if facing.w == 0.0 && side.w > 0.0 {
+            facing = side;
+        }
+    }
+    if other.w > 0.0 {
+        return vec4<f32>(other.xyz / other.w, 1.0);
+    }
+    if facing.w > 0.0 {
+        return vec4<f32>(facing.xyz / facing.w, 1.0);
+    }
+    return vec4<f32>(0.0);
+}
+
+@compute @workgroup_size(8, 8)
+fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
+    }
+    let pixel = gid.y * params.width + gid.x;
+    let xy = vec2<i32>(gid.xy);
+    let d = irradiance[2u * pixel];
+    if d.w == 3.0 {
+        image[pixel] = vec4<f32>(0.0, 0.0, 0.0, 3.0);
+        return;
+    }
+    let id = textureLoad(g_id, xy, 0).x;
+    let p = world_at(gid.x, gid.y);
+    var status = d.w;
+    var e = d.xyz + irradiance[2u * pixel + 1u].xyz;
+    if status == 2.0 {
+        let f = filled(xy.x, xy.y, p, textureLoad(g_normal, xy, 0).xyz);
+        if f.w > 0.0 {
+            e = f.xyz;
+            status = 4.0;
+        }
+    }
     let albedo = textureLoad(g_albedo, xy, 0).xyz;
-    var radiance = albedo * 0.31830988618379067 * (direct + indirect);
+    var radiance = albedo * 0.31830988618379067 * e;
     if id < params.triangles {
         let t = triangles[id];
         var towards = params.eye.xyz;

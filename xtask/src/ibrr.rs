@@ -51,6 +51,10 @@ pub struct Options {
     /// where it was lost) or rescale (each IRPL's values scaled to its unclamped power).
     #[arg(long, default_value = "local")]
     pub compensation: String,
+    /// Pixels that find no layer take the light of the pixels around them that did, up to
+    /// this many camera pixels away (the hole fill; 0: they stay black).
+    #[arg(long, default_value_t = IbrrSettings::default().fill_radius)]
+    pub fill_radius: u32,
     /// Seed of the particle walks.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -95,6 +99,11 @@ pub fn check_numbers(o: &Options) -> Result<(), String> {
         ));
     }
     crate::ranged("--bounces", o.bounces, 0..=1024)?;
+    crate::ranged(
+        "--fill-radius",
+        o.fill_radius,
+        0..=ibrr_ldc::settings::MAX_FILL_RADIUS,
+    )?;
     crate::ranged("--direct-render", o.direct_render, 0..=8192)?;
     crate::ranged("--indirect-render", o.indirect_render, 0..=8192)?;
     Ok(())
@@ -122,6 +131,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         lookup,
         clamp: o.clamp,
         compensation,
+        fill_radius: o.fill_radius,
         seed: o.seed,
         max_depth: o.bounces,
         direct_hemicube: o.direct_render,
@@ -223,6 +233,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "lookup_ms": steady.lookup.as_secs_f64() * 1e3,
         "pixels_without_layer": timings.missing,
         "pixels_from_fallback": timings.fallback,
+        "pixels_filled": timings.filled,
         "camera": camera.name,
         "width": o.view.width,
         "height": o.view.height,
@@ -264,7 +275,8 @@ pub fn run(o: &Options) -> Result<(), String> {
 }
 
 /// Writes `DIR/served.exr`: how each pixel of the written view found its light (red: the
-/// layers of its plane, green: the fallback, blue: nothing, black: background).
+/// layers of its plane, green: the fallback, yellow: the hole fill, blue: nothing, black:
+/// background).
 fn write_served(
     out: &std::path::Path,
     served: &[ibrr_ldc::Served],
@@ -278,6 +290,7 @@ fn write_served(
             ibrr_ldc::Served::Layer => glam::Vec3::X,
             ibrr_ldc::Served::Fallback => glam::Vec3::Y,
             ibrr_ldc::Served::Missing => glam::Vec3::Z,
+            ibrr_ldc::Served::Filled => glam::Vec3::new(1.0, 1.0, 0.0),
         })
         .collect();
     let image = scene_core::Image {

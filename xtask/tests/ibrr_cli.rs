@@ -64,9 +64,19 @@ fn ibrr_writes_the_view_and_the_summary() {
     assert_eq!((served.width, served.height), (32, 24));
     let count = |f: fn(glam::Vec3) -> f32| served.pixels.iter().filter(|p| f(**p) > 0.5).count();
     assert!(count(|p| p.x) > 0, "no pixel from a layer");
+    // Yellow (red and green) is the hole fill's, blue what nothing served.
+    assert_eq!(
+        served
+            .pixels
+            .iter()
+            .filter(|p| p.x > 0.5 && p.y > 0.5)
+            .count() as u64,
+        summary["pixels_filled"].as_u64().unwrap()
+    );
     assert_eq!(
         count(|p| p.y) as u64,
         summary["pixels_from_fallback"].as_u64().unwrap()
+            + summary["pixels_filled"].as_u64().unwrap()
     );
     assert_eq!(
         count(|p| p.z) as u64,
@@ -117,6 +127,10 @@ fn ibrr_refuses_bad_options_by_name() {
         (
             vec!["--time-budget", "NaN"],
             "--time-budget = NaN is outside its range",
+        ),
+        (
+            vec!["--fill-radius", "65"],
+            "--fill-radius = 65 is outside its range [0, 64]",
         ),
         (
             vec!["--bounces", "2000"],

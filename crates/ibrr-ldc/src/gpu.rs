@@ -1,7 +1,8 @@
 //! Reconstruction on the GPU (wgpu compute, `shaders/ibrr-ldc/reconstruct.wgsl`): the
 //! flattened LDC ([`Ldc`]'s offsets, planes and values) is uploaded once; a frame binds the
-//! camera's [`GpuGBuffer`] and runs one pass that mirrors [`crate::reconstruct()`] and
-//! [`crate::shade`] pixel for pixel.
+//! camera's [`GpuGBuffer`] and runs two passes that mirror [`crate::reconstruct()`] and
+//! [`crate::shade`] pixel for pixel: the lookup (entry point `main`) into an irradiance
+//! buffer kept across frames, then the hole fill and the shading (`fill`) into the output.
 
 use glam::Vec3;
 use scene_core::gpu::compute::ComputePass;
@@ -14,7 +15,7 @@ use scene_core::{Image, LightState, Scene, View};
 
 use crate::error::IbrrError;
 use crate::ldc::Ldc;
-use crate::settings::Lookup;
+use crate::settings::{Lookup, Reading};
 
 /// The reconstruction pass (`shaders/ibrr-ldc/reconstruct.wgsl`, importing
 /// `scene_core::reconstruct`).
@@ -55,6 +56,10 @@ struct Params {
     eps_normal: f32,
     band: f32,
     triangles: u32,
+    fill_radius: u32,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
 }
 
 #[repr(C)]
@@ -71,6 +76,8 @@ pub struct GpuFrameCounts {
     pub missing: u64,
     /// Pixels served by the fallback search.
     pub fallback: u64,
+    /// Pixels without a layer filled from the camera pixels around them.
+    pub filled: u64,
 }
 
 /// An LDC resident on the GPU.
@@ -81,8 +88,11 @@ pub struct GpuLdc {
     planes: wgpu::Buffer,
     values: wgpu::Buffer,
     pass: ComputePass,
-    lookup: Lookup,
-    fallback_radius: u32,
+    /// The hole fill and the shading (`fill`), after `pass`.
+    fill: ComputePass,
+    reading: Reading,
+    /// Each pixel's irradiance and status between the two passes.
+    irradiance: KeptBuffer,
     bytes: u64,
     /// What the glow table was last built for (scene address, triangle count, light
     /// fingerprint) and its length: rebuilt and written (into `glow_buffer`, by a copy in the
@@ -92,26 +102,27 @@ pub struct GpuLdc {
     /// A frame's parameters go into `params` by a copy in the frame's own encoder.
     writer: FrameWriter,
     params: wgpu::Buffer,
-    /// The bind group and what it was made for.
-    bound: scene_core::gpu::Keyed<BindKey, wgpu::BindGroup>,
+    /// The two passes' bind groups and what they were made for.
+    bound: scene_core::gpu::Keyed<BindKey, [wgpu::BindGroup; 2]>,
     /// Relit layer values from [`GpuLdc::update_values`], written in the next frame.
     pending_values: Option<Vec<[f32; 4]>>,
 }
 
-/// What the frame's bind group depends on: the G-buffer's textures and the output by
-/// identity, and the glow buffer's generation.
+/// What the frame's bind groups depend on: the G-buffer's textures and the output by
+/// identity, and the glow and irradiance buffers' generations.
 #[derive(Clone, Debug, PartialEq)]
 struct BindKey {
     textures: [wgpu::Texture; 4],
     output: wgpu::Buffer,
     glow: u64,
+    irradiance: u64,
 }
 
 impl std::fmt::Debug for GpuLdc {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("GpuLdc")
             .field("bytes", &self.bytes)
-            .field("lookup", &self.lookup)
+            .field("reading", &self.reading)
             .finish_non_exhaustive()
     }
 }
@@ -121,15 +132,10 @@ pub(crate) fn gpu(e: GpuError) -> IbrrError {
 }
 
 impl GpuLdc {
-    /// Uploads `ldc` for lookups with `lookup` and `fallback_radius`. Fails with
-    /// [`IbrrError::Budget`] before allocating when a buffer exceeds the adapter's
-    /// storage-binding or buffer size.
-    pub fn new(
-        ctx: &GpuContext,
-        ldc: &Ldc,
-        lookup: Lookup,
-        fallback_radius: u32,
-    ) -> Result<Self, IbrrError> {
+    /// Uploads `ldc` for frames that read it as `reading` says (kernel, fallback, hole
+    /// fill). Fails with [`IbrrError::Budget`] before allocating when a buffer exceeds the
+    /// adapter's storage-binding or buffer size.
+    pub fn new(ctx: &GpuContext, ldc: &Ldc, reading: Reading) -> Result<Self, IbrrError> {
         let limit = ctx.storage_binding_limit();
         let layers = ldc.layer_count() as u64;
         for (what, bytes) in [
@@ -147,30 +153,37 @@ impl GpuLdc {
         }
         let values = Self::values_of(ldc);
         let planes: Vec<[f32; 4]> = ldc.planes.iter().map(|p| p.to_array()).collect();
-        let (mode, radius) = match lookup {
+        let (mode, radius) = match reading.lookup {
             Lookup::Nearest => (0.0, 0.0),
             Lookup::Average { radius } => (1.0, f64::from(radius)),
             Lookup::Bilinear => (2.0, 0.0),
         };
-        let pass = ComputePass::new(
-            &ctx.device,
-            "ibrr-ldc reconstruct",
-            &RECONSTRUCT,
-            &[
-                uniform(0),
-                storage_buffer(1),
-                storage_buffer(2),
-                storage_buffer(3),
-                storage_buffer(4),
-                storage_buffer_rw(5),
-                float_texture(6),
-                float_texture(7),
-                float_texture(8),
-                texture(9, wgpu::TextureSampleType::Uint),
-            ],
-            &[("LOOKUP", mode), ("AVERAGE_RADIUS", radius)],
-        )
-        .map_err(gpu)?;
+        let module = RECONSTRUCT.create_module(&ctx.device).map_err(gpu)?;
+        let entries = [
+            uniform(0),
+            storage_buffer(1),
+            storage_buffer(2),
+            storage_buffer(3),
+            storage_buffer(4),
+            storage_buffer_rw(5),
+            storage_buffer_rw(6),
+            float_texture(7),
+            float_texture(8),
+            float_texture(9),
+            texture(10, wgpu::TextureSampleType::Uint),
+        ];
+        let constants = [("LOOKUP", mode), ("AVERAGE_RADIUS", radius)];
+        let [pass, fill] =
+            [("main", "ibrr-ldc reconstruct"), ("fill", "ibrr-ldc fill")].map(|(entry, label)| {
+                ComputePass::from_entry_point(
+                    &ctx.device,
+                    label,
+                    &module,
+                    entry,
+                    &entries,
+                    &constants,
+                )
+            });
         ctx.validated(|| Self {
             ctx: ctx.clone(),
             ldc_frame: ldc.frame,
@@ -190,8 +203,9 @@ impl GpuLdc {
                 wgpu::BufferUsages::COPY_DST,
             ),
             pass,
-            lookup,
-            fallback_radius,
+            fill,
+            reading,
+            irradiance: KeptBuffer::new("ibrr irradiance", wgpu::BufferUsages::STORAGE),
             bytes: ldc.offsets.len() as u64 * 4 + layers * 48,
             glow: scene_core::gpu::Keyed::new(),
             glow_buffer: KeptBuffer::new("ibrr triangles", wgpu::BufferUsages::STORAGE),
@@ -292,6 +306,7 @@ impl GpuLdc {
                 match p[3] as u32 {
                     1 => counts.fallback += 1,
                     2 => counts.missing += 1,
+                    4 => counts.filled += 1,
                     _ => {}
                 }
                 let l = Vec3::new(p[0], p[1], p[2]);
@@ -311,7 +326,8 @@ impl GpuLdc {
     /// Records the reconstruction of `g` (the camera's G-buffer of `scene` from `view`)
     /// under `lights` into `encoder`, writing `output` (at least `g.width * g.height`
     /// `vec4<f32>`, e.g. [`GpuContext::pixel_buffer`]: radiance in `xyz`, and in `w` 1 where
-    /// the fallback served the pixel, 2 where no layer matched). Nothing is read back.
+    /// the fallback served the pixel, 2 where no layer matched and nothing was filled, 3 on
+    /// the background, 4 where the hole fill served it). Nothing is read back.
     pub fn encode(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
@@ -354,12 +370,20 @@ impl GpuLdc {
             width: w,
             height: h,
             resolution: f.resolution,
-            fallback_radius: self.fallback_radius,
+            fallback_radius: self.reading.fallback_radius,
             eps_distance: f.eps_distance,
             eps_normal: f.eps_normal,
             band: f.band,
             triangles,
+            fill_radius: self.reading.fill_radius,
+            pad_a: 0,
+            pad_b: 0,
+            pad_c: 0,
         };
+        let irradiance = self
+            .irradiance
+            .ensure(&self.ctx.device, u64::from(w) * u64::from(h) * 32)
+            .clone();
         let ctx = &self.ctx;
         let bind_key = BindKey {
             textures: [
@@ -370,6 +394,7 @@ impl GpuLdc {
             ],
             output: output.clone(),
             glow: self.glow_buffer.generation(),
+            irradiance: self.irradiance.generation(),
         };
         self.bound.get_or_make(bind_key, |_| {
             let buffers = [
@@ -379,10 +404,11 @@ impl GpuLdc {
                 &self.values,
                 &tri,
                 output,
+                &irradiance,
             ];
             let textures = [&g.albedo, &g.normal, &g.depth, &g.triangle_id];
-            self.pass
-                .bind_buffers_then_textures(&ctx.device, &buffers, &textures)
+            [&self.pass, &self.fill]
+                .map(|pass| pass.bind_buffers_then_textures(&ctx.device, &buffers, &textures))
         });
         self.writer
             .write(encoder, &self.params, 0, bytemuck::bytes_of(&params));
@@ -395,10 +421,11 @@ impl GpuLdc {
                 .write(encoder, &tri, 0, bytemuck::cast_slice(&table));
         }
         self.writer.finish(encoder);
-        let Some(bind) = self.bound.value() else {
+        let Some([lookup, fill]) = self.bound.value() else {
             unreachable!("made above")
         };
-        self.pass.dispatch(encoder, bind, w, h, None);
+        self.pass.dispatch(encoder, lookup, w, h, None);
+        self.fill.dispatch(encoder, fill, w, h, None);
         Ok(())
     }
 }
@@ -679,6 +706,10 @@ mod layout_tests {
                 eps_normal,
                 band,
                 triangles,
+                fill_radius,
+                pad_a,
+                pad_b,
+                pad_c,
             }
         )
         .unwrap();

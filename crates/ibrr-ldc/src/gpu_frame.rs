@@ -43,7 +43,7 @@ impl IbrrFrame {
         let ldc = technique.ldc().ok_or_else(not_built)?;
         let scene = technique.scene().ok_or_else(not_built)?.clone();
         let s = &technique.settings;
-        let on_gpu = GpuLdc::new(ctx, ldc, s.lookup, s.fallback_radius)?;
+        let on_gpu = GpuLdc::new(ctx, ldc, s.reading())?;
         Ok(Self {
             ldc: on_gpu,
             shown: LightState::default(),

@@ -42,8 +42,8 @@ pub use gpu::GpuLdc;
 pub use gpu_frame::IbrrFrame;
 pub use irpl::{Irpl, IrplKind, IrplSet};
 pub use ldc::{Ldc, LdcFrame};
-pub use reconstruct::{Reconstruction, Served, lookup, reconstruct, shade};
-pub use settings::{Compensation, IbrrSettings, Lookup, Splat};
+pub use reconstruct::{Reconstruction, Served, fill_holes, lookup, reconstruct, shade};
+pub use settings::{Compensation, IbrrSettings, Lookup, Reading, Splat};
 pub use technique::{FrameTimings, IbrrTechnique};
 
 /// Every shader pass of the IBRR, as `cargo xtask shaders` validates them.

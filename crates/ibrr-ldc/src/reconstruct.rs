@@ -7,8 +7,27 @@
 //! kernel; and bilinear interpolation over the four nearest LDI pixel centres, blended
 //! across the LDIs a normal near their boundary belongs to (section 6.2). A pixel that finds
 //! no matching layer searches rings of LDI pixels up to
-//! [`crate::IbrrSettings::fallback_radius`]; if none is found it is black and counted
+//! [`crate::IbrrSettings::fallback_radius`]. A pixel that finds none there either is
+//! filled from the camera pixels around it that did ([`Served::Filled`], the hole fill
+//! below, beyond the paper), or, with none of its orientation within
+//! [`crate::IbrrSettings::fill_radius`] camera pixels, black and counted
 //! ([`Reconstruction::missing`]), never NaN.
+//!
+//! **The hole fill.** A pixel without a layer is a surface that no IRPL's render sampled
+//! (the underside of a shelf no path reached, a sliver of wall behind a post whose layer
+//! centres the camera sees hidden). Its direct light stays zero: the lights' own renders
+//! (the exact sources) found nothing of its plane there, which is what a surface in shadow
+//! gives (with the direct light alone, every shadow has no layer). Its indirect light,
+//! smooth and zero only by the chance of which paths were drawn, is the mean of the
+//! nearest ring of camera pixels around it served by a layer or the fallback,
+//! whose normals match its own as layers match (`n' . n > 1 - eps_normal`)
+//! and whose points lie on its plane (within twice the LDC's plane distance); where no ring
+//! within the radius holds such a pixel, the nearest ring holding pixels of its
+//! orientation on other planes; else the nearest ring holding pixels that face its side at
+//! all (`n' . n > 0`: a post's cap, the only face of its orientation in sight). Only
+//! pixels served by the LDC are read, never filled ones,
+//! so the fill does not depend on the order pixels are visited in, and the GPU twin
+//! (`fill` in `shaders/ibrr-ldc/reconstruct.wgsl`) reads the same rings.
 
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -17,7 +36,7 @@ use scene_core::view::{FrustumReconstruction, Projection, pixel_uv};
 use scene_core::{GBuffer, Image, LightState, Scene, View};
 
 use crate::ldc::{Ldc, LdcFrame, axes_of};
-use crate::settings::Lookup;
+use crate::settings::{Lookup, Reading};
 
 /// Irradiance read from the LDC for one view.
 #[derive(Clone, Debug, PartialEq)]
@@ -26,10 +45,13 @@ pub struct Reconstruction {
     pub direct: Vec<Vec3>,
     /// Per pixel, indirect irradiance.
     pub indirect: Vec<Vec3>,
-    /// Pixels with geometry that found no matching layer even in the fallback search.
+    /// Pixels with geometry that found no matching layer even in the fallback search, and
+    /// nothing of their orientation around them to fill from: black.
     pub missing: u64,
     /// Pixels served by the fallback search.
     pub fallback: u64,
+    /// Pixels without a layer filled from the camera pixels around them.
+    pub filled: u64,
     /// Per pixel, how it was served.
     pub served: Vec<Served>,
 }
@@ -47,6 +69,17 @@ pub enum Served {
     Fallback,
     /// No layer of its orientation anywhere near: black.
     Missing,
+    /// No layer, but served pixels of its orientation around it in the camera's image: no
+    /// direct light and their indirect light's mean (the hole fill).
+    Filled,
+}
+
+impl Served {
+    /// Whether the LDC itself served the pixel (by its layers or the fallback): what the
+    /// hole fill reads.
+    pub fn from_ldc(self) -> bool {
+        matches!(self, Served::Layer | Served::Fallback)
+    }
 }
 
 /// How one lookup went.
@@ -245,13 +278,12 @@ fn in_ldi(
 /// its own visibility test, asked of the four pixels around the centre's projection), so
 /// a kernel never reaches through a wall thinner than an LDI pixel to the same plane on
 /// its other side. Centres off screen or behind the camera count as seen.
-pub fn reconstruct(
-    ldc: &Ldc,
-    g: &GBuffer,
-    view: &View,
-    mode: Lookup,
-    fallback_radius: u32,
-) -> Reconstruction {
+pub fn reconstruct(ldc: &Ldc, g: &GBuffer, view: &View, reading: Reading) -> Reconstruction {
+    let Reading {
+        lookup: mode,
+        fallback_radius,
+        fill_radius,
+    } = reading;
     let recon = FrustumReconstruction::new(view);
     let (w, h) = (g.width, g.height);
     let vp = view.view_projection();
@@ -320,19 +352,115 @@ pub fn reconstruct(
         indirect: Vec::with_capacity(found.len()),
         missing: 0,
         fallback: 0,
+        filled: 0,
         served: Vec::with_capacity(found.len()),
     };
     for (d, ind, k) in found {
         r.direct.push(d);
         r.indirect.push(ind);
+        r.served.push(k);
+    }
+    fill_holes(ldc, g, view, fill_radius, &mut r);
+    r
+}
+
+/// The hole fill (module docs) of `r`, the reconstruction of `g` seen from `view`:
+/// every [`Served::Missing`] pixel keeps no direct light and takes as its indirect light
+/// the mean of the nearest ring (up to `radius`
+/// camera pixels) of LDC-served pixels of its orientation on its plane (within twice the
+/// LDC's plane distance), else of its orientation on any plane, else facing its side; the
+/// counts are taken again. [`reconstruct()`] calls it; it is public for tests that make
+/// holes of their own.
+pub fn fill_holes(ldc: &Ldc, g: &GBuffer, view: &View, radius: u32, r: &mut Reconstruction) {
+    if radius > 0 && r.served.contains(&Served::Missing) {
+        let recon = FrustumReconstruction::new(view);
+        let eps_d = 2.0 * ldc.frame.eps_distance;
+        fill_rings(r, g, &recon, radius, eps_d, ldc.frame.eps_normal);
+    }
+    (r.missing, r.fallback, r.filled) = (0, 0, 0);
+    for k in &r.served {
         match k {
             Served::Fallback => r.fallback += 1,
             Served::Missing => r.missing += 1,
+            Served::Filled => r.filled += 1,
             _ => {}
         }
-        r.served.push(k);
     }
-    r
+}
+
+fn fill_rings(
+    r: &mut Reconstruction,
+    g: &GBuffer,
+    recon: &FrustumReconstruction,
+    radius: u32,
+    eps_d: f32,
+    eps_n: f32,
+) {
+    let (w, h) = (g.width, g.height);
+    let point = |i: usize| recon.world(pixel_uv(i as u32 % w, i as u32 / w, w, h), g.depth[i]);
+    let holes: Vec<usize> = (0..r.served.len())
+        .filter(|&i| r.served[i] == Served::Missing)
+        .collect();
+    let fills: Vec<Option<Vec3>> = holes
+        .par_iter()
+        .map(|&i| {
+            let (x, y) = ((i as u32 % w) as i64, (i as u32 / w) as i64);
+            let (p, n) = (point(i), g.normal[i]);
+            // Sums over the ring of the pixels on the plane, and the first ring's of the
+            // pixels of the orientation on other planes and of those facing its side.
+            let mut other: Option<(Vec3, f32)> = None;
+            let mut facing: Option<(Vec3, f32)> = None;
+            for rr in 1..=i64::from(radius) {
+                let mut plane = (Vec3::ZERO, 0.0f32);
+                let mut off = (Vec3::ZERO, 0.0f32);
+                let mut side = (Vec3::ZERO, 0.0f32);
+                for v in y - rr..=y + rr {
+                    if v < 0 || v >= i64::from(h) {
+                        continue;
+                    }
+                    for u in x - rr..=x + rr {
+                        if u < 0
+                            || u >= i64::from(w)
+                            || ((u - x).abs() != rr && (v - y).abs() != rr)
+                        {
+                            continue;
+                        }
+                        let k = (v * i64::from(w) + u) as usize;
+                        let cos = n.dot(g.normal[k]);
+                        if !r.served[k].from_ldc() || cos <= 0.0 {
+                            continue;
+                        }
+                        let sum = if cos <= 1.0 - eps_n {
+                            &mut side
+                        } else if (point(k) - p).dot(n).abs() < eps_d {
+                            &mut plane
+                        } else {
+                            &mut off
+                        };
+                        sum.0 += r.indirect[k];
+                        sum.1 += 1.0;
+                    }
+                }
+                if plane.1 > 0.0 {
+                    return Some(plane.0 / plane.1);
+                }
+                if other.is_none() && off.1 > 0.0 {
+                    other = Some(off);
+                }
+                if facing.is_none() && side.1 > 0.0 {
+                    facing = Some(side);
+                }
+            }
+            other.or(facing).map(|(ind, c)| ind / c)
+        })
+        .collect();
+    for (&i, f) in holes.iter().zip(fills) {
+        if let Some(ind) = f {
+            r.direct[i] = Vec3::ZERO;
+            r.indirect[i] = ind;
+            r.served[i] = Served::Filled;
+        }
+    }
 }
 
 /// The displayed radiance: `albedo / pi x (direct + indirect)` plus the emission of

@@ -129,6 +129,10 @@ pub struct IbrrSettings {
     pub max_splat_px: f32,
     /// Pixels with no matching layer search this many LDI pixels around them.
     pub fallback_radius: u32,
+    /// Pixels that find no layer even by the fallback take the light of the camera pixels
+    /// around them that did, up to this many camera pixels away (the hole fill,
+    /// [`crate::reconstruct()`]); 0 leaves them black.
+    pub fill_radius: u32,
     /// Seed of the particle walks.
     pub seed: u64,
     /// Most bounces of a particle.
@@ -187,6 +191,7 @@ impl Default for IbrrSettings {
             band: 0.1,
             max_splat_px: 16.0,
             fallback_radius: 4,
+            fill_radius: 16,
             seed: 1,
             max_depth: 32,
             camera_importance: false,
@@ -200,7 +205,42 @@ impl Default for IbrrSettings {
     }
 }
 
+/// Largest [`IbrrSettings::fill_radius`] (camera pixels): a hole pixel reads at most
+/// `(2 r + 1)^2` neighbours.
+pub const MAX_FILL_RADIUS: u32 = 64;
+
+/// How a frame reads the LDC: the kernel, the fallback's reach in LDI pixels and the hole
+/// fill's in camera pixels ([`crate::reconstruct()`], [`crate::GpuLdc::new`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reading {
+    /// Reconstruction kernel.
+    pub lookup: Lookup,
+    /// [`IbrrSettings::fallback_radius`].
+    pub fallback_radius: u32,
+    /// [`IbrrSettings::fill_radius`].
+    pub fill_radius: u32,
+}
+
+impl Reading {
+    /// `lookup` with the default fallback and fill.
+    pub fn with_lookup(lookup: Lookup) -> Self {
+        Self {
+            lookup,
+            ..IbrrSettings::default().reading()
+        }
+    }
+}
+
 impl IbrrSettings {
+    /// How frames read the LDC built with these settings.
+    pub fn reading(&self) -> Reading {
+        Reading {
+            lookup: self.lookup,
+            fallback_radius: self.fallback_radius,
+            fill_radius: self.fill_radius,
+        }
+    }
+
     /// The direct hemicube resolution in effect.
     pub fn direct_resolution(&self) -> u32 {
         if self.direct_hemicube == 0 {
@@ -322,6 +362,12 @@ impl IbrrSettings {
             return bad(format!(
                 "fallback_radius must be at most 64, got {}",
                 self.fallback_radius
+            ));
+        }
+        if self.fill_radius > MAX_FILL_RADIUS {
+            return bad(format!(
+                "fill_radius must be at most {MAX_FILL_RADIUS}, got {}",
+                self.fill_radius
             ));
         }
         Ok(())

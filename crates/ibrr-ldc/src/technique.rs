@@ -59,10 +59,13 @@ pub struct FrameTimings {
     pub gbuffer: Duration,
     /// Warping the pixels into the LDC and shading.
     pub lookup: Duration,
-    /// Pixels with geometry but no matching layer.
+    /// Pixels with geometry, no matching layer and nothing to fill from: black.
     pub missing: u64,
     /// Pixels served by the fallback search.
     pub fallback: u64,
+    /// Pixels without a layer filled from the camera pixels around them
+    /// ([`crate::IbrrSettings::fill_radius`]).
+    pub filled: u64,
 }
 
 /// The IBRR as a [`Technique`].
@@ -364,12 +367,7 @@ impl Technique for IbrrTechnique {
         c.prepare_renderer(self.renderer.as_mut())?;
         if let Some((ctx, uploaded)) = self.gpu.as_mut() {
             if uploaded.is_none() {
-                *uploaded = Some(GpuLdc::new(
-                    ctx,
-                    ldc,
-                    self.settings.lookup,
-                    self.settings.fallback_radius,
-                )?);
+                *uploaded = Some(GpuLdc::new(ctx, ldc, self.settings.reading())?);
             }
             let target = scene_core::ViewTarget::new(frame.view, frame.width, frame.height);
             let g = match self.renderer.render_views_gpu(&[target])? {
@@ -393,6 +391,7 @@ impl Technique for IbrrTechnique {
                 lookup: t.elapsed(),
                 missing: counts.missing,
                 fallback: counts.fallback,
+                filled: counts.filled,
             };
             return Ok(image);
         }
@@ -401,13 +400,7 @@ impl Technique for IbrrTechnique {
             .render_view(&frame.view, frame.width, frame.height)?;
         let gbuffer = t.elapsed();
         let t = Instant::now();
-        let r: Reconstruction = reconstruct(
-            ldc,
-            &g,
-            &frame.view,
-            self.settings.lookup,
-            self.settings.fallback_radius,
-        );
+        let r: Reconstruction = reconstruct(ldc, &g, &frame.view, self.settings.reading());
         let image = shade(&c.scene, &g, &frame.view, &r, frame.lights);
         self.timings = FrameTimings {
             rebuild,
@@ -416,6 +409,7 @@ impl Technique for IbrrTechnique {
             lookup: t.elapsed(),
             missing: r.missing,
             fallback: r.fallback,
+            filled: r.filled,
         };
         self.served = r.served;
         Ok(image)

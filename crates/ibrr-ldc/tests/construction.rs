@@ -228,13 +228,7 @@ fn irradiance_image(
     let mut g_r = RayCastRenderer::new();
     g_r.prepare(scene.clone()).unwrap();
     let g = g_r.render_view(&frame.view, size, size).unwrap();
-    let rec = ibrr_ldc::reconstruct(
-        &ldc,
-        &g,
-        &frame.view,
-        settings.lookup,
-        settings.fallback_radius,
-    );
+    let rec = ibrr_ldc::reconstruct(&ldc, &g, &frame.view, settings.reading());
     Image {
         width: size,
         height: size,

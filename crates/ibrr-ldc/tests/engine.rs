@@ -6,7 +6,7 @@
 use std::sync::Arc;
 
 use glam::Vec3;
-use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup};
+use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::{GpuGBuffer, HostGBuffer, HostGBufferPass};
 use scene_core::lights::LightState;
@@ -40,7 +40,7 @@ fn an_engine_gbuffer_in_reverse_z_gives_the_own_gbuffers_image() {
         .render(&scene, &frame.view, w, h)
         .unwrap();
     let lights = LightState::default();
-    let mut gpu_ldc = GpuLdc::new(&ctx, ldc, Lookup::Bilinear, settings.fallback_radius).unwrap();
+    let mut gpu_ldc = GpuLdc::new(&ctx, ldc, settings.reading()).unwrap();
     let (own, _) = gpu_ldc
         .render(
             &scene,
@@ -162,13 +162,7 @@ fn the_frame_contract_gives_the_reconstruction_and_creates_nothing_per_frame() {
         .iter()
         .map(|state| {
             other.relight(state).unwrap().unwrap();
-            let mut gpu = GpuLdc::new(
-                &ctx,
-                other.ldc().unwrap(),
-                settings.lookup,
-                settings.fallback_radius,
-            )
-            .unwrap();
+            let mut gpu = GpuLdc::new(&ctx, other.ldc().unwrap(), settings.reading()).unwrap();
             gpu.render(&scene, &gg, &frame.view, state).unwrap().0
         })
         .collect();

@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup, reconstruct, shade};
+use ibrr_ldc::{GpuLdc, IbrrSettings, IbrrTechnique, Lookup, Reading, reconstruct, shade};
 use scene_core::gbuffer::RayCastRenderer;
 use scene_core::gpu::GpuGBuffer;
 use scene_core::lights::{LightId, LightState, light_ids};
@@ -16,6 +16,7 @@ fn gpu_reconstruction_equals_the_cpu_one() {
     let Some(ctx) = gpu_test_context() else {
         return;
     };
+    let mut filled = 0;
     for name in ["cornell", "primitives"] {
         let scene = Arc::new(builtin::scene(name).unwrap());
         // A coarse LDC and few IRPLs, so that the fallback and missing pixels occur.
@@ -46,9 +47,13 @@ fn gpu_reconstruction_equals_the_cpu_one() {
             Lookup::Average { radius: 1 },
             Lookup::Bilinear,
         ] {
-            let r = reconstruct(ldc, &g, &frame.view, lookup, settings.fallback_radius);
+            let reading = Reading {
+                lookup,
+                ..settings.reading()
+            };
+            let r = reconstruct(ldc, &g, &frame.view, reading);
             let cpu = shade(&scene, &g, &frame.view, &r, &lights);
-            let mut gpu_ldc = GpuLdc::new(&ctx, ldc, lookup, settings.fallback_radius).unwrap();
+            let mut gpu_ldc = GpuLdc::new(&ctx, ldc, reading).unwrap();
             let (gpu, counts) = gpu_ldc.render(&scene, &gg, &frame.view, &lights).unwrap();
             let peak = cpu
                 .pixels
@@ -66,12 +71,14 @@ fn gpu_reconstruction_equals_the_cpu_one() {
                 }
             }
             println!(
-                "{name} {lookup:?}: {off} of {} pixels differ, worst {worst:.2e} of peak {peak:.2e}; missing {} / {}, fallback {} / {}",
+                "{name} {lookup:?}: {off} of {} pixels differ, worst {worst:.2e} of peak {peak:.2e}; missing {} / {}, fallback {} / {}, filled {} / {}",
                 cpu.pixels.len(),
                 r.missing,
                 counts.missing,
                 r.fallback,
-                counts.fallback
+                counts.fallback,
+                r.filled,
+                counts.filled
             );
             assert!(
                 off <= cpu.pixels.len() / 500,
@@ -80,9 +87,13 @@ fn gpu_reconstruction_equals_the_cpu_one() {
             assert!(
                 r.missing.abs_diff(counts.missing) <= 2
                     && r.fallback.abs_diff(counts.fallback) <= 2
+                    && r.filled.abs_diff(counts.filled) <= 2
             );
+            filled += r.filled;
         }
     }
+    // The coarse LDC leaves holes, so the twins' hole fills are compared too.
+    assert!(filled > 0, "no pixel was filled: the fill went untested");
 }
 
 #[test]
@@ -216,7 +227,7 @@ fn steady_state_frames_create_no_gpu_objects() {
         s.set_color(emitter, glam::Vec3::new(1.0, 0.3 * k as f32, 0.5));
         s
     };
-    let mut gpu_ldc = GpuLdc::new(&ctx, ldc, Lookup::Nearest, settings.fallback_radius).unwrap();
+    let mut gpu_ldc = GpuLdc::new(&ctx, ldc, Reading::with_lookup(Lookup::Nearest)).unwrap();
     let output = ctx.pixel_buffer("ibrr", w, h);
     let mut images = Vec::new();
     for k in 0..6 {

@@ -79,13 +79,7 @@ fn rebuild(scene: &Scene, irpls: &IrplSet, state: &LightState, settings: IbrrSet
     let ldc = c.ldc().unwrap();
     let frame = FrameRequest::camera(&changed.cameras[0], W, H);
     let g = r.render(&changed, &frame.view, W, H).unwrap();
-    let rec = reconstruct(
-        &ldc,
-        &g,
-        &frame.view,
-        settings.lookup,
-        settings.fallback_radius,
-    );
+    let rec = reconstruct(&ldc, &g, &frame.view, settings.reading());
     shade(&changed, &g, &frame.view, &rec, &LightState::default())
 }
 
