@@ -100,6 +100,9 @@ fn solid_angle(p: vec3<f32>, a0: vec3<f32>, b0: vec3<f32>, c0: vec3<f32>) -> f32
     return 0.0;
 }
 
+// display.rs DEEP_SHADOW: below it a shadow factor is deep shadow.
+const DEEP_SHADOW: f32 = 1e-30;
+
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= params.width || gid.y >= params.height {
@@ -151,6 +154,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         let l = lights[j];
         var e = vec3<f32>(0.0);
+        // One lookup at the centre; the footprint's points unless it is deep in shadow
+        // (display.rs, DEEP_SHADOW).
+        if visibility(l, c, n, params.shadow_params) < DEEP_SHADOW {
+            continue;
+        }
         if quad && l.kind == KIND_POINT && l.radius == 0.0 {
             let to = l.position - c;
             if dot(n, to) <= 0.0 || !(area > 0.0) {

@@ -492,7 +492,7 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                 );
                 let make = match &c.kind {
                     ChoiceKind::Isr(settings) => crate::gpu_frames::isr_maker(*settings),
-                    ChoiceKind::Relight { elements } => crate::gpu_frames::relight_maker(
+                    ChoiceKind::Relight { elements, .. } => crate::gpu_frames::relight_maker(
                         *elements,
                         relight_pr::packed::Precision::F32,
                     ),
@@ -524,13 +524,19 @@ pub fn build(o: &Options) -> Result<Experiment, String> {
                         .with_backend(backend.clone())
                         .named(&c.label),
                 ),
-                ChoiceKind::Relight { elements } => {
-                    let t = relight_pr::RelightTechnique::new(
+                ChoiceKind::Relight {
+                    elements,
+                    shadow_maps,
+                } => {
+                    let mut t = relight_pr::RelightTechnique::new(
                         relight_pr::MeshSettings::elements(*elements),
                         relight_pr::SolverSettings::default(),
                         Box::new(CpuRasterizer::new()),
                     )
                     .named(&c.label);
+                    if *shadow_maps {
+                        t.direct = relight_pr::direct::DirectLight::shadow_maps();
+                    }
                     match &backend {
                         Backend::Gpu(ctx) => Box::new(t.on_gpu(ctx.clone())),
                         _ => Box::new(t),

@@ -12,10 +12,13 @@ pub const SAMPLES: [u32; 3] = [24, 48, 80];
 pub enum ChoiceKind {
     /// DL or ISR with these frame settings.
     Isr(IsrSettings),
-    /// Radiosity relighting at this target element count (per-pixel direct light).
+    /// Radiosity relighting at this target element count.
     Relight {
         /// Target element count.
         elements: usize,
+        /// The direct light of every frame from shadow maps (`DirectLight::ShadowMaps`)
+        /// instead of the per-pixel ray gather (the GPU frame uses the maps either way).
+        shadow_maps: bool,
     },
     /// The image-based radiosity representation.
     Ibrr {
@@ -50,12 +53,25 @@ pub const RELIGHT_ELEMENTS: [usize; 2] = [256, 1024];
 pub const IBRR_SETTINGS: [(u32, u32); 2] = [(128, 64), (256, 184)];
 
 fn relight_choice(elements: usize) -> TechniqueChoice {
+    relight_choice_with(elements, false)
+}
+
+/// `relight-N`, or with `shadow_maps` `relight-N-sm`.
+fn relight_choice_with(elements: usize, shadow_maps: bool) -> TechniqueChoice {
+    let (suffix, direct) = if shadow_maps {
+        ("-sm", "direct light from shadow maps every frame")
+    } else {
+        ("", "per-pixel direct light")
+    };
     TechniqueChoice {
-        label: format!("relight-{elements}"),
+        label: format!("relight-{elements}{suffix}"),
         family: "relight".into(),
-        kind: ChoiceKind::Relight { elements },
+        kind: ChoiceKind::Relight {
+            elements,
+            shadow_maps,
+        },
         description: format!(
-            "radiosity relighting, {elements} elements, ray-cast form factors, per-pixel direct light, progressive solve (hierarchical above 8 192 elements, e.g. a file of 10^5 triangles) (precomputed per scene)"
+            "radiosity relighting, {elements} elements, ray-cast form factors, {direct}, progressive solve (hierarchical above 8 192 elements, e.g. a file of 10^5 triangles) (precomputed per scene)"
         ),
     }
 }
@@ -176,13 +192,15 @@ fn isr_ls_choice(samples: u32, shadowed: bool, named: bool) -> TechniqueChoice {
 /// scaled by a measured `k_isr`), `isr-ls` and `isr-ls-N` (the default under another name),
 /// `isr-lsv-N` (with shadow rays), `isr-mb` and `isr-mb-N` (every bounce), `isr-mbv-N`
 /// (every bounce, shadow rays), `relight` (256 and 1024 elements), `relight-N`,
+/// `relight-N-sm` (the direct light from shadow maps every frame),
 /// `ibrr` (LDC 128 with 64 IRPLs, LDC 256 with 184), `ibrr-RES-N`, `ibrr-RES-N-cam` (with
 /// camera importance). `dl` (the baseline) is
 /// added first when missing.
 pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
     let known = "dl, isr, isr-default, isr-thesis, isr-scaled, isr-N, isr-thesis-N, \
                  isr-scaled-N, isr-ls, isr-ls-N, isr-lsv-N, isr-mb, isr-mb-N, isr-mbv-N (N in 1..=256), \
-                 relight, relight-N (N elements, 16..=1000000), ibrr, ibrr-RES-N (LDC RES in \
+                 relight, relight-N (N elements, 16..=1000000), relight-N-sm (shadow-mapped \
+                 direct light), ibrr, ibrr-RES-N (LDC RES in \
                  8..=2048, N IRPLs in 1..=100000), ibrr-RES-N-cam (camera importance)";
     let mut out: Vec<TechniqueChoice> = Vec::new();
     for token in list.split(',').map(str::trim).filter(|t| !t.is_empty()) {
@@ -207,12 +225,17 @@ pub fn parse_techniques(list: &str) -> Result<Vec<TechniqueChoice>, String> {
             "relight" => add.extend(RELIGHT_ELEMENTS.map(relight_choice)),
             "ibrr" => add.extend(IBRR_SETTINGS.map(|(r, n)| ibrr_choice(r, n, false))),
             _ if t.starts_with("relight-") => {
-                let n: usize = t["relight-".len()..]
+                let rest = &t["relight-".len()..];
+                let (rest, maps) = match rest.strip_suffix("-sm") {
+                    Some(r) => (r, true),
+                    None => (rest, false),
+                };
+                let n: usize = rest
                     .parse()
                     .ok()
                     .filter(|n| (16..=1_000_000).contains(n))
                     .ok_or_else(|| format!("unknown technique '{token}' (known: {known})"))?;
-                add.push(relight_choice(n));
+                add.push(relight_choice_with(n, maps));
             }
             _ if t.starts_with("ibrr-") => {
                 let rest = &t["ibrr-".len()..];
@@ -306,7 +329,8 @@ mod tests {
         );
         assert!(parse_techniques("isr-0").is_err());
         let methods =
-            parse_techniques("relight,ibrr,relight-100,ibrr-64-32,ibrr-64-32-cam").unwrap();
+            parse_techniques("relight,ibrr,relight-100,ibrr-64-32,ibrr-64-32-cam,relight-100-sm")
+                .unwrap();
         let labels: Vec<&str> = methods.iter().map(|c| c.label.as_str()).collect();
         assert_eq!(
             labels,
@@ -318,9 +342,25 @@ mod tests {
                 "ibrr-256-184",
                 "relight-100",
                 "ibrr-64-32",
-                "ibrr-64-32-cam"
+                "ibrr-64-32-cam",
+                "relight-100-sm"
             ]
         );
+        assert!(matches!(
+            methods[8].kind,
+            ChoiceKind::Relight {
+                elements: 100,
+                shadow_maps: true
+            }
+        ));
+        assert!(matches!(
+            methods[5].kind,
+            ChoiceKind::Relight {
+                shadow_maps: false,
+                ..
+            }
+        ));
+        assert!(parse_techniques("relight-8-sm").is_err());
         assert!(matches!(
             methods[7].kind,
             ChoiceKind::Ibrr {

@@ -262,6 +262,12 @@ pub fn footprint_quad(
     }
 }
 
+/// Below this, a shadow factor is deep shadow (four texels at the ESM's capped exponent
+/// give 1.8e-35; a penumbra's least is above 1e-34): with it at a pixel's centre,
+/// [`pixel_direct_shadowed`] and its GPU twin take the light as hidden from the whole
+/// footprint.
+pub const DEEP_SHADOW: f32 = 1e-30;
+
 /// Largest [`DirectLight::ShadowMaps`] footprint grid (16 points a pixel).
 ///
 /// [`DirectLight::ShadowMaps`]: crate::direct::DirectLight::ShadowMaps
@@ -281,7 +287,12 @@ pub const MAX_FOOTPRINT: u32 = 4;
 /// integrated in closed form instead, as the per-pixel gather does: `I Omega / A` over the
 /// footprint quad (cosines included, so a hot spot narrower than a pixel keeps its
 /// energy), times a spot's attenuation towards the footprint's centre and the points' mean
-/// shadow factor. Each light is added to its source's slot (`slots`, [`light_slots`]),
+/// shadow factor. Where a light's shadow factor at the pixel's centre is deep shadow
+/// ([`DEEP_SHADOW`]: all four texels of its PCF far behind their occluders), the light is
+/// taken as hidden from the whole footprint: a lamp behind a wall costs one lookup a pixel,
+/// not one a point. (Taking a centre seen in full for the whole footprint too cost cornell
+/// 2 points of error at the panel's shadow edges, past the 1.2x bound of
+/// `tests/reference.rs`.) Each light is added to its source's slot (`slots`, [`light_slots`]),
 /// pixel-major (`i * k + m`), before the frame's factors; zero on background. The CPU twin
 /// of relighting's GPU direct pass (`shaders/relight-pr/direct.wgsl`).
 ///
@@ -346,15 +357,28 @@ pub fn pixel_direct_shadowed(
                     continue;
                 };
                 let light = &set.lights[j];
+                // One lookup at the centre; the footprint's points unless it is deep in
+                // shadow.
+                if set.light_visibility(j, c, n) < DEEP_SHADOW {
+                    continue;
+                }
                 o[s] += match &quad {
                     Some((tris, area)) if light.kind == LightKind::Point && light.radius == 0.0 => {
                         let (to, area) = (light.position - c, *area);
                         if n.dot(to) <= 0.0 || area.is_nan() || area <= 0.0 {
                             continue;
                         }
-                        let omega: f32 = tris.iter().map(|t| solid_angle(light.position, t)).sum();
-                        let cone = light.spot.attenuation(-to.normalize_or_zero());
+                        // The shadow first: a lamp behind a wall (most of a house's lamps
+                        // from any one room) costs its map's lookup, not the closed form.
                         let seen: f32 = points.iter().map(|&p| set.light_visibility(j, p, n)).sum();
+                        if seen <= 0.0 {
+                            continue;
+                        }
+                        let cone = light.spot.attenuation(-to.normalize_or_zero());
+                        if cone <= 0.0 {
+                            continue;
+                        }
+                        let omega: f32 = tris.iter().map(|t| solid_angle(light.position, t)).sum();
                         light.color * (omega / area * cone * (seen * inv))
                     }
                     _ => {

@@ -224,10 +224,12 @@ fn the_image_mean_at_the_default_element_count_is_the_references_over_whole_pixe
 /// A moving camera (three views along a short path): with [`DirectLight::ShadowMaps`] every
 /// frame evaluates its direct light from the shadow maps (nothing is kept from the view
 /// before), and its error against the reference stays within 1.2x of the per-pixel
-/// gather's, the still camera's quality, on both Cornell boxes (area light and point light).
+/// gather's, the still camera's quality, on both Cornell boxes (area light and point light)
+/// and the corridor (four point lights between pillars). The window room lit by a sun and
+/// a sky is `tests/tests/sky.rs`'s.
 #[test]
 fn shadow_mapped_direct_on_a_moving_camera_is_within_1_2x_of_the_gather() {
-    for name in ["cornell", "cornell-point"] {
+    for name in ["cornell", "cornell-point", "corridor"] {
         let scene = Arc::new(builtin::scene(name).unwrap());
         let mut t = solved(&scene, 1024);
         let c0 = scene.cameras[0].clone();

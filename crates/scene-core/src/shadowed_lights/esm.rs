@@ -483,8 +483,17 @@ pub fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
         // Lit: the common case, without an exp.
         return 1.0;
     }
-    (-(c * d).min(ESM_MAX_EXPONENT)).exp()
+    let x = c * d;
+    if !(x < ESM_MAX_EXPONENT) {
+        // Deep in shadow (a lamp behind a wall): the cap's value, the same bits as the exp
+        // of the capped argument, without an exp.
+        return DEEP_SHADOW;
+    }
+    (-x).exp()
 }
+
+/// `exp(-ESM_MAX_EXPONENT)`, what [`esm`] gives deep in shadow.
+const DEEP_SHADOW: f32 = 1.804_851_3e-35;
 
 /// Bilinear PCF of eq. 30 over the four texels around image coordinates `uv` of one face
 /// (listing 8), texels clamped to the face.
@@ -499,8 +508,9 @@ fn pcf(face: &[f32], res: u32, uv: Vec2, c: f32, receiver: f32) -> f32 {
         let y = (i0.y as i32 + dy).clamp(0, last) as usize;
         esm(c, receiver, face[y * res as usize + x])
     };
-    let top = at(0, 0) + (at(1, 0) - at(0, 0)) * f.x;
-    let bottom = at(0, 1) + (at(1, 1) - at(0, 1)) * f.x;
+    let (v00, v10, v01, v11) = (at(0, 0), at(1, 0), at(0, 1), at(1, 1));
+    let top = v00 + (v10 - v00) * f.x;
+    let bottom = v01 + (v11 - v01) * f.x;
     top + (bottom - top) * f.y
 }
 
@@ -568,6 +578,16 @@ mod tests {
                 assert!((back - uv).length() < 1e-5, "{face} {uv} {back}");
             }
         }
+    }
+
+    #[test]
+    fn deep_shadow_is_the_capped_exp_to_the_bit() {
+        assert_eq!(DEEP_SHADOW.to_bits(), (-ESM_MAX_EXPONENT).exp().to_bits());
+        assert_eq!(esm(4000.0, 1.0, 0.0), (-ESM_MAX_EXPONENT).exp());
+        assert_eq!(esm(f32::INFINITY, 1.0, 0.5), DEEP_SHADOW);
+        assert_eq!(esm(4000.0, 0.5, 0.5), 1.0);
+        let penumbra = esm(4000.0, 0.5001, 0.5);
+        assert_eq!(penumbra, (-(4000.0f32 * (0.5001f32 - 0.5))).exp());
     }
 
     #[test]
