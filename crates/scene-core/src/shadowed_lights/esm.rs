@@ -484,7 +484,7 @@ pub fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
         return 1.0;
     }
     let x = c * d;
-    if !(x < ESM_MAX_EXPONENT) {
+    if x >= ESM_MAX_EXPONENT || x.is_nan() {
         // Deep in shadow (a lamp behind a wall): the cap's value, the same bits as the exp
         // of the capped argument, without an exp.
         return DEEP_SHADOW;
