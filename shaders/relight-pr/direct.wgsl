@@ -176,6 +176,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             for (var p = 0u; p < count; p++) {
                 seen += visibility(l, points[p], n, params.shadow_params);
             }
+            // As display.rs: nothing seen or outside the cone adds nothing (not even a NaN
+            // of the closed form, which would clear the pixel's other lights).
+            if seen <= 0.0 || ramp <= 0.0 {
+                continue;
+            }
             e = l.color * (omega / area * (ramp * ramp) * (seen * inv));
         } else {
             for (var p = 0u; p < count; p++) {

@@ -380,9 +380,20 @@ impl GpuLdc {
             pad_b: 0,
             pad_c: 0,
         };
+        let irradiance_bytes = u64::from(w) * u64::from(h) * 32;
+        let limit = self.ctx.storage_binding_limit();
+        if irradiance_bytes > limit {
+            return Err(IbrrError::Budget {
+                needed: irradiance_bytes,
+                limit,
+                what: format!(
+                    "the {w}x{h} frame's irradiance between the lookup and the fill on this adapter (a smaller frame fits)"
+                ),
+            });
+        }
         let irradiance = self
             .irradiance
-            .ensure(&self.ctx.device, u64::from(w) * u64::from(h) * 32)
+            .ensure(&self.ctx.device, irradiance_bytes)
             .clone();
         let ctx = &self.ctx;
         let bind_key = BindKey {
