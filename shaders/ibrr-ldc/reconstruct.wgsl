@@ -408,8 +408,13 @@ fn filled(x: i32, y: i32, p: vec3<f32>, n: vec3<f32>) -> vec4<f32> {
             if v < 0 || v >= h {
                 continue;
             }
-            for (var u = x - r; u <= x + r; u++) {
-                if u < 0 || u >= w || (abs(u - x) != r && abs(v - y) != r) {
+            // The ring's row: whole at its top and bottom, its two ends between.
+            var step = 2 * r;
+            if abs(v - y) == r {
+                step = 1;
+            }
+            for (var u = x - r; u <= x + r; u += step) {
+                if u < 0 || u >= w {
                     continue;
                 }
                 let k = u32(v * w + u);

@@ -1,7 +1,7 @@
 #import scene_core::limits::MAX_FINITE
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
 #import scene_core::light_set::{KIND_POINT, lights, irradiance}
-#import scene_core::shadow::{ShadowParams, visibility}
+#import scene_core::shadow::{DEEP_SHADOW, ShadowParams, visibility}
 #import relight_pr::element::Element
 // Relighting's per-frame direct light from scene-core's shadow-mapped lights (mirrors
 // crates/relight-pr/src/display.rs `pixel_direct_shadowed` step for step): at each pixel of
@@ -100,9 +100,6 @@ fn solid_angle(p: vec3<f32>, a0: vec3<f32>, b0: vec3<f32>, c0: vec3<f32>) -> f32
     return 0.0;
 }
 
-// display.rs DEEP_SHADOW: below it a shadow factor is deep shadow.
-const DEEP_SHADOW: f32 = 1e-30;
-
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= params.width || gid.y >= params.height {
@@ -155,8 +152,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let l = lights[j];
         var e = vec3<f32>(0.0);
         // One lookup at the centre; the footprint's points unless it is deep in shadow
-        // (display.rs, DEEP_SHADOW).
-        if visibility(l, c, n, params.shadow_params) < DEEP_SHADOW {
+        // (display.rs; DEEP_SHADOW from scene_core::shadow).
+        if count > 1u && visibility(l, c, n, params.shadow_params) < DEEP_SHADOW {
             continue;
         }
         if quad && l.kind == KIND_POINT && l.radius == 0.0 {

@@ -7,6 +7,10 @@
 
 const MIN_POSITIVE: f32 = 1.17549435e-38;
 
+// Below this a shadow factor is deep shadow (esm.rs DEEP_SHADOW): every PCF texel has
+// c d above 69.1.
+const DEEP_SHADOW: f32 = 1e-30;
+
 // The lookup's parameters; crates/scene-core/src/shadowed_lights/gpu.rs `ShadowParams`.
 struct ShadowParams {
     // The ESM exponent c of eq. 30.

@@ -418,11 +418,15 @@ fn fill_rings(
                     if v < 0 || v >= i64::from(h) {
                         continue;
                     }
-                    for u in x - rr..=x + rr {
-                        if u < 0
-                            || u >= i64::from(w)
-                            || ((u - x).abs() != rr && (v - y).abs() != rr)
-                        {
+                    // The ring's row: whole at its top and bottom, its two ends between
+                    // (in raster order, as the GPU reads it).
+                    let step = if (v - y).abs() == rr {
+                        1
+                    } else {
+                        2 * rr as usize
+                    };
+                    for u in (x - rr..=x + rr).step_by(step) {
+                        if u < 0 || u >= i64::from(w) {
                             continue;
                         }
                         let k = (v * i64::from(w) + u) as usize;

@@ -59,6 +59,8 @@ fn no_surface_pixel_of_a_cluttered_room_is_black_and_the_bias_stays_within_five_
         (0.0f64, 0u64, 0.0f64, 0u64);
     let (mut err_filled, mut n_filled) = (0.0f64, 0u64);
     let mut biases = Vec::new();
+    // Per build (seed): surface samples filled, and those no fill reached.
+    let mut per_seed = Vec::new();
     for seed in 1..=6u64 {
         let settings = IbrrSettings {
             target_error: 0.0,
@@ -70,6 +72,7 @@ fn no_surface_pixel_of_a_cluttered_room_is_black_and_the_bias_stays_within_five_
         let ldc = t.ldc().unwrap();
         let r = reconstruct(ldc, &g, &frame.view, settings.reading());
         let full = shade(&scene, &g, &frame.view, &r, frame.lights);
+        let (filled_before, missing_before) = (filled_samples, missing_samples);
         for (i, class) in big_classes.iter().enumerate() {
             if *class != PixelClass::Surface || g.is_background(i) {
                 continue;
@@ -87,6 +90,10 @@ fn no_surface_pixel_of_a_cluttered_room_is_black_and_the_bias_stays_within_five_
                 black_samples += 1;
             }
         }
+        per_seed.push((
+            filled_samples - filled_before,
+            missing_samples - missing_before,
+        ));
         let img = full.box_down(SS);
         let (mut st, mut sr) = ([0.0f64; 3], [0.0f64; 3]);
         for (i, class) in classes.iter().enumerate() {
@@ -130,7 +137,7 @@ fn no_surface_pixel_of_a_cluttered_room_is_black_and_the_bias_stays_within_five_
     let mean_ref = sum_ref.iter().sum::<f64>() / 3.0 / surface as f64;
     let bias = [0, 1, 2].map(|c| sum_test[c] / sum_ref[c] - 1.0);
     println!(
-        "cluttered room: {fallback_samples} of {surface_samples} surface samples ({:.2} %) from the fallback, {filled_samples} ({:.2} %) filled, {missing_samples} without a layer or a fill, {black_samples} black; {n_fallback} of {surface} pixels mostly from the fallback, mean error there {:.3} of the surfaces' mean, {n_filled} mostly filled, {:.3} there, {:.3} elsewhere; bias per seed {biases:+.3?}, over the seeds {bias:+.4?}",
+        "cluttered room: {fallback_samples} of {surface_samples} surface samples ({:.2} %) from the fallback, {filled_samples} ({:.2} %) filled, {missing_samples} without a layer or a fill, {black_samples} black; {n_fallback} of {surface} pixels mostly from the fallback, mean error there {:.3} of the surfaces' mean, {n_filled} mostly filled, {:.3} there, {:.3} elsewhere; filled / unfilled samples per seed {per_seed:?}; bias per seed {biases:+.3?}, over the seeds {bias:+.4?}",
         100.0 * fallback_samples as f64 / surface_samples as f64,
         100.0 * filled_samples as f64 / surface_samples as f64,
         err_fallback / n_fallback.max(1) as f64 / mean_ref,

@@ -11,6 +11,7 @@ use std::collections::HashMap;
 use glam::Vec3;
 use rayon::prelude::*;
 use scene_core::sampling::{hash_seed, r2};
+use scene_core::shadowed_lights::esm::DEEP_SHADOW;
 use scene_core::shadowed_lights::{LightKind, LightSet};
 use scene_core::{GBuffer, Image, View};
 
@@ -262,12 +263,6 @@ pub fn footprint_quad(
     }
 }
 
-/// Below this, a shadow factor is deep shadow (four texels at the ESM's capped exponent
-/// give 1.8e-35; a penumbra's least is above 1e-34): with it at a pixel's centre,
-/// [`pixel_direct_shadowed`] and its GPU twin take the light as hidden from the whole
-/// footprint.
-pub const DEEP_SHADOW: f32 = 1e-30;
-
 /// Largest [`DirectLight::ShadowMaps`] footprint grid (16 points a pixel).
 ///
 /// [`DirectLight::ShadowMaps`]: crate::direct::DirectLight::ShadowMaps
@@ -288,7 +283,8 @@ pub const MAX_FOOTPRINT: u32 = 4;
 /// footprint quad (cosines included, so a hot spot narrower than a pixel keeps its
 /// energy), times a spot's attenuation towards the footprint's centre and the points' mean
 /// shadow factor. Where a light's shadow factor at the pixel's centre is deep shadow
-/// ([`DEEP_SHADOW`]: all four texels of its PCF far behind their occluders), the light is
+/// ([`DEEP_SHADOW`]: all four texels of its PCF at least 69/c of the extent behind their
+/// occluders), the light is
 /// taken as hidden from the whole footprint: a lamp behind a wall costs one lookup a pixel,
 /// not one a point. (Taking a centre seen in full for the whole footprint too cost cornell
 /// 2 points of error at the panel's shadow edges, past the 1.2x bound of
@@ -358,8 +354,8 @@ pub fn pixel_direct_shadowed(
                 };
                 let light = &set.lights[j];
                 // One lookup at the centre; the footprint's points unless it is deep in
-                // shadow.
-                if set.light_visibility(j, c, n) < DEEP_SHADOW {
+                // shadow (a footprint of one point is the centre itself).
+                if points.len() > 1 && set.light_visibility(j, c, n) < DEEP_SHADOW {
                     continue;
                 }
                 o[s] += match &quad {

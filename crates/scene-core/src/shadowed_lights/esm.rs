@@ -487,13 +487,21 @@ pub fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
     if x >= ESM_MAX_EXPONENT || x.is_nan() {
         // Deep in shadow (a lamp behind a wall): the cap's value, the same bits as the exp
         // of the capped argument, without an exp.
-        return DEEP_SHADOW;
+        return CAPPED;
     }
     (-x).exp()
 }
 
 /// `exp(-ESM_MAX_EXPONENT)`, what [`esm`] gives deep in shadow.
-const DEEP_SHADOW: f32 = 1.804_851_3e-35;
+const CAPPED: f32 = 1.804_851_3e-35;
+
+/// A shadow factor ([`visibility`]) below this is deep shadow: every texel of its PCF has
+/// `c d` above ln(1e30) = 69.1, the receiver that far behind its occluder (1.7 % of the
+/// scene's extent at the default `c` of 4000; the cap, [`ESM_MAX_EXPONENT`], gives
+/// 1.8e-35). Callers that average a light over several points may take one such point as
+/// hidden from them all (relighting's footprint). Twin: `DEEP_SHADOW` of
+/// `scene_core::shadow` (WGSL).
+pub const DEEP_SHADOW: f32 = 1e-30;
 
 /// Bilinear PCF of eq. 30 over the four texels around image coordinates `uv` of one face
 /// (listing 8), texels clamped to the face.
@@ -582,9 +590,12 @@ mod tests {
 
     #[test]
     fn deep_shadow_is_the_capped_exp_to_the_bit() {
-        assert_eq!(DEEP_SHADOW.to_bits(), (-ESM_MAX_EXPONENT).exp().to_bits());
+        assert_eq!(CAPPED.to_bits(), (-ESM_MAX_EXPONENT).exp().to_bits());
+        // Deep shadow is c d beyond 69.1: a texel at 69 is above it, one at 69.2 below.
+        const { assert!(CAPPED < DEEP_SHADOW) };
+        assert!(esm(1.0, 69.0, 0.0) > DEEP_SHADOW && esm(1.0, 69.2, 0.0) < DEEP_SHADOW);
         assert_eq!(esm(4000.0, 1.0, 0.0), (-ESM_MAX_EXPONENT).exp());
-        assert_eq!(esm(f32::INFINITY, 1.0, 0.5), DEEP_SHADOW);
+        assert_eq!(esm(f32::INFINITY, 1.0, 0.5), CAPPED);
         assert_eq!(esm(4000.0, 0.5, 0.5), 1.0);
         let penumbra = esm(4000.0, 0.5001, 0.5);
         assert_eq!(penumbra, (-(4000.0f32 * (0.5001f32 - 0.5))).exp());
