@@ -1,6 +1,6 @@
 #import scene_core::limits::MAX_FINITE
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
-#import scene_core::light_set::{KIND_POINT, lights, irradiance}
+#import scene_core::light_set::{KIND_DIRECTIONAL, KIND_POINT, lights, irradiance}
 #import scene_core::shadow::{DEEP_SHADOW, ShadowParams, visibility}
 #import relight_pr::element::Element
 // Relighting's per-frame direct light from scene-core's shadow-mapped lights (mirrors
@@ -151,6 +151,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         let l = lights[j];
         var e = vec3<f32>(0.0);
+        // A directional light that stands for a cone (the sky's directions; its radius
+        // is not 0, light_set.wgsl): looked up at the centre alone (display.rs).
+        if l.kind == KIND_DIRECTIONAL && l.radius != 0.0 {
+            let ir = irradiance(l, c, n);
+            if any(ir != vec3<f32>(0.0)) {
+                direct[i * k + s] += vec4<f32>(ir * visibility(l, c, n, params.shadow_params), 0.0);
+            }
+            continue;
+        }
         // One lookup at the centre; the footprint's points unless it is deep in shadow
         // (display.rs; DEEP_SHADOW from scene_core::shadow).
         if count > 1u && visibility(l, c, n, params.shadow_params) < DEEP_SHADOW {

@@ -23,7 +23,9 @@ struct Light {
     kind: u32,
     // Intensity (point), irradiance (directional) or radiance (emitter sample).
     color: vec3<f32>,
-    // Eq. 16's radius, 0 for inverse square.
+    // Eq. 16's radius of a point light, 0 for inverse square. A directional light's cone
+    // (gpu.rs GpuLight): above 0 its map's spread (shadow.wgsl soft_pcf), below 0 minus
+    // the spread of a light looked up hard, 0 for a light without a cone.
     radius: f32,
     // Travel direction (directional) or emitting normal (emitter sample).
     direction: vec3<f32>,

@@ -54,6 +54,117 @@ fn pcf(start: u32, res: u32, uv: vec2<f32>, c: f32, receiver: f32) -> f32 {
     return top + (bottom - top) * f.y;
 }
 
+// Soft lookups (esm.rs soft_pcf): blocker-search taps per side besides the receiver's
+// texel, the filter's taps, the widest penumbra in texels, the depths of the scene's
+// near and far sides in an orthographic map (extents) and the steepest receiver plane.
+const SEARCH_TAPS: u32 = 3u;
+// The filter's taps on the unit disk: Vogel's spiral (esm.rs FILTER_DISK).
+const FILTER_DISK = array<vec2<f32>, 16>(
+    vec2<f32>(0.1767767, 0.0),
+    vec2<f32>(-0.2257722, 0.2068258),
+    vec2<f32>(0.0345581, -0.3937712),
+    vec2<f32>(0.2845712, 0.3711728),
+    vec2<f32>(-0.5222232, -0.0923739),
+    vec2<f32>(0.4946954, -0.3146847),
+    vec2<f32>(-0.1654659, 0.615525),
+    vec2<f32>(-0.3155615, -0.6075944),
+    vec2<f32>(0.6846422, 0.2500302),
+    vec2<f32>(-0.7122561, 0.294009),
+    vec2<f32>(0.3433545, -0.7337286),
+    vec2<f32>(0.2537302, 0.808932),
+    vec2<f32>(-0.7647459, -0.4431859),
+    vec2<f32>(0.897134, -0.1972324),
+    vec2<f32>(-0.5475069, 0.7787722),
+    vec2<f32>(-0.1264868, -0.9760897),
+);
+const MAX_PENUMBRA: f32 = 32.0;
+const NEAR_DEPTH: f32 = 0.5;
+const FAR_DEPTH: f32 = 1.501;
+const MAX_SLOPE: f32 = 8.0;
+// esm(c, r, o) at the cap, as esm.rs CAPPED.
+const CAPPED: f32 = 1.8048513e-35;
+
+// Texel (x, y) of the face starting at `start`, clamped to the face.
+fn map_texel(start: u32, res: u32, x: i32, y: i32) -> f32 {
+    let last = i32(res) - 1;
+    return shadow_texels[start + u32(clamp(y, 0, last)) * res + u32(clamp(x, 0, last))];
+}
+
+// A tap's texel: floor(x + 1/2), as esm.rs (round would tie to even).
+fn tap_texel(p: vec2<f32>) -> vec2<i32> {
+    return vec2<i32>(floor(p + vec2<f32>(0.5)));
+}
+
+// A light's cone penumbra on an orthographic map (esm.rs soft_pcf): t the receiver in
+// texel coordinates (a texel's centre at its index), receiver its biased depth, grad its
+// plane's depth change per texel, spread_texels the penumbra's half-width in texels per
+// extent between blocker and receiver.
+fn soft_pcf(start: u32, res: u32, t: vec2<f32>, c: f32, receiver: f32, grad: vec2<f32>, spread_texels: f32) -> f32 {
+    let search = clamp(spread_texels * (receiver - NEAR_DEPTH), 0.0, MAX_PENUMBRA);
+    var sum = 0.0;
+    var blockers = 0u;
+    var misses = 0u;
+    var deep = true;
+    let taps = SEARCH_TAPS * SEARCH_TAPS + 1u;
+    for (var k = 0u; k < taps; k++) {
+        var p = t;
+        if (k > 0u) {
+            let i = (k - 1u) % SEARCH_TAPS;
+            let j = (k - 1u) / SEARCH_TAPS;
+            let step = vec2<f32>(f32(i), f32(j)) / f32(SEARCH_TAPS - 1u) * 2.0 - vec2<f32>(1.0);
+            p = t + step * search;
+        }
+        let xy = tap_texel(p);
+        let o = map_texel(start, res, xy.x, xy.y);
+        let r = receiver + grad.x * (f32(xy.x) - t.x) + grad.y * (f32(xy.y) - t.y);
+        if (o >= FAR_DEPTH) {
+            misses += 1u;
+        }
+        if (o < r) {
+            sum += o;
+            blockers += 1u;
+            deep = deep && esm(c, r, o) < DEEP_SHADOW;
+        }
+    }
+    if (blockers == 0u) {
+        return 1.0;
+    }
+    if (deep && blockers + misses == taps) {
+        return CAPPED;
+    }
+    let width = clamp(spread_texels * (receiver - sum / f32(blockers)), 0.0, MAX_PENUMBRA);
+    if (width >= 0.5) {
+        var lit = 0.0;
+        var seen = 0.0;
+        var disk = FILTER_DISK;
+        for (var k = 0u; k < 16u; k++) {
+            let xy = tap_texel(t + disk[k] * width);
+            let o = map_texel(start, res, xy.x, xy.y);
+            if (o < FAR_DEPTH) {
+                let r = receiver + grad.x * (f32(xy.x) - t.x) + grad.y * (f32(xy.y) - t.y);
+                lit += esm(c, r, o);
+                seen += 1.0;
+            }
+        }
+        if (seen > 0.0) {
+            return lit / seen;
+        }
+    }
+    // Listing 8's bilinear PCF, each texel against the plane at its centre.
+    let corner = vec2<i32>(floor(t));
+    let f = t - floor(t);
+    var v: array<f32, 4>;
+    for (var k = 0; k < 4; k++) {
+        let x = corner.x + (k & 1);
+        let y = corner.y + (k >> 1u);
+        let r = receiver + grad.x * (f32(x) - t.x) + grad.y * (f32(y) - t.y);
+        v[k] = esm(c, r, map_texel(start, res, x, y));
+    }
+    let top = v[0] + (v[1] - v[0]) * f.x;
+    let bottom = v[2] + (v[3] - v[2]) * f.x;
+    return top + (bottom - top) * f.y;
+}
+
 // The cube face of direction d (major axis; ties to X, then Y) with its image coordinates,
 // as (u, v, face).
 fn cube_face(d: vec3<f32>) -> vec3<f32> {
@@ -113,6 +224,21 @@ fn visibility(l: Light, p: vec3<f32>, n: vec3<f32>, s: ShadowParams) -> f32 {
         0.5 * (1.0 - dot(rel, l.up) / l.half_extent),
     );
     let receiver = (dot(rel, l.forward) - s.depth_bias * texel) / extent;
+    // A directional light's radius is its spread (a cone's penumbra, esm.rs visibility).
+    if (l.radius > 0.0) {
+        let nf = dot(n, l.forward);
+        let per_texel = texel / extent;
+        let limit = MAX_SLOPE * per_texel;
+        var grad = vec2<f32>(0.0);
+        if (nf != 0.0) {
+            grad = clamp(vec2<f32>(-dot(n, l.right), dot(n, l.up)) * (per_texel / nf), vec2<f32>(-limit), vec2<f32>(limit));
+        }
+        if (!all(abs(grad) <= vec2<f32>(MAX_FINITE))) {
+            grad = vec2<f32>(0.0);
+        }
+        let t = clamp(uv * f32(res) - vec2<f32>(0.5), vec2<f32>(-1.0), vec2<f32>(f32(res)));
+        return soft_pcf(l.map_offset, res, t, c, receiver, grad, l.radius / per_texel);
+    }
     return pcf(l.map_offset, res, uv, c, receiver);
 }
 

@@ -53,6 +53,9 @@ pub enum DirectLight {
         /// Points per side of the grid over each pixel's footprint (1 to
         /// [`crate::display::MAX_FOOTPRINT`]; 1 evaluates the pixel's centre only).
         footprint: u32,
+        /// Soft lookups for the sky's directions, each casting its region's penumbra
+        /// ([`scene_core::shadowed_lights::ShadowSettings::penumbrae`]; off by default).
+        penumbrae: bool,
     },
 }
 
@@ -63,6 +66,7 @@ impl DirectLight {
         DirectLight::ShadowMaps {
             emitter_samples: scene_core::shadowed_lights::ShadowSettings::default().emitter_samples,
             footprint: 3,
+            penumbrae: false,
         }
     }
 

@@ -102,7 +102,6 @@ struct DirectCache {
 /// The shadow-mapped lights of [`DirectLight::ShadowMaps`] and each light's source.
 #[derive(Debug)]
 struct ShadowedLights {
-    emitter_samples: u32,
     set: scene_core::shadowed_lights::LightSet,
     slots: Vec<Option<usize>>,
     /// Each element's own plane, where the pixels' footprints lie.
@@ -269,34 +268,38 @@ impl RelightTechnique {
             .prepare(Arc::new(prepared.meshing.element_scene(&prepared.scene)))?;
         self.prepared = Some(prepared);
         if let DirectLight::ShadowMaps {
-            emitter_samples, ..
+            emitter_samples,
+            penumbrae,
+            ..
         } = self.direct
         {
-            self.shadowed_lights(emitter_samples)?;
+            self.shadowed_lights(emitter_samples, penumbrae)?;
         }
         Ok(())
     }
 
-    /// The shadow-mapped lights for `emitter_samples`, built on first use (the maps do not
-    /// depend on the view).
-    fn shadowed_lights(&mut self, emitter_samples: u32) -> Result<&ShadowedLights, Error> {
+    /// The shadow-mapped lights for `emitter_samples` and `penumbrae`, built on first use
+    /// (the maps do not depend on the view).
+    fn shadowed_lights(
+        &mut self,
+        emitter_samples: u32,
+        penumbrae: bool,
+    ) -> Result<&ShadowedLights, Error> {
         let Some(p) = self.prepared.as_ref() else {
             return Err(Error::NotPrepared(format!("technique '{}'", self.name)));
         };
-        if self
-            .shadowed
-            .as_ref()
-            .is_none_or(|s| s.emitter_samples != emitter_samples)
-        {
+        if self.shadowed.as_ref().is_none_or(|s| {
+            s.set.shadows.emitter_samples != emitter_samples || s.set.shadows.penumbrae != penumbrae
+        }) {
             let settings = scene_core::shadowed_lights::ShadowSettings {
                 emitter_samples,
+                penumbrae,
                 ..Default::default()
             };
             let set = scene_core::shadowed_lights::LightSet::new(&p.scene, &settings)
                 .map_err(|e| Error::method("relight-pr", e))?;
             let slots = light_slots(&set, &p.solution.sources);
             self.shadowed = Some(ShadowedLights {
-                emitter_samples,
                 set,
                 slots,
                 planes: p.meshing.plane_normals(),
@@ -415,10 +418,12 @@ impl Technique for RelightTechnique {
         }
         // Built before the frame's clock starts only when the mode changed after prepare.
         if let DirectLight::ShadowMaps {
-            emitter_samples, ..
+            emitter_samples,
+            penumbrae,
+            ..
         } = self.direct
         {
-            self.shadowed_lights(emitter_samples)?;
+            self.shadowed_lights(emitter_samples, penumbrae)?;
         }
         if self.gpu.is_some() && self.shading == Shading::Smooth {
             return self.render_gpu(frame);

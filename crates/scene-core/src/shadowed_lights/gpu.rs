@@ -52,7 +52,11 @@ pub struct GpuLight {
     pub kind: u32,
     /// Intensity, irradiance or radiance.
     pub color: [f32; 3],
-    /// Eq. 16's radius (0: inverse square).
+    /// Eq. 16's radius (0: inverse square) of a point light. A directional light's cone:
+    /// its map's spread where the lookup is soft ([`super::esm::ShadowMap::spread`],
+    /// above 0), else minus the light's own spread ([`super::Light::radius`]: below 0, a
+    /// hard lookup of a light that stands for a cone, which relighting looks up at a
+    /// pixel's centre alone), 0 for a light without a cone.
     pub radius: f32,
     /// Travel direction or emitting normal.
     pub direction: [f32; 3],
@@ -111,7 +115,11 @@ pub fn gpu_lights(scene: &LightSet) -> Vec<GpuLight> {
                     LightKind::EmitterSample => 2,
                 },
                 color: l.color.to_array(),
-                radius: l.radius,
+                radius: if l.kind == LightKind::Directional {
+                    -l.radius.clamp(0.0, crate::sky::MAX_SPREAD)
+                } else {
+                    l.radius
+                },
                 direction: l.direction.to_array(),
                 area: l.area,
                 map_offset: u32::MAX,
@@ -131,6 +139,9 @@ pub fn gpu_lights(scene: &LightSet) -> Vec<GpuLight> {
                 g.up = up.to_array();
                 g.forward = forward.to_array();
                 g.half_extent = half_extent;
+                if l.kind == LightKind::Directional && map.spread > 0.0 {
+                    g.radius = map.spread;
+                }
             }
             g
         })
