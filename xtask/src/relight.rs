@@ -75,8 +75,10 @@ pub struct Options {
     #[arg(long, default_value_t = relight_pr::HierarchySettings::default().solve_groups_above)]
     pub solve_groups_above: f32,
     /// Direct light at display: pixels (gathered per pixel, the default), shadow-maps
-    /// (scene-core's shadow-mapped lights evaluated per pixel every frame) or elements
-    /// (interpolated from the solution like the indirect light, the paper's display).
+    /// (scene-core's shadow-mapped lights evaluated per pixel every frame),
+    /// shadow-maps-soft (the same, the sky's directions casting their regions' penumbrae:
+    /// ShadowSettings::penumbrae) or elements (interpolated from the solution like the
+    /// indirect light, the paper's display).
     #[arg(long, default_value = "pixels")]
     pub direct: String,
     /// Points per pixel footprint for the direct light (with --direct pixels).
@@ -243,9 +245,14 @@ pub fn run(o: &Options) -> Result<(), String> {
         },
         "elements" => DirectLight::Elements,
         "shadow-maps" => DirectLight::shadow_maps(),
+        "shadow-maps-soft" => DirectLight::ShadowMaps {
+            emitter_samples: scene_core::shadowed_lights::ShadowSettings::default().emitter_samples,
+            footprint: 3,
+            penumbrae: true,
+        },
         other => {
             return Err(format!(
-                "--direct {other}: expected pixels, shadow-maps or elements"
+                "--direct {other}: expected pixels, shadow-maps, shadow-maps-soft or elements"
             ));
         }
     };
