@@ -557,7 +557,7 @@ const FILTER_DISK: [[f32; 2]; 16] = [
     [-0.1264868, -0.9760897],
 ];
 
-/// The widest penumbra a soft lookup gives, in texels each side ([`soft_pcf`]): 32 texels
+/// The widest penumbra a soft lookup gives, in texels each side (the private `soft_pcf`): 32 texels
 /// of a sky map at 512 are 3 % of the scene's extent. A blocker farther from its receiver
 /// than this penumbra's spread allows is still found where it covers the search's taps,
 /// and blurs over this width.
@@ -671,7 +671,9 @@ const FAR_DEPTH: f32 = 1.5 + 1e-3;
 
 /// The shadow factor of `map` for a receiver at `p` with unit normal `n` (1 lit, 0 in
 /// shadow): eq. 30 with listing 8's bilinear PCF, after the normal offset; an orthographic
-/// map with a spread gives its cone's penumbra ([`soft_pcf`]).
+/// map with a spread gives its cone's penumbra (a soft lookup, the private `soft_pcf`: a
+/// blocker search over the receiver's plane, then 16 taps on a disk as wide as the cone
+/// projects from the mean blocker; docs/scene-core.md).
 pub fn visibility(
     texels: &[f32],
     map: &ShadowMap,
