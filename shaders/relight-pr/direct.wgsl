@@ -1,6 +1,6 @@
 #import scene_core::limits::MAX_FINITE
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
-#import scene_core::light_set::{KIND_DIRECTIONAL, KIND_POINT, lights, irradiance}
+#import scene_core::light_set::{KIND_DIRECTIONAL, KIND_POINT, Light, lights, irradiance}
 #import scene_core::shadow::{DEEP_SHADOW, ShadowParams, visibility}
 #import relight_pr::element::Element
 // Relighting's per-frame direct light from scene-core's shadow-mapped lights (mirrors
@@ -100,6 +100,18 @@ fn solid_angle(p: vec3<f32>, a0: vec3<f32>, b0: vec3<f32>, c0: vec3<f32>) -> f32
     return 0.0;
 }
 
+// No footprint point.
+const NO_POINT: u32 = 0xffffffffu;
+
+// Light l's shadow factor at footprint point p (index q): the centre's, already looked up,
+// at the grid's middle point (display.rs).
+fn seen_at(l: Light, q: u32, middle: u32, centre: f32, p: vec3<f32>, n: vec3<f32>) -> f32 {
+    if q == middle {
+        return centre;
+    }
+    return visibility(l, p, n, params.shadow_params);
+}
+
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= params.width || gid.y >= params.height {
@@ -128,7 +140,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var sy = 0u; sy < m; sy++) {
         for (var sx = 0u; sx < m; sx++) {
             let at = (vec2<f32>(f32(sx), f32(sy)) + 0.5) / f32(m) - 0.5;
-            if m == 1u {
+            // The middle of an odd grid is the centre itself (display.rs).
+            if m == 1u || (m % 2u == 1u && sx == m / 2u && sy == m / 2u) {
                 points[count] = c;
             } else {
                 points[count] = on_plane(uv + at * pixel, c, plane).xyz;
@@ -144,6 +157,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let area = 0.5 * length(cross(q1.xyz - q0.xyz, q2.xyz - q0.xyz))
         + 0.5 * length(cross(q2.xyz - q0.xyz, q3.xyz - q0.xyz));
     let inv = 1.0 / f32(count);
+    // The grid's middle point, the centre itself, in an odd grid of more than one point.
+    var middle = NO_POINT;
+    if m > 1u && m % 2u == 1u {
+        middle = m * m / 2u;
+    }
     for (var j = 0u; j < params.light_count; j++) {
         let s = slot_of[j];
         if s >= k {
@@ -161,9 +179,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             continue;
         }
         // One lookup at the centre; the footprint's points unless it is deep in shadow
-        // (display.rs; DEEP_SHADOW from scene_core::shadow).
-        if count > 1u && visibility(l, c, n, params.shadow_params) < DEEP_SHADOW {
-            continue;
+        // (display.rs; DEEP_SHADOW from scene_core::shadow), the centre's lookup standing
+        // for the grid's middle point.
+        var centre = 1.0;
+        if count > 1u {
+            centre = visibility(l, c, n, params.shadow_params);
+            if centre < DEEP_SHADOW {
+                continue;
+            }
         }
         if quad && l.kind == KIND_POINT && l.radius == 0.0 {
             let to = l.position - c;
@@ -180,7 +203,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             let ramp = clamp(dot(l.direction, w) * l.spot_scale + l.spot_offset, 0.0, 1.0);
             var seen = 0.0;
             for (var p = 0u; p < count; p++) {
-                seen += visibility(l, points[p], n, params.shadow_params);
+                seen += seen_at(l, p, middle, centre, points[p], n);
             }
             // As display.rs: nothing seen or outside the cone adds nothing (not even a NaN
             // of the closed form, which would clear the pixel's other lights).
@@ -192,7 +215,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             for (var p = 0u; p < count; p++) {
                 let ir = irradiance(l, points[p], n);
                 if any(ir != vec3<f32>(0.0)) {
-                    e += ir * visibility(l, points[p], n, params.shadow_params);
+                    e += ir * seen_at(l, p, middle, centre, points[p], n);
                 }
             }
             e = e * inv;

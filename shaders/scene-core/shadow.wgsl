@@ -39,15 +39,25 @@ fn esm(c: f32, receiver: f32, occluder: f32) -> f32 {
 // Bilinear PCF of eq. 30 over the four texels around uv of the face starting at `start`.
 fn pcf(start: u32, res: u32, uv: vec2<f32>, c: f32, receiver: f32) -> f32 {
     let t = clamp(uv * f32(res) - vec2<f32>(0.5), vec2<f32>(-1.0), vec2<f32>(f32(res)));
-    let corner_f = floor(t);
-    let f = t - corner_f;
-    let corner = vec2<i32>(corner_f);
-    let last = i32(res) - 1;
+    return bilinear(start, res, t, c, receiver, vec2<f32>(0.0));
+}
+
+// The receiver's plane at texel xy's centre: depth `receiver` at t, `grad` per texel.
+fn receiver_plane(receiver: f32, grad: vec2<f32>, t: vec2<f32>, xy: vec2<i32>) -> f32 {
+    return receiver + grad.x * (f32(xy.x) - t.x) + grad.y * (f32(xy.y) - t.y);
+}
+
+// Listing 8's bilinear PCF around texel coordinates t (a texel's centre at its index),
+// each texel against the receiver's plane at its centre: depth `receiver` at t, changing
+// by `grad` per texel (zero for pcf: every texel against `receiver`, to the bit).
+fn bilinear(start: u32, res: u32, t: vec2<f32>, c: f32, receiver: f32, grad: vec2<f32>) -> f32 {
+    let corner = vec2<i32>(floor(t));
+    let f = t - floor(t);
     var v: array<f32, 4>;
     for (var k = 0; k < 4; k++) {
-        let x = u32(clamp(corner.x + (k & 1), 0, last));
-        let y = u32(clamp(corner.y + (k >> 1u), 0, last));
-        v[k] = esm(c, receiver, shadow_texels[start + y * res + x]);
+        let x = corner.x + (k & 1);
+        let y = corner.y + (k >> 1u);
+        v[k] = esm(c, receiver_plane(receiver, grad, t, vec2<i32>(x, y)), map_texel(start, res, x, y));
     }
     let top = v[0] + (v[1] - v[0]) * f.x;
     let bottom = v[2] + (v[3] - v[2]) * f.x;
@@ -116,7 +126,7 @@ fn soft_pcf(start: u32, res: u32, t: vec2<f32>, c: f32, receiver: f32, grad: vec
         }
         let xy = tap_texel(p);
         let o = map_texel(start, res, xy.x, xy.y);
-        let r = receiver + grad.x * (f32(xy.x) - t.x) + grad.y * (f32(xy.y) - t.y);
+        let r = receiver_plane(receiver, grad, t, xy);
         if (o >= FAR_DEPTH) {
             misses += 1u;
         }
@@ -141,7 +151,7 @@ fn soft_pcf(start: u32, res: u32, t: vec2<f32>, c: f32, receiver: f32, grad: vec
             let xy = tap_texel(t + disk[k] * width);
             let o = map_texel(start, res, xy.x, xy.y);
             if (o < FAR_DEPTH) {
-                let r = receiver + grad.x * (f32(xy.x) - t.x) + grad.y * (f32(xy.y) - t.y);
+                let r = receiver_plane(receiver, grad, t, xy);
                 lit += esm(c, r, o);
                 seen += 1.0;
             }
@@ -150,19 +160,7 @@ fn soft_pcf(start: u32, res: u32, t: vec2<f32>, c: f32, receiver: f32, grad: vec
             return lit / seen;
         }
     }
-    // Listing 8's bilinear PCF, each texel against the plane at its centre.
-    let corner = vec2<i32>(floor(t));
-    let f = t - floor(t);
-    var v: array<f32, 4>;
-    for (var k = 0; k < 4; k++) {
-        let x = corner.x + (k & 1);
-        let y = corner.y + (k >> 1u);
-        let r = receiver + grad.x * (f32(x) - t.x) + grad.y * (f32(y) - t.y);
-        v[k] = esm(c, r, map_texel(start, res, x, y));
-    }
-    let top = v[0] + (v[1] - v[0]) * f.x;
-    let bottom = v[2] + (v[3] - v[2]) * f.x;
-    return top + (bottom - top) * f.y;
+    return bilinear(start, res, t, c, receiver, grad);
 }
 
 // The cube face of direction d (major axis; ties to X, then Y) with its image coordinates,

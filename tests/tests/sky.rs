@@ -495,6 +495,18 @@ fn sky_directions_sweep() {
     }
 }
 
+/// The window room lit through its window by a sun (3 / 2.8 / 2.4) and a uniform sky
+/// (0.5 / 0.6 / 0.8).
+fn sun_and_sky_room() -> Scene {
+    let mut room = room_with_window(Some(Sky::uniform(Vec3::new(0.5, 0.6, 0.8)).unwrap()));
+    room.directional_lights.push(scene_core::DirectionalLight {
+        name: "sun".into(),
+        direction: Vec3::new(-1.0, -0.8, 0.1).normalize(),
+        irradiance: Vec3::new(3.0, 2.8, 2.4),
+    });
+    room
+}
+
 /// Relighting's shadow-mapped direct light (`DirectLight::shadow_maps`, what a new view
 /// costs a frame) in the window room lit by a sun and a sky: along a short camera path its
 /// error against the reference stays within 1.2x of the per-pixel gather's (issue 49),
@@ -505,13 +517,7 @@ fn sky_directions_sweep() {
 /// points a sky direction, as before, read 1.27 on the first view).
 #[test]
 fn relighting_shadow_maps_in_a_sun_and_sky_room_are_within_1_2x_of_the_gather() {
-    let mut room = room_with_window(Some(Sky::uniform(Vec3::new(0.5, 0.6, 0.8)).unwrap()));
-    room.directional_lights.push(scene_core::DirectionalLight {
-        name: "sun".into(),
-        direction: Vec3::new(-1.0, -0.8, 0.1).normalize(),
-        irradiance: Vec3::new(3.0, 2.8, 2.4),
-    });
-    let room = Arc::new(room);
+    let room = Arc::new(sun_and_sky_room());
     let mut t = relight_pr::RelightTechnique::new(
         relight_pr::MeshSettings::elements(1024),
         relight_pr::SolverSettings::default(),
@@ -544,10 +550,10 @@ fn relighting_shadow_maps_in_a_sun_and_sky_room_are_within_1_2x_of_the_gather() 
         };
         let (gather, gather_time) = frame(relight_pr::direct::DirectLight::default());
         for penumbrae in [false, true] {
-            let (maps, maps_time) = frame(relight_pr::direct::DirectLight::ShadowMaps {
-                emitter_samples: 16,
-                footprint: 3,
-                penumbrae,
+            let (maps, maps_time) = frame(if penumbrae {
+                relight_pr::direct::DirectLight::soft_shadow_maps()
+            } else {
+                relight_pr::direct::DirectLight::shadow_maps()
             });
             eprintln!(
                 "sun and sky, view {f}: per-pixel gather {gather:.3} ({:.1} ms), shadow maps \
@@ -575,12 +581,7 @@ fn soft_sky_shadows_on_the_gpu_equal_the_cpu_twin() {
     let Some(ctx) = scene_core::testing::gpu_test_context() else {
         return;
     };
-    let mut room = room_with_window(Some(Sky::uniform(Vec3::new(0.5, 0.6, 0.8)).unwrap()));
-    room.directional_lights.push(scene_core::DirectionalLight {
-        name: "sun".into(),
-        direction: Vec3::new(-1.0, -0.8, 0.1).normalize(),
-        irradiance: Vec3::new(3.0, 2.8, 2.4),
-    });
+    let room = sun_and_sky_room();
     let dl = |penumbrae: bool, gpu: bool| {
         let mut t = isr::IsrTechnique::new(
             isr::IsrSettings::dl(),
@@ -598,10 +599,10 @@ fn soft_sky_shadows_on_the_gpu_equal_the_cpu_twin() {
             relight_pr::SolverSettings::default(),
             Box::new(gbuffer::CpuRasterizer::new()),
         );
-        t.direct = relight_pr::direct::DirectLight::ShadowMaps {
-            emitter_samples: 16,
-            footprint: 3,
-            penumbrae,
+        t.direct = if penumbrae {
+            relight_pr::direct::DirectLight::soft_shadow_maps()
+        } else {
+            relight_pr::direct::DirectLight::shadow_maps()
         };
         if gpu {
             t = t.on_gpu(ctx.clone());

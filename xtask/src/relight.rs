@@ -245,11 +245,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         },
         "elements" => DirectLight::Elements,
         "shadow-maps" => DirectLight::shadow_maps(),
-        "shadow-maps-soft" => DirectLight::ShadowMaps {
-            emitter_samples: scene_core::shadowed_lights::ShadowSettings::default().emitter_samples,
-            footprint: 3,
-            penumbrae: true,
-        },
+        "shadow-maps-soft" => DirectLight::soft_shadow_maps(),
         other => {
             return Err(format!(
                 "--direct {other}: expected pixels, shadow-maps, shadow-maps-soft or elements"

@@ -70,6 +70,23 @@ impl DirectLight {
         }
     }
 
+    /// [`DirectLight::shadow_maps`] with soft lookups for the sky's directions (each
+    /// casting its region's penumbra).
+    pub fn soft_shadow_maps() -> Self {
+        match Self::shadow_maps() {
+            DirectLight::ShadowMaps {
+                emitter_samples,
+                footprint,
+                ..
+            } => DirectLight::ShadowMaps {
+                emitter_samples,
+                footprint,
+                penumbrae: true,
+            },
+            other => other,
+        }
+    }
+
     /// Whether the display adds a per-pixel direct light (the elements then carry the
     /// indirect light only).
     pub fn is_per_pixel(&self) -> bool {

@@ -513,18 +513,39 @@ pub const DEEP_SHADOW: f32 = 1e-30;
 fn pcf(face: &[f32], res: u32, uv: Vec2, c: f32, receiver: f32) -> f32 {
     // Clamped first, so that receivers far outside the map index safely.
     let t = (uv * res as f32 - Vec2::splat(0.5)).clamp(Vec2::splat(-1.0), Vec2::splat(res as f32));
+    bilinear(face, res, t, c, |_, _| receiver)
+}
+
+/// Listing 8's bilinear PCF of eq. 30 around texel coordinates `t` (texel `x`'s centre at
+/// `x`), texels clamped to the face, each texel `(x, y)` compared with the receiver depth
+/// `receiver(x, y)` (one depth for [`pcf`], the receiver's plane for [`soft_pcf`]).
+fn bilinear(face: &[f32], res: u32, t: Vec2, c: f32, receiver: impl Fn(i32, i32) -> f32) -> f32 {
     let i0 = t.floor();
     let f = t - i0;
-    let last = res as i32 - 1;
+    let (x, y) = (i0.x as i32, i0.y as i32);
     let at = |dx: i32, dy: i32| {
-        let x = (i0.x as i32 + dx).clamp(0, last) as usize;
-        let y = (i0.y as i32 + dy).clamp(0, last) as usize;
-        esm(c, receiver, face[y * res as usize + x])
+        esm(
+            c,
+            receiver(x + dx, y + dy),
+            texel(face, res, x + dx, y + dy),
+        )
     };
     let (v00, v10, v01, v11) = (at(0, 0), at(1, 0), at(0, 1), at(1, 1));
     let top = v00 + (v10 - v00) * f.x;
     let bottom = v01 + (v11 - v01) * f.x;
     top + (bottom - top) * f.y
+}
+
+/// Texel `(x, y)` of a face of `res` texels a side, clamped to the face.
+fn texel(face: &[f32], res: u32, x: i32, y: i32) -> f32 {
+    let last = res as i32 - 1;
+    face[y.clamp(0, last) as usize * res as usize + x.clamp(0, last) as usize]
+}
+
+/// The texel nearest `p` in texel coordinates: `floor(p + 1/2)` (as the WGSL twin, whose
+/// `round` would tie to even).
+fn nearest(p: Vec2) -> (i32, i32) {
+    ((p.x + 0.5).floor() as i32, (p.y + 0.5).floor() as i32)
 }
 
 /// Blocker-search taps per side of a soft lookup's square ([`soft_pcf`]), besides the
@@ -608,14 +629,12 @@ fn soft_pcf(
     grad: Vec2,
     spread_texels: f32,
 ) -> f32 {
-    let n = res as usize;
-    let last = res as i32 - 1;
-    let texel = |x: i32, y: i32| face[y.clamp(0, last) as usize * n + x.clamp(0, last) as usize];
+    let texel = |x: i32, y: i32| texel(face, res, x, y);
     let plane = |x: i32, y: i32| receiver + grad.x * (x as f32 - t.x) + grad.y * (y as f32 - t.y);
     let search = (spread_texels * (receiver - NEAR_DEPTH)).clamp(0.0, MAX_PENUMBRA);
     let (mut sum, mut blockers, mut deep, mut misses) = (0.0f32, 0usize, true, 0usize);
     let mut visit = |p: Vec2| {
-        let (x, y) = ((p.x + 0.5).floor() as i32, (p.y + 0.5).floor() as i32);
+        let (x, y) = nearest(p);
         let (o, r) = (texel(x, y), plane(x, y));
         misses += usize::from(o >= FAR_DEPTH);
         if o < r {
@@ -638,31 +657,23 @@ fn soft_pcf(
         return CAPPED;
     }
     let width = (spread_texels * (receiver - sum / blockers as f32)).clamp(0.0, MAX_PENUMBRA);
-    // Bilinear PCF of eq. 30 around `at`, each texel against the plane at its centre.
-    let bilinear = |at: Vec2| {
-        let i0 = at.floor();
-        let f = at - i0;
-        let (x, y) = (i0.x as i32, i0.y as i32);
-        let at = |dx: i32, dy: i32| esm(c, plane(x + dx, y + dy), texel(x + dx, y + dy));
-        let (v00, v10, v01, v11) = (at(0, 0), at(1, 0), at(0, 1), at(1, 1));
-        let top = v00 + (v10 - v00) * f.x;
-        let bottom = v01 + (v11 - v01) * f.x;
-        top + (bottom - top) * f.y
-    };
     if width < 0.5 {
-        return bilinear(t);
+        return bilinear(face, res, t, c, plane);
     }
     let (mut lit, mut seen) = (0.0f32, 0.0f32);
     for [x, y] in FILTER_DISK {
-        let at = t + Vec2::new(x, y) * width;
-        let (x, y) = ((at.x + 0.5).floor() as i32, (at.y + 0.5).floor() as i32);
+        let (x, y) = nearest(t + Vec2::new(x, y) * width);
         let o = texel(x, y);
         if o < FAR_DEPTH {
             lit += esm(c, plane(x, y), o);
             seen += 1.0;
         }
     }
-    if seen > 0.0 { lit / seen } else { bilinear(t) }
+    if seen > 0.0 {
+        lit / seen
+    } else {
+        bilinear(face, res, t, c, plane)
+    }
 }
 
 /// The depth (in extents) of the scene's far side in an orthographic map: a texel deeper
