@@ -281,6 +281,9 @@ pub fn run(o: &Options) -> Result<(), String> {
     let image = technique.render(&frame).map_err(|e| e.to_string())?;
     let timings = technique.last_timings();
     let relight_ms = timings.relight.as_secs_f64() * 1e3;
+    // What a new view costs: frames from the camera's neighbours (each a view the technique
+    // has not rendered), median per stage after the first frame above.
+    let new_views = new_view_stages(&mut technique, camera, o.view.width, o.view.height, &state)?;
     let prepared = technique.prepared().expect("prepared above");
     let (meshing, solution) = (&prepared.meshing, &prepared.solution);
     let small = meshing
@@ -393,6 +396,7 @@ pub fn run(o: &Options) -> Result<(), String> {
         "direct": o.direct,
         "direct_gather_ms": timings.direct.as_secs_f64() * 1e3,
         "display_ms": timings.display.as_secs_f64() * 1e3,
+        "new_view_ms": new_views,
         "gltf": gltf.file_name().map(|f| f.to_string_lossy().into_owned()),
         "solution_bytes": relight_pr::solver::solution_bytes(meshing.elements.len(), meshing.patches.len(), solution.k()),
         "memory": memory_summary(solution),
@@ -413,6 +417,51 @@ pub fn run(o: &Options) -> Result<(), String> {
         json.display()
     );
     Ok(())
+}
+
+/// Frames of a moving camera, as the main job times them: `NEW_VIEWS` neighbours of
+/// `camera` ([`bench_harness::run::neighbour`]), each new to the technique; each stage's median
+/// and the median frame (ms), printed and returned for `summary.json`.
+fn new_view_stages(
+    technique: &mut RelightTechnique,
+    camera: &scene_core::Camera,
+    width: u32,
+    height: u32,
+    state: &LightState,
+) -> Result<serde_json::Value, String> {
+    use scene_core::technique::StageTimings;
+    const NEW_VIEWS: u32 = 5;
+    let mut frames = Vec::new();
+    let mut stages: Vec<(&'static str, Vec<f64>)> = Vec::new();
+    for k in 1..=NEW_VIEWS {
+        let near = bench_harness::run::neighbour(camera, k);
+        let t = Instant::now();
+        technique
+            .render(&FrameRequest::from_camera(&near, width, height, state))
+            .map_err(|e| e.to_string())?;
+        frames.push(t.elapsed().as_secs_f64() * 1e3);
+        for (i, (name, d)) in technique.last_timings().stages().into_iter().enumerate() {
+            if stages.len() <= i {
+                stages.push((name, Vec::new()));
+            }
+            stages[i].1.push(d.as_secs_f64() * 1e3);
+        }
+    }
+    let median = crate::bench::median;
+    let mut out = serde_json::Map::new();
+    let mut line = Vec::new();
+    for (name, v) in stages {
+        let m = median(v);
+        line.push(format!("{name} {m:.2}"));
+        out.insert(name.to_string(), m.into());
+    }
+    let frame = median(frames);
+    out.insert("frame".into(), frame.into());
+    eprintln!(
+        "new view at {width}x{height}: {frame:.2} ms (median of {NEW_VIEWS}; {} ms)",
+        line.join(", ")
+    );
+    Ok(serde_json::Value::Object(out))
 }
 
 /// What the kept solution and the hierarchical solve's links cost, per element and per

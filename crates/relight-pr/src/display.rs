@@ -13,6 +13,7 @@ use rayon::prelude::*;
 use scene_core::sampling::{hash_seed, r2};
 use scene_core::shadowed_lights::esm::DEEP_SHADOW;
 use scene_core::shadowed_lights::{LightKind, LightSet};
+use scene_core::view::FrustumReconstruction;
 use scene_core::{GBuffer, Image, View};
 
 use crate::direct::{DirectGather, solid_angle};
@@ -27,6 +28,10 @@ pub struct Welding {
     pub corner_vertex: Vec<u32>,
     /// Number of vertices.
     pub vertices: usize,
+    /// Each vertex's corners in ascending order: `corners[starts[v]..starts[v + 1]]`
+    /// (what lets [`Welding::vertex_values`] gather a vertex at a time, in parallel).
+    starts: Vec<u32>,
+    corners: Vec<u32>,
 }
 
 impl Welding {
@@ -45,9 +50,13 @@ impl Welding {
                 corner_vertex.push(*map.entry(key).or_insert(next));
             }
         }
+        let vertices = map.len();
+        let (starts, corners) = incidence(&corner_vertex, vertices);
         Self {
             corner_vertex,
-            vertices: map.len(),
+            vertices,
+            starts,
+            corners,
         }
     }
 
@@ -75,28 +84,56 @@ impl Welding {
                 welding.vertices += 1;
             }
         }
+        (welding.starts, welding.corners) = incidence(&welding.corner_vertex, welding.vertices);
         welding
     }
 
     /// Per-vertex area-weighted mean of per-element values: one per mesh element, or one
-    /// per solution element ([`Meshing::slot`]).
+    /// per solution element ([`Meshing::slot`]). Each vertex sums its corners' elements in
+    /// element order, a vertex per task (the same bits on any number of threads).
     pub fn vertex_values(&self, meshing: &Meshing, values: &[Vec3]) -> Vec<Vec3> {
-        let mut sum = vec![Vec3::ZERO; self.vertices];
-        let mut weight = vec![0.0f32; self.vertices];
-        for (j, e) in meshing.elements.iter().enumerate() {
-            let w = vertex_weight(e);
-            let value = values[meshing.slot(j, values.len())];
-            for c in 0..3 {
-                let v = self.corner_vertex[3 * j + c] as usize;
-                sum[v] += value * w;
-                weight[v] += w;
-            }
-        }
-        sum.iter()
-            .zip(&weight)
-            .map(|(s, w)| if *w > 0.0 { *s / *w } else { Vec3::ZERO })
+        (0..self.vertices)
+            .into_par_iter()
+            .map(|v| self.vertex_value(v, meshing, values))
             .collect()
     }
+
+    /// Vertex `v`'s value of [`Welding::vertex_values`] alone (the same bits): what the
+    /// display computes for the corners of the elements a frame shows, instead of every
+    /// vertex of the scene.
+    pub fn vertex_value(&self, v: usize, meshing: &Meshing, values: &[Vec3]) -> Vec3 {
+        let (mut sum, mut weight) = (Vec3::ZERO, 0.0f32);
+        for &q in &self.corners[self.starts[v] as usize..self.starts[v + 1] as usize] {
+            let j = q as usize / 3;
+            let w = vertex_weight(&meshing.elements[j]);
+            sum += values[meshing.slot(j, values.len())] * w;
+            weight += w;
+        }
+        if weight > 0.0 {
+            sum / weight
+        } else {
+            Vec3::ZERO
+        }
+    }
+}
+
+/// Each vertex's corners, ascending (a counting sort of `corner_vertex`): the start of
+/// each vertex's run (`vertices + 1` entries) and the runs.
+fn incidence(corner_vertex: &[u32], vertices: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut starts = vec![0u32; vertices + 1];
+    for &v in corner_vertex {
+        starts[v as usize + 1] += 1;
+    }
+    for v in 0..vertices {
+        starts[v + 1] += starts[v];
+    }
+    let mut next = starts.clone();
+    let mut corners = vec![0u32; corner_vertex.len()];
+    for (q, &v) in corner_vertex.iter().enumerate() {
+        corners[next[v as usize] as usize] = q as u32;
+        next[v as usize] += 1;
+    }
+    (starts, corners)
 }
 
 impl Welding {
@@ -193,6 +230,7 @@ pub fn pixel_direct<O: crate::visibility::Occlusion + ?Sized>(
     }
     let subpixels = subpixels.max(1) as usize;
     let pixel = glam::Vec2::new(1.0 / w as f32, 1.0 / h as f32);
+    let frustum = FrustumReconstruction::new(view);
     out.par_chunks_mut(k).enumerate().for_each_init(
         || Vec::with_capacity(subpixels),
         |points, (i, o)| {
@@ -200,7 +238,7 @@ pub fn pixel_direct<O: crate::visibility::Occlusion + ?Sized>(
                 return;
             }
             let centre_uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
-            let centre = view.reconstruct_world(centre_uv, g.depth[i]);
+            let centre = frustum.world(centre_uv, g.depth[i]);
             let n = g.normal[i];
             let plane = gather.plane_normal(g.triangle_id[i]).unwrap_or(n);
             let offset = r2(hash_seed(i as u64, 0xd1ec7, 0), glam::Vec2::ZERO);
@@ -210,11 +248,11 @@ pub fn pixel_direct<O: crate::visibility::Occlusion + ?Sized>(
                 points.clear();
                 for s in 0..subpixels {
                     let uv = centre_uv + (r2(s as u64, offset) - 0.5) * pixel;
-                    points.push(on_pixel_plane(view, uv, centre, plane).unwrap_or(centre));
+                    points.push(on_pixel_plane(&frustum, uv, centre, plane).unwrap_or(centre));
                 }
             }
             let quad = (subpixels > 1)
-                .then(|| footprint_quad(view, centre_uv, pixel, centre, plane))
+                .then(|| footprint_quad(&frustum, centre_uv, pixel, centre, plane))
                 .flatten();
             gather.mean_over(rays, points, quad.as_ref().map(|q| &q[..]), n, i as u64, o);
         },
@@ -231,14 +269,19 @@ pub fn light_slots(set: &LightSet, sources: &[crate::solver::Source]) -> Vec<Opt
         .collect()
 }
 
-/// Where the ray through image point `uv` of `view` meets the plane through `centre` with
-/// unit normal `n`: `None` when the ray is within a cosine of 1e-3 of parallel to the
-/// plane or meets it behind its origin. The ray is the line through the points
-/// [`View::reconstruct_world`] gives at linear depths 0 and 1, as the GPU direct pass
-/// builds it from the same reconstruction.
-pub fn on_pixel_plane(view: &View, uv: glam::Vec2, centre: Vec3, n: Vec3) -> Option<Vec3> {
-    let o = view.reconstruct_world(uv, 0.0);
-    let d = (view.reconstruct_world(uv, 1.0) - o).normalize_or_zero();
+/// Where the ray through image point `uv` of a view (`frustum`, its reconstruction, made
+/// once a frame) meets the plane through `centre` with unit normal `n`: `None` when the
+/// ray is within a cosine of 1e-3 of parallel to the plane or meets it behind its origin.
+/// The ray is the line through the points [`View::reconstruct_world`] gives at linear
+/// depths 0 and 1, as the GPU direct pass builds it from the same reconstruction.
+pub fn on_pixel_plane(
+    frustum: &FrustumReconstruction,
+    uv: glam::Vec2,
+    centre: Vec3,
+    n: Vec3,
+) -> Option<Vec3> {
+    let o = frustum.world(uv, 0.0);
+    let d = (frustum.world(uv, 1.0) - o).normalize_or_zero();
     let den = n.dot(d);
     let t = n.dot(centre - o) / den;
     (den.abs() > 1e-3 && t.is_finite() && t > 0.0).then(|| o + d * t)
@@ -249,14 +292,14 @@ pub fn on_pixel_plane(view: &View, uv: glam::Vec2, centre: Vec3, n: Vec3) -> Opt
 /// ([`on_pixel_plane`]); `None` when a corner's ray grazes it. Shared by the per-pixel
 /// gather and the shadow-map direct light (whose WGSL twin builds the same quad).
 pub fn footprint_quad(
-    view: &View,
+    frustum: &FrustumReconstruction,
     uv: glam::Vec2,
     pixel: glam::Vec2,
     centre: Vec3,
     n: Vec3,
 ) -> Option<[[Vec3; 3]; 2]> {
     match [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)]
-        .map(|(a, b)| on_pixel_plane(view, uv + glam::Vec2::new(a, b) * pixel, centre, n))
+        .map(|(a, b)| on_pixel_plane(frustum, uv + glam::Vec2::new(a, b) * pixel, centre, n))
     {
         [Some(a), Some(b), Some(c), Some(d)] => Some([[a, b, c], [a, c, d]]),
         _ => None,
@@ -316,107 +359,44 @@ pub fn pixel_direct_shadowed(
     }
     let m = footprint.clamp(1, MAX_FOOTPRINT);
     let pixel = glam::Vec2::new(1.0 / w as f32, 1.0 / h as f32);
-    out.par_chunks_mut(k).enumerate().for_each_init(
-        || Vec::with_capacity((m * m) as usize),
-        |points, (i, o)| {
-            if g.is_background(i) {
-                return;
-            }
-            let uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
-            let c = view.reconstruct_world(uv, g.depth[i]);
-            let n = g.normal[i];
-            // The footprint on the element's own plane, the cosines at its shading normal.
-            let plane = planes
-                .and_then(|p| p.get(g.triangle_id[i] as usize))
-                .copied()
-                .unwrap_or(n);
-            points.clear();
-            for sy in 0..m {
-                for sx in 0..m {
-                    let at = |s: u32| (s as f32 + 0.5) / m as f32 - 0.5;
-                    let q = uv + glam::Vec2::new(at(sx), at(sy)) * pixel;
-                    // The middle of an odd grid is the centre itself (its lookup is the
-                    // deep-shadow test's, made once).
-                    points.push(if m == 1 || (m % 2 == 1 && sx == m / 2 && sy == m / 2) {
-                        c
-                    } else {
-                        on_pixel_plane(view, q, c, plane).unwrap_or(c)
-                    });
-                }
-            }
-            // The footprint quad and its area, once a pixel (the closed form of every
-            // inverse-square point light uses them).
-            let quad = (m > 1)
-                .then(|| footprint_quad(view, uv, pixel, c, plane))
-                .flatten()
-                .map(|tris| {
-                    let area: f32 = tris
-                        .iter()
-                        .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
-                        .sum();
-                    (tris, area)
-                });
-            let inv = 1.0 / points.len() as f32;
-            let middle = (m > 1 && m % 2 == 1).then_some((m * m / 2) as usize);
-            for (j, slot) in slots.iter().enumerate() {
-                let Some(s) = slot.filter(|s| *s < k) else {
-                    continue;
-                };
-                let light = &set.lights[j];
-                // A directional light that stands for a cone (the sky's directions): its
-                // lookup at the centre alone (its penumbra, where the maps give one, is
-                // mostly wider than the footprint).
-                if light.kind == LightKind::Directional && light.radius > 0.0 {
-                    o[s] += set.light_irradiance(j, c, n);
-                    continue;
-                }
-                // One lookup at the centre; the footprint's points unless it is deep in
-                // shadow (a footprint of one point is the centre itself), the centre's
-                // lookup standing for the grid's middle point.
-                let centre = (points.len() > 1).then(|| set.light_visibility(j, c, n));
-                if centre.is_some_and(|v| v < DEEP_SHADOW) {
-                    continue;
-                }
-                let seen_at = |q: usize, p: Vec3| match (centre, middle) {
-                    (Some(v), Some(mid)) if q == mid => v,
-                    _ => set.light_visibility(j, p, n),
-                };
-                o[s] += match &quad {
-                    Some((tris, area)) if light.kind == LightKind::Point && light.radius == 0.0 => {
-                        let (to, area) = (light.position - c, *area);
-                        if n.dot(to) <= 0.0 || area.is_nan() || area <= 0.0 {
-                            continue;
+    let middle = (m > 1 && m % 2 == 1).then_some((m * m / 2) as usize);
+    let band = (DIRECT_TILE * w) as usize;
+    let frustum = FrustumReconstruction::new(view);
+    // Bands of tile rows in parallel; in a band, tile by tile, and in a tile light by light,
+    // so that one light's lookups from neighbouring pixels share the cache lines of its map
+    // (a sky's 64 maps, 64 MB, read pixel by pixel went to memory for nearly every lookup).
+    // Each pixel still adds its lights in their order: the same bits as pixel by pixel.
+    out.par_chunks_mut(band * k).enumerate().for_each_init(
+        Vec::new,
+        |tile: &mut Vec<Footprint>, (by, o)| {
+            let rows = o.len() / k / w as usize;
+            for x0 in (0..w).step_by(DIRECT_TILE as usize) {
+                tile.clear();
+                for ly in 0..rows {
+                    for x in x0..(x0 + DIRECT_TILE).min(w) {
+                        let local = ly * w as usize + x as usize;
+                        let i = by * band + local;
+                        if !g.is_background(i) {
+                            tile.push(Footprint::of(g, &frustum, i, local, m, pixel, planes));
                         }
-                        // The shadow first: a lamp behind a wall (most of a house's lamps
-                        // from any one room) costs its map's lookup, not the closed form.
-                        let seen: f32 =
-                            points.iter().enumerate().map(|(q, &p)| seen_at(q, p)).sum();
-                        if seen <= 0.0 {
-                            continue;
-                        }
-                        let cone = light.spot.attenuation(-to.normalize_or_zero());
-                        if cone <= 0.0 {
-                            continue;
-                        }
-                        let omega: f32 = tris.iter().map(|t| solid_angle(light.position, t)).sum();
-                        light.color * (omega / area * cone * (seen * inv))
                     }
-                    _ => {
-                        points
-                            .iter()
-                            .enumerate()
-                            .map(|(q, &p)| match light.irradiance(p, n) {
-                                Vec3::ZERO => Vec3::ZERO,
-                                e => e * seen_at(q, p),
-                            })
-                            .sum::<Vec3>()
-                            * inv
+                }
+                for (j, slot) in slots.iter().enumerate() {
+                    let Some(s) = slot.filter(|s| *s < k) else {
+                        continue;
+                    };
+                    for f in tile.iter() {
+                        if let Some(e) = f.light(set, j, middle) {
+                            o[f.local * k + s] += e;
+                        }
                     }
-                };
-            }
-            for v in o.iter_mut() {
-                if !v.is_finite() {
-                    *v = Vec3::ZERO;
+                }
+                for f in tile.iter() {
+                    for v in &mut o[f.local * k..f.local * k + k] {
+                        if !v.is_finite() {
+                            *v = Vec3::ZERO;
+                        }
+                    }
                 }
             }
         },
@@ -424,10 +404,146 @@ pub fn pixel_direct_shadowed(
     out
 }
 
+/// The side of the pixel tiles whose lights [`pixel_direct_shadowed`] takes one at a time.
+const DIRECT_TILE: u32 = 8;
+
+/// One pixel's footprint for the shadow-mapped direct light ([`pixel_direct_shadowed`]).
+struct Footprint {
+    /// The pixel's index in its band.
+    local: usize,
+    /// The surface point at the pixel's centre and its shading normal.
+    c: Vec3,
+    n: Vec3,
+    /// The footprint's grid points on the element's plane (the centre where a point's ray
+    /// grazes it; the odd grid's middle point is the centre itself).
+    points: [Vec3; (MAX_FOOTPRINT * MAX_FOOTPRINT) as usize],
+    count: usize,
+    /// The footprint quad and its area (the closed form of inverse-square point lights).
+    quad: Option<([[Vec3; 3]; 2], f32)>,
+}
+
+impl Footprint {
+    /// Pixel `i` of `g` (`local` in its band) with an `m` x `m` grid.
+    #[allow(clippy::too_many_arguments)]
+    fn of(
+        g: &GBuffer,
+        frustum: &FrustumReconstruction,
+        i: usize,
+        local: usize,
+        m: u32,
+        pixel: glam::Vec2,
+        planes: Option<&[Vec3]>,
+    ) -> Self {
+        let uv =
+            scene_core::view::pixel_uv(i as u32 % g.width, i as u32 / g.width, g.width, g.height);
+        let c = frustum.world(uv, g.depth[i]);
+        let n = g.normal[i];
+        // The footprint on the element's own plane, the cosines at its shading normal.
+        let plane = planes
+            .and_then(|p| p.get(g.triangle_id[i] as usize))
+            .copied()
+            .unwrap_or(n);
+        let mut points = [c; (MAX_FOOTPRINT * MAX_FOOTPRINT) as usize];
+        let mut count = 0;
+        for sy in 0..m {
+            for sx in 0..m {
+                let at = |s: u32| (s as f32 + 0.5) / m as f32 - 0.5;
+                let q = uv + glam::Vec2::new(at(sx), at(sy)) * pixel;
+                // The middle of an odd grid is the centre itself (its lookup is the
+                // deep-shadow test's, made once).
+                points[count] = if m == 1 || (m % 2 == 1 && sx == m / 2 && sy == m / 2) {
+                    c
+                } else {
+                    on_pixel_plane(frustum, q, c, plane).unwrap_or(c)
+                };
+                count += 1;
+            }
+        }
+        // The footprint quad and its area, once a pixel (the closed form of every
+        // inverse-square point light uses them).
+        let quad = (m > 1)
+            .then(|| footprint_quad(frustum, uv, pixel, c, plane))
+            .flatten()
+            .map(|tris| {
+                let area: f32 = tris
+                    .iter()
+                    .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
+                    .sum();
+                (tris, area)
+            });
+        Self {
+            local,
+            c,
+            n,
+            points,
+            count,
+            quad,
+        }
+    }
+
+    /// Light `j` of `set` over this footprint (`middle`: the odd grid's middle point, whose
+    /// lookup is the centre's); `None` where it adds nothing.
+    fn light(&self, set: &LightSet, j: usize, middle: Option<usize>) -> Option<Vec3> {
+        let (c, n, points) = (self.c, self.n, &self.points[..self.count]);
+        let light = &set.lights[j];
+        // A directional light that stands for a cone (the sky's directions): its lookup at
+        // the centre alone (its penumbra, where the maps give one, is mostly wider than the
+        // footprint).
+        if light.kind == LightKind::Directional && light.radius > 0.0 {
+            return Some(set.light_irradiance(j, c, n));
+        }
+        // One lookup at the centre; the footprint's points unless it is deep in shadow (a
+        // footprint of one point is the centre itself), the centre's lookup standing for
+        // the grid's middle point.
+        let centre = (points.len() > 1).then(|| set.light_visibility(j, c, n));
+        if centre.is_some_and(|v| v < DEEP_SHADOW) {
+            return None;
+        }
+        let seen_at = |q: usize, p: Vec3| match (centre, middle) {
+            (Some(v), Some(mid)) if q == mid => v,
+            _ => set.light_visibility(j, p, n),
+        };
+        let inv = 1.0 / points.len() as f32;
+        Some(match &self.quad {
+            Some((tris, area)) if light.kind == LightKind::Point && light.radius == 0.0 => {
+                let (to, area) = (light.position - c, *area);
+                if n.dot(to) <= 0.0 || area.is_nan() || area <= 0.0 {
+                    return None;
+                }
+                // The shadow first: a lamp behind a wall (most of a house's lamps from any
+                // one room) costs its map's lookup, not the closed form.
+                let seen: f32 = points.iter().enumerate().map(|(q, &p)| seen_at(q, p)).sum();
+                if seen <= 0.0 {
+                    return None;
+                }
+                let cone = light.spot.attenuation(-to.normalize_or_zero());
+                if cone <= 0.0 {
+                    return None;
+                }
+                let omega: f32 = tris.iter().map(|t| solid_angle(light.position, t)).sum();
+                light.color * (omega / area * cone * (seen * inv))
+            }
+            _ => {
+                points
+                    .iter()
+                    .enumerate()
+                    .map(|(q, &p)| match light.irradiance(p, n) {
+                        Vec3::ZERO => Vec3::ZERO,
+                        e => e * seen_at(q, p),
+                    })
+                    .sum::<Vec3>()
+                    * inv
+            }
+        })
+    }
+}
+
 /// The image of `g` (a G-buffer of the element scene seen from `view`): see the module
 /// documentation. `irradiance` is per solution element or per mesh element
-/// ([`Meshing::slot`]), `glow` per mesh element; `vertex_irradiance` per welded
-/// vertex (used with [`Shading::Smooth`]). With `direct`, the element values must hold
+/// ([`Meshing::slot`]), `glow` per mesh element. With [`Shading::Smooth`] each pixel
+/// interpolates its element's three welded vertices ([`Welding::vertex_value`], computed
+/// for the pixels' own vertices: the same bits as [`Welding::vertex_values`] without a
+/// pass over every vertex of the scene). With `direct`, the element values must hold
 /// the indirect light only, and each pixel adds its own direct light.
 #[allow(clippy::too_many_arguments)]
 pub fn compose(
@@ -436,12 +552,12 @@ pub fn compose(
     g: &GBuffer,
     view: &View,
     irradiance: &[Vec3],
-    vertex_irradiance: &[Vec3],
     glow: &[Vec3],
     shading: Shading,
     direct: Option<PixelDirect<'_>>,
 ) -> Image {
     let (w, h) = (g.width, g.height);
+    let frustum = FrustumReconstruction::new(view);
     let pixels = (0..g.len())
         .into_par_iter()
         .map(|i| {
@@ -453,11 +569,12 @@ pub fn compose(
                 Shading::Flat => irradiance[meshing.slot(id, irradiance.len())],
                 Shading::Smooth => {
                     let uv = scene_core::view::pixel_uv(i as u32 % w, i as u32 / w, w, h);
-                    let p = view.reconstruct_world(uv, g.depth[i]);
+                    let p = frustum.world(uv, g.depth[i]);
                     let b = barycentric(&meshing.elements[id].corners, p);
                     (0..3)
                         .map(|c| {
-                            vertex_irradiance[welding.corner_vertex[3 * id + c] as usize] * b[c]
+                            let v = welding.corner_vertex[3 * id + c] as usize;
+                            welding.vertex_value(v, meshing, irradiance) * b[c]
                         })
                         .sum()
                 }
@@ -494,4 +611,54 @@ pub fn barycentric(t: &[Vec3; 3], p: Vec3) -> [f32; 3] {
     let s = (v + w).max(1.0);
     let (v, w) = (v / s, w / s);
     [1.0 - v - w, v, w]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::MeshSettings;
+
+    /// The per-vertex gather gives the bits of a scatter over the elements in their order
+    /// (what the display computed before), with visibility splits and on two threads.
+    #[test]
+    fn vertex_values_equal_the_scatter_over_elements() {
+        let scene = scene_core::builtin::scene("corridor").unwrap();
+        let meshing = Meshing::new(&scene, &MeshSettings::elements(1024), 1).unwrap();
+        let rays = RayScene::build(&scene);
+        let welding = Welding::with_visibility(&meshing, scene.extent(), &rays);
+        let n = meshing.elements.len();
+        let values: Vec<Vec3> = (0..n)
+            .map(|j| Vec3::new(j as f32 * 0.37 % 5.0, (j % 7) as f32, 1.0 / (j + 1) as f32))
+            .collect();
+        let mut sum = vec![Vec3::ZERO; welding.vertices];
+        let mut weight = vec![0.0f32; welding.vertices];
+        for (j, e) in meshing.elements.iter().enumerate() {
+            let w = vertex_weight(e);
+            for c in 0..3 {
+                let v = welding.corner_vertex[3 * j + c] as usize;
+                sum[v] += values[j] * w;
+                weight[v] += w;
+            }
+        }
+        let scatter: Vec<Vec3> = sum
+            .iter()
+            .zip(&weight)
+            .map(|(s, w)| if *w > 0.0 { *s / *w } else { Vec3::ZERO })
+            .collect();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let gathered = pool.install(|| welding.vertex_values(&meshing, &values));
+        assert_eq!(gathered.len(), scatter.len());
+        for (v, (a, b)) in gathered.iter().zip(&scatter).enumerate() {
+            assert_eq!(
+                a.to_array().map(f32::to_bits),
+                b.to_array().map(f32::to_bits),
+                "vertex {v}"
+            );
+        }
+        // The visibility splits gave some corners vertices of their own.
+        assert!(welding.vertices > Welding::new(&meshing, scene.extent()).vertices);
+    }
 }

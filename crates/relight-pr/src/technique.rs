@@ -493,10 +493,6 @@ impl Technique for RelightTechnique {
         }
         let direct_time = t3.elapsed();
         let t2 = std::time::Instant::now();
-        let vertex = match self.shading {
-            Shading::Smooth => p.welding.vertex_values(&p.meshing, &irradiance),
-            Shading::Flat => Vec::new(),
-        };
         let direct = match &self.cache {
             Some(c) if self.direct.is_per_pixel() && c.settings == self.direct => {
                 Some(PixelDirect {
@@ -512,7 +508,6 @@ impl Technique for RelightTechnique {
             &g,
             &frame.view,
             &irradiance,
-            &vertex,
             &glow,
             self.shading,
             direct,
