@@ -540,7 +540,7 @@ impl Footprint {
 
 /// The image of `g` (a G-buffer of the element scene seen from `view`): see the module
 /// documentation. `irradiance` is per solution element or per mesh element
-/// ([`Meshing::slot`]), `glow` per mesh element. With [`Shading::Smooth`] each pixel
+/// ([`Meshing::slot`]); `glow` gives each shown mesh element's emission. With [`Shading::Smooth`] each pixel
 /// interpolates its element's three welded vertices ([`Welding::vertex_value`], computed
 /// for the pixels' own vertices: the same bits as [`Welding::vertex_values`] without a
 /// pass over every vertex of the scene). With `direct`, the element values must hold
@@ -552,7 +552,7 @@ pub fn compose(
     g: &GBuffer,
     view: &View,
     irradiance: &[Vec3],
-    glow: &[Vec3],
+    glow: &crate::relight::Glow<'_>,
     shading: Shading,
     direct: Option<PixelDirect<'_>>,
 ) -> Image {
@@ -585,7 +585,7 @@ pub fn compose(
                     e += *v * *f;
                 }
             }
-            let out = g.albedo[i].truncate() * e * std::f32::consts::FRAC_1_PI + glow[id];
+            let out = g.albedo[i].truncate() * e * std::f32::consts::FRAC_1_PI + glow.at(id);
             if out.is_finite() { out } else { Vec3::ZERO }
         })
         .collect();

@@ -83,20 +83,48 @@ fn weighted(solution: &Solution, state: &LightState, with_direct: bool) -> Vec<V
 }
 
 /// Each mesh element's emitted radiance under `state`: its emission times its light's direct
-/// factor (zero for non-emitters).
+/// factor (zero for non-emitters); [`Glow::at`] for every element.
 pub fn glow(meshing: &Meshing, solution: &Solution, state: &LightState) -> Vec<Vec3> {
-    let f = factors(solution, state);
-    meshing
-        .elements
-        .par_iter()
-        .enumerate()
-        .map(|(j, el)| {
-            meshing.patches[el.patch as usize]
-                .light
-                .and_then(|id| solution.source_of(id))
-                .map_or(Vec3::ZERO, |m| meshing.seen_emission(j) * f[m].0)
-        })
+    let glow = Glow::new(meshing, solution, state);
+    (0..meshing.elements.len())
+        .into_par_iter()
+        .map(|j| glow.at(j))
         .collect()
+}
+
+/// The emitted radiance of [`glow`] one mesh element at a time: what a frame's display
+/// evaluates for the elements its pixels show ([`crate::display::compose`]), rather than
+/// a vector over every element of the scene each frame.
+#[derive(Clone, Debug)]
+pub struct Glow<'a> {
+    meshing: &'a Meshing,
+    solution: &'a Solution,
+    factors: Vec<(Vec3, Vec3)>,
+}
+
+impl<'a> Glow<'a> {
+    /// The glow of `meshing`'s elements under `state`.
+    pub fn new(meshing: &'a Meshing, solution: &'a Solution, state: &LightState) -> Self {
+        Self {
+            meshing,
+            solution,
+            factors: factors(solution, state),
+        }
+    }
+
+    /// Mesh element `j`'s emitted radiance (zero for a non-emitter or an index past the
+    /// meshing).
+    pub fn at(&self, j: usize) -> Vec3 {
+        let Some(el) = self.meshing.elements.get(j) else {
+            return Vec3::ZERO;
+        };
+        self.meshing.patches[el.patch as usize]
+            .light
+            .and_then(|id| self.solution.source_of(id))
+            .map_or(Vec3::ZERO, |m| {
+                self.meshing.seen_emission(j) * self.factors[m].0
+            })
+    }
 }
 
 /// Each mesh element's outgoing radiance under `state`: `albedo E / pi` (`E` its

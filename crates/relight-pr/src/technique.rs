@@ -437,7 +437,7 @@ impl Technique for RelightTechnique {
         } else {
             relight::irradiance(&p.solution, frame.lights)
         };
-        let glow = relight::glow(&p.meshing, &p.solution, frame.lights);
+        let glow = relight::Glow::new(&p.meshing, &p.solution, frame.lights);
         let factors: Vec<glam::Vec3> = relight::factors(&p.solution, frame.lights)
             .into_iter()
             .map(|(d, _)| d)

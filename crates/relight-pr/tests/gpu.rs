@@ -89,8 +89,7 @@ fn cpu_display(
         Some(_) => relight::indirect_irradiance(solution, state),
         None => relight::irradiance(solution, state),
     };
-    let vertex = welding.vertex_values(meshing, &e);
-    let glow = relight::glow(meshing, solution, state);
+    let glow = relight::Glow::new(meshing, solution, state);
     let (f, _) = relight::weights(solution, state, true);
     let factors: Vec<Vec3> = f.iter().map(|(d, _)| *d).collect();
     compose(
@@ -99,7 +98,6 @@ fn cpu_display(
         g,
         view,
         &e,
-        &vertex,
         &glow,
         Shading::Smooth,
         values.map(|values| PixelDirect {
