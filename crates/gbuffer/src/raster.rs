@@ -104,9 +104,7 @@ impl SpanBounds {
                     .map(|span| {
                         let mut b: Option<(Vec3, Vec3)> = None;
                         for &i in span.iter().flatten() {
-                            let Some(&p) = mesh.positions.get(i as usize) else {
-                                return None;
-                            };
+                            let &p = mesh.positions.get(i as usize)?;
                             if !p.is_finite() {
                                 return None;
                             }
@@ -891,7 +889,7 @@ impl SetupContext {
         while local < end {
             // A whole span outside the frustum: its triangles would each be rejected by
             // their outcodes below (the same bits, without the work).
-            if local % CULL_SPAN == 0
+            if local.is_multiple_of(CULL_SPAN)
                 && let Some(Some((lo, hi))) = spans.and_then(|s| s.get(local / CULL_SPAN))
                 && self.box_outside(*lo, *hi)
             {
