@@ -55,7 +55,7 @@ pub use gpu_frame::{RelightFrame, RelightFrameSettings};
 pub use hierarchical::{HierarchySettings, HierarchyStats};
 pub use mesh::{MeshBudget, MeshSettings, Meshing};
 pub use solver::{FormFactorMethod, Solution, SolverSettings, Strategy, solve, solve_with};
-pub use technique::{Prepared, RelightTechnique};
+pub use technique::{Prepared, RelightTechnique, SUN_MAP_RESOLUTION};
 
 /// Every shader pass of relighting, as `cargo xtask shaders` validates them.
 pub use gpu::SHADER_PASSES;
