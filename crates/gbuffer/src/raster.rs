@@ -483,18 +483,7 @@ impl Setup {
                 start = end;
             }
         }
-        let tiles_x = width.div_ceil(TILE);
-        let tiles_y = height.div_ceil(TILE);
-        let ctx = SetupContext {
-            view_proj: view.view_projection(),
-            view: *view,
-            width,
-            height,
-            tiles_x,
-            tiles: (tiles_x * tiles_y) as usize,
-            guard_x: GUARD_PIXELS / width as f32,
-            guard_y: GUARD_PIXELS / height as f32,
-        };
+        let ctx = SetupContext::new(view, width, height);
         let chunks: Vec<Chunk> = specs
             .par_iter()
             .map(|&(mi, start, end)| {
@@ -506,7 +495,7 @@ impl Setup {
             width,
             height,
             ndc_scale: Vec2::new(2.0 / width as f32, 2.0 / height as f32),
-            tiles_x,
+            tiles_x: ctx.tiles_x,
             chunks,
             offsets: scene.mesh_offsets(),
             cutouts: scene_core::Cutouts::of(scene),
@@ -863,6 +852,21 @@ fn clip_polygon(input: &[ClipVertex], plane: Plane, out: &mut Vec<ClipVertex>) {
 }
 
 impl SetupContext {
+    /// The set-up of `view` into a `width x height` target.
+    fn new(view: &View, width: u32, height: u32) -> Self {
+        let tiles_x = width.div_ceil(TILE);
+        Self {
+            view_proj: view.view_projection(),
+            view: *view,
+            width,
+            height,
+            tiles_x,
+            tiles: (tiles_x * height.div_ceil(TILE)) as usize,
+            guard_x: GUARD_PIXELS / width as f32,
+            guard_y: GUARD_PIXELS / height as f32,
+        }
+    }
+
     /// Sets up triangles `start..end` of mesh `mesh_index`; with `spans` (the mesh's
     /// [`SpanBounds`]), a span whose box is outside the frustum is skipped whole.
     fn setup_chunk(
@@ -885,20 +889,20 @@ impl SetupContext {
         };
         let mut poly = Vec::with_capacity(12);
         let mut tmp = Vec::with_capacity(12);
-        let mut local = start;
-        while local < end {
+        let mut skip_to = start;
+        for local in start..end {
             // A whole span outside the frustum: its triangles would each be rejected by
             // their outcodes below (the same bits, without the work).
+            if local < skip_to {
+                continue;
+            }
             if local.is_multiple_of(CULL_SPAN)
                 && let Some(Some((lo, hi))) = spans.and_then(|s| s.get(local / CULL_SPAN))
                 && self.box_outside(*lo, *hi)
             {
-                local = (local + CULL_SPAN).min(end);
+                skip_to = local + CULL_SPAN;
                 continue;
             }
-            let this = local;
-            local += 1;
-            let local = this;
             let idx = mesh.indices[local];
             let material_ok = mesh
                 .material_ids
@@ -1156,16 +1160,7 @@ mod tests {
         let bounds = prepared.bounds.clone().unwrap();
         for camera in &scene.cameras {
             let view = View::from_camera(&camera.with_aspect(4.0 / 3.0));
-            let ctx = SetupContext {
-                view_proj: view.view_projection(),
-                view,
-                width: 96,
-                height: 72,
-                tiles_x: 3,
-                tiles: 9,
-                guard_x: GUARD_PIXELS / 96.0,
-                guard_y: GUARD_PIXELS / 72.0,
-            };
+            let ctx = SetupContext::new(&view, 96, 72);
             let spans: Vec<_> = bounds.meshes.iter().flatten().flatten().collect();
             let culled = spans
                 .iter()

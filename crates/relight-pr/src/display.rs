@@ -540,10 +540,11 @@ impl Footprint {
 
 /// The image of `g` (a G-buffer of the element scene seen from `view`): see the module
 /// documentation. `irradiance` is per solution element or per mesh element
-/// ([`Meshing::slot`]); `glow` gives each shown mesh element's emission. With [`Shading::Smooth`] each pixel
-/// interpolates its element's three welded vertices ([`Welding::vertex_value`], computed
-/// for the pixels' own vertices: the same bits as [`Welding::vertex_values`] without a
-/// pass over every vertex of the scene). With `direct`, the element values must hold
+/// ([`Meshing::slot`]); `glow` gives each shown mesh element's emission. With
+/// [`Shading::Smooth`] each pixel interpolates its element's three welded vertices
+/// ([`Welding::vertex_value`], computed for the pixels' own vertices where the frame has
+/// fewer pixel corners than the scene has vertices, else [`Welding::vertex_values`] once:
+/// the same bits). With `direct`, the element values must hold
 /// the indirect light only, and each pixel adds its own direct light.
 #[allow(clippy::too_many_arguments)]
 pub fn compose(
@@ -558,6 +559,15 @@ pub fn compose(
 ) -> Image {
     let (w, h) = (g.width, g.height);
     let frustum = FrustumReconstruction::new(view);
+    // A pixel's three vertices are computed where it needs them, unless the frame has as
+    // many pixel corners as the scene has vertices (a large image of a small mesh): then
+    // once each, in one pass (the same bits either way).
+    let all = (shading == Shading::Smooth && 3 * g.len() >= welding.vertices)
+        .then(|| welding.vertex_values(meshing, irradiance));
+    let vertex = |v: usize| match &all {
+        Some(values) => values[v],
+        None => welding.vertex_value(v, meshing, irradiance),
+    };
     let pixels = (0..g.len())
         .into_par_iter()
         .map(|i| {
@@ -574,7 +584,7 @@ pub fn compose(
                     (0..3)
                         .map(|c| {
                             let v = welding.corner_vertex[3 * id + c] as usize;
-                            welding.vertex_value(v, meshing, irradiance) * b[c]
+                            vertex(v) * b[c]
                         })
                         .sum()
                 }

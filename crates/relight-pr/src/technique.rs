@@ -306,20 +306,10 @@ impl RelightTechnique {
                 directional_resolution: SUN_MAP_RESOLUTION,
                 ..Default::default()
             };
-            // Suns at SUN_MAP_RESOLUTION where the texel budget holds them, else at the
-            // default resolution (whose error, if that fails too, is the one reported).
-            let set = LightSet::new(&p.scene, &settings)
-                .or_else(|_| {
-                    LightSet::new(
-                        &p.scene,
-                        &ShadowSettings {
-                            directional_resolution: ShadowSettings::default()
-                                .directional_resolution,
-                            ..settings
-                        },
-                    )
-                })
-                .map_err(|e| Error::method("relight-pr", e))?;
+            // Suns at SUN_MAP_RESOLUTION where the texel budget holds them, else halved
+            // back to the default (the budget's fit, `LightSet::directional_resolution`).
+            let set =
+                LightSet::new(&p.scene, &settings).map_err(|e| Error::method("relight-pr", e))?;
             let slots = light_slots(&set, &p.solution.sources);
             self.shadowed = Some(ShadowedLights {
                 set,

@@ -53,7 +53,10 @@ pub enum LightSetError {
 pub struct ShadowSettings {
     /// Shadows on; off, every light reaches every surface facing it.
     pub enabled: bool,
-    /// Texels per side of a directional light's orthographic map.
+    /// Texels per side of a directional light's orthographic map. The most: above the
+    /// default (2 048), where the maps would not fit [`ShadowSettings::max_texels`], the
+    /// suns' maps are halved first, down to the default ([`LightSet::directional_resolution`]
+    /// is the one used).
     pub directional_resolution: u32,
     /// Texels per side of the orthographic map of each of the sky's directions
     /// ([`crate::sky::Sky::lights`]): many, each carrying a small share of soft light,
@@ -425,6 +428,10 @@ pub struct LightSet {
     /// The sky maps' resolution actually used after fitting [`ShadowSettings::max_texels`]
     /// (at most [`ShadowSettings::sky_resolution`]).
     pub sky_resolution: u32,
+    /// The suns' (directional lights other than the sky's) map resolution actually used
+    /// after fitting [`ShadowSettings::max_texels`] (at most
+    /// [`ShadowSettings::directional_resolution`]).
+    pub directional_resolution: u32,
     /// The bounds the shadow maps cover (the scene's, or the engine's casters and lights).
     pub bounds: Bounds,
 }
@@ -522,6 +529,7 @@ impl LightSet {
             shadows: *shadows,
             cube_resolutions: (shadows.cube_resolution, shadows.emitter_cube_resolution),
             sky_resolution: shadows.sky_resolution,
+            directional_resolution: shadows.directional_resolution,
             bounds: scene.bounds(),
         };
         if shadows.enabled && !this.lights.is_empty() {
@@ -653,6 +661,7 @@ impl LightSet {
             shadows: *shadows,
             cube_resolutions: (shadows.cube_resolution, shadows.emitter_cube_resolution),
             sky_resolution: shadows.sky_resolution,
+            directional_resolution: shadows.directional_resolution,
             bounds,
         })
     }
@@ -693,22 +702,23 @@ impl LightSet {
             .iter()
             .filter(|l| l.kind == LightKind::Directional && l.id == LightId::Sky)
             .count() as u64;
-        let mut sky = s.sky_resolution;
-        let dir_texels = |sky: u32| {
-            (n_dir - n_sky) * (s.directional_resolution as u64).pow(2) + n_sky * (sky as u64).pow(2)
+        let (mut sun, mut sky) = (s.directional_resolution, s.sky_resolution);
+        let dir_texels = |sun: u32, sky: u32| {
+            (n_dir - n_sky) * (sun as u64).pow(2) + n_sky * (sky as u64).pow(2)
         };
-        // The sky's many maps give way first, down to 64 texels (or their setting if less).
-        while n_sky > 0
-            && dir_texels(sky)
-                + 6 * n_point * (cube as u64).pow(2)
-                + 6 * n_emit * (emit as u64).pow(2)
-                > s.max_texels
-            && sky > 64
-        {
+        let cubes = 6 * n_point * (cube as u64).pow(2) + 6 * n_emit * (emit as u64).pow(2);
+        // Suns finer than the default give way first, down to it (a caller that asks for
+        // more, as relighting does, gets it where the budget holds it beside the rest).
+        let sun_floor = ShadowSettings::default().directional_resolution.min(sun);
+        while n_dir > n_sky && dir_texels(sun, sky) + cubes > s.max_texels && sun > sun_floor {
+            sun = (sun / 2).max(sun_floor);
+        }
+        // Then the sky's many maps, down to 64 texels (or their setting if less).
+        while n_sky > 0 && dir_texels(sun, sky) + cubes > s.max_texels && sky > 64 {
             sky = (sky / 2).max(64);
         }
         let total = |c: u32, e: u32| {
-            dir_texels(sky) + 6 * n_point * (c as u64).pow(2) + 6 * n_emit * (e as u64).pow(2)
+            dir_texels(sun, sky) + 6 * n_point * (c as u64).pow(2) + 6 * n_emit * (e as u64).pow(2)
         };
         while total(cube, emit) > s.max_texels && (cube > 16 || emit > 16) {
             cube = (cube / 2).max(16.min(cube));
@@ -725,6 +735,7 @@ impl LightSet {
         }
         self.cube_resolutions = (cube, emit);
         self.sky_resolution = sky;
+        self.directional_resolution = sun;
         let bounds = self.bounds;
         let extent = self.extent;
         let center = if bounds.is_empty() {
@@ -747,11 +758,7 @@ impl LightSet {
                             forward: view.forward,
                             half_extent: half,
                         },
-                        if light.id == LightId::Sky {
-                            sky
-                        } else {
-                            s.directional_resolution
-                        },
+                        if light.id == LightId::Sky { sky } else { sun },
                     )
                 }
                 LightKind::Point => (
@@ -1088,6 +1095,34 @@ mod tests {
         let sky_maps = s.lights.iter().filter(|l| l.id == LightId::Sky).count();
         assert_eq!(sky_maps, 256);
         assert!(s.shadow_texels.len() as u64 <= ShadowSettings::default().max_texels);
+    }
+
+    /// Suns asked finer than the default give way before the sky: a sun at 4 096 with 64
+    /// sky directions at 512 is exactly the default budget; one texel less and the sun goes
+    /// back to 2 048 while the sky keeps 512 (before, the sky was halved to 256).
+    #[test]
+    fn budget_halves_fine_suns_before_the_sky() {
+        let mut scene = builtin::scene("primitives").unwrap();
+        let sky = crate::sky::Sky::uniform(Vec3::splat(0.5)).unwrap();
+        scene.sky = Some(sky.with_directions(64).unwrap());
+        let fine = ShadowSettings {
+            directional_resolution: 4096,
+            ..ShadowSettings::default()
+        };
+        let s = LightSet::new(&scene, &fine).unwrap();
+        assert_eq!((s.directional_resolution, s.sky_resolution), (4096, 512));
+        let tight = ShadowSettings {
+            max_texels: fine.max_texels - 1,
+            ..fine
+        };
+        let s = LightSet::new(&scene, &tight).unwrap();
+        assert_eq!((s.directional_resolution, s.sky_resolution), (2048, 512));
+        let sun = s
+            .lights
+            .iter()
+            .find(|l| l.kind == LightKind::Directional && l.id != LightId::Sky);
+        assert_eq!(sun.and_then(|l| l.shadow).map(|m| m.resolution), Some(2048));
+        assert!(s.shadow_texels.len() as u64 <= tight.max_texels);
     }
 
     #[test]
