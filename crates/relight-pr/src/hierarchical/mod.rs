@@ -71,7 +71,7 @@ mod tree;
 use gather::{ClusterLink, FarLink, Gather, LinkSet, NearLink};
 pub use tree::COHERENCE_RAYS;
 pub(crate) use tree::budget_cut;
-use tree::{Facing, Node, Tree, facing};
+use tree::{Facing, Leaf, Node, Tree, facing};
 
 /// Parameters of the hierarchical solve ([`SolverSettings::hierarchy`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -566,8 +566,7 @@ impl Refiner<'_> {
     /// equal area) and estimates their visibility with [`CLOSE_RAYS`] rays to leaves
     /// picked in proportion to what they send it.
     fn cluster(&self, r: u32, s: u32, count: u32, close: bool) -> Step {
-        let els = &self.meshing.elements;
-        let nodes = &self.tree.nodes;
+        let (nodes, leaves) = (&self.tree.nodes, &self.tree.leaves);
         let (rn, sn) = (&nodes[r as usize], &nodes[s as usize]);
         let mut rng = Rng::new(
             hash_seed(self.set ^ 0xc1u64 << 32, r as u64, s as u64),
@@ -577,9 +576,8 @@ impl Refiner<'_> {
         // the closed form with the near links' test of `j`'s front (a receiver in its
         // plane sees it edge-on), and nothing from `x`'s own element (on a smooth-shaded
         // mesh its shading normal would put `x` in front of it).
-        let form_factor = |x: Vec3, n: Vec3, own: u32, j: u32| {
-            let b = &els[j as usize];
-            if j == own || b.area <= 0.0 {
+        let form_factor = |x: Vec3, n: Vec3, own: u32, b: &Leaf| {
+            if b.element == own || b.area <= 0.0 {
                 return 0.0;
             }
             crate::form_factor::point_to_triangle(
@@ -605,8 +603,7 @@ impl Refiner<'_> {
         // and the tries lost the light of large sender triangles that straddle the plane
         // right next to `x` (a floor under a panel standing on it): 2.4 % of a cluttered
         // room's first bounce.
-        let sees = |x: Vec3, n: Vec3, j: u32, rng: &mut Rng| {
-            let b = &els[j as usize];
+        let sees = |x: Vec3, n: Vec3, b: &Leaf, rng: &mut Rng| {
             let q = if self.whole_groups {
                 crate::form_factor::point_above(&b.corners, x, n, rng.next_vec2(), rng.next_f32())
             } else {
@@ -629,7 +626,7 @@ impl Refiner<'_> {
         // clusters with each other, and the far with the far, never across.
         let shift = rng.below(points);
         let mut sum = 0.0f32;
-        let mut terms: Vec<(f32, u32)> = Vec::new();
+        let mut terms: Vec<(f32, &Leaf)> = Vec::new();
         // Where the sender's leaves send their own radiosity ([`Refiner::whole_groups`]):
         // each sample's sender leaf and weight (irradiance per unit of its radiosity,
         // summed over the receiver's points before the mean is taken).
@@ -647,43 +644,43 @@ impl Refiner<'_> {
         };
         for i in 0..points {
             let u = (i as f32 + rng.next_f32()) / points as f32;
-            let own = self.tree.leaf_at(rn, u);
-            let a = &els[own as usize];
+            let a = self.tree.leaf(rn, u);
+            let own = a.element;
             let x = a.uniform_point(rng.next_vec2());
             if !close {
                 let stratum = (i + shift) % points;
                 let v = (stratum as f32 + rng.next_f32()) / points as f32;
-                let j = self.tree.leaf_at(sn, v);
-                let f = form_factor(x, a.normal, own, j);
-                if f > 0.0 && sees(x, a.normal, j, &mut rng) {
-                    let w = f * sn.area / els[j as usize].area;
+                let b = self.tree.leaf(sn, v);
+                let f = form_factor(x, a.normal, own, b);
+                if f > 0.0 && sees(x, a.normal, b, &mut rng) {
+                    let w = f * sn.area / b.area;
                     sum += w;
                     if self.whole_groups {
-                        sample(j, w);
+                        sample(b.element, w);
                     }
                 }
                 continue;
             }
             // Close: the closed forms over the sender's leaves (or one per stratum).
             terms.clear();
-            let leaves = sn.count.min(CLUSTER_LEAVES);
+            let leaves_of_sender = sn.count.min(CLUSTER_LEAVES);
             let mut unoccluded = 0.0f32;
-            for t in 0..leaves {
-                let j = if sn.count <= CLUSTER_LEAVES {
-                    self.tree.order[(sn.first + t) as usize]
+            for t in 0..leaves_of_sender {
+                let b = if sn.count <= CLUSTER_LEAVES {
+                    &leaves[(sn.first + t) as usize]
                 } else {
                     self.tree
-                        .leaf_at(sn, (t as f32 + rng.next_f32()) / leaves as f32)
+                        .leaf(sn, (t as f32 + rng.next_f32()) / leaves_of_sender as f32)
                 };
-                let f = form_factor(x, a.normal, own, j);
+                let f = form_factor(x, a.normal, own, b);
                 if f > 0.0 {
                     let weight = if sn.count <= CLUSTER_LEAVES {
                         1.0
                     } else {
-                        sn.area / (leaves as f32 * els[j as usize].area)
+                        sn.area / (leaves_of_sender as f32 * b.area)
                     };
                     unoccluded += f * weight;
-                    terms.push((unoccluded, j));
+                    terms.push((unoccluded, b));
                 }
             }
             if unoccluded <= 0.0 {
@@ -696,7 +693,7 @@ impl Refiner<'_> {
                 if sees(x, a.normal, terms[at].1, &mut rng) {
                     seen += 1;
                     if self.whole_groups {
-                        sample(terms[at].1, unoccluded / CLOSE_RAYS as f32);
+                        sample(terms[at].1.element, unoccluded / CLOSE_RAYS as f32);
                     }
                 }
             }
@@ -731,16 +728,12 @@ impl Refiner<'_> {
     /// The visible fraction of `count` rays between points of the two nodes (leaves picked
     /// by area, points uniform on them).
     fn visibility(&self, rn: &Node, sn: &Node, r: u32, s: u32, count: u32) -> f32 {
-        let els = &self.meshing.elements;
         let mut rng = Rng::new(hash_seed(self.set, r as u64, s as u64), 0x71);
         let mut seen = 0u32;
         for i in 0..count {
             let u = (i as f32 + rng.next_f32()) / count as f32;
             let v = (i as f32 + rng.next_f32()) / count as f32;
-            let (a, b) = (
-                &els[self.tree.leaf_at(rn, u) as usize],
-                &els[self.tree.leaf_at(sn, v) as usize],
-            );
+            let (a, b) = (self.tree.leaf(rn, u), self.tree.leaf(sn, v));
             let (x, q) = (
                 a.uniform_point(rng.next_vec2()),
                 b.uniform_point(rng.next_vec2()),
