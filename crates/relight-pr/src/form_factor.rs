@@ -86,8 +86,10 @@ pub(crate) fn point_above(
             break;
         }
     }
-    let t = uniform_triangle(u);
-    Some(poly[0] * (1.0 - t.x - t.y) + poly[piece] * t.x + poly[piece + 1] * t.y)
+    Some(crate::mesh::uniform_point_on(
+        &[poly[0], poly[piece], poly[piece + 1]],
+        u,
+    ))
 }
 
 /// The form factor from a receiver at `x` (unit normal `n`) to the one-sided triangle

@@ -134,11 +134,17 @@ pub struct Element {
     pub open_points: u8,
 }
 
+/// A point uniform over the triangle `corners`, from a point `u` of the unit square (what
+/// [`Element::uniform_point`] and the hierarchy's leaves and clipped pieces draw).
+pub(crate) fn uniform_point_on(corners: &[Vec3; 3], u: Vec2) -> Vec3 {
+    let t = scene_core::sampling::uniform_triangle(u);
+    corners[0] * (1.0 - t.x - t.y) + corners[1] * t.x + corners[2] * t.y
+}
+
 impl Element {
     /// A point uniform over the element, from a point `u` of the unit square.
     pub fn uniform_point(&self, u: Vec2) -> Vec3 {
-        let t = scene_core::sampling::uniform_triangle(u);
-        self.corners[0] * (1.0 - t.x - t.y) + self.corners[1] * t.x + self.corners[2] * t.y
+        uniform_point_on(&self.corners, u)
     }
 
     /// The unit normal of the element's own plane (its corners' winding), turned to the

@@ -99,10 +99,9 @@ impl Leaf {
         }
     }
 
-    /// A point uniform over the leaf ([`crate::mesh::Element::uniform_point`]'s bits).
+    /// A point uniform over the leaf (as [`crate::mesh::Element::uniform_point`]).
     pub(super) fn uniform_point(&self, u: glam::Vec2) -> Vec3 {
-        let t = scene_core::sampling::uniform_triangle(u);
-        self.corners[0] * (1.0 - t.x - t.y) + self.corners[1] * t.x + self.corners[2] * t.y
+        crate::mesh::uniform_point_on(&self.corners, u)
     }
 }
 
