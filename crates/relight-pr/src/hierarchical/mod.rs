@@ -251,13 +251,31 @@ const CLOSED_RAYS: u32 = 32;
 /// surface (a window's share of the hemisphere has 4x less noise).
 const CLOSED_RAYS_OPEN: u32 = 128;
 
-/// Per element, the share of its cosine-weighted hemisphere in which a ray meets the front
-/// of a surface that reflects (stratified rays from points spread over it): the sum of its
-/// exact form factors to the surfaces its links can reach. Black surfaces count as open
-/// (the refinement drops senders that send nothing); a ray whose first hit is a back face
-/// started inside a solid and is not counted. `None` where no ray met a surface that
-/// reflects: the links' sum is then kept.
-fn closedness(scene: &Scene, meshing: &Meshing, rays: &RayScene, extent: f32) -> Vec<Option<f32>> {
+/// Rays per group of [`closedness`] where the element budget grouped the mesh elements
+/// (the normalisation then only uses a group's total); [`CLOSED_GROUP_RAYS_OPEN`] in all
+/// where any misses.
+const CLOSED_GROUP_RAYS: u32 = 64;
+
+/// Rays per group of [`closedness`] where the first [`CLOSED_GROUP_RAYS`] did not all meet
+/// a surface: the binomial noise of a group open to the sky on a tenth of its hemisphere
+/// is then under 1 %.
+const CLOSED_GROUP_RAYS_OPEN: u32 = 1024;
+
+/// Per unit of surface (a mesh element, or where `groups` is given, a group's mesh
+/// elements that `eligible` marks), the share of its cosine-weighted hemisphere in which a
+/// ray meets the front of a surface that reflects (stratified rays from points spread over
+/// it by area), times its area where grouped: the sum of its exact form factors to the
+/// surfaces its links can reach. Black surfaces count as open (the refinement drops
+/// senders that send nothing); a ray whose first hit is a back face started inside a
+/// solid and is not counted. `None` where no ray met a surface that reflects: the links'
+/// sum is then kept.
+fn closedness(
+    scene: &Scene,
+    meshing: &Meshing,
+    rays: &RayScene,
+    extent: f32,
+    groups: Option<(&crate::mesh::ElementGroups, &[bool])>,
+) -> Vec<Option<f64>> {
     let offsets = scene.mesh_offsets();
     // Which side of the triangle a ray along `d` meets.
     enum Side {
@@ -289,49 +307,93 @@ fn closedness(scene: &Scene, meshing: &Meshing, rays: &RayScene, extent: f32) ->
             Side::Black
         }
     };
-    meshing
-        .elements
+    let els = &meshing.elements;
+    // The share over a unit's elements (`members`, cumulative areas `cumulative`): rays in
+    // two rounds, the second only where the first did not all meet a reflecting surface.
+    let share = |unit: u64, members: &[u32], cumulative: &[f32], rounds: [u32; 2]| {
+        let total = *cumulative.last()?;
+        let mut rng = Rng::new(hash_seed(0xc105ed, unit, 0), 0x29);
+        let offset = rng.next_vec2();
+        // Rays that first meet a back face start inside a solid (a point of the shelf
+        // under a book): they are not counted.
+        let (mut hits, mut valid, mut cast) = (0u32, 0u32, 0u32);
+        for round in rounds {
+            if cast == round || (cast > 0 && hits == valid) {
+                break;
+            }
+            for i in cast..round {
+                let e = if members.len() == 1 {
+                    &els[members[0] as usize]
+                } else {
+                    let pick = rng.next_f32() * total;
+                    let at = cumulative.partition_point(|&c| c <= pick);
+                    &els[members[at.min(members.len() - 1)] as usize]
+                };
+                let x = e.uniform_point(rng.next_vec2());
+                let d = scene_core::sampling::cosine_hemisphere(
+                    e.normal,
+                    scene_core::sampling::r2(i as u64, offset),
+                );
+                let hit = rays.closest_hit(x + e.normal * (1e-5 * extent), d, 0.0, f32::MAX);
+                match hit.map(|h| side(h.triangle, d)) {
+                    Some(Side::Back) => {}
+                    Some(Side::Reflects) => {
+                        hits += 1;
+                        valid += 1;
+                    }
+                    _ => valid += 1,
+                }
+            }
+            cast = round;
+        }
+        (hits > 0).then(|| hits as f64 / valid as f64)
+    };
+    let Some((groups, eligible)) = groups else {
+        return els
+            .par_iter()
+            .enumerate()
+            .map(|(j, e)| {
+                if e.hidden {
+                    return Some(0.0);
+                }
+                share(
+                    j as u64,
+                    &[j as u32],
+                    &[e.area],
+                    [CLOSED_RAYS, CLOSED_RAYS_OPEN],
+                )
+            })
+            .collect();
+    };
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); groups.count];
+    for (j, e) in els.iter().enumerate() {
+        if eligible[j] && !e.hidden && e.area > 0.0 {
+            members[groups.of(j)].push(j as u32);
+        }
+    }
+    members
         .par_iter()
         .enumerate()
-        .map(|(j, e)| {
-            if e.hidden {
-                return Some(0.0);
-            }
-            let mut rng = Rng::new(hash_seed(0xc105ed, j as u64, 0), 0x29);
-            let offset = rng.next_vec2();
-            // Rays that first meet a back face start inside a solid (a point of the shelf
-            // under a book): they are not counted.
-            let (mut hits, mut valid, mut cast) = (0u32, 0u32, 0u32);
-            for round in [CLOSED_RAYS, CLOSED_RAYS_OPEN] {
-                if cast == round || (cast > 0 && hits == valid) {
-                    break;
-                }
-                for i in cast..round {
-                    let x = e.uniform_point(rng.next_vec2());
-                    let d = scene_core::sampling::cosine_hemisphere(
-                        e.normal,
-                        scene_core::sampling::r2(i as u64, offset),
-                    );
-                    let hit = rays.closest_hit(x + e.normal * (1e-5 * extent), d, 0.0, f32::MAX);
-                    match hit.map(|h| side(h.triangle, d)) {
-                        Some(Side::Back) => {}
-                        Some(Side::Reflects) => {
-                            hits += 1;
-                            valid += 1;
-                        }
-                        _ => valid += 1,
-                    }
-                }
-                cast = round;
-            }
-            (hits > 0).then(|| hits as f32 / valid as f32)
+        .map(|(g, m)| {
+            let cumulative: Vec<f32> = m
+                .iter()
+                .scan(0.0f32, |a, &j| {
+                    *a += els[j as usize].area;
+                    Some(*a)
+                })
+                .collect();
+            let rounds = [CLOSED_GROUP_RAYS, CLOSED_GROUP_RAYS_OPEN];
+            share(g as u64, m, &cumulative, rounds).map(|c| c * *cumulative.last().unwrap() as f64)
         })
         .collect()
 }
 
-/// Sender leaves whose closed forms a close cluster link sums at each of its points (one
-/// per stratum of equal area beyond).
-const CLUSTER_LEAVES: u32 = 32;
+/// Where a close cluster link's point is further than this many times a sender leaf's
+/// reach (its corners' largest distance from its centroid) from the leaf's centroid, the
+/// leaf's form factor is the point-to-point kernel at a point uniform on it, not the closed
+/// form: the kernel is then at most about a tenth of the leaf's area over `pi` times its
+/// reach squared.
+const KERNEL_REACH: f32 = 3.0;
 
 /// A close cluster link takes this fraction of the samples of one apart as its points.
 const CLOSE_SHARE: u32 = 1;
@@ -346,6 +408,42 @@ const HORIZON_TRIES: u32 = 4;
 /// A partly visible far link is split when its transfer bound exceeds this multiple of the
 /// [`HierarchySettings::link_error`] threshold.
 const PARTIAL_SPLIT: f64 = 16.0;
+
+/// What a term of a close cluster link's sum sends its visibility ray to: a leaf whose
+/// closed form it is (a point drawn on its part above the receiving point's horizon), or
+/// the point at which the kernel was taken (and its element).
+#[derive(Clone, Copy)]
+enum Target<'a> {
+    Leaf(&'a Leaf),
+    Point(Vec3, u32),
+}
+
+/// The unoccluded form factor from `x` (normal `n`, on element `own`) to leaf `b`, and
+/// where its visibility ray goes; nothing from `x`'s own element (on a smooth-shaded mesh
+/// its shading normal would put `x` in front of it). Where `x` is more than
+/// [`KERNEL_REACH`] times the leaf's reach (its corners' largest distance from its
+/// centroid) from its centroid, the point-to-point kernel at a point uniform on the leaf
+/// ([`Leaf::kernel`]: unbiased, and bounded there); nearer, the closed form with the near
+/// links' test of `b`'s front (a receiver in its plane sees it edge-on), exact where the
+/// kernel diverges.
+fn leaf_term<'l>(x: Vec3, n: Vec3, own: u32, b: &'l Leaf, rng: &mut Rng) -> (f32, Target<'l>) {
+    if b.element == own || b.area <= 0.0 {
+        return (0.0, Target::Leaf(b));
+    }
+    let centroid = (b.corners[0] + b.corners[1] + b.corners[2]) / 3.0;
+    let reach2 = b
+        .corners
+        .iter()
+        .map(|p| p.distance_squared(centroid))
+        .fold(0.0f32, f32::max);
+    if x.distance_squared(centroid) > KERNEL_REACH * KERNEL_REACH * reach2 {
+        let (k, q) = b.kernel(x, n, rng.next_vec2());
+        return (k * b.area, Target::Point(q, b.element));
+    }
+    let f =
+        crate::form_factor::point_to_triangle(x, n, &b.corners, b.normal, None::<&RayScene>, 0, 0);
+    (f, Target::Leaf(b))
+}
 
 /// What the refinement decides for a pair (receiver, sender).
 enum Step {
@@ -421,7 +519,7 @@ impl Refiner<'_> {
         let both_leaves = rn.leaf() && sn.leaf();
         let (split_r_ok, split_s_ok) = (self.splittable(r), self.splittable(s));
         // Whether the pair carries too little light to be split for a partial shadow.
-        let mut minor = false;
+        let (mut minor, mut small) = (false, false);
         let d = sn.centre - rn.centre;
         let dist = d.length();
         let reach = rn.radius + sn.radius;
@@ -434,7 +532,7 @@ impl Refiner<'_> {
             } else {
                 self.power[s as usize]
             };
-            let small = bound <= self.small;
+            small = bound <= self.small;
             minor = bound <= PARTIAL_SPLIT * self.small;
             let front = fr == Facing::Front && fs == Facing::Front && dist > reach;
             // A pair whose ends are flat and face each other at their centres, but reach
@@ -499,10 +597,21 @@ impl Refiner<'_> {
         }
         if !(split_r_ok || split_s_ok) {
             // At the element budget on both ends (or a cluster and an element).
-            let samples = if minor { 1 } else { self.cluster_samples };
             let close = dist - reach < rn.radius.max(sn.radius);
-
-            return self.cluster(r, s, samples * self.settings.visibility_rays, close);
+            // Samples as the transfer bound asks: one for a link whose bound is below the
+            // threshold of links kept at any distance (it only needs an unbiased estimate,
+            // as a minor far link's one ray), [`HierarchySettings::visibility_rays`] for
+            // one too weak to be split, twice more ([`CLUSTER_SAMPLES`]) for the others.
+            // On the Breakfast Room, two in three of the pairs that reach the groups
+            // are below the threshold.
+            let count = if small {
+                1
+            } else if minor {
+                self.settings.visibility_rays
+            } else {
+                self.cluster_samples * self.settings.visibility_rays
+            };
+            return self.cluster(r, s, count, close);
         }
         // Split: the end whose facing is mixed, else the larger.
         let split_r = match (split_r_ok, split_s_ok) {
@@ -558,12 +667,16 @@ impl Refiner<'_> {
     /// face.
     ///
     /// `count` points `x` (stratified over the receiver's leaves by area). Apart (a gap
-    /// wider than the larger radius), each takes one sender leaf `j` picked by area and
-    /// one ray: `A_s F V / A_j` estimates the sum. Close (touching clusters, a cup on a
-    /// table), one leaf picked by area would put the light of a tiny leaf next to `x` on
-    /// one sample in eight, a thousand times too bright: each point sums the closed
-    /// forms over the sender's leaves (or [`CLUSTER_LEAVES`] of them, one per stratum of
-    /// equal area) and estimates their visibility with [`CLOSE_RAYS`] rays to leaves
+    /// wider than the larger radius), each takes one point `q` uniform over the sender
+    /// (a leaf picked by area, a point on it) and one ray to it: `A_s K(x, q) V(x, q)`,
+    /// with `K` the point-to-point kernel ([`Leaf::kernel`]), estimates the sum without
+    /// bias, and `K` is bounded there (the closed form at the picked leaf, used before,
+    /// cost a quarter of the Breakfast Room's links for the same error). Close (touching
+    /// clusters, a cup on a table), one leaf picked by area would put the light of a tiny
+    /// leaf next to `x` on one sample in eight, a thousand times too bright: each point
+    /// sums the form factors of the sender's leaves (or [`CLUSTER_LEAVES`] of them, one
+    /// per stratum of equal area; closed forms near `x`, the kernel beyond
+    /// [`KERNEL_REACH`]) and estimates their visibility with [`CLOSE_RAYS`] rays to leaves
     /// picked in proportion to what they send it.
     fn cluster(&self, r: u32, s: u32, count: u32, close: bool) -> Step {
         let (nodes, leaves) = (&self.tree.nodes, &self.tree.leaves);
@@ -572,24 +685,6 @@ impl Refiner<'_> {
             hash_seed(self.set ^ 0xc1u64 << 32, r as u64, s as u64),
             0x73,
         );
-        // The unoccluded form factor from `x` (normal `n`, on element `own`) to leaf `j`:
-        // the closed form with the near links' test of `j`'s front (a receiver in its
-        // plane sees it edge-on), and nothing from `x`'s own element (on a smooth-shaded
-        // mesh its shading normal would put `x` in front of it).
-        let form_factor = |x: Vec3, n: Vec3, own: u32, b: &Leaf| {
-            if b.element == own || b.area <= 0.0 {
-                return 0.0;
-            }
-            crate::form_factor::point_to_triangle(
-                x,
-                n,
-                &b.corners,
-                b.normal,
-                None::<&RayScene>,
-                0,
-                0,
-            )
-        };
         // Whether `x` sees a random point of leaf `j` above its tangent plane (the part
         // the form factor counts; a point below would be hidden by `x`'s own surface).
         //
@@ -625,8 +720,10 @@ impl Refiner<'_> {
         // `i + shift`: pairing strata in order would pair the near parts of the two
         // clusters with each other, and the far with the far, never across.
         let shift = rng.below(points);
+        // Close, the sender's nodes that a point's sum visits.
+        let mut stack: Vec<u32> = Vec::new();
         let mut sum = 0.0f32;
-        let mut terms: Vec<(f32, &Leaf)> = Vec::new();
+        let mut terms: Vec<(f32, Target)> = Vec::new();
         // Where the sender's leaves send their own radiosity ([`Refiner::whole_groups`]):
         // each sample's sender leaf and weight (irradiance per unit of its radiosity,
         // summed over the receiver's points before the mean is taken).
@@ -651,9 +748,20 @@ impl Refiner<'_> {
                 let stratum = (i + shift) % points;
                 let v = (stratum as f32 + rng.next_f32()) / points as f32;
                 let b = self.tree.leaf(sn, v);
-                let f = form_factor(x, a.normal, own, b);
-                if f > 0.0 && sees(x, a.normal, b, &mut rng) {
-                    let w = f * sn.area / b.area;
+                if b.element == own || b.area <= 0.0 {
+                    continue;
+                }
+                // The point-to-point kernel at a point `q` uniform over the sender (leaf
+                // by area, point uniform on it): `A_s cos_x cos_q V / (pi r^2)` estimates
+                // the sum without bias, and is bounded here, the ends being at least the
+                // larger radius apart. A point below `x`'s horizon (or `x` behind the
+                // leaf) sends nothing, as in the closed form.
+                let (k, q) = b.kernel(x, a.normal, rng.next_vec2());
+                let w = k * sn.area;
+                if w > 0.0
+                    && w.is_finite()
+                    && visibility::sees_surface_point(self.rays, x, a.normal, q, x.distance(q))
+                {
                     sum += w;
                     if self.whole_groups {
                         sample(b.element, w);
@@ -661,26 +769,36 @@ impl Refiner<'_> {
                 }
                 continue;
             }
-            // Close: the closed forms over the sender's leaves (or one per stratum).
+            // Close: a sum over the sender's tree (Barnes and Hut's): a node whose
+            // centre is more than [`KERNEL_REACH`] times its radius from `x` is one term,
+            // the kernel at a point uniform over it (unbiased, and bounded there);
+            // nearer, its children; a leaf is its closed form or kernel
+            // ([`leaf_term`]). Strata of equal area over the sender's leaves (an
+            // earlier rule) weighed a tiny leaf next to `x` by the sender's area over its
+            // own: on the Breakfast Room at 256 elements, the lit surfaces' mean moved by
+            // 30 % from one draw to another.
             terms.clear();
-            let leaves_of_sender = sn.count.min(CLUSTER_LEAVES);
             let mut unoccluded = 0.0f32;
-            for t in 0..leaves_of_sender {
-                let b = if sn.count <= CLUSTER_LEAVES {
-                    &leaves[(sn.first + t) as usize]
+            stack.clear();
+            stack.push(s);
+            while let Some(i) = stack.pop() {
+                let node = &nodes[i as usize];
+                let (f, target) = if node.leaf() {
+                    let b = &leaves[node.first as usize];
+                    leaf_term(x, a.normal, own, b, &mut rng)
+                } else if x.distance_squared(node.centre)
+                    > KERNEL_REACH * KERNEL_REACH * node.radius * node.radius
+                {
+                    let b = self.tree.leaf(node, rng.next_f32());
+                    let (k, q) = b.kernel(x, a.normal, rng.next_vec2());
+                    (k * node.area, Target::Point(q, b.element))
                 } else {
-                    self.tree
-                        .leaf(sn, (t as f32 + rng.next_f32()) / leaves_of_sender as f32)
+                    stack.extend_from_slice(&node.children);
+                    continue;
                 };
-                let f = form_factor(x, a.normal, own, b);
-                if f > 0.0 {
-                    let weight = if sn.count <= CLUSTER_LEAVES {
-                        1.0
-                    } else {
-                        sn.area / (leaves_of_sender as f32 * b.area)
-                    };
-                    unoccluded += f * weight;
-                    terms.push((unoccluded, b));
+                if f > 0.0 && f.is_finite() {
+                    unoccluded += f;
+                    terms.push((unoccluded, target));
                 }
             }
             if unoccluded <= 0.0 {
@@ -690,10 +808,19 @@ impl Refiner<'_> {
             for _ in 0..CLOSE_RAYS {
                 let pick = rng.next_f32() * unoccluded;
                 let at = terms.partition_point(|t| t.0 <= pick).min(terms.len() - 1);
-                if sees(x, a.normal, terms[at].1, &mut rng) {
+                let (visible, element) = match terms[at].1 {
+                    Target::Leaf(b) => (sees(x, a.normal, b, &mut rng), b.element),
+                    Target::Point(q, element) => {
+                        let dist = q.distance(x);
+                        let seen = dist > 0.0
+                            && visibility::sees_surface_point(self.rays, x, a.normal, q, dist);
+                        (seen, element)
+                    }
+                };
+                if visible {
                     seen += 1;
                     if self.whole_groups {
-                        sample(terms[at].1.element, unoccluded / CLOSE_RAYS as f32);
+                        sample(element, unoccluded / CLOSE_RAYS as f32);
                     }
                 }
             }
@@ -1112,10 +1239,12 @@ pub(crate) fn solve(
     // (an earlier rule) took 2-3 % of a cluttered room's indirect light.
     //
     // Where the element budget grouped the elements, the ratio is the group's (its sums
-    // and closedness each summed over its leaves by area): a cluster link gives every leaf
-    // of a group the group's mean, so a leaf's own sum is not its own, and the ratio of a
+    // and closedness each over its leaves by area): a cluster link gives every leaf of a
+    // group the group's mean, so a leaf's own sum is not its own, and the ratio of a
     // leaf's closedness to its group's mean sum moved light from a group's open leaves to
-    // its closed ones.
+    // its closed ones. The group's closedness is then cast from the group as a whole
+    // ([`CLOSED_GROUP_RAYS`], points by area over its leaves), not from each leaf: on the
+    // Breakfast Room, 4 610 groups of 375 909 mesh elements.
     let normalise: Vec<f32> = {
         let mut unit_gather = Gather::new(tree.nodes.len(), 1);
         let ones: Vec<Vec3> = els
@@ -1124,7 +1253,6 @@ pub(crate) fn solve(
             .collect();
         let mut sums = vec![Vec3::ZERO; n];
         unit_gather.run(&tree, meshing, &refl_links, &ones, &mut sums);
-        let closed = closedness(scene, meshing, rays, extent);
         let ratio = |c: f64, s: f64| {
             if s > 0.0 {
                 ((c / s) as f32).min(NORMALISE_MAX)
@@ -1134,24 +1262,26 @@ pub(crate) fn solve(
         };
         if grouped {
             let groups = &meshing.groups;
-            let mut totals = vec![[0.0f64; 2]; groups.count];
+            // The mesh elements the links reach, whose sums and closedness count.
+            let reached: Vec<bool> = sums.iter().map(|s| s.x > 0.0).collect();
+            let closed = closedness(scene, meshing, rays, extent, Some((groups, &reached)));
+            let mut totals = vec![0.0f64; groups.count];
             for (j, e) in els.iter().enumerate() {
-                if let (Some(c), false, true) = (closed[j], e.hidden, sums[j].x > 0.0) {
-                    let t = &mut totals[groups.of(j)];
-                    t[0] += c as f64 * e.area as f64;
-                    t[1] += sums[j].x as f64 * e.area as f64;
+                if reached[j] && !e.hidden && e.area > 0.0 {
+                    totals[groups.of(j)] += sums[j].x as f64 * e.area as f64;
                 }
             }
             (0..n)
                 .map(|j| {
-                    let [c, s] = totals[groups.of(j)];
-                    ratio(c, s)
+                    let g = groups.of(j);
+                    closed[g].map_or(1.0, |c| ratio(c, totals[g]))
                 })
                 .collect()
         } else {
+            let closed = closedness(scene, meshing, rays, extent, None);
             sums.iter()
                 .zip(&closed)
-                .map(|(s, &c)| c.map_or(1.0, |c| ratio(c as f64, s.x as f64)))
+                .map(|(s, &c)| c.map_or(1.0, |c| ratio(c, s.x as f64)))
                 .collect()
         }
     };

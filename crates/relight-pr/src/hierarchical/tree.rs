@@ -99,6 +99,21 @@ impl Leaf {
         }
     }
 
+    /// The point-to-point kernel `max(cos_x, 0) max(cos_q, 0) / (pi r^2)` from `x` (unit
+    /// normal `n`) to the point `q` of the leaf that `u` draws uniformly, and `q`: times
+    /// the leaf's area, an unbiased estimate of the unoccluded form factor from `x` to the
+    /// leaf (zero where `q` is below `x`'s horizon or `x` behind the leaf).
+    pub(super) fn kernel(&self, x: Vec3, n: Vec3, u: glam::Vec2) -> (f32, Vec3) {
+        let q = self.uniform_point(u);
+        let d = q - x;
+        let r2 = d.length_squared();
+        let (cx, cq) = (n.dot(d), -self.normal.dot(d));
+        if cx <= 0.0 || cq <= 0.0 || r2 <= 0.0 {
+            return (0.0, q);
+        }
+        (cx * cq / (std::f32::consts::PI * r2 * r2), q)
+    }
+
     /// A point uniform over the leaf (as [`crate::mesh::Element::uniform_point`]).
     pub(super) fn uniform_point(&self, u: glam::Vec2) -> Vec3 {
         crate::mesh::uniform_point_on(&self.corners, u)
