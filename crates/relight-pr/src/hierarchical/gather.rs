@@ -100,6 +100,89 @@ impl LinkSet {
     }
 }
 
+/// The nodes a gather runs over ("slots"): the cluster tree's own, or where the reflected
+/// light is solved between the element budget's groups, only the nodes at a group or
+/// above ([`GatherTree::upper`]): no link ends inside a group, so its interior nodes only
+/// passed the group's irradiance down to its leaves, and held 138 MB of the Breakfast
+/// Room's solve (719 511 nodes, two sources) where the groups and above are 9 219.
+pub(super) struct GatherTree {
+    /// Per slot (pre-order: children after parents), its children's slots, or
+    /// [`NONE`] for a bucket: a slot whose leaves send and receive through it directly.
+    pub(super) children: Vec<[u32; 2]>,
+    /// Per slot, its leaves in leaf order (`first`, `count`).
+    pub(super) leaves: Vec<[u32; 2]>,
+    /// Per element, its bucket ([`NONE`] for hidden elements).
+    pub(super) bucket_of: Vec<u32>,
+}
+
+impl GatherTree {
+    /// Every node of `tree` a slot of the same index, its leaves the buckets.
+    pub(super) fn full(tree: &Tree) -> Self {
+        Self {
+            children: tree.nodes.iter().map(|n| n.children).collect(),
+            leaves: tree.nodes.iter().map(|n| [n.first, n.count]).collect(),
+            bucket_of: tree.leaf_of.clone(),
+        }
+    }
+
+    /// The nodes of a grouped `tree` ([`Tree::in_group`]) that are not inside a group,
+    /// the groups' own nodes the buckets; and each node's slot ([`NONE`] inside groups).
+    pub(super) fn upper(tree: &Tree) -> (Self, Vec<u32>) {
+        let nodes = &tree.nodes;
+        let grouped = |i: usize| tree.in_group.get(i).copied().unwrap_or(false);
+        // Kept: the nodes outside groups and the groups' roots.
+        let mut keep = vec![false; nodes.len()];
+        if !nodes.is_empty() {
+            keep[0] = true;
+        }
+        for (i, node) in nodes.iter().enumerate() {
+            if keep[i] && !grouped(i) && !node.leaf() {
+                for c in node.children {
+                    keep[c as usize] = true;
+                }
+            }
+        }
+        let mut slot_of = vec![NONE; nodes.len()];
+        let mut count = 0u32;
+        for (i, &k) in keep.iter().enumerate() {
+            if k {
+                slot_of[i] = count;
+                count += 1;
+            }
+        }
+        let mut children = Vec::with_capacity(count as usize);
+        let mut leaves = Vec::with_capacity(count as usize);
+        let mut bucket_of = vec![NONE; tree.leaf_of.len()];
+        for (i, node) in nodes.iter().enumerate() {
+            if !keep[i] {
+                continue;
+            }
+            leaves.push([node.first, node.count]);
+            if grouped(i) || node.leaf() {
+                children.push([NONE; 2]);
+                for p in node.first..node.first + node.count {
+                    bucket_of[tree.order[p as usize] as usize] = slot_of[i];
+                }
+            } else {
+                children.push(node.children.map(|c| slot_of[c as usize]));
+            }
+        }
+        (
+            Self {
+                children,
+                leaves,
+                bucket_of,
+            },
+            slot_of,
+        )
+    }
+
+    /// Number of slots.
+    pub(super) fn len(&self) -> usize {
+        self.children.len()
+    }
+}
+
 /// Scratch of the gather: per node and source, the vector a node sends (`sum B A n`, RGB per
 /// axis) and the vector irradiance it receives.
 pub(super) struct Gather {
@@ -133,7 +216,7 @@ impl Gather {
     /// (element-major `j * k + m`), into `out` (same layout; hidden elements zero).
     pub(super) fn run(
         &mut self,
-        tree: &Tree,
+        (slots, tree): (&GatherTree, &Tree),
         meshing: &Meshing,
         links: &LinkSet,
         b: &[Vec3],
@@ -141,27 +224,38 @@ impl Gather {
     ) {
         let k = self.k;
         let els = &meshing.elements;
-        let nodes = &tree.nodes;
-        // Pull: leaves from their radiosity, parents as the sum of their children (pre-order:
-        // children after parents).
+        // Pull: buckets from their leaves' radiosity, parents as the sum of their children
+        // (pre-order: children after parents).
         self.sent
             .par_chunks_mut(k)
             .zip(self.power.par_chunks_mut(k))
-            .zip(nodes.par_iter())
-            .for_each(|((sent, power), node)| {
-                if node.leaf() {
-                    let j = tree.order[node.first as usize] as usize;
+            .zip(slots.children.par_iter().zip(slots.leaves.par_iter()))
+            .for_each(|((sent, power), (children, &[first, count]))| {
+                if children[0] == NONE {
+                    let j = tree.order[first as usize] as usize;
                     let (a, n) = (els[j].area, els[j].normal);
                     for m in 0..k {
                         let w = b[j * k + m] * a;
                         sent[m] = [w * n.x, w * n.y, w * n.z];
                         power[m] = w;
                     }
+                    for p in first + 1..first + count {
+                        let j = tree.order[p as usize] as usize;
+                        let (a, n) = (els[j].area, els[j].normal);
+                        for m in 0..k {
+                            let w = b[j * k + m] * a;
+                            let s = &mut sent[m];
+                            s[0] += w * n.x;
+                            s[1] += w * n.y;
+                            s[2] += w * n.z;
+                            power[m] += w;
+                        }
+                    }
                 }
             });
         let words = k.div_ceil(64);
-        for i in (0..nodes.len()).rev() {
-            let [l, r] = nodes[i].children;
+        for i in (0..slots.len()).rev() {
+            let [l, r] = slots.children[i];
             if l != NONE {
                 for m in 0..k {
                     let (a, c) = (self.sent[l as usize * k + m], self.sent[r as usize * k + m]);
@@ -223,9 +317,8 @@ impl Gather {
                     });
                 }
             });
-        // Push down to the leaves.
-        for (i, node) in nodes.iter().enumerate() {
-            let [l, r] = node.children;
+        // Push down to the buckets.
+        for (i, &[l, r]) in slots.children.iter().enumerate() {
             if l != NONE {
                 for m in 0..k {
                     let v = self.received[i * k + m];
@@ -244,7 +337,7 @@ impl Gather {
         let received = &self.received;
         let mean = &self.mean;
         out.par_chunks_mut(k).enumerate().for_each(|(j, e)| {
-            let leaf = tree.leaf_of[j];
+            let leaf = slots.bucket_of[j];
             if leaf == NONE {
                 e.fill(Vec3::ZERO);
                 return;

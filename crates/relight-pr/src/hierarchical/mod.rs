@@ -68,7 +68,7 @@ use crate::visibility;
 mod gather;
 mod tree;
 
-use gather::{ClusterLink, FarLink, Gather, LinkSet, NearLink};
+use gather::{ClusterLink, FarLink, Gather, GatherTree, LinkSet, NearLink};
 pub use tree::COHERENCE_RAYS;
 pub(crate) use tree::budget_cut;
 use tree::{Facing, Leaf, Node, Tree, facing};
@@ -968,15 +968,27 @@ impl Refiner<'_> {
             }
             frontier = next;
         }
-        let mut parts: Vec<Links> = Vec::with_capacity(frontier.len());
+        // Each part's links join the whole as soon as its part of the frontier is refined,
+        // in the frontier's order (the same whatever the thread count): holding every
+        // part until the end, then the whole, took 2.7x the links' bytes at once (the
+        // Breakfast Room's 76 MB of links, 207 MB more resident).
         let chunk = frontier.len().div_ceil(32).max(1);
         for (i, pairs) in frontier.chunks(chunk).enumerate() {
-            parts.par_extend(pairs.par_iter().map(|&(r, s)| {
-                let mut links = Links::default();
-                self.refine(r, s, &mut links);
-                links.shrink_to_fit();
-                links
-            }));
+            let parts: Vec<Links> = pairs
+                .par_iter()
+                .map(|&(r, s)| {
+                    let mut links = Links::default();
+                    self.refine(r, s, &mut links);
+                    links
+                })
+                .collect();
+            for part in parts {
+                all.far.extend(part.far);
+                all.near.extend(part.near);
+                all.cluster.extend(part.cluster);
+                all.sampled.extend(part.sampled);
+                all.sampled_links += part.sampled_links;
+            }
             done(((i + 1) * chunk).min(frontier.len()) as f64 / frontier.len() as f64);
         }
         if self.over.load(Ordering::Relaxed) {
@@ -987,22 +999,6 @@ impl Refiner<'_> {
                 unit: "links",
                 hint: "raise HierarchySettings::max_links, or raise opening or link_error".into(),
             }));
-        }
-
-        // The parts' lengths reserved exactly: growing the whole by doubling while the
-        // parts are held took 2.7x the links' bytes at once (the Breakfast Room's 76 MB
-        // of links, 207 MB).
-        let sum = |f: fn(&Links) -> usize| parts.iter().map(f).sum::<usize>();
-        all.far.reserve_exact(sum(|l| l.far.len()));
-        all.near.reserve_exact(sum(|l| l.near.len()));
-        all.cluster.reserve_exact(sum(|l| l.cluster.len()));
-        all.sampled.reserve_exact(sum(|l| l.sampled.len()));
-        for part in parts {
-            all.far.extend(part.far);
-            all.near.extend(part.near);
-            all.cluster.extend(part.cluster);
-            all.sampled.extend(part.sampled);
-            all.sampled_links += part.sampled_links;
         }
         all.far.par_sort_unstable_by_key(|l| (l.receiver, l.sender));
         all.near
@@ -1028,11 +1024,33 @@ struct Links {
 }
 
 impl Links {
-    fn shrink_to_fit(&mut self) {
-        self.far.shrink_to_fit();
-        self.near.shrink_to_fit();
-        self.cluster.shrink_to_fit();
-        self.sampled.shrink_to_fit();
+    /// The links with their nodes renumbered as `slot_of`'s slots ([`GatherTree::upper`];
+    /// elements stay), or unchanged (`Err`) where one ends at a node without a slot. The
+    /// slots keep the nodes' order, and so the links' sorting.
+    fn into_slots(mut self, slot_of: &[u32]) -> Result<Links, Links> {
+        let kept = |i: u32| slot_of[i as usize] != tree::NONE;
+        let fits = self.far.iter().all(|l| kept(l.receiver) && kept(l.sender))
+            && self
+                .cluster
+                .iter()
+                .all(|l| kept(l.receiver) && kept(l.sender))
+            && self.sampled.iter().all(|l| kept(l.receiver));
+        if !fits {
+            return Err(self);
+        }
+        let slot = |i: &mut u32| *i = slot_of[*i as usize];
+        for l in &mut self.far {
+            slot(&mut l.receiver);
+            slot(&mut l.sender);
+        }
+        for l in &mut self.cluster {
+            slot(&mut l.receiver);
+            slot(&mut l.sender);
+        }
+        for l in &mut self.sampled {
+            slot(&mut l.receiver);
+        }
+        Ok(self)
     }
 }
 
@@ -1075,7 +1093,6 @@ pub(crate) fn solve(
             hint: "fewer elements (MeshSettings::target_elements) or light banks".into(),
         }));
     }
-    stats.node_bytes = node_bytes;
     let source_of = |id: LightId| sources.iter().position(|s| s.lights.contains(&id));
     // Emission (radiosity pi L) per element and source, and the analytic lights' direct
     // irradiance.
@@ -1158,7 +1175,7 @@ pub(crate) fn solve(
                    set: u64,
                    scale: f32,
                    done: &mut dyn FnMut(f64)|
-     -> Result<LinkSet, RelightError> {
+     -> Result<Links, RelightError> {
         let r = Refiner {
             tree: &tree,
             meshing,
@@ -1179,7 +1196,7 @@ pub(crate) fn solve(
             links: &links,
             over: &over,
         };
-        Ok(LinkSet::new(r.links(done)?, tree.nodes.len(), n))
+        r.links(done)
     };
     let t = Instant::now();
     progress(1.0);
@@ -1189,12 +1206,23 @@ pub(crate) fn solve(
     let total_area: f64 = tree.area_prefix.last().copied().unwrap_or(0.0);
     let emit_power = node_power(&|j| lum(&emission, j) * area(j));
     let direct_links = refiner(&emit_power, 1, 0.5, &mut |d| progress(1.0 - 0.05 * d))?;
+    let direct_links = LinkSet::new(direct_links, tree.nodes.len(), n);
     stats.link_time += t.elapsed();
-    let mut gather = Gather::new(tree.nodes.len(), k);
     let t = Instant::now();
     let mut direct_emit = vec![Vec3::ZERO; n * k];
     if emit_power[0] > 0.0 {
-        gather.run(&tree, meshing, &direct_links, &emission, &mut direct_emit);
+        // The emitters' links end anywhere in the tree: a gather over all its nodes, for
+        // this step only.
+        let slots = GatherTree::full(&tree);
+        let mut gather = Gather::new(slots.len(), k);
+        gather.run(
+            (&slots, &tree),
+            meshing,
+            &direct_links,
+            &emission,
+            &mut direct_emit,
+        );
+        stats.node_bytes = slots.len() * k * NODE_SOURCE_BYTES;
     }
     direct
         .par_iter_mut()
@@ -1219,6 +1247,27 @@ pub(crate) fn solve(
     });
     let t = Instant::now();
     let refl_links = refiner(&refl_power, 2, 1.0, &mut |d| progress(0.95 - 0.85 * d))?;
+    // Between groups, the reflected light's links end at the groups or above: its gather
+    // runs over those nodes alone ([`GatherTree::upper`]).
+    let upper = grouped.then(|| GatherTree::upper(&tree));
+    let (slots, refl_links) = match upper {
+        Some((slots, slot_of)) => match refl_links.into_slots(&slot_of) {
+            Ok(links) => {
+                let links = LinkSet::new(links, slots.len(), n);
+                (slots, links)
+            }
+            Err(links) => (
+                GatherTree::full(&tree),
+                LinkSet::new(links, tree.nodes.len(), n),
+            ),
+        },
+        None => (
+            GatherTree::full(&tree),
+            LinkSet::new(refl_links, tree.nodes.len(), n),
+        ),
+    };
+    stats.node_bytes = stats.node_bytes.max(slots.len() * k * NODE_SOURCE_BYTES);
+    let mut gather = Gather::new(slots.len(), k);
     stats.link_time += t.elapsed();
     stats.direct_far_links = direct_links.far.len();
     stats.direct_near_links = direct_links.near.len();
@@ -1279,7 +1328,7 @@ pub(crate) fn solve(
             })
             .collect();
         let mut unit = vec![Vec3::ZERO; n * k];
-        gather.run(&tree, meshing, &refl_links, &ones, &mut unit);
+        gather.run((&slots, &tree), meshing, &refl_links, &ones, &mut unit);
         drop(ones);
         let sums: Vec<Vec3> = if k == 0 {
             vec![Vec3::ZERO; n]
@@ -1328,7 +1377,7 @@ pub(crate) fn solve(
     // The ratio of the last bounce's power to the one before.
     let mut ratio = 0.0f64;
     while fraction > hierarchy.tolerance && stats.bounces < hierarchy.max_bounces {
-        gather.run(&tree, meshing, &refl_links, &b, &mut delta);
+        gather.run((&slots, &tree), meshing, &refl_links, &b, &mut delta);
         delta
             .par_chunks_mut(k)
             .zip(normalise.par_iter())
