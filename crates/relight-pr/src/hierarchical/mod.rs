@@ -674,10 +674,10 @@ impl Refiner<'_> {
     /// cost a quarter of the Breakfast Room's links for the same error). Close (touching
     /// clusters, a cup on a table), one leaf picked by area would put the light of a tiny
     /// leaf next to `x` on one sample in eight, a thousand times too bright: each point
-    /// sums the form factors of the sender's leaves (or [`CLUSTER_LEAVES`] of them, one
-    /// per stratum of equal area; closed forms near `x`, the kernel beyond
-    /// [`KERNEL_REACH`]) and estimates their visibility with [`CLOSE_RAYS`] rays to leaves
-    /// picked in proportion to what they send it.
+    /// sums over the sender's tree instead (Barnes and Hut's: a node beyond
+    /// [`KERNEL_REACH`] radii one kernel term, nearer its children, a leaf its closed form
+    /// or kernel, [`leaf_term`]) and estimates the visibility with [`CLOSE_RAYS`] rays to
+    /// terms picked in proportion to what they send it.
     fn cluster(&self, r: u32, s: u32, count: u32, close: bool) -> Step {
         let (nodes, leaves) = (&self.tree.nodes, &self.tree.leaves);
         let (rn, sn) = (&nodes[r as usize], &nodes[s as usize]);
