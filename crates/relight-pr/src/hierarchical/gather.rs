@@ -232,14 +232,9 @@ impl Gather {
             .zip(slots.children.par_iter().zip(slots.leaves.par_iter()))
             .for_each(|((sent, power), (children, &[first, count]))| {
                 if children[0] == NONE {
-                    let j = tree.order[first as usize] as usize;
-                    let (a, n) = (els[j].area, els[j].normal);
-                    for m in 0..k {
-                        let w = b[j * k + m] * a;
-                        sent[m] = [w * n.x, w * n.y, w * n.z];
-                        power[m] = w;
-                    }
-                    for p in first + 1..first + count {
+                    sent.fill([Vec3::ZERO; 3]);
+                    power.fill(Vec3::ZERO);
+                    for p in first..first + count {
                         let j = tree.order[p as usize] as usize;
                         let (a, n) = (els[j].area, els[j].normal);
                         for m in 0..k {

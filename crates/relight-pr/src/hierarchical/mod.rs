@@ -65,9 +65,11 @@ use crate::mesh::Meshing;
 use crate::solver::{Solution, SolveStats, SolverSettings, Source};
 use crate::visibility;
 
+mod closedness;
 mod gather;
 mod tree;
 
+use closedness::closedness;
 use gather::{ClusterLink, FarLink, Gather, GatherTree, LinkSet, NearLink};
 pub use tree::COHERENCE_RAYS;
 pub(crate) use tree::budget_cut;
@@ -243,150 +245,6 @@ const CLUSTER_SAMPLES: u32 = 2;
 
 /// The most an element's gathered light is scaled up by the normalisation.
 const NORMALISE_MAX: f32 = 2.0;
-
-/// Rays per element of [`closedness`]; [`CLOSED_RAYS_OPEN`] in all where any misses.
-const CLOSED_RAYS: u32 = 32;
-
-/// Rays per element of [`closedness`] where the first [`CLOSED_RAYS`] did not all meet a
-/// surface (a window's share of the hemisphere has 4x less noise).
-const CLOSED_RAYS_OPEN: u32 = 128;
-
-/// Rays per group of [`closedness`] where the element budget grouped the mesh elements
-/// (the normalisation then only uses a group's total); [`CLOSED_GROUP_RAYS_OPEN`] in all
-/// where any misses.
-const CLOSED_GROUP_RAYS: u32 = 64;
-
-/// Rays per group of [`closedness`] where the first [`CLOSED_GROUP_RAYS`] did not all meet
-/// a surface: the binomial noise of a group open to the sky on a tenth of its hemisphere
-/// is then under 1 %.
-const CLOSED_GROUP_RAYS_OPEN: u32 = 1024;
-
-/// Per unit of surface (a mesh element, or where `groups` is given, a group's mesh
-/// elements that `eligible` marks), the share of its cosine-weighted hemisphere in which a
-/// ray meets the front of a surface that reflects (stratified rays from points spread over
-/// it by area), times its area where grouped: the sum of its exact form factors to the
-/// surfaces its links can reach. Black surfaces count as open (the refinement drops
-/// senders that send nothing); a ray whose first hit is a back face started inside a
-/// solid and is not counted. `None` where no ray met a surface that reflects: the links'
-/// sum is then kept.
-fn closedness(
-    scene: &Scene,
-    meshing: &Meshing,
-    rays: &RayScene,
-    extent: f32,
-    groups: Option<(&crate::mesh::ElementGroups, &[bool])>,
-) -> Vec<Option<f64>> {
-    let offsets = scene.mesh_offsets();
-    // Which side of the triangle a ray along `d` meets.
-    enum Side {
-        Reflects,
-        Black,
-        Back,
-    }
-    let side = |triangle: u32, d: Vec3| {
-        let m = offsets
-            .partition_point(|&o| o <= triangle)
-            .saturating_sub(1);
-        let mesh = &scene.meshes[m];
-        let local = (triangle - offsets[m]) as usize;
-        let t = mesh.indices[local];
-        let p = t.map(|i| mesh.positions[i as usize]);
-        let mut g = (p[1] - p[0]).cross(p[2] - p[0]);
-        if !mesh.normals.is_empty() {
-            let shading: Vec3 = t.iter().map(|&i| mesh.normals[i as usize]).sum();
-            if g.dot(shading) < 0.0 {
-                g = -g;
-            }
-        }
-        let material = &scene.materials[mesh.material_ids[local] as usize];
-        if g.dot(d) >= 0.0 {
-            Side::Back
-        } else if luminance(material.albedo) > 0.0 {
-            Side::Reflects
-        } else {
-            Side::Black
-        }
-    };
-    let els = &meshing.elements;
-    // The share over a unit's elements (`members`, cumulative areas `cumulative`): rays in
-    // two rounds, the second only where the first did not all meet a reflecting surface.
-    let share = |unit: u64, members: &[u32], cumulative: &[f32], rounds: [u32; 2]| {
-        let total = *cumulative.last()?;
-        let mut rng = Rng::new(hash_seed(0xc105ed, unit, 0), 0x29);
-        let offset = rng.next_vec2();
-        // Rays that first meet a back face start inside a solid (a point of the shelf
-        // under a book): they are not counted.
-        let (mut hits, mut valid, mut cast) = (0u32, 0u32, 0u32);
-        for round in rounds {
-            if cast == round || (cast > 0 && hits == valid) {
-                break;
-            }
-            for i in cast..round {
-                let e = if members.len() == 1 {
-                    &els[members[0] as usize]
-                } else {
-                    let pick = rng.next_f32() * total;
-                    let at = cumulative.partition_point(|&c| c <= pick);
-                    &els[members[at.min(members.len() - 1)] as usize]
-                };
-                let x = e.uniform_point(rng.next_vec2());
-                let d = scene_core::sampling::cosine_hemisphere(
-                    e.normal,
-                    scene_core::sampling::r2(i as u64, offset),
-                );
-                let hit = rays.closest_hit(x + e.normal * (1e-5 * extent), d, 0.0, f32::MAX);
-                match hit.map(|h| side(h.triangle, d)) {
-                    Some(Side::Back) => {}
-                    Some(Side::Reflects) => {
-                        hits += 1;
-                        valid += 1;
-                    }
-                    _ => valid += 1,
-                }
-            }
-            cast = round;
-        }
-        (hits > 0).then(|| hits as f64 / valid as f64)
-    };
-    let Some((groups, eligible)) = groups else {
-        return els
-            .par_iter()
-            .enumerate()
-            .map(|(j, e)| {
-                if e.hidden {
-                    return Some(0.0);
-                }
-                share(
-                    j as u64,
-                    &[j as u32],
-                    &[e.area],
-                    [CLOSED_RAYS, CLOSED_RAYS_OPEN],
-                )
-            })
-            .collect();
-    };
-    let mut members: Vec<Vec<u32>> = vec![Vec::new(); groups.count];
-    for (j, e) in els.iter().enumerate() {
-        if eligible[j] && !e.hidden && e.area > 0.0 {
-            members[groups.of(j)].push(j as u32);
-        }
-    }
-    members
-        .par_iter()
-        .enumerate()
-        .map(|(g, m)| {
-            let cumulative: Vec<f32> = m
-                .iter()
-                .scan(0.0f32, |a, &j| {
-                    *a += els[j as usize].area;
-                    Some(*a)
-                })
-                .collect();
-            let rounds = [CLOSED_GROUP_RAYS, CLOSED_GROUP_RAYS_OPEN];
-            share(g as u64, m, &cumulative, rounds).map(|c| c * *cumulative.last().unwrap() as f64)
-        })
-        .collect()
-}
 
 /// Where a close cluster link's point is further than this many times a sender leaf's
 /// reach (its corners' largest distance from its centroid) from the leaf's centroid, the
@@ -711,6 +569,11 @@ impl Refiner<'_> {
                 dist > 0.0 && visibility::sees_surface_point(self.rays, x, n, q, dist)
             })
         };
+        // Whether `x` sees the point `q` the kernel was taken at.
+        let sees_point = |x: Vec3, n: Vec3, q: Vec3| {
+            let dist = x.distance(q);
+            dist > 0.0 && visibility::sees_surface_point(self.rays, x, n, q, dist)
+        };
         let points = if close {
             (count / CLOSE_SHARE).max(1)
         } else {
@@ -751,17 +614,11 @@ impl Refiner<'_> {
                 if b.element == own || b.area <= 0.0 {
                     continue;
                 }
-                // The point-to-point kernel at a point `q` uniform over the sender (leaf
-                // by area, point uniform on it): `A_s cos_x cos_q V / (pi r^2)` estimates
-                // the sum without bias, and is bounded here, the ends being at least the
-                // larger radius apart. A point below `x`'s horizon (or `x` behind the
-                // leaf) sends nothing, as in the closed form.
+                // The kernel at a point uniform over the sender (unbiased, and bounded
+                // apart: the doc above).
                 let (k, q) = b.kernel(x, a.normal, rng.next_vec2());
                 let w = k * sn.area;
-                if w > 0.0
-                    && w.is_finite()
-                    && visibility::sees_surface_point(self.rays, x, a.normal, q, x.distance(q))
-                {
+                if w > 0.0 && w.is_finite() && sees_point(x, a.normal, q) {
                     sum += w;
                     if self.whole_groups {
                         sample(b.element, w);
@@ -810,12 +667,7 @@ impl Refiner<'_> {
                 let at = terms.partition_point(|t| t.0 <= pick).min(terms.len() - 1);
                 let (visible, element) = match terms[at].1 {
                     Target::Leaf(b) => (sees(x, a.normal, b, &mut rng), b.element),
-                    Target::Point(q, element) => {
-                        let dist = q.distance(x);
-                        let seen = dist > 0.0
-                            && visibility::sees_surface_point(self.rays, x, a.normal, q, dist);
-                        (seen, element)
-                    }
+                    Target::Point(q, element) => (sees_point(x, a.normal, q), element),
                 };
                 if visible {
                     seen += 1;
@@ -1007,7 +859,6 @@ impl Refiner<'_> {
             .par_sort_unstable_by_key(|l| (l.receiver, l.sender));
         all.sampled
             .par_sort_unstable_by_key(|l| (l.receiver, l.sender));
-
         Ok(all)
     }
 }
@@ -1068,7 +919,6 @@ pub(crate) fn solve(
     progress: &mut dyn FnMut(f64),
 ) -> Result<Solution, RelightError> {
     hierarchy.check()?;
-
     let start = Instant::now();
     let (n, k) = (meshing.elements.len(), sources.len());
     let els = &meshing.elements;
@@ -1249,21 +1099,18 @@ pub(crate) fn solve(
     let refl_links = refiner(&refl_power, 2, 1.0, &mut |d| progress(0.95 - 0.85 * d))?;
     // Between groups, the reflected light's links end at the groups or above: its gather
     // runs over those nodes alone ([`GatherTree::upper`]).
-    let upper = grouped.then(|| GatherTree::upper(&tree));
+    let upper = match grouped.then(|| GatherTree::upper(&tree)) {
+        Some((slots, slot_of)) => refl_links.into_slots(&slot_of).map(|links| (slots, links)),
+        None => Err(refl_links),
+    };
     let (slots, refl_links) = match upper {
-        Some((slots, slot_of)) => match refl_links.into_slots(&slot_of) {
-            Ok(links) => {
-                let links = LinkSet::new(links, slots.len(), n);
-                (slots, links)
-            }
-            Err(links) => (
-                GatherTree::full(&tree),
-                LinkSet::new(links, tree.nodes.len(), n),
-            ),
-        },
-        None => (
+        Ok((slots, links)) => {
+            let links = LinkSet::new(links, slots.len(), n);
+            (slots, links)
+        }
+        Err(links) => (
             GatherTree::full(&tree),
-            LinkSet::new(refl_links, tree.nodes.len(), n),
+            LinkSet::new(links, tree.nodes.len(), n),
         ),
     };
     stats.node_bytes = stats.node_bytes.max(slots.len() * k * NODE_SOURCE_BYTES);
@@ -1313,7 +1160,7 @@ pub(crate) fn solve(
     // group the group's mean, so a leaf's own sum is not its own, and the ratio of a
     // leaf's closedness to its group's mean sum moved light from a group's open leaves to
     // its closed ones. The group's closedness is then cast from the group as a whole
-    // ([`CLOSED_GROUP_RAYS`], points by area over its leaves), not from each leaf: on the
+    // ([`closedness::CLOSED_GROUP_RAYS`], points by area over its leaves), not from each leaf: on the
     // Breakfast Room, 4 610 groups of 375 909 mesh elements.
     let normalise: Vec<f32> = {
         // Through the bounces' gather, every source at unit radiosity (source 0 read): a
