@@ -3,6 +3,7 @@
 
 use std::borrow::Cow;
 use std::collections::{BTreeMap, BTreeSet};
+use std::io::Write as _;
 use std::path::Path;
 
 use base64::Engine as _;
@@ -23,6 +24,9 @@ const GL_REPEAT: u32 = 10497;
 const GL_NEAREST: u32 = 9728;
 const GL_CLAMP_TO_EDGE: u32 = 33071;
 const GL_MIRRORED_REPEAT: u32 = 33648;
+
+/// Stands in the JSON text for the embedded buffer's base64 while the text is written.
+pub(super) const BUFFER_MARKER: &str = "@@scene-core-gltf-buffer-data@@";
 
 /// Exports a scene as `.gltf` (JSON with the buffer embedded as a base64 data URI) or `.glb`,
 /// chosen by the extension of `path` (case-insensitive).
@@ -120,11 +124,15 @@ pub fn export_with(
     })?;
     let (mut root, bin) =
         build_document(scene, &checked, attributes).map_err(|m| write_error(path, m))?;
-    let bytes = if binary {
+    // Written into the file as it is made (through a temporary one): the building's
+    // relight export, an 84 MB buffer, held the buffer, its base64 text, a copy of that and
+    // the whole JSON text at once (the relight job's peak, 420 MB above the solution).
+    if binary {
         if !bin.is_empty() {
             root["buffers"] = json!([{ "byteLength": bin.len() }]);
         }
         let json_bytes = serde_json::to_vec(&root).map_err(|e| write_error(path, e))?;
+        drop(root);
         if json_bytes.len() as u64 + bin.len() as u64 + 28 > u64::from(u32::MAX) {
             return Err(write_error(
                 path,
@@ -140,18 +148,80 @@ pub fn export_with(
             json: Cow::Owned(json_bytes),
             bin: (!bin.is_empty()).then_some(Cow::Owned(bin)),
         };
-        glb.to_vec().map_err(|e| write_error(path, e.to_string()))?
+        write_atomically(path, |file| {
+            glb.to_writer(file)
+                .map_err(|e| std::io::Error::other(e.to_string()))
+        })
     } else {
+        // The JSON without the buffer's data is small: written around a marker where the
+        // data URI's base64 goes, which is encoded from the buffer straight into the file
+        // (a 112 MB buffer's text would otherwise be held twice over).
+        let marker = BUFFER_MARKER;
+        let prefix = "data:application/octet-stream;base64,";
         if !bin.is_empty() {
-            let uri = format!(
-                "data:application/octet-stream;base64,{}",
-                base64::engine::general_purpose::STANDARD.encode(&bin)
-            );
-            root["buffers"] = json!([{ "byteLength": bin.len(), "uri": uri }]);
+            root["buffers"] = json!([{ "byteLength": bin.len(), "uri": marker }]);
         }
-        serde_json::to_vec_pretty(&root).map_err(|e| write_error(path, e))?
+        let text = serde_json::to_string_pretty(&root).map_err(|e| write_error(path, e))?;
+        drop(root);
+        // `"uri": "<marker>"` is the marker's only place unless a name in the scene holds
+        // it: then the whole text is built in memory.
+        let (head, tail) = match text.match_indices(marker).count() {
+            1 if !bin.is_empty() => text.split_once(marker).unwrap_or((&text, "")),
+            _ if !bin.is_empty() => {
+                let mut root: Value =
+                    serde_json::from_str(&text).map_err(|e| write_error(path, e))?;
+                root["buffers"][0]["uri"] = Value::String(format!(
+                    "{prefix}{}",
+                    base64::engine::general_purpose::STANDARD.encode(&bin)
+                ));
+                let text = serde_json::to_string_pretty(&root).map_err(|e| write_error(path, e))?;
+                return write_atomically(path, |file| file.write_all(text.as_bytes()));
+            }
+            _ => (text.as_str(), ""),
+        };
+        write_atomically(path, |file| {
+            file.write_all(head.as_bytes())?;
+            if !bin.is_empty() {
+                file.write_all(prefix.as_bytes())?;
+                let mut encoder = base64::write::EncoderWriter::new(
+                    &mut *file,
+                    &base64::engine::general_purpose::STANDARD,
+                );
+                encoder.write_all(&bin)?;
+                encoder.finish()?;
+            }
+            file.write_all(tail.as_bytes())
+        })
+    }
+}
+
+/// Writes `path` through a temporary file in its directory, buffered, renamed into place
+/// when `write` succeeds (removed when it fails).
+fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), GltfError> {
+    let write_error_io = |source| GltfError::Write {
+        path: path.to_path_buf(),
+        source,
     };
-    write_file_atomically(path, &bytes)
+    crate::image::write_via_temp(
+        path,
+        |tmp| {
+            let mut file = create_buffered(tmp).map_err(write_error_io)?;
+            write(&mut file)
+                .and_then(|()| file.flush())
+                .map_err(write_error_io)
+        },
+        write_error_io,
+    )
+}
+
+fn create_buffered(path: &Path) -> std::io::Result<std::io::BufWriter<std::fs::File>> {
+    Ok(std::io::BufWriter::with_capacity(
+        1 << 20,
+        std::fs::File::create(path)?,
+    ))
 }
 
 fn write_error(path: &Path, e: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> GltfError {
@@ -159,18 +229,6 @@ fn write_error(path: &Path, e: impl Into<Box<dyn std::error::Error + Send + Sync
         path: path.to_path_buf(),
         source: std::io::Error::other(e),
     }
-}
-
-fn write_file_atomically(path: &Path, bytes: &[u8]) -> Result<(), GltfError> {
-    let write_error = |source| GltfError::Write {
-        path: path.to_path_buf(),
-        source,
-    };
-    crate::image::write_via_temp(
-        path,
-        |tmp| std::fs::write(tmp, bytes).map_err(write_error),
-        write_error,
-    )
 }
 
 /// The binary buffer with its buffer views and accessors.

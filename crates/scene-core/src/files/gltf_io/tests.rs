@@ -257,6 +257,41 @@ fn round_trip_gltf() {
     assert_eq!(r.summary(), "ignored: nothing");
 }
 
+/// The embedded buffer is encoded straight into the file around a marker; a scene whose
+/// own names hold the marker takes the in-memory way and writes the same file otherwise.
+#[test]
+fn gltf_buffer_is_streamed_and_a_name_holding_the_marker_is_kept() {
+    use base64::Engine as _;
+    let s = test_scene();
+    let mut marked = s.clone();
+    marked.meshes[0].name = format!("mesh {}", super::export::BUFFER_MARKER);
+    for scene in [&s, &marked] {
+        let bytes = export_bytes(scene, "gltf");
+        let root: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+        let buffer = &root["buffers"][0];
+        let uri = buffer["uri"].as_str().unwrap();
+        let data = uri
+            .strip_prefix("data:application/octet-stream;base64,")
+            .unwrap();
+        let decoded = base64::engine::general_purpose::STANDARD
+            .decode(data)
+            .unwrap();
+        assert_eq!(decoded.len() as u64, buffer["byteLength"].as_u64().unwrap());
+        let text = String::from_utf8(bytes).unwrap();
+        let markers = text.matches(super::export::BUFFER_MARKER).count();
+        // Only the names hold it (the mesh's and its node's).
+        assert_eq!(markers > 0, std::ptr::eq(scene, &marked), "{text:.300}");
+        let r = round_trip_file(scene, "gltf");
+        assert_round_trip(scene, &r.scene);
+    }
+    // The same buffer either way.
+    let uri = |scene: &Scene| {
+        let root: serde_json::Value = serde_json::from_slice(&export_bytes(scene, "gltf")).unwrap();
+        root["buffers"][0]["uri"].as_str().unwrap().to_string()
+    };
+    assert_eq!(uri(&s), uri(&marked));
+}
+
 #[test]
 fn round_trip_glb_file_and_slice() {
     let s = test_scene();
