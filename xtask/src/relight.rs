@@ -383,6 +383,7 @@ pub fn run(o: &Options) -> Result<(), String> {
             "by_group": h.by_group,
             "link_bytes": h.link_bytes,
             "node_bytes": h.node_bytes,
+            "gather_nodes": h.gather_nodes,
             "bounces": h.bounces,
             "tree_seconds": h.tree_time.as_secs_f64(),
             "analytic_seconds": h.analytic_time.as_secs_f64(),

@@ -204,6 +204,9 @@ pub struct HierarchyStats {
     pub by_group: bool,
     /// Bytes of all links.
     pub link_bytes: usize,
+    /// Nodes the reflected light's gather ran over: those where its links end and their
+    /// ancestors (below them, a node is one bucket of its leaves).
+    pub gather_nodes: usize,
     /// Bytes of the per-node, per-source vectors the gather keeps (sent and received).
     pub node_bytes: usize,
     /// Bounces iterated.
@@ -874,37 +877,6 @@ struct Links {
     sampled_links: usize,
 }
 
-impl Links {
-    /// The links with their nodes renumbered as `slot_of`'s slots ([`GatherTree::upper`];
-    /// elements stay), or unchanged (`Err`) where one ends at a node without a slot. The
-    /// slots keep the nodes' order, and so the links' sorting.
-    fn into_slots(mut self, slot_of: &[u32]) -> Result<Links, Links> {
-        let kept = |i: u32| slot_of[i as usize] != tree::NONE;
-        let fits = self.far.iter().all(|l| kept(l.receiver) && kept(l.sender))
-            && self
-                .cluster
-                .iter()
-                .all(|l| kept(l.receiver) && kept(l.sender))
-            && self.sampled.iter().all(|l| kept(l.receiver));
-        if !fits {
-            return Err(self);
-        }
-        let slot = |i: &mut u32| *i = slot_of[*i as usize];
-        for l in &mut self.far {
-            slot(&mut l.receiver);
-            slot(&mut l.sender);
-        }
-        for l in &mut self.cluster {
-            slot(&mut l.receiver);
-            slot(&mut l.sender);
-        }
-        for l in &mut self.sampled {
-            slot(&mut l.receiver);
-        }
-        Ok(self)
-    }
-}
-
 /// The hierarchical solve of `meshing` for `sources` (from [`crate::solver::solve_with`],
 /// whose checks have run). `progress` gets the share of the solve left, from 1 to 0: the
 /// emitters' links to 0.95, the reflected light's links to 0.1 (by the pairs refined), the
@@ -1056,14 +1028,14 @@ pub(crate) fn solve(
     let total_area: f64 = tree.area_prefix.last().copied().unwrap_or(0.0);
     let emit_power = node_power(&|j| lum(&emission, j) * area(j));
     let direct_links = refiner(&emit_power, 1, 0.5, &mut |d| progress(1.0 - 0.05 * d))?;
-    let direct_links = LinkSet::new(direct_links, tree.nodes.len(), n);
+    let (slots, direct_links) = GatherTree::compact(&tree, direct_links);
+    let direct_links = LinkSet::new(direct_links, slots.len(), n);
     stats.link_time += t.elapsed();
     let t = Instant::now();
     let mut direct_emit = vec![Vec3::ZERO; n * k];
     if emit_power[0] > 0.0 {
-        // The emitters' links end anywhere in the tree: a gather over all its nodes, for
-        // this step only.
-        let slots = GatherTree::full(&tree);
+        // The emitters' links end anywhere in the tree: a gather of its own, for this
+        // step only.
         let mut gather = Gather::new(slots.len(), k);
         gather.run(
             (&slots, &tree),
@@ -1078,6 +1050,7 @@ pub(crate) fn solve(
         .par_iter_mut()
         .zip(direct_emit.par_iter())
         .for_each(|(d, e)| *d += *e);
+    drop((direct_emit, emission, slots));
     stats.gather_time += t.elapsed();
     // The radiosity the reflection links are refined against: what the direct light
     // leaves, times the bounces a mean albedo adds, and a floor for surfaces the direct
@@ -1097,22 +1070,11 @@ pub(crate) fn solve(
     });
     let t = Instant::now();
     let refl_links = refiner(&refl_power, 2, 1.0, &mut |d| progress(0.95 - 0.85 * d))?;
-    // Between groups, the reflected light's links end at the groups or above: its gather
-    // runs over those nodes alone ([`GatherTree::upper`]).
-    let upper = match grouped.then(|| GatherTree::upper(&tree)) {
-        Some((slots, slot_of)) => refl_links.into_slots(&slot_of).map(|links| (slots, links)),
-        None => Err(refl_links),
-    };
-    let (slots, refl_links) = match upper {
-        Ok((slots, links)) => {
-            let links = LinkSet::new(links, slots.len(), n);
-            (slots, links)
-        }
-        Err(links) => (
-            GatherTree::full(&tree),
-            LinkSet::new(links, tree.nodes.len(), n),
-        ),
-    };
+    // The gather runs over the nodes where links end and their ancestors alone
+    // ([`GatherTree::compact`]; between groups, the groups or above).
+    let (slots, refl_links) = GatherTree::compact(&tree, refl_links);
+    let refl_links = LinkSet::new(refl_links, slots.len(), n);
+    stats.gather_nodes = slots.len();
     stats.node_bytes = stats.node_bytes.max(slots.len() * k * NODE_SOURCE_BYTES);
     let mut gather = Gather::new(slots.len(), k);
     stats.link_time += t.elapsed();
@@ -1163,26 +1125,16 @@ pub(crate) fn solve(
     // ([`closedness::CLOSED_GROUP_RAYS`], points by area over its leaves), not from each leaf: on the
     // Breakfast Room, 4 610 groups of 375 909 mesh elements.
     let normalise: Vec<f32> = {
-        // Through the bounces' gather, every source at unit radiosity (source 0 read): a
-        // gather of its own held 69 MB more on the Breakfast Room.
-        let ones: Vec<Vec3> = (0..n * k)
-            .map(|i| {
-                if els[i / k].hidden {
-                    Vec3::ZERO
-                } else {
-                    Vec3::ONE
-                }
-            })
+        // A gather of one source at unit radiosity (the per-source sums are the same for
+        // every source): over the compact slots it holds a few MB (the building's 67 563
+        // slots, 6.5 MB), where through the bounces' gather it held two more `n k` vectors.
+        let ones: Vec<Vec3> = els
+            .iter()
+            .map(|e| if e.hidden { Vec3::ZERO } else { Vec3::ONE })
             .collect();
-        let mut unit = vec![Vec3::ZERO; n * k];
-        gather.run((&slots, &tree), meshing, &refl_links, &ones, &mut unit);
+        let mut sums = vec![Vec3::ZERO; n];
+        Gather::new(slots.len(), 1).run((&slots, &tree), meshing, &refl_links, &ones, &mut sums);
         drop(ones);
-        let sums: Vec<Vec3> = if k == 0 {
-            vec![Vec3::ZERO; n]
-        } else {
-            unit.chunks(k).map(|u| u[0]).collect()
-        };
-        drop(unit);
         let ratio = |c: f64, s: f64| {
             if s > 0.0 {
                 ((c / s) as f32).min(NORMALISE_MAX)
