@@ -178,13 +178,17 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             continue;
         }
-        // One lookup at the centre; the footprint's points unless it is deep in shadow
-        // (display.rs; DEEP_SHADOW from scene_core::shadow), the centre's lookup standing
-        // for the grid's middle point.
+        // One lookup at the centre; the footprint's points unless the centre and the
+        // grid's four corners are deep in shadow (display.rs; DEEP_SHADOW from
+        // scene_core::shadow), the centre's lookup standing for the grid's middle point.
         var centre = 1.0;
         if count > 1u {
             centre = visibility(l, c, n, params.shadow_params);
-            if centre < DEEP_SHADOW {
+            if centre < DEEP_SHADOW
+                && visibility(l, points[0], n, params.shadow_params) < DEEP_SHADOW
+                && visibility(l, points[m - 1u], n, params.shadow_params) < DEEP_SHADOW
+                && visibility(l, points[m * (m - 1u)], n, params.shadow_params) < DEEP_SHADOW
+                && visibility(l, points[m * m - 1u], n, params.shadow_params) < DEEP_SHADOW {
                 continue;
             }
         }

@@ -325,11 +325,15 @@ pub const MAX_FOOTPRINT: u32 = 4;
 /// integrated in closed form instead, as the per-pixel gather does: `I Omega / A` over the
 /// footprint quad (cosines included, so a hot spot narrower than a pixel keeps its
 /// energy), times a spot's attenuation towards the footprint's centre and the points' mean
-/// shadow factor. Where a light's shadow factor at the pixel's centre is deep shadow
-/// ([`DEEP_SHADOW`]: all four texels of its PCF at least 69/c of the extent behind their
-/// occluders), the light is
-/// taken as hidden from the whole footprint: a lamp behind a wall costs one lookup a pixel,
-/// not one a point. (Taking a centre seen in full for the whole footprint too cost cornell
+/// shadow factor. Where a light's shadow factor at the pixel's centre and at the grid's
+/// four corners is deep shadow ([`DEEP_SHADOW`]: all four texels of each PCF at least 69/c
+/// of the extent behind their occluders), the light is taken as hidden from the whole
+/// footprint: a lamp behind a wall costs five lookups a pixel, not nine. (The centre alone
+/// decided until 2026-12-03: a pixel whose centre lay just inside a shadow lost the lit
+/// part of its footprint while the opposite pixel kept its shadowed part, so every shadow
+/// edge was dark on one side. On the Breakfast Room's sun striped by the blind that made
+/// the maps 3-5 % darker than the gather on two of three views, more the finer the map:
+/// 1.6 % at 1 024 texels, 5.4 % at 8 192; with the corners +0.4 %, docs/relight-pr.md.) (Taking a centre seen in full for the whole footprint too cost cornell
 /// 2 points of error at the panel's shadow edges, past the 1.2x bound of
 /// `tests/reference.rs`.) A directional light that stands for a cone of directions (the
 /// sky's, whose [`scene_core::shadowed_lights::Light::radius`] is their region's spread)
@@ -402,6 +406,14 @@ pub fn pixel_direct_shadowed(
         },
     );
     out
+}
+
+/// The indices of the four corner points of a square footprint grid of `count` points
+/// (row-major; `count` a square, the grid of [`pixel_direct_shadowed`]). Twin: the corner
+/// test of `shaders/relight-pr/direct.wgsl`.
+fn grid_corners(count: usize) -> [usize; 4] {
+    let m = count.isqrt().max(1);
+    [0, m - 1, m * (m - 1), m * m - 1]
 }
 
 /// The side of the pixel tiles whose lights [`pixel_direct_shadowed`] takes one at a time.
@@ -492,11 +504,15 @@ impl Footprint {
         if light.kind == LightKind::Directional && light.radius > 0.0 {
             return Some(set.light_irradiance(j, c, n));
         }
-        // One lookup at the centre; the footprint's points unless it is deep in shadow (a
-        // footprint of one point is the centre itself), the centre's lookup standing for
-        // the grid's middle point.
+        // One lookup at the centre; the footprint's points unless the centre and the
+        // grid's four corners are deep in shadow (a footprint of one point is the centre
+        // itself), the centre's lookup standing for the grid's middle point.
         let centre = (points.len() > 1).then(|| set.light_visibility(j, c, n));
-        if centre.is_some_and(|v| v < DEEP_SHADOW) {
+        if centre.is_some_and(|v| v < DEEP_SHADOW)
+            && grid_corners(points.len())
+                .iter()
+                .all(|&q| set.light_visibility(j, points[q], n) < DEEP_SHADOW)
+        {
             return None;
         }
         let seen_at = |q: usize, p: Vec3| match (centre, middle) {
