@@ -1,6 +1,6 @@
 #import scene_core::limits::MAX_FINITE
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
-#import scene_core::light_set::{KIND_DIRECTIONAL, KIND_POINT, Light, lights, irradiance}
+#import scene_core::light_set::{KIND_DIRECTIONAL, KIND_POINT, MAP_CUBE, NO_MAP, Light, lights, irradiance}
 #import scene_core::shadow::{DEEP_SHADOW, ShadowParams, visibility}
 #import relight_pr::element::Element
 // Relighting's per-frame direct light from scene-core's shadow-mapped lights (mirrors
@@ -103,6 +103,22 @@ fn solid_angle(p: vec3<f32>, a0: vec3<f32>, b0: vec3<f32>, c0: vec3<f32>) -> f32
 // No footprint point.
 const NO_POINT: u32 = 0xffffffffu;
 
+// A footprint within this many of its light's texels of its centre is deep in shadow
+// wherever its centre is (display.rs FOOTPRINT_IN_TEXEL).
+const FOOTPRINT_IN_TEXEL: f32 = 0.5;
+
+// The width of a texel of light l's map at p (esm.rs ShadowMap::texel_at); -1 without a
+// map.
+fn texel_at(l: Light, p: vec3<f32>) -> f32 {
+    if l.map_offset == NO_MAP {
+        return -1.0;
+    }
+    if l.map_kind == MAP_CUBE {
+        return 2.0 * length(p - l.position) / f32(l.map_res);
+    }
+    return 2.0 * l.half_extent / f32(l.map_res);
+}
+
 // Light l's shadow factor at footprint point p (index q): the centre's, already looked up,
 // at the grid's middle point (display.rs).
 fn seen_at(l: Light, q: u32, middle: u32, centre: f32, p: vec3<f32>, n: vec3<f32>) -> f32 {
@@ -157,6 +173,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let area = 0.5 * length(cross(q1.xyz - q0.xyz, q2.xyz - q0.xyz))
         + 0.5 * length(cross(q2.xyz - q0.xyz, q3.xyz - q0.xyz));
     let inv = 1.0 / f32(count);
+    // The farthest of the grid's corners from the centre (display.rs Footprint::reach).
+    var reach = 0.0;
+    if m > 1u {
+        reach = max(
+            max(length(points[0] - c), length(points[m - 1u] - c)),
+            max(length(points[m * (m - 1u)] - c), length(points[m * m - 1u] - c)),
+        );
+    }
     // The grid's middle point, the centre itself, in an odd grid of more than one point.
     var middle = NO_POINT;
     if m > 1u && m % 2u == 1u {
@@ -184,6 +208,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         var centre = 1.0;
         if count > 1u {
             centre = visibility(l, c, n, params.shadow_params);
+            if centre < DEEP_SHADOW && reach < FOOTPRINT_IN_TEXEL * texel_at(l, c) {
+                continue;
+            }
             if centre < DEEP_SHADOW
                 && visibility(l, points[0], n, params.shadow_params) < DEEP_SHADOW
                 && visibility(l, points[m - 1u], n, params.shadow_params) < DEEP_SHADOW

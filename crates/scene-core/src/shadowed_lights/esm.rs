@@ -131,6 +131,17 @@ impl ShadowMap {
         )
     }
 
+    /// The width in the scene of one of the map's texels at `p`: `2 d / resolution` at a
+    /// distance `d` from a cube map's centre (a face spans 90 degrees), the orthographic
+    /// view's width over its resolution otherwise; what [`visibility`]'s normal offset and
+    /// depth bias are measured in.
+    pub fn texel_at(&self, p: Vec3) -> f32 {
+        match self.kind {
+            MapKind::Cube { .. } => 2.0 * (p - self.origin).length() / self.resolution as f32,
+            MapKind::Ortho { .. } => 2.0 * self.half_extent / self.resolution as f32,
+        }
+    }
+
     /// Number of texels.
     pub fn len(&self) -> usize {
         let face = self.resolution as usize * self.resolution as usize;

@@ -861,6 +861,15 @@ impl LightSet {
         l * self.light_visibility(index, p, n)
     }
 
+    /// The width of a texel of light `index`'s shadow map at `p` ([`esm::ShadowMap::texel_at`]);
+    /// `None` without a map or with shadows off.
+    pub fn light_texel(&self, index: usize, p: Vec3) -> Option<f32> {
+        match (&self.lights[index].shadow, self.shadows.enabled) {
+            (Some(map), true) => Some(map.texel_at(p)),
+            _ => None,
+        }
+    }
+
     /// The shadow factor of light `index` at `p` (unit normal `n`): eq. 30 with listing 8's
     /// PCF on its map, 1 without a map or with shadows off.
     pub fn light_visibility(&self, index: usize, p: Vec3, n: Vec3) -> f32 {
