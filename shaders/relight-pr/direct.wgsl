@@ -1,7 +1,7 @@
 #import scene_core::limits::MAX_FINITE
 #import scene_core::reconstruct::{FrustumReconstruction, reconstruct}
-#import scene_core::light_set::{KIND_DIRECTIONAL, KIND_POINT, MAP_CUBE, NO_MAP, Light, lights, irradiance}
-#import scene_core::shadow::{DEEP_SHADOW, ShadowParams, visibility}
+#import scene_core::light_set::{KIND_DIRECTIONAL, KIND_POINT, Light, lights, irradiance}
+#import scene_core::shadow::{DEEP_SHADOW, ShadowParams, texel_at, visibility}
 #import relight_pr::element::Element
 // Relighting's per-frame direct light from scene-core's shadow-mapped lights (mirrors
 // crates/relight-pr/src/display.rs `pixel_direct_shadowed` step for step): at each pixel of
@@ -106,18 +106,6 @@ const NO_POINT: u32 = 0xffffffffu;
 // A footprint within this many of its light's texels of its centre is deep in shadow
 // wherever its centre is (display.rs FOOTPRINT_IN_TEXEL).
 const FOOTPRINT_IN_TEXEL: f32 = 0.5;
-
-// The width of a texel of light l's map at p (esm.rs ShadowMap::texel_at); -1 without a
-// map.
-fn texel_at(l: Light, p: vec3<f32>) -> f32 {
-    if l.map_offset == NO_MAP {
-        return -1.0;
-    }
-    if l.map_kind == MAP_CUBE {
-        return 2.0 * length(p - l.position) / f32(l.map_res);
-    }
-    return 2.0 * l.half_extent / f32(l.map_res);
-}
 
 // Light l's shadow factor at footprint point p (index q): the centre's, already looked up,
 // at the grid's middle point (display.rs).

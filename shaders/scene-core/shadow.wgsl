@@ -193,6 +193,19 @@ fn cube_face(d: vec3<f32>) -> vec3<f32> {
 }
 
 // The shadow factor of l's map for a receiver at p with unit normal n.
+// The width of a texel of light l's map at p (esm.rs ShadowMap::texel_at): 2 d / res at a
+// distance d from a cube map's centre, the orthographic view's width over res otherwise;
+// -1 without a map.
+fn texel_at(l: Light, p: vec3<f32>) -> f32 {
+    if (l.map_offset == NO_MAP) {
+        return -1.0;
+    }
+    if (l.map_kind == MAP_CUBE) {
+        return 2.0 * length(p - l.position) / f32(l.map_res);
+    }
+    return 2.0 * l.half_extent / f32(l.map_res);
+}
+
 fn visibility(l: Light, p: vec3<f32>, n: vec3<f32>, s: ShadowParams) -> f32 {
     if (l.map_offset == NO_MAP) {
         return 1.0;
@@ -200,9 +213,8 @@ fn visibility(l: Light, p: vec3<f32>, n: vec3<f32>, s: ShadowParams) -> f32 {
     let res = l.map_res;
     let c = s.esm_exponent;
     let extent = s.extent;
+    let texel = texel_at(l, p);
     if (l.map_kind == MAP_CUBE) {
-        let dist = length(p - l.position);
-        let texel = 2.0 * dist / f32(res);
         let q = p + n * (s.normal_offset * texel);
         let d = q - l.position;
         let len = length(d);
@@ -214,7 +226,6 @@ fn visibility(l: Light, p: vec3<f32>, n: vec3<f32>, s: ShadowParams) -> f32 {
         let receiver = (len - s.depth_bias * texel) / extent;
         return pcf(l.map_offset + u32(f.z) * face_len, res, f.xy, c, receiver);
     }
-    let texel = 2.0 * l.half_extent / f32(res);
     let q = p + n * (s.normal_offset * texel);
     let rel = q - l.eye;
     let uv = vec2<f32>(

@@ -335,9 +335,9 @@ pub const MAX_FOOTPRINT: u32 = 4;
 /// part of its footprint while the opposite pixel kept its shadowed part, so every shadow
 /// edge was dark on one side. On the Breakfast Room's sun striped by the blind that made
 /// the maps 3-5 % darker than the gather on two of three views, more the finer the map:
-/// 1.6 % at 1 024 texels, 5.4 % at 8 192; with the corners +0.4 %, docs/relight-pr.md.) (Taking a centre seen in full for the whole footprint too cost cornell
-/// 2 points of error at the panel's shadow edges, past the 1.2x bound of
-/// `tests/reference.rs`.) A directional light that stands for a cone of directions (the
+/// 1.6 % at 1 024 texels, 5.4 % at 8 192; with the corners +0.4 %, docs/relight-pr.md.)
+/// (Taking a centre seen in full for the whole footprint too cost cornell 2 points of
+/// error at the panel's shadow edges, past the 1.2x bound of `tests/reference.rs`.) A directional light that stands for a cone of directions (the
 /// sky's, whose [`scene_core::shadowed_lights::Light::radius`] is their region's spread)
 /// is looked up at the centre alone: in the sun-and-sky window room of `tests/tests/sky.rs`
 /// (1 024 elements, 48 x 36) that read 0.171 off the reference where nine points read

@@ -125,17 +125,7 @@ impl GatherTree {
     pub(super) fn compact(tree: &Tree, mut links: Links) -> (Self, Links) {
         let nodes = &tree.nodes;
         let mut ends = vec![false; nodes.len()];
-        for l in &links.far {
-            ends[l.receiver as usize] = true;
-            ends[l.sender as usize] = true;
-        }
-        for l in &links.cluster {
-            ends[l.receiver as usize] = true;
-            ends[l.sender as usize] = true;
-        }
-        for l in &links.sampled {
-            ends[l.receiver as usize] = true;
-        }
+        node_ends(&mut links, |i| ends[*i as usize] = true);
         // Whether a link ends strictly below each node (post-order: children first).
         let mut below = vec![false; nodes.len()];
         for (i, node) in nodes.iter().enumerate().rev() {
@@ -184,18 +174,7 @@ impl GatherTree {
                 }
             }
         }
-        let slot = |i: &mut u32| *i = slot_of[*i as usize];
-        for l in &mut links.far {
-            slot(&mut l.receiver);
-            slot(&mut l.sender);
-        }
-        for l in &mut links.cluster {
-            slot(&mut l.receiver);
-            slot(&mut l.sender);
-        }
-        for l in &mut links.sampled {
-            slot(&mut l.receiver);
-        }
+        node_ends(&mut links, |i| *i = slot_of[*i as usize]);
         (
             Self {
                 children,
@@ -396,6 +375,23 @@ fn each_active(words: &[u64], mut f: impl FnMut(usize)) {
             f(word * 64 + bits.trailing_zeros() as usize);
             bits &= bits - 1;
         }
+    }
+}
+
+/// Calls `f` on every node a link of `links` ends at: far and cluster links' receivers
+/// and senders, sampled links' receivers (their senders, as near links' ends, are
+/// elements).
+fn node_ends(links: &mut Links, mut f: impl FnMut(&mut u32)) {
+    for l in &mut links.far {
+        f(&mut l.receiver);
+        f(&mut l.sender);
+    }
+    for l in &mut links.cluster {
+        f(&mut l.receiver);
+        f(&mut l.sender);
+    }
+    for l in &mut links.sampled {
+        f(&mut l.receiver);
     }
 }
 

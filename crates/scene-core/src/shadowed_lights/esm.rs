@@ -707,10 +707,9 @@ pub fn visibility(
     let res = map.resolution;
     let c = settings.esm_exponent;
     let face_len = res as usize * res as usize;
+    let texel = map.texel_at(p);
     if matches!(map.kind, MapKind::Cube { .. }) {
         let center = map.origin;
-        let dist = (p - center).length();
-        let texel = 2.0 * dist / res as f32;
         let q = p + n * (settings.normal_offset * texel);
         let d = q - center;
         let len = d.length();
@@ -723,7 +722,6 @@ pub fn visibility(
         return pcf(&texels[start..start + face_len], res, uv, c, receiver);
     }
     let half_extent = map.half_extent;
-    let texel = 2.0 * half_extent / res as f32;
     let q = p + n * (settings.normal_offset * texel);
     let rel = q - map.origin;
     let uv = Vec2::new(
